@@ -1,0 +1,78 @@
+# simenv: two commands on a fresh machine.
+#
+#   make demo   set up (.venv, Python and Debian packages) and run the main job on bundled data
+#   make test   same set-up, then the test suite
+#
+# Set-up is stamped: re-runs skip it until pyproject.toml changes (or .venv is deleted).
+# The package is installed *editable* with its dev extras, so the suite runs the working tree;
+# tests/test_packaging.py builds the real wheel, installs it (non-editable) in a fresh venv and
+# checks what a user gets: the simenv namespace, bundled assets, the `simenv` command.
+
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.simenv-setup-stamp
+DEMO_OUT ?= out/demo
+
+# Debian packages needed for offscreen rendering on a CPU (OSMesa software OpenGL).
+APT_PACKAGES := libosmesa6 libgl1 libegl1
+
+# Offscreen rendering: OSMesa when installed, else EGL (Mesa's surfaceless EGL also works on
+# CPU). An explicit MUJOCO_GL from the caller always wins.
+GL_BACKEND = $(shell ldconfig -p 2>/dev/null | grep -q 'libOSMesa\.so' && echo osmesa || echo egl)
+RUN_ENV = MUJOCO_GL=$${MUJOCO_GL:-$(GL_BACKEND)}
+
+.PHONY: help setup system-deps demo test lint bench clean distclean
+
+help:
+	@echo "make demo   - set up and run the demo (writes $(DEMO_OUT)/)"
+	@echo "make test   - set up and run the test suite"
+	@echo "make lint   - ruff check"
+	@echo "make bench  - retargeting benchmark (simenv vs mink)"
+	@echo "make clean  - remove build artefacts and outputs (distclean also removes .venv)"
+
+setup: $(STAMP)
+
+# apt only when something is missing, only as root, and `apt-get update` once before installing.
+system-deps:
+	@if ! command -v dpkg >/dev/null 2>&1; then \
+		echo "setup: no dpkg (not Debian/Ubuntu); make sure OSMesa or EGL is installed"; exit 0; \
+	fi; \
+	missing=""; \
+	for p in $(APT_PACKAGES); do dpkg -s "$$p" >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if [ "$$(id -u)" != 0 ]; then \
+		echo "setup: missing Debian packages:$$missing (not root: run 'sudo apt-get install$$missing')"; \
+		exit 0; \
+	fi; \
+	echo "setup: installing Debian packages:$$missing"; \
+	apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing
+
+$(STAMP): pyproject.toml
+	@$(MAKE) --no-print-directory system-deps
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip "setuptools>=77" wheel
+	$(BIN)/python -m pip install --quiet --no-build-isolation -e ".[dev]"
+	touch $@
+
+demo: $(STAMP)
+	$(RUN_ENV) $(BIN)/simenv demo --out $(DEMO_OUT)
+
+test: $(STAMP)
+	$(RUN_ENV) $(BIN)/pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
+bench: $(STAMP)
+	$(RUN_ENV) $(BIN)/python benchmarks/bench_retarget.py
+
+clean:
+	rm -rf build dist out *.egg-info .pytest_cache .ruff_cache .hypothesis
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)
