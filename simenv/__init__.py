@@ -1,5 +1,6 @@
 """simenv: physics-backed simulation and evaluation of 3D human skeleton motion."""
 
+import simenv._glenv  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from simenv.errors import SimenvError
 from simenv.motion import Interaction, Motion, Skeleton
 
