@@ -126,3 +126,45 @@ def cmu_canonical_map(joint_names: Sequence[str]) -> dict[str, str]:
         result["left_shoulder"] = "LeftShoulder"
         result["right_shoulder"] = "RightShoulder"
     return result
+
+
+#: Canonical map of the 43-joint Poser/Second-Life template used by the
+#: outworldz BVH release of CMU (e.g. the salsa pairs 60_xx/61_xx). ``lThigh``
+#: is the hip joint (``lButtock`` is a short pelvis bone), ``lShldr`` the
+#: shoulder, ``lHand`` the wrist, ``lMid1`` the middle-finger knuckle; the
+#: toe is the foot's End Site (``lFoot_end``, kept by the BVH reader).
+POSER_CANONICAL: dict[str, str] = {
+    "pelvis": "hip",
+    "left_hip": "lThigh",
+    "left_knee": "lShin",
+    "left_ankle": "lFoot",
+    "left_toe": "lFoot_end",
+    "right_hip": "rThigh",
+    "right_knee": "rShin",
+    "right_ankle": "rFoot",
+    "right_toe": "rFoot_end",
+    "spine": "abdomen",
+    "chest": "chest",
+    "neck": "neck",
+    "head": "head",
+    "left_shoulder": "lShldr",
+    "left_elbow": "lForeArm",
+    "left_wrist": "lHand",
+    "left_hand": "lMid1",
+    "right_shoulder": "rShldr",
+    "right_elbow": "rForeArm",
+    "right_wrist": "rHand",
+    "right_hand": "rMid1",
+}
+
+
+def is_poser_template(joint_names: Sequence[str]) -> bool:
+    """Whether the joint names are the Poser/Second-Life template layout."""
+    return {"hip", "abdomen", "lShldr", "rShldr", "lThigh", "rThigh"} <= set(joint_names)
+
+
+def poser_canonical_map(joint_names: Sequence[str]) -> dict[str, str]:
+    """Canonical map for the Poser/Second-Life template: the entries of
+    :data:`POSER_CANONICAL` whose joints are present."""
+    names = set(joint_names)
+    return {k: v for k, v in POSER_CANONICAL.items() if v in names}

@@ -1,0 +1,495 @@
+"""BVH (Biovision Hierarchy) reader.
+
+Reads any channel layout: 0-6 channels per joint, position and rotation
+channels in any order, several roots, ``End Site`` leaves, LF/CRLF/CR line
+endings. Joint positions follow from forward kinematics (vectorised over
+frames, see :mod:`simenv.io._kinematics`) with the BVH conventions:
+
+* a joint's rotation channels listed as ``Zrotation Yrotation Xrotation``
+  give the local rotation ``R = R_Z(z) @ R_Y(y) @ R_X(x)`` (intrinsic, in
+  listed order, degrees);
+* position channels *replace* the matching components of the joint's
+  OFFSET (for CMU files the root OFFSET is zero, so this is the same as
+  adding them);
+* a joint sits at its parent's position plus the parent's world rotation
+  applied to its (translated) offset.
+
+The result is converted to simenv conventions: metres (units detected from
+the skeleton's size, see :func:`simenv.io._kinematics.detect_units`) and
+Z-up (a Y-up file is mapped by ``(x, y, z) -> (x, -z, y)``). Local rotations
+are returned as quaternions expressed in the converted frame, i.e.
+``C R C^T`` with ``C`` the axis change, so FK with the converted offsets
+(``metadata["offsets_m"]``) reproduces the positions.
+
+End Sites: kept as joints named ``<parent>_end`` only when a canonical
+keypoint needs one (the Poser/Second-Life template's toes are its foot End
+Sites) or when ``end_sites=True``. CMU skeletons therefore keep their 31
+joints, whose positions are the *start* of each named bone.
+
+Source quirks are detected and written to ``metadata["quirks"]``: the
+T-pose frame 0 the cgspeed converter prepends (dropped by default),
+template skeletons that are not the performer's proportions, header frame
+rates that were overridden, unusual sizes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simenv.errors import FormatError
+from simenv.io._kinematics import (
+    CMU_UNIT_M,
+    Y_UP_TO_Z_UP,
+    detect_units,
+    euler_to_matrices,
+    forward_kinematics,
+    is_tpose_frame0,
+    matrices_to_quaternions,
+    rest_extent,
+)
+from simenv.io._text import parse_float, parse_float_rows, read_text, split_lines
+from simenv.motion import Motion, Skeleton
+from simenv.skeletons import cmu_canonical_map, is_poser_template, poser_canonical_map
+
+FORMAT = "bvh"
+EXTENSIONS = (".bvh",)
+
+_CHANNELS = {
+    "xposition": ("p", "X"), "yposition": ("p", "Y"), "zposition": ("p", "Z"),
+    "xrotation": ("r", "X"), "yrotation": ("r", "Y"), "zrotation": ("r", "Z"),
+}
+
+#: Snap a header rate to the nearest integer when within this relative
+#: distance (``Frame Time: .0083333`` is 120.0005 fps).
+_FPS_SNAP = 1e-3
+
+
+@dataclass
+class _Joint:
+    name: str
+    parent: int
+    line: int
+    end_site: bool = False
+    offset: np.ndarray | None = None
+    channels: list[str] = field(default_factory=list)
+
+
+@dataclass
+class BvhFile:
+    """Raw content of a BVH file, in file units and file axes.
+
+    Attributes:
+        joints: joint names, End Sites included as ``<parent>_end``.
+        parents: (J,) parent indices.
+        end_site: (J,) True for End Site joints.
+        offsets: (J, 3) OFFSETs, file units.
+        channels: per joint, channel names (``"Xposition"``...).
+        frame_time: seconds per frame from the header.
+        data: (T, C) channel values, rows = frames.
+    """
+
+    joints: list[str]
+    parents: list[int]
+    end_site: list[bool]
+    offsets: np.ndarray
+    channels: list[list[str]]
+    frame_time: float
+    data: np.ndarray
+
+
+def sniff(path: Path, head: bytes) -> bool:
+    """True when the file starts with the ``HIERARCHY`` keyword."""
+    return head.lstrip(b"\xef\xbb\xbf \t\r\n")[:9].upper() == b"HIERARCHY"
+
+
+def parse(path: Path) -> BvhFile:
+    """Parse a BVH file without interpreting it (no units, no FK).
+
+    Raises:
+        FormatError: naming file and line for a missing HIERARCHY/MOTION
+            section, bad tokens, wrong channel counts, duplicate joint names,
+            a ``Frames:`` count that does not match the data lines, zero
+            frames or non-numeric values.
+    """
+    path = Path(path)
+    lines = split_lines(read_text(path))
+    motion_line = None
+    for i, text in enumerate(lines):
+        if text.strip().upper() == "MOTION":
+            motion_line = i
+            break
+    if motion_line is None:
+        raise FormatError("no MOTION section; expected a line 'MOTION' after the hierarchy",
+                          source=path)
+    joints = _parse_hierarchy(lines[:motion_line], path)
+    frame_time, data_start, n_frames = _parse_motion_header(lines, motion_line, path)
+    names = [j.name for j in joints]
+    field_names = [f"{j.name}.{c}" for j in joints for c in j.channels]
+    n_ch = len(field_names)
+    rows: list[list[str]] = []
+    row_lines: list[int] = []
+    for i in range(data_start, len(lines)):
+        toks = lines[i].split()
+        if not toks:
+            continue
+        if len(toks) != n_ch:
+            raise FormatError(
+                f"expected {n_ch} channel values (as declared in the hierarchy), found "
+                f"{len(toks)}" + (" (truncated file?)" if len(toks) < n_ch else ""),
+                source=path, line=i + 1, frame=len(rows),
+            )
+        rows.append(toks)
+        row_lines.append(i + 1)
+    if len(rows) != n_frames:
+        raise FormatError(
+            f"header says Frames: {n_frames} but the file has {len(rows)} data lines"
+            + (" (truncated file?)" if len(rows) < n_frames else ""),
+            source=path, line=data_start,
+        )
+    if n_ch == 0:
+        data = np.zeros((n_frames, 0))
+    else:
+        data = parse_float_rows(rows, source=path, lines=row_lines, field_names=field_names)
+    return BvhFile(
+        joints=names,
+        parents=[j.parent for j in joints],
+        end_site=[j.end_site for j in joints],
+        offsets=np.array([j.offset for j in joints], dtype=np.float64),
+        channels=[j.channels for j in joints],
+        frame_time=frame_time,
+        data=data,
+    )
+
+
+def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
+    toks = [(tok, i + 1) for i, text in enumerate(lines) for tok in text.split()]
+    if not toks or toks[0][0].lstrip("\ufeff").upper() != "HIERARCHY":
+        raise FormatError("expected the file to start with 'HIERARCHY'", source=path,
+                          line=toks[0][1] if toks else 1)
+    joints: list[_Joint] = []
+    seen: dict[str, int] = {}
+    stack: list[int] = []
+    i, n = 1, len(toks)
+
+    def need(k: int, what: str) -> tuple[str, int]:
+        if k >= n:
+            raise FormatError(f"hierarchy ends early; expected {what} (truncated file?)",
+                              source=path, line=toks[-1][1])
+        return toks[k]
+
+    def add(name: str, line: int, end_site: bool) -> None:
+        if name in seen:
+            raise FormatError(
+                f"duplicate joint name {name!r} (first defined on line {seen[name]}); "
+                "joint names must be unique", source=path, line=line, field=name)
+        seen[name] = line
+        joints.append(_Joint(name, stack[-1] if stack else -1, line, end_site))
+        stack.append(len(joints) - 1)
+
+    while i < n:
+        tok, line = toks[i]
+        key = tok.upper()
+        if key in ("ROOT", "JOINT"):
+            if key == "JOINT" and not stack:
+                raise FormatError("JOINT outside any ROOT block", source=path, line=line)
+            if key == "ROOT" and stack:
+                raise FormatError("ROOT inside another joint; missing '}'?", source=path,
+                                  line=line)
+            k = i + 1
+            name_parts = []
+            while k < n and toks[k][1] == line and toks[k][0] != "{":
+                name_parts.append(toks[k][0])
+                k += 1
+            if not name_parts:
+                raise FormatError(f"{tok} without a name", source=path, line=line)
+            if stack and joints[stack[-1]].end_site:
+                raise FormatError("joint inside an End Site", source=path, line=line)
+            add(" ".join(name_parts), line, False)
+            brace, bline = need(k, "'{'")
+            if brace != "{":
+                raise FormatError(f"expected '{{' after {tok} {' '.join(name_parts)}, "
+                                  f"found {brace[:40]!r}", source=path, line=bline)
+            i = k + 1
+        elif key == "END":
+            site, sline = need(i + 1, "'Site'")
+            if site.upper() != "SITE":
+                raise FormatError(f"expected 'End Site', found 'End {site[:40]}'", source=path,
+                                  line=sline)
+            if not stack or joints[stack[-1]].end_site:
+                raise FormatError("End Site outside a joint", source=path, line=line)
+            name = f"{joints[stack[-1]].name}_end"
+            while name in seen:
+                name += "_"
+            add(name, line, True)
+            brace, bline = need(i + 2, "'{'")
+            if brace != "{":
+                raise FormatError(f"expected '{{' after End Site, found {brace[:40]!r}",
+                                  source=path, line=bline)
+            i += 3
+        elif key == "OFFSET":
+            if not stack:
+                raise FormatError("OFFSET outside a joint", source=path, line=line)
+            joint = joints[stack[-1]]
+            if joint.offset is not None:
+                raise FormatError(f"second OFFSET for joint {joint.name!r}", source=path,
+                                  line=line, field=joint.name)
+            vals = []
+            for k in range(3):
+                t, tl = need(i + 1 + k, "3 OFFSET values")
+                vals.append(parse_float(t, source=path, line=tl, field=f"{joint.name} OFFSET"))
+            joint.offset = np.array(vals)
+            i += 4
+        elif key == "CHANNELS":
+            if not stack:
+                raise FormatError("CHANNELS outside a joint", source=path, line=line)
+            joint = joints[stack[-1]]
+            count_tok, cline = need(i + 1, "a channel count")
+            if not count_tok.isdigit() or int(count_tok) > 6:
+                raise FormatError(f"expected a channel count 0-6, found {count_tok[:40]!r}",
+                                  source=path, line=cline, field=joint.name)
+            count = int(count_tok)
+            if joint.end_site and count:
+                raise FormatError("End Site cannot have channels", source=path, line=line)
+            if joint.channels:
+                raise FormatError(f"second CHANNELS for joint {joint.name!r}", source=path,
+                                  line=line, field=joint.name)
+            chans = []
+            for k in range(count):
+                c, cl = need(i + 2 + k, f"{count} channel names")
+                if c.lower() not in _CHANNELS:
+                    raise FormatError(
+                        f"CHANNELS {count} declares {count} channels but found {c[:40]!r} "
+                        f"among them; expected names like Xposition or Zrotation",
+                        source=path, line=cl, field=joint.name)
+                if c.lower() in (x.lower() for x in chans):
+                    raise FormatError(f"channel {c} repeated", source=path, line=cl,
+                                      field=joint.name)
+                chans.append(c)
+            joint.channels = chans
+            i += 2 + count
+        elif tok == "}":
+            if not stack:
+                raise FormatError("unbalanced '}'", source=path, line=line)
+            joint = joints[stack.pop()]
+            if joint.offset is None:
+                raise FormatError(f"joint {joint.name!r} has no OFFSET", source=path,
+                                  line=joint.line, field=joint.name)
+            i += 1
+        else:
+            raise FormatError(
+                f"unexpected token {tok[:40]!r} in hierarchy; expected ROOT, JOINT, End Site, "
+                "OFFSET, CHANNELS or a brace", source=path, line=line)
+    if stack:
+        raise FormatError(f"joint {joints[stack[-1]].name!r} is not closed by '}}' before "
+                          "MOTION (truncated hierarchy?)", source=path,
+                          line=joints[stack[-1]].line)
+    if not joints:
+        raise FormatError("hierarchy defines no joints; expected a ROOT", source=path,
+                          line=toks[0][1])
+    return joints
+
+
+def _parse_motion_header(lines: list[str], motion_line: int, path: Path) -> tuple[float, int, int]:
+    """Returns (frame time s, index of first data line, number of frames)."""
+    i = motion_line + 1
+    found: dict[str, tuple[str, int]] = {}
+    for label in ("frames:", "frame time:"):
+        while i < len(lines) and not lines[i].strip():
+            i += 1
+        if i >= len(lines):
+            raise FormatError(f"MOTION section ends before '{label[:-1].title()}:' "
+                              "(truncated file?)", source=path, line=len(lines))
+        text = lines[i].strip()
+        if not text.lower().startswith(label):
+            raise FormatError(f"expected '{label[:-1].title()}: <value>', found {text[:40]!r}",
+                              source=path, line=i + 1)
+        found[label] = (text[len(label):].strip(), i + 1)
+        i += 1
+    frames_tok, fline = found["frames:"]
+    if not frames_tok.isdigit():
+        raise FormatError(f"expected an integer frame count, found {frames_tok[:40]!r}",
+                          source=path, line=fline, field="Frames")
+    n_frames = int(frames_tok)
+    if n_frames == 0:
+        raise FormatError("file has 0 frames; expected at least 1", source=path, line=fline,
+                          field="Frames")
+    ft_tok, ftline = found["frame time:"]
+    frame_time = parse_float(ft_tok, source=path, line=ftline, field="Frame Time")
+    if frame_time <= 0:
+        raise FormatError(f"Frame Time must be positive seconds, found {ft_tok!r}", source=path,
+                          line=ftline, field="Frame Time")
+    return frame_time, i, n_frames
+
+
+def header_fps(frame_time: float) -> float:
+    """Frame rate from a header frame time, snapped to an integer when the
+    header rounds it (``.0083333`` -> 120)."""
+    fps = 1.0 / frame_time
+    r = round(fps)
+    return float(r) if r > 0 and abs(fps - r) <= _FPS_SNAP * r else fps
+
+
+def skeleton_variant(names: list[str]) -> str:
+    """Short name of a known skeleton layout, from its joint names."""
+    s = set(names)
+    if is_poser_template(names):
+        return "poser"
+    if {"LHipJoint", "LeftUpLeg"} <= s:
+        return "cmu_mb"
+    if {"LeftCollar", "LeftHip"} <= s:
+        return "cmu_max"
+    if {"lfemur", "ltibia"} <= s:
+        return "cmu_asf"
+    return "bvh"
+
+
+def canonical_map(names: list[str]) -> dict[str, str]:
+    """Canonical keypoint map for a BVH joint list (CMU or Poser namings)."""
+    if is_poser_template(names):
+        return poser_canonical_map(names)
+    return cmu_canonical_map(names)
+
+
+def read(
+    path: Path,
+    *,
+    units: str | None = None,
+    scale: float | None = None,
+    up: str = "y",
+    drop_tpose: bool = True,
+    fps: float | None = None,
+    end_sites: bool | None = None,
+    name: str | None = None,
+) -> Motion:
+    """Read a BVH file as a :class:`Motion` (metres, Z-up).
+
+    Args:
+        path: the .bvh file.
+        units: force a length unit (``"m"``, ``"cm"``, ``"mm"``, ``"inch"``,
+            ``"cmu"``) instead of detecting it from the skeleton size.
+        scale: force metres per file unit (overrides ``units``).
+        up: up axis of the file, ``"y"`` (BVH standard) or ``"z"``.
+        drop_tpose: drop a detected converter T-pose at frame 0 (noted in
+            ``metadata["quirks"]``); when False it is kept and still noted.
+        fps: override the header frame rate (noted as a quirk).
+        end_sites: keep all (True), no (False) or only canonically needed
+            (None) End Sites as joints ``<parent>_end``.
+        name: clip name; default the file stem.
+
+    Returns:
+        Motion with positions (T, J, 3) float32 metres, rotations (T, J, 4)
+        local quaternions (w, x, y, z), metadata ``source``, ``format``,
+        ``subject``, ``units``, ``units_reason``, ``scale_m_per_unit``,
+        ``up_axis_in_file``, ``header_fps``, ``frames_in_file``,
+        ``tpose_frame0``, ``offsets_m`` (J x 3 list) and ``quirks``.
+    """
+    path = Path(path)
+    if up.lower() not in ("y", "z"):
+        raise FormatError(f"up must be 'y' or 'z'; got {up!r}", source=path)
+    bvh = parse(path)
+    with np.errstate(all="ignore"):
+        return _to_motion(bvh, path, units=units, scale=scale, up=up.lower(),
+                          drop_tpose=drop_tpose, fps=fps, end_sites=end_sites, name=name)
+
+
+def _to_motion(bvh: BvhFile, path: Path, *, units: str | None, scale: float | None, up: str,
+               drop_tpose: bool, fps: float | None, end_sites: bool | None,
+               name: str | None) -> Motion:
+    quirks: list[str] = []
+    all_canon = canonical_map(bvh.joints)
+    needed = set(all_canon.values())
+    keep = [
+        not es or end_sites is True or (end_sites is None and n in needed)
+        for n, es in zip(bvh.joints, bvh.end_site, strict=True)
+    ]
+    height = rest_extent(bvh.parents, bvh.offsets)
+    unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units,
+                                                     scale=scale)
+    quirks += unit_quirks
+
+    t, j = bvh.data.shape[0], len(bvh.joints)
+    local = np.empty((t, j, 3, 3))
+    offsets = bvh.offsets.copy()
+    translations: dict[int, np.ndarray] = {}
+    col = 0
+    for k, chans in enumerate(bvh.channels):
+        kinds = [_CHANNELS[c.lower()] for c in chans]
+        cols = np.arange(col, col + len(chans))
+        col += len(chans)
+        rot_cols = [c for c, (kind, _) in zip(cols, kinds, strict=True) if kind == "r"]
+        axes = "".join(ax for kind, ax in kinds if kind == "r")
+        local[:, k] = euler_to_matrices(bvh.data[:, rot_cols], axes)
+        pos_axes = [("XYZ".index(ax), c) for c, (kind, ax) in zip(cols, kinds, strict=True)
+                    if kind == "p"]
+        if pos_axes:
+            tr = np.zeros((t, 3))
+            for axis, c in pos_axes:
+                offsets[k, axis] = 0.0
+                tr[:, axis] = bvh.data[:, c]
+            translations[k] = tr
+    pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
+    conv = Y_UP_TO_Z_UP if up == "y" else np.eye(3)
+    pos = (pos @ conv.T) * s
+    local = conv @ local @ conv.T
+    offsets_m = (bvh.offsets @ conv.T) * s
+
+    idx = [k for k in range(j) if keep[k]]
+    remap = {old: new for new, old in enumerate(idx)}
+    names = [bvh.joints[k] for k in idx]
+    parents = [remap[bvh.parents[k]] if bvh.parents[k] >= 0 else -1 for k in idx]
+    pos, local, offsets_m = pos[:, idx], local[:, idx], offsets_m[idx]
+
+    tpose, tpose_note = is_tpose_frame0(pos)
+    if tpose and drop_tpose:
+        pos, local = pos[1:], local[1:]
+        quirks.append(f"dropped T-pose frame 0 ({tpose_note}); frame k of this motion is "
+                      f"frame k+1 of the file")
+    elif tpose:
+        quirks.append(f"frame 0 is a T-pose ({tpose_note}); kept because drop_tpose=False")
+
+    variant = skeleton_variant(names)
+    if variant == "poser":
+        quirks.append(
+            "template skeleton (Poser/Second-Life layout, outworldz conversion): bone lengths "
+            "are the template's, not the performer's proportions"
+            + (f"; {height * s:.2f} m tall" if height * s < 1.5 else ""))
+
+    file_fps = header_fps(bvh.frame_time)
+    rate = file_fps
+    if fps is not None:
+        rate = float(fps)
+        if abs(rate - file_fps) > 1e-6 * rate:
+            quirks.append(f"frame rate set to {rate:g} fps by the caller; the header says "
+                          f"{file_fps:g} fps (Frame Time {bvh.frame_time:g} s)")
+
+    stem = path.stem
+    canon = {k: v for k, v in all_canon.items() if v in names}
+    meta: dict[str, Any] = {
+        "source": str(path),
+        "format": FORMAT,
+        "subject": stem.split("_")[0],
+        "units": unit_name,
+        "units_reason": reason,
+        "scale_m_per_unit": s,
+        "up_axis_in_file": up.upper(),
+        "header_fps": file_fps,
+        "frames_in_file": int(t),
+        "tpose_frame0": bool(tpose),
+        "offsets_m": offsets_m.round(6).tolist(),
+        "quirks": quirks,
+    }
+    if unit_name == "cmu":
+        meta["units_note"] = f"CMU skeleton units: 1 unit = 0.0254/0.45 m = {CMU_UNIT_M:.5f} m"
+    skeleton = Skeleton(f"{variant}{len(names)}", tuple(names), tuple(parents), canon)
+    return Motion(
+        positions=pos.astype(np.float32),
+        fps=rate,
+        skeleton=skeleton,
+        name=name or stem,
+        metadata=meta,
+        rotations=matrices_to_quaternions(local).astype(np.float32),
+    )
