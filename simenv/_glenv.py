@@ -14,6 +14,9 @@ import ctypes.util
 import os
 import sys
 
+#: True when ``mujoco`` was imported before simenv could choose its backend (choice too late).
+MUJOCO_IMPORTED_FIRST = "mujoco" in sys.modules
+
 
 def select_gl_backend() -> str | None:
     """Set ``MUJOCO_GL`` for headless Linux if unset; returns the backend in effect (or None)."""

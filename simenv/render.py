@@ -1,0 +1,328 @@
+"""Offscreen rendering of joint trajectories to RGB frames and MP4 video.
+
+A trajectory ``qpos`` (T, nq) of a MuJoCo model is drawn frame by frame with
+:class:`mujoco.Renderer` (offscreen; ``MUJOCO_GL=osmesa`` on a CPU, chosen by
+:mod:`simenv._glenv` at package import). The source joints can be drawn on top as a *ghost*:
+small spheres at the keypoints and thin capsules along the bones, added to the renderer's
+``mjvScene`` after ``update_scene`` so they are not part of the model (no collisions, no mass).
+
+Camera: a free camera looks at the *followed point*, the mean world position of the followed
+bodies (default: every body attached to the world by a free joint, i.e. the pelvis of each
+person). Its height is the clip's median, so the view does not bob with the gait; its azimuth is
+perpendicular to the principal horizontal axis of the followed bodies' positions over the clip
+(a walk is seen from the side, two people facing each other are both in view), and its distance
+grows with the people's separation.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+
+import cv2
+import mujoco
+import numpy as np
+
+from simenv import _glenv
+from simenv.errors import SimenvError
+
+#: RGBA of the ghost of person 0, 1, ... (cycled): orange, cyan, magenta, yellow.
+GHOST_COLOURS = (
+    (1.0, 0.55, 0.0, 0.85),
+    (0.0, 0.8, 1.0, 0.85),
+    (1.0, 0.2, 0.8, 0.85),
+    (1.0, 0.95, 0.1, 0.85),
+)
+#: Radius (m) of a ghost keypoint sphere; bones are capsules of half this radius.
+GHOST_RADIUS = 0.03
+#: Emission of ghost geoms: they keep their colour whatever the lighting of the model.
+GHOST_EMISSION = 0.7
+#: Minimum camera distance (m) to the followed point.
+MIN_DISTANCE = 3.0
+#: Opacity of the body's geoms when a ghost is drawn, so the ghost inside the limbs shows.
+BODY_ALPHA_WITH_GHOST = 0.55
+
+
+def _as_ghost_list(
+    ghost: np.ndarray | Sequence[np.ndarray] | None, n_frames: int
+) -> list[np.ndarray]:
+    if ghost is None:
+        return []
+    ghosts = [ghost] if isinstance(ghost, np.ndarray) else list(ghost)
+    out = []
+    for i, g in enumerate(ghosts):
+        arr = np.asarray(g, dtype=np.float64)
+        if arr.ndim != 3 or arr.shape[0] != n_frames or arr.shape[2] != 3:
+            raise SimenvError(
+                f"ghost {i} has shape {arr.shape}; expected ({n_frames}, K, 3) keypoints in metres",
+                field="ghost",
+            )
+        out.append(arr)
+    return out
+
+
+def _follow_body_ids(model: mujoco.MjModel, follow_body: str | Sequence[str] | None) -> list[int]:
+    if follow_body is None:
+        ids = [
+            int(model.jnt_bodyid[j])
+            for j in range(model.njnt)
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
+            and model.body_parentid[model.jnt_bodyid[j]] == 0
+        ]
+        return ids or [0]
+    names = [follow_body] if isinstance(follow_body, str) else list(follow_body)
+    ids = []
+    for name in names:
+        body_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if body_id < 0:
+            raise SimenvError(f"model has no body {name!r} to follow", field="follow_body")
+        ids.append(body_id)
+    return ids
+
+
+def _camera_track(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    body_ids: list[int],
+    distance: float | None,
+    azimuth: float | None,
+) -> tuple[np.ndarray, float, float]:
+    """Look-at points (T, 3), distance (m) and azimuth (degrees) for the frames of ``qpos``."""
+    data = mujoco.MjData(model)
+    body_pos = np.empty((len(qpos), len(body_ids), 3))
+    for t, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        body_pos[t] = data.xpos[body_ids]
+    lookat = body_pos.mean(axis=1)
+    lookat[:, 2] = np.median(lookat[:, 2])
+    if azimuth is None:
+        xy = body_pos[..., :2].reshape(-1, 2)
+        xy = xy - xy.mean(axis=0)
+        # Principal horizontal axis of where the followed bodies go; look across it.
+        _, _, vt = np.linalg.svd(xy, full_matrices=False)
+        azimuth = float(np.degrees(np.arctan2(vt[0, 1], vt[0, 0]))) + 90.0
+    if distance is None:
+        spread = np.linalg.norm(body_pos - body_pos.mean(axis=1, keepdims=True), axis=2).max()
+        distance = max(MIN_DISTANCE, 2.5 + 2.0 * float(spread))
+    return lookat, float(distance), float(azimuth)
+
+
+def _add_ghost(
+    scene: mujoco.MjvScene,
+    points: np.ndarray,
+    edges: Sequence[tuple[int, int]],
+    rgba: tuple[float, float, float, float],
+) -> None:
+    """Append keypoint spheres and bone capsules to ``scene`` (as many as fit)."""
+    eye = np.eye(3).ravel()
+    rgba_arr = np.asarray(rgba, dtype=np.float32)
+    for p in points:
+        if scene.ngeom >= scene.maxgeom or not np.all(np.isfinite(p)):
+            continue
+        mujoco.mjv_initGeom(
+            scene.geoms[scene.ngeom],
+            mujoco.mjtGeom.mjGEOM_SPHERE,
+            np.array([GHOST_RADIUS, 0.0, 0.0]),
+            p,
+            eye,
+            rgba_arr,
+        )
+        scene.geoms[scene.ngeom].emission = GHOST_EMISSION
+        scene.ngeom += 1
+    for a, b in edges:
+        if scene.ngeom >= scene.maxgeom:
+            return
+        if not (np.all(np.isfinite(points[a])) and np.all(np.isfinite(points[b]))):
+            continue
+        geom = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(
+            geom, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), eye, rgba_arr
+        )
+        mujoco.mjv_connector(
+            geom, mujoco.mjtGeom.mjGEOM_CAPSULE, GHOST_RADIUS / 2, points[a], points[b]
+        )
+        geom.emission = GHOST_EMISSION
+        scene.ngeom += 1
+
+
+def _fade_bodies(scene: mujoco.MjvScene, alpha: float) -> None:
+    """Make the model's non-plane geoms in ``scene`` translucent (floor and decor stay opaque)."""
+    for i in range(scene.ngeom):
+        geom = scene.geoms[i]
+        if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM and geom.type != mujoco.mjtGeom.mjGEOM_PLANE:
+            geom.rgba[3] = min(geom.rgba[3], alpha)
+
+
+def _overlay(frame: np.ndarray, text: str) -> np.ndarray:
+    """Draw ``text`` top-left with a dark outline so it reads on any background."""
+    frame = np.ascontiguousarray(frame)
+    for colour, thickness in (((0, 0, 0), 3), ((255, 255, 255), 1)):
+        cv2.putText(
+            frame, text, (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, colour, thickness, cv2.LINE_AA
+        )
+    return frame
+
+
+def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """Create an offscreen renderer, turning a missing OpenGL into a clear :class:`SimenvError`.
+
+    The model's offscreen framebuffer is enlarged in place when smaller than ``width`` x ``height``.
+    """
+    if width < 16 or height < 16:
+        raise SimenvError(f"image size {width}x{height} too small; expected at least 16x16")
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    try:
+        return mujoco.Renderer(model, height=height, width=width)
+    except Exception as err:  # any GL failure: missing library, no context, bad backend
+        backend = os.environ.get("MUJOCO_GL", "<unset>")
+        late = (
+            " (mujoco was imported before simenv, so it did not see simenv's choice)"
+            if _glenv.MUJOCO_IMPORTED_FIRST
+            else ""
+        )
+        raise SimenvError(
+            f"offscreen rendering is unavailable (MUJOCO_GL={backend}{late}): {err}. On a CPU "
+            "install OSMesa (`apt-get install libosmesa6`) and set MUJOCO_GL=osmesa, or set "
+            "MUJOCO_GL=egl where an EGL driver is present; set it before Python starts."
+        ) from err
+
+
+def render_frames(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    *,
+    width: int = 320,
+    height: int = 240,
+    ghost: np.ndarray | Sequence[np.ndarray] | None = None,
+    ghost_edges: Sequence[tuple[int, int]] = (),
+    follow_body: str | Sequence[str] | None = None,
+    distance: float | None = None,
+    elevation: float = -15.0,
+    azimuth: float | None = None,
+    fps: float | None = None,
+    stride: int = 1,
+    max_frames: int | None = None,
+    overlay: bool = True,
+) -> Iterator[np.ndarray]:
+    """Render the trajectory ``qpos`` offscreen, one RGB image per selected frame.
+
+    Args:
+        model: the MuJoCo model whose joint positions ``qpos`` describes.
+        qpos: joint positions, shape (T, model.nq).
+        width, height: image size in pixels.
+        ghost: source keypoints (T, K, 3) in metres (world frame), or a list of such arrays
+            (one per person), drawn as spheres; NaN keypoints are skipped.
+        ghost_edges: pairs (i, j) of keypoint indices joined by a bone capsule in every ghost.
+        follow_body: body name(s) the camera tracks (mean position); default every body
+            attached to the world by a free joint (each person's pelvis).
+        distance: camera distance (m); default from the people's spread, at least 3 m.
+        elevation: camera elevation (degrees, negative looks down).
+        azimuth: camera azimuth (degrees); default perpendicular to the direction of travel.
+        fps: frame rate of ``qpos``; when given the overlay shows the time in seconds.
+        stride: render every ``stride``-th frame.
+        max_frames: render at most this many frames (after the stride).
+        overlay: draw "frame i  t=...s" on each image.
+
+    Yields:
+        RGB images, uint8 arrays of shape (height, width, 3), for frames 0, stride, 2*stride, ...
+
+    Raises:
+        SimenvError: bad shapes or non-finite ``qpos``, unknown body, or no OpenGL.
+    """
+    qpos = np.asarray(qpos, dtype=np.float64)
+    if qpos.ndim != 2 or qpos.shape[1] != model.nq or qpos.shape[0] == 0:
+        raise SimenvError(
+            f"qpos has shape {qpos.shape}; expected (T>=1, {model.nq}) for this model", field="qpos"
+        )
+    bad = np.flatnonzero(~np.all(np.isfinite(qpos), axis=1))
+    if bad.size:
+        raise SimenvError("qpos is not finite", frame=int(bad[0]), field="qpos")
+    if stride < 1 or (max_frames is not None and max_frames < 1):
+        raise SimenvError(f"stride={stride}, max_frames={max_frames}; expected both >= 1")
+    ghosts = _as_ghost_list(ghost, len(qpos))
+    indices = np.arange(0, len(qpos), stride)[:max_frames]
+    for a, b in ghost_edges:
+        for g in ghosts:
+            if not (0 <= a < g.shape[1] and 0 <= b < g.shape[1]):
+                raise SimenvError(
+                    f"ghost edge ({a}, {b}) outside the {g.shape[1]} keypoints", field="ghost_edges"
+                )
+
+    lookat, distance, azimuth = _camera_track(
+        model, qpos[indices], _follow_body_ids(model, follow_body), distance, azimuth
+    )
+    camera = mujoco.MjvCamera()
+    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+    camera.distance, camera.elevation, camera.azimuth = distance, elevation, azimuth
+    data = mujoco.MjData(model)
+    renderer = make_renderer(model, width, height)
+    try:
+        for k, t in enumerate(indices):
+            data.qpos[:] = qpos[t]
+            mujoco.mj_forward(model, data)
+            camera.lookat[:] = lookat[k]
+            renderer.update_scene(data, camera)
+            if ghosts:
+                _fade_bodies(renderer.scene, BODY_ALPHA_WITH_GHOST)
+            for i, g in enumerate(ghosts):
+                _add_ghost(renderer.scene, g[t], ghost_edges, GHOST_COLOURS[i % len(GHOST_COLOURS)])
+            frame = renderer.render()
+            if overlay:
+                text = f"frame {t}" + (f"  t={t / fps:.2f}s" if fps else "")
+                frame = _overlay(frame, text)
+            yield frame
+    finally:
+        renderer.close()
+
+
+def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps: float) -> Path:
+    """Write RGB frames (H, W, 3) uint8 to an MP4 file (OpenCV, ``mp4v`` codec).
+
+    Args:
+        frames: images of equal size, e.g. from :func:`render_frames`.
+        path: output file; its folder is created. Use the ``.mp4`` suffix.
+        fps: playback frame rate (frames per second), > 0.
+
+    Returns:
+        The path written.
+
+    Raises:
+        SimenvError: no frames, frames of different sizes, bad fps, or the file cannot be opened.
+    """
+    path = Path(path)
+    if not (np.isfinite(fps) and fps > 0):
+        raise SimenvError(f"video fps {fps}; expected a positive number", source=path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    writer = None
+    size = None
+    count = 0
+    try:
+        for frame in frames:
+            frame = np.asarray(frame)
+            if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+                raise SimenvError(
+                    f"frame {count} is {frame.dtype} {frame.shape}; expected uint8 (H, W, 3) RGB",
+                    source=path,
+                )
+            if writer is None:
+                size = (frame.shape[1], frame.shape[0])
+                writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+                if not writer.isOpened():
+                    raise SimenvError("OpenCV cannot open the file for MP4 writing", source=path)
+            elif (frame.shape[1], frame.shape[0]) != size:
+                raise SimenvError(
+                    f"frame {count} is {frame.shape[1]}x{frame.shape[0]}; expected {size[0]}x"
+                    f"{size[1]} like frame 0",
+                    source=path,
+                )
+            writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+            count += 1
+    finally:
+        if writer is not None:
+            writer.release()
+    if count == 0:
+        raise SimenvError("no frames to write", source=path)
+    return path
