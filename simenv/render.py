@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import cv2
 import mujoco
@@ -326,3 +327,76 @@ def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps:
     if count == 0:
         raise SimenvError("no frames to write", source=path)
     return path
+
+
+def keypoint_edges(names: Sequence[str]) -> list[tuple[int, int]]:
+    """Bones (parent index, child index) of the canonical tree among keypoints ``names``.
+
+    A keypoint whose canonical parent is absent is joined to its nearest present ancestor.
+    """
+    from simenv.skeletons import CANONICAL_TREE
+
+    index = {name: i for i, name in enumerate(names)}
+    edges = []
+    for name, i in index.items():
+        parent = CANONICAL_TREE.get(name)
+        while parent is not None and parent not in index:
+            parent = CANONICAL_TREE.get(parent)
+        if parent is not None:
+            edges.append((index[parent], i))
+    return edges
+
+
+def _result_parts(result: Any) -> tuple[mujoco.MjModel, np.ndarray, list[np.ndarray], list[str]]:
+    """Model, qpos, ghost keypoints per person and keypoint names of a retargeting result."""
+    people = None
+    for attr in ("people", "results", "persons"):
+        people = getattr(result, attr, None)
+        if people is not None:
+            break
+    if people is None:
+        model = result.humanoid.model
+        people = [result]
+    else:
+        scene = getattr(result, "scene", None)
+        model = getattr(scene, "model", None) or result.model
+    names = list(getattr(people[0], "keypoints", None) or getattr(people[0], "keypoint_names", ()))
+    return model, np.asarray(result.qpos), [np.asarray(p.targets) for p in people], names
+
+
+def render_result(
+    result: Any,
+    path: str | os.PathLike[str],
+    *,
+    stride: int = 1,
+    max_frames: int | None = None,
+    width: int = 320,
+    height: int = 240,
+    progress: bool = False,
+) -> Path:
+    """Render a retargeting result (one or two people) to MP4: humanoids plus source ghosts.
+
+    Args:
+        result: a :class:`simenv.retarget.RetargetResult` or its two-person counterpart
+            (all people in one scene, camera on the centre of both).
+        path: output ``.mp4``.
+        stride: render every ``stride``-th frame; the video plays at ``fps / stride`` so it
+            keeps real-time speed.
+        max_frames: render at most this many frames.
+        width, height: image size in pixels.
+        progress: show a progress bar on stderr (when it is a terminal).
+
+    Returns:
+        The path written.
+    """
+    from tqdm import tqdm
+
+    model, qpos, ghosts, names = _result_parts(result)
+    edges = keypoint_edges(names) if names else []
+    fps = float(result.fps)
+    total = len(range(0, len(qpos), stride)[:max_frames])
+    frames = render_frames(model, qpos, width=width, height=height, ghost=ghosts,
+                           ghost_edges=edges, fps=fps, stride=stride, max_frames=max_frames)
+    frames = tqdm(frames, total=total, desc=f"render {Path(path).name}", unit="frame",
+                  disable=None if progress else True, leave=False)
+    return write_video(frames, path, fps=fps / stride)

@@ -1,0 +1,304 @@
+"""The ``simenv`` command line: ``info``, ``retarget``, ``render`` and ``demo``.
+
+Every command that takes a motion file also takes a folder holding a two-person recording (one
+file per person, e.g. the CMU pairs), which loads as one interaction. User errors
+(:class:`~simenv.errors.SimenvError`) print one line on stderr and exit with status 2; anything
+else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simenv.errors import SimenvError
+from simenv.motion import Interaction, Motion
+
+EXIT_USER_ERROR = 2
+
+
+def load_any(path: str | Path) -> list[Motion | Interaction]:
+    """Load a motion file or a two-person folder as a list of clips (usually one)."""
+    from simenv.io import load
+
+    path = Path(path)
+    if not path.exists():
+        raise SimenvError("no such file or folder", source=path)
+    loaded = load(path)
+    return list(loaded) if isinstance(loaded, (list, tuple)) else [loaded]
+
+
+def _one_clip(path: str | Path) -> Motion | Interaction:
+    clips = load_any(path)
+    if len(clips) != 1:
+        raise SimenvError(
+            f"holds {len(clips)} clips; this command needs one (use `simenv info` to list them)",
+            source=path,
+        )
+    return clips[0]
+
+
+def _person_info(motion: Motion) -> dict[str, Any]:
+    meta = motion.metadata
+    return {
+        "name": motion.name,
+        "joints": motion.num_joints,
+        "frames": motion.num_frames,
+        "fps": motion.fps,
+        "duration_s": round(motion.duration, 4),
+        "height_m": round(motion.height(), 3),
+        "units_in_file": meta.get("units"),
+        "quirks": list(meta.get("quirks", [])),
+        "repairs": list(meta.get("repairs", [])),
+    }
+
+
+def describe(clip: Motion | Interaction) -> dict[str, Any]:
+    """JSON-ready summary of a clip: format, people, joints, frames, fps, duration, heights."""
+    people = clip.people if isinstance(clip, Interaction) else (clip,)
+    first = people[0]
+    info: dict[str, Any] = {
+        "name": clip.name,
+        "source": str(clip.metadata.get("source", first.metadata.get("source", ""))),
+        "format": clip.metadata.get("format", first.metadata.get("format")),
+        "people": len(people),
+        "frames": first.num_frames,
+        "fps": first.fps,
+        "duration_s": round(first.duration, 4),
+        "persons": [_person_info(m) for m in people],
+    }
+    if isinstance(clip, Interaction):
+        info["label"] = clip.label
+        info["quirks"] = list(clip.metadata.get("quirks", []))
+    return info
+
+
+def _print_info(info: dict[str, Any]) -> None:
+    print(f"{info['name']}  ({info['format']}, {info['source']})")
+    print(
+        f"  people {info['people']}, frames {info['frames']}, fps {info['fps']:g}, "
+        f"duration {info['duration_s']:.2f} s"
+    )
+    if info.get("label"):
+        print(f"  label {info['label']}")
+    for note in info.get("quirks", []):
+        print(f"  quirk: {note}")
+    for i, person in enumerate(info["persons"]):
+        print(
+            f"  person {i} {person['name']}: {person['joints']} joints, "
+            f"height ~{person['height_m']:.2f} m, units in file {person['units_in_file']}"
+        )
+        for note in person["quirks"]:
+            print(f"    quirk: {note}")
+        for note in person["repairs"]:
+            print(f"    repair: {note}")
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    infos = [describe(clip) for clip in load_any(args.path)]
+    if args.json:
+        print(json.dumps(infos[0] if len(infos) == 1 else {"clips": infos}))
+    else:
+        for info in infos:
+            _print_info(info)
+    return 0
+
+
+def retarget_clip(clip: Motion | Interaction) -> Any:
+    """Retarget one clip (each person on their own fitted humanoid); see :mod:`simenv.retarget`."""
+    from simenv.retarget import retarget
+
+    return retarget(clip)
+
+
+def summary(result: Any) -> dict[str, Any]:
+    """The one-object JSON summary of a retargeting result (residuals in metres)."""
+    qpos = np.asarray(result.qpos)
+    return {
+        "frames": int(qpos.shape[0]),
+        "fps": float(result.fps),
+        "people": len(_people_results(result)),
+        "mean_residual_m": float(result.mean_residual),
+        "p95_residual_m": float(result.p95_residual),
+        "max_residual_m": float(result.max_residual),
+        "seconds": float(result.seconds),
+    }
+
+
+def _people_results(result: Any) -> list[Any]:
+    for attr in ("people", "results", "persons"):
+        people = getattr(result, attr, None)
+        if people is not None:
+            return list(people)
+    return [result]
+
+
+def _humanoid_arrays(humanoid: Any, suffix: str) -> dict[str, np.ndarray]:
+    """Bone lengths (m) and other scalar dimensions of a humanoid as NPZ arrays."""
+    arrays: dict[str, np.ndarray] = {}
+    bones = getattr(humanoid, "bone_lengths", None)
+    if isinstance(bones, dict):
+        arrays[f"bone_names{suffix}"] = np.array(list(bones), dtype=str)
+        arrays[f"bone_lengths{suffix}"] = np.array(list(bones.values()), dtype=np.float64)
+    elif bones is not None:
+        arrays[f"bone_lengths{suffix}"] = np.asarray(bones, dtype=np.float64)
+    height = getattr(humanoid, "height", None)
+    if isinstance(height, (int, float)):
+        arrays[f"height{suffix}"] = np.float64(height)
+    return arrays
+
+
+def save_npz(result: Any, path: str | Path) -> Path:
+    """Write ``qpos`` (T, nq), ``fps``, per-person ``qpos_i`` and humanoid dimensions to NPZ."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays: dict[str, np.ndarray] = {
+        "qpos": np.asarray(result.qpos, dtype=np.float64),
+        "fps": np.float64(result.fps),
+        "residuals": np.asarray(_residuals(result), dtype=np.float32),
+    }
+    people = _people_results(result)
+    if len(people) == 1:
+        arrays.update(_humanoid_arrays(people[0].humanoid, ""))
+    else:
+        for i, person in enumerate(people):
+            arrays[f"qpos_{i}"] = np.asarray(person.qpos, dtype=np.float64)
+            arrays.update(_humanoid_arrays(person.humanoid, f"_{i}"))
+    np.savez(path, **arrays)
+    return path
+
+
+def _residuals(result: Any) -> np.ndarray:
+    people = _people_results(result)
+    if len(people) == 1:
+        return np.asarray(people[0].residuals)
+    return np.concatenate([np.asarray(p.residuals) for p in people], axis=1)
+
+
+def _check_suffix(path: str, suffix: str, option: str) -> Path:
+    out = Path(path)
+    if out.suffix.lower() != suffix:
+        raise SimenvError(f"{option} must end with {suffix}; got {out.name!r}", field=option)
+    return out
+
+
+def cmd_retarget(args: argparse.Namespace) -> int:
+    out = _check_suffix(args.out, ".npz", "--out")
+    video = _check_suffix(args.video, ".mp4", "--video") if args.video else None
+    result = retarget_clip(_one_clip(args.path))
+    save_npz(result, out)
+    if video is not None:
+        from simenv.render import render_result
+
+        render_result(result, video, stride=args.stride, max_frames=args.max_frames)
+    info = summary(result)
+    if args.json:
+        print(json.dumps(info))
+    else:
+        print(
+            f"retargeted {info['frames']} frames ({info['people']} people) in "
+            f"{info['seconds']:.2f} s; keypoint residual mean {info['mean_residual_m'] * 100:.2f}"
+            f" cm, p95 {info['p95_residual_m'] * 100:.2f} cm, max "
+            f"{info['max_residual_m'] * 100:.2f} cm"
+        )
+        print(f"wrote {out}" + (f" and {video}" if video else ""))
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from simenv.render import render_result
+
+    out = _check_suffix(args.out, ".mp4", "--out")
+    clip = _one_clip(args.path)
+    if args.max_frames is not None:
+        # Only the frames that will be shown need retargeting.
+        clip = clip.slice(0, args.max_frames * args.stride)
+    result = retarget_clip(clip)
+    render_result(result, out, stride=args.stride, max_frames=args.max_frames,
+                  width=args.width, height=args.height, progress=True)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from simenv.demo import run_demo
+
+    run_demo(Path(args.out), stride=args.stride)
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``simenv`` command (one sub-command per job)."""
+    parser = argparse.ArgumentParser(
+        prog="simenv",
+        description="Physics-backed simulation and evaluation of 3D human skeleton motion.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    path_help = "motion file (BVH, ASF/AMC, Kinect text, NPZ) or a two-person folder"
+
+    info = sub.add_parser("info", help="describe a motion file", description=(
+        "Format, people, joints, frames, fps, duration, height estimate per person, and the "
+        "quirks found and repairs made while reading."))
+    info.add_argument("path", help=path_help)
+    info.add_argument("--json", action="store_true", help="print one JSON object")
+    info.set_defaults(func=cmd_info)
+
+    ret = sub.add_parser("retarget", help="retarget onto a fitted MuJoCo humanoid", description=(
+        "Fit a humanoid to each person's bone lengths, solve its joint trajectory, and save "
+        "qpos (T, nq), fps and the humanoid's dimensions to an NPZ file."))
+    ret.add_argument("path", help=path_help)
+    ret.add_argument("--out", required=True, help="output .npz")
+    ret.add_argument("--video", help="also render an .mp4 (humanoid + source joints)")
+    ret.add_argument("--stride", type=_positive_int, default=1,
+                     help="video: render every S-th frame (default 1)")
+    ret.add_argument("--max-frames", type=_positive_int, help="video: at most N frames")
+    ret.add_argument("--json", action="store_true", help=(
+        "print one JSON object: frames, fps, people, mean_residual_m, p95_residual_m, "
+        "max_residual_m, seconds"))
+    ret.set_defaults(func=cmd_retarget)
+
+    ren = sub.add_parser("render", help="render the retargeted motion to MP4", description=(
+        "Retarget and render offscreen (MUJOCO_GL=osmesa on a CPU): the humanoid, the source "
+        "joints as a ghost, camera following the subject. About 5-10 frames/s on a CPU, so "
+        "use --stride/--max-frames for long clips."))
+    ren.add_argument("path", help=path_help)
+    ren.add_argument("--out", required=True, help="output .mp4")
+    ren.add_argument("--max-frames", type=_positive_int, help="render at most N frames")
+    ren.add_argument("--stride", type=_positive_int, default=1,
+                     help="render every S-th frame (default 1)")
+    ren.add_argument("--width", type=_positive_int, default=320, help="pixels (default 320)")
+    ren.add_argument("--height", type=_positive_int, default=240, help="pixels (default 240)")
+    ren.set_defaults(func=cmd_render)
+
+    demo = sub.add_parser("demo", help="the main job on bundled real CMU data", description=(
+        "Retarget the bundled CMU walk (02_01) and two-person handshake (18_01 + 19_01), write "
+        "videos, NPZ trajectories and a JSON summary into the output folder."))
+    demo.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
+    demo.add_argument("--stride", type=_positive_int, default=None,
+                      help="render every S-th frame (default: chosen to keep the demo short)")
+    demo.set_defaults(func=cmd_demo)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``simenv`` command; returns the exit status (2 on a user error)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except SimenvError as err:
+        print(f"simenv {args.command}: error: {err}", file=sys.stderr)
+        return EXIT_USER_ERROR
