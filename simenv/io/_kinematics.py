@@ -59,13 +59,15 @@ TPOSE_JUMP_RATIO = 10.0
 TPOSE_NEXT_RATIO = 3.0
 
 
-def euler_to_matrices(angles_deg: np.ndarray, axes: str) -> np.ndarray:
-    """Rotation matrices of intrinsic Euler angles.
+def euler_to_matrices(angles_deg: np.ndarray, axes: str, *, intrinsic: bool = True) -> np.ndarray:
+    """Rotation matrices of Euler angles.
 
     Args:
         angles_deg: (..., k) angles in degrees, k = len(axes).
-        axes: rotation axes in application order, e.g. ``"ZYX"``: the matrix
-            is ``R_Z(a0) @ R_Y(a1) @ R_X(a2)`` (the BVH/ASF convention).
+        axes: rotation axes in listed order, e.g. ``"ZYX"``.
+        intrinsic: True (BVH): ``"ZYX"`` gives ``R_Z(a0) @ R_Y(a1) @ R_X(a2)``.
+            False (Acclaim ASF/AMC, extrinsic): ``"XYZ"`` gives
+            ``R_Z(a2) @ R_Y(a1) @ R_X(a0)``.
 
     Returns:
         (..., 3, 3) rotation matrices.
@@ -74,7 +76,8 @@ def euler_to_matrices(angles_deg: np.ndarray, axes: str) -> np.ndarray:
     if not axes:
         return np.broadcast_to(np.eye(3), (*shape, 3, 3)).copy()
     flat = angles_deg.reshape(-1, len(axes))
-    mats = Rotation.from_euler(axes.upper(), flat, degrees=True).as_matrix()
+    seq = axes.upper() if intrinsic else axes.lower()
+    mats = Rotation.from_euler(seq, flat, degrees=True).as_matrix()
     return mats.reshape(*shape, 3, 3)
 
 
@@ -144,8 +147,9 @@ def detect_units(
     """
     if scale is not None:
         if not np.isfinite(scale) or scale <= 0:
-            raise UnitsError(f"scale must be a positive number of metres per unit; got {scale!r}",
-                             source=source)
+            raise UnitsError(
+                f"scale must be a positive number of metres per unit; got {scale!r}", source=source
+            )
         return "explicit", float(scale), f"scale={scale:g} given by the caller", []
     if units is not None:
         if units not in UNIT_SCALES:
@@ -155,16 +159,20 @@ def detect_units(
             )
         return units, UNIT_SCALES[units], f"units={units!r} given by the caller", []
     if not np.isfinite(height) or height <= 0:
-        raise UnitsError(f"skeleton has no extent ({height!r} file units); cannot infer units",
-                         source=source)
+        raise UnitsError(
+            f"skeleton has no extent ({height!r} file units); cannot infer units", source=source
+        )
     lo, hi = PLAUSIBLE_HEIGHT_M
     for name, s in UNIT_SCALES.items():
         if lo <= height * s <= hi:
-            reason = (f"rest-pose size {height:.4g} file units = {height * s:.3f} m in {name}, "
-                      f"the only unit giving a height within {lo}-{hi} m")
+            reason = (
+                f"rest-pose size {height:.4g} file units = {height * s:.3f} m in {name}, "
+                f"the only unit giving a height within {lo}-{hi} m"
+            )
             return name, s, reason, []
-    name, s = min(UNIT_SCALES.items(),
-                  key=lambda kv: abs(np.log(height * kv[1] / TYPICAL_HEIGHT_M)))
+    name, s = min(
+        UNIT_SCALES.items(), key=lambda kv: abs(np.log(height * kv[1] / TYPICAL_HEIGHT_M))
+    )
     tlo, thi = TOLERATED_HEIGHT_M
     if not tlo <= height * s <= thi:
         options = ", ".join(f"{n}: {height * v:.4g} m" for n, v in UNIT_SCALES.items())
@@ -173,10 +181,14 @@ def detect_units(
             f"unit ({options}); expected {lo}-{hi} m. Pass units= or scale= explicitly",
             source=source,
         )
-    reason = (f"rest-pose size {height:.4g} file units; {name} gives {height * s:.3f} m, "
-              f"outside {lo}-{hi} m but the closest to {TYPICAL_HEIGHT_M} m")
-    quirk = (f"skeleton is {height * s:.2f} m tall in {name}: outside the plausible adult "
-             f"range {lo}-{hi} m (a child, or a template/rescaled skeleton)")
+    reason = (
+        f"rest-pose size {height:.4g} file units; {name} gives {height * s:.3f} m, "
+        f"outside {lo}-{hi} m but the closest to {TYPICAL_HEIGHT_M} m"
+    )
+    quirk = (
+        f"skeleton is {height * s:.2f} m tall in {name}: outside the plausible adult "
+        f"range {lo}-{hi} m (a child, or a template/rescaled skeleton)"
+    )
     return name, s, reason, [quirk]
 
 
@@ -224,8 +236,13 @@ def is_tpose_frame0(positions: np.ndarray) -> tuple[bool, str]:
         return False, "fewer than 3 frames: T-pose test skipped"
     jump, nxt, typical = stats
     ratio = jump / max(typical, 1e-6)
-    found = (jump > TPOSE_MIN_JUMP_M and ratio > TPOSE_JUMP_RATIO
-             and nxt < TPOSE_NEXT_RATIO * max(typical, 1e-6))
-    note = (f"frame 0->1 mean joint jump {jump * 100:.1f} cm, frame 1->2 {nxt * 100:.2f} cm, "
-            f"median {typical * 100:.2f} cm per frame")
+    found = (
+        jump > TPOSE_MIN_JUMP_M
+        and ratio > TPOSE_JUMP_RATIO
+        and nxt < TPOSE_NEXT_RATIO * max(typical, 1e-6)
+    )
+    note = (
+        f"frame 0->1 mean joint jump {jump * 100:.1f} cm, frame 1->2 {nxt * 100:.2f} cm, "
+        f"median {typical * 100:.2f} cm per frame"
+    )
     return found, note

@@ -59,8 +59,12 @@ FORMAT = "bvh"
 EXTENSIONS = (".bvh",)
 
 _CHANNELS = {
-    "xposition": ("p", "X"), "yposition": ("p", "Y"), "zposition": ("p", "Z"),
-    "xrotation": ("r", "X"), "yrotation": ("r", "Y"), "zrotation": ("r", "Z"),
+    "xposition": ("p", "X"),
+    "yposition": ("p", "Y"),
+    "zposition": ("p", "Z"),
+    "xrotation": ("r", "X"),
+    "yrotation": ("r", "Y"),
+    "zrotation": ("r", "Z"),
 }
 
 #: Snap a header rate to the nearest integer when within this relative
@@ -123,8 +127,9 @@ def parse(path: Path) -> BvhFile:
             motion_line = i
             break
     if motion_line is None:
-        raise FormatError("no MOTION section; expected a line 'MOTION' after the hierarchy",
-                          source=path)
+        raise FormatError(
+            "no MOTION section; expected a line 'MOTION' after the hierarchy", source=path
+        )
     joints = _parse_hierarchy(lines[:motion_line], path)
     frame_time, data_start, n_frames = _parse_motion_header(lines, motion_line, path)
     names = [j.name for j in joints]
@@ -140,7 +145,9 @@ def parse(path: Path) -> BvhFile:
             raise FormatError(
                 f"expected {n_ch} channel values (as declared in the hierarchy), found "
                 f"{len(toks)}" + (" (truncated file?)" if len(toks) < n_ch else ""),
-                source=path, line=i + 1, frame=len(rows),
+                source=path,
+                line=i + 1,
+                frame=len(rows),
             )
         rows.append(toks)
         row_lines.append(i + 1)
@@ -148,7 +155,8 @@ def parse(path: Path) -> BvhFile:
         raise FormatError(
             f"header says Frames: {n_frames} but the file has {len(rows)} data lines"
             + (" (truncated file?)" if len(rows) < n_frames else ""),
-            source=path, line=data_start,
+            source=path,
+            line=data_start,
         )
     if n_ch == 0:
         data = np.zeros((n_frames, 0))
@@ -168,8 +176,11 @@ def parse(path: Path) -> BvhFile:
 def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
     toks = [(tok, i + 1) for i, text in enumerate(lines) for tok in text.split()]
     if not toks or toks[0][0].lstrip("\ufeff").upper() != "HIERARCHY":
-        raise FormatError("expected the file to start with 'HIERARCHY'", source=path,
-                          line=toks[0][1] if toks else 1)
+        raise FormatError(
+            "expected the file to start with 'HIERARCHY'",
+            source=path,
+            line=toks[0][1] if toks else 1,
+        )
     joints: list[_Joint] = []
     seen: dict[str, int] = {}
     stack: list[int] = []
@@ -177,15 +188,22 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
 
     def need(k: int, what: str) -> tuple[str, int]:
         if k >= n:
-            raise FormatError(f"hierarchy ends early; expected {what} (truncated file?)",
-                              source=path, line=toks[-1][1])
+            raise FormatError(
+                f"hierarchy ends early; expected {what} (truncated file?)",
+                source=path,
+                line=toks[-1][1],
+            )
         return toks[k]
 
     def add(name: str, line: int, end_site: bool) -> None:
         if name in seen:
             raise FormatError(
                 f"duplicate joint name {name!r} (first defined on line {seen[name]}); "
-                "joint names must be unique", source=path, line=line, field=name)
+                "joint names must be unique",
+                source=path,
+                line=line,
+                field=name,
+            )
         seen[name] = line
         joints.append(_Joint(name, stack[-1] if stack else -1, line, end_site))
         stack.append(len(joints) - 1)
@@ -197,8 +215,7 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
             if key == "JOINT" and not stack:
                 raise FormatError("JOINT outside any ROOT block", source=path, line=line)
             if key == "ROOT" and stack:
-                raise FormatError("ROOT inside another joint; missing '}'?", source=path,
-                                  line=line)
+                raise FormatError("ROOT inside another joint; missing '}'?", source=path, line=line)
             k = i + 1
             name_parts = []
             while k < n and toks[k][1] == line and toks[k][0] != "{":
@@ -211,14 +228,18 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
             add(" ".join(name_parts), line, False)
             brace, bline = need(k, "'{'")
             if brace != "{":
-                raise FormatError(f"expected '{{' after {tok} {' '.join(name_parts)}, "
-                                  f"found {brace[:40]!r}", source=path, line=bline)
+                raise FormatError(
+                    f"expected '{{' after {tok} {' '.join(name_parts)}, found {brace[:40]!r}",
+                    source=path,
+                    line=bline,
+                )
             i = k + 1
         elif key == "END":
             site, sline = need(i + 1, "'Site'")
             if site.upper() != "SITE":
-                raise FormatError(f"expected 'End Site', found 'End {site[:40]}'", source=path,
-                                  line=sline)
+                raise FormatError(
+                    f"expected 'End Site', found 'End {site[:40]}'", source=path, line=sline
+                )
             if not stack or joints[stack[-1]].end_site:
                 raise FormatError("End Site outside a joint", source=path, line=line)
             name = f"{joints[stack[-1]].name}_end"
@@ -227,16 +248,21 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
             add(name, line, True)
             brace, bline = need(i + 2, "'{'")
             if brace != "{":
-                raise FormatError(f"expected '{{' after End Site, found {brace[:40]!r}",
-                                  source=path, line=bline)
+                raise FormatError(
+                    f"expected '{{' after End Site, found {brace[:40]!r}", source=path, line=bline
+                )
             i += 3
         elif key == "OFFSET":
             if not stack:
                 raise FormatError("OFFSET outside a joint", source=path, line=line)
             joint = joints[stack[-1]]
             if joint.offset is not None:
-                raise FormatError(f"second OFFSET for joint {joint.name!r}", source=path,
-                                  line=line, field=joint.name)
+                raise FormatError(
+                    f"second OFFSET for joint {joint.name!r}",
+                    source=path,
+                    line=line,
+                    field=joint.name,
+                )
             vals = []
             for k in range(3):
                 t, tl = need(i + 1 + k, "3 OFFSET values")
@@ -249,14 +275,22 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
             joint = joints[stack[-1]]
             count_tok, cline = need(i + 1, "a channel count")
             if not count_tok.isdigit() or int(count_tok) > 6:
-                raise FormatError(f"expected a channel count 0-6, found {count_tok[:40]!r}",
-                                  source=path, line=cline, field=joint.name)
+                raise FormatError(
+                    f"expected a channel count 0-6, found {count_tok[:40]!r}",
+                    source=path,
+                    line=cline,
+                    field=joint.name,
+                )
             count = int(count_tok)
             if joint.end_site and count:
                 raise FormatError("End Site cannot have channels", source=path, line=line)
             if joint.channels:
-                raise FormatError(f"second CHANNELS for joint {joint.name!r}", source=path,
-                                  line=line, field=joint.name)
+                raise FormatError(
+                    f"second CHANNELS for joint {joint.name!r}",
+                    source=path,
+                    line=line,
+                    field=joint.name,
+                )
             chans = []
             for k in range(count):
                 c, cl = need(i + 2 + k, f"{count} channel names")
@@ -264,10 +298,14 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
                     raise FormatError(
                         f"CHANNELS {count} declares {count} channels but found {c[:40]!r} "
                         f"among them; expected names like Xposition or Zrotation",
-                        source=path, line=cl, field=joint.name)
+                        source=path,
+                        line=cl,
+                        field=joint.name,
+                    )
                 if c.lower() in (x.lower() for x in chans):
-                    raise FormatError(f"channel {c} repeated", source=path, line=cl,
-                                      field=joint.name)
+                    raise FormatError(
+                        f"channel {c} repeated", source=path, line=cl, field=joint.name
+                    )
                 chans.append(c)
             joint.channels = chans
             i += 2 + count
@@ -276,20 +314,31 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
                 raise FormatError("unbalanced '}'", source=path, line=line)
             joint = joints[stack.pop()]
             if joint.offset is None:
-                raise FormatError(f"joint {joint.name!r} has no OFFSET", source=path,
-                                  line=joint.line, field=joint.name)
+                raise FormatError(
+                    f"joint {joint.name!r} has no OFFSET",
+                    source=path,
+                    line=joint.line,
+                    field=joint.name,
+                )
             i += 1
         else:
             raise FormatError(
                 f"unexpected token {tok[:40]!r} in hierarchy; expected ROOT, JOINT, End Site, "
-                "OFFSET, CHANNELS or a brace", source=path, line=line)
+                "OFFSET, CHANNELS or a brace",
+                source=path,
+                line=line,
+            )
     if stack:
-        raise FormatError(f"joint {joints[stack[-1]].name!r} is not closed by '}}' before "
-                          "MOTION (truncated hierarchy?)", source=path,
-                          line=joints[stack[-1]].line)
+        raise FormatError(
+            f"joint {joints[stack[-1]].name!r} is not closed by '}}' before "
+            "MOTION (truncated hierarchy?)",
+            source=path,
+            line=joints[stack[-1]].line,
+        )
     if not joints:
-        raise FormatError("hierarchy defines no joints; expected a ROOT", source=path,
-                          line=toks[0][1])
+        raise FormatError(
+            "hierarchy defines no joints; expected a ROOT", source=path, line=toks[0][1]
+        )
     return joints
 
 
@@ -301,27 +350,42 @@ def _parse_motion_header(lines: list[str], motion_line: int, path: Path) -> tupl
         while i < len(lines) and not lines[i].strip():
             i += 1
         if i >= len(lines):
-            raise FormatError(f"MOTION section ends before '{label[:-1].title()}:' "
-                              "(truncated file?)", source=path, line=len(lines))
+            raise FormatError(
+                f"MOTION section ends before '{label[:-1].title()}:' (truncated file?)",
+                source=path,
+                line=len(lines),
+            )
         text = lines[i].strip()
         if not text.lower().startswith(label):
-            raise FormatError(f"expected '{label[:-1].title()}: <value>', found {text[:40]!r}",
-                              source=path, line=i + 1)
-        found[label] = (text[len(label):].strip(), i + 1)
+            raise FormatError(
+                f"expected '{label[:-1].title()}: <value>', found {text[:40]!r}",
+                source=path,
+                line=i + 1,
+            )
+        found[label] = (text[len(label) :].strip(), i + 1)
         i += 1
     frames_tok, fline = found["frames:"]
     if not frames_tok.isdigit():
-        raise FormatError(f"expected an integer frame count, found {frames_tok[:40]!r}",
-                          source=path, line=fline, field="Frames")
+        raise FormatError(
+            f"expected an integer frame count, found {frames_tok[:40]!r}",
+            source=path,
+            line=fline,
+            field="Frames",
+        )
     n_frames = int(frames_tok)
     if n_frames == 0:
-        raise FormatError("file has 0 frames; expected at least 1", source=path, line=fline,
-                          field="Frames")
+        raise FormatError(
+            "file has 0 frames; expected at least 1", source=path, line=fline, field="Frames"
+        )
     ft_tok, ftline = found["frame time:"]
     frame_time = parse_float(ft_tok, source=path, line=ftline, field="Frame Time")
     if frame_time <= 0:
-        raise FormatError(f"Frame Time must be positive seconds, found {ft_tok!r}", source=path,
-                          line=ftline, field="Frame Time")
+        raise FormatError(
+            f"Frame Time must be positive seconds, found {ft_tok!r}",
+            source=path,
+            line=ftline,
+            field="Frame Time",
+        )
     return frame_time, i, n_frames
 
 
@@ -352,6 +416,54 @@ def canonical_map(names: list[str]) -> dict[str, str]:
     if is_poser_template(names):
         return poser_canonical_map(names)
     return cmu_canonical_map(names)
+
+
+def _avoid_coincident(
+    canon: dict[str, str], names: list[str], parents: list[int], rest: np.ndarray
+) -> tuple[dict[str, str], list[str]]:
+    """Keep canonical keypoints off zero-length bones.
+
+    The CMU BVH converters collapse the ASF ``thorax`` and ``wrist`` bones:
+    ``Neck`` sits on ``Spine1`` and ``LeftFingerBase`` on ``LeftHand``, so
+    the canonical neck/hand would coincide with chest/wrist. Such a keypoint
+    moves down its joint's single-child chain to the first joint that is
+    apart from the canonical parent (``Neck1``, ``LeftHandIndex1``); with no
+    such chain it is declared missing. Returns the map and quirk notes.
+    """
+    from simenv.skeletons import CANONICAL_TREE
+
+    index = {n: i for i, n in enumerate(names)}
+    children: dict[int, list[int]] = {}
+    for k, p in enumerate(parents):
+        children.setdefault(p, []).append(k)
+    extent = float(np.ptp(rest, axis=0).max()) or 1.0
+    out = dict(canon)
+    notes = []
+    for key, joint in canon.items():
+        parent_key = CANONICAL_TREE.get(key)
+        if parent_key is None or parent_key not in canon:
+            continue
+        anchor = rest[index[canon[parent_key]]]
+        j = index[joint]
+        while np.linalg.norm(rest[j] - anchor) < 1e-4 * extent:
+            kids = children.get(j, [])
+            if len(kids) != 1:
+                j = -1
+                break
+            j = kids[0]
+        if j < 0:
+            del out[key]
+            notes.append(
+                f"canonical {key} dropped: joint {joint} coincides with "
+                f"{canon[parent_key]} ({parent_key})"
+            )
+        elif names[j] != joint:
+            out[key] = names[j]
+            notes.append(
+                f"canonical {key} -> {names[j]}: {joint} coincides with "
+                f"{canon[parent_key]} ({parent_key}), a bone the converter collapsed"
+            )
+    return out, notes
 
 
 def read(
@@ -392,13 +504,31 @@ def read(
         raise FormatError(f"up must be 'y' or 'z'; got {up!r}", source=path)
     bvh = parse(path)
     with np.errstate(all="ignore"):
-        return _to_motion(bvh, path, units=units, scale=scale, up=up.lower(),
-                          drop_tpose=drop_tpose, fps=fps, end_sites=end_sites, name=name)
+        return _to_motion(
+            bvh,
+            path,
+            units=units,
+            scale=scale,
+            up=up.lower(),
+            drop_tpose=drop_tpose,
+            fps=fps,
+            end_sites=end_sites,
+            name=name,
+        )
 
 
-def _to_motion(bvh: BvhFile, path: Path, *, units: str | None, scale: float | None, up: str,
-               drop_tpose: bool, fps: float | None, end_sites: bool | None,
-               name: str | None) -> Motion:
+def _to_motion(
+    bvh: BvhFile,
+    path: Path,
+    *,
+    units: str | None,
+    scale: float | None,
+    up: str,
+    drop_tpose: bool,
+    fps: float | None,
+    end_sites: bool | None,
+    name: str | None,
+) -> Motion:
     quirks: list[str] = []
     all_canon = canonical_map(bvh.joints)
     needed = set(all_canon.values())
@@ -407,8 +537,7 @@ def _to_motion(bvh: BvhFile, path: Path, *, units: str | None, scale: float | No
         for n, es in zip(bvh.joints, bvh.end_site, strict=True)
     ]
     height = rest_extent(bvh.parents, bvh.offsets)
-    unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units,
-                                                     scale=scale)
+    unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units, scale=scale)
     quirks += unit_quirks
 
     t, j = bvh.data.shape[0], len(bvh.joints)
@@ -423,8 +552,9 @@ def _to_motion(bvh: BvhFile, path: Path, *, units: str | None, scale: float | No
         rot_cols = [c for c, (kind, _) in zip(cols, kinds, strict=True) if kind == "r"]
         axes = "".join(ax for kind, ax in kinds if kind == "r")
         local[:, k] = euler_to_matrices(bvh.data[:, rot_cols], axes)
-        pos_axes = [("XYZ".index(ax), c) for c, (kind, ax) in zip(cols, kinds, strict=True)
-                    if kind == "p"]
+        pos_axes = [
+            ("XYZ".index(ax), c) for c, (kind, ax) in zip(cols, kinds, strict=True) if kind == "p"
+        ]
         if pos_axes:
             tr = np.zeros((t, 3))
             for axis, c in pos_axes:
@@ -446,28 +576,39 @@ def _to_motion(bvh: BvhFile, path: Path, *, units: str | None, scale: float | No
     tpose, tpose_note = is_tpose_frame0(pos)
     if tpose and drop_tpose:
         pos, local = pos[1:], local[1:]
-        quirks.append(f"dropped T-pose frame 0 ({tpose_note}); frame k of this motion is "
-                      f"frame k+1 of the file")
+        quirks.append(
+            f"dropped T-pose frame 0 ({tpose_note}); frame k of this motion is "
+            f"frame k+1 of the file"
+        )
     elif tpose:
         quirks.append(f"frame 0 is a T-pose ({tpose_note}); kept because drop_tpose=False")
 
+    rest_pos, _ = forward_kinematics(
+        parents, offsets_m, np.broadcast_to(np.eye(3), (1, len(idx), 3, 3))
+    )
+    canon, canon_notes = _avoid_coincident(
+        {k: v for k, v in all_canon.items() if v in names}, names, parents, rest_pos[0]
+    )
+    quirks += canon_notes
     variant = skeleton_variant(names)
     if variant == "poser":
         quirks.append(
             "template skeleton (Poser/Second-Life layout, outworldz conversion): bone lengths "
             "are the template's, not the performer's proportions"
-            + (f"; {height * s:.2f} m tall" if height * s < 1.5 else ""))
+            + (f"; {height * s:.2f} m tall" if height * s < 1.5 else "")
+        )
 
     file_fps = header_fps(bvh.frame_time)
     rate = file_fps
     if fps is not None:
         rate = float(fps)
         if abs(rate - file_fps) > 1e-6 * rate:
-            quirks.append(f"frame rate set to {rate:g} fps by the caller; the header says "
-                          f"{file_fps:g} fps (Frame Time {bvh.frame_time:g} s)")
+            quirks.append(
+                f"frame rate set to {rate:g} fps by the caller; the header says "
+                f"{file_fps:g} fps (Frame Time {bvh.frame_time:g} s)"
+            )
 
     stem = path.stem
-    canon = {k: v for k, v in all_canon.items() if v in names}
     meta: dict[str, Any] = {
         "source": str(path),
         "format": FORMAT,
