@@ -9,6 +9,7 @@ else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections.abc import Sequence
@@ -140,17 +141,32 @@ def _people_results(result: Any) -> list[Any]:
 
 
 def _humanoid_arrays(humanoid: Any, suffix: str) -> dict[str, np.ndarray]:
-    """Bone lengths (m) and other scalar dimensions of a humanoid as NPZ arrays."""
-    arrays: dict[str, np.ndarray] = {}
-    bones = getattr(humanoid, "bone_lengths", None)
-    if isinstance(bones, dict):
-        arrays[f"bone_names{suffix}"] = np.array(list(bones), dtype=str)
-        arrays[f"bone_lengths{suffix}"] = np.array(list(bones.values()), dtype=np.float64)
-    elif bones is not None:
-        arrays[f"bone_lengths{suffix}"] = np.asarray(bones, dtype=np.float64)
-    height = getattr(humanoid, "height", None)
+    """The humanoid's dimensions as NPZ arrays: ``dim_names``/``dim_values`` (metres; 3-vector
+    offsets split into ``_x``/``_y``/``_z``), ``height`` (m) and ``mass`` (kg)."""
+    names: list[str] = []
+    values: list[float] = []
+    dims = getattr(humanoid, "dims", None)
+    if dims is not None and dataclasses.is_dataclass(dims):
+        for f in dataclasses.fields(dims):
+            value = getattr(dims, f.name)
+            if isinstance(value, (int, float)):
+                names.append(f.name)
+                values.append(float(value))
+            elif isinstance(value, tuple) and len(value) == 3 and all(
+                isinstance(v, (int, float)) for v in value
+            ):
+                names += [f"{f.name}_{axis}" for axis in "xyz"]
+                values += [float(v) for v in value]
+    arrays = {
+        f"dim_names{suffix}": np.array(names, dtype=str),
+        f"dim_values{suffix}": np.array(values, dtype=np.float64),
+    }
+    height = getattr(dims, "height", None)
     if isinstance(height, (int, float)):
         arrays[f"height{suffix}"] = np.float64(height)
+    mass = getattr(humanoid, "total_mass", None)
+    if isinstance(mass, (int, float)):
+        arrays[f"mass{suffix}"] = np.float64(mass)
     return arrays
 
 

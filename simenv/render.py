@@ -360,7 +360,12 @@ def _result_parts(result: Any) -> tuple[mujoco.MjModel, np.ndarray, list[np.ndar
     else:
         scene = getattr(result, "scene", None)
         model = getattr(scene, "model", None) or result.model
-    names = list(getattr(people[0], "keypoints", None) or getattr(people[0], "keypoint_names", ()))
+    person = people[0]
+    names = list(
+        getattr(person, "keypoint_names", None)
+        or getattr(getattr(person, "humanoid", None), "keypoint_names", None)
+        or ()
+    )
     return model, np.asarray(result.qpos), [np.asarray(p.targets) for p in people], names
 
 

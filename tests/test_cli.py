@@ -1,0 +1,145 @@
+"""The ``simenv`` command line on real motion capture (bundled assets and ../shared/data)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from simenv import cli
+from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
+
+SUMMARY_KEYS = {
+    "frames", "fps", "people", "mean_residual_m", "p95_residual_m", "max_residual_m", "seconds"
+}
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """Run the CLI in-process; returns (exit status, stdout, stderr)."""
+    status = cli.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_help_on_every_command(capsys):
+    for argv in ([], ["info"], ["retarget"], ["render"], ["demo"]):
+        with pytest.raises(SystemExit) as exc:
+            cli.main([*argv, "--help"])
+        assert exc.value.code == 0
+        assert "usage: simenv" in capsys.readouterr().out
+    done = subprocess.run([sys.executable, "-m", "simenv", "--help"], capture_output=True,
+                          text=True)
+    assert done.returncode == 0 and "retarget" in done.stdout
+
+
+def test_info_single_bvh(capsys):
+    status, out, _ = run(capsys, "info", asset_path(WALK), "--json")
+    assert status == 0
+    info = json.loads(out)
+    assert info["people"] == 1 and info["format"] == "bvh"
+    assert info["fps"] == 120 and info["frames"] == 343  # 344 in the file minus the T-pose
+    (person,) = info["persons"]
+    assert person["joints"] >= 21 and 1.4 < person["height_m"] < 2.1
+    assert any("pose" in q.lower() for q in person["quirks"])  # the dropped T-pose is reported
+    status, text, _ = run(capsys, "info", asset_path(WALK))
+    assert status == 0 and "people 1" in text and "343" in text
+
+
+def test_info_two_person_folder(capsys, shared_data: Path):
+    status, out, _ = run(
+        capsys, "info", shared_data / "cmu/two_person/18_19_walk_shake_hands", "--json"
+    )
+    assert status == 0
+    info = json.loads(out)
+    assert info["people"] == 2 and len(info["persons"]) == 2
+    # 18_01's header claims 30 fps; the pair is 120 Hz and the reader must say so.
+    assert info["fps"] == 120 and all(p["fps"] == 120 for p in info["persons"])
+    notes = " ".join(info.get("quirks", []) + info["persons"][0]["quirks"]).lower()
+    assert "30" in notes or "frame time" in notes
+    for person in info["persons"]:
+        assert 1.4 < person["height_m"] < 2.1
+
+
+def test_bad_input_exits_2_without_traceback(tmp_path: Path, capsys):
+    text = asset_path(WALK).read_text()
+    truncated = tmp_path / "truncated.bvh"
+    truncated.write_text(text[: len(text) // 2].rsplit("\n", 1)[0] + "\n1.0 2.0\n")
+    status, _, err = run(capsys, "info", truncated)
+    assert status == 2 and "truncated.bvh" in err and "Traceback" not in err
+    status, _, err = run(capsys, "info", tmp_path / "missing.bvh")
+    assert status == 2 and "missing.bvh" in err
+    status, _, err = run(capsys, "retarget", asset_path(WALK), "--out", tmp_path / "x.txt")
+    assert status == 2 and ".npz" in err
+    done = subprocess.run([sys.executable, "-m", "simenv", "info", str(truncated)],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_unexpected_errors_keep_their_traceback(monkeypatch):
+    def broken(path):
+        raise RuntimeError("a bug, not bad input")
+
+    monkeypatch.setattr(cli, "load_any", broken)
+    with pytest.raises(RuntimeError, match="a bug"):
+        cli.main(["info", str(asset_path(WALK))])
+
+
+def test_retarget_json_and_npz(tmp_path: Path, capsys, shared_data: Path):
+    out = tmp_path / "run.npz"
+    status, stdout, _ = run(
+        capsys, "retarget", shared_data / "cmu/bvh/35_17.bvh", "--out", out, "--json"
+    )
+    assert status == 0
+    summary = json.loads(stdout)  # exactly one JSON object on stdout
+    assert set(summary) == SUMMARY_KEYS
+    assert summary["people"] == 1 and summary["fps"] == 120 and summary["frames"] == 167
+    assert 0 < summary["mean_residual_m"] <= summary["p95_residual_m"] <= summary["max_residual_m"]
+    assert summary["mean_residual_m"] < 0.05 and summary["seconds"] > 0
+    with np.load(out) as npz:
+        qpos = npz["qpos"]
+        assert qpos.shape[0] == 167 and qpos.shape[1] >= 7 and np.isfinite(qpos).all()
+        assert float(npz["fps"]) == 120
+        dims = dict(zip(npz["dim_names"], npz["dim_values"], strict=True))
+        assert 0.3 < dims["left_thigh"] < 0.6 and 1.4 < float(npz["height"]) < 2.1
+
+
+def test_retarget_two_people_with_video(tmp_path: Path, capsys):
+    out, video = tmp_path / "pair.npz", tmp_path / "pair.mp4"
+    status, stdout, _ = run(
+        capsys, "retarget", asset_path(HANDSHAKE_PAIR), "--out", out, "--json",
+        "--video", video, "--stride", 100,
+    )
+    assert status == 0
+    summary = json.loads(stdout)
+    assert set(summary) == SUMMARY_KEYS and summary["people"] == 2
+    with np.load(out) as npz:
+        q0, q1, q = npz["qpos_0"], npz["qpos_1"], npz["qpos"]
+        assert q0.shape[0] == q1.shape[0] == q.shape[0] == summary["frames"]
+        assert q.shape[1] == q0.shape[1] + q1.shape[1]
+        # The two people stand apart: their pelvis paths differ by decimetres at least.
+        assert np.linalg.norm(q0[:, :2] - q1[:, :2], axis=1).min() > 0.3
+    cap = cv2.VideoCapture(str(video))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == len(range(0, summary["frames"], 100))
+    cap.release()
+
+
+def test_render_a_few_frames(tmp_path: Path, capsys):
+    video = tmp_path / "walk.mp4"
+    status, stdout, _ = run(
+        capsys, "render", asset_path(WALK), "--out", video, "--max-frames", 3, "--stride", 20
+    )
+    assert status == 0 and str(video) in stdout
+    cap = cv2.VideoCapture(str(video))
+    try:
+        assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 3
+        assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(120 / 20)
+        ok, frame = cap.read()
+        assert ok and frame.shape == (240, 320, 3) and frame.std() > 5
+    finally:
+        cap.release()
