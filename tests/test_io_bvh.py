@@ -1,0 +1,262 @@
+"""BVH reader on the real CMU BVH files (and rewritten variants of them)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SHARED_DATA
+from scipy.spatial.transform import Rotation
+
+from simenv.errors import FormatError, SimenvError, UnitsError
+from simenv.io import bvh
+from simenv.io._kinematics import CMU_UNIT_M, forward_kinematics
+
+BVH_FILES = sorted(str(p.relative_to(SHARED_DATA)) for p in SHARED_DATA.glob("cmu/**/*.bvh"))
+
+
+def sources_table(root: Path) -> dict[str, list[str]]:
+    """File table rows of SOURCES.md: relative path -> cells."""
+    rows = {}
+    for line in (root / "SOURCES.md").read_text().splitlines():
+        m = re.match(r"\|\s*`(cmu/[^`]+)`\s*\|(.*)", line)
+        if m:
+            rows[m.group(1)] = [c.strip() for c in m.group(2).split("|")]
+    return rows
+
+
+@pytest.mark.parametrize("rel", BVH_FILES)
+def test_every_cmu_bvh_loads(shared_data: Path, rel: str) -> None:
+    row = sources_table(shared_data)[rel]
+    frames_doc, fps_doc, layout = int(row[3]), float(row[4]), row[2]
+    m = bvh.read(shared_data / rel)
+    meta = m.metadata
+    # Frame bookkeeping: SOURCES frame count, minus the converter T-pose when dropped.
+    assert meta["frames_in_file"] == frames_doc
+    assert meta["tpose_frame0"] == ("cgspeed Motionbuilder" in layout)
+    assert m.num_frames == frames_doc - int(meta["tpose_frame0"])
+    assert meta["header_fps"] == pytest.approx(fps_doc)
+    assert any("dropped T-pose frame 0" in q for q in meta["quirks"]) == meta["tpose_frame0"]
+    # Units and size.
+    template = row[5].startswith("43 joints")
+    assert meta["units"] == ("m" if template else "cmu")
+    lo, hi = (1.0, 1.4) if template else (1.2, 1.9)
+    assert lo < m.height() < hi
+    assert any("template skeleton" in q for q in meta["quirks"]) == template
+    # Z-up: head above pelvis, feet on a floor at z ~ 0.
+    c = m.skeleton.canonical
+    head_up = m.joint(c["head"])[:, 2] - m.joint(c["pelvis"])[:, 2]
+    assert np.median(head_up) > 0.2
+    lowest = m.positions[..., 2].min(axis=1)
+    assert -0.05 < np.percentile(lowest, 5) < 0.1
+    ankles = np.minimum(m.joint(c["left_ankle"])[:, 2], m.joint(c["right_ankle"])[:, 2])
+    assert np.median(ankles) < 0.2
+    # All canonical keypoints are present and distinct from their parents.
+    assert len(c) == 21
+    # Rotations are unit quaternions that reproduce the positions by FK.
+    q = m.rotations
+    assert q.shape == (m.num_frames, m.num_joints, 4)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1.0, atol=1e-5)
+    mats = Rotation.from_quat(q.reshape(-1, 4), scalar_first=True).as_matrix()
+    mats = mats.reshape(m.num_frames, m.num_joints, 3, 3)
+    offsets = np.array(meta["offsets_m"])
+    root = {0: m.positions[:, 0].astype(np.float64) - offsets[0]}
+    pos, _ = forward_kinematics(m.skeleton.parents, offsets, mats, root)
+    np.testing.assert_allclose(pos, m.positions, atol=2e-4)
+
+
+def _cmu_text(shared_data: Path, frames: int | None = None) -> str:
+    text = (shared_data / "cmu/bvh/02_01.bvh").read_text()
+    if frames is None:
+        return text
+    head, data = text.split("Frame Time:")
+    data_lines = data.splitlines()
+    body = data_lines[1 : 1 + frames]
+    head = re.sub(r"Frames:\s*\d+", f"Frames: {frames}", head)
+    return head + "Frame Time:" + data_lines[0] + "\n" + "\n".join(body) + "\n"
+
+
+def _write(tmp_path: Path, text: str, name: str = "clip.bvh", newline: str = "\n") -> Path:
+    p = tmp_path / name
+    p.write_bytes(text.replace("\r\n", "\n").replace("\n", newline).encode())
+    return p
+
+
+def _reorder_channels(text: str, order: str, root_pos_last: bool) -> str:
+    """Rewrite a ZYX BVH with rotation channels in ``order`` (e.g. ``"XZY"``)
+    and recompute every angle, optionally moving the root position channels
+    after the rotations."""
+    parsed_head, _, rest = text.partition("MOTION")
+    lines = rest.strip().splitlines()
+    data = np.array([ln.split() for ln in lines[2:]], dtype=np.float64)
+    out = data.copy()
+    n_joints = (data.shape[1] - 3) // 3
+    for k in range(n_joints):
+        cols = slice(3 + 3 * k, 6 + 3 * k)
+        r = Rotation.from_euler("ZYX", data[:, cols], degrees=True)
+        out[:, cols] = r.as_euler(order, degrees=True)
+    names = " ".join(f"{a}rotation" for a in order)
+    head = re.sub(r"Zrotation Yrotation Xrotation", names, parsed_head)
+    if root_pos_last:
+        head = head.replace(
+            f"Xposition Yposition Zposition {names}", f"{names} Xposition Yposition Zposition", 1
+        )
+        out = np.concatenate([out[:, 3:6], out[:, :3], out[:, 6:]], axis=1)
+    body = "\n".join(" ".join(f"{v:.9f}" for v in row) for row in out)
+    return head + "MOTION\n" + lines[0] + "\n" + lines[1] + "\n" + body + "\n"
+
+
+@pytest.mark.parametrize(
+    ("order", "root_pos_last", "newline"),
+    [("XZY", False, "\r\n"), ("YXZ", True, "\n"), ("ZXY", True, "\r")],
+)
+def test_any_rotation_order_and_line_ending(
+    shared_data: Path, tmp_path: Path, order: str, root_pos_last: bool, newline: str
+) -> None:
+    text = _cmu_text(shared_data, 40)
+    ref = bvh.read(_write(tmp_path, text, "ref.bvh"))
+    other = bvh.read(
+        _write(tmp_path, _reorder_channels(text, order, root_pos_last), newline=newline)
+    )
+    np.testing.assert_allclose(other.positions, ref.positions, atol=1e-4)
+    dots = np.abs(np.sum(other.rotations * ref.rotations, axis=-1))
+    np.testing.assert_allclose(dots, 1.0, atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("unit", "factor"),
+    [
+        ("m", CMU_UNIT_M),
+        ("cm", CMU_UNIT_M * 100),
+        ("mm", CMU_UNIT_M * 1000),
+        ("inch", CMU_UNIT_M / 0.0254),
+    ],
+)
+def test_units_detected_from_size(
+    shared_data: Path, tmp_path: Path, unit: str, factor: float
+) -> None:
+    text = _cmu_text(shared_data, 30)
+    ref = bvh.read(_write(tmp_path, text, "ref.bvh"))
+
+    def scale_offset(m: re.Match[str]) -> str:
+        return "OFFSET " + " ".join(f"{float(v) * factor:.8f}" for v in m.group(1).split())
+
+    head, _, motion = text.partition("MOTION")
+    head = re.sub(r"OFFSET\s+([-\d.e\s]+?)(?=\s*\n)", scale_offset, head)
+    lines = motion.strip().splitlines()
+    rows = [ln.split() for ln in lines[2:]]
+    for row in rows:
+        row[:3] = [f"{float(v) * factor:.8f}" for v in row[:3]]
+    body = "\n".join(" ".join(r) for r in rows)
+    scaled = _write(tmp_path, head + "MOTION\n" + "\n".join(lines[:2]) + "\n" + body + "\n")
+    m = bvh.read(scaled)
+    assert m.metadata["units"] == unit
+    assert unit in m.metadata["units_reason"]
+    np.testing.assert_allclose(m.positions, ref.positions, atol=1e-4)
+    forced = bvh.read(scaled, units=unit)
+    assert "given by the caller" in forced.metadata["units_reason"]
+    np.testing.assert_allclose(forced.positions, m.positions)
+    if unit == "mm":
+        with pytest.raises(UnitsError, match="median person extent"):
+            bvh.read(scaled, units="m")
+
+
+def test_explicit_scale_and_fps_override_are_noted(shared_data: Path) -> None:
+    path = shared_data / "cmu/bvh/35_17.bvh"
+    m = bvh.read(path, scale=CMU_UNIT_M, fps=60)
+    assert m.metadata["units"] == "explicit"
+    assert m.fps == 60
+    assert any("set to 60 fps" in q for q in m.metadata["quirks"])
+    kept = bvh.read(path, drop_tpose=False)
+    assert kept.num_frames == m.num_frames + 1
+    assert any("kept because drop_tpose=False" in q for q in kept.metadata["quirks"])
+
+
+def test_end_sites_become_joints_when_asked(shared_data: Path) -> None:
+    path = shared_data / "cmu/bvh/02_01.bvh"
+    plain = bvh.read(path)
+    full = bvh.read(path, end_sites=True)
+    assert plain.num_joints == 31
+    ends = [n for n in full.skeleton.joint_names if n.endswith("_end")]
+    assert "Head_end" in ends and full.num_joints == 31 + len(ends)
+    head_top = full.joint("Head_end")[:, 2]
+    assert (head_top > full.joint("Head")[:, 2]).mean() > 0.95
+    np.testing.assert_allclose(full.joint("LeftFoot"), plain.joint("LeftFoot"))
+
+
+def test_template_keeps_foot_end_sites_for_toes(shared_data: Path) -> None:
+    m = bvh.read(shared_data / "cmu/two_person/60_61_salsa_10/60_10_scaled.bvh")
+    assert m.skeleton.canonical["left_toe"] == "lFoot_end"
+    assert m.num_joints == 43 + 2
+    toe_ahead = np.linalg.norm(m.joint("lFoot_end") - m.joint("lFoot"), axis=-1)
+    np.testing.assert_allclose(toe_ahead, toe_ahead[0], atol=1e-5)
+    assert 0.05 < toe_ahead[0] < 0.15
+
+
+# -- bad input ---------------------------------------------------------------
+
+
+def _expect(tmp_path: Path, text: str, err: type[SimenvError], *needles: str) -> SimenvError:
+    path = _write(tmp_path, text)
+    with pytest.raises(err) as info:
+        bvh.read(path)
+    msg = str(info.value)
+    assert str(path) in msg
+    for needle in needles:
+        assert needle in msg, msg
+    return info.value
+
+
+def test_truncated_file(shared_data: Path, tmp_path: Path) -> None:
+    text = _cmu_text(shared_data, 20)
+    _expect(tmp_path, text[: len(text) - 300], FormatError, "line", "truncated")
+    _expect(tmp_path, text[: text.index("MOTION") - 200], FormatError, "MOTION")
+    cut = text[: text.index("MOTION")] + "MOTION\nFrames: 20\n"
+    _expect(tmp_path, cut, FormatError, "Frame Time")
+
+
+def test_wrong_channel_count_and_values(shared_data: Path, tmp_path: Path) -> None:
+    text = _cmu_text(shared_data, 20)
+    lines = text.splitlines()
+    n = lines.index("MOTION") + 4
+    short = lines.copy()
+    short[n] = " ".join(short[n].split()[:-1])
+    err = _expect(tmp_path, "\n".join(short), FormatError, "expected 96", "found 95")
+    assert err.line == n + 1 and err.frame == 1
+    garbage = lines.copy()
+    vals = garbage[n].split()
+    vals[10] = "1.2.3"
+    garbage[n] = " ".join(vals)
+    err = _expect(tmp_path, "\n".join(garbage), FormatError, "'1.2.3'", "LeftUpLeg.Yrotation")
+    assert err.line == n + 1
+    vals[10] = "nan"
+    garbage[n] = " ".join(vals)
+    _expect(tmp_path, "\n".join(garbage), FormatError, "finite")
+    bad_decl = text.replace(
+        "CHANNELS 3 Zrotation Yrotation Xrotation", "CHANNELS 4 Zrotation Yrotation Xrotation", 1
+    )
+    _expect(tmp_path, bad_decl, FormatError, "channel")
+
+
+def test_structure_errors(shared_data: Path, tmp_path: Path) -> None:
+    text = _cmu_text(shared_data, 20)
+    _expect(tmp_path, text.replace("HIERARCHY", "", 1), FormatError, "HIERARCHY")
+    _expect(tmp_path, text.replace("Frames: 20", "Frames: 25"), FormatError, "Frames: 25", "20")
+    _expect(tmp_path, text.replace("Frames: 20", "Frames: 0"), FormatError, "0 frames")
+    dup = text.replace("JOINT RHipJoint", "JOINT LHipJoint", 1)
+    _expect(tmp_path, dup, FormatError, "duplicate joint name 'LHipJoint'")
+    unclosed = text.replace("}\nMOTION", "MOTION").replace("}\r\nMOTION", "MOTION")
+    _expect(tmp_path, unclosed, FormatError, "not closed")
+
+
+def test_absurd_scale(shared_data: Path, tmp_path: Path) -> None:
+    text = _cmu_text(shared_data, 20)
+    huge = re.sub(r"OFFSET (\S+)", lambda m: f"OFFSET {float(m.group(1)) * 1e5}", text)
+    huge = re.sub(
+        r"OFFSET (\S+) (\S+)", lambda m: f"OFFSET {m.group(1)} {float(m.group(2)) * 1e5}", huge
+    )
+    _expect(tmp_path, huge, UnitsError, "not a plausible person")
+    with pytest.raises(UnitsError):
+        bvh.read(_write(tmp_path, text), units="parsec")
