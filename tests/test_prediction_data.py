@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from simenv import prediction_data as pdata
 from simenv import srvf
 from simenv.errors import MotionError, SkeletonError
-from simenv.io import bvh
+from simenv.io import asf_amc, bvh
 from simenv.skeletons import canonical_skeleton, h36m_skeleton
 
 
@@ -112,6 +112,18 @@ def test_clips_with_the_same_name_are_one_clip(shared_data):
     assert windows.clip_names == ("trial", "16_15")
     split = pdata.split_by_clip(windows.window_clip_names, 0.5, seed=0)
     assert {split.train_clips, split.test_clips} == {("trial",), ("16_15",)}
+
+
+def test_one_trial_read_from_bvh_and_amc_is_one_clip(shared_data):
+    from_bvh = _clip(shared_data, "02_01")
+    from_amc = asf_amc.read(shared_data / "cmu" / "asf_amc" / "02_01.amc")
+    windows = pdata.windows_from_motions([from_bvh, from_amc, _clip(shared_data, "49_06")],
+                                         10, 10, stride=4)
+    assert windows.clip_names == ("02_01", "49_06")
+    per_format = np.bincount(windows.clip)[0] // 2
+    assert per_format == len(pdata.windows_from_motions([from_amc], 10, 10, stride=4))
+    split = pdata.split_by_clip(windows.window_clip_names, 0.5, seed=1)
+    assert set(split.test_clips) in ({"02_01"}, {"49_06"})
 
 
 def test_split_by_clip_on_real_windows(shared_data):
