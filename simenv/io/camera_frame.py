@@ -1,0 +1,324 @@
+"""Depth-sensor camera frame -> simenv world frame (Z up, floor at z = 0).
+
+Kinect-era skeletons are stored in the sensor's *camera frame*: right-handed,
+``x`` toward the sensor's left (a subject facing the sensor has its right side
+at larger ``x``), ``y`` up along the sensor's vertical axis, ``z`` away from the
+sensor along its optical axis, metres. The sensor height and tilt are unknown,
+so the floor is neither at ``y = 0`` nor perpendicular to ``y``.
+
+Conversion, in two steps (``p_world = R @ p_cam + t``):
+
+1. **Axes.** :data:`KINECT_TO_ZUP` is the cyclic permutation
+   ``(x, y, z)_cam -> (z, x, y)``: world ``X`` = optical axis (depth),
+   ``Y`` = sensor's left, ``Z`` = sensor's up. It is a proper rotation
+   (det +1), so handedness is kept: ``X x Y = z_c x x_c = y_c = Z``. The
+   sensor sits at the origin looking along ``+X``; a subject facing it faces
+   ``-X``. (The other proper choice, ``(x, -z, y)``, a +90 deg turn about
+   ``x``, only differs by a yaw; we keep depth on ``+X``. Swapping two axes,
+   e.g. ``(x, z, y)``, would mirror the person and is never used.)
+2. **Levelling and floor.** The world up vector ``n`` (in the permuted frame)
+   is estimated by a regularised, outlier-trimmed plane fit
+   ``h = a X + b Y + c`` to the per-frame lowest foot point (foot joints
+   lowered by their :data:`FLOOR_CLEARANCE_M` above the sole), with a Gaussian
+   prior on the slopes ``(a, b)`` centred on the *body axis*: the median,
+   over frames, of the unit vectors ankle->knee (both shanks) and
+   hips->neck (trunk), which are vertical in standing and seated poses. When
+   the feet move over the floor (walking) the plane dominates; when they stay
+   put (a gesture in place) the prior does. The minimal rotation taking ``n``
+   to ``+Z`` removes the sensor's pitch and roll (its yaw is kept), and the
+   floor height is the plane's intercept, so the floor ends at ``z = 0`` and
+   the world origin lies on the floor right below the sensor.
+
+The estimate (tilt, pitch, roll, sensor height, fit residual) is returned as a
+:class:`FloorEstimate` and recorded by the readers in
+``metadata["camera_frame"]``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from simenv.errors import MotionError
+from simenv.motion import Motion, Skeleton
+
+#: Camera (x left, y up, z forward) -> Z-up axes: ``p_zup = KINECT_TO_ZUP @ p_cam``.
+KINECT_TO_ZUP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+#: Height of a foot joint centre above the floor when the foot is flat,
+#: metres, by canonical keypoint kind: the forefoot/toe point of Kinect SDK
+#: skeletons sits about 3 cm up, the ankle joint centre (lateral malleolus)
+#: about 7 cm (adult anthropometry).
+FLOOR_CLEARANCE_M: dict[str, float] = {"toe": 0.03, "ankle": 0.07}
+
+#: Noise of one floor-cell sample, metres (sigma of the plane fit): Kinect foot
+#: joints are noisy (~2 cm) and biased by depth and occlusion, so 4 cm.
+FOOT_NOISE_M = 0.04
+#: Prior sigma on each floor slope (tan of the angle) around the body axis.
+BODY_AXIS_PRIOR_SLOPE = float(np.tan(np.radians(2.0)))
+#: Side of the square floor cells that each give one floor sample, metres.
+FLOOR_CELL_M = 0.25
+#: Floor points farther than this many robust sigmas from the plane are dropped.
+OUTLIER_SIGMAS = 3.0
+#: Largest believable sensor tilt (Kinect v1 motor range is +-27 deg), degrees.
+MAX_TILT_DEG = 40.0
+
+
+@dataclass(frozen=True)
+class FloorEstimate:
+    """Rigid transform from a sensor's camera frame to the Z-up world.
+
+    ``p_world = rotation @ p_cam + translation``.
+
+    Attributes:
+        rotation: (3, 3) proper rotation, camera -> world.
+        translation: (3,) metres; ``(0, 0, sensor_height_m)``.
+        up_camera: (3,) unit world-up vector in camera coordinates.
+        tilt_deg: angle between the sensor's up axis and world up.
+        pitch_down_deg: sensor pitch, positive when it looks down.
+        roll_deg: sensor roll, positive when its left side is raised.
+        sensor_height_m: height of the sensor's origin above the floor.
+        floor_rms_m: RMS distance of the kept floor points to the plane.
+        floor_points: number of frames whose lowest foot point was kept.
+        feet_spread_m: (2,) extent (5-95 percentile) of the kept floor points
+            along their two horizontal principal axes: small values mean the
+            tilt came mostly from the body-axis prior.
+    """
+
+    rotation: np.ndarray
+    translation: np.ndarray
+    up_camera: np.ndarray
+    tilt_deg: float
+    pitch_down_deg: float
+    roll_deg: float
+    sensor_height_m: float
+    floor_rms_m: float
+    floor_points: int
+    feet_spread_m: tuple[float, float]
+
+    def apply(self, positions_cam: np.ndarray) -> np.ndarray:
+        """(..., 3) camera-frame metres -> (..., 3) float32 world metres."""
+        p = np.asarray(positions_cam, dtype=np.float64)
+        return (p @ self.rotation.T + self.translation).astype(np.float32)
+
+    def as_metadata(self) -> dict[str, Any]:
+        """JSON-friendly summary for ``Motion.metadata["camera_frame"]``."""
+        return {
+            "convention": "camera x=sensor left, y=up, z=forward -> world X=forward, Y=left, "
+            "Z=up; floor from feet (plane + body-axis prior), z=0 on the floor",
+            "tilt_deg": round(self.tilt_deg, 3),
+            "pitch_down_deg": round(self.pitch_down_deg, 3),
+            "roll_deg": round(self.roll_deg, 3),
+            "sensor_height_m": round(self.sensor_height_m, 4),
+            "floor_rms_m": round(self.floor_rms_m, 4),
+            "floor_points": self.floor_points,
+            "feet_spread_m": [round(v, 3) for v in self.feet_spread_m],
+            "rotation": np.round(self.rotation, 6).tolist(),
+        }
+
+
+def _indices(skeleton: Skeleton, keys: Sequence[str]) -> list[int]:
+    return [skeleton.index(skeleton.canonical[k]) for k in keys if k in skeleton.canonical]
+
+
+def _foot_joints(skeleton: Skeleton) -> tuple[list[int], list[float]]:
+    idx: list[int] = []
+    clearance: list[float] = []
+    for kind, c in FLOOR_CLEARANCE_M.items():
+        for side in ("left", "right"):
+            key = f"{side}_{kind}"
+            if key in skeleton.canonical:
+                idx.append(skeleton.index(skeleton.canonical[key]))
+                clearance.append(c)
+    return idx, clearance
+
+
+def _body_axis_votes(p: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """(N, 3) unit 'up' votes from shanks and trunk, in the permuted frame."""
+    votes = []
+    for side in ("left", "right"):
+        pair = _indices(skeleton, [f"{side}_ankle", f"{side}_knee"])
+        if len(pair) == 2:
+            votes.append(p[:, pair[1]] - p[:, pair[0]])
+    hips = _indices(skeleton, ["left_hip", "right_hip"])
+    low = p[:, hips].mean(axis=1) if len(hips) == 2 else None
+    if low is None and "pelvis" in skeleton.canonical:
+        low = p[:, skeleton.index(skeleton.canonical["pelvis"])]
+    top = _indices(skeleton, ["neck"]) or _indices(skeleton, ["head"])
+    if low is not None and top:
+        votes.append(p[:, top[0]] - low)
+    if not votes:
+        return np.zeros((0, 3))
+    v = np.concatenate(votes)
+    n = np.linalg.norm(v, axis=1)
+    return v[n > 1e-6] / n[n > 1e-6, None]
+
+
+def _rotation_to_z(n: np.ndarray) -> np.ndarray:
+    """Minimal rotation taking unit vector ``n`` to +Z (Rodrigues)."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(n, z)
+    s, c = np.linalg.norm(axis), float(np.dot(n, z))
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
+
+
+def estimate_floor(
+    people: Sequence[tuple[np.ndarray, Skeleton]], *, source: str | None = None
+) -> FloorEstimate:
+    """Estimate the camera -> world transform from the feet of everyone seen
+    by one sensor.
+
+    Args:
+        people: one ``(positions, skeleton)`` per person, positions (T, J, 3)
+            metres in the Kinect camera convention (see module docstring).
+            Every skeleton must map left/right ankles or toes and at least
+            one shank or the trunk.
+        source: file name for error messages.
+
+    Returns:
+        The :class:`FloorEstimate`.
+    """
+    floor_pts, votes = [], []
+    for positions, skeleton in people:
+        p = np.asarray(positions, dtype=np.float64) @ KINECT_TO_ZUP.T
+        feet, clearance = _foot_joints(skeleton)
+        if not feet:
+            raise MotionError(
+                f"skeleton {skeleton.name!r} maps no ankle or toe keypoint; the floor cannot be "
+                "estimated from the feet",
+                source=source,
+            )
+        v = _body_axis_votes(p, skeleton)
+        if len(v) == 0:
+            raise MotionError(
+                f"skeleton {skeleton.name!r} has neither shanks (knee, ankle) nor a trunk "
+                "(hips/pelvis to neck/head) to estimate the vertical from",
+                source=source,
+            )
+        votes.append(v)
+        # Lower each foot joint by its clearance along the rough up (+Z) first;
+        # the small tilt error this leaves is second order (cos of the tilt).
+        h = p[:, feet, 2] - np.asarray(clearance)
+        lowest = np.argmin(h, axis=1)
+        pts = p[np.arange(len(p)), np.asarray(feet)[lowest]].copy()
+        pts[:, 2] -= np.asarray(clearance)[lowest]
+        floor_pts.append(pts)
+    pts = np.concatenate(floor_pts)
+    axis = np.median(np.concatenate(votes), axis=0)
+    if np.linalg.norm(axis) < 1e-6 or axis[2] <= 0:
+        raise MotionError(
+            "the body axis points down or is undefined in the camera frame; expected y-up "
+            "Kinect camera coordinates (x left, y up, z forward)",
+            source=source,
+        )
+    axis /= np.linalg.norm(axis)
+    prior = -axis[:2] / axis[2]  # slopes of the plane perpendicular to the body axis
+
+    # Kinect foot noise is strongly correlated in time, so frames are not
+    # independent samples of the floor: one point (the median) per occupied
+    # floor cell is. A person gesturing in place gives one or two cells and
+    # the prior decides; a walk gives many and the feet decide.
+    cell = np.floor(pts[:, :2] / FLOOR_CELL_M).astype(np.int64)
+    _, inverse = np.unique(cell, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    cells = np.array([np.median(pts[inverse == k], axis=0) for k in range(inverse.max() + 1)])
+
+    keep = np.ones(len(cells), dtype=bool)
+    reg = np.diag([1.0, 1.0, 0.0]) / BODY_AXIS_PRIOR_SLOPE**2
+    coef = np.array([prior[0], prior[1], np.median(cells[:, 2])])
+    for _ in range(5):
+        q = cells[keep]
+        a = np.column_stack([q[:, 0], q[:, 1], np.ones(len(q))]) / FOOT_NOISE_M
+        b = q[:, 2] / FOOT_NOISE_M
+        rhs = a.T @ b + reg @ np.array([prior[0], prior[1], 0.0])
+        coef = np.linalg.solve(a.T @ a + reg + 1e-12 * np.eye(3), rhs)
+        resid = cells[:, 2] - (cells[:, 0] * coef[0] + cells[:, 1] * coef[1] + coef[2])
+        mad = 1.4826 * np.median(np.abs(resid[keep] - np.median(resid[keep])))
+        new_keep = np.abs(resid) <= OUTLIER_SIGMAS * max(mad, FOOT_NOISE_M)
+        if not new_keep.any() or np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    resid = pts[:, 2] - (pts[:, 0] * coef[0] + pts[:, 1] * coef[1] + coef[2])
+    keep = keep[inverse] & (np.abs(resid) <= OUTLIER_SIGMAS * max(FOOT_NOISE_M, 1.4826 * float(
+        np.median(np.abs(resid - np.median(resid))))))
+    if not keep.any():
+        keep = np.ones(len(pts), dtype=bool)
+
+    n = np.array([-coef[0], -coef[1], 1.0])
+    n /= np.linalg.norm(n)
+    tilt = float(np.degrees(np.arccos(np.clip(n[2], -1.0, 1.0))))
+    if tilt > MAX_TILT_DEG:
+        raise MotionError(
+            f"estimated sensor tilt is {tilt:.1f} deg (> {MAX_TILT_DEG} deg); the data is "
+            "probably not in y-up Kinect camera coordinates",
+            source=source,
+        )
+    level = _rotation_to_z(n)
+    rotation = level @ KINECT_TO_ZUP
+    # The plane passes through (0, 0, c) in the permuted frame; its height
+    # along n is the floor level there, so the sensor is that far above it.
+    floor_level = float(coef[2] * n[2])
+    q = pts[keep] @ level.T
+    centred = q[:, :2] - q[:, :2].mean(axis=0)
+    if len(centred) >= 2:
+        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        proj = centred @ vt.T
+        spread = tuple(float(np.ptp(np.percentile(proj[:, i], [5, 95]))) for i in range(2))
+    else:
+        spread = (0.0, 0.0)
+    rms = float(np.sqrt(np.mean((q[:, 2] - floor_level) ** 2)))
+    return FloorEstimate(
+        rotation=rotation,
+        translation=np.array([0.0, 0.0, -floor_level]),
+        up_camera=KINECT_TO_ZUP.T @ n,
+        tilt_deg=tilt,
+        pitch_down_deg=float(np.degrees(np.arcsin(np.clip(-n[0], -1, 1)))),
+        roll_deg=float(np.degrees(np.arcsin(np.clip(n[1], -1, 1)))),
+        sensor_height_m=-floor_level,
+        floor_rms_m=rms,
+        floor_points=int(keep.sum()),
+        feet_spread_m=(spread[0], spread[1]),
+    )
+
+
+def camera_to_world(
+    positions: np.ndarray, skeleton: Skeleton, *, source: str | None = None
+) -> tuple[np.ndarray, FloorEstimate]:
+    """Convert one person's camera-frame clip to the world frame.
+
+    Args:
+        positions: (T, J, 3) metres, Kinect camera convention.
+        skeleton: the clip's skeleton (its canonical map locates feet, knees,
+            hips and neck).
+        source: file name for error messages.
+
+    Returns:
+        ((T, J, 3) float32 world positions, the :class:`FloorEstimate`).
+    """
+    est = estimate_floor([(positions, skeleton)], source=source)
+    return est.apply(positions), est
+
+
+def world_motion(
+    positions_cam: np.ndarray,
+    skeleton: Skeleton,
+    *,
+    fps: float,
+    name: str,
+    metadata: dict[str, Any],
+    source: str | None = None,
+) -> Motion:
+    """Build a world-frame :class:`Motion` from a one-person camera-frame clip
+    (the common last step of the Kinect readers); the floor estimate goes to
+    ``metadata["camera_frame"]``."""
+    world, est = camera_to_world(positions_cam, skeleton, source=source)
+    meta = dict(metadata)
+    meta["camera_frame"] = est.as_metadata()
+    return Motion(world, fps, skeleton, name, meta)
