@@ -112,6 +112,12 @@ def _same_space(a: np.ndarray, b: np.ndarray, na: str, nb: str) -> None:
             f"{na} and {nb} live in different spaces: {na} has (steps, dims) = "
             f"{a.shape[-2:]} but {nb} has {b.shape[-2:]}"
         )
+    try:
+        np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
+    except ValueError:
+        raise GeometryError(
+            f"batch shapes of {na} {a.shape[:-2]} and {nb} {b.shape[:-2]} do not broadcast"
+        ) from None
 
 
 def _first_bad(mask: np.ndarray) -> str:
@@ -193,8 +199,16 @@ def inverse_srvf(q: np.ndarray, start: np.ndarray) -> np.ndarray:
             f"start must be a finite (..., D) pose with D = {q.shape[-1]}; got shape {c0.shape}",
             field="start",
         )
-    steps = q * np.linalg.norm(q, axis=-1, keepdims=True) / q.shape[-2]
-    c0 = np.broadcast_to(c0[..., None, :], steps.shape[:-2] + (1, q.shape[-1]))
+    try:
+        batch = np.broadcast_shapes(q.shape[:-2], c0.shape[:-1])
+    except ValueError:
+        raise GeometryError(
+            f"batch shapes of q {q.shape[:-2]} and start {c0.shape[:-1]} do not broadcast",
+            field="start",
+        ) from None
+    steps = np.broadcast_to(q * np.linalg.norm(q, axis=-1, keepdims=True) / q.shape[-2],
+                            batch + q.shape[-2:])
+    c0 = np.broadcast_to(c0[..., None, :], batch + (1, q.shape[-1]))
     return np.concatenate([c0, c0 + np.cumsum(steps, axis=-2)], axis=-2)
 
 

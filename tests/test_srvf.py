@@ -129,6 +129,17 @@ def test_still_curve_has_no_point_on_the_sphere():
 def test_inverse_rejects_start_of_wrong_dimension():
     with pytest.raises(GeometryError, match="D = 4"):
         srvf.inverse_srvf(np.ones((5, 4)), np.zeros(3))
+    with pytest.raises(GeometryError, match="do not broadcast"):
+        srvf.inverse_srvf(np.ones((2, 5, 4)), np.zeros((3, 4)))
+
+
+def test_one_srvf_integrated_from_many_start_poses():
+    c = np.random.default_rng(8).normal(size=(9, 4))
+    starts = np.random.default_rng(9).normal(size=(3, 4))
+    curves_ = srvf.inverse_srvf(srvf.srvf(c), starts)
+    assert curves_.shape == (3, 9, 4)
+    np.testing.assert_allclose(curves_ - curves_[:, :1], np.broadcast_to(c - c[0], (3, 9, 4)),
+                               atol=1e-13)
 
 
 # -- the sphere -------------------------------------------------------------------------
@@ -232,6 +243,8 @@ def test_domain_errors_are_clear():
         srvf.distance(p, q[:5])
     with pytest.raises(GeometryError, match=r"batch index \(2,\)"):
         srvf.distance(p, np.stack([q, q, 3 * q]))
+    with pytest.raises(GeometryError, match="do not broadcast"):
+        srvf.inner(np.stack([p, q]), np.stack([p, q, p]))
 
 
 # -- Karcher mean ---------------------------------------------------------------------------
