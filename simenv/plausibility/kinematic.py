@@ -1,0 +1,347 @@
+"""Joint-level kinematic plausibility metrics: bone length, jitter, velocity.
+
+All metrics work on the canonical keypoints (:meth:`Motion.to_canonical`) in
+metres and seconds, world Z-up, are vectorised over frames and keypoints, and
+return a :class:`~simenv.plausibility.timeline.MetricResult` with one timeline
+value per frame.
+
+Consistent rule for short or incomplete input: a metric that cannot be
+computed (too few frames for its finite differences, no keypoints it needs)
+does not raise; it returns ``MetricResult.not_available`` with ``passed=None``
+and a ``reason`` naming what is missing, so a report can still show the other
+metrics. Invalid *arguments* (a malformed reference skeleton) raise
+:class:`~simenv.errors.MotionError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from simenv.errors import MotionError
+from simenv.motion import Motion
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
+from simenv.plausibility.timeline import MetricResult
+
+#: Keypoint groups for the speed limits (see :class:`Thresholds`).
+TRUNK_KEYPOINTS: tuple[str, ...] = (
+    "pelvis", "left_hip", "right_hip", "spine", "chest", "neck", "head",
+    "left_shoulder", "right_shoulder",
+)
+LIMB_KEYPOINTS: tuple[str, ...] = ("left_knee", "right_knee", "left_elbow", "right_elbow")
+DISTAL_KEYPOINTS: tuple[str, ...] = (
+    "left_ankle", "right_ankle", "left_toe", "right_toe",
+    "left_wrist", "right_wrist", "left_hand", "right_hand",
+)
+
+
+def canonical_or_reason(motion: Motion) -> tuple[Motion | None, str | None]:
+    """The canonical-keypoint motion, or ``(None, reason)`` when the
+    skeleton maps no canonical keypoint."""
+    try:
+        return motion.to_canonical(), None
+    except MotionError as exc:
+        return None, f"no canonical keypoints: {exc.detail}"
+
+
+def keypoint_indices(motion: Motion, names: Sequence[str]) -> list[int]:
+    """Indices of those of ``names`` that ``motion``'s skeleton has, in order."""
+    present = motion.skeleton.joint_names
+    return [present.index(n) for n in names if n in present]
+
+
+def _limited(name: str, reason: str, num_frames: int, unit: str, threshold: float,
+             **kwargs: object) -> MetricResult:
+    return MetricResult.not_available(name, num_frames, unit, threshold, reason, **kwargs)
+
+
+# -- bone length ---------------------------------------------------------------
+
+
+def bone_lengths(motion: Motion) -> tuple[list[str], np.ndarray]:
+    """Per-frame lengths of the canonical bones.
+
+    Returns:
+        (bone names, lengths) where each bone is named by its child keypoint
+        (``"left_knee"`` is the thigh, hip to knee) and ``lengths`` is
+        (T, B) float64 metres.
+    """
+    canon, reason = canonical_or_reason(motion)
+    if canon is None:
+        raise MotionError(reason or "no canonical keypoints", source=motion.metadata.get("source"))
+    bones = canon.skeleton.bones
+    names = [canon.skeleton.joint_names[c] for _, c in bones]
+    if not bones:
+        return names, np.zeros((canon.num_frames, 0))
+    parent, child = np.array(bones).T
+    pos = canon.positions.astype(np.float64)
+    return names, np.linalg.norm(pos[:, child] - pos[:, parent], axis=-1)
+
+
+def reference_lengths(motion: Motion) -> dict[str, float]:
+    """Median length (metres) of each canonical bone over the clip, keyed by
+    child keypoint: a reference skeleton for :func:`bone_length_error`."""
+    names, lengths = bone_lengths(motion)
+    return {n: float(v) for n, v in zip(names, np.median(lengths, axis=0), strict=True)}
+
+
+def bone_length(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
+    """Bone-length consistency over time.
+
+    For each canonical bone b (parent keypoint to child keypoint) with median
+    length ``m_b`` over the clip, the relative deviation at frame t is
+    ``d_b(t) = |L_b(t) / m_b - 1|``. Timeline: ``max_b d_b(t)`` (fraction).
+    Value: the 95th percentile of the timeline over frames (robust to a single
+    bad frame, which :func:`velocity` catches); ``details["max"]`` is the
+    maximum. Passes when the value is at most ``thresholds.bone_length_rel_max``.
+    Bones shorter than ``bone_min_length_m`` are skipped. This is the
+    per-clip form of the bone-length consistency term of the seeds (MA-GAN's
+    bone-length loss, the reactive GAN's bone constraint); works on one frame
+    (the value is then 0).
+    """
+    name, unit, thr = "bone_length", "fraction", thresholds.bone_length_rel_max
+    canon, reason = canonical_or_reason(motion)
+    if canon is None:
+        return _limited(name, reason or "", motion.num_frames, unit, thr)
+    names, lengths = bone_lengths(canon)
+    median = np.median(lengths, axis=0) if lengths.size else np.zeros(0)
+    keep = median >= thresholds.bone_min_length_m
+    if not keep.any():
+        return _limited(
+            name, "needs two canonical keypoints joined by a bone of non-zero length",
+            motion.num_frames, unit, thr,
+        )
+    dev = np.abs(lengths[:, keep] / median[keep] - 1.0)
+    timeline = dev.max(axis=1)
+    return MetricResult.from_timeline(
+        name, timeline, float(np.percentile(timeline, 95)), unit, thr,
+        details={"max": float(timeline.max()), "bones_checked": float(keep.sum())},
+    )
+
+
+def bone_length_error(
+    motion: Motion,
+    reference_lengths: Mapping[str, float],
+    thresholds: Thresholds = DEFAULT_THRESHOLDS,
+) -> MetricResult:
+    """Bone-length error against a reference skeleton (the interaction-
+    augmentation seed's E_b).
+
+    ``E_b(t) = mean_b |L_b(t) - L_b^ref|`` over the bones present in both,
+    in millimetres (timeline); the value is the mean over frames. Passes
+    when at most ``thresholds.bone_reference_error_max_mm``.
+
+    Args:
+        motion: the motion to check.
+        reference_lengths: metres per bone, keyed by the bone's child
+            canonical keypoint (``"left_knee"`` = thigh), e.g. from
+            :func:`reference_lengths` of a real clip.
+
+    Raises:
+        MotionError: a key is not a canonical bone or a length is not a
+            positive finite number of metres.
+    """
+    from simenv.skeletons import CANONICAL_TREE
+
+    name, unit, thr = "bone_length_error", "mm", thresholds.bone_reference_error_max_mm
+    ref: dict[str, float] = {}
+    for key, length in reference_lengths.items():
+        if CANONICAL_TREE.get(key) is None:
+            raise MotionError(
+                f"reference bone {key!r} is not a canonical bone; expected a child keypoint "
+                f"among {', '.join(k for k, p in CANONICAL_TREE.items() if p is not None)}",
+                field=str(key),
+            )
+        value = float(length)
+        if not np.isfinite(value) or value <= 0 or value > 2.0:
+            raise MotionError(
+                f"reference length of {key!r} is {length!r}; expected a positive bone length "
+                "in metres (below 2 m)",
+                field=str(key),
+            )
+        ref[key] = value
+    canon, reason = canonical_or_reason(motion)
+    if canon is None:
+        return _limited(name, reason or "", motion.num_frames, unit, thr)
+    names, lengths = bone_lengths(canon)
+    common = [i for i, n in enumerate(names) if n in ref]
+    if not common:
+        return _limited(
+            name, "the motion and the reference share no canonical bone",
+            motion.num_frames, unit, thr,
+        )
+    target = np.array([ref[names[i]] for i in common])
+    timeline = np.abs(lengths[:, common] - target).mean(axis=1) * 1000.0
+    return MetricResult.from_timeline(
+        name, timeline, float(timeline.mean()), unit, thr,
+        details={"max": float(timeline.max()), "bones_compared": float(len(common))},
+    )
+
+
+# -- jitter --------------------------------------------------------------------
+
+
+def _analysis_motion(motion: Motion, fps: float) -> Motion:
+    """The motion at most at ``fps`` (linear resampling down, never up:
+    interpolating up would add jerk at every original sample)."""
+    if motion.fps > fps * (1 + 1e-9):
+        return motion.resample(fps)
+    return motion
+
+
+def windowed_normalized_jerk(
+    positions: np.ndarray, fps: float, window_frames: int, eps: float = 0.1
+) -> np.ndarray:
+    """ProtoMotions' normalized jerk per sliding window and keypoint.
+
+    For a window of ``w`` frames (duration ``T = (w - 1) / fps``) and one
+    keypoint, with finite-difference velocity ``v``, jerk ``j`` and
+    ``dt = 1 / fps``:
+    ``NJ = T^5 * sum |j|^2 dt / (max(L, eps)^2 + eps)`` with path length
+    ``L = sum |v| dt``. Dimensionless; windows advance one frame.
+
+    Args:
+        positions: (T, J, 3) metres.
+        fps: frame rate of ``positions``.
+        window_frames: ``w >= 4``.
+
+    Returns:
+        (T - w + 1, J) float64; empty when ``T < w``.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    t_count, j_count = pos.shape[:2]
+    w = int(window_frames)
+    if t_count < w or w < 4:
+        return np.zeros((0, j_count))
+    dt = 1.0 / fps
+    vel = np.diff(pos, axis=0) / dt
+    jerk = np.diff(pos, 3, axis=0) / dt**3
+    step = np.linalg.norm(vel, axis=-1) * dt  # (T-1, J)
+    jerk_sq = (jerk**2).sum(axis=-1) * dt  # (T-3, J)
+    path = sliding_window_view(step, w - 1, axis=0).sum(axis=-1)
+    integrated = sliding_window_view(jerk_sq, w - 3, axis=0).sum(axis=-1)
+    duration = (w - 1) * dt
+    return duration**5 * integrated / (np.maximum(path, eps) ** 2 + eps)
+
+
+def jitter(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
+    """High-frequency jitter: ProtoMotions' high-jerk-window percentage.
+
+    The motion is first brought to at most ``thresholds.jerk_fps`` (30 Hz,
+    ProtoMotions' rate; see :class:`Thresholds`). With windows of
+    ``w = max(4, round(jerk_window_s * fps))`` frames (0.4 s),
+    :func:`windowed_normalized_jerk` gives NJ per window and keypoint; a
+    window is *high-jerk* when some keypoint's NJ exceeds
+    ``normalized_jerk_max`` (6500). Value: percentage of high-jerk windows
+    (ProtoMotions' ``high_jerk_frame_percentage``); passes when at most
+    ``high_jerk_percent_max``. Timeline: the worst keypoint's NJ of the window
+    centred on each frame (NaN where no window is centred), against 6500.
+    Details: ``mean_jerk_mps3`` (mean over frames and keypoints of |jerk|, at
+    the analysis rate), ``normalized_jerk_mean`` (ProtoMotions'
+    ``normalized_jerk_mean``: mean over keypoints and windows),
+    ``analysis_fps``. Not available for clips shorter than one window.
+    """
+    name, unit, thr = "jitter", "%", thresholds.high_jerk_percent_max
+    kwargs = {"frame_threshold": thresholds.normalized_jerk_max,
+              "timeline_unit": "normalized jerk"}
+    canon, reason = canonical_or_reason(motion)
+    if canon is None:
+        return _limited(name, reason or "", motion.num_frames, unit, thr, **kwargs)
+    fa = min(motion.fps, thresholds.jerk_fps)
+    w = max(4, round(thresholds.jerk_window_s * fa))
+    needed = int(np.ceil((w - 1) * motion.fps / fa)) + 1
+    if motion.num_frames < max(needed, 4):
+        return _limited(
+            name,
+            f"needs at least {max(needed, 4)} frames ({thresholds.jerk_window_s:g} s window at "
+            f"{fa:g} fps); the motion has {motion.num_frames}",
+            motion.num_frames, unit, thr, **kwargs,
+        )
+    analysed = _analysis_motion(canon, fa)
+    pos = analysed.positions.astype(np.float64)
+    nj = windowed_normalized_jerk(pos, fa, w)
+    if nj.shape[0] == 0:
+        return _limited(
+            name, f"resampled clip is shorter than one {w}-frame window",
+            motion.num_frames, unit, thr, **kwargs,
+        )
+    worst = nj.max(axis=1)
+    percent = 100.0 * float((worst > thresholds.normalized_jerk_max).mean())
+    centres = (np.arange(len(worst)) + (w - 1) / 2.0) / fa
+    timeline = np.interp(motion.times, centres, worst, left=np.nan, right=np.nan)
+    jerk = np.linalg.norm(np.diff(pos, 3, axis=0), axis=-1) * fa**3
+    return MetricResult.from_timeline(
+        name, timeline, percent, unit, thr, **kwargs,
+        details={
+            "mean_jerk_mps3": float(jerk.mean()),
+            "normalized_jerk_mean": float(nj.mean()),
+            "analysis_fps": float(fa),
+        },
+    )
+
+
+# -- velocity and teleports ----------------------------------------------------
+
+
+def speed_limits(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> np.ndarray:
+    """(J,) speed limit in m/s of each keypoint of a canonical ``motion``
+    (trunk, mid-limb or distal limit; unknown names get the distal limit)."""
+    limits = []
+    for n in motion.skeleton.joint_names:
+        if n in TRUNK_KEYPOINTS:
+            limits.append(thresholds.speed_limit_trunk_mps)
+        elif n in LIMB_KEYPOINTS:
+            limits.append(thresholds.speed_limit_limb_mps)
+        else:
+            limits.append(thresholds.speed_limit_distal_mps)
+    return np.array(limits)
+
+
+def velocity(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
+    """Keypoint speeds beyond human limits, and teleports between frames.
+
+    Speed of keypoint j at frame t >= 1: ``s_j(t) = |p_j(t) - p_j(t-1)| * fps``
+    against its group limit ``S_j`` (trunk / mid-limb / distal, see
+    :class:`Thresholds`). Teleport: the departure from the constant-velocity
+    path ``e_j(t) = |p_j(t+1) - 2 p_j(t) + p_j(t-1)|`` (metres) against
+    ``E = max(teleport_distance_m, teleport_accel_mps2 / fps^2)``.
+    Timeline (fraction of the limit):
+    ``max_j max(s_j(t) / S_j, e_j(t) / E)``, NaN on frame 0; value: its
+    maximum; passes when at most 1. Details: ``max_speed_mps``,
+    ``max_speed_ratio``, ``max_jump_m``, ``teleport_frames``. Needs two frames
+    (teleports need three; with two only speeds are checked).
+    """
+    name, unit, thr = "velocity", "fraction of limit", 1.0
+    canon, reason = canonical_or_reason(motion)
+    if canon is None:
+        return _limited(name, reason or "", motion.num_frames, unit, thr)
+    if motion.num_frames < 2:
+        return _limited(
+            name, f"needs at least 2 frames for a speed; the motion has {motion.num_frames}",
+            motion.num_frames, unit, thr,
+        )
+    pos = canon.positions.astype(np.float64)
+    fps = motion.fps
+    speed = np.linalg.norm(np.diff(pos, axis=0), axis=-1) * fps  # (T-1, J)
+    speed_ratio = (speed / speed_limits(canon, thresholds)).max(axis=1)
+    timeline = np.full(motion.num_frames, np.nan)
+    timeline[1:] = speed_ratio
+    jump_limit = max(thresholds.teleport_distance_m, thresholds.teleport_accel_mps2 / fps**2)
+    max_jump, teleports = 0.0, 0
+    if motion.num_frames >= 3:
+        jump = np.linalg.norm(np.diff(pos, 2, axis=0), axis=-1).max(axis=1)  # frames 1..T-2
+        jump_ratio = jump / jump_limit
+        timeline[1:-1] = np.maximum(timeline[1:-1], jump_ratio)
+        max_jump, teleports = float(jump.max()), int((jump_ratio > 1).sum())
+    return MetricResult.from_timeline(
+        name, timeline, float(np.nanmax(timeline)), unit, thr,
+        details={
+            "max_speed_mps": float(speed.max()),
+            "max_speed_ratio": float(speed_ratio.max()),
+            "max_jump_m": max_jump,
+            "jump_limit_m": jump_limit,
+            "teleport_frames": float(teleports),
+        },
+    )

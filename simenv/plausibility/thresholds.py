@@ -1,0 +1,158 @@
+"""Named, documented, configurable thresholds of the joint-level metrics.
+
+Every default states where it comes from: a published metric (so scores are
+comparable with papers), a physical or physiological bound, or the
+calibration on real CMU motion capture (``benchmarks/calibrate_kinematic.py``
+runs every metric on every real single-person clip and prints the values).
+Override any of them with :func:`dataclasses.replace`::
+
+    from dataclasses import replace
+    strict = replace(Thresholds(), skate_ratio_max=0.05)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from simenv.errors import SimenvError
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Thresholds of the joint-level plausibility metrics (SI units).
+
+    Bone length
+        bone_length_rel_max: 0.05. Largest allowed 95th percentile over frames
+            of the worst bone's relative deviation ``|L_b(t) / median_t L_b - 1|``.
+            Rigid-body mocap scores 0 on limb bones; 5 % leaves room for
+            keypoints that are not rigidly attached (the CMU head keypoint
+            moves with the upper neck joint, p95 2 %) and for depth-camera
+            skeletons, while a bone stretched by 10 % over a quarter of the
+            clip fails.
+        bone_min_length_m: 0.01. Bones shorter than this (degenerate
+            keypoint pairs, e.g. two CMU keypoints at the same joint) are
+            skipped: their relative deviation is meaningless.
+        bone_reference_error_max_mm: 20. Limit on the mean absolute bone
+            length error against a reference skeleton (E_b of the
+            interaction-augmentation seed); 2 cm is about one anthropometric
+            standard deviation of a limb bone.
+
+    Foot contact and skating
+        contact_height_m: 0.05. A toe keypoint is low enough for contact when
+            it is less than 5 cm above the clip's foot floor (HumanML3D /
+            GMD / InterGen use 5 cm for the foot joint).
+        contact_height_ankle_m: 0.12. Same test for ankle keypoints, used
+            when a skeleton has no toes (InterGen's ``heightfactor`` for the
+            ankle joints).
+        contact_speed_mps: 0.949. A low foot is *planted* when its 3-D speed
+            is below this: InterGen's test ``|dp|^2 < 0.001 m^2`` per frame at
+            30 fps, i.e. ``sqrt(0.001) * 30`` m/s, written as a speed so it
+            holds at any frame rate.
+        skate_speed_mps: 0.5. GMD / OmniControl foot-skating test: a low foot
+            whose horizontal speed, both instantaneous and averaged over
+            ``skate_window_s``, exceeds 0.5 m/s is skating.
+        skate_window_s: 0.25. GMD's 5-frame average at 20 fps, as a duration
+            (used for the published ratio reported in the details).
+        skate_min_duration_s: 0.15. A slide counts as skating only when it
+            lasts this long: on joint-centre mocap every early swing keeps the
+            toe within 5 cm of the floor for 20-100 ms (CMU walks and runs:
+            at most 0.15 s), whereas a sliding planted foot slides for much of
+            its stance (0.3-0.6 s).
+        skate_ratio_max: 0.05. Largest allowed fraction of frames with a
+            skating foot. Calibrated: real CMU locomotion scores 0, dance,
+            karate and bending clips (pivots, deliberate slides) up to ~5 %.
+        skate_reference_fps: 20. PhysDiff's "skate" (mm per frame) is
+            reported per frame of a 20 fps clip (HumanML3D's rate), i.e.
+            ``speed_mps * 1000 / 20``, so it is comparable across frame rates.
+
+    Ground penetration and floating (keypoint level)
+        penetration_max_mm: 30. Largest allowed depth of the lowest keypoint
+            below the floor (z = 0). Keypoints are joint centres 2-8 cm above
+            the skin, so a keypoint 3 cm under the floor means the body is
+            5 cm or more into it. Calibrated: real CMU clips reach at most
+            ~1 cm (excluding the converter's T-pose frame).
+        float_height_m: 0.10. A frame is airborne when its lowest keypoint is
+            more than 10 cm above the floor. Planted CMU toe keypoints sit
+            1-9 cm high depending on the subject's marker set.
+        ballistic_tolerance_m: 0.05. An airborne phase is a jump, not
+            floating, when the centre-of-mass proxy's height is fitted by a
+            free-fall parabola ``z0 + v0 t - g t^2 / 2`` with an RMS residual
+            below this. Calibrated on the CMU jumps (01_01, 49_02, 49_04).
+        gravity_mps2: 9.81. Standard gravity.
+
+    Jitter (smoothness)
+        jerk_fps: 30. Jerk is evaluated at (at most) this rate: the clip is
+            linearly resampled down first, because finite-difference jerk
+            amplifies capture noise by ``fps^3`` and ProtoMotions' 6500
+            threshold was set at its 30 Hz control rate.
+        jerk_window_s: 0.4. ProtoMotions' normalized-jerk window.
+        normalized_jerk_max: 6500. ProtoMotions' high-jerk threshold on the
+            dimensionless normalized jerk ``T^5 * int |j|^2 dt / L^2`` of one
+            body (keypoint) in one window.
+        high_jerk_percent_max: 20. Largest allowed percentage of windows in
+            which some keypoint exceeds ``normalized_jerk_max``. Calibrated
+            on CMU (real clips score up to ~10 %; landings and stops are
+            legitimately jerky).
+
+    Velocity and teleports
+        speed_limit_trunk_mps: 12.5. Pelvis, hips, spine, chest, neck, head,
+            shoulders. Fastest measured human running speed, 12.3 m/s
+            (Bolt, 2009 Berlin 100 m; Graubner & Nixdorf 2011).
+        speed_limit_limb_mps: 20. Knees and elbows (about 2/3 of the
+            distal limit: they sit at mid-limb).
+        speed_limit_distal_mps: 30. Wrists, hands, ankles, toes. Elite
+            punches reach ~10-14 m/s (Walilko et al. 2005), soccer instep
+            kicks 18-25 m/s of foot speed (Lees & Nolan 1998), overarm
+            throws ~30 m/s of hand speed near release (Fleisig et al. 1995).
+        teleport_distance_m: 0.15. A keypoint *teleports* in a frame when it
+            leaves its constant-velocity path by more than
+            ``max(teleport_distance_m, teleport_accel_mps2 / fps^2)``
+            (second difference). Real CMU capture has single-frame wobbles of
+            up to 9 cm at toes and knees.
+        teleport_accel_mps2: 300. Acceleration a real limb can reach
+            (~30 g: punches and kicks peak at a few hundred m/s^2), so that at
+            low frame rates fast real motion is not taken for a teleport.
+    """
+
+    bone_length_rel_max: float = 0.05
+    bone_min_length_m: float = 0.01
+    bone_reference_error_max_mm: float = 20.0
+
+    contact_height_m: float = 0.05
+    contact_height_ankle_m: float = 0.12
+    contact_speed_mps: float = 0.949
+    skate_speed_mps: float = 0.5
+    skate_window_s: float = 0.25
+    skate_min_duration_s: float = 0.15
+    skate_ratio_max: float = 0.05
+    skate_reference_fps: float = 20.0
+
+    penetration_max_mm: float = 30.0
+    float_height_m: float = 0.10
+    ballistic_tolerance_m: float = 0.05
+    gravity_mps2: float = 9.81
+
+    jerk_fps: float = 30.0
+    jerk_window_s: float = 0.4
+    normalized_jerk_max: float = 6500.0
+    high_jerk_percent_max: float = 20.0
+
+    speed_limit_trunk_mps: float = 12.5
+    speed_limit_limb_mps: float = 20.0
+    speed_limit_distal_mps: float = 30.0
+    teleport_distance_m: float = 0.15
+    teleport_accel_mps2: float = 300.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or not value > 0 or value != value:
+                raise SimenvError(
+                    f"threshold {f.name} must be a positive number; got {value!r}",
+                    field=f.name,
+                )
+            object.__setattr__(self, f.name, float(value))
+
+
+#: The defaults, shared by every metric when no thresholds are passed.
+DEFAULT_THRESHOLDS = Thresholds()
