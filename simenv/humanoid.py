@@ -1,0 +1,900 @@
+"""A MuJoCo humanoid built to a subject's measurements with :class:`mujoco.MjSpec`.
+
+Body tree (every body frame is aligned with the world in the rest pose: x forward,
+y left, z up; the rest pose is standing with the arms hanging)::
+
+    pelvis (free joint) -+- lumbar -- thorax -- chest -+- neck -- head
+                         |                             +- {l,r}_clavicle -- upper_arm -- forearm -- hand
+                         +- {l,r}_thigh -- shin -- foot -- toes
+
+Each body carries a site at its canonical keypoint (site name = keypoint name, see
+:data:`simenv.skeletons.CANONICAL_KEYPOINTS`), so keypoints are read from
+``data.site_xpos``. A keypoint is the origin of the body it starts, except the
+rigid ones: the hips live on the pelvis, the neck on the chest.
+
+Joints are hinges (triplets where the anatomy has three degrees of freedom, so
+every degree of freedom gets its own box limit and its own position actuator).
+Limits are the normal active ranges of motion of the AAOS (American Academy of
+Orthopaedic Surgeons, *Joint Motion: Method of Measuring and Recording*, 1965)
+with margins of 5-20 degrees for the looser joint centres of motion capture;
+the spine's total range is split over three joints. Signs are mirrored between
+the sides so that a positive angle means the same anatomical motion on the left
+and on the right. See :data:`JOINTS` for the table.
+
+Masses come from the geoms at body density (:data:`BODY_DENSITY`); the default
+adult (1.75 m) weighs about 72 kg (see :attr:`Humanoid.total_mass`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from functools import cached_property
+
+import mujoco
+import numpy as np
+
+from simenv.errors import RetargetError
+from simenv.motion import Motion
+from simenv.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE
+
+#: Body density, kg/m^3 (lean tissue ~1060, whole body ~1010-1060).
+BODY_DENSITY = 1040.0
+
+#: Canonical bones, named after their child keypoint (order of the scale vector).
+BONES: tuple[str, ...] = tuple(k for k in CANONICAL_KEYPOINTS if CANONICAL_TREE[k] is not None)
+
+#: Allowed per-bone scale range (interaction-augmentation skeleton prior).
+SCALE_RANGE = (0.75, 1.25)
+
+#: Plausible range of each length of :class:`BodyDimensions`, metres. Outside ->
+#: :class:`RetargetError` (the input is not a human, or not in metres).
+LENGTH_RANGE = (0.0, 0.9)
+HEIGHT_RANGE = (0.5, 2.6)
+
+_SIDES = ("left", "right")
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One hinge: name suffix, axis in the (left-side) body frame, range in degrees
+    (positive = the named anatomical motion), PD gains of its position actuator."""
+
+    name: str
+    axis: tuple[float, float, float]
+    range_deg: tuple[float, float]
+    kp: float
+    mirror: bool = True
+
+
+#: Joint table per body (left side; right side mirrored: x and z axis
+#: components negated so positive angles keep their anatomical meaning).
+#: Gains: kp in N m/rad, kv = 0.1 * kp (N m s/rad). kp grows with the mass the
+#: joint carries; 0.1 s time constant keeps PD tracking critically damped-ish.
+JOINTS: dict[str, tuple[JointSpec, ...]] = {
+    # Thoraco-lumbar spine (AAOS: flexion 80, extension 25, lateral 35, rotation 45)
+    # split over lumbar / thorax / chest with margins.
+    "lumbar": (
+        JointSpec("flex", (0, 1, 0), (-30, 60), 600),
+        JointSpec("lat", (1, 0, 0), (-30, 30), 600),
+        JointSpec("rot", (0, 0, 1), (-35, 35), 400),
+    ),
+    "thorax": (
+        JointSpec("flex", (0, 1, 0), (-30, 45), 500),
+        JointSpec("lat", (1, 0, 0), (-25, 25), 500),
+        JointSpec("rot", (0, 0, 1), (-30, 30), 300),
+    ),
+    "chest": (
+        JointSpec("flex", (0, 1, 0), (-30, 40), 400),
+        JointSpec("lat", (1, 0, 0), (-25, 25), 400),
+        JointSpec("rot", (0, 0, 1), (-30, 30), 300),
+    ),
+    # Cervical spine + head (AAOS: flexion 45, extension 45, lateral 45, rotation 60).
+    "neck": (
+        JointSpec("flex", (0, 1, 0), (-60, 60), 80),
+        JointSpec("lat", (1, 0, 0), (-45, 45), 80),
+        JointSpec("rot", (0, 0, 1), (-80, 80), 60),
+    ),
+    # Shoulder girdle: elevation 45 / depression 15, protraction/retraction ~30.
+    "clavicle": (
+        JointSpec("protract", (0, 0, -1), (-35, 35), 200),
+        JointSpec("elevate", (1, 0, 0), (-20, 45), 200),
+    ),
+    # Glenohumeral (AAOS: flexion 180, extension 60, abduction 180, adduction
+    # ~45 across the body, internal rotation 70, external rotation 90).
+    "upper_arm": (
+        JointSpec("flex", (0, -1, 0), (-65, 185), 200),
+        JointSpec("abd", (1, 0, 0), (-50, 185), 200),
+        JointSpec("rot", (0, 0, -1), (-95, 95), 100),
+    ),
+    # Elbow 0..150 flexion; forearm pronation 80 / supination 80.
+    "forearm": (
+        JointSpec("flex", (0, -1, 0), (0, 150), 120),
+        JointSpec("pronate", (0, 0, -1), (-90, 90), 40),
+    ),
+    # Wrist (palm facing the thigh at rest): flexion 80 / extension 70,
+    # radial 20 / ulnar 30 deviation.
+    "hand": (
+        JointSpec("flex", (1, 0, 0), (-80, 85), 30),
+        JointSpec("dev", (0, 1, 0), (-35, 35), 30),
+    ),
+    # Hip (AAOS: flexion 120, extension 30, abduction 45, adduction 30,
+    # internal 45, external 45).
+    "thigh": (
+        JointSpec("flex", (0, -1, 0), (-35, 130), 600),
+        JointSpec("abd", (1, 0, 0), (-35, 55), 600),
+        JointSpec("rot", (0, 0, -1), (-55, 50), 300),
+    ),
+    # Knee 0..150 flexion (AAOS 135; 150 in deep squats).
+    "shin": (JointSpec("flex", (0, 1, 0), (0, 150), 500),),
+    # Ankle (AAOS: dorsiflexion 20, plantarflexion 50) + subtalar inversion 35 /
+    # eversion 15 + toe-out (tibial torsion, foot abduction) about the shin.
+    "foot": (
+        JointSpec("flex", (0, 1, 0), (-30, 60), 300),
+        JointSpec("inv", (1, 0, 0), (-30, 40), 150),
+        JointSpec("abd", (0, 0, 1), (-35, 35), 100),
+    ),
+    # Metatarsophalangeal: extension 70, flexion 40.
+    "toes": (JointSpec("ext", (0, -1, 0), (-40, 75), 40),),
+}
+
+
+def _v(x: Sequence[float]) -> tuple[float, float, float]:
+    a = np.asarray(x, dtype=float).reshape(3)
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+@dataclass(frozen=True)
+class BodyDimensions:
+    """The measurements that define a body, metres (body frame: x forward, y left, z up).
+
+    Segment lengths are distances between canonical keypoints; ``*_offset``
+    fields are the rigid 3D offsets of keypoints that share a body (hips on the
+    pelvis). A zero length is allowed where the source skeleton places two
+    keypoints at one point (e.g. CMU BVH neck = chest, hand = wrist).
+
+    Attributes:
+        left_hip_offset, right_hip_offset: hip joint centres in the pelvis frame.
+        lumbar: pelvis -> spine. thorax: spine -> chest. upper_chest: chest -> neck.
+        neck: neck -> head keypoint (base of the skull).
+        clavicle_pivot: height of the sterno-clavicular pivot above the chest
+            keypoint, along the chest's z axis.
+        {left,right}_clavicle: pivot -> shoulder. *_upper_arm: shoulder -> elbow.
+        *_forearm: elbow -> wrist. *_hand: wrist -> hand keypoint.
+        *_thigh: hip -> knee. *_shin: knee -> ankle. *_foot: ankle -> toe (ball).
+        ankle_height, toe_height: heights of the ankle and toe keypoints above
+            the sole with the foot flat. toes_length: toe keypoint -> tip.
+        heel_length: heel behind the ankle. foot_width: sole width.
+        girth: scale of the segment radii (1 = default adult).
+        notes: how the dimensions were obtained (fallbacks are recorded here).
+    """
+
+    left_hip_offset: tuple[float, float, float] = (0.0, 0.09, -0.09)
+    right_hip_offset: tuple[float, float, float] = (0.0, -0.09, -0.09)
+    lumbar: float = 0.12
+    thorax: float = 0.12
+    upper_chest: float = 0.21
+    neck: float = 0.125
+    clavicle_pivot: float = 0.19
+    left_clavicle: float = 0.2
+    right_clavicle: float = 0.2
+    left_upper_arm: float = 0.30
+    right_upper_arm: float = 0.30
+    left_forearm: float = 0.25
+    right_forearm: float = 0.25
+    left_hand: float = 0.09
+    right_hand: float = 0.09
+    left_thigh: float = 0.43
+    right_thigh: float = 0.43
+    left_shin: float = 0.41
+    right_shin: float = 0.41
+    left_foot: float = 0.15
+    right_foot: float = 0.15
+    ankle_height: float = 0.07
+    toe_height: float = 0.025
+    toes_length: float = 0.06
+    heel_length: float = 0.06
+    foot_width: float = 0.09
+    girth: float = 1.0
+    notes: tuple[str, ...] = field(default=(), compare=False)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "notes":
+                continue
+            v = np.asarray(getattr(self, f.name), dtype=float)
+            if not np.all(np.isfinite(v)):
+                raise RetargetError(f"body dimension {f.name} = {v.tolist()} is not finite",
+                                    field=f.name)
+            lo, hi = LENGTH_RANGE if f.name != "girth" else (0.3, 3.0)
+            if f.name.endswith("_offset"):
+                bad = np.abs(v).max() > hi
+            else:
+                bad = not lo <= float(v) <= hi
+            if bad:
+                raise RetargetError(
+                    f"body dimension {f.name} = {np.round(v, 4).tolist()} m is outside the "
+                    f"human range [{lo}, {hi}]; the input is not a human body in metres",
+                    field=f.name,
+                )
+            if f.name.endswith("_offset"):
+                object.__setattr__(self, f.name, _v(v))
+        for side in _SIDES:
+            for seg in ("thigh", "shin", "upper_arm", "forearm"):
+                if getattr(self, f"{side}_{seg}") < 0.05:
+                    raise RetargetError(
+                        f"{side}_{seg} = {getattr(self, f'{side}_{seg}'):.4f} m; a limb "
+                        "segment must be at least 0.05 m", field=f"{side}_{seg}")
+        if not HEIGHT_RANGE[0] <= self.height <= HEIGHT_RANGE[1]:
+            raise RetargetError(
+                f"standing height {self.height:.3f} m is outside {HEIGHT_RANGE} m",
+                field="height")
+
+    # -- derived quantities -------------------------------------------------
+
+    @property
+    def hip_height(self) -> float:
+        """Height of the pelvis keypoint when standing straight, metres."""
+        leg = max(
+            self.ankle_height + getattr(self, f"{s}_shin") + getattr(self, f"{s}_thigh")
+            - getattr(self, f"{s}_hip_offset")[2]
+            for s in _SIDES
+        )
+        return float(leg)
+
+    @property
+    def height(self) -> float:
+        """Standing height (sole to top of the head), metres."""
+        return float(self.hip_height + self.lumbar + self.thorax + self.upper_chest + self.neck
+                     + self.head_radius * 1.75)
+
+    @property
+    def scale(self) -> float:
+        """Overall size relative to the default adult (ratio of heights)."""
+        return self.height / DEFAULT_HEIGHT
+
+    @property
+    def head_radius(self) -> float:
+        return 0.1 * self.girth
+
+    def bone_lengths(self) -> dict[str, float]:
+        """Rest-pose distance of every canonical bone (keyed by child keypoint), metres."""
+        kp = self.rest_keypoints()
+        idx = {k: i for i, k in enumerate(CANONICAL_KEYPOINTS)}
+        return {b: float(np.linalg.norm(kp[idx[b]] - kp[idx[CANONICAL_TREE[b]]])) for b in BONES}
+
+    def rest_keypoints(self) -> np.ndarray:
+        """(21, 3) canonical keypoints of the rest pose, pelvis at the origin."""
+        return _rest_keypoints(self)
+
+    @classmethod
+    def default(cls) -> BodyDimensions:
+        """The default adult, 1.75 m (segment proportions after Winter,
+        *Biomechanics and Motor Control of Human Movement*, 4th ed., fig. 4.1)."""
+        return DEFAULT
+
+    @classmethod
+    def from_scale(cls, scale: Mapping[str, float] | Sequence[float] | np.ndarray,
+                   base: BodyDimensions | None = None) -> BodyDimensions:
+        """Scale the default adult (or ``base``) per canonical bone.
+
+        Args:
+            scale: per-bone factors in [0.75, 1.25], either a mapping from bone
+                name (:data:`BONES`, named by child keypoint, e.g. ``"left_knee"``
+                for the left thigh) to factor (missing bones keep 1), or a
+                sequence of ``len(BONES)`` factors in :data:`BONES` order.
+            base: dimensions to scale (default: the default adult).
+        """
+        base = base or DEFAULT
+        if isinstance(scale, Mapping):
+            unknown = sorted(set(scale) - set(BONES))
+            if unknown:
+                raise RetargetError(f"unknown bone(s) {unknown} in scale; expected names from "
+                                    f"{list(BONES)}", field=unknown[0])
+            vec = np.array([float(scale.get(b, 1.0)) for b in BONES])
+        else:
+            vec = np.asarray(scale, dtype=float).reshape(-1)
+            if vec.shape != (len(BONES),):
+                raise RetargetError(f"scale vector has {vec.size} entries; expected "
+                                    f"{len(BONES)} (one per bone: {', '.join(BONES)})")
+        for b, s in zip(BONES, vec, strict=True):
+            if not (np.isfinite(s) and SCALE_RANGE[0] <= s <= SCALE_RANGE[1]):
+                raise RetargetError(f"scale of bone {b!r} is {s!r}; expected a factor in "
+                                    f"[{SCALE_RANGE[0]}, {SCALE_RANGE[1]}]", field=b)
+        s = dict(zip(BONES, vec.tolist(), strict=True))
+        ch: dict[str, object] = {}
+        for side in _SIDES:
+            ch[f"{side}_hip_offset"] = _v(np.asarray(getattr(base, f"{side}_hip_offset"))
+                                          * s[f"{side}_hip"])
+            for seg, bone in (("thigh", "knee"), ("shin", "ankle"), ("foot", "toe"),
+                              ("clavicle", "shoulder"), ("upper_arm", "elbow"),
+                              ("forearm", "wrist"), ("hand", "hand")):
+                ch[f"{side}_{seg}"] = getattr(base, f"{side}_{seg}") * s[f"{side}_{bone}"]
+        ch["lumbar"] = base.lumbar * s["spine"]
+        ch["thorax"] = base.thorax * s["chest"]
+        ch["upper_chest"] = base.upper_chest * s["neck"]
+        ch["clavicle_pivot"] = base.clavicle_pivot * s["neck"]
+        ch["neck"] = base.neck * s["head"]
+        foot = (s["left_toe"] + s["right_toe"]) / 2
+        ch["toes_length"] = base.toes_length * foot
+        ch["heel_length"] = base.heel_length * foot
+        ch["notes"] = (*base.notes, f"per-bone scale {np.round(vec, 3).tolist()}")
+        return replace(base, **ch)
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-friendly dict of all fields plus the height."""
+        out: dict[str, object] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = list(v) if isinstance(v, tuple) else v
+        out["height"] = self.height
+        return out
+
+
+DEFAULT = BodyDimensions(notes=("default adult 1.75 m",))
+DEFAULT_HEIGHT = DEFAULT.height
+
+
+def _mirror(v: Sequence[float], side: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    return a * np.array([1.0, -1.0, 1.0]) if side == "right" else a
+
+
+def _clavicle_dir(side: str) -> np.ndarray:
+    return np.array([0.0, 1.0 if side == "left" else -1.0, 0.0])
+
+
+def _foot_vector(d: BodyDimensions, side: str) -> np.ndarray:
+    """Ankle -> toe keypoint in the foot frame (foot flat at zero angles)."""
+    length = getattr(d, f"{side}_foot")
+    drop = min(max(d.ankle_height - d.toe_height, 0.0), 0.9 * length)
+    return np.array([np.sqrt(max(length**2 - drop**2, 0.0)), 0.0, -drop])
+
+
+def _rest_keypoints(d: BodyDimensions) -> np.ndarray:
+    kp: dict[str, np.ndarray] = {"pelvis": np.zeros(3)}
+    kp["spine"] = np.array([0, 0, d.lumbar])
+    kp["chest"] = kp["spine"] + [0, 0, d.thorax]
+    kp["neck"] = kp["chest"] + [0, 0, d.upper_chest]
+    kp["head"] = kp["neck"] + [0, 0, d.neck]
+    for s in _SIDES:
+        kp[f"{s}_hip"] = np.asarray(getattr(d, f"{s}_hip_offset"))
+        kp[f"{s}_knee"] = kp[f"{s}_hip"] - [0, 0, getattr(d, f"{s}_thigh")]
+        kp[f"{s}_ankle"] = kp[f"{s}_knee"] - [0, 0, getattr(d, f"{s}_shin")]
+        kp[f"{s}_toe"] = kp[f"{s}_ankle"] + _foot_vector(d, s)
+        pivot = kp["chest"] + [0, 0, d.clavicle_pivot]
+        kp[f"{s}_shoulder"] = pivot + _clavicle_dir(s) * getattr(d, f"{s}_clavicle")
+        kp[f"{s}_elbow"] = kp[f"{s}_shoulder"] - [0, 0, getattr(d, f"{s}_upper_arm")]
+        kp[f"{s}_wrist"] = kp[f"{s}_elbow"] - [0, 0, getattr(d, f"{s}_forearm")]
+        kp[f"{s}_hand"] = kp[f"{s}_wrist"] - [0, 0, getattr(d, f"{s}_hand")]
+    return np.stack([kp[k] for k in CANONICAL_KEYPOINTS])
+
+
+# ---------------------------------------------------------------------------
+# Model construction
+# ---------------------------------------------------------------------------
+
+#: Contact classes: every body geom collides with the floor, with other people
+#: and with non-neighbouring parts of its own body (see the exclusions).
+_BODY_CONTYPE = 1
+_BODY_CONAFFINITY = 1
+_SKIN = (0.85, 0.65, 0.5, 1.0)
+_CLOTH = (0.25, 0.35, 0.6, 1.0)
+
+
+def _capsule(body: mujoco.MjsBody, a: Sequence[float], b: Sequence[float], r: float,
+             name: str, rgba: Sequence[float] = _CLOTH) -> None:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    g = body.add_geom()
+    g.name = name
+    if np.linalg.norm(b - a) < 1e-3:
+        g.type = mujoco.mjtGeom.mjGEOM_SPHERE
+        g.size = [r, 0, 0]
+        g.pos = (a + b) / 2
+    else:
+        g.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+        g.fromto = [*a, *b]
+        g.size = [r, 0, 0]
+    g.rgba = list(rgba)
+    g.density = BODY_DENSITY
+    g.contype, g.conaffinity = _BODY_CONTYPE, _BODY_CONAFFINITY
+    g.condim = 3
+
+
+def _box(body: mujoco.MjsBody, center: Sequence[float], half: Sequence[float], name: str,
+         rgba: Sequence[float] = _CLOTH) -> None:
+    g = body.add_geom()
+    g.name = name
+    g.type = mujoco.mjtGeom.mjGEOM_BOX
+    g.size = list(half)
+    g.pos = list(center)
+    g.rgba = list(rgba)
+    g.density = BODY_DENSITY
+    g.contype, g.conaffinity = _BODY_CONTYPE, _BODY_CONAFFINITY
+    g.condim = 3
+
+
+def _site(body: mujoco.MjsBody, name: str, pos: Sequence[float]) -> None:
+    s = body.add_site()
+    s.name = name
+    s.pos = list(np.asarray(pos, float))
+    s.size = [0.012, 0, 0]
+    s.rgba = [1.0, 0.2, 0.2, 0.6]
+    s.group = 4  # hidden by default in viewers; renderers may enable group 4
+
+
+def _joints(body: mujoco.MjsBody, part: str, side: str | None, prefix: str,
+            actuated: list[tuple[str, float]]) -> None:
+    for js in JOINTS[part]:
+        axis = np.asarray(js.axis, float)
+        lo, hi = js.range_deg
+        if side == "right" and js.mirror:
+            axis = axis * np.array([-1.0, 1.0, -1.0])
+        j = body.add_joint()
+        j.name = f"{prefix}{(side + '_') if side else ''}{part}_{js.name}"
+        j.type = mujoco.mjtJoint.mjJNT_HINGE
+        j.axis = list(axis)
+        j.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        j.range = [np.deg2rad(lo), np.deg2rad(hi)]
+        # Armature and damping scale with the joint's gain: they regularise
+        # the light distal segments so the default timestep stays stable.
+        j.armature = max(0.01, js.kp * 1e-4)
+        j.damping = [max(0.5, js.kp * 0.01), 0.0, 0.0]
+        actuated.append((j.name, js.kp))
+
+
+def _add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
+                pos: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+    """Add one humanoid (bodies, joints, sites, exclusions, actuators) to ``spec``."""
+    g = d.girth * d.scale ** 0.5
+    actuated: list[tuple[str, float]] = []
+    wb = spec.worldbody
+
+    def body(parent: mujoco.MjsBody, name: str, at: Sequence[float]) -> mujoco.MjsBody:
+        b = parent.add_body()
+        b.name = prefix + name
+        b.pos = list(np.asarray(at, float))
+        return b
+
+    pelvis = body(wb, "pelvis", np.asarray(pos, float) + [0, 0, d.hip_height])
+    fj = pelvis.add_freejoint()
+    fj.name = prefix + "root"
+    _site(pelvis, prefix + "pelvis", (0, 0, 0))
+    hl, hr = np.asarray(d.left_hip_offset), np.asarray(d.right_hip_offset)
+    _capsule(pelvis, hl + [0, -0.02, 0.02], hr + [0, 0.02, 0.02], 0.085 * g, prefix + "pelvis")
+    for s in _SIDES:
+        _site(pelvis, f"{prefix}{s}_hip", getattr(d, f"{s}_hip_offset"))
+
+    lumbar = body(pelvis, "lumbar", (0, 0, 0))
+    _joints(lumbar, "lumbar", None, prefix, actuated)
+    _capsule(lumbar, (0, 0, 0.03 * g), (0, 0, d.lumbar), 0.09 * g, prefix + "lumbar")
+    _site(lumbar, prefix + "spine", (0, 0, d.lumbar))
+    thorax = body(lumbar, "thorax", (0, 0, d.lumbar))
+    _joints(thorax, "thorax", None, prefix, actuated)
+    _capsule(thorax, (0, 0, 0), (0, 0, d.thorax), 0.1 * g, prefix + "thorax")
+    _site(thorax, prefix + "chest", (0, 0, d.thorax))
+    chest = body(thorax, "chest", (0, 0, d.thorax))
+    _joints(chest, "chest", None, prefix, actuated)
+    cw = 0.55 * min(d.left_clavicle, d.right_clavicle)
+    cz = max(d.clavicle_pivot - 0.07 * g, 0.04 * g)
+    _capsule(chest, (0, cw, cz), (0, -cw, cz), 0.11 * g, prefix + "chest")
+    _site(chest, prefix + "neck", (0, 0, d.upper_chest))
+    neck = body(chest, "neck", (0, 0, d.upper_chest))
+    _joints(neck, "neck", None, prefix, actuated)
+    _capsule(neck, (0, 0, 0), (0, 0, d.neck), 0.045 * g, prefix + "neck", _SKIN)
+    _site(neck, prefix + "head", (0, 0, d.neck))
+    head = body(neck, "head", (0, 0, d.neck))
+    _capsule(head, (0.02 * g, 0, 0.07 * g), (0.02 * g, 0, 0.07 * g), d.head_radius,
+             prefix + "head", _SKIN)
+
+    for s in _SIDES:
+        sy = 1.0 if s == "left" else -1.0
+        clav = body(chest, f"{s}_clavicle", (0, 0, d.clavicle_pivot))
+        _joints(clav, "clavicle", s, prefix, actuated)
+        cl = getattr(d, f"{s}_clavicle")
+        _capsule(clav, (0, sy * 0.3 * cl, 0), (0, sy * 0.85 * cl, 0), 0.045 * g,
+                 f"{prefix}{s}_clavicle")
+        _site(clav, f"{prefix}{s}_shoulder", _clavicle_dir(s) * cl)
+        ua = body(clav, f"{s}_upper_arm", _clavicle_dir(s) * cl)
+        _joints(ua, "upper_arm", s, prefix, actuated)
+        lu = getattr(d, f"{s}_upper_arm")
+        _capsule(ua, (0, 0, -0.05 * lu), (0, 0, -lu), 0.042 * g, f"{prefix}{s}_upper_arm")
+        _site(ua, f"{prefix}{s}_elbow", (0, 0, -lu))
+        fa = body(ua, f"{s}_forearm", (0, 0, -lu))
+        _joints(fa, "forearm", s, prefix, actuated)
+        lf = getattr(d, f"{s}_forearm")
+        _capsule(fa, (0, 0, 0), (0, 0, -lf), 0.034 * g, f"{prefix}{s}_forearm", _SKIN)
+        _site(fa, f"{prefix}{s}_wrist", (0, 0, -lf))
+        hand = body(fa, f"{s}_hand", (0, 0, -lf))
+        _joints(hand, "hand", s, prefix, actuated)
+        lh = getattr(d, f"{s}_hand")
+        hl_geo = max(lh, 0.09 * d.scale)
+        _box(hand, (0, 0, -0.55 * hl_geo), (0.045 * g, 0.017 * g, 0.55 * hl_geo),
+             f"{prefix}{s}_hand", _SKIN)
+        _site(hand, f"{prefix}{s}_hand", (0, 0, -lh))
+
+        hip = np.asarray(getattr(d, f"{s}_hip_offset"))
+        thigh = body(pelvis, f"{s}_thigh", hip)
+        _joints(thigh, "thigh", s, prefix, actuated)
+        lt = getattr(d, f"{s}_thigh")
+        _capsule(thigh, (0, 0, -0.08 * lt), (0, 0, -lt), 0.066 * g, f"{prefix}{s}_thigh")
+        _site(thigh, f"{prefix}{s}_knee", (0, 0, -lt))
+        shin = body(thigh, f"{s}_shin", (0, 0, -lt))
+        _joints(shin, "shin", s, prefix, actuated)
+        ls = getattr(d, f"{s}_shin")
+        _capsule(shin, (0, 0, -0.02), (0, 0, -ls + 0.04 * g), 0.045 * g, f"{prefix}{s}_shin")
+        _site(shin, f"{prefix}{s}_ankle", (0, 0, -ls))
+        foot = body(shin, f"{s}_foot", (0, 0, -ls))
+        _joints(foot, "foot", s, prefix, actuated)
+        toe = _foot_vector(d, s)
+        sole = -d.ankle_height
+        top = min(0.0, sole + 0.06 * g)
+        half_w = d.foot_width / 2
+        x0, x1 = -d.heel_length, toe[0]
+        _box(foot, ((x0 + x1) / 2, 0, (sole + top) / 2), ((x1 - x0) / 2, half_w, (top - sole) / 2),
+             f"{prefix}{s}_foot")
+        _site(foot, f"{prefix}{s}_toe", toe)
+        toes = body(foot, f"{s}_toes", toe)
+        _joints(toes, "toes", s, prefix, actuated)
+        tsole = -d.toe_height
+        ttop = tsole + 0.025 * g
+        _box(toes, (d.toes_length / 2, 0, (tsole + ttop) / 2),
+             (d.toes_length / 2, half_w, (ttop - tsole) / 2), f"{prefix}{s}_toes")
+
+    _exclude_neighbours(spec, prefix)
+    for jname, kp in actuated:
+        a = spec.add_actuator()
+        a.name = jname
+        a.target = jname
+        a.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        a.set_to_position(kp=kp, kv=0.1 * kp, inheritrange=1.0)
+        a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        a.forcerange = [-2.0 * kp, 2.0 * kp]
+
+
+def _exclude_neighbours(spec: mujoco.MjSpec, prefix: str) -> None:
+    """Exclude contacts between bodies at tree distance <= 2 (MuJoCo already
+    filters parent-child pairs): siblings and grandparents overlap at rest."""
+    bodies = [b for b in spec.bodies if b.name.startswith(prefix) and b.name != "world"]
+    parent = {b.name: b.parent.name for b in bodies}
+    names = list(parent)
+    chain = {n: [n, parent[n], parent.get(parent[n], "")] for n in names}
+    seen = set()
+    for a in names:
+        for b in names:
+            if a >= b:
+                continue
+            pa, pb = chain[a], chain[b]
+            close = (pa[1] == pb[1] or pa[2] == b or pb[2] == a)
+            if close and (a, b) not in seen:
+                seen.add((a, b))
+                e = spec.add_exclude()
+                e.bodyname1, e.bodyname2 = a, b
+
+
+def _new_spec(name: str) -> mujoco.MjSpec:
+    spec = mujoco.MjSpec()
+    spec.modelname = name
+    spec.option.timestep = 0.002
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.compiler.degree = False
+    wb = spec.worldbody
+    floor = wb.add_geom()
+    floor.name = "floor"
+    floor.type = mujoco.mjtGeom.mjGEOM_PLANE
+    floor.size = [0, 0, 0.05]
+    floor.rgba = [0.55, 0.55, 0.5, 1]
+    floor.contype, floor.conaffinity = 1, 1
+    light = wb.add_light()
+    light.name = "sun"
+    light.pos = [0, 0, 4]
+    light.dir = [0, 0.2, -1]
+    light.castshadow = True
+    light.diffuse = [0.7, 0.7, 0.7]
+    return spec
+
+
+# ---------------------------------------------------------------------------
+# Humanoid and Scene
+# ---------------------------------------------------------------------------
+
+
+class Humanoid:
+    """A compiled single-person humanoid built from :class:`BodyDimensions`.
+
+    Attributes:
+        dims: the measurements it was built from.
+        spec: the :class:`mujoco.MjSpec` (floor and light included).
+        model: the compiled :class:`mujoco.MjModel`.
+        keypoint_names: canonical keypoint names, one site each.
+        site_ids: (K,) site ids of the keypoints in ``model``.
+        joint_names: hinge joint names in qpos order (after the 7 free-joint
+            coordinates: position x y z, quaternion w x y z).
+        joint_limits: (nhinge, 2) radians.
+        hinge_qpos: (nhinge,) qpos addresses of the hinges.
+        total_mass: kg.
+    """
+
+    def __init__(self, dims: BodyDimensions | None = None, name: str = "humanoid") -> None:
+        self.dims = dims or DEFAULT
+        self.name = name
+        self.spec = _new_spec(name)
+        _add_person(self.spec, self.dims, "")
+        try:
+            self.model = self.spec.compile()
+        except ValueError as exc:  # MuJoCo compile errors are ValueError
+            raise RetargetError(f"could not build the humanoid: {exc}") from None
+        m = self.model
+        self.keypoint_names: tuple[str, ...] = CANONICAL_KEYPOINTS
+        self.site_ids = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, k)
+                                  for k in self.keypoint_names])
+        hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+        self.joint_names: tuple[str, ...] = tuple(m.joint(j).name for j in hinges)
+        self.joint_limits = m.jnt_range[hinges].copy()
+        self.hinge_qpos = m.jnt_qposadr[hinges].copy()
+        self.total_mass = float(m.body_subtreemass[0])
+
+    @property
+    def nq(self) -> int:
+        return int(self.model.nq)
+
+    @property
+    def nv(self) -> int:
+        return int(self.model.nv)
+
+    @cached_property
+    def _data(self) -> mujoco.MjData:
+        return mujoco.MjData(self.model)
+
+    def default_qpos(self) -> np.ndarray:
+        """(nq,) rest pose: standing on the floor, all hinges 0."""
+        return self.model.qpos0.copy()
+
+    def keypoints(self, qpos: np.ndarray) -> np.ndarray:
+        """Keypoint positions for one (nq,) or many (T, nq) configurations.
+
+        Returns:
+            (K, 3) or (T, K, 3) float64 metres, in :attr:`keypoint_names` order.
+        """
+        q = np.asarray(qpos, dtype=float)
+        single = q.ndim == 1
+        q = q.reshape(-1, self.nq)
+        if not np.all(np.isfinite(q)):
+            raise RetargetError("qpos contains NaN/inf; refusing to pass it to MuJoCo")
+        out = np.empty((len(q), len(self.site_ids), 3))
+        d = self._data
+        for t, qt in enumerate(q):
+            d.qpos[:] = qt
+            mujoco.mj_kinematics(self.model, d)
+            out[t] = d.site_xpos[self.site_ids]
+        return out[0] if single else out
+
+    def __repr__(self) -> str:
+        return (f"Humanoid(height={self.dims.height:.3f} m, mass={self.total_mass:.1f} kg, "
+                f"nq={self.nq})")
+
+
+@dataclass
+class Scene:
+    """Several humanoids in one MjModel, names prefixed per person (``"p0/"``...).
+
+    Attributes:
+        spec, model: the combined MjSpec and compiled model (one floor, one light).
+        names: person names; ``prefixes[i] = names[i] + "/"``.
+        humanoids: the single-person humanoids (their qpos layouts match the
+            slices below one to one).
+        qpos_slices, qvel_slices: per-person slices into the scene's qpos / qvel.
+        ctrl_slices: per-person slices into ctrl (actuators, same order as
+            the person's hinges).
+        site_ids: (P, K) keypoint site ids per person.
+    """
+
+    spec: mujoco.MjSpec
+    model: mujoco.MjModel
+    names: tuple[str, ...]
+    humanoids: tuple[Humanoid, ...]
+    qpos_slices: tuple[slice, ...]
+    qvel_slices: tuple[slice, ...]
+    ctrl_slices: tuple[slice, ...]
+    site_ids: np.ndarray
+
+    @property
+    def prefixes(self) -> tuple[str, ...]:
+        return tuple(f"{n}/" for n in self.names)
+
+    def combine_qpos(self, per_person: Sequence[np.ndarray]) -> np.ndarray:
+        """Stack per-person (T, nq_i) trajectories into the scene's (T, nq)."""
+        if len(per_person) != len(self.humanoids):
+            raise RetargetError(f"{len(per_person)} trajectories for "
+                                f"{len(self.humanoids)} people")
+        t = per_person[0].shape[0]
+        out = np.tile(self.model.qpos0, (t, 1))
+        for sl, q in zip(self.qpos_slices, per_person, strict=True):
+            out[:, sl] = q
+        return out
+
+
+def build_scene(humanoids: Sequence[Humanoid], names: Sequence[str] | None = None) -> Scene:
+    """Put several humanoids into one model (shared floor and light).
+
+    Args:
+        humanoids: the people, each with its own :class:`BodyDimensions`.
+        names: one unique name per person (default ``p0``, ``p1``, ...); body,
+            joint, site and actuator names get the prefix ``name + "/"``.
+    """
+    names = tuple(names) if names is not None else tuple(f"p{i}" for i in range(len(humanoids)))
+    if len(names) != len(humanoids) or len(set(names)) != len(names) or not humanoids:
+        raise RetargetError(f"need one unique name per humanoid; got {list(names)} for "
+                            f"{len(humanoids)} humanoid(s)")
+    spec = _new_spec("scene")
+    for i, (h, n) in enumerate(zip(humanoids, names, strict=True)):
+        _add_person(spec, h.dims, f"{n}/", pos=(0.0, 1.0 * i, 0.0))
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise RetargetError(f"could not build the scene: {exc}") from None
+    qs, vs, cs, sites = [], [], [], []
+    for h, n in zip(humanoids, names, strict=True):
+        root = model.joint(f"{n}/root")
+        qa, va = int(root.qposadr[0]), int(root.dofadr[0])
+        qs.append(slice(qa, qa + h.nq))
+        vs.append(slice(va, va + h.nv))
+        a0 = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{n}/{h.joint_names[0]}")
+        cs.append(slice(a0, a0 + h.model.nu))
+        sites.append([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{n}/{k}")
+                      for k in h.keypoint_names])
+    return Scene(spec, model, names, tuple(humanoids), tuple(qs), tuple(vs), tuple(cs),
+                 np.array(sites))
+
+
+# ---------------------------------------------------------------------------
+# Fitting to a motion
+# ---------------------------------------------------------------------------
+
+#: Keypoints without which the body frame cannot be measured.
+REQUIRED_FOR_FIT = ("pelvis", "left_hip", "right_hip")
+
+
+def pelvis_frames(pelvis: np.ndarray, lhip: np.ndarray, rhip: np.ndarray,
+                  spine: np.ndarray | None = None) -> np.ndarray:
+    """Per-frame orthonormal frame of the pelvis triangle, before the tilt fix.
+
+    y points from the right to the left hip, z from the hip midpoint to the
+    pelvis keypoint (orthogonalised), x = y x z. When the pelvis keypoint lies
+    on the hip line (e.g. H36M) z comes from the spine keypoint, else world up.
+
+    Args:
+        pelvis, lhip, rhip: (T, 3). spine: optional (T, 3).
+    Returns:
+        (T, 3, 3) rotation matrices (columns = axes in world coordinates).
+    """
+    y = lhip - rhip
+    y = y / np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9)
+    u = pelvis - (lhip + rhip) / 2
+    u = u - np.sum(u * y, axis=-1, keepdims=True) * y
+    if np.median(np.linalg.norm(u, axis=-1)) < 0.02:
+        u = (spine - pelvis) if spine is not None else np.broadcast_to([0.0, 0, 1], y.shape)
+        u = u - np.sum(u * y, axis=-1, keepdims=True) * y
+    z = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-9)
+    x = np.cross(y, z)
+    return np.stack([x, y, z], axis=-1)
+
+
+def _rot_y(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def fit_dimensions(motion: Motion) -> BodyDimensions:
+    """Measure a subject's :class:`BodyDimensions` from its canonical keypoints.
+
+    Lengths are medians over frames of keypoint distances; the hips' 3D
+    offsets are medians in the pelvis frame (pelvis-hip-hip triangle, rotated
+    about the hip axis so that the median spine direction is +z), so the rigid
+    pelvis fits exactly. The clavicle pivot is the point of the chest->neck
+    segment whose distance to the shoulders varies least. Keypoints the motion
+    lacks fall back to the default adult scaled by the median ratio of the
+    measured bones to the default ones; each fallback is recorded in ``notes``.
+    """
+    canon = motion.to_canonical()
+    src = motion.metadata.get("source")
+    names = canon.skeleton.joint_names
+    missing = [k for k in REQUIRED_FOR_FIT if k not in names]
+    if missing:
+        raise RetargetError(f"cannot fit a body: motion {motion.name!r} lacks keypoint(s) "
+                            f"{missing}; the pelvis and both hips are required", source=src)
+    P = canon.positions.astype(np.float64)
+    kp = {k: P[:, i] for i, k in enumerate(names)}
+    have = set(names)
+
+    def dist(a: str, b: str) -> float | None:
+        if a in have and b in have:
+            return float(np.median(np.linalg.norm(kp[a] - kp[b], axis=-1)))
+        return None
+
+    R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
+    tilt = 0.0
+    if "spine" in have:
+        s_loc = np.einsum("tji,tj->ti", R, kp["spine"] - kp["pelvis"])
+        tilt = float(np.arctan2(np.median(s_loc[:, 0]), np.median(s_loc[:, 2])))
+    R = R @ _rot_y(tilt)
+    ch: dict[str, object] = {}
+    for s in _SIDES:
+        off = np.einsum("tji,tj->ti", R, kp[f"{s}_hip"] - kp["pelvis"])
+        ch[f"{s}_hip_offset"] = _v(np.median(off, axis=0))
+    measured: dict[str, float] = {}
+    chain = {"lumbar": ("pelvis", "spine"), "thorax": ("spine", "chest"),
+             "upper_chest": ("chest", "neck"), "neck": ("neck", "head")}
+    for s in _SIDES:
+        chain.update({f"{s}_upper_arm": (f"{s}_shoulder", f"{s}_elbow"),
+                      f"{s}_forearm": (f"{s}_elbow", f"{s}_wrist"),
+                      f"{s}_hand": (f"{s}_wrist", f"{s}_hand"),
+                      f"{s}_thigh": (f"{s}_hip", f"{s}_knee"),
+                      f"{s}_shin": (f"{s}_knee", f"{s}_ankle"),
+                      f"{s}_foot": (f"{s}_ankle", f"{s}_toe")})
+    for f_name, (a, b) in chain.items():
+        v = dist(a, b)
+        if v is not None:
+            measured[f_name] = v
+    # Clavicle pivot: on the chest->neck segment, where shoulder distances vary least.
+    if {"chest", "neck", "left_shoulder", "right_shoulder"} <= have:
+        seg = kp["neck"] - kp["chest"]
+        best = (np.inf, 0.0)
+        for a in np.linspace(0.0, 1.0, 21):
+            piv = kp["chest"] + a * seg
+            dl = np.linalg.norm(kp["left_shoulder"] - piv, axis=-1)
+            dr = np.linalg.norm(kp["right_shoulder"] - piv, axis=-1)
+            spread = float(np.std(dl) + np.std(dr))
+            if spread < best[0] - 1e-6:
+                best = (spread, a)
+        a = best[1]
+        piv = kp["chest"] + a * seg
+        measured["clavicle_pivot"] = a * measured["upper_chest"]
+        for s in _SIDES:
+            measured[f"{s}_clavicle"] = float(np.median(
+                np.linalg.norm(kp[f"{s}_shoulder"] - piv, axis=-1)))
+    ratios = [measured[k] / getattr(DEFAULT, k) for k in measured
+              if getattr(DEFAULT, k) > 0.05 and measured[k] > 0.02]
+    hip_w = np.linalg.norm(np.subtract(ch["left_hip_offset"], ch["right_hip_offset"]))
+    ratios.append(hip_w / np.linalg.norm(np.subtract(DEFAULT.left_hip_offset,
+                                                      DEFAULT.right_hip_offset)))
+    scale = float(np.clip(np.median(ratios), 0.5, 1.5))
+    notes = [f"fitted to {motion.name!r} ({canon.num_frames} frames, median over frames)"]
+    fallback = []
+    for f in fields(BodyDimensions):
+        if f.name in ("notes", "girth") or f.name.endswith("_offset"):
+            continue
+        if f.name in measured:
+            ch[f.name] = measured[f.name]
+        elif f.name not in ("ankle_height", "toe_height"):
+            ch[f.name] = getattr(DEFAULT, f.name) * scale
+            if f.name in chain or f.name.endswith("clavicle") or f.name == "clavicle_pivot":
+                fallback.append(f.name)
+    # Foot heights: the data's floor is z = 0 (readers put it there), so the
+    # low percentiles of the ankle/toe heights are their heights above the sole.
+    for key, lo, hi in (("ankle", 0.035, 0.14), ("toe", 0.0, 0.06)):
+        zs = [kp[f"{s}_{key}"][:, 2] for s in _SIDES if f"{s}_{key}" in have]
+        default = getattr(DEFAULT, f"{key}_height") * scale
+        ch[f"{key}_height"] = float(np.clip(np.percentile(np.concatenate(zs), 2), lo, hi)) \
+            if zs else default
+    ch["girth"] = float(np.clip(scale, 0.6, 1.4))
+    if fallback:
+        notes.append(f"missing keypoints: {', '.join(fallback)} from the default adult scaled "
+                     f"by {scale:.3f} (median measured/default bone ratio)")
+    for s in _SIDES:
+        if measured.get(f"{s}_hand", 1.0) < 0.01:
+            notes.append(f"{s}_hand coincides with {s}_wrist in the source skeleton")
+    if measured.get("upper_chest", 1.0) < 0.01:
+        notes.append("neck coincides with chest in the source skeleton")
+    ch["notes"] = tuple(notes)
+    try:
+        return replace(DEFAULT, **ch)
+    except RetargetError as exc:
+        raise RetargetError(f"motion {motion.name!r} gives an implausible body: {exc.detail}",
+                            source=src, field=exc.field) from None
+
+
+def fit_humanoid(motion: Motion) -> Humanoid:
+    """Build the humanoid matching ``motion``'s subject (see :func:`fit_dimensions`)."""
+    return Humanoid(fit_dimensions(motion), name=motion.name)
+

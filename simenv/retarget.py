@@ -1,0 +1,565 @@
+"""Retargeting: canonical keypoints -> qpos trajectory of a subject-fitted humanoid.
+
+Per clip, :func:`retarget` solves for every frame t
+
+    min_q  sum_k w_k |site_k(q_t) - x_tk|^2                    (keypoints)
+         + w_floor sum_c min(0, z_c(q_t) - f_t)^2               (sole corners above the floor)
+         + w_reg |theta_t|^2                                    (neutral pose, null space)
+         + w_smooth |q_t - (q_{t-1} + q_{t+1}) / 2|^2           (temporal smoothness)
+    s.t.   lower <= theta_t <= upper                            (joint limits)
+
+with ``f_t = min(0, lowest height the data itself implies for the soles)``.
+
+Solver (all frames at once, numpy):
+
+1. **Per-frame analytic initial guess** -- the root from the pelvis-hip-hip
+   triangle (the same frame used to measure the body, so it fits exactly),
+   then each body in tree order from its bone direction plus a twist cue (the
+   knee/elbow flexion plane, the foot, the shoulder line), decomposed into the
+   joint's hinge angles and clipped to the limits. No frame depends on another,
+   so the first frame does not decide the fate of the clip.
+2. **Batched projected Levenberg-Marquardt** with analytic Jacobians
+   (:mod:`simenv.ik`): per frame a 52x52 normal system, built and solved for
+   all frames with batched BLAS/LAPACK; per-frame adaptive damping with
+   accept/reject; joint limits by projection with an active set (joints held
+   at a bound drop out of the step); steps bounded to ``max_step`` radians; the
+   smoothness term uses the neighbours of the previous iterate (a Jacobi sweep),
+   so frames stay independent within an iteration. Converged frames leave the
+   active set.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from simenv.errors import RetargetError
+from simenv.humanoid import (
+    Humanoid,
+    Scene,
+    build_scene,
+    fit_humanoid,
+    pelvis_frames,
+)
+from simenv.ik import HingeTree, Kinematics, rotvec_mat
+from simenv.motion import Interaction, Motion
+
+#: Keypoints without which the root cannot be placed.
+REQUIRED_KEYPOINTS = ("pelvis", "left_hip", "right_hip")
+
+
+@dataclass(frozen=True)
+class RetargetOptions:
+    """Solver settings (weights are relative to keypoint errors in metres).
+
+    Attributes:
+        iterations: maximum Levenberg-Marquardt iterations.
+        reg: weight of |theta|^2 (per rad^2); settles unobservable joints.
+        smooth: weight of the second-difference term (per rad^2 / m^2).
+        floor_weight: weight of sole penetration below the floor.
+        max_step: largest joint change of one iteration, radians.
+        tol: a frame stops iterating when its cost drops by less than this (m^2).
+        chunk: frames per batched linear-algebra block (memory bound).
+        floor: apply the floor constraint.
+    """
+
+    iterations: int = 12
+    reg: float = 1e-5
+    smooth: float = 2e-4
+    floor_weight: float = 10.0
+    max_step: float = 0.5
+    tol: float = 1e-9
+    chunk: int = 256
+    floor: bool = True
+
+
+@dataclass(eq=False)
+class RetargetResult:
+    """Retargeted trajectory of one person.
+
+    Attributes:
+        qpos: (T, nq) float64 MuJoCo configurations of ``humanoid.model``.
+        residuals: (T, K) float32 metres, distance between each solved site and
+            its target keypoint.
+        keypoint_names: the K keypoints the motion provides (targets).
+        targets: (T, K, 3) float32 target keypoints, metres.
+        humanoid: the model used.
+        fps: frame rate of the motion.
+        seconds: solver wall time.
+        iterations: Levenberg-Marquardt iterations run.
+        name: motion name.
+    """
+
+    qpos: np.ndarray
+    residuals: np.ndarray
+    keypoint_names: tuple[str, ...]
+    targets: np.ndarray
+    humanoid: Humanoid
+    fps: float
+    seconds: float
+    iterations: int
+    name: str = "motion"
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.qpos.shape[0])
+
+    @property
+    def mean_residual(self) -> float:
+        return float(self.residuals.mean())
+
+    @property
+    def p95_residual(self) -> float:
+        return float(np.percentile(self.residuals, 95))
+
+    @property
+    def max_residual(self) -> float:
+        return float(self.residuals.max())
+
+    @property
+    def frames_per_second(self) -> float:
+        return self.num_frames / max(self.seconds, 1e-9)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly summary (no per-frame arrays)."""
+        return {
+            "name": self.name,
+            "frames": self.num_frames,
+            "fps": self.fps,
+            "mean_residual_m": self.mean_residual,
+            "p95_residual_m": self.p95_residual,
+            "max_residual_m": self.max_residual,
+            "per_keypoint_mean_m": dict(zip(self.keypoint_names,
+                                            self.residuals.mean(axis=0).tolist(), strict=True)),
+            "seconds": self.seconds,
+            "iterations": self.iterations,
+            "total_mass_kg": self.humanoid.total_mass,
+            "height_m": self.humanoid.dims.height,
+            "dimensions": self.humanoid.dims.to_dict(),
+            "notes": list(self.notes),
+        }
+
+
+@dataclass(eq=False)
+class InteractionRetargetResult:
+    """Both people of an :class:`Interaction`, each on its own fitted body, in one scene.
+
+    Attributes:
+        people: (actor result, reactor result).
+        scene: the combined model (prefixes ``actor/`` and ``reactor/``).
+        qpos: (T, scene.model.nq) combined trajectory.
+    """
+
+    people: tuple[RetargetResult, RetargetResult]
+    scene: Scene
+    qpos: np.ndarray
+    name: str = "interaction"
+
+    @property
+    def fps(self) -> float:
+        return self.people[0].fps
+
+    @property
+    def seconds(self) -> float:
+        return sum(p.seconds for p in self.people)
+
+    @property
+    def residuals(self) -> np.ndarray:
+        return np.concatenate([p.residuals for p in self.people], axis=1)
+
+    @property
+    def mean_residual(self) -> float:
+        return float(self.residuals.mean())
+
+    @property
+    def p95_residual(self) -> float:
+        return float(np.percentile(self.residuals, 95))
+
+    @property
+    def max_residual(self) -> float:
+        return float(self.residuals.max())
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "frames": int(self.qpos.shape[0]),
+            "fps": self.fps,
+            "people": 2,
+            "mean_residual_m": self.mean_residual,
+            "p95_residual_m": self.p95_residual,
+            "max_residual_m": self.max_residual,
+            "seconds": self.seconds,
+            "per_person": {n: p.to_dict() for n, p in zip(self.scene.names, self.people,
+                                                           strict=True)},
+        }
+
+
+# ---------------------------------------------------------------------------
+# Problem set-up
+# ---------------------------------------------------------------------------
+
+
+class _Problem:
+    """The humanoid's tree with keypoint sites and sole corners as points."""
+
+    def __init__(self, humanoid: Humanoid) -> None:
+        m = humanoid.model
+        self.humanoid = humanoid
+        self.K = len(humanoid.keypoint_names)
+        bodies = list(m.site_bodyid[humanoid.site_ids])
+        offsets = list(m.site_pos[humanoid.site_ids])
+        corners = []
+        for g in range(m.ngeom):
+            name = m.geom(g).name
+            if m.geom_type[g] == 6 and (name.endswith("_foot") or name.endswith("_toes")):
+                c, h = m.geom_pos[g], m.geom_size[g]
+                for sx in (-1, 1):
+                    for sy in (-1, 1):
+                        corners.append((m.geom_bodyid[g], c + [sx * h[0], sy * h[1], -h[2]]))
+        self.C = len(corners)
+        bodies += [b for b, _ in corners]
+        offsets += [o for _, o in corners]
+        self.tree = HingeTree(m, np.array(bodies), np.array(offsets))
+        self.body_id = {m.body(b).name: b for b in range(m.nbody)}
+        self.site_offset = {k: m.site_pos[s].copy()
+                            for k, s in zip(humanoid.keypoint_names, humanoid.site_ids,
+                                            strict=True)}
+        d = humanoid.dims
+        self.sole_height = {"ankle": d.ankle_height, "toe": d.toe_height}
+        rest = d.rest_keypoints()
+        kp = {k: rest[i] for i, k in enumerate(humanoid.keypoint_names)}
+        self.rest_triangle = pelvis_frames(kp["pelvis"][None], kp["left_hip"][None],
+                                           kp["right_hip"][None], kp["spine"][None])[0]
+
+
+def _canonical(motion: Motion) -> Motion:
+    canon = motion.to_canonical()
+    missing = [k for k in REQUIRED_KEYPOINTS if k not in canon.skeleton.joint_names]
+    if missing:
+        raise RetargetError(
+            f"motion {motion.name!r} (skeleton {motion.skeleton.name!r}) lacks required "
+            f"keypoint(s) {missing}; retargeting needs {list(REQUIRED_KEYPOINTS)}",
+            source=motion.metadata.get("source"), field=missing[0])
+    return canon
+
+
+# ---------------------------------------------------------------------------
+# Analytic initial guess
+# ---------------------------------------------------------------------------
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def _frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    e1 = _unit(a)
+    e2 = _unit(b - np.sum(b * e1, axis=-1, keepdims=True) * e1)
+    return np.stack([e1, e2, np.cross(e1, e2)], axis=-1)
+
+
+def _two_vector(v0: np.ndarray, w0: np.ndarray, u: np.ndarray, wt: np.ndarray) -> np.ndarray:
+    """World rotation taking body vector v0 exactly to u and w0 as close as possible to wt."""
+    F0 = _frame(np.broadcast_to(v0, u.shape), np.broadcast_to(w0, u.shape))
+    return _frame(u, wt) @ np.swapaxes(F0, -1, -2)
+
+
+def _swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Smallest rotation turning R @ v0 onto u, applied to R."""
+    c = _unit(R @ v0)
+    u = _unit(u)
+    axis = np.cross(c, u)
+    s = np.linalg.norm(axis, axis=-1)
+    ang = np.arctan2(s, np.sum(c * u, axis=-1))
+    axis = np.where(s[:, None] > 1e-9, axis / np.maximum(s, 1e-12)[:, None], [1.0, 0, 0])
+    return rotvec_mat(axis * ang[:, None]) @ R
+
+
+def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
+    """Hinge angles of body b reproducing R_local as well as its hinges can."""
+    hinges = tree.body_hinges[b]
+    letters, signs = [], []
+    for j in hinges:
+        a = tree.hinge_axis[j]
+        i = int(np.argmax(np.abs(a)))
+        letters.append("XYZ"[i])
+        signs.append(np.sign(a[i]))
+    seq = "".join(letters) + "".join(c for c in "XYZ" if c not in letters)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # gimbal-lock warnings: any solution is fine
+        eul = Rotation.from_matrix(R_local).as_euler(seq)
+    ang = eul[:, : len(hinges)] * np.array(signs)
+    return np.clip(ang, tree.lower[hinges], tree.upper[hinges])
+
+
+def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    tree = prob.tree
+    has = targets.__contains__
+    bid = prob.body_id
+    tri = pelvis_frames(targets["pelvis"], targets["left_hip"], targets["right_hip"],
+                        targets.get("spine"))
+    root_rot = tri @ prob.rest_triangle.T
+    root_pos = targets["pelvis"] - root_rot @ prob.site_offset["pelvis"]
+    theta = np.zeros((T, tree.H))
+    Rb = np.empty((T, tree.nb, 3, 3))
+    xb = np.empty((T, tree.nb, 3))
+    Rb[:, 1], xb[:, 1] = root_rot, root_pos
+    if has("left_shoulder") and has("right_shoulder"):
+        lateral = targets["left_shoulder"] - targets["right_shoulder"]
+    else:
+        lateral = targets["left_hip"] - targets["right_hip"]
+    names = {b: n for n, b in bid.items()}
+    y = np.array([0.0, 1.0, 0.0])
+    for b in range(2, tree.nb):
+        p = tree.parent[b]
+        Rp = Rb[:, p]
+        x = xb[:, p] + Rp @ tree.body_offset[b]
+        name = names[b]
+        side, _, part = name.partition("_") if name.startswith(("left_", "right_")) \
+            else ("", "", name)
+        pre = f"{side}_" if side else ""
+        child = {"lumbar": "spine", "thorax": "chest", "chest": "neck", "neck": "head",
+                 "clavicle": f"{pre}shoulder", "upper_arm": f"{pre}elbow",
+                 "forearm": f"{pre}wrist", "hand": f"{pre}hand", "thigh": f"{pre}knee",
+                 "shin": f"{pre}ankle", "foot": f"{pre}toe"}.get(part)
+        R = Rp
+        if child is not None and has(child) and len(tree.body_hinges[b]):
+            v0 = prob.site_offset[child]
+            u = targets[child] - x
+            ok = np.linalg.norm(v0) > 0.01
+            if ok and part in ("lumbar", "thorax", "chest"):
+                R = _two_vector(v0, y, u, lateral)
+            elif ok and part in ("upper_arm", "thigh"):
+                nxt = {"upper_arm": f"{pre}wrist", "thigh": f"{pre}ankle"}[part]
+                R = _swing(Rp, v0, u)
+                if has(nxt):
+                    # Flexion-plane normal of the elbow / knee (hinge axis -y / +y).
+                    bend = np.cross(_unit(u), _unit(targets[nxt] - targets[child]))
+                    w0 = -y if part == "upper_arm" else y
+                    strength = np.linalg.norm(bend, axis=-1)
+                    cue = bend
+                    if part == "thigh" and has(f"{pre}toe"):
+                        # Straight leg: the foot points forward in the knee plane.
+                        foot = -np.cross(_unit(u), _unit(targets[f"{pre}toe"]
+                                                         - targets[f"{pre}ankle"]))
+                        wgt = np.clip((strength - 0.1) / 0.2, 0, 1)[:, None]
+                        cue = wgt * _unit(bend) + (1 - wgt) * _unit(foot)
+                        strength = np.maximum(strength, np.linalg.norm(foot, axis=-1))
+                    R2 = _two_vector(v0, w0, u, cue)
+                    R = np.where((strength > 0.05)[:, None, None], R2, R)
+            elif ok:
+                R = _swing(Rp, v0, u)
+        if len(tree.body_hinges[b]):
+            th = _euler_angles(tree, b, np.swapaxes(Rp, -1, -2) @ R)
+            theta[:, tree.body_hinges[b]] = th
+            R = Rp
+            for j, t in zip(tree.body_hinges[b], th.T, strict=True):
+                R = R @ rotvec_mat(tree.hinge_axis[j] * t[:, None])
+        Rb[:, b], xb[:, b] = R, x
+    return root_pos, root_rot, theta
+
+
+# ---------------------------------------------------------------------------
+# Batched projected Levenberg-Marquardt
+# ---------------------------------------------------------------------------
+
+
+def _neighbour_mean(a: np.ndarray) -> np.ndarray:
+    if len(a) == 1:
+        return a.copy()
+    out = np.empty_like(a)
+    out[1:-1] = 0.5 * (a[:-2] + a[2:])
+    out[0], out[-1] = a[1], a[-2]
+    return out
+
+
+class _Solver:
+    def __init__(self, prob: _Problem, targets: np.ndarray, weights: np.ndarray,
+                 floor: np.ndarray, opts: RetargetOptions) -> None:
+        self.p, self.x, self.w, self.f, self.o = prob, targets, weights, floor, opts
+
+    def cost(self, kin: Kinematics, idx: np.ndarray, root_pos: np.ndarray, theta: np.ndarray,
+             nbr_pos: np.ndarray, nbr_th: np.ndarray) -> np.ndarray:
+        K, o = self.p.K, self.o
+        r = kin.points[:, :K] - self.x[idx]
+        c = np.einsum("tkc,tkc,k->t", r, r, self.w)
+        if o.floor:
+            z = np.minimum(kin.points[:, K:, 2] - self.f[idx, None], 0.0)
+            c += o.floor_weight * np.sum(z * z, axis=1)
+        c += o.reg * np.sum(theta * theta, axis=1)
+        c += o.smooth * (np.sum((theta - nbr_th) ** 2, axis=1)
+                         + np.sum((root_pos - nbr_pos) ** 2, axis=1))
+        return c
+
+    def step(self, kin: Kinematics, idx: np.ndarray, root_pos: np.ndarray, theta: np.ndarray,
+             nbr_pos: np.ndarray, nbr_th: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        """Damped, limit-aware Gauss-Newton step (T, nv) for the frames ``idx``."""
+        tree, K, o = self.p.tree, self.p.K, self.o
+        J = tree.jacobian(kin, root_pos)
+        T, nv = len(idx), tree.nv
+        sw = np.sqrt(self.w)
+        Jk = (J[:, :K] * sw[None, :, None, None]).reshape(T, 3 * K, nv)
+        rk = ((kin.points[:, :K] - self.x[idx]) * sw[None, :, None]).reshape(T, 3 * K)
+        Jt = np.swapaxes(Jk, 1, 2)
+        Hm = Jt @ Jk
+        g = np.einsum("tij,tj->ti", Jt, rk)
+        if o.floor:
+            z = kin.points[:, K:, 2] - self.f[idx, None]
+            act = z < 0
+            if act.any():
+                Jf = J[:, K:, 2, :] * act[..., None]
+                Hm += o.floor_weight * np.swapaxes(Jf, 1, 2) @ Jf
+                g += o.floor_weight * np.einsum("tci,tc->ti", Jf, np.where(act, z, 0.0))
+        hd = np.arange(6, nv)
+        Hm[:, hd, hd] += o.reg + o.smooth
+        g[:, 6:] += o.reg * theta + o.smooth * (theta - nbr_th)
+        Hm[:, [0, 1, 2], [0, 1, 2]] += o.smooth
+        g[:, :3] += o.smooth * (root_pos - nbr_pos)
+        # Active set: hinges at a bound whose gradient pushes outwards are frozen.
+        lo = (theta <= tree.lower + 1e-9) & (g[:, 6:] > 0)
+        hi = (theta >= tree.upper - 1e-9) & (g[:, 6:] < 0)
+        frozen = np.concatenate([np.zeros((T, 6), bool), lo | hi], axis=1)
+        diag = np.einsum("tii->ti", Hm).copy()
+        Hm[:, np.arange(nv), np.arange(nv)] += mu[:, None] * (diag + 1e-6)
+        if frozen.any():
+            Hm = np.where(frozen[:, :, None] | frozen[:, None, :], 0.0, Hm)
+            Hm[:, np.arange(nv), np.arange(nv)] += frozen
+            g = np.where(frozen, 0.0, g)
+        delta = -np.linalg.solve(Hm, g[..., None])[..., 0]
+        big = np.abs(delta[:, 3:]).max(axis=1)
+        delta *= np.minimum(1.0, o.max_step / np.maximum(big, 1e-12))[:, None]
+        return delta
+
+
+def _solve(prob: _Problem, targets: np.ndarray, weights: np.ndarray, floor: np.ndarray,
+           init: tuple[np.ndarray, np.ndarray, np.ndarray], opts: RetargetOptions,
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    tree = prob.tree
+    root_pos, root_rot, theta = (a.copy() for a in init)
+    T = len(theta)
+    solver = _Solver(prob, targets, weights, floor, opts)
+    mu = np.full(T, 1e-3)
+    active = np.ones(T, dtype=bool)
+    iters = 0
+    for _ in range(opts.iterations):
+        if not active.any():
+            break
+        iters += 1
+        nbr_pos, nbr_th = _neighbour_mean(root_pos), _neighbour_mean(theta)
+        for start in range(0, T, opts.chunk):
+            idx = np.flatnonzero(active[start:start + opts.chunk]) + start
+            if not len(idx):
+                continue
+            rp, rr, th = root_pos[idx], root_rot[idx], theta[idx]
+            kin = tree.forward(rp, rr, th)
+            c0 = solver.cost(kin, idx, rp, th, nbr_pos[idx], nbr_th[idx])
+            delta = solver.step(kin, idx, rp, th, nbr_pos[idx], nbr_th[idx], mu[idx])
+            rp2 = rp + delta[:, :3]
+            rr2 = rotvec_mat(delta[:, 3:6]) @ rr
+            th2 = np.clip(th + delta[:, 6:], tree.lower, tree.upper)
+            kin2 = tree.forward(rp2, rr2, th2)
+            c1 = solver.cost(kin2, idx, rp2, th2, nbr_pos[idx], nbr_th[idx])
+            ok = c1 < c0
+            acc = idx[ok]
+            root_pos[acc], root_rot[acc], theta[acc] = rp2[ok], rr2[ok], th2[ok]
+            mu[idx] = np.where(ok, mu[idx] * 0.3, mu[idx] * 8.0)
+            mu[idx] = np.clip(mu[idx], 1e-7, 1e6)
+            done = (ok & (c0 - c1 < opts.tol)) | (mu[idx] >= 1e6)
+            active[idx[done]] = False
+    if not (np.isfinite(root_pos).all() and np.isfinite(theta).all()):
+        bad = int(np.flatnonzero(~np.isfinite(theta).all(axis=1))[0]) if not \
+            np.isfinite(theta).all() else 0
+        raise RetargetError("solver diverged (non-finite configuration)", frame=bad)
+    return root_pos, root_rot, theta, iters
+
+
+# ---------------------------------------------------------------------------
+# Public API
+# ---------------------------------------------------------------------------
+
+
+def _floor_levels(prob: _Problem, tg: dict[str, np.ndarray], T: int) -> np.ndarray:
+    """Per-frame lowest allowed sole height: 0, or lower where the data's own
+    ankles/toes imply a sole below the floor."""
+    level = np.zeros(T)
+    for side in ("left", "right"):
+        for key in ("ankle", "toe"):
+            k = f"{side}_{key}"
+            if k in tg:
+                level = np.minimum(level, tg[k][:, 2] - prob.sole_height[key])
+    return level
+
+
+def retarget_motion(motion: Motion, humanoid: Humanoid | None = None,
+                    options: RetargetOptions | None = None) -> RetargetResult:
+    """Retarget one person (see :func:`retarget`)."""
+    opts = options or RetargetOptions()
+    canon = _canonical(motion)
+    t0 = time.perf_counter()
+    notes: list[str] = []
+    if humanoid is None:
+        humanoid = fit_humanoid(motion)
+        notes.extend(humanoid.dims.notes)
+    prob = _Problem(humanoid)
+    names = canon.skeleton.joint_names
+    T = canon.num_frames
+    pos = canon.positions.astype(np.float64)
+    tg = {k: pos[:, i] for i, k in enumerate(names)}
+    order = list(humanoid.keypoint_names)
+    targets = np.zeros((T, prob.K, 3))
+    weights = np.zeros(prob.K)
+    for k, i in ((k, order.index(k)) for k in names):
+        targets[:, i] = tg[k]
+        weights[i] = 1.0
+    floor = _floor_levels(prob, tg, T) if opts.floor else np.zeros(T)
+    init = _initial_guess(prob, tg, T)
+    root_pos, root_rot, theta, iters = _solve(prob, targets, weights, floor, init, opts)
+    qpos = prob.tree.join_qpos(root_pos, root_rot, theta)
+    kin = prob.tree.forward(root_pos, root_rot, theta)
+    seconds = time.perf_counter() - t0
+    sel = [order.index(k) for k in names]
+    res = np.linalg.norm(kin.points[:, sel] - targets[:, sel], axis=-1).astype(np.float32)
+    return RetargetResult(qpos=qpos, residuals=res, keypoint_names=tuple(names),
+                          targets=pos.astype(np.float32), humanoid=humanoid, fps=motion.fps,
+                          seconds=seconds, iterations=iters, name=motion.name, notes=notes)
+
+
+def retarget(motion: Motion | Interaction, humanoid: Humanoid | None = None,
+             **options: Any) -> RetargetResult | InteractionRetargetResult:
+    """Retarget a motion (or both people of an interaction) onto MuJoCo humanoids.
+
+    Args:
+        motion: a :class:`Motion` with at least the canonical pelvis and hips, or
+            an :class:`Interaction` (each person gets a body fitted to them).
+        humanoid: the body to use for a single motion; default: fitted to the
+            motion with :func:`simenv.humanoid.fit_humanoid`.
+        **options: fields of :class:`RetargetOptions` (e.g. ``iterations=8``).
+
+    Returns:
+        :class:`RetargetResult`, or :class:`InteractionRetargetResult` whose
+        scene names the people ``actor`` and ``reactor``.
+    """
+    try:
+        opts = RetargetOptions(**options)
+    except TypeError as exc:
+        raise RetargetError(f"unknown retarget option: {exc}") from None
+    if isinstance(motion, Interaction):
+        if humanoid is not None:
+            raise RetargetError("an Interaction gets one fitted body per person; do not pass "
+                                "humanoid=")
+        people = tuple(retarget_motion(m, None, opts) for m in motion.people)
+        scene = build_scene([p.humanoid for p in people], ["actor", "reactor"])
+        qpos = scene.combine_qpos([p.qpos for p in people])
+        return InteractionRetargetResult(people=people, scene=scene, qpos=qpos,
+                                         name=motion.name)
+    if not isinstance(motion, Motion):
+        raise RetargetError(f"retarget expects a Motion or Interaction; got "
+                            f"{type(motion).__name__}")
+    return retarget_motion(motion, humanoid, opts)
