@@ -21,7 +21,7 @@ from simenv.cli import describe, retarget_clip, save_npz, summary
 from simenv.render import render_result
 
 #: Rendered frames per clip when no stride is given (keeps ``make demo`` to a minute or two).
-RENDER_BUDGET = 100
+RENDER_BUDGET = 180
 #: The acknowledgement CMU asks for, repeated verbatim in every summary.
 CMU_ACKNOWLEDGEMENT = (
     "The data used in this project was obtained from mocap.cs.cmu.edu. "
