@@ -2,7 +2,8 @@
 
 import simenv._glenv  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from simenv.errors import SimenvError
+from simenv.io.loader import load
 from simenv.motion import Interaction, Motion, Skeleton
 
-__all__ = ["Interaction", "Motion", "SimenvError", "Skeleton"]
+__all__ = ["Interaction", "Motion", "SimenvError", "Skeleton", "load"]
 __version__ = "0.1.0"

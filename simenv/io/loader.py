@@ -1,0 +1,368 @@
+"""Format detection and loading: :func:`load` for files, folders and pairs.
+
+Readers live in :mod:`simenv.io` modules listed in :data:`READERS`. Each
+exposes ``sniff(path, head) -> bool`` (``head`` = the first
+:data:`HEAD_BYTES` bytes) and ``read(path, **kwargs)`` returning a
+:class:`Motion`, an :class:`Interaction` or a list of them; it may declare
+``EXTENSIONS``. Modules are imported lazily; one that does not exist (yet)
+is skipped.
+
+Detection order for a file: readers claiming the file's extension first,
+then the others; the first whose ``sniff`` accepts the head reads it. When
+no sniff accepts but a reader claims the extension, that reader reads it
+(so a damaged ``.bvh`` fails with its own located :class:`FormatError`).
+
+Two-person CMU recordings stored one file per person load as one
+:class:`Interaction` from their folder or from both paths. Known pair
+quirks are repaired *with a note*, never silently: a partner whose header
+frame rate contradicts the other file is re-timed only when the evidence
+says both are on one clock (see :func:`pair`).
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import inspect
+import re
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from simenv.errors import MotionError, SimenvError, UnknownFormatError
+from simenv.motion import Interaction, Motion
+
+#: Reader modules of :mod:`simenv.io`, in detection priority order.
+READERS: tuple[str, ...] = (
+    "bvh",
+    "asf_amc",
+    "npz",
+    "sbu",
+    "msr_action3d",
+    "utkinect",
+    "florence3d",
+    "nuisi",
+    "ntu",
+    "h36m",
+)
+
+#: Bytes of a file handed to each reader's ``sniff``.
+HEAD_BYTES = 4096
+
+#: CMU captured everything at this rate (Hz).
+CMU_CAPTURE_FPS = 120.0
+
+#: Two files are on one clock when their median per-frame root displacement
+#: agrees within this factor (a 30-vs-120 fps header mix-up is a factor 4).
+SAME_CLOCK_STEP_RATIO = 2.0
+
+Loaded = Motion | Interaction | list[Motion | Interaction]
+
+_PAIR_LABELS: tuple[tuple[str, str], ...] = (
+    (r"shake hands", "shake_hands"),
+    (r"high-five", "high_five"),
+    (r"low-five", "low_five"),
+    (r"salsa", "salsa"),
+    (r"chicken dance", "chicken_dance"),
+    (r"pulls? up", "pull_up"),
+    (r"pulls?", "pull"),
+    (r"comforts?", "comfort"),
+    (r"catches", "throw_catch"),
+    (r"throw, catch", "throw_catch"),
+    (r"arm wrestle", "arm_wrestle"),
+    (r"jumping jacks", "jumping_jacks"),
+    (r"squats", "squats"),
+    (r"march", "march"),
+    (r"conversation", "conversation"),
+    (r"quarrel", "quarrel"),
+)
+
+
+def _module(name: str) -> ModuleType | None:
+    try:
+        return importlib.import_module(f"simenv.io.{name}")
+    except ModuleNotFoundError as exc:
+        if exc.name == f"simenv.io.{name}":
+            return None
+        raise
+
+
+def available_readers() -> list[str]:
+    """Names of the reader modules present in this installation."""
+    return [n for n in READERS if _module(n) is not None]
+
+
+def _head(path: Path) -> bytes:
+    try:
+        with path.open("rb") as fh:
+            return fh.read(HEAD_BYTES)
+    except OSError as exc:
+        raise SimenvError(f"cannot read file: {exc.strerror or exc}", source=path) from None
+
+
+def detect(path: Path) -> tuple[str, ModuleType]:
+    """The reader for a file: (module name, module).
+
+    Raises:
+        UnknownFormatError: naming the file and the formats tried.
+    """
+    path = Path(path)
+    head = _head(path)
+    suffix = path.suffix.lower()
+    mods = [(n, m) for n in READERS if (m := _module(n)) is not None]
+    claims = [(n, m) for n, m in mods if suffix in getattr(m, "EXTENSIONS", ())]
+    ordered = claims + [(n, m) for n, m in mods if (n, m) not in claims]
+    for name, mod in ordered:
+        try:
+            if mod.sniff(path, head):
+                return name, mod
+        except (ValueError, UnicodeError, OSError, SimenvError):
+            continue
+    if claims:
+        return claims[0]
+    raise UnknownFormatError(
+        f"no reader recognises this file (extension {suffix or 'none'!r}); tried "
+        f"{', '.join(n for n, _ in ordered)}",
+        source=path,
+    )
+
+
+def _read(path: Path, name: str, mod: ModuleType, kwargs: dict[str, Any]) -> Loaded:
+    params = inspect.signature(mod.read).parameters
+    takes_any = any(p.kind is p.VAR_KEYWORD for p in params.values())
+    unknown = [k for k in kwargs if k not in params and not takes_any]
+    if unknown:
+        accepted = [k for k, p in params.items() if p.kind is p.KEYWORD_ONLY]
+        raise TypeError(
+            f"{path}: the {name} reader does not take {', '.join(unknown)}; it accepts "
+            f"{', '.join(accepted) or 'no options'}"
+        )
+    return mod.read(path, **kwargs)
+
+
+def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
+    """Load motion capture from a file, a folder, or a pair of files.
+
+    Args:
+        path: a motion file (format detected by extension and content); a
+            folder (two files of one CMU two-person trial -> Interaction,
+            otherwise every motion file in it -> list); or a sequence of two
+            files, one per person -> Interaction.
+        **kwargs: passed to the reader (e.g. ``units=``, ``fps=``,
+            ``drop_tpose=`` for BVH, ``asf=`` for AMC).
+
+    Returns:
+        Motion, Interaction, or a list of them (files/folders with many
+        clips).
+
+    Raises:
+        UnknownFormatError: no reader recognises the file or folder content.
+        SimenvError: any reader error, naming file, line and field.
+    """
+    if isinstance(path, (list, tuple)):
+        if len(path) != 2:
+            raise MotionError(
+                f"a list of paths must hold the two people of one recording; got {len(path)}"
+            )
+        a, b = (_load_single_person(Path(p), kwargs) for p in path)
+        return pair(a, b)
+    path = Path(path)
+    if path.is_dir():
+        return _load_folder(path, kwargs)
+    if not path.exists():
+        raise SimenvError("no such file or folder", source=path)
+    name, mod = detect(path)
+    return _read(path, name, mod, kwargs)
+
+
+def _load_single_person(path: Path, kwargs: dict[str, Any]) -> Motion:
+    loaded = load(path, **kwargs)
+    if not isinstance(loaded, Motion):
+        raise MotionError(f"expected one person's motion, got {type(loaded).__name__}", source=path)
+    return loaded
+
+
+def motion_files(folder: Path) -> list[tuple[Path, str]]:
+    """Files in ``folder`` (not recursive) that a reader recognises, with the
+    reader name. ASF skeletons are left out when AMC motions are present
+    (they are read through the AMCs)."""
+    found = []
+    for p in sorted(folder.iterdir()):
+        if not p.is_file() or p.name.startswith("."):
+            continue
+        try:
+            name, _ = detect(p)
+        except UnknownFormatError:
+            continue
+        found.append((p, name))
+    if any(p.suffix.lower() == ".amc" for p, _ in found):
+        found = [(p, n) for p, n in found if p.suffix.lower() != ".asf"]
+    return found
+
+
+_TRIAL = re.compile(r"^(\d+)_(\d+)")
+
+
+def _trial(path: Path) -> tuple[str, str] | None:
+    """(subject, take) of a CMU-style file name such as ``60_10_scaled.bvh``."""
+    m = _TRIAL.match(path.stem)
+    return (m.group(1), m.group(2)) if m else None
+
+
+def _load_folder(folder: Path, kwargs: dict[str, Any]) -> Loaded:
+    files = motion_files(folder)
+    if not files:
+        tried = ", ".join(available_readers())
+        raise UnknownFormatError(
+            f"folder holds no file any reader recognises (tried {tried})", source=folder
+        )
+    trials = [_trial(p) for p, _ in files]
+    is_pair = (
+        len(files) == 2
+        and all(t is not None for t in trials)
+        and trials[0][1] == trials[1][1]  # type: ignore[index]
+        and trials[0][0] != trials[1][0]  # type: ignore[index]
+    )
+    if is_pair:
+        a, b = (_load_single_person(p, kwargs) for p, _ in files)
+        return pair(a, b, folder=folder)
+    out: list[Motion | Interaction] = []
+    for p, name in files:
+        loaded = _read(p, name, _module(name), kwargs)  # type: ignore[arg-type]
+        out.extend(loaded if isinstance(loaded, list) else [loaded])
+    return out
+
+
+def _descriptions(start: Path) -> dict[str, str]:
+    """CMU trial descriptions (``cmu_trial_descriptions.tsv``) found in the
+    folder or up to three levels above it; empty when absent."""
+    for folder in [start, *list(start.parents)[:3]]:
+        tsv = folder / "cmu_trial_descriptions.tsv"
+        if tsv.is_file():
+            with tsv.open(newline="") as fh:
+                rows = list(csv.reader(fh, delimiter="\t"))
+            return {r[0]: r[1] for r in rows[1:] if len(r) >= 2}
+    return {}
+
+
+def _label(descriptions: list[str], folder: Path | None) -> str | None:
+    text = " ".join(descriptions) or (folder.name.replace("_", " ") if folder else "")
+    for pattern, label in _PAIR_LABELS:
+        if re.search(pattern, text, re.IGNORECASE):
+            return label
+    core = re.sub(r"\(.*?\)", "", descriptions[0]).strip() if descriptions else ""
+    slug = re.sub(r"[^a-z0-9]+", "_", core.lower()).strip("_")
+    return slug or None
+
+
+def _role(description: str) -> int | None:
+    """0 for the acting person (subject A / lead), 1 for B / follow."""
+    d = description.lower()
+    if "subject a" in d or re.search(r"\blead\b", d):
+        return 0
+    if "subject b" in d or re.search(r"\bfollow\b", d):
+        return 1
+    return None
+
+
+def _median_root_step(m: Motion) -> float:
+    return float(np.median(np.linalg.norm(np.diff(m.positions[:, 0], axis=0), axis=-1)))
+
+
+def _with_quirk(m: Motion, note: str, **changes: Any) -> Motion:
+    meta = dict(m.metadata)
+    meta["quirks"] = [*meta.get("quirks", []), note]
+    return replace(m, metadata=meta, **changes)
+
+
+def _reconcile_fps(a: Motion, b: Motion, notes: list[str]) -> tuple[Motion, Motion]:
+    """Resolve a header frame-rate contradiction between two partners.
+
+    Evidence that both files are on one clock: equal frame counts (after any
+    dropped T-pose) and per-frame root displacements within
+    :data:`SAME_CLOCK_STEP_RATIO`. Then the rate that equals the CMU capture
+    rate wins (both files must be CMU trials). Without such evidence the
+    pair is refused.
+    """
+    step_a, step_b = _median_root_step(a), _median_root_step(b)
+    ratio = max(step_a, step_b) / max(min(step_a, step_b), 1e-9)
+    same_clock = a.num_frames == b.num_frames and ratio <= SAME_CLOCK_STEP_RATIO
+    cmu = _trial(Path(a.metadata.get("source", ""))) and _trial(Path(b.metadata.get("source", "")))
+    rates = {a.fps, b.fps}
+    if not (same_clock and cmu and CMU_CAPTURE_FPS in rates):
+        raise MotionError(
+            f"{a.name} is at {a.fps:g} fps and {b.name} at {b.fps:g} fps, and nothing shows "
+            f"which is right (frames {a.num_frames} vs {b.num_frames}; median root step "
+            f"{step_a * 100:.2f} vs {step_b * 100:.2f} cm/frame). Pass fps= explicitly or "
+            "resample one"
+        )
+    wrong, right = (a, b) if b.fps == CMU_CAPTURE_FPS else (b, a)
+    dropped = [q for q in right.metadata.get("quirks", []) if q.startswith("dropped T-pose")]
+    note = (
+        f"{wrong.name}: header says {wrong.fps:g} fps but the file is on the clock of "
+        f"{right.name} ({right.fps:g} fps, the CMU capture rate): both have "
+        f"{wrong.num_frames} frames"
+        + (f" once {right.name}'s T-pose frame 0 is dropped" if dropped else "")
+        + f", and their median root steps agree ({step_a * 100:.2f} vs "
+        f"{step_b * 100:.2f} cm/frame); {wrong.name} re-timed to {right.fps:g} fps"
+    )
+    notes.append(note)
+    fixed = _with_quirk(wrong, note, fps=right.fps)
+    return (fixed, b) if wrong is a else (a, fixed)
+
+
+def pair(a: Motion, b: Motion, *, folder: Path | None = None) -> Interaction:
+    """Make an :class:`Interaction` from two people's motions of one trial.
+
+    Roles and label come from the CMU trial descriptions when available
+    (``subject A``/``lead`` acts); otherwise the order is by file name and
+    ``roles_known`` is False. A frame-rate contradiction is repaired only with
+    evidence (see :func:`_reconcile_fps`) and noted in the quirks of the
+    Interaction and of the re-timed Motion.
+
+    Raises:
+        MotionError: different frame rates without evidence, or different
+            lengths.
+    """
+    notes: list[str] = []
+    if a.fps != b.fps:
+        a, b = _reconcile_fps(a, b, notes)
+    if a.num_frames != b.num_frames:
+        raise MotionError(
+            f"{a.name} has {a.num_frames} frames and {b.name} {b.num_frames}; a two-person "
+            "recording needs one frame per person per time step (align them explicitly with "
+            ".slice, or check drop_tpose)"
+        )
+    for m in (a, b):
+        for q in m.metadata.get("quirks", []):
+            if q.startswith(("dropped T-pose", "frame 0 is a T-pose")):
+                notes.append(f"{m.name}: {q}")
+    start = folder or Path(a.metadata.get("source", ".")).parent
+    table = _descriptions(start)
+    desc = []
+    for m in (a, b):
+        t = _trial(Path(m.metadata.get("source", m.name)))
+        d = table.get(f"{t[0]}_{t[1]}") if t else None
+        desc.append(d)
+    roles = [_role(d) if d else None for d in desc]
+    roles_known = sorted(r for r in roles if r is not None) == [0, 1]
+    if roles_known and roles[0] == 1:
+        a, b = b, a
+        desc.reverse()
+    label = _label([d for d in desc if d], folder)
+    names = sorted([a.name, b.name])
+    meta: dict[str, Any] = {
+        "sources": [a.metadata.get("source"), b.metadata.get("source")],
+        "quirks": notes,
+    }
+    if any(desc):
+        meta["descriptions"] = desc
+        meta["label_source"] = "CMU trial descriptions"
+    if roles_known:
+        meta["roles_source"] = "CMU trial descriptions (subject A / lead acts)"
+    name = folder.name if folder else f"{names[0]}+{names[1]}"
+    return Interaction(a, b, label=label, roles_known=roles_known, name=name, metadata=meta)
