@@ -28,6 +28,10 @@ COM_KEYPOINTS: tuple[str, ...] = (
 )
 
 
+#: Keypoints that may rest on the palm and fingers below them.
+HAND_KEYPOINTS: tuple[str, ...] = ("left_wrist", "right_wrist", "left_hand", "right_hand")
+
+
 def foot_keypoints(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
                    ) -> tuple[list[str], np.ndarray]:
     """Foot keypoints of a canonical ``motion`` and their contact heights.
@@ -234,16 +238,20 @@ def floating(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
     """Floating: airborne frames that are not a jump.
 
     A frame is airborne when its lowest keypoint is more than
-    ``float_height_m`` above the floor (z = 0). Each maximal airborne run is
-    tested for a ballistic flight: the centre-of-mass proxy (mean of the
-    trunk keypoints :data:`COM_KEYPOINTS` present) must follow a free-fall
-    parabola, i.e. vertical acceleration -g, within an RMS residual of
-    ``ballistic_tolerance_m`` (:func:`ballistic_residual`). Jumps pass; a
-    body hovering, rising or sinking slowly without support fails. Timeline:
-    height of the lowest keypoint in mm on frames of non-ballistic airborne
-    runs, 0 elsewhere; value: its maximum; passes when no frame floats
-    (value at most ``float_height_m`` in mm). Details: ``airborne_fraction``,
-    ``floating_fraction``, ``worst_residual_m``, ``jumps`` (ballistic runs).
+    ``float_height_m`` above the floor (z = 0); wrist and hand keypoints
+    count ``float_hand_reach_m`` lower (the palm and fingers can carry the
+    body). Each maximal airborne run is tested for a ballistic flight: the
+    centre-of-mass proxy (mean of the trunk keypoints :data:`COM_KEYPOINTS`
+    present) must follow a free-fall parabola, i.e. vertical acceleration
+    -g, within an RMS residual of ``ballistic_tolerance_m``
+    (:func:`ballistic_residual`). Jumps pass; a body hovering, rising or
+    sinking slowly without support fails.
+
+    Timeline: height in mm of the lowest (support-adjusted) keypoint on
+    frames of non-ballistic airborne runs, 0 elsewhere; value: its maximum;
+    passes when no frame floats (value at most ``float_height_m`` in mm).
+    Details: ``airborne_fraction``, ``floating_fraction``,
+    ``worst_residual_m``, ``jumps`` (ballistic runs).
 
     Assumes the floor is the only support (no chairs, props or partners:
     those need the body-level metrics). Needs three frames.
@@ -266,7 +274,10 @@ def floating(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
             f"{motion.num_frames}",
         )
     pos = canon.positions.astype(np.float64)
-    lowest = pos[..., 2].min(axis=1)
+    hands = keypoint_indices(canon, HAND_KEYPOINTS)
+    support = pos[..., 2].copy()
+    support[:, hands] -= thresholds.float_hand_reach_m
+    lowest = support.min(axis=1)
     com_z = pos[:, com_idx, 2].mean(axis=1)
     airborne = lowest > thresholds.float_height_m
     floating_mask = np.zeros(motion.num_frames, dtype=bool)
