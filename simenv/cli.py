@@ -24,28 +24,50 @@ from simenv.motion import Interaction, Motion
 EXIT_USER_ERROR = 2
 
 
-def load_any(path: str | Path) -> list[Motion | Interaction]:
-    """Load a motion file or a two-person folder as a list of clips (usually one)."""
-    from simenv.io import load
+def load_any(paths: Sequence[str | Path]) -> list[Motion | Interaction]:
+    """Load one motion file or folder, or the two files of one two-person recording.
 
-    path = Path(path)
-    if not path.exists():
-        raise SimenvError("no such file or folder", source=path)
-    loaded = load(path)
-    return list(loaded) if isinstance(loaded, (list, tuple)) else [loaded]
+    Returns:
+        The clips found (usually one; a folder of unrelated files gives several).
+    """
+    from simenv.io.loader import load
+
+    paths = [Path(p) for p in paths]
+    for path in paths:
+        if not path.exists():
+            raise SimenvError("no such file or folder", source=path)
+    if len(paths) > 2:
+        raise SimenvError(
+            f"got {len(paths)} paths; expected one file or folder, or the two files of one "
+            "two-person recording"
+        )
+    loaded = load(paths[0]) if len(paths) == 1 else load(paths)
+    return list(loaded) if isinstance(loaded, list) else [loaded]
 
 
-def _one_clip(path: str | Path) -> Motion | Interaction:
-    clips = load_any(path)
+def _one_clip(paths: Sequence[str | Path]) -> Motion | Interaction:
+    clips = load_any(paths)
     if len(clips) != 1:
         raise SimenvError(
             f"holds {len(clips)} clips; this command needs one (use `simenv info` to list them)",
-            source=path,
+            source=paths[0],
         )
     return clips[0]
 
 
+def _stature(motion: Motion) -> float | None:
+    """Standing height (m, sole to top of head) of the body fitted to the bone lengths."""
+    from simenv.humanoid import fit_dimensions
+
+    try:
+        return round(fit_dimensions(motion).height, 3)
+    except SimenvError:  # e.g. no pelvis/hips to measure a body from
+        return None
+
+
 def _person_info(motion: Motion) -> dict[str, Any]:
+    """``height_m`` is the joint span (highest minus lowest joint, 95th percentile over
+    frames); ``stature_m`` the standing height of the fitted body, when one can be fitted."""
     meta = motion.metadata
     return {
         "name": motion.name,
@@ -54,6 +76,7 @@ def _person_info(motion: Motion) -> dict[str, Any]:
         "fps": motion.fps,
         "duration_s": round(motion.duration, 4),
         "height_m": round(motion.height(), 3),
+        "stature_m": _stature(motion),
         "units_in_file": meta.get("units"),
         "quirks": list(meta.get("quirks", [])),
         "repairs": list(meta.get("repairs", [])),
@@ -91,9 +114,12 @@ def _print_info(info: dict[str, Any]) -> None:
     for note in info.get("quirks", []):
         print(f"  quirk: {note}")
     for i, person in enumerate(info["persons"]):
+        stature = person["stature_m"]
         print(
-            f"  person {i} {person['name']}: {person['joints']} joints, "
-            f"height ~{person['height_m']:.2f} m, units in file {person['units_in_file']}"
+            f"  person {i} {person['name']}: {person['joints']} joints, joint span "
+            f"{person['height_m']:.2f} m, "
+            + (f"stature ~{stature:.2f} m (fitted body), " if stature else "")
+            + f"units in file {person['units_in_file']}"
         )
         for note in person["quirks"]:
             print(f"    quirk: {note}")
@@ -102,7 +128,7 @@ def _print_info(info: dict[str, Any]) -> None:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    infos = [describe(clip) for clip in load_any(args.path)]
+    infos = [describe(clip) for clip in load_any(args.paths)]
     if args.json:
         print(json.dumps(infos[0] if len(infos) == 1 else {"clips": infos}))
     else:
@@ -207,7 +233,7 @@ def _check_suffix(path: str, suffix: str, option: str) -> Path:
 def cmd_retarget(args: argparse.Namespace) -> int:
     out = _check_suffix(args.out, ".npz", "--out")
     video = _check_suffix(args.video, ".mp4", "--video") if args.video else None
-    result = retarget_clip(_one_clip(args.path))
+    result = retarget_clip(_one_clip(args.paths))
     save_npz(result, out)
     if video is not None:
         from simenv.render import render_result
@@ -231,7 +257,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from simenv.render import render_result
 
     out = _check_suffix(args.out, ".mp4", "--out")
-    clip = _one_clip(args.path)
+    clip = _one_clip(args.paths)
     if args.max_frames is not None:
         # Only the frames that will be shown need retargeting.
         clip = clip.slice(0, args.max_frames * args.stride)
@@ -263,19 +289,22 @@ def build_parser() -> argparse.ArgumentParser:
         description="Physics-backed simulation and evaluation of 3D human skeleton motion.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    path_help = "motion file (BVH, ASF/AMC, Kinect text, NPZ) or a two-person folder"
+    path_help = (
+        "a motion file (BVH, ASF/AMC, Kinect text, NPZ), a folder with a two-person recording, "
+        "or the two files of one"
+    )
 
     info = sub.add_parser("info", help="describe a motion file", description=(
         "Format, people, joints, frames, fps, duration, height estimate per person, and the "
         "quirks found and repairs made while reading."))
-    info.add_argument("path", help=path_help)
+    info.add_argument("paths", nargs="+", metavar="FILE|FOLDER", help=path_help)
     info.add_argument("--json", action="store_true", help="print one JSON object")
     info.set_defaults(func=cmd_info)
 
     ret = sub.add_parser("retarget", help="retarget onto a fitted MuJoCo humanoid", description=(
         "Fit a humanoid to each person's bone lengths, solve its joint trajectory, and save "
         "qpos (T, nq), fps and the humanoid's dimensions to an NPZ file."))
-    ret.add_argument("path", help=path_help)
+    ret.add_argument("paths", nargs="+", metavar="FILE|FOLDER", help=path_help)
     ret.add_argument("--out", required=True, help="output .npz")
     ret.add_argument("--video", help="also render an .mp4 (humanoid + source joints)")
     ret.add_argument("--stride", type=_positive_int, default=1,
@@ -290,7 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
         "Retarget and render offscreen (MUJOCO_GL=osmesa on a CPU): the humanoid, the source "
         "joints as a ghost, camera following the subject. About 5-10 frames/s on a CPU, so "
         "use --stride/--max-frames for long clips."))
-    ren.add_argument("path", help=path_help)
+    ren.add_argument("paths", nargs="+", metavar="FILE|FOLDER", help=path_help)
     ren.add_argument("--out", required=True, help="output .mp4")
     ren.add_argument("--max-frames", type=_positive_int, help="render at most N frames")
     ren.add_argument("--stride", type=_positive_int, default=1,

@@ -45,7 +45,7 @@ def run_demo(
     Returns:
         The summary written to ``out_dir/summary.json``.
     """
-    from simenv.io import load
+    from simenv.io.loader import load
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

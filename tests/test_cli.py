@@ -44,7 +44,8 @@ def test_info_single_bvh(capsys):
     assert info["people"] == 1 and info["format"] == "bvh"
     assert info["fps"] == 120 and info["frames"] == 343  # 344 in the file minus the T-pose
     (person,) = info["persons"]
-    assert person["joints"] >= 21 and 1.4 < person["height_m"] < 2.1
+    assert person["joints"] >= 21 and 1.0 < person["height_m"] < person["stature_m"] < 2.1
+    assert person["stature_m"] > 1.4
     assert any("pose" in q.lower() for q in person["quirks"])  # the dropped T-pose is reported
     status, text, _ = run(capsys, "info", asset_path(WALK))
     assert status == 0 and "people 1" in text and "343" in text
@@ -62,7 +63,7 @@ def test_info_two_person_folder(capsys, shared_data: Path):
     notes = " ".join(info.get("quirks", []) + info["persons"][0]["quirks"]).lower()
     assert "30" in notes or "frame time" in notes
     for person in info["persons"]:
-        assert 1.4 < person["height_m"] < 2.1
+        assert 1.0 < person["height_m"] < person["stature_m"] < 2.1 and person["stature_m"] > 1.4
 
 
 def test_bad_input_exits_2_without_traceback(tmp_path: Path, capsys):

@@ -139,4 +139,4 @@ def test_installed_command_runs_on_a_bundled_asset(installed: dict):
     assert run.returncode == 0, run.stderr
     info = json.loads(run.stdout)
     assert info["people"] == 1 and info["fps"] == 120
-    assert 1.4 < info["persons"][0]["height_m"] < 2.1
+    assert 1.4 < info["persons"][0]["stature_m"] < 2.1
