@@ -21,7 +21,7 @@ from pathlib import Path
 
 from simenv.io import asf_amc, bvh
 from simenv.motion import Motion
-from simenv.plausibility import KINEMATIC_METRICS, DEFAULT_THRESHOLDS
+from simenv.plausibility import DEFAULT_THRESHOLDS, KINEMATIC_METRICS
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -94,7 +94,8 @@ def print_table(rows: list[dict]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    parser.add_argument("--out", type=Path, default=REPO / "benchmarks" / "calibrate_kinematic.json")
+    parser.add_argument("--out", type=Path,
+                        default=REPO / "benchmarks" / "calibrate_kinematic.json")
     args = parser.parse_args()
     paths = single_person_clips(args.data)
     if not paths:

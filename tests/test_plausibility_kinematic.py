@@ -1,0 +1,165 @@
+"""Joint-level kinematic metrics on real CMU clips and corrupted copies."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from simenv.errors import MotionError, SimenvError
+from simenv.io import bvh
+from simenv.motion import Motion
+from simenv.plausibility import (
+    Thresholds,
+    bone_length,
+    bone_length_error,
+    bone_lengths,
+    jitter,
+    kinematic_metrics,
+    reference_lengths,
+    velocity,
+)
+
+
+@pytest.fixture(scope="module")
+def walk(shared_data) -> Motion:
+    """Real CMU walk 02_01 (343 frames at 120 fps, T-pose dropped)."""
+    return bvh.read(shared_data / "cmu/bvh/02_01.bvh")
+
+
+def _canon(m: Motion) -> Motion:
+    return m.to_canonical()
+
+
+def test_clean_walk_passes_every_kinematic_metric(walk) -> None:
+    results = kinematic_metrics(walk)
+    assert list(results) == ["bone_length", "foot_skate", "ground_penetration", "floating",
+                             "jitter", "velocity"]
+    for name, r in results.items():
+        assert r.available, (name, r.reason)
+        assert r.passed, (name, r.value, r.threshold, r.violations[:3])
+        assert r.timeline.shape == (walk.num_frames,)
+
+
+def test_bone_stretched_over_time_fails(walk) -> None:
+    c = _canon(walk)
+    names = c.skeleton.joint_names
+    knee, ankle, toe = (names.index(n) for n in ("left_knee", "left_ankle", "left_toe"))
+    pos = c.positions.copy()
+    shin = pos[:, ankle] - pos[:, knee]
+    # The shin grows linearly to +20 % over the clip; the foot moves with it.
+    grow = np.linspace(0.0, 0.2, c.num_frames, dtype=np.float32)[:, None] * shin
+    pos[:, ankle] += grow
+    pos[:, toe] += grow
+    r = bone_length(c.with_positions(pos))
+    assert r.passed is False
+    assert r.details["max_rel_deviation"] > 0.08
+    # Frames near the clip's median length are fine: the violation is at the ends.
+    starts = [v[0] for v in r.violations]
+    assert min(starts) == 0 and r.violations[-1][1] == c.num_frames - 1
+    assert bone_length(walk).details["max_rel_deviation"] < 1e-3
+
+
+def test_bone_length_error_against_reference(walk, shared_data) -> None:
+    ref = reference_lengths(walk)
+    assert ref["left_knee"] == pytest.approx(
+        float(np.median(bone_lengths(walk)[1][:, bone_lengths(walk)[0].index("left_knee")])))
+    same = bone_length_error(walk, ref)
+    assert same.passed and same.value < 1.0
+    other = bvh.read(shared_data / "cmu/bvh/131_01.bvh").slice(0, 100)
+    scaled = {k: 1.25 * v for k, v in ref.items() if v > 0.01}
+    r = bone_length_error(walk, scaled)
+    assert r.passed is False and r.value > 20.0
+    assert bone_length_error(other, ref).value > same.value
+    with pytest.raises(MotionError, match="not a canonical bone"):
+        bone_length_error(walk, {"tail": 0.3})
+    with pytest.raises(MotionError, match="positive bone length"):
+        bone_length_error(walk, {"left_knee": -0.4})
+
+
+@pytest.mark.parametrize("sigma", [0.005, 0.01])
+def test_added_noise_is_flagged_as_jitter(walk, sigma) -> None:
+    rng = np.random.default_rng(7)
+    noisy = walk.with_positions(walk.positions + rng.normal(0, sigma, walk.positions.shape)
+                                .astype(np.float32))
+    r = jitter(noisy)
+    clean = jitter(walk)
+    assert clean.passed and not r.passed
+    assert r.details["mean_jerk_mps3"] > 3 * clean.details["mean_jerk_mps3"]
+    assert r.violations and r.violations[0][2] > 6500
+
+
+def test_jitter_is_evaluated_at_30_fps_whatever_the_input_rate(walk) -> None:
+    a = jitter(walk)
+    b = jitter(walk.resample(60.0))
+    assert a.details["analysis_fps"] == b.details["analysis_fps"] == 30.0
+    assert a.passed and b.passed
+    assert b.details["normalized_jerk_mean"] == pytest.approx(
+        a.details["normalized_jerk_mean"], rel=0.3)
+
+
+def test_teleported_joint_is_caught(walk) -> None:
+    pos = walk.positions.copy()
+    j = walk.skeleton.index("LeftHand")
+    pos[150:153, j] += np.array([0.3, 0.0, 0.0], dtype=np.float32)
+    r = velocity(walk.with_positions(pos))
+    assert r.passed is False
+    assert r.details["teleport_frames"] >= 2
+    assert any(s <= 150 <= e or s <= 153 <= e for s, e, _ in r.violations)
+
+
+def test_skipped_frames_at_30_fps_are_a_teleport(walk) -> None:
+    low = walk.resample(30.0)
+    assert velocity(low).passed
+    # Drop 12 frames (0.4 s) in the middle: the whole body jumps ahead.
+    skipped = Motion.concatenate([low.slice(0, 40), low.slice(52)])
+    r = velocity(skipped)
+    assert r.passed is False
+    assert any(s <= 40 <= e + 1 for s, e, _ in r.violations)
+
+
+def test_speed_limit_is_per_keypoint_group(walk) -> None:
+    # A pelvis moving at 15 m/s is beyond any human; a hand at 15 m/s is not.
+    c = _canon(walk).slice(0, 50)
+    t = c.times.astype(np.float32)
+    pel = c.skeleton.index("pelvis")
+    pos = c.positions.copy()
+    pos[:, pel, 0] += 15.0 * t
+    assert velocity(c.with_positions(pos)).passed is False
+    pos = c.positions.copy()
+    hand = c.skeleton.index("right_hand")
+    pos[:, hand, 0] += 15.0 * t
+    r = velocity(c.with_positions(pos))
+    assert r.passed and r.details["max_speed_mps"] > 15.0
+
+
+def test_short_clips_are_not_available_with_a_reason(walk) -> None:
+    one, two = walk.slice(0, 1), walk.slice(0, 2)
+    assert bone_length(one).passed is True
+    v1, v2 = velocity(one), velocity(two)
+    assert v1.passed is None and "2 frames" in v1.reason
+    assert v2.available and v2.details["teleport_frames"] == 0
+    j = jitter(walk.slice(0, 20))
+    assert j.passed is None and "frames" in j.reason and j.timeline.shape == (20,)
+    for r in kinematic_metrics(one).values():
+        assert r.timeline.shape == (1,)
+
+
+def test_missing_keypoints_use_what_is_there(walk) -> None:
+    c = _canon(walk)
+    keep = [n for n in c.skeleton.joint_names if not n.endswith(("_toe", "_hand", "head"))]
+    sub = Motion(c.positions[:, [c.skeleton.index(n) for n in keep]], c.fps,
+                 c.skeleton.subset(keep), "no-extremities")
+    assert bone_length(sub).passed and velocity(sub).passed and jitter(sub).passed
+    bare = Motion(c.positions[:, :1], c.fps,
+                  c.skeleton.subset(["pelvis"]), "pelvis-only")
+    r = bone_length(bare)
+    assert r.passed is None and "bone" in r.reason
+
+
+def test_thresholds_are_validated_and_configurable(walk) -> None:
+    with pytest.raises(SimenvError, match="speed_limit_trunk_mps"):
+        Thresholds(speed_limit_trunk_mps=-1)
+    strict = replace(Thresholds(), speed_limit_trunk_mps=0.5)
+    assert velocity(walk, strict).passed is False
