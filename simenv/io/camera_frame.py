@@ -169,49 +169,27 @@ def _rotation_to_z(n: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
 
 
-def estimate_floor(
-    people: Sequence[tuple[np.ndarray, Skeleton]], *, source: str | None = None
-) -> FloorEstimate:
-    """Estimate the camera -> world transform from the feet of everyone seen
-    by one sensor.
-
-    Args:
-        people: one ``(positions, skeleton)`` per person, positions (T, J, 3)
-            metres in the Kinect camera convention (see module docstring).
-            Every skeleton must map left/right ankles or toes and at least
-            one shank or the trunk.
-        source: file name for error messages.
-
-    Returns:
-        The :class:`FloorEstimate`.
-    """
+def _samples(
+    people: list[tuple[np.ndarray, Skeleton, list[int], np.ndarray]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frame lowest floor points (N, 3) and body-axis votes (M, 3) in the
+    frame the positions are given in (Z roughly up)."""
     floor_pts, votes = [], []
-    for positions, skeleton in people:
-        p = np.asarray(positions, dtype=np.float64) @ KINECT_TO_ZUP.T
-        feet, clearance = _foot_joints(skeleton)
-        if not feet:
-            raise MotionError(
-                f"skeleton {skeleton.name!r} maps no ankle or toe keypoint; the floor cannot be "
-                "estimated from the feet",
-                source=source,
-            )
-        v = _body_axis_votes(p, skeleton)
-        if len(v) == 0:
-            raise MotionError(
-                f"skeleton {skeleton.name!r} has neither shanks (knee, ankle) nor a trunk "
-                "(hips/pelvis to neck/head) to estimate the vertical from",
-                source=source,
-            )
-        votes.append(v)
-        # Lower each foot joint by its clearance along the rough up (+Z) first;
-        # the small tilt error this leaves is second order (cos of the tilt).
-        h = p[:, feet, 2] - np.asarray(clearance)
+    for p, skeleton, feet, clearance in people:
+        votes.append(_body_axis_votes(p, skeleton))
+        h = p[:, feet, 2] - clearance
         lowest = np.argmin(h, axis=1)
         pts = p[np.arange(len(p)), np.asarray(feet)[lowest]].copy()
-        pts[:, 2] -= np.asarray(clearance)[lowest]
+        pts[:, 2] -= clearance[lowest]
         floor_pts.append(pts)
-    pts = np.concatenate(floor_pts)
-    axis = np.median(np.concatenate(votes), axis=0)
+    return np.concatenate(floor_pts), np.concatenate(votes)
+
+
+def _fit_plane(pts: np.ndarray, votes: np.ndarray, source: str | None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Regularised robust fit ``h = a X + b Y + c``; returns (coef, keep mask
+    over ``pts``)."""
+    axis = np.median(votes, axis=0)
     if np.linalg.norm(axis) < 1e-6 or axis[2] <= 0:
         raise MotionError(
             "the body axis points down or is undefined in the camera frame; expected y-up "
@@ -246,13 +224,65 @@ def estimate_floor(
             break
         keep = new_keep
     resid = pts[:, 2] - (pts[:, 0] * coef[0] + pts[:, 1] * coef[1] + coef[2])
-    keep = keep[inverse] & (np.abs(resid) <= OUTLIER_SIGMAS * max(FOOT_NOISE_M, 1.4826 * float(
-        np.median(np.abs(resid - np.median(resid))))))
-    if not keep.any():
-        keep = np.ones(len(pts), dtype=bool)
+    spread = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
+    point_keep = keep[inverse] & (np.abs(resid) <= OUTLIER_SIGMAS * max(FOOT_NOISE_M, spread))
+    if not point_keep.any():
+        point_keep = np.ones(len(pts), dtype=bool)
+    return coef, point_keep
 
-    n = np.array([-coef[0], -coef[1], 1.0])
-    n /= np.linalg.norm(n)
+
+def estimate_floor(
+    people: Sequence[tuple[np.ndarray, Skeleton]], *, source: str | None = None
+) -> FloorEstimate:
+    """Estimate the camera -> world transform from the feet of everyone seen
+    by one sensor.
+
+    The fit is done twice: the second time in the frame levelled by the
+    first, so that the result does not depend on how tilted the sensor was
+    (least squares on heights and slope priors are only rotation-invariant
+    near level).
+
+    Args:
+        people: one ``(positions, skeleton)`` per person, positions (T, J, 3)
+            metres in the Kinect camera convention (see module docstring).
+            Every skeleton must map left/right ankles or toes and at least
+            one shank or the trunk.
+        source: file name for error messages.
+
+    Returns:
+        The :class:`FloorEstimate`.
+    """
+    prepared = []
+    for positions, skeleton in people:
+        p = np.asarray(positions, dtype=np.float64) @ KINECT_TO_ZUP.T
+        feet, clearance = _foot_joints(skeleton)
+        if not feet:
+            raise MotionError(
+                f"skeleton {skeleton.name!r} maps no ankle or toe keypoint; the floor cannot be "
+                "estimated from the feet",
+                source=source,
+            )
+        if len(_body_axis_votes(p[:1], skeleton)) == 0:
+            raise MotionError(
+                f"skeleton {skeleton.name!r} has neither shanks (knee, ankle) nor a trunk "
+                "(hips/pelvis to neck/head) to estimate the vertical from",
+                source=source,
+            )
+        prepared.append((p, skeleton, feet, np.asarray(clearance)))
+    if not prepared:
+        raise MotionError("no person to estimate the floor from", source=source)
+
+    level = np.eye(3)  # rotation from the permuted frame to the current frame
+    for _ in range(2):
+        pts, votes = _samples([(p @ level.T, s, f, c) for p, s, f, c in prepared])
+        coef, keep = _fit_plane(pts, votes, source)
+        n_cur = np.array([-coef[0], -coef[1], 1.0])
+        n_cur /= np.linalg.norm(n_cur)
+        level = _rotation_to_z(n_cur) @ level
+    # The last fit was in a nearly level frame; its plane passes through
+    # (0, 0, c), so the floor level along n is c * n_z there.
+    floor_level = float(coef[2] * n_cur[2])
+    n = level.T @ np.array([0.0, 0.0, 1.0])
     tilt = float(np.degrees(np.arccos(np.clip(n[2], -1.0, 1.0))))
     if tilt > MAX_TILT_DEG:
         raise MotionError(
@@ -260,12 +290,7 @@ def estimate_floor(
             "probably not in y-up Kinect camera coordinates",
             source=source,
         )
-    level = _rotation_to_z(n)
-    rotation = level @ KINECT_TO_ZUP
-    # The plane passes through (0, 0, c) in the permuted frame; its height
-    # along n is the floor level there, so the sensor is that far above it.
-    floor_level = float(coef[2] * n[2])
-    q = pts[keep] @ level.T
+    q = pts[keep] @ _rotation_to_z(n_cur).T
     centred = q[:, :2] - q[:, :2].mean(axis=0)
     if len(centred) >= 2:
         _, _, vt = np.linalg.svd(centred, full_matrices=False)
@@ -275,7 +300,7 @@ def estimate_floor(
         spread = (0.0, 0.0)
     rms = float(np.sqrt(np.mean((q[:, 2] - floor_level) ** 2)))
     return FloorEstimate(
-        rotation=rotation,
+        rotation=level @ KINECT_TO_ZUP,
         translation=np.array([0.0, 0.0, -floor_level]),
         up_camera=KINECT_TO_ZUP.T @ n,
         tilt_deg=tilt,

@@ -1,0 +1,100 @@
+"""Camera frame -> Z-up world with the floor from the feet, on real Kinect
+recordings and on real recordings put back into synthetic sensor poses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from simenv.errors import MotionError
+from simenv.io import msr_action3d, utkinect
+from simenv.io.camera_frame import KINECT_TO_ZUP, camera_to_world, estimate_floor
+from simenv.skeletons import get_skeleton, gesture9_skeleton
+
+UTK = "gestures/utkinect/joints"
+
+
+def _low_foot(m) -> np.ndarray:
+    sk = m.skeleton
+    idx = [sk.index(sk.canonical[k]) for k in ("left_toe", "right_toe") if k in sk.canonical]
+    return m.positions[:, idx, 2].min(axis=1)
+
+
+def test_axes_are_a_proper_rotation() -> None:
+    assert np.linalg.det(KINECT_TO_ZUP) == pytest.approx(1.0)
+    # camera z (depth) -> world X, camera x (sensor left) -> world Y, camera y -> Z
+    np.testing.assert_array_equal(KINECT_TO_ZUP @ [0, 0, 1], [1, 0, 0])
+    np.testing.assert_array_equal(KINECT_TO_ZUP @ [1, 0, 0], [0, 1, 0])
+    np.testing.assert_array_equal(KINECT_TO_ZUP @ [0, 1, 0], [0, 0, 1])
+
+
+def test_real_sessions_upright_feet_on_floor(shared_data: Path) -> None:
+    files = sorted((shared_data / UTK).glob("joints_*.txt"))
+    heights = []
+    for f in files:
+        m = utkinect.read(f)
+        sk = m.skeleton
+        head = m.joint("Head")[:, 2]
+        pelvis = m.joint("HipCenter")[:, 2]
+        assert (head > pelvis).mean() > 0.95, f.name
+        low = _low_foot(m)
+        # Kinect forefoot joints sit ~3 cm above the sole: lowest foot near the floor.
+        assert abs(np.median(low) - 0.03) < 0.06, (f.name, np.median(low))
+        assert np.percentile(low, 5) > -0.12, f.name
+        # The person faces the sensor (sensor at the origin looking along +X).
+        left = m.joint(sk.canonical["left_shoulder"])
+        right = m.joint(sk.canonical["right_shoulder"])
+        facing = np.median(np.cross(left - right, [0, 0, 1]), axis=0)
+        assert facing[0] < 0, f.name
+        cf = m.metadata["camera_frame"]
+        assert 0.5 < cf["sensor_height_m"] < 2.2
+        assert cf["tilt_deg"] < 20
+        heights.append(cf["sensor_height_m"])
+    assert len(heights) == 20
+
+
+@pytest.mark.parametrize("pitch_down, roll_deg, height", [(12.0, 0.0, 1.1), (-8.0, 5.0, 0.7),
+                                                         (25.0, -3.0, 1.8)])
+def test_recovers_a_known_sensor_pose(shared_data: Path, pitch_down: float, roll_deg: float,
+                                      height: float) -> None:
+    """A levelled real walk, seen from a synthetic sensor with known pitch,
+    roll and height, must come back level with that pose estimated."""
+    m = utkinect.read(shared_data / UTK / "joints_s04_e01.txt")
+    world = m.positions.astype(np.float64)
+    # world -> camera: undo the axis permutation of a level sensor at `height`,
+    # then express it in a sensor pitched down (a rotation of the coordinates
+    # by -pitch about x: what is ahead appears higher) and rolled about z.
+    level_cam = (world - [0, 0, height]) @ KINECT_TO_ZUP  # rows: inverse permutation
+    tilt = Rotation.from_euler("xz", [-pitch_down, roll_deg], degrees=True).as_matrix()
+    cam = level_cam @ tilt.T
+    back, est = camera_to_world(cam, m.skeleton)
+    assert est.sensor_height_m == pytest.approx(height, abs=0.1)
+    assert est.pitch_down_deg == pytest.approx(pitch_down, abs=2.0)
+    assert est.roll_deg == pytest.approx(-roll_deg, abs=2.0)
+    # Same heights as the original levelling (yaw may differ): compare z only.
+    np.testing.assert_allclose(back[..., 2], world[..., 2], atol=0.1)
+
+
+def test_shared_floor_for_two_people(shared_data: Path) -> None:
+    a = msr_action3d.read(shared_data / "gestures/msr_action3d/a06_s01_e01_skeleton3D.txt")
+    b = msr_action3d.read(shared_data / "gestures/msr_action3d/a06_s02_e01_skeleton3D.txt")
+    # Back to (level) camera coordinates: both clips are already levelled.
+    cam_a, cam_b = a.positions @ KINECT_TO_ZUP, b.positions @ KINECT_TO_ZUP
+    est = estimate_floor([(cam_a, a.skeleton), (cam_b, b.skeleton)])
+    assert est.floor_points > len(a) and est.tilt_deg < 3
+    assert abs(est.sensor_height_m) < 0.05
+
+
+def test_errors_for_unusable_input(shared_data: Path) -> None:
+    m = utkinect.read(shared_data / UTK / "joints_s01_e01.txt")
+    upside_down = m.positions * np.array([1, 1, -1])
+    cam = upside_down @ KINECT_TO_ZUP
+    with pytest.raises(MotionError, match="y-up"):
+        camera_to_world(cam, m.skeleton)
+    g9 = gesture9_skeleton()
+    with pytest.raises(MotionError, match="no ankle or toe"):
+        camera_to_world(np.zeros((3, 9, 3)), g9)
+    assert get_skeleton("kinect_v1_20") == m.skeleton
