@@ -144,3 +144,24 @@ def test_render_a_few_frames(tmp_path: Path, capsys):
         assert ok and frame.shape == (240, 320, 3) and frame.std() > 5
     finally:
         cap.release()
+
+
+def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
+    status, stdout, _ = run(capsys, "demo", "--out", tmp_path / "demo", "--stride", 60)
+    assert status == 0
+    summary_path = tmp_path / "demo" / "summary.json"
+    assert f"wrote {summary_path}" in stdout
+    report = json.loads(summary_path.read_text())
+    assert "mocap.cs.cmu.edu" in report["data_acknowledgement"]
+    assert set(report["clips"]) == {"walk", "handshake"}
+    for name, people in (("walk", 1), ("handshake", 2)):
+        clip = report["clips"][name]
+        assert SUMMARY_KEYS <= set(clip) and clip["people"] == people
+        assert clip["mean_residual_m"] < 0.05 and clip["render_stride"] == 60
+        assert clip["rendered_frames"] == len(range(0, clip["frames"], 60))
+        assert f"wrote {clip['video']}" in stdout
+        cap = cv2.VideoCapture(clip["video"])
+        assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == clip["rendered_frames"]
+        cap.release()
+        with np.load(clip["npz"]) as npz:
+            assert npz["qpos"].shape[0] == clip["frames"]
