@@ -121,6 +121,13 @@ def parse(path: Path) -> BvhFile:
     """
     path = Path(path)
     lines = split_lines(read_text(path))
+    first = next((i for i, ln in enumerate(lines) if ln.strip()), None)
+    if first is None or lines[first].split()[0].lstrip("\ufeff").upper() != "HIERARCHY":
+        raise FormatError(
+            "expected the file to start with 'HIERARCHY'",
+            source=path,
+            line=1 if first is None else first + 1,
+        )
     motion_line = None
     for i, text in enumerate(lines):
         if text.strip().upper() == "MOTION":
