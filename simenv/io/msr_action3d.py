@@ -9,9 +9,12 @@ The reader reorders the joints to the Kinect SDK v1 order
 Quirks handled:
 
 * **Dropouts.** A frame written as 20 lines of ``0 0 0 0`` is a tracking
-  dropout. Such frames are filled by linear interpolation between the nearest
-  tracked frames (:func:`simenv.motion.interpolate_gaps`) and listed in
-  ``metadata["repairs"]``. A file with no tracked frame at all (``a13_s09_e02``)
+  dropout. Dropouts between tracked frames are filled by linear interpolation
+  (:func:`simenv.motion.interpolate_gaps`); leading and trailing dropouts are
+  trimmed instead (holding a pose still for seconds would invent motion:
+  ``a13_s09_e03`` has 740 such frames around 196 tracked ones). Both are
+  listed in ``metadata["repairs"]`` and ``metadata["trimmed"]`` gives the
+  (leading, trailing) counts. A file with no tracked frame at all (``a13_s09_e02``)
   raises :class:`MotionError`.
 * **Confidence** ``c`` is not documented by the dataset; its per-joint mean is
   kept in ``metadata["confidence_mean"]`` and it does not change positions.
@@ -109,16 +112,23 @@ def read(path: Path, *, fps: float = MSR_FPS) -> Motion:
             source=path,
         )
     repairs: list[str] = []
+    tracked = np.flatnonzero(valid)
+    first, last = int(tracked[0]), int(tracked[-1])
+    lead, trail = first, len(valid) - 1 - last
+    if lead or trail:
+        repairs.append(f"trimmed {lead} leading and {trail} trailing all-zero (dropout) frames")
+    xyz, conf, valid = xyz[first:last + 1], conf[first:last + 1], valid[first:last + 1]
     if not valid.all():
         xyz, notes = interpolate_gaps(xyz, valid)
-        repairs = [f"tracking dropout (all-zero frame): {n}" for n in notes]
+        repairs += [f"tracking dropout (all-zero frame): {n} of the trimmed clip" for n in notes]
     meta: dict[str, object] = {
         "source": str(path),
         "format": "msr_action3d",
         "units": "m (camera frame)",
         "dataset": "MSR Action3D",
         "repairs": repairs,
-        "dropout_frames": int((~valid).sum()),
+        "dropout_frames": int((~valid).sum()) + lead + trail,
+        "trimmed": [lead, trail],
         "confidence_mean": np.round(conf[valid].mean(axis=0), 3).tolist(),
         "fps_source": "nominal 15 fps capture (no timestamps in the file)",
     }
