@@ -20,6 +20,7 @@ from simenv.plausibility import (
     reference_lengths,
     velocity,
 )
+from simenv.plausibility.kinematic import windowed_normalized_jerk
 
 
 @pytest.fixture(scope="module")
@@ -163,3 +164,15 @@ def test_thresholds_are_validated_and_configurable(walk) -> None:
         Thresholds(speed_limit_trunk_mps=-1)
     strict = replace(Thresholds(), speed_limit_trunk_mps=0.5)
     assert velocity(walk, strict).passed is False
+
+
+def test_normalized_jerk_matches_the_published_formula() -> None:
+    # ProtoMotions' definition on x(t) = t^3 sampled at dt = 1 with a 4-frame
+    # window: path length 1 + 7 + 19 = 27, one jerk sample of 6, T = 3.
+    t = np.arange(4, dtype=np.float64)
+    pos = np.zeros((4, 1, 3))
+    pos[:, 0, 0] = t**3
+    nj = windowed_normalized_jerk(pos, fps=1.0, window_frames=4)
+    assert nj.shape == (1, 1)
+    assert nj[0, 0] == pytest.approx(3.0**5 * 36.0 / (27.0**2 + 0.1))
+    assert windowed_normalized_jerk(pos[:3], fps=1.0, window_frames=4).shape == (0, 1)

@@ -11,7 +11,7 @@ bone_length        bone-length consistency over time                      kinema
 foot_skate         GMD foot-skating ratio (+ PhysDiff skate)              contact
 ground_penetration lowest keypoint below the floor                        contact
 floating           airborne without a ballistic (free-fall) arc           contact
-jitter             ProtoMotions high normalized-jerk windows (+ mean jerk) kinematic
+jitter             windows of high normalized jerk (ProtoMotions), jerk   kinematic
 velocity           speeds beyond human limits, teleports                  kinematic
 ================== ====================================================== =========
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 
 from simenv.errors import MotionError
 from simenv.motion import Motion
@@ -227,8 +226,12 @@ def windowed_normalized_jerk(
     jerk = np.diff(pos, 3, axis=0) / dt**3
     step = np.linalg.norm(vel, axis=-1) * dt  # (T-1, J)
     jerk_sq = (jerk**2).sum(axis=-1) * dt  # (T-3, J)
-    path = sliding_window_view(step, w - 1, axis=0).sum(axis=-1)
-    integrated = sliding_window_view(jerk_sq, w - 3, axis=0).sum(axis=-1)
+    # Window sums from cumulative sums: O(T) whatever the window length.
+    cs_step = np.concatenate([np.zeros((1, j_count)), np.cumsum(step, axis=0)])
+    cs_jerk = np.concatenate([np.zeros((1, j_count)), np.cumsum(jerk_sq, axis=0)])
+    n = t_count - w + 1
+    path = cs_step[w - 1 : w - 1 + n] - cs_step[:n]
+    integrated = cs_jerk[w - 3 : w - 3 + n] - cs_jerk[:n]
     duration = (w - 1) * dt
     return duration**5 * integrated / (np.maximum(path, eps) ** 2 + eps)
 
