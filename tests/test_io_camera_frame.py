@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 from simenv.errors import MotionError
 from simenv.io import msr_action3d, utkinect
 from simenv.io.camera_frame import KINECT_TO_ZUP, camera_to_world, estimate_floor
-from simenv.skeletons import get_skeleton, gesture9_skeleton
+from simenv.skeletons import gesture9_skeleton, get_skeleton
 
 UTK = "gestures/utkinect/joints"
 
