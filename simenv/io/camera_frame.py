@@ -63,8 +63,11 @@ BODY_AXIS_PRIOR_SLOPE = float(np.tan(np.radians(2.0)))
 FLOOR_CELL_M = 0.25
 #: Floor points farther than this many robust sigmas from the plane are dropped.
 OUTLIER_SIGMAS = 3.0
-#: Largest believable sensor tilt (Kinect v1 motor range is +-27 deg), degrees.
-MAX_TILT_DEG = 40.0
+#: Largest accepted tilt estimate, degrees. Sensors are mounted within about
+#: +-30 deg (Kinect v1 motor range +-27 deg), but a short clip of a bending
+#: person can push an estimate to ~40 deg; data in the wrong axis convention
+#: (Z-up given as camera frame) lands near 90 deg and is what this catches.
+MAX_TILT_DEG = 60.0
 
 
 @dataclass(frozen=True)
