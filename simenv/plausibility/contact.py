@@ -6,7 +6,10 @@ centres, which sit a few centimetres above the skin; thresholds account for
 that (see :class:`~simenv.plausibility.thresholds.Thresholds`).
 
 Feet: each side uses its toe keypoint; a side without a toe keypoint falls
-back to its ankle, with the ankle height threshold. Short clips and missing
+back to its ankle, whose height is measured from the ankles' own lowest level
+with the ankle height threshold. The ankle fallback is a coarser test: the
+ankle rises and travels at heel strike and heel-off (see
+:class:`~simenv.plausibility.thresholds.Thresholds`). Short clips and missing
 keypoints give ``MetricResult.not_available`` with a reason, as in
 :mod:`simenv.plausibility.kinematic`.
 """
@@ -68,9 +71,16 @@ def foot_floor(positions: np.ndarray) -> float:
 
 
 def _foot_heights(canon: Motion, feet: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(T, F, 3) foot positions and (T, F) heights above each foot's floor:
+    toes from :func:`foot_floor`, ankles (toe-less sides) from the ankles'
+    own lowest level."""
     pos = canon.positions.astype(np.float64)
     foot_pos = pos[:, keypoint_indices(canon, feet)]
-    return foot_pos, foot_pos[..., 2] - foot_floor(pos)
+    ankles = np.array([f.endswith("_ankle") for f in feet])
+    floors = np.full(len(feet), foot_floor(pos))
+    if ankles.any():
+        floors[ankles] = np.percentile(foot_pos[:, ankles, 2].min(axis=1), 1)
+    return foot_pos, foot_pos[..., 2] - floors
 
 
 def foot_contacts(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -78,8 +88,8 @@ def foot_contacts(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
     """Planted-foot detection from height and speed (InterGen style).
 
     Foot f is in contact at frame t when its height above the clip's foot
-    floor (:func:`foot_floor`) is below its contact height (5 cm toe, 12 cm
-    ankle) and its 3-D speed to the next frame is below
+    floor (:func:`foot_floor`; ankles: their own lowest level) is below its
+    contact height (5 cm) and its 3-D speed to the next frame is below
     ``contact_speed_mps`` (InterGen's 0.001 m^2 per frame at 30 fps, as a
     speed). The last frame reuses the previous speed; a one-frame clip uses
     the height test alone.
@@ -108,8 +118,8 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
 
     Let ``v_f(t)`` be the horizontal speed of foot f between frames t-1 and t.
     The foot is *low* over that pair when its height above the clip's foot
-    floor (:func:`foot_floor`) is below its contact height (5 cm toe, 12 cm
-    ankle) at both frames, and it *slides* when also ``v_f(t) >
+    floor (:func:`foot_floor`; ankles: their own lowest level) is below its
+    contact height (5 cm) at both frames, and it *slides* when also ``v_f(t) >
     skate_speed_mps`` (0.5 m/s): the GMD / OmniControl skating test. Only
     sliding runs lasting at least ``skate_min_duration_s`` count as skating:
     on joint-centre mocap the toe keypoint stays within 5 cm of the floor for
@@ -183,6 +193,7 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
             "physdiff_skate_mm": float(disp.mean() * to_mm),
             "max_slide_mm": float(slide.max() * to_mm),
             "contact_fraction": float(planted.any(axis=1).mean()),
+            "ankle_fallback": float(any(f.endswith("_ankle") for f in feet)),
         },
     )
 
