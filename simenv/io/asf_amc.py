@@ -410,7 +410,7 @@ def parse_amc(path: Path, asf: Asf) -> tuple[np.ndarray, list[str], bool]:
             elif key == ":RADIANS":
                 degrees = False
             continue
-        if len(toks) == 1 and toks[0].isdigit():
+        if len(toks) == 1 and toks[0].isdecimal():
             close_frame()
             num = int(toks[0])
             if frame_no is not None and num != frame_no + 1:

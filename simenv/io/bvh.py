@@ -281,7 +281,7 @@ def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
                 raise FormatError("CHANNELS outside a joint", source=path, line=line)
             joint = joints[stack[-1]]
             count_tok, cline = need(i + 1, "a channel count")
-            if not count_tok.isdigit() or int(count_tok) > 6:
+            if not count_tok.isdecimal() or int(count_tok) > 6:
                 raise FormatError(
                     f"expected a channel count 0-6, found {count_tok[:40]!r}",
                     source=path,
@@ -372,7 +372,7 @@ def _parse_motion_header(lines: list[str], motion_line: int, path: Path) -> tupl
         found[label] = (text[len(label) :].strip(), i + 1)
         i += 1
     frames_tok, fline = found["frames:"]
-    if not frames_tok.isdigit():
+    if not frames_tok.isdecimal():
         raise FormatError(
             f"expected an integer frame count, found {frames_tok[:40]!r}",
             source=path,
@@ -386,7 +386,7 @@ def _parse_motion_header(lines: list[str], motion_line: int, path: Path) -> tupl
         )
     ft_tok, ftline = found["frame time:"]
     frame_time = parse_float(ft_tok, source=path, line=ftline, field="Frame Time")
-    if frame_time <= 0:
+    if frame_time <= 0 or not np.isfinite(1.0 / frame_time):
         raise FormatError(
             f"Frame Time must be positive seconds, found {ft_tok!r}",
             source=path,

@@ -128,7 +128,9 @@ class _Archive:
             )
         try:
             return self.data[key]
-        except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+        # A damaged archive can fail in zipfile, zlib or numpy's header parser with many
+        # exception types; all mean the same to the user.
+        except Exception as exc:
             raise FormatError(f"cannot read array: {exc}", source=self.path, field=key) from None
 
     def text(self, key: str) -> str:
@@ -178,7 +180,7 @@ def read(path: Path) -> Motion | Interaction:
     path = Path(path)
     try:
         data = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+    except Exception as exc:  # damaged archive: see _Archive.get
         raise FormatError(f"not a readable NPZ archive ({exc})", source=path) from None
     if not hasattr(data, "files"):
         raise FormatError("holds a single array, not a simenv NPZ archive", source=path)
