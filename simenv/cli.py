@@ -238,7 +238,7 @@ def cmd_retarget(args: argparse.Namespace) -> int:
     if video is not None:
         from simenv.render import render_result
 
-        render_result(result, video, stride=args.stride, max_frames=args.max_frames)
+        render_result(result, video, stride=args.stride, max_frames=args.max_frames, progress=True)
     info = summary(result)
     if args.json:
         print(json.dumps(info))
