@@ -119,3 +119,20 @@ def test_ballistic_residual_of_a_measured_jump_vs_a_hover(jumps) -> None:
     fps = jumps.fps
     assert ballistic_residual(np.full(60, 1.2), fps, 9.81) > 0.05
     assert ballistic_residual(z[:2], fps, 9.81) == 0.0
+
+
+def test_a_frozen_fall_floats_while_the_other_jumps_stay_jumps(jumps) -> None:
+    # Hold the body at the apex of the first hop for 0.2 s: nothing supports
+    # it and it does not fall.
+    c = jumps.to_canonical()
+    air = np.flatnonzero(c.positions[..., 2].min(axis=1) > 0.1)
+    first = air[: np.argmax(np.diff(air) > 1)]
+    apex = first[0] + int(np.argmax(c.positions[first, 0, 2]))
+    hold = round(0.2 * jumps.fps)
+    frozen = np.repeat(jumps.positions[apex : apex + 1], hold, axis=0)
+    pos = np.concatenate([jumps.positions[:apex], frozen, jumps.positions[apex:]])
+    r = floating(jumps.with_positions(pos))
+    assert r.passed is False
+    (start, end, _), = r.violations
+    assert start <= apex <= apex + hold <= end
+    assert r.details["jumps"] >= 1 and r.details["worst_residual_m"] > 0.03

@@ -176,3 +176,14 @@ def test_normalized_jerk_matches_the_published_formula() -> None:
     assert nj.shape == (1, 1)
     assert nj[0, 0] == pytest.approx(3.0**5 * 36.0 / (27.0**2 + 0.1))
     assert windowed_normalized_jerk(pos[:3], fps=1.0, window_frames=4).shape == (0, 1)
+
+
+@pytest.mark.parametrize("fps", [60.0, 30.0, 24.0])
+def test_real_walk_passes_at_other_frame_rates(walk, fps) -> None:
+    low = walk.resample(fps)
+    base = kinematic_metrics(walk)
+    for name, r in kinematic_metrics(low).items():
+        assert r.passed, (fps, name, r.value)
+        assert r.timeline.shape == (low.num_frames,)
+    assert kinematic_metrics(low)["velocity"].details["max_speed_mps"] == pytest.approx(
+        base["velocity"].details["max_speed_mps"], rel=0.25)
