@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from simenv.errors import MotionError
 from simenv.io import bvh
@@ -57,3 +59,19 @@ def test_real_glitch_frame_is_reported_as_a_violation(shared_data) -> None:
     start, end, worst = r.violations[0]
     assert start <= 2 and end <= 3 and worst > 3.0
     assert np.isnan(r.timeline[0]) and r.timeline.shape == (200,)
+
+
+@given(
+    st.lists(st.one_of(st.floats(-10, 10), st.just(float("nan"))), min_size=0, max_size=60),
+    st.floats(-5, 5),
+)
+def test_violation_runs_cover_exactly_the_frames_over_threshold(values, threshold) -> None:
+    timeline = np.array(values, dtype=np.float64)
+    runs = find_violations(timeline, threshold)
+    covered = [t for s, e, _ in runs for t in range(s, e + 1)]
+    expected = [t for t, v in enumerate(values) if v > threshold]
+    assert covered == expected
+    for s, e, worst in runs:
+        assert worst == max(values[s : e + 1])
+    for (_, end, _), (start, _, _) in zip(runs, runs[1:], strict=False):
+        assert start > end + 1  # maximal: runs never touch

@@ -23,6 +23,7 @@ from simenv.errors import MotionError
 from simenv.motion import Motion
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
+from simenv.skeletons import CANONICAL_TREE
 
 #: Keypoint groups for the speed limits (see :class:`Thresholds`).
 TRUNK_KEYPOINTS: tuple[str, ...] = (
@@ -149,8 +150,6 @@ def bone_length_error(
         MotionError: a key is not a canonical bone or a length is not a
             positive finite number of metres.
     """
-    from simenv.skeletons import CANONICAL_TREE
-
     name, unit, thr = "bone_length_error", "mm", thresholds.bone_reference_error_max_mm
     ref: dict[str, float] = {}
     for key, length in reference_lengths.items():
@@ -305,14 +304,13 @@ def jitter(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Metri
 def speed_limits(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> np.ndarray:
     """(J,) speed limit in m/s of each keypoint of a canonical ``motion``
     (trunk, mid-limb or distal limit; unknown names get the distal limit)."""
-    limits = []
-    for n in motion.skeleton.joint_names:
-        if n in TRUNK_KEYPOINTS:
-            limits.append(thresholds.speed_limit_trunk_mps)
-        elif n in LIMB_KEYPOINTS:
-            limits.append(thresholds.speed_limit_limb_mps)
-        else:
-            limits.append(thresholds.speed_limit_distal_mps)
+    group_limit = {
+        **{n: thresholds.speed_limit_trunk_mps for n in TRUNK_KEYPOINTS},
+        **{n: thresholds.speed_limit_limb_mps for n in LIMB_KEYPOINTS},
+        **{n: thresholds.speed_limit_distal_mps for n in DISTAL_KEYPOINTS},
+    }
+    limits = [group_limit.get(n, thresholds.speed_limit_distal_mps)
+              for n in motion.skeleton.joint_names]
     return np.array(limits)
 
 
