@@ -138,3 +138,31 @@ def test_missing_opengl_is_a_clear_error(tmp_path: Path):
     )
     assert "SIMENV_ERROR" in run.stdout, run.stderr
     assert "libosmesa6" in run.stdout and "MUJOCO_GL" in run.stdout
+
+
+def test_import_simenv_picks_a_headless_backend(tmp_path: Path):
+    """Without MUJOCO_GL and DISPLAY, `import simenv` chooses a backend whose library exists."""
+    code = (
+        "import ctypes.util, os, simenv, mujoco\n"
+        "from simenv.render import make_renderer\n"
+        "backend = os.environ.get('MUJOCO_GL')\n"
+        "lib = {'osmesa': 'OSMesa', 'egl': 'EGL'}[backend]\n"
+        "assert ctypes.util.find_library(lib), lib\n"
+        "model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/>"
+        "</worldbody></mujoco>')\n"
+        "make_renderer(model, 32, 32).close()\n"
+        "print(backend)\n"
+    )
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    run = subprocess.run(
+        [sys.executable, "-c", code], env=env, cwd=tmp_path, capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() in ("osmesa", "egl")
+    env["DISPLAY"] = ":99"
+    run = subprocess.run(
+        [sys.executable, "-c", "import os, simenv; print(os.environ.get('MUJOCO_GL'))"],
+        env=env, cwd=tmp_path, capture_output=True, text=True,
+    )
+    assert run.stdout.strip() == "None"  # with a display MuJoCo's own default is kept
