@@ -4,7 +4,8 @@ Body tree (every body frame is aligned with the world in the rest pose: x forwar
 y left, z up; the rest pose is standing with the arms hanging)::
 
     pelvis (free joint) -+- lumbar -- thorax -- chest -+- neck -- head
-                         |                             +- {l,r}_clavicle -- upper_arm -- forearm -- hand
+                         |                             +- {l,r}_clavicle -- upper_arm
+                         |                                   -- forearm -- hand
                          +- {l,r}_thigh -- shin -- foot -- toes
 
 Each body carries a site at its canonical keypoint (site name = keypoint name, see
@@ -870,13 +871,24 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
             ch[f.name] = getattr(DEFAULT, f.name) * scale
             if f.name in chain or f.name.endswith("clavicle") or f.name == "clavicle_pivot":
                 fallback.append(f.name)
-    # Foot heights: the data's floor is z = 0 (readers put it there), so the
-    # low percentiles of the ankle/toe heights are their heights above the sole.
-    for key, lo, hi in (("ankle", 0.035, 0.14), ("toe", 0.0, 0.06)):
+    # Foot heights. The data's floor should be z = 0 (readers put it there), so
+    # the low percentiles of the toe heights give the toe's height above the
+    # sole, kept within 0.6-1.25x the scaled anthropometric value (clips whose
+    # floor is off z = 0 would otherwise give absurd soles); the ankle sits the
+    # measured ankle-toe drop above it, so the neutral foot is flat in the data.
+    low = {}
+    for key in ("ankle", "toe"):
         zs = [kp[f"{s}_{key}"][:, 2] for s in _SIDES if f"{s}_{key}" in have]
-        default = getattr(DEFAULT, f"{key}_height") * scale
-        ch[f"{key}_height"] = float(np.clip(np.percentile(np.concatenate(zs), 2), lo, hi)) \
-            if zs else default
+        low[key] = float(np.percentile(np.concatenate(zs), 2)) if zs else None
+    toe_default = DEFAULT.toe_height * scale
+    ankle_default = DEFAULT.ankle_height * scale
+    toe_h = toe_default if low["toe"] is None else float(
+        np.clip(low["toe"], 0.6 * toe_default, 1.25 * toe_default))
+    if low["ankle"] is not None and low["toe"] is not None:
+        drop = float(np.clip(low["ankle"] - low["toe"], 0.3 * ankle_default, ankle_default))
+    else:
+        drop = ankle_default - toe_default
+    ch["toe_height"], ch["ankle_height"] = toe_h, toe_h + drop
     ch["girth"] = float(np.clip(scale, 0.6, 1.4))
     if fallback:
         notes.append(f"missing keypoints: {', '.join(fallback)} from the default adult scaled "

