@@ -105,7 +105,12 @@ def test_pair_without_evidence_is_refused(shared_data: Path, tmp_path: Path) -> 
         simenv.load([folder / "18_01.bvh"])
 
 
-def test_folders_with_many_clips_give_lists(shared_data: Path) -> None:
+def test_folders_with_many_clips_give_lists(shared_data: Path, tmp_path: Path) -> None:
+    # Same take number but not a CMU pair (subjects 02 and 12): two separate clips.
+    for name in ("02_01.bvh", "12_01.bvh"):
+        shutil.copy(shared_data / "cmu/bvh" / name, tmp_path / name)
+    two = simenv.load(tmp_path)
+    assert isinstance(two, list) and [m.name for m in two] == ["02_01", "12_01"]
     clips = simenv.load(shared_data / "cmu/asf_amc")
     assert isinstance(clips, list)
     assert sorted(m.name for m in clips) == sorted(

@@ -225,7 +225,8 @@ def _load_folder(folder: Path, kwargs: dict[str, Any]) -> Loaded:
         len(files) == 2
         and all(t is not None for t in trials)
         and trials[0][1] == trials[1][1]  # type: ignore[index]
-        and trials[0][0] != trials[1][0]  # type: ignore[index]
+        # CMU two-person trials pair consecutive subject numbers (18/19, 60/61, ...).
+        and abs(int(trials[0][0]) - int(trials[1][0])) == 1  # type: ignore[index]
     )
     if is_pair:
         a, b = (_load_single_person(p, kwargs) for p, _ in files)
