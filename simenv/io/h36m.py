@@ -131,8 +131,13 @@ def read(
         raise FormatError(f"not a readable .npy/.npz file ({exc})", source=path) from None
     if isinstance(loaded, np.lib.npyio.NpzFile):
         with loaded as z:
+            try:
+                shapes = {k: z[k].shape for k in z.files}
+            except ValueError as exc:  # object arrays need pickle: refused
+                raise FormatError(f"cannot load without pickle ({exc}); expected plain "
+                                  "numeric arrays", source=path) from None
             if key is None:
-                keys = [k for k in z.files if _shape_ok(z[k].shape)]
+                keys = [k for k, shape in shapes.items() if _shape_ok(shape)]
                 if len(keys) != 1:
                     raise FormatError(
                         f"expected exactly one (T, 17, 3) array, found {len(keys)} among "

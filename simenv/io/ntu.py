@@ -184,8 +184,9 @@ def write(path: Path, bodies: Sequence[np.ndarray]) -> None:
     Args:
         path: output file.
         bodies: one (T, 25, 3) array per body, metres, Kinect camera frame,
-            joints in :func:`~simenv.skeletons.kinect_v2_skeleton` order (all
-            bodies present in every frame). Fields NTU stores but we do not
+            joints in :func:`~simenv.skeletons.kinect_v2_skeleton` order. A
+            frame where a body's positions are NaN is written without that
+            body (it was not seen). Fields NTU stores but we do not
             have (2D projections, orientations, hand states) are written as 0;
             tracking states as 2 (tracked).
     """
@@ -198,8 +199,10 @@ def write(path: Path, bodies: Sequence[np.ndarray]) -> None:
     inverse = np.argsort(KINECT_V2_SDK_ORDER)
     out = [str(n)]
     for f in range(n):
-        out.append(str(len(arrays)))
-        for b, a in enumerate(arrays):
+        present = [b for b, a in enumerate(arrays) if np.isfinite(a[f]).all()]
+        out.append(str(len(present)))
+        for b in present:
+            a = arrays[b]
             out.append(f"{72057594037930000 + b} 0 0 0 0 0 0 0 0 2")
             out.append(str(N_JOINTS))
             for x, y, z in a[f, inverse]:
