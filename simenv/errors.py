@@ -76,3 +76,8 @@ class RetargetError(SimenvError):
 
 class PhysicsError(SimenvError):
     """The simulation diverged (NaN state, MuJoCo warnings, blow-up)."""
+
+
+class GeometryError(SimenvError):
+    """An SRVF/hypersphere operation got arguments outside its domain: not on the
+    sphere, not tangent, antipodal points, mismatched shapes, zero-length curves."""

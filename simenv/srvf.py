@@ -69,7 +69,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simenv.errors import MotionError, SimenvError
+from simenv.errors import GeometryError, MotionError, SimenvError
 
 #: Tolerance on ``| ||p|| - 1 |`` for arguments that must lie on the unit sphere.
 UNIT_TOL = 1e-5
@@ -79,11 +79,6 @@ TANGENT_TOL = 1e-5
 ANTIPODE_TOL = 1e-10
 #: Step size of the Karcher-mean iteration (the thesis's ε = 0.9).
 KARCHER_STEP = 0.9
-
-
-class GeometryError(SimenvError):
-    """An SRVF/hypersphere operation got arguments outside its domain: not on the
-    sphere, not tangent, antipodal points, mismatched shapes, zero-length curves."""
 
 
 # -- helpers -----------------------------------------------------------------
