@@ -1,0 +1,634 @@
+"""PredictiveMA-WGAN: history SRVF -> future SRVF through a WGAN-GP in the tangent space.
+
+The model of the thesis (Chopin 2023, ch. 2) and the MA-GAN journal paper, on the
+geometry of :mod:`simenv.srvf` and the windows of :mod:`simenv.prediction_data`.
+
+Pipeline (one window; P observed frames, F to predict, 17 joints, D = 51)
+-------------------------------------------------------------------------
+1. **Heading.** Rotate the whole window about the vertical (Z) axis so that the hip
+   axis (left hip - right hip) of the last observed pose points along +X. SRVFs commute
+   with rotations, so this changes nothing geometric; it removes the facing direction,
+   which is arbitrary in mocap and otherwise has to be learnt from very few clips.
+   Predictions are rotated back.
+2. **Curves to the sphere.** Past curve ``[lead_in, past]`` (P steps) and future curve
+   ``[past[-1], future]`` (F steps) -> SRVFs ``q`` -> unit points ``p = q / ||q||`` and
+   amplitudes ``a = ||q|| = sqrt(curve length)``.
+3. **Tangent spaces.** Two Karcher means (step 0.9) over the *training* windows: ``μ_P``
+   of the past points and ``μ_F`` of the future points (the paper leaves open whether
+   one mean is shared; with P != F (25 -> 50) the spheres differ anyway, and the future
+   distribution is not the past one). History ``v_P = log_{μ_P}(p_P)``; target
+   ``v_F = log_{μ_F}(p_F)``. The generator maps ``T_{μ_P} -> T_{μ_F}`` directly, so no
+   parallel transport is needed (the net learns the correspondence between the two
+   tangent spaces; transport would only fix one arbitrary identification of them).
+   Networks see tangent vectors in *isometric* coordinates (``v / sqrt(n)``, whose
+   Euclidean norm is the sphere norm ``||v||``) multiplied by one scalar per side that
+   makes the training data unit-RMS.
+4. **Generator.** ``G(v_P, log a_P, x_T, z) -> ṽ``, then ``ṽ`` is projected onto
+   ``T_{μ_F}`` (``ṽ - <ṽ, μ_F> μ_F``) and mapped to the sphere with ``exp_{μ_F}``.
+5. **Amplitude.** A small head predicts ``log a_F - log a_P`` from the same condition
+   (the colleague's measurement: carrying ``a_P`` correlates only 0.35 with ``a_F``).
+   The alternative "carried" amplitude ``a_P sqrt(F / P)`` (same mean speed) is
+   available for comparison (``amplitude="carried"``).
+6. **Integration without a seam.** ``q̂ = â p̂`` is integrated from the last observed
+   pose ``x_T`` with the exact inverse SRVF, ``x̂_k = x_T + (1/F) Σ_{i<k} q̂_i |q̂_i|``,
+   so the predicted motion starts exactly where the history ends.
+
+Networks (paper -> here, scaled for a 1-thread CPU budget of minutes)
+---------------------------------------------------------------------
+* Generator: paper FC to 36,864 then 5 upsampling conv blocks. Here: FC(cond -> 512) ->
+  FC(512 -> 256 · L_0) -> reshape (256 channels, L_0 steps) -> 5 blocks of
+  [linear upsampling in time to ``L_k = ceil(F / 2^(5-k))`` -> Conv1d(k=3) -> LeakyReLU
+  0.2], the 5th conv giving the 51 channels of ``ṽ`` with no activation. Convolutions
+  run over time with joints x coordinates as channels (1-D; the paper's 2-D image
+  layout would treat adjacent coordinates of different joints as neighbours).
+* Critic: 3 conv blocks (Conv1d k=3 stride 2 + LeakyReLU 0.2; 64, 128, 128 channels;
+  no normalisation, as WGAN-GP requires) -> FC 1024 -> FC 1, as in the paper. It is
+  conditional: its input is ``ṽ`` plus an embedding (FC 64) of the condition broadcast
+  over time, so it judges whether the future fits the history.
+* Condition: the paper's generator sees the history tangent vector only. We also give
+  it ``log a_P`` and the last observed pose ``x_T`` (heading-normalised, decimetres):
+  the SRVF forgets where the curve is, yet the next motion depends on the pose (the
+  phase of a gait, a raised arm). Noise ``z`` (16-D, N(0, 1)) in training; ``z = 0``
+  at prediction unless a seed is given.
+
+Losses (weights 1, 1, 10, 10 as in the paper)
+---------------------------------------------
+``L_G = 1 · L_adv + 1 · L_rec + 10 · L_gram + 10 · L_bone`` with
+
+* ``L_adv = -E[C(ṽ)]`` (WGAN); the critic minimises ``E[C(ṽ)] - E[C(v_F)] + λ GP``,
+  ``GP = E[(||∇C(v̄)|| - 1)²]`` at random interpolates ``v̄``, λ = 10;
+* ``L_rec``: L1 between predicted and true future joint positions (integrated with the
+  true amplitude during training, so the generator learns the direction and the head
+  the amplitude). The reference repo puts L1 on the SRVF/tangent vectors; we put it on
+  the positions, which is what MPJPE measures;
+* ``L_gram``: Gram/Procrustes skeleton integrity: per frame, the Gram matrix ``X Xᵀ``
+  (J x J) of the centred pose is invariant to rotations, so comparing predicted and
+  true Gram matrices penalises shape changes but not a rigid rotation;
+  ``mean |Ĝ - G|``;
+* ``L_bone``: ``mean |b̂ - b_T|``, predicted bone lengths against those of the last
+  observed pose (the subject's skeleton does not change).
+
+Positions enter the losses in decimetres so that, at the paper's weights, all four
+terms have comparable size (errors of a few cm give L1 ~ 0.5). Optimiser: Adam lr
+1e-4, betas (0.5, 0.9) (WGAN-GP's), batch 64; critic steps per generator step is a
+training option (the WGAN-GP default 5; fewer fit a minutes-long CPU budget).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from simenv import srvf
+from simenv.errors import MotionError, SimenvError
+from simenv.models.baselines import check_history
+from simenv.prediction_data import PRED17_JOINTS, PRED17_LAYOUT, PredictionWindows
+
+NUM_JOINTS = 17
+DIMS = 3 * NUM_JOINTS
+#: Indices of the hips in the pred17 layout (heading from the hip axis).
+RIGHT_HIP, LEFT_HIP = PRED17_JOINTS.index("right_hip"), PRED17_JOINTS.index("left_hip")
+PARENTS: tuple[int, ...] = tuple(
+    -1 if p is None else PRED17_JOINTS.index(p) for _, p in PRED17_LAYOUT
+)
+#: Positions are multiplied by this inside the losses (metres -> decimetres).
+LOSS_UNIT = 10.0
+#: Loss weights of the paper: adversarial, L1 reconstruction, Gram, bone length.
+LOSS_WEIGHTS = {"adv": 1.0, "rec": 1.0, "gram": 10.0, "bone": 10.0}
+GP_LAMBDA = 10.0
+#: Format tag of checkpoint files.
+CHECKPOINT_FORMAT = "simenv-predictive-ma-wgan-1"
+
+
+class CheckpointError(SimenvError):
+    """A predictor checkpoint is missing, unreadable or of another format."""
+
+
+# -- heading normalisation ------------------------------------------------------
+
+
+def heading(pose: np.ndarray) -> np.ndarray:
+    """Angle (rad) about Z of the hip axis (left hip - right hip) of (N, 17, 3) poses."""
+    axis = pose[..., LEFT_HIP, :2] - pose[..., RIGHT_HIP, :2]
+    return np.arctan2(axis[..., 1], axis[..., 0])
+
+
+def rotate_z(points: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotate (N, ..., 3) points by ``angle`` (N,) radians about the Z axis."""
+    c, s = np.cos(angle), np.sin(angle)
+    shape = (-1,) + (1,) * (points.ndim - 2)
+    c, s = c.reshape(shape), s.reshape(shape)
+    x, y = points[..., 0], points[..., 1]
+    return np.stack([c * x - s * y, s * x + c * y, points[..., 2]], axis=-1)
+
+
+# -- torch versions of the sphere maps (same inner product as simenv.srvf) ---------
+
+
+def t_inner(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """``<a, b> = (1/n) Σ_i a_i · b_i`` of (B, n, D) step functions; shape (B,)."""
+    return (a * b).sum(dim=(-2, -1)) / a.shape[-2]
+
+
+def t_project_tangent(mu: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """``v - <v, μ> μ``: projection of (B, n, D) ``v`` onto ``T_μ S`` (unit (n, D) μ)."""
+    return v - t_inner(v, mu.expand_as(v))[:, None, None] * mu
+
+
+def t_exp(mu: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    """``exp_μ(v) = cos(||v||) μ + sin(||v||) v / ||v||`` for tangent (B, n, D) ``v``."""
+    nv = torch.sqrt(t_inner(v, v) + 1e-12)[:, None, None]
+    out = torch.cos(nv) * mu + torch.sin(nv) / nv * v
+    return out / torch.sqrt(t_inner(out, out))[:, None, None]
+
+
+def t_inverse_srvf(q: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+    """Samples 1..n of the curve with SRVF (B, n, D) ``q`` from (B, D) ``start``:
+    ``c_k = c_0 + (1/n) Σ_{i<k} q_i |q_i|``; shape (B, n, D) (``c_0`` excluded)."""
+    speed = torch.sqrt((q * q).sum(dim=-1, keepdim=True) + 1e-12)
+    return start[:, None, :] + torch.cumsum(q * speed, dim=1) / q.shape[1]
+
+
+# -- networks -----------------------------------------------------------------------
+
+
+def _schedule(length: int, blocks: int = 5) -> list[int]:
+    """Time lengths ``ceil(F / 2^(blocks-k))``, k = 0..blocks, ending at F."""
+    return [max(1, math.ceil(length / 2 ** (blocks - k))) for k in range(blocks + 1)]
+
+
+class Generator(nn.Module):
+    """FC -> reshape -> 5 upsampling Conv1d blocks: condition (+ noise) -> (B, F, 51)."""
+
+    def __init__(self, cond_dim: int, future_len: int, noise_dim: int = 16,
+                 hidden: int = 512, channels: Sequence[int] = (256, 128, 128, 64, 64)) -> None:
+        super().__init__()
+        self.noise_dim = noise_dim
+        self.lengths = _schedule(future_len)
+        self.c0 = channels[0]
+        self.fc = nn.Sequential(
+            nn.Linear(cond_dim + noise_dim, hidden), nn.LeakyReLU(0.2),
+            nn.Linear(hidden, channels[0] * self.lengths[0]), nn.LeakyReLU(0.2),
+        )
+        outs = list(channels[1:]) + [DIMS]
+        self.convs = nn.ModuleList(
+            nn.Conv1d(cin, cout, 3, padding=1)
+            for cin, cout in zip(channels, outs, strict=True)
+        )
+
+    def forward(self, cond: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        h = self.fc(torch.cat([cond, z], dim=1)).view(-1, self.c0, self.lengths[0])
+        for k, conv in enumerate(self.convs):
+            h = nn.functional.interpolate(h, size=self.lengths[k + 1], mode="linear",
+                                          align_corners=False)
+            h = conv(h)
+            if k < len(self.convs) - 1:
+                h = nn.functional.leaky_relu(h, 0.2)
+        return h.transpose(1, 2)
+
+
+class Critic(nn.Module):
+    """Conditional WGAN critic: 3 strided Conv1d blocks -> FC 1024 -> FC 1."""
+
+    def __init__(self, cond_dim: int, future_len: int, embed: int = 64,
+                 channels: Sequence[int] = (64, 128, 128)) -> None:
+        super().__init__()
+        self.embed = nn.Linear(cond_dim, embed)
+        layers: list[nn.Module] = []
+        cin = DIMS + embed
+        length = future_len
+        for c in channels:
+            layers += [nn.Conv1d(cin, c, 3, stride=2, padding=1), nn.LeakyReLU(0.2)]
+            cin, length = c, (length - 1) // 2 + 1
+        self.convs = nn.Sequential(*layers)
+        self.head = nn.Sequential(nn.Linear(cin * length, 1024), nn.LeakyReLU(0.2),
+                                  nn.Linear(1024, 1))
+
+    def forward(self, u: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        """(B, F, 51) future tangent coordinates, (B, cond_dim) -> (B,) scores."""
+        e = self.embed(cond)[:, :, None].expand(-1, -1, u.shape[1])
+        h = self.convs(torch.cat([u.transpose(1, 2), e], dim=1))
+        return self.head(h.flatten(1))[:, 0]
+
+
+class AmplitudeHead(nn.Module):
+    """MLP condition -> ``log a_F - log a_P``."""
+
+    def __init__(self, cond_dim: int, hidden: int = 128) -> None:
+        super().__init__()
+        self.net = nn.Sequential(nn.Linear(cond_dim, hidden), nn.LeakyReLU(0.2),
+                                 nn.Linear(hidden, hidden), nn.LeakyReLU(0.2),
+                                 nn.Linear(hidden, 1))
+
+    def forward(self, cond: torch.Tensor) -> torch.Tensor:
+        return self.net(cond)[:, 0]
+
+
+# -- losses ---------------------------------------------------------------------------
+
+
+def gradient_penalty(critic: nn.Module, real: torch.Tensor, fake: torch.Tensor,
+                     cond: torch.Tensor, eps: torch.Tensor | None = None) -> torch.Tensor:
+    """WGAN-GP penalty ``E[(||∇_x C(x, c)||_2 - 1)²]`` at ``x = ε real + (1 - ε) fake``.
+
+    Args:
+        real, fake: (B, F, 51) critic inputs; cond: (B, cond_dim) condition (not mixed).
+        eps: (B,) mixing weights in [0, 1]; uniform random when None.
+    """
+    if eps is None:
+        eps = torch.rand(real.shape[0], device=real.device)
+    x = (eps[:, None, None] * real + (1 - eps[:, None, None]) * fake.detach())
+    x.requires_grad_(True)
+    grad, = torch.autograd.grad(critic(x, cond).sum(), x, create_graph=True)
+    return ((grad.flatten(1).norm(dim=1) - 1) ** 2).mean()
+
+
+def gram_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Gram/Procrustes skeleton integrity: ``mean |Ĝ - G|`` of per-frame Gram matrices
+    ``X Xᵀ`` of centred (..., J, 3) poses (invariant to rotations of either pose)."""
+    p = pred - pred.mean(dim=-2, keepdim=True)
+    t = target - target.mean(dim=-2, keepdim=True)
+    return (p @ p.transpose(-1, -2) - t @ t.transpose(-1, -2)).abs().mean()
+
+
+def bone_loss(pred: torch.Tensor, reference: torch.Tensor) -> torch.Tensor:
+    """``mean |b̂ - b_ref|`` of bone lengths: (B, F, J, 3) frames vs (B, J, 3) poses."""
+    child = [j for j, p in enumerate(PARENTS) if p >= 0]
+    par = [PARENTS[j] for j in child]
+    b = (pred[..., child, :] - pred[..., par, :]).norm(dim=-1)
+    b_ref = (reference[..., child, :] - reference[..., par, :]).norm(dim=-1)
+    return (b - b_ref[:, None]).abs().mean()
+
+
+# -- the model -------------------------------------------------------------------------
+
+
+@dataclass
+class PredictorConfig:
+    """Hyper-parameters and fitted constants (saved in checkpoints)."""
+
+    past_len: int
+    future_len: int
+    fps: float = 25.0
+    noise_dim: int = 16
+    hidden: int = 512
+    gen_channels: tuple[int, ...] = (256, 128, 128, 64, 64)
+    critic_channels: tuple[int, ...] = (64, 128, 128)
+    scale_past: float = 1.0
+    scale_future: float = 1.0
+    info: dict = field(default_factory=dict)
+
+    @property
+    def cond_dim(self) -> int:
+        return self.past_len * DIMS + 1 + DIMS
+
+
+@dataclass
+class Batch:
+    """Prepared tensors of windows in heading-normalised coordinates.
+
+    Attributes:
+        cond: (N, cond_dim) condition; u_future: (N, F, 51) scaled future tangent
+            coordinates; log_amp_past/log_amp_future: (N,); last: (N, 51) last observed
+            pose, metres; future: (N, F, 17, 3) true future frames, metres.
+    """
+
+    cond: torch.Tensor
+    u_future: torch.Tensor
+    log_amp_past: torch.Tensor
+    log_amp_future: torch.Tensor
+    last: torch.Tensor
+    future: torch.Tensor
+
+    def __len__(self) -> int:
+        return int(self.cond.shape[0])
+
+    def take(self, idx: torch.Tensor) -> Batch:
+        return Batch(*(getattr(self, f)[idx] for f in
+                       ("cond", "u_future", "log_amp_past", "log_amp_future", "last",
+                        "future")))
+
+
+def _sphere(curve: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points and amplitudes of (N, T, D) curves; a curve that does not move at all gets
+    the ``fallback`` point (its direction is undefined, its amplitude 0)."""
+    q = srvf.srvf(curve)
+    amp = srvf.norm(q)
+    moving = amp > 0
+    points = np.where(moving[:, None, None], q / np.where(moving, amp, 1.0)[:, None, None],
+                      fallback)
+    return points, amp
+
+
+class PredictiveMAWGAN:
+    """The trained predictor: networks, Karcher means and the SRVF pipeline.
+
+    ``predict(history)`` takes (N, 1 + P, 17, 3) (or longer; the last 1 + P frames are
+    used) root-relative pred17 positions in metres, the lead-in frame followed by the P
+    observed frames, and returns the (N, F, 17, 3) float32 future (see the module
+    docstring for the math).
+    """
+
+    def __init__(self, config: PredictorConfig, mu_past: np.ndarray,
+                 mu_future: np.ndarray) -> None:
+        self.config = config
+        self.past_len = config.past_len
+        self.future_len = config.future_len
+        self.fps = config.fps
+        self.mu_past = np.asarray(mu_past, dtype=np.float64)
+        self.mu_future = np.asarray(mu_future, dtype=np.float64)
+        if self.mu_past.shape != (config.past_len, DIMS) or \
+                self.mu_future.shape != (config.future_len, DIMS):
+            raise CheckpointError(
+                f"Karcher means must be ({config.past_len}, {DIMS}) and "
+                f"({config.future_len}, {DIMS}); got {self.mu_past.shape} and "
+                f"{self.mu_future.shape}"
+            )
+        self.mu_future_t = torch.as_tensor(self.mu_future, dtype=torch.float32)
+        self.generator = Generator(config.cond_dim, config.future_len, config.noise_dim,
+                                   config.hidden, config.gen_channels)
+        self.critic = Critic(config.cond_dim, config.future_len,
+                             channels=config.critic_channels)
+        self.amplitude = AmplitudeHead(config.cond_dim)
+
+    @property
+    def history_len(self) -> int:
+        return self.past_len + 1
+
+    # -- data ------------------------------------------------------------------------
+
+    def _condition(self, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(N, 1+P, 17, 3) heading-normalised history -> condition, log a_P, last pose."""
+        n = len(frames)
+        p_past, a_past = _sphere(frames.reshape(n, self.past_len + 1, DIMS), self.mu_past)
+        v_past = srvf.log_map(self.mu_past, p_past) / math.sqrt(self.past_len)
+        log_a = np.log(np.maximum(a_past, 1e-6))
+        last = frames[:, -1].reshape(n, DIMS)
+        cond = np.concatenate([v_past.reshape(n, -1) * self.config.scale_past,
+                               log_a[:, None], LOSS_UNIT * last], axis=1)
+        return cond, log_a, last
+
+    def prepare(self, windows: PredictionWindows) -> Batch:
+        """Training/evaluation tensors of windows with this model's P and F."""
+        if (windows.past_len, windows.future_len) != (self.past_len, self.future_len):
+            raise MotionError(
+                f"windows are {windows.past_len}->{windows.future_len}; the model is "
+                f"{self.past_len}->{self.future_len}", field="windows"
+            )
+        frames = windows.frames.astype(np.float64)
+        frames = rotate_z(frames, -heading(frames[:, self.past_len]))
+        n = len(frames)
+        cond, log_a, last = self._condition(frames[:, : self.past_len + 1])
+        future_curve = frames[:, self.past_len:].reshape(n, self.future_len + 1, DIMS)
+        p_f, a_f = _sphere(future_curve, self.mu_future)
+        v_f = srvf.log_map(self.mu_future, p_f) / math.sqrt(self.future_len)
+        f32 = torch.float32
+        return Batch(
+            torch.as_tensor(cond, dtype=f32),
+            torch.as_tensor(v_f * self.config.scale_future, dtype=f32),
+            torch.as_tensor(log_a, dtype=f32),
+            torch.as_tensor(np.log(np.maximum(a_f, 1e-6)), dtype=f32),
+            torch.as_tensor(last, dtype=f32),
+            torch.as_tensor(frames[:, self.past_len + 1:], dtype=f32),
+        )
+
+    # -- differentiable decoding -------------------------------------------------------
+
+    def decode(self, u: torch.Tensor, log_amp: torch.Tensor, last: torch.Tensor
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Generator output -> (future frames (B, F, 17, 3) metres, sphere points).
+
+        ``u`` (B, F, 51) scaled coordinates are unscaled to a tangent vector at ``μ_F``,
+        projected onto ``T_{μ_F}`` (the raw output is not exactly tangent), mapped with
+        ``exp_{μ_F}``, scaled by ``exp(log_amp)`` and integrated from ``last`` (B, 51).
+        """
+        v = u * (math.sqrt(self.future_len) / self.config.scale_future)
+        v = t_project_tangent(self.mu_future_t, v)
+        p = t_exp(self.mu_future_t, v)
+        frames = t_inverse_srvf(p * torch.exp(log_amp)[:, None, None], last)
+        return frames.view(-1, self.future_len, NUM_JOINTS, 3), p
+
+    def sample_noise(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        return torch.randn(n, self.config.noise_dim, generator=generator)
+
+    def log_amplitude(self, cond: torch.Tensor, log_amp_past: torch.Tensor,
+                      amplitude: str = "predicted") -> torch.Tensor:
+        """log of the future amplitude: ``"predicted"`` by the head or ``"carried"``
+        from the past, ``a_P sqrt(F / P)`` (the same mean speed)."""
+        if amplitude == "predicted":
+            return log_amp_past + self.amplitude(cond)
+        if amplitude == "carried":
+            return log_amp_past + 0.5 * math.log(self.future_len / self.past_len)
+        raise MotionError(f"amplitude must be 'predicted' or 'carried'; got {amplitude!r}",
+                          field="amplitude")
+
+    # -- prediction ---------------------------------------------------------------------
+
+    @torch.no_grad()
+    def predict(self, history: np.ndarray, *, amplitude: str = "predicted",
+                seed: int | None = None) -> np.ndarray:
+        """Predict the F frames after a history.
+
+        Args:
+            history: (N, H, 17, 3) or (H, 17, 3) root-relative positions, metres,
+                H >= 1 + P, ending at the last observed frame.
+            amplitude: ``"predicted"`` (default) or ``"carried"``.
+            seed: sample the generator noise with this seed; None uses ``z = 0``.
+
+        Returns:
+            (N, F, 17, 3) or (F, 17, 3) float32 future positions, metres.
+
+        Raises:
+            MotionError: too short a history, wrong joint count, NaN frames.
+        """
+        h, batched = check_history(history, self.history_len, joints=NUM_JOINTS)
+        h = h[:, -self.history_len:]
+        angle = heading(h[:, -1])
+        frames = rotate_z(h, -angle)
+        cond, log_a, last = self._condition(frames)
+        cond_t = torch.as_tensor(cond, dtype=torch.float32)
+        if seed is None:
+            z = torch.zeros(len(h), self.config.noise_dim)
+        else:
+            z = self.sample_noise(len(h), torch.Generator().manual_seed(seed))
+        self.generator.eval()
+        self.amplitude.eval()
+        u = self.generator(cond_t, z)
+        log_amp = self.log_amplitude(cond_t, torch.as_tensor(log_a, dtype=torch.float32),
+                                     amplitude)
+        _, p = self.decode(u, log_amp, torch.as_tensor(last, dtype=torch.float32))
+        # integrate in float64 from the exact last observed pose: no seam
+        q = p.double().numpy() * np.exp(log_amp.double().numpy())[:, None, None]
+        out = srvf.inverse_srvf(q, last)[:, 1:].reshape(len(h), self.future_len, NUM_JOINTS, 3)
+        out = rotate_z(out, angle).astype(np.float32)
+        return out if batched else out[0]
+
+    # -- checkpoints ------------------------------------------------------------------------
+
+    def save(self, path: str | Path, *, with_critic: bool = True) -> Path:
+        """Write an ``.npz`` checkpoint (arrays only, no pickle): config JSON, Karcher
+        means and the state dicts of the networks."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays: dict[str, np.ndarray] = {
+            "format": np.array(CHECKPOINT_FORMAT),
+            "config": np.array(json.dumps(asdict(self.config))),
+            "mu_past": self.mu_past, "mu_future": self.mu_future,
+        }
+        nets = {"generator": self.generator, "amplitude": self.amplitude}
+        if with_critic:
+            nets["critic"] = self.critic
+        for name, net in nets.items():
+            for key, value in net.state_dict().items():
+                arrays[f"{name}.{key}"] = value.detach().cpu().numpy()
+        with path.open("wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> PredictiveMAWGAN:
+        """Read a checkpoint written by :meth:`save`.
+
+        Raises:
+            CheckpointError: missing file, not a checkpoint, or mismatched arrays.
+        """
+        path = Path(path)
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise CheckpointError(f"cannot read predictor checkpoint: {exc}",
+                                  source=path) from None
+        with data:
+            if "format" not in data or str(data["format"]) != CHECKPOINT_FORMAT:
+                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
+            raw = json.loads(str(data["config"]))
+            for key in ("gen_channels", "critic_channels"):
+                raw[key] = tuple(raw[key])
+            model = cls(PredictorConfig(**raw), data["mu_past"], data["mu_future"])
+            nets = {"generator": model.generator, "amplitude": model.amplitude,
+                    "critic": model.critic}
+            for name, net in nets.items():
+                prefix = name + "."
+                state = {k[len(prefix):]: torch.as_tensor(data[k]) for k in data.files
+                         if k.startswith(prefix)}
+                if not state and name == "critic":
+                    continue
+                try:
+                    net.load_state_dict(state)
+                except RuntimeError as exc:
+                    raise CheckpointError(f"{name} weights do not fit the config: {exc}",
+                                          source=path) from None
+        return model
+
+
+def fit_geometry(windows: PredictionWindows, config: PredictorConfig,
+                 *, max_iter: int = 1000, tol: float = 1e-6) -> PredictiveMAWGAN:
+    """A fresh model whose Karcher means and coordinate scales are fitted to ``windows``.
+
+    The means are computed on heading-normalised training windows; ``config.info``
+    receives the Karcher iterations, convergence and Fréchet variances.
+    """
+    frames = windows.frames.astype(np.float64)
+    frames = rotate_z(frames, -heading(frames[:, windows.past_len]))
+    n = len(frames)
+    past = frames[:, : windows.past_len + 1].reshape(n, -1, DIMS)
+    future = frames[:, windows.past_len:].reshape(n, -1, DIMS)
+    amp_p = srvf.norm(srvf.srvf(past))
+    amp_f = srvf.norm(srvf.srvf(future))
+    keep = (amp_p > 0) & (amp_f > 0)
+    p_p, _ = srvf.curve_to_sphere(past[keep])
+    p_f, _ = srvf.curve_to_sphere(future[keep])
+    km_p = srvf.karcher_mean(p_p, max_iter=max_iter, tol=tol)
+    km_f = srvf.karcher_mean(p_f, max_iter=max_iter, tol=tol)
+    v_p = srvf.log_map(km_p.mean, p_p) / math.sqrt(windows.past_len)
+    v_f = srvf.log_map(km_f.mean, p_f) / math.sqrt(windows.future_len)
+    config.scale_past = float(1.0 / np.sqrt(np.mean(v_p**2)))
+    config.scale_future = float(1.0 / np.sqrt(np.mean(v_f**2)))
+    config.info.update({
+        "karcher_past": {"iterations": km_p.iterations, "converged": km_p.converged,
+                         "variance_rad2": km_p.variance},
+        "karcher_future": {"iterations": km_f.iterations, "converged": km_f.converged,
+                           "variance_rad2": km_f.variance},
+    })
+    return PredictiveMAWGAN(config, km_p.mean, km_f.mean)
+
+
+def critic_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
+                eps: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+    """WGAN-GP critic objective ``E[C(fake)] - E[C(real)] + λ GP``."""
+    with torch.no_grad():
+        fake = model.generator(batch.cond, z)
+    real_score = model.critic(batch.u_future, batch.cond).mean()
+    fake_score = model.critic(fake, batch.cond).mean()
+    gp = gradient_penalty(model.critic, batch.u_future, fake, batch.cond, eps)
+    loss = fake_score - real_score + GP_LAMBDA * gp
+    return loss, {"critic": loss.item(), "wasserstein": (real_score - fake_score).item(),
+                  "gp": gp.item()}
+
+
+def generator_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
+                   weights: dict[str, float] | None = None
+                   ) -> tuple[torch.Tensor, dict[str, float], torch.Tensor]:
+    """``1 L_adv + 1 L_rec + 10 L_gram + 10 L_bone`` (positions in decimetres).
+
+    Returns:
+        ``(loss, terms, u)`` with ``u`` the (B, F, 51) generator output.
+    """
+    w = LOSS_WEIGHTS if weights is None else weights
+    u = model.generator(batch.cond, z)
+    frames, _ = model.decode(u, batch.log_amp_future, batch.last)
+    pred, true = LOSS_UNIT * frames, LOSS_UNIT * batch.future
+    last = LOSS_UNIT * batch.last.view(-1, NUM_JOINTS, 3)
+    terms = {
+        "adv": -model.critic(u, batch.cond).mean() if w["adv"] else torch.zeros(()),
+        "rec": (pred - true).abs().mean(),
+        "gram": gram_loss(pred, true),
+        "bone": bone_loss(pred, last),
+    }
+    loss = sum(w[k] * v for k, v in terms.items())
+    info = {k: v.item() for k, v in terms.items()} | {"generator": loss.item()}
+    return loss, info, u
+
+
+def amplitude_loss(model: PredictiveMAWGAN, batch: Batch, u: torch.Tensor) -> torch.Tensor:
+    """L1 position error (decimetres) of the future integrated with the generator's
+    direction ``u`` (held fixed) and the predicted amplitude.
+
+    Training the head on the position error rather than on the true amplitude makes it
+    the MPJPE-optimal length for the direction the generator actually predicts: where
+    the direction is uncertain, a shorter curve errs less.
+    """
+    log_amp = model.log_amplitude(batch.cond, batch.log_amp_past)
+    frames, _ = model.decode(u.detach(), log_amp, batch.last)
+    return LOSS_UNIT * (frames - batch.future).abs().mean()
+
+
+def rollout(predictor: object, history: np.ndarray, num_frames: int) -> np.ndarray:
+    """Recursive prediction beyond the trained horizon.
+
+    Predicts ``future_len`` frames, appends them to the history and predicts again from
+    the last ``history_len`` frames, until ``num_frames`` frames exist (the thesis's
+    2-3 repeats). Works for any predictor with ``predict``/``history_len``/
+    ``future_len``.
+
+    Args:
+        history: (N, H, 17, 3) metres; num_frames: frames to return.
+
+    Returns:
+        (N, num_frames, 17, 3) float32.
+    """
+    if num_frames < 1:
+        raise MotionError(f"num_frames must be >= 1; got {num_frames}", field="num_frames")
+    seq = np.asarray(history, dtype=np.float32)
+    start = seq.shape[1]
+    while seq.shape[1] - start < num_frames:
+        nxt = predictor.predict(seq[:, -predictor.history_len:])
+        seq = np.concatenate([seq, nxt], axis=1)
+    return seq[:, start: start + num_frames]

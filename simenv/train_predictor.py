@@ -1,0 +1,385 @@
+"""Train and evaluate the PredictiveMA-WGAN predictor on real motion capture.
+
+``python -m simenv.train_predictor --past 25 --future 25 --minutes 6 --out runs/p25``
+
+Data and split
+--------------
+Every clip readable under the given paths (default: the CMU clips of the shared corpus,
+``cmu/bvh``, ``cmu/asf_amc``, ``cmu/two_person``; both people of a two-person trial) is
+resampled to 25 fps, mapped to the 17-joint layout and cut into sliding ``P -> F``
+windows with stride 1 (:mod:`simenv.prediction_data`). Clips too short for a window are
+skipped and listed. The split is by *group* of clips with
+:func:`simenv.prediction_data.split_by_clip` (test fraction 0.25, seed 0 by default): a
+group is one clip, except that the two people of one CMU two-person trial (18_01/19_01,
+60_xx/61_xx salsa) form one group, since each partner's motion mirrors the other's, and
+a trial read from BVH and from AMC (02_01) is one clip by name. No group has windows on
+both sides. The Karcher means and scales are fitted on the training windows only.
+
+Training (:func:`train`) is seeded (torch, numpy, batch order, noise), single-threaded
+by default, runs for a number of iterations or a time budget (whichever ends first),
+shows a tqdm bar and writes a checkpoint. Evaluation (:func:`evaluate`) compares the
+model (predicted and carried amplitude) with zero- and constant-velocity on the held-out
+windows: per-frame MPJPE and RMS-up-to-horizon MPJPE at 80/160/320/400/1000 ms (joints
+without the pelvis, whose root-relative error is 0 for every method), MPJS and
+bone-length drift, per action type and per clip, plus recursive prediction to 3 F
+frames. :func:`main` writes ``metrics.json``, ``error_curve.png`` and ``model.npz``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from simenv import prediction_data as pdata
+from simenv import prediction_metrics as pm
+from simenv.errors import MotionError, SimenvError, SkeletonError
+from simenv.io import load
+from simenv.models.baselines import ConstantVelocity, ZeroVelocity
+from simenv.models.predictor import (
+    LOSS_WEIGHTS,
+    PARENTS,
+    PredictiveMAWGAN,
+    PredictorConfig,
+    amplitude_loss,
+    critic_loss,
+    fit_geometry,
+    generator_loss,
+    rollout,
+)
+from simenv.motion import Interaction, Motion
+
+#: Joints counted in the metrics: all but the pelvis (root-relative, error 0 always).
+EVAL_JOINTS: tuple[int, ...] = tuple(range(1, 17))
+
+#: Action type of the CMU trials of the shared corpus (from the CMU descriptions).
+ACTIONS: dict[str, str] = {
+    "01_01": "jump", "02_01": "walk", "02_03": "run", "02_04": "jump", "02_05": "strike",
+    "02_06": "bend/lift", "05_02": "dance", "09_06": "run", "12_01": "walk",
+    "16_15": "walk", "35_17": "run", "49_02": "jump", "49_04": "run", "49_06": "cartwheel",
+    "55_02": "dance", "103_charleston1": "dance", "131_01": "dance", "131_03": "dance",
+    "131_04": "dance", "135_06": "strike", "18_01": "walk+handshake",
+    "19_01": "walk+handshake", "60_05": "dance", "61_05": "dance", "60_10": "dance",
+    "61_10": "dance",
+}
+
+#: Clips that must stay on one side of the split (partners of one two-person trial).
+GROUPS: dict[str, str] = {
+    "18_01": "18_19_01", "19_01": "18_19_01", "60_05": "60_61_05", "61_05": "60_61_05",
+    "60_10": "60_61_10", "61_10": "60_61_10",
+}
+
+
+def _stem(name: str) -> str:
+    return name.removesuffix("_scaled")
+
+
+def action_of(clip: str) -> str:
+    """Action type of a clip name (``"other"`` when unknown)."""
+    return ACTIONS.get(_stem(clip), "other")
+
+
+def group_of(clip: str) -> str:
+    """Split group of a clip name (see the module docstring)."""
+    return GROUPS.get(_stem(clip), _stem(clip))
+
+
+def default_data(shared: Path) -> list[Path]:
+    """The CMU folders of the shared corpus."""
+    cmu = shared / "cmu"
+    return [cmu / "bvh", cmu / "asf_amc", *sorted((cmu / "two_person").glob("*"))]
+
+
+def collect_motions(paths: Iterable[str | Path]) -> tuple[list[Motion], list[str]]:
+    """Single-person motions in files/folders (both people of two-person trials).
+
+    Returns:
+        ``(motions, notes)``: clips on a skeleton with the 17 pred17 keypoints and a note
+        for every clip left out (and why).
+
+    Raises:
+        SimenvError: a path does not exist or holds no readable motion.
+    """
+    motions: list[Motion] = []
+    notes: list[str] = []
+    for path in paths:
+        loaded = load(Path(path))
+        items = loaded if isinstance(loaded, list) else [loaded]
+        for item in items:
+            people = [item.actor, item.reactor] if isinstance(item, Interaction) else [item]
+            for m in people:
+                try:
+                    pdata.to_pred17(m)
+                except SkeletonError as exc:
+                    notes.append(f"{m.name}: {exc.detail}")
+                    continue
+                motions.append(m)
+    if not motions:
+        raise MotionError(
+            "no usable clip (a single-person motion with the 17 keypoints of the "
+            f"prediction layout) in {', '.join(str(p) for p in paths)}"
+        )
+    return motions, notes
+
+
+def make_split(windows: pdata.PredictionWindows, test_fraction: float, seed: int
+               ) -> pdata.ClipSplit:
+    """Split windows by clip group (see the module docstring)."""
+    groups = np.array([group_of(c) for c in windows.window_clip_names], dtype=object)
+    return pdata.split_by_clip(groups, test_fraction, seed)
+
+
+def train(
+    model: PredictiveMAWGAN,
+    windows: pdata.PredictionWindows,
+    *,
+    iterations: int = 20000,
+    minutes: float | None = None,
+    batch_size: int = 64,
+    n_critic: int = 2,
+    lr: float = 1e-4,
+    adv_weight: float = 1.0,
+    seed: int = 0,
+    progress: bool = True,
+) -> list[dict[str, float]]:
+    """Adversarial training of ``model`` on ``windows`` (WGAN-GP, Adam lr 1e-4, batch 64).
+
+    Each iteration takes ``n_critic`` critic steps, one generator step and one
+    amplitude-head step, each on a fresh random batch.
+
+    Returns:
+        A log: one dict of losses every 50 iterations (and the last).
+    """
+    from tqdm import tqdm
+
+    torch.manual_seed(seed)
+    weights = LOSS_WEIGHTS | {"adv": adv_weight}
+    rng = np.random.default_rng(seed)
+    data = model.prepare(windows)
+    if len(data) < 2:
+        raise MotionError(f"training needs at least 2 windows; got {len(data)}")
+    noise = torch.Generator().manual_seed(seed + 1)
+    betas = (0.5, 0.9)
+    opt_g = torch.optim.Adam(model.generator.parameters(), lr=lr, betas=betas)
+    opt_c = torch.optim.Adam(model.critic.parameters(), lr=lr, betas=betas)
+    opt_a = torch.optim.Adam(model.amplitude.parameters(), lr=lr, betas=betas)
+    for net in (model.generator, model.critic, model.amplitude):
+        net.train()
+    bs = min(batch_size, len(data))
+    log: list[dict[str, float]] = []
+    t0 = time.monotonic()
+    bar = tqdm(range(iterations), disable=not progress, desc="train", unit="it")
+
+    def sample():
+        idx = torch.as_tensor(rng.choice(len(data), bs, replace=False))
+        return data.take(idx)
+
+    for it in bar:
+        if adv_weight:
+            for _ in range(n_critic):
+                batch = sample()
+                loss_c, info_c = critic_loss(model, batch, model.sample_noise(bs, noise))
+                opt_c.zero_grad()
+                loss_c.backward()
+                opt_c.step()
+        else:
+            info_c = {}
+        batch = sample()
+        loss_g, info_g, u = generator_loss(model, batch, model.sample_noise(bs, noise),
+                                           weights)
+        opt_g.zero_grad()
+        loss_g.backward()
+        opt_g.step()
+        loss_a = amplitude_loss(model, batch, u)
+        opt_a.zero_grad()
+        loss_a.backward()
+        opt_a.step()
+        done = minutes is not None and time.monotonic() - t0 > 60 * minutes
+        if it % 50 == 0 or it == iterations - 1 or done:
+            entry = {"iteration": it, **info_c, **info_g, "amplitude": float(loss_a),
+                     "seconds": time.monotonic() - t0}
+            log.append(entry)
+            bar.set_postfix(rec=f"{info_g['rec']:.3f}", W=f"{info_c.get('wasserstein', 0):.2f}")
+        if done:
+            break
+    bar.close()
+    return log
+
+
+def _method_metrics(pred: np.ndarray, windows: pdata.PredictionWindows) -> dict:
+    target = windows.future
+    fps = windows.fps
+    last = windows.past[:, -1]
+    return {
+        "mpjpe_mm": pm.mpjpe_at_horizons_mm(pred, target, fps, joints=EVAL_JOINTS),
+        "rms_mpjpe_up_to_horizon_mm": pm.rms_mpjpe_up_to_horizons_mm(pred, target, fps,
+                                                                     joints=EVAL_JOINTS),
+        "mpjs_m_s": pm.mean_per_joint_speed(np.concatenate([last[:, None], pred], 1), fps,
+                                            EVAL_JOINTS),
+        "bone_drift_mm": pm.bone_length_drift_mm(pred, last, PARENTS),
+        "curve_mm": pm.per_frame_mpjpe_mm(pred, target, EVAL_JOINTS).tolist(),
+    }
+
+
+def predictions(model: PredictiveMAWGAN, windows: pdata.PredictionWindows
+                ) -> dict[str, np.ndarray]:
+    """Predicted futures of every method for ``windows`` (histories = lead-in + past)."""
+    history = windows.frames[:, : windows.past_len + 1]
+    f = windows.future_len
+    return {
+        "model": model.predict(history),
+        "model_carried_amplitude": model.predict(history, amplitude="carried"),
+        "zero_velocity": ZeroVelocity(f).predict(history),
+        "constant_velocity": ConstantVelocity(f).predict(history),
+    }
+
+
+def evaluate(model: PredictiveMAWGAN, windows: pdata.PredictionWindows) -> dict:
+    """Metrics of the model and the baselines on ``windows``: overall, per action, per
+    clip (see the module docstring)."""
+    preds = predictions(model, windows)
+    gt = windows.future
+    out: dict = {"windows": len(windows), "fps": windows.fps,
+                 "horizons_ms": list(pm.HORIZONS_MS),
+                 "gt_mpjs_m_s": pm.mean_per_joint_speed(
+                     np.concatenate([windows.past[:, -1:], gt], 1), windows.fps, EVAL_JOINTS),
+                 "overall": {k: _method_metrics(v, windows) for k, v in preds.items()}}
+    names = windows.window_clip_names
+    for key, label in (("per_action", action_of), ("per_clip", str)):
+        groups = np.array([label(n) for n in names], dtype=object)
+        out[key] = {}
+        for g in sorted(set(groups)):
+            sel = np.flatnonzero(groups == g)
+            sub = windows.subset(sel)
+            out[key][g] = {"windows": len(sel)} | {
+                k: pm.mpjpe_at_horizons_mm(v[sel], sub.future, sub.fps, joints=EVAL_JOINTS)
+                for k, v in preds.items()
+            }
+    return out
+
+
+def evaluate_recursive(model: PredictiveMAWGAN, motions: Sequence[Motion],
+                       test_clips: Iterable[str], repeats: int = 3) -> dict:
+    """Per-frame MPJPE curve of recursive prediction to ``repeats`` x F frames on the
+    test clips (model fed its own predictions), with the baselines."""
+    test = set(test_clips)
+    clips = [m for m in motions if group_of(m.name) in test]
+    horizon = repeats * model.future_len
+    try:
+        long = pdata.windows_from_motions(clips, model.past_len, horizon, stride=5)
+    except MotionError as exc:
+        return {"skipped": exc.detail}
+    history = long.frames[:, : model.past_len + 1]
+    methods = {"model": model, "zero_velocity": ZeroVelocity(model.future_len),
+               "constant_velocity": ConstantVelocity(model.future_len)}
+    return {"windows": len(long), "frames": horizon,
+            **{k: pm.per_frame_mpjpe_mm(rollout(m, history, horizon), long.future,
+                                        EVAL_JOINTS).tolist()
+               for k, m in methods.items()}}
+
+
+def plot_curves(metrics: dict, path: Path) -> None:
+    """Error curves (per-frame MPJPE vs time) of every method, single-shot and recursive."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fps = metrics["fps"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for name, m in metrics["overall"].items():
+        curve = m["curve_mm"]
+        axes[0].plot(1000 * np.arange(1, len(curve) + 1) / fps, curve, label=name)
+    axes[0].set_title(f"held-out, {metrics['config']['past_len']}->"
+                      f"{metrics['config']['future_len']} frames")
+    rec = metrics.get("recursive", {})
+    for name in ("model", "zero_velocity", "constant_velocity"):
+        if name in rec:
+            curve = rec[name]
+            axes[1].plot(1000 * np.arange(1, len(curve) + 1) / fps, curve, label=name)
+    axes[1].set_title("recursive prediction (held-out)")
+    for ax in axes:
+        ax.set_xlabel("time after last observed frame [ms]")
+        ax.set_ylabel("per-frame MPJPE [mm]")
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def run(args: argparse.Namespace) -> dict:
+    """Load data, split, fit geometry, train, evaluate, write outputs; returns metrics."""
+    torch.set_num_threads(args.threads)
+    paths = args.data or default_data(Path(args.shared))
+    motions, notes = collect_motions(paths)
+    windows = pdata.windows_from_motions(motions, args.past, args.future, stride=1)
+    split = make_split(windows, args.test_fraction, args.seed)
+    train_w, test_w = windows.subset(split.train), windows.subset(split.test)
+    config = PredictorConfig(args.past, args.future)
+    model = fit_geometry(train_w, config)
+    log = train(model, train_w, iterations=args.iterations, minutes=args.minutes,
+                n_critic=args.n_critic, lr=args.lr, adv_weight=args.adv_weight,
+                seed=args.seed, progress=not args.quiet)
+    config.info.update({"train_clips": list(split.train_clips),
+                        "test_clips": list(split.test_clips),
+                        "train_windows": len(train_w), "test_windows": len(test_w),
+                        "iterations": log[-1]["iteration"] + 1,
+                        "train_seconds": round(log[-1]["seconds"], 1), "seed": args.seed,
+                        "n_critic": args.n_critic, "lr": args.lr,
+                        "adv_weight": args.adv_weight})
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    model.save(out / "model.npz")
+    metrics = evaluate(model, test_w)
+    metrics["recursive"] = evaluate_recursive(model, motions, split.test_clips)
+    metrics["train_set"] = evaluate(model, train_w.subset(np.arange(0, len(train_w), 7)))[
+        "overall"]
+    metrics |= {"config": {"past_len": args.past, "future_len": args.future,
+                           **config.info},
+                "skipped_clips": list(windows.skipped), "notes": notes, "train_log": log}
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
+    plot_curves(metrics, out / "error_curve.png")
+    return metrics
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--past", type=int, default=25, help="observed frames P (25 fps)")
+    ap.add_argument("--future", type=int, default=25, help="predicted frames F")
+    ap.add_argument("--data", nargs="*", help="motion files/folders (default: shared CMU)")
+    ap.add_argument("--shared", default=str(Path(__file__).resolve().parents[2] / "shared"
+                                              / "data"), help="shared corpus root")
+    ap.add_argument("--iterations", type=int, default=20000)
+    ap.add_argument("--minutes", type=float, default=6.0, help="training time budget")
+    ap.add_argument("--n-critic", type=int, default=2, help="critic steps per G step")
+    ap.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate")
+    ap.add_argument("--adv-weight", type=float, default=1.0,
+                    help="weight of the adversarial term (0: no critic, regression only)")
+    ap.add_argument("--test-fraction", type=float, default=0.25)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--out", default="runs/predictor")
+    ap.add_argument("--quiet", action="store_true")
+    return ap.parse_args(argv)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        metrics = run(parse_args(argv))
+    except SimenvError as exc:
+        print(f"error: {exc}")
+        return 2
+    for name, m in metrics["overall"].items():
+        row = " ".join(f"{m['mpjpe_mm'].get(h, float('nan')):7.1f}" for h in pm.HORIZONS_MS)
+        print(f"{name:>26s} {row}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
