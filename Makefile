@@ -17,7 +17,8 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.simenv-setup-stamp
 DEMO_OUT ?= out/demo
 
-# Debian packages needed for offscreen rendering on a CPU (OSMesa software OpenGL).
+# Debian packages needed for offscreen rendering on a CPU (OSMesa software OpenGL); python3-venv
+# is added when the interpreter cannot create a venv (Debian's system Python without it).
 APT_PACKAGES := libosmesa6 libgl1 libegl1
 
 # Offscreen rendering: OSMesa when installed, else EGL (Mesa's surfaceless EGL also works on
@@ -43,6 +44,7 @@ system-deps:
 	fi; \
 	missing=""; \
 	for p in $(APT_PACKAGES); do dpkg -s "$$p" >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	$(PYTHON) -c "import ensurepip, venv" >/dev/null 2>&1 || missing="$$missing python3-venv"; \
 	if [ -z "$$missing" ]; then exit 0; fi; \
 	if [ "$$(id -u)" != 0 ]; then \
 		echo "setup: missing Debian packages:$$missing (not root: run 'sudo apt-get install$$missing')"; \
