@@ -68,6 +68,9 @@ OUTLIER_SIGMAS = 3.0
 #: person can push an estimate to ~40 deg; data in the wrong axis convention
 #: (Z-up given as camera frame) lands near 90 deg and is what this catches.
 MAX_TILT_DEG = 60.0
+#: Coordinates farther than this from the sensor are not a depth-sensor
+#: measurement (Kinect range is ~0.5-8 m): an error, metres.
+MAX_RANGE_M = 50.0
 
 
 @dataclass(frozen=True)
@@ -257,7 +260,16 @@ def estimate_floor(
     """
     prepared = []
     for positions, skeleton in people:
-        p = np.asarray(positions, dtype=np.float64) @ KINECT_TO_ZUP.T
+        p = np.asarray(positions, dtype=np.float64)
+        bad = np.argwhere(~(np.abs(p) <= MAX_RANGE_M))
+        if bad.size:
+            t, j = int(bad[0][0]), int(bad[0][1])
+            raise MotionError(
+                f"joint position {p[t, j].tolist()} is not finite or farther than "
+                f"{MAX_RANGE_M:g} m from the sensor; expected camera-frame metres",
+                source=source, frame=t, field=skeleton.joint_names[j],
+            )
+        p = p @ KINECT_TO_ZUP.T
         feet, clearance = _foot_joints(skeleton)
         if not feet:
             raise MotionError(

@@ -19,6 +19,11 @@ alone gives a noisy floor (per-clip pitch estimates of one subject spread over
 together (:func:`simenv.io.camera_frame.estimate_floor`); ``level="video"``
 levels each video on its own.
 
+Corrupt MAT files can crash scipy's parser (a segmentation fault, found by
+fuzzing), so every MAT file is first parsed in a child process
+(:func:`_mat_parses`, cached per file state); a failure there is a
+:class:`FormatError`.
+
 ``read`` returns one :class:`Motion` per video (215), each with ``label``,
 ``class_id``, ``subject``, ``video_id`` and ``repetition`` (order of
 appearance of that subject/class pair) in its metadata.
@@ -26,6 +31,9 @@ appearance of that subject/class pair) in its metadata.
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
@@ -40,9 +48,50 @@ FLORENCE_FPS = 20.0
 _MAT_MAGIC = b"MATLAB 5.0 MAT-file"
 
 
+#: Upper bound for the crash-isolation pre-check of a MAT file, seconds.
+MAT_CHECK_TIMEOUT_S = 120.0
+_MAT_CHECK = (
+    "import sys, scipy.io\n"
+    "scipy.io.whosmat(sys.argv[1])\n"
+    "scipy.io.loadmat(sys.argv[1], squeeze_me=True, struct_as_record=False)\n"
+)
+
+
+@lru_cache(maxsize=32)
+def _mat_parses(path: str, mtime_ns: int, size: int) -> str | None:
+    """Parse the MAT file in a child process first: scipy's MAT reader can
+    crash the interpreter (segmentation fault) on corrupt files, which must
+    become a :class:`FormatError`, not a dead process. Returns None when the
+    child parsed it, else the reason."""
+    del mtime_ns, size  # cache key only
+    try:
+        run = subprocess.run([sys.executable, "-c", _MAT_CHECK, path], capture_output=True,
+                             timeout=MAT_CHECK_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired:
+        return f"parsing took longer than {MAT_CHECK_TIMEOUT_S:g} s"
+    if run.returncode == 0:
+        return None
+    if run.returncode < 0:
+        return f"the MAT parser crashed (signal {-run.returncode})"
+    lines = run.stderr.decode(errors="replace").strip().splitlines()
+    return lines[-1] if lines else f"exit status {run.returncode}"
+
+
+def _check_mat(path: Path) -> None:
+    st = path.stat()
+    reason = _mat_parses(str(path.resolve()), st.st_mtime_ns, st.st_size)
+    if reason is not None:
+        raise FormatError(f"cannot read MATLAB file ({reason}); expected a MAT-file with "
+                          "'skeletal_data'", source=path)
+
+
 def _loadmat(path: Path, **kwargs: Any) -> dict[str, Any]:
     from scipy.io import loadmat
 
+    try:
+        _check_mat(path)
+    except OSError as exc:
+        raise FormatError(f"cannot read file: {exc}", source=path) from None
     try:
         return loadmat(str(path), squeeze_me=True, struct_as_record=False, **kwargs)
     except Exception as exc:  # scipy raises many types for corrupt files
@@ -60,6 +109,7 @@ def sniff(path: Path, head: bytes) -> bool:
     from scipy.io import whosmat
 
     try:
+        _check_mat(path)
         return any(name == "skeletal_data" for name, _, _ in whosmat(str(path)))
     except Exception:
         return False

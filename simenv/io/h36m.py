@@ -62,7 +62,7 @@ def sniff(path: Path, head: bytes) -> bool:
                 if "joint_names" in z.files:
                     return False
                 return sum(_shape_ok(z[k].shape) for k in z.files) == 1
-    except (OSError, ValueError, zipfile.BadZipFile):
+    except Exception:  # any unreadable file is simply not ours
         return False
     return False
 
@@ -127,8 +127,9 @@ def read(
     except ValueError as exc:
         raise FormatError(f"cannot load without pickle ({exc}); expected a plain numeric array",
                           source=path) from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise FormatError(f"not a readable .npy/.npz file ({exc})", source=path) from None
+    except Exception as exc:  # numpy raises many types for corrupt headers
+        raise FormatError(f"not a readable .npy/.npz file ({type(exc).__name__}: {exc})",
+                          source=path) from None
     if isinstance(loaded, np.lib.npyio.NpzFile):
         with loaded as z:
             try:
@@ -136,6 +137,9 @@ def read(
             except ValueError as exc:  # object arrays need pickle: refused
                 raise FormatError(f"cannot load without pickle ({exc}); expected plain "
                                   "numeric arrays", source=path) from None
+            except Exception as exc:  # corrupt member (zlib, truncated zip, header)
+                raise FormatError(f"corrupt .npz member ({type(exc).__name__}: {exc})",
+                                  source=path) from None
             if key is None:
                 keys = [k for k, shape in shapes.items() if _shape_ok(shape)]
                 if len(keys) != 1:
@@ -148,7 +152,11 @@ def read(
             if key not in z.files:
                 raise FormatError(f"no array {key!r}; arrays: {', '.join(z.files)}",
                                   source=path, field=key)
-            array = z[key]
+            try:
+                array = z[key]
+            except Exception as exc:
+                raise FormatError(f"corrupt .npz member ({type(exc).__name__}: {exc})",
+                                  source=path, field=key) from None
     else:
         array = loaded
     return from_array(array, fps=fps, frame=frame, units=units, name=path.stem,
