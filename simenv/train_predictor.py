@@ -201,7 +201,7 @@ def train(
         opt_a.step()
         done = minutes is not None and time.monotonic() - t0 > 60 * minutes
         if it % 50 == 0 or it == iterations - 1 or done:
-            entry = {"iteration": it, **info_c, **info_g, "amplitude": float(loss_a),
+            entry = {"iteration": it, **info_c, **info_g, "amplitude": loss_a.item(),
                      "seconds": time.monotonic() - t0}
             log.append(entry)
             bar.set_postfix(rec=f"{info_g['rec']:.3f}", W=f"{info_c.get('wasserstein', 0):.2f}")
