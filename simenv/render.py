@@ -10,8 +10,8 @@ Camera: a free camera looks at the *followed point*, the mean world position of 
 bodies (default: every body attached to the world by a free joint, i.e. the pelvis of each
 person). Its height is the clip's median, so the view does not bob with the gait; its azimuth is
 perpendicular to the principal horizontal axis of the followed bodies' positions over the clip
-(a walk is seen from the side, two people facing each other are both in view), and its distance
-grows with the people's separation.
+(a walk is seen from the side, two people facing each other are both in view) or, when they stay
+in place, a three-quarter front view; its distance grows with the people's separation.
 """
 
 from __future__ import annotations
@@ -39,6 +39,9 @@ GHOST_COLOURS = (
 GHOST_RADIUS = 0.03
 #: Emission of ghost geoms: they keep their colour whatever the lighting of the model.
 GHOST_EMISSION = 0.7
+#: RMS horizontal extent (m) of the followed bodies' positions below which the subject counts as
+#: staying in place: the camera then faces them instead of looking across their path.
+STILL_EXTENT = 0.25
 #: Minimum camera distance (m) to the followed point.
 MIN_DISTANCE = 3.0
 #: Opacity of the body's geoms when a ghost is drawn, so the ghost inside the limbs shows.
@@ -92,18 +95,24 @@ def _camera_track(
     """Look-at points (T, 3), distance (m) and azimuth (degrees) for the frames of ``qpos``."""
     data = mujoco.MjData(model)
     body_pos = np.empty((len(qpos), len(body_ids), 3))
+    forward = np.zeros(2)
     for t, q in enumerate(qpos):
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
         body_pos[t] = data.xpos[body_ids]
+        forward += data.xmat[body_ids][:, [0, 3]].sum(axis=0)  # bodies' x axes (forward), in xy
     lookat = body_pos.mean(axis=1)
     lookat[:, 2] = np.median(lookat[:, 2])
     if azimuth is None:
         xy = body_pos[..., :2].reshape(-1, 2)
         xy = xy - xy.mean(axis=0)
-        # Principal horizontal axis of where the followed bodies go; look across it.
-        _, _, vt = np.linalg.svd(xy, full_matrices=False)
-        azimuth = float(np.degrees(np.arctan2(vt[0, 1], vt[0, 0]))) + 90.0
+        _, sv, vt = np.linalg.svd(xy, full_matrices=False)
+        if sv[0] / np.sqrt(len(xy)) > STILL_EXTENT:
+            # Principal horizontal axis of where the followed bodies go; look across it.
+            azimuth = float(np.degrees(np.arctan2(vt[0, 1], vt[0, 0]))) + 90.0
+        else:
+            # Nobody goes anywhere: look at the front, from 30 degrees to the side.
+            azimuth = float(np.degrees(np.arctan2(forward[1], forward[0]))) + 150.0
     if distance is None:
         spread = np.linalg.norm(body_pos - body_pos.mean(axis=1, keepdims=True), axis=2).max()
         distance = max(MIN_DISTANCE, 2.5 + 2.0 * float(spread))
@@ -221,7 +230,8 @@ def render_frames(
             attached to the world by a free joint (each person's pelvis).
         distance: camera distance (m); default from the people's spread, at least 3 m.
         elevation: camera elevation (degrees, negative looks down).
-        azimuth: camera azimuth (degrees); default perpendicular to the direction of travel.
+        azimuth: camera azimuth (degrees); default perpendicular to the direction of travel,
+            or facing the subject when it stays in place.
         fps: frame rate of ``qpos``; when given the overlay shows the time in seconds.
         stride: render every ``stride``-th frame.
         max_frames: render at most this many frames (after the stride).
