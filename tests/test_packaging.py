@@ -93,6 +93,7 @@ def test_wheel_holds_one_namespace_and_the_assets(installed: dict):
     top = {n.split("/", 1)[0] for n in names}
     assert top == {"simenv", "simenv-0.1.0.dist-info"}  # no bare models/, agents/, assets/
     for required in (
+        "simenv/__main__.py",
         "simenv/models/__init__.py",
         "simenv/agents/__init__.py",
         "simenv/assets/__init__.py",
@@ -131,6 +132,11 @@ def test_installed_command_runs_on_a_bundled_asset(installed: dict):
         [str(simenv), "--help"], cwd=installed["cwd"], capture_output=True, text=True
     )
     assert run.returncode == 0 and "retarget" in run.stdout
+    run = subprocess.run(
+        [str(installed["python"]), "-m", "simenv", "demo", "--help"],
+        cwd=installed["cwd"], capture_output=True, text=True,
+    )
+    assert run.returncode == 0 and "--out" in run.stdout
     walk = installed["site"] / "simenv" / "assets" / "cmu_02_01_walk.bvh"
     run = subprocess.run(
         [str(simenv), "info", str(walk), "--json"],
