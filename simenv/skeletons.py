@@ -170,6 +170,7 @@ def poser_canonical_map(joint_names: Sequence[str]) -> dict[str, str]:
     names = set(joint_names)
     return {k: v for k, v in POSER_CANONICAL.items() if v in names}
 
+
 # =============================================================================
 # Kinect-era, array and gesture skeletons (non-CMU). Everything below this line
 # is one section: Kinect v1 (20), SBU (15), Florence (OpenNI 15), Kinect v2
