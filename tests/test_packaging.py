@@ -105,6 +105,21 @@ def test_wheel_holds_one_namespace_and_the_assets(installed: dict):
         assert required in names
 
 
+def test_every_subpackage_is_in_the_wheel(installed: dict):
+    """pyproject.toml lists packages explicitly (for the models/agents/assets mapping)."""
+    names = set(zipfile.ZipFile(installed["wheel"]).namelist())
+    for top, installed_as in (("simenv", "simenv"), ("models", "simenv/models"),
+                              ("agents", "simenv/agents"), ("assets", "simenv/assets")):
+        for init in (REPO / top).rglob("__init__.py"):
+            if "__pycache__" in init.parts:
+                continue
+            inside = init.relative_to(REPO / top).as_posix()
+            assert f"{installed_as}/{inside}" in names, (
+                f"{top}/{inside} is not in the wheel: add its package to "
+                "[tool.setuptools] packages in pyproject.toml"
+            )
+
+
 def test_installed_package_is_importable_outside_the_repo(installed: dict):
     run = subprocess.run(
         [str(installed["python"]), "-c", PROBE],
