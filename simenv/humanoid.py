@@ -102,11 +102,13 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
         JointSpec("elevate", (1, 0, 0), (-20, 45), 200),
     ),
     # Glenohumeral (AAOS: flexion 180, extension 60, abduction 180, adduction
-    # ~45 across the body, internal rotation 70, external rotation 90).
+    # ~45 across the body, internal rotation 70, external rotation 90). The
+    # third Euler angle is axial rotation only near neutral elevation; with the
+    # arm raised it absorbs the Codman coupling, hence its wider range.
     "upper_arm": (
         JointSpec("flex", (0, -1, 0), (-65, 185), 200),
         JointSpec("abd", (1, 0, 0), (-50, 185), 200),
-        JointSpec("rot", (0, 0, -1), (-95, 95), 100),
+        JointSpec("rot", (0, 0, -1), (-150, 150), 100),
     ),
     # Elbow 0..150 flexion; forearm pronation 80 / supination 80.
     "forearm": (
@@ -447,7 +449,7 @@ def _joints(body: mujoco.MjsBody, part: str, side: str | None, prefix: str,
 def _add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
                 pos: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
     """Add one humanoid (bodies, joints, sites, exclusions, actuators) to ``spec``."""
-    g = d.girth * d.scale ** 0.5
+    g = d.girth
     actuated: list[tuple[str, float]] = []
     wb = spec.worldbody
 

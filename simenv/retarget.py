@@ -75,7 +75,7 @@ class RetargetOptions:
     iterations: int = 12
     reg: float = 1e-5
     smooth: float = 2e-4
-    floor_weight: float = 10.0
+    floor_weight: float = 1000.0
     max_step: float = 0.5
     tol: float = 2e-3
     accept: float = 1e-4
@@ -225,9 +225,12 @@ class _Problem:
             name = m.geom(g).name
             if m.geom_type[g] == 6 and (name.endswith("_foot") or name.endswith("_toes")):
                 c, h = m.geom_pos[g], m.geom_size[g]
+                # All 8 corners: a strongly bent toe can put its top edge lowest.
                 for sx in (-1, 1):
                     for sy in (-1, 1):
-                        corners.append((m.geom_bodyid[g], c + [sx * h[0], sy * h[1], -h[2]]))
+                        for sz in (-1, 1):
+                            corners.append((m.geom_bodyid[g],
+                                            c + [sx * h[0], sy * h[1], sz * h[2]]))
         self.C = len(corners)
         bodies += [b for b, _ in corners]
         offsets += [o for _, o in corners]
@@ -236,7 +239,8 @@ class _Problem:
         self.site_offset = {k: m.site_pos[s].copy()
                             for k, s in zip(humanoid.keypoint_names, humanoid.site_ids,
                                             strict=True)}
-        foot = [j for j, n in enumerate(humanoid.joint_names) if "_foot_" in n or "_toes_" in n]
+        foot = [j for j, n in enumerate(humanoid.joint_names)
+                if any(f"_{p}_" in n for p in ("thigh", "shin", "foot", "toes"))]
         self.foot_dofs = 6 + np.array(foot)
         # Front sole corners of each toe box, in the toe body's frame.
         self.toe_corners = {}
@@ -336,11 +340,46 @@ def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
 
     sol1, sol2 = wrap(sol1), wrap(sol2)
     if n == 3:
-        v1, v2 = violation(sol1), violation(sol2)
-        pick2 = (v2 < v1 - 1e-9) | ((np.abs(v2 - v1) <= 1e-9)
-                                      & (np.abs(sol2).sum(1) < np.abs(sol1).sum(1)))
-        sol1 = np.where(pick2[:, None], sol2, sol1)
+        sols = np.stack([np.clip(sol1, lo, hi), np.clip(sol2, lo, hi)], axis=1)
+        viol = np.stack([violation(sol1), violation(sol2)], axis=1)
+        pick = _continuous_branch(sols, viol)
+        return sols[np.arange(len(sols)), pick]
     return np.clip(sol1, lo, hi)
+
+
+def _continuous_branch(sols: np.ndarray, viol: np.ndarray) -> np.ndarray:
+    """Pick one of two Euler branches per frame (Viterbi over the whole clip).
+
+    Cost = 10 * limit violation + |change of the angles| between frames, so the
+    branch never flips from one frame to the next unless the limits demand it,
+    and no single frame (the first, say) imposes its choice on the others.
+
+    Args:
+        sols: (T, 2, n) clipped solutions. viol: (T, 2) their limit violations.
+    Returns:
+        (T,) index of the chosen branch.
+    """
+    T = len(sols)
+    unary = 10.0 * viol
+    if T == 1:
+        return np.argmin(unary, axis=1)
+    trans = np.abs(sols[1:, :, None, :] - sols[:-1, None, :, :]).sum(-1)  # (T-1, cur, prev)
+    # Forward pass (pure Python floats over T: two states, no numpy overhead).
+    u, tr = unary.tolist(), trans.tolist()
+    back = [[0, 0] for _ in range(T)]
+    acc = u[0]
+    for t in range(1, T):
+        nxt = [0.0, 0.0]
+        for c in (0, 1):
+            a0, a1 = acc[0] + tr[t - 1][c][0], acc[1] + tr[t - 1][c][1]
+            back[t][c] = 0 if a0 <= a1 else 1
+            nxt[c] = min(a0, a1) + u[t][c]
+        acc = nxt
+    pick = np.empty(T, dtype=int)
+    pick[-1] = 0 if acc[0] <= acc[1] else 1
+    for t in range(T - 1, 0, -1):
+        pick[t - 1] = back[t][pick[t]]
+    return pick
 
 
 def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
