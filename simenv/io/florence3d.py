@@ -44,6 +44,8 @@ from simenv.io.camera_frame import FloorEstimate, estimate_floor
 from simenv.motion import Motion
 from simenv.skeletons import florence_skeleton
 
+#: Extensions this reader claims when no sniffer accepts a file.
+EXTENSIONS = (".mat",)
 FLORENCE_FPS = 20.0
 _MAT_MAGIC = b"MATLAB 5.0 MAT-file"
 

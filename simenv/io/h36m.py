@@ -36,6 +36,10 @@ from simenv.io.camera_frame import world_motion
 from simenv.motion import Motion
 from simenv.skeletons import h36m_skeleton
 
+#: Extensions this reader claims when no sniffer accepts a file (so a broken
+#: ``.npy`` gets this reader's precise error). ``.npz`` is shared with
+#: simenv's own format and is not claimed.
+EXTENSIONS = (".npy",)
 H36M_FPS = 50.0
 N_JOINTS = 17
 #: Median per-frame extent above which ``units="auto"`` means millimetres.
@@ -59,7 +63,7 @@ def sniff(path: Path, head: bytes) -> bool:
             return _shape_ok(arr.shape)
         if suffix == ".npz" and zipfile.is_zipfile(path):
             with np.load(path, allow_pickle=False) as z:
-                if "joint_names" in z.files:
+                if "joint_names" in z.files or "simenv_npz_version" in z.files:
                     return False
                 return sum(_shape_ok(z[k].shape) for k in z.files) == 1
     except Exception:  # any unreadable file is simply not ours

@@ -40,6 +40,8 @@ from simenv.io.camera_frame import estimate_floor
 from simenv.motion import Interaction, Motion, interpolate_gaps
 from simenv.skeletons import KINECT_V2_SDK_ORDER, kinect_v2_skeleton
 
+#: Extensions this reader claims when no sniffer accepts a file.
+EXTENSIONS = (".skeleton",)
 NTU_FPS = 30.0
 N_JOINTS = 25
 BODY_VALUES = 10
