@@ -160,3 +160,20 @@ def test_registry_skips_absent_modules_only(
     monkeypatch.setattr(importlib, "import_module", broken_import)
     with pytest.raises(ModuleNotFoundError, match="lib_it_needs"):
         loader.available_readers()
+
+
+def test_nuisi_pair_uses_its_format_pairing(shared_data: Path, tmp_path: Path) -> None:
+    folder = shared_data / "other" / "nuisi"
+    from_folder = simenv.load(folder)
+    from_paths = simenv.load([folder / "Rocket_p1.txt", folder / "Rocket_p2.txt"])
+    for inter in (from_folder, from_paths):
+        assert isinstance(inter, Interaction)
+        assert inter.actor.num_frames == inter.reactor.num_frames > 2000
+        # The two sensors share no world frame: the pairing places the people apart.
+        a, b = inter.actor.positions, inter.reactor.positions
+        gap = np.linalg.norm(a[:, 0, :2] - b[:, 0, :2], axis=1)
+        assert 0.3 < float(np.median(gap)) < 2.5
+    (tmp_path / "Rocket_p1.txt").write_bytes((folder / "Rocket_p1.txt").read_bytes())
+    (tmp_path / "Other_p2.txt").write_bytes((folder / "Rocket_p2.txt").read_bytes())
+    with pytest.raises(MotionError, match="not the partner"):
+        simenv.load([tmp_path / "Rocket_p1.txt", tmp_path / "Other_p2.txt"])

@@ -168,7 +168,11 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
             raise MotionError(
                 f"a list of paths must hold the two people of one recording; got {len(path)}"
             )
-        a, b = (_load_single_person(Path(p), kwargs) for p in path)
+        pa, pb = (Path(p) for p in path)
+        paired = _format_pair(pa, pb, kwargs)
+        if paired is not None:
+            return paired
+        a, b = (_load_single_person(p, kwargs) for p in (pa, pb))
         return pair(a, b)
     path = Path(path)
     if path.is_dir():
@@ -177,6 +181,25 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
         raise SimenvError("no such file or folder", source=path)
     name, mod = detect(path)
     return _read(path, name, mod, kwargs)
+
+
+def _format_pair(a: Path, b: Path, kwargs: dict[str, Any]) -> Interaction | None:
+    """Both people through their format's own ``read_pair`` when the format
+    records one file per person with its own pairing rules (e.g. NuiSI, whose
+    two sensors share no world frame); None when the format has none."""
+    if not (a.is_file() and b.is_file()):
+        return None
+    name_a, mod = detect(a)
+    name_b, _ = detect(b)
+    if name_a != name_b or not hasattr(mod, "read_pair"):
+        return None
+    partner = getattr(mod, "partner_path", None)
+    if partner is not None and partner(a) != b:
+        raise MotionError(
+            f"{b.name} is not the partner recording of {a.name} for the {name_a} format",
+            source=a,
+        )
+    return mod.read_pair(a, b, **kwargs)
 
 
 def _load_single_person(path: Path, kwargs: dict[str, Any]) -> Motion:
@@ -228,6 +251,10 @@ def _load_folder(folder: Path, kwargs: dict[str, Any]) -> Loaded:
         # CMU two-person trials pair consecutive subject numbers (18/19, 60/61, ...).
         and abs(int(trials[0][0]) - int(trials[1][0])) == 1  # type: ignore[index]
     )
+    if len(files) == 2:
+        paired = _format_pair(files[0][0], files[1][0], kwargs)
+        if paired is not None:
+            return paired
     if is_pair:
         a, b = (_load_single_person(p, kwargs) for p, _ in files)
         return pair(a, b, folder=folder)
