@@ -545,6 +545,18 @@ def _add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
              (d.toes_length / 2, half_w, (ttop - tsole) / 2), f"{prefix}{s}_toes")
 
     _exclude_neighbours(spec, prefix)
+    # Actuators in the compiled joint order (depth-first over bodies), so that
+    # ctrl[i] drives the i-th hinge of the person.
+    rank: dict[str, int] = {}
+
+    def visit(b: mujoco.MjsBody) -> None:
+        rank[b.name] = len(rank)
+        for c in b.bodies:
+            visit(c)
+
+    visit(pelvis)
+    body_of = {j.name: j.parent.name for j in spec.joints}
+    actuated.sort(key=lambda item: rank[body_of[item[0]]])
     for jname, kp in actuated:
         a = spec.add_actuator()
         a.name = jname
@@ -842,15 +854,17 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     # Clavicle pivot: on the chest->neck segment, where shoulder distances vary least.
     if {"chest", "neck", "left_shoulder", "right_shoulder"} <= have:
         seg = kp["neck"] - kp["chest"]
-        best = (np.inf, 0.0)
-        for a in np.linspace(0.0, 1.0, 21):
+
+        def spread(a: float) -> float:
             piv = kp["chest"] + a * seg
-            dl = np.linalg.norm(kp["left_shoulder"] - piv, axis=-1)
-            dr = np.linalg.norm(kp["right_shoulder"] - piv, axis=-1)
-            spread = float(np.std(dl) + np.std(dr))
-            if spread < best[0] - 1e-6:
-                best = (spread, a)
-        a = best[1]
+            return float(np.std(np.linalg.norm(kp["left_shoulder"] - piv, axis=-1))
+                         + np.std(np.linalg.norm(kp["right_shoulder"] - piv, axis=-1)))
+
+        grid = np.linspace(0.0, 1.0, 21)
+        a = float(grid[np.argmin([spread(g) - 1e-6 * (g > 0) for g in grid])])
+        for step in (0.025, 0.00125):  # two finer passes around the best
+            fine = np.clip(a + step * np.arange(-20, 21), 0.0, 1.0)
+            a = float(fine[np.argmin([spread(g) for g in fine])])
         piv = kp["chest"] + a * seg
         measured["clavicle_pivot"] = a * measured["upper_chest"]
         for s in _SIDES:

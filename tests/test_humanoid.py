@@ -1,0 +1,222 @@
+"""Tests of simenv.humanoid: the MjSpec body, its dimensions, fitting, scenes."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from simenv.errors import RetargetError
+from simenv.humanoid import (
+    BONES,
+    JOINTS,
+    BodyDimensions,
+    Humanoid,
+    build_scene,
+    fit_dimensions,
+    fit_humanoid,
+)
+from simenv.io import bvh
+from simenv.motion import Motion
+from simenv.skeletons import CANONICAL_KEYPOINTS, canonical_skeleton
+
+
+@pytest.fixture(scope="module")
+def adult() -> Humanoid:
+    return Humanoid()
+
+
+def random_pose(h: Humanoid, rng: np.random.Generator, frames: int) -> np.ndarray:
+    """(frames, nq) smooth random trajectories inside the joint limits, root 1.4 m up."""
+    t = np.arange(frames)[:, None] / 120.0
+    lo, hi = h.joint_limits.T
+    centre, half = (lo + hi) / 2, (hi - lo) / 2
+    phase = rng.uniform(0, 2 * np.pi, len(lo))
+    freq = rng.uniform(0.3, 1.5, len(lo))
+    th = centre + 0.8 * half * np.sin(2 * np.pi * freq * t + phase)
+    q = np.tile(h.default_qpos(), (frames, 1))
+    q[:, 2] = 1.4
+    yaw = 0.5 * np.sin(t[:, 0])
+    q[:, 3:7] = np.stack([np.cos(yaw / 2), 0 * yaw, 0 * yaw, np.sin(yaw / 2)], axis=1)
+    q[:, h.hinge_qpos] = th
+    return q
+
+
+def fk_motion(h: Humanoid, qpos: np.ndarray, name: str = "fk") -> Motion:
+    """Canonical-keypoint Motion produced by the humanoid's own kinematics."""
+    return Motion(h.keypoints(qpos).astype(np.float32), 120.0, canonical_skeleton(), name)
+
+
+def test_default_adult_is_a_plausible_human(adult: Humanoid) -> None:
+    assert 1.70 <= adult.dims.height <= 1.80
+    assert 60.0 <= adult.total_mass <= 80.0
+    kp = adult.keypoints(adult.default_qpos())
+    assert kp.shape == (21, 3)
+    names = [adult.model.site(int(s)).name for s in adult.site_ids]
+    assert names == list(CANONICAL_KEYPOINTS)
+    # The standing rest pose: head keypoint well above the pelvis, ankles near the floor.
+    idx = {k: i for i, k in enumerate(CANONICAL_KEYPOINTS)}
+    assert kp[idx["head"], 2] > 1.45
+    assert 0.03 < kp[idx["left_ankle"], 2] < 0.12
+    # MuJoCo's sites equal the dimensions' own rest keypoints (pelvis-relative).
+    np.testing.assert_allclose(kp - kp[0], adult.dims.rest_keypoints(), atol=1e-9)
+
+
+def test_joint_limits_and_actuators(adult: Humanoid) -> None:
+    m = adult.model
+    lim = dict(zip(adult.joint_names, np.degrees(adult.joint_limits), strict=True))
+    for side in ("left", "right"):
+        np.testing.assert_allclose(lim[f"{side}_shin_flex"], [0, 150])
+        np.testing.assert_allclose(lim[f"{side}_forearm_flex"], [0, 150])
+    central = ("lumbar", "thorax", "chest", "neck")
+    expected = sum(len(v) * (1 if part in central else 2) for part, v in JOINTS.items())
+    assert len(adult.joint_names) == expected == adult.nv - 6
+    # One position actuator per hinge, with positive kp and kv.
+    assert m.nu == len(adult.joint_names)
+    for a in range(m.nu):
+        assert m.actuator(a).name == adult.joint_names[a]
+        kp, kv = m.actuator_gainprm[a, 0], -m.actuator_biasprm[a, 2]
+        assert kp > 0 and kv > 0
+        np.testing.assert_allclose(m.actuator_ctrlrange[a], adult.joint_limits[a])
+    assert (m.dof_armature[6:] > 0).all() and (m.dof_damping[6:] > 0).all()
+
+
+def test_rest_pose_touches_only_the_floor(adult: Humanoid) -> None:
+    m = adult.model
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    pairs = {(c.geom1, c.geom2) for c in d.contact[: d.ncon]}
+    assert pairs, "the feet should touch the floor in the rest pose"
+    assert all(floor in p for p in pairs), "no self-contact in the rest pose"
+
+
+def test_standing_under_pd_control_is_stable(adult: Humanoid) -> None:
+    m = adult.model
+    d = mujoco.MjData(m)
+    for _ in range(500):  # 1 s
+        d.ctrl[:] = 0.0
+        mujoco.mj_step(m, d)
+    assert np.isfinite(d.qpos).all()
+    assert d.qpos[2] > 0.5 * adult.dims.hip_height
+
+
+def test_from_scale_scales_each_bone() -> None:
+    base = BodyDimensions.default()
+    d = BodyDimensions.from_scale({"left_knee": 1.2, "right_elbow": 0.8})
+    assert d.left_thigh == pytest.approx(1.2 * base.left_thigh)
+    assert d.right_upper_arm == pytest.approx(0.8 * base.right_upper_arm)
+    assert d.right_thigh == pytest.approx(base.right_thigh)
+    lengths = d.bone_lengths()
+    assert lengths["left_knee"] == pytest.approx(1.2 * base.bone_lengths()["left_knee"])
+    vec = np.full(len(BONES), 0.9)
+    assert BodyDimensions.from_scale(vec).height == pytest.approx(0.9 * base.height, rel=0.06)
+
+
+@pytest.mark.parametrize("scale", [{"left_knee": 1.3}, {"spine": 0.7}, {"head": float("nan")}])
+def test_from_scale_rejects_out_of_range(scale: dict[str, float]) -> None:
+    bone = next(iter(scale))
+    with pytest.raises(RetargetError, match=bone):
+        BodyDimensions.from_scale(scale)
+
+
+def test_from_scale_rejects_bad_vectors() -> None:
+    with pytest.raises(RetargetError, match="20"):
+        BodyDimensions.from_scale([1.0] * 5)
+    with pytest.raises(RetargetError, match="unknown bone"):
+        BodyDimensions.from_scale({"tail": 1.0})
+
+
+@pytest.mark.parametrize("change", [{"left_thigh": 3.0}, {"lumbar": float("nan")},
+                                    {"right_forearm": 0.01}, {"left_hip_offset": (0, 5, 0)}])
+def test_absurd_dimensions_are_rejected(change: dict[str, object]) -> None:
+    with pytest.raises(RetargetError, match=next(iter(change))):
+        BodyDimensions(**change)
+
+
+def test_fit_recovers_the_bones_of_a_known_body() -> None:
+    rng = np.random.default_rng(0)
+    truth = BodyDimensions.from_scale(rng.uniform(0.8, 1.2, len(BONES)))
+    h = Humanoid(truth)
+    motion = fk_motion(h, random_pose(h, rng, 240))
+    fitted = fit_dimensions(motion)
+    for name in ("lumbar", "thorax", "neck", "left_thigh", "right_shin", "left_upper_arm",
+                 "right_forearm", "left_hand", "right_foot", "left_clavicle"):
+        assert getattr(fitted, name) == pytest.approx(getattr(truth, name), abs=1e-4), name
+    # The pelvis triangle is recovered exactly (its orientation is the median
+    # lumbar posture, so compare frame-invariant quantities).
+    for side in ("left", "right"):
+        off = f"{side}_hip_offset"
+        assert np.linalg.norm(getattr(fitted, off)) == pytest.approx(
+            np.linalg.norm(getattr(truth, off)), abs=1e-4)
+    assert np.linalg.norm(np.subtract(fitted.left_hip_offset, fitted.right_hip_offset)) == \
+        pytest.approx(np.linalg.norm(np.subtract(truth.left_hip_offset, truth.right_hip_offset)),
+                      abs=1e-4)
+    want = truth.bone_lengths()
+    got = fitted.bone_lengths()
+    for bone in BONES:
+        if bone.endswith("toe"):  # the foot's pitch depends on the sole heights
+            continue
+        assert got[bone] == pytest.approx(want[bone], abs=1e-3), bone
+
+
+def test_fit_on_real_cmu_clip(shared_data) -> None:
+    motion = bvh.read(shared_data / "cmu/bvh/02_01.bvh")
+    h = fit_humanoid(motion)
+    canon = motion.to_canonical()
+    P = canon.positions
+    names = canon.skeleton.joint_names
+    knee, ankle = P[:, names.index("left_knee")], P[:, names.index("left_ankle")]
+    assert h.dims.left_shin == pytest.approx(np.median(np.linalg.norm(knee - ankle, axis=1)))
+    assert 1.4 < h.dims.height < 2.0
+    assert 40.0 < h.total_mass < 100.0
+    assert "fitted" in h.dims.notes[0]
+
+
+def test_fit_with_missing_keypoints_falls_back_and_says_so(shared_data) -> None:
+    canon = bvh.read(shared_data / "cmu/bvh/02_01.bvh").to_canonical()
+    keep = [k for k in canon.skeleton.joint_names if not k.endswith(("hand", "wrist"))]
+    sub = canon.skeleton.subset(keep, name="no_hands")
+    idx = [canon.skeleton.index(k) for k in sub.joint_names]
+    motion = Motion(canon.positions[:, idx], canon.fps, sub, "no_hands")
+    d = fit_dimensions(motion)
+    assert any("left_forearm" in n and "default adult" in n for n in d.notes)
+    assert 0.15 < d.left_forearm < 0.35
+
+
+def test_fit_requires_pelvis_and_hips(shared_data) -> None:
+    canon = bvh.read(shared_data / "cmu/bvh/02_01.bvh").to_canonical()
+    keep = [k for k in canon.skeleton.joint_names if k != "left_hip"]
+    sub = canon.skeleton.subset(keep)
+    motion = Motion(canon.positions[:, [canon.skeleton.index(k) for k in keep]], 120.0, sub)
+    with pytest.raises(RetargetError, match="left_hip"):
+        fit_dimensions(motion)
+
+
+def test_keypoints_refuse_nan(adult: Humanoid) -> None:
+    q = adult.default_qpos()
+    q[10] = np.nan
+    with pytest.raises(RetargetError, match="NaN"):
+        adult.keypoints(q)
+
+
+def test_scene_holds_several_people() -> None:
+    a = Humanoid()
+    b = Humanoid(BodyDimensions.from_scale(np.full(len(BONES), 0.85)))
+    scene = build_scene([a, b], ["p0", "p1"])
+    m = scene.model
+    assert m.nq == a.nq + b.nq and m.nu == a.model.nu + b.model.nu
+    assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "p1/left_hand") >= 0
+    assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor") >= 0
+    rng = np.random.default_rng(1)
+    qa, qb = random_pose(a, rng, 3), random_pose(b, rng, 3)
+    qb[:, 0] += 2.0
+    q = scene.combine_qpos([qa, qb])
+    d = mujoco.MjData(m)
+    d.qpos[:] = q[2]
+    mujoco.mj_kinematics(m, d)
+    np.testing.assert_allclose(d.site_xpos[scene.site_ids[0]], a.keypoints(qa[2]), atol=1e-9)
+    np.testing.assert_allclose(d.site_xpos[scene.site_ids[1]], b.keypoints(qb[2]), atol=1e-9)
+    assert q[:, scene.qpos_slices[1]].shape == (3, b.nq)
+    with pytest.raises(RetargetError, match="unique"):
+        build_scene([a, b], ["x", "x"])
