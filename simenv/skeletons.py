@@ -129,6 +129,32 @@ def cmu_canonical_map(joint_names: Sequence[str]) -> dict[str, str]:
     return result
 
 
+#: The CMU-31 layout of the cgspeed Motionbuilder-friendly BVH release (the
+#: most common CMU conversion), in file order.
+CMU31_JOINTS: tuple[str, ...] = (
+    "Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase",
+    "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase",
+    "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head",
+    "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "LeftFingerBase",
+    "LeftHandIndex1", "LThumb",
+    "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase",
+    "RightHandIndex1", "RThumb",
+)
+_CMU31_PARENTS = (-1, 0, 1, 2, 3, 4, 0, 6, 7, 8, 9, 0, 11, 12, 13, 14, 15, 13, 17, 18, 19, 20,
+                  21, 20, 13, 24, 25, 26, 27, 28, 27)
+
+
+@cache
+def cmu31_skeleton() -> Skeleton:
+    """CMU-31 (cgspeed Motionbuilder naming). The converter collapses the
+    thorax and wrist bones to zero length, so canonical ``neck`` is ``Neck1``
+    and ``hand`` is ``LeftHandIndex1`` (see :func:`cmu_canonical_map`'s users
+    in :mod:`simenv.io.bvh`, which record the remap as a quirk)."""
+    canonical = cmu_canonical_map(CMU31_JOINTS)
+    canonical.update(neck="Neck1", left_hand="LeftHandIndex1", right_hand="RightHandIndex1")
+    return Skeleton("cmu31", CMU31_JOINTS, _CMU31_PARENTS, canonical)
+
+
 #: Canonical map of the 43-joint Poser/Second-Life template used by the
 #: outworldz BVH release of CMU (e.g. the salsa pairs 60_xx/61_xx). ``lThigh``
 #: is the hip joint (``lButtock`` is a short pelvis bone), ``lShldr`` the
@@ -420,11 +446,8 @@ def _registry() -> dict[str, Callable[[], Skeleton]]:
         "nuitrack": nuitrack_skeleton,
         "h36m17": h36m_skeleton,
         "gesture9": gesture9_skeleton,
+        "cmu31": cmu31_skeleton,
     }
-    # The CMU section (maintained separately) may define a fixed CMU-31 layout.
-    cmu = globals().get("cmu31_skeleton")
-    if callable(cmu):
-        entries["cmu31"] = cmu
     return entries
 
 

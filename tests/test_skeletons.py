@@ -70,14 +70,15 @@ def test_registry_names_and_aliases() -> None:
         get_skeleton("openpose25")
 
 
-def test_cmu31_registered_when_defined() -> None:
-    import simenv.skeletons as sk
+def test_cmu31_matches_the_cmu_bvh_release(shared_data: Path) -> None:
+    import simenv
 
-    if callable(getattr(sk, "cmu31_skeleton", None)):
-        assert get_skeleton("cmu31").num_joints == 31
-    else:
-        with pytest.raises(SkeletonError):
-            get_skeleton("cmu31")
+    motion = simenv.load(shared_data / "cmu" / "bvh" / "02_01.bvh")
+    cmu = get_skeleton("CMU-31")
+    assert cmu.num_joints == 31
+    assert cmu.joint_names == motion.skeleton.joint_names
+    assert cmu.parents == motion.skeleton.parents
+    assert dict(cmu.canonical) == dict(motion.skeleton.canonical)
 
 
 def test_kinect_v2_order_is_a_permutation_of_the_sdk() -> None:
