@@ -1,0 +1,533 @@
+"""Body-level plausibility metrics on the retargeted MuJoCo humanoid(s).
+
+Where :mod:`simenv.plausibility.contact` looks at keypoints (joint centres),
+these metrics look at the body's collision geoms (capsules and boxes that
+stand for the skin) posed by a retargeted qpos trajectory
+(:func:`simenv.retarget.retarget`). World Z-up, floor = plane z = 0, metres
+internally, millimetres and degrees in the results.
+
+=================== ================================================= =============
+name                what                                              input
+=================== ================================================= =============
+body_penetration    lowest geom point below the floor                 RetargetResult
+body_floating       airborne geoms without a ballistic centre of mass RetargetResult
+joint_limits        hinge angles beyond the anatomical ranges         Motion / result
+self_penetration    depth between non-neighbouring geoms of one body  RetargetResult
+inter_penetration   depth between the geoms of two people             interaction result
+contact             key joint-pair distances (JPD) and their contacts interaction result
+=================== ================================================= =============
+
+Poses are computed once per trajectory (:func:`body_poses`: ``mj_kinematics``
+per frame, then every geometric quantity vectorised over frames). Each metric
+returns a :class:`~simenv.plausibility.timeline.MetricResult` with a per-frame
+timeline; thresholds are in
+:class:`~simenv.plausibility.body_thresholds.BodyThresholds`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from simenv.errors import MotionError, PhysicsError
+from simenv.humanoid import Humanoid
+from simenv.motion import Interaction, Motion
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
+from simenv.plausibility.contact import ballistic_residual
+from simenv.plausibility.timeline import MetricResult
+from simenv.retarget import InteractionRetargetResult, RetargetResult, retarget
+
+_PLANE, _HFIELD = int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD)
+_SPHERE, _CAPSULE = int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE)
+_ELLIPSOID, _CYLINDER = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID), int(mujoco.mjtGeom.mjGEOM_CYLINDER)
+_BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
+
+#: Key joint pairs (person A keypoint, person B keypoint) of an interaction:
+#: the handshake pair and the interaction-augmentation seed's A right hand -
+#: B spine, plus its mirror.
+DEFAULT_CONTACT_PAIRS: tuple[tuple[str, str], ...] = (
+    ("right_hand", "right_hand"),
+    ("right_hand", "spine"),
+    ("spine", "right_hand"),
+)
+
+
+# -- poses -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BodyPoses:
+    """World poses of every geom, body and site over a qpos trajectory.
+
+    Attributes:
+        geom_xpos: (T, G, 3) geom centres, metres.
+        geom_xmat: (T, G, 3, 3) geom orientations (columns = local axes).
+        site_xpos: (T, S, 3) site positions, metres.
+        xipos: (T, B, 3) body centres of mass, metres.
+        com: (T, 3) whole-model centre of mass, metres.
+    """
+
+    geom_xpos: np.ndarray
+    geom_xmat: np.ndarray
+    site_xpos: np.ndarray
+    xipos: np.ndarray
+    com: np.ndarray
+
+
+def check_qpos(model: mujoco.MjModel, qpos: np.ndarray, what: str = "qpos") -> np.ndarray:
+    """``qpos`` as a (T, nq) float64 array, or :class:`PhysicsError` naming the
+    first bad frame (NaN/inf) or the expected shape."""
+    q = np.asarray(qpos, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != model.nq or q.shape[0] == 0:
+        raise PhysicsError(f"{what} has shape {q.shape}; expected (T >= 1, {model.nq})",
+                           field=what)
+    bad = ~np.isfinite(q).all(axis=1)
+    if bad.any():
+        raise PhysicsError(f"{what} contains NaN/inf; refusing to pass it to MuJoCo",
+                           frame=int(np.flatnonzero(bad)[0]), field=what)
+    return q
+
+
+def body_poses(model: mujoco.MjModel, qpos: np.ndarray) -> BodyPoses:
+    """Forward kinematics (``mj_kinematics``) of every frame of ``qpos`` (T, nq)."""
+    q = check_qpos(model, qpos)
+    data = mujoco.MjData(model)
+    T = len(q)
+    gx = np.empty((T, model.ngeom, 3))
+    gm = np.empty((T, model.ngeom, 9))
+    sx = np.empty((T, model.nsite, 3))
+    xi = np.empty((T, model.nbody, 3))
+    for t in range(T):
+        data.qpos[:] = q[t]
+        mujoco.mj_kinematics(model, data)
+        gx[t], gm[t], sx[t], xi[t] = data.geom_xpos, data.geom_xmat, data.site_xpos, data.xipos
+    mass = model.body_mass
+    com = (xi * mass[None, :, None]).sum(axis=1) / mass.sum()
+    return BodyPoses(gx, gm.reshape(T, model.ngeom, 3, 3), sx, xi, com)
+
+
+def body_geoms(model: mujoco.MjModel) -> np.ndarray:
+    """Ids of the geoms attached to a moving body (not the world: floor, props)."""
+    return np.flatnonzero(model.geom_bodyid > 0)
+
+
+def geom_lowest_z(model: mujoco.MjModel, poses: BodyPoses, geoms: np.ndarray) -> np.ndarray:
+    """Exact height of the lowest point of each geom, (T, len(geoms)) metres.
+
+    With ``R`` the geom's orientation, ``u_i = R[2, i]`` the vertical component
+    of its local axis i and ``s`` its MuJoCo size: sphere ``z - s0``; capsule
+    ``z - |u_2| s1 - s0``; cylinder ``z - |u_2| s1 - s0 sqrt(1 - u_2^2)``; box
+    ``z - sum_i |u_i| s_i``; ellipsoid ``z - sqrt(sum_i (u_i s_i)^2)``; other
+    types (meshes) ``z - rbound`` (bounding sphere, conservative).
+    """
+    z = poses.geom_xpos[:, geoms, 2]
+    u = poses.geom_xmat[:, geoms, 2, :]  # (T, G, 3): z components of the local axes
+    size = model.geom_size[geoms]
+    kind = model.geom_type[geoms]
+    drop = np.broadcast_to(model.geom_rbound[geoms], z.shape).copy()
+    a2 = np.abs(u[..., 2])
+    drop[:, kind == _SPHERE] = size[kind == _SPHERE, 0]
+    for k, expr in (
+        (_CAPSULE, lambda s: a2 * s[:, 1] + s[:, 0]),
+        (_CYLINDER, lambda s: a2 * s[:, 1] + s[:, 0] * np.sqrt(np.maximum(1 - a2**2, 0))),
+        (_BOX, lambda s: (np.abs(u) * s[None]).sum(axis=-1)),
+        (_ELLIPSOID, lambda s: np.sqrt(((u * s[None]) ** 2).sum(axis=-1))),
+    ):
+        sel = kind == k
+        if sel.any():
+            drop[:, sel] = expr(size)[:, sel]
+    return z - drop
+
+
+def geom_support_points(model: mujoco.MjModel, poses: BodyPoses,
+                        geoms: np.ndarray) -> np.ndarray:
+    """Points of the geoms that can touch the floor, (T, P, 3) metres.
+
+    Boxes (the feet) give their 8 corners, so a flat sole yields a support
+    polygon; every other geom gives its lowest point (a capsule's lowest
+    end-cap point, a sphere's bottom).
+    """
+    T = poses.geom_xpos.shape[0]
+    pts = []
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
+                     dtype=float)
+    low = geom_lowest_z(model, poses, geoms)
+    for i, g in enumerate(geoms):
+        c, R, s = poses.geom_xpos[:, g], poses.geom_xmat[:, g], model.geom_size[g]
+        if model.geom_type[g] == _BOX:
+            pts.append(c[:, None] + np.einsum("tij,pj->tpi", R, signs * s))
+        elif model.geom_type[g] == _CAPSULE:
+            axis = R[:, :, 2]
+            end = c - np.sign(axis[:, 2:3]) * axis * s[1]
+            pts.append(np.concatenate([end[:, :2], low[:, i:i + 1]], axis=1)[:, None])
+        else:
+            pts.append(np.concatenate([c[:, :2], low[:, i:i + 1]], axis=1)[:, None])
+    return np.concatenate(pts, axis=1) if pts else np.zeros((T, 0, 3))
+
+
+# -- ground ----------------------------------------------------------------------
+
+
+def _lowest(result: RetargetResult) -> tuple[np.ndarray, BodyPoses]:
+    model = result.humanoid.model
+    poses = body_poses(model, result.qpos)
+    return geom_lowest_z(model, poses, body_geoms(model)).min(axis=1), poses
+
+
+def body_penetration(result: RetargetResult,
+                     thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Depth of the body's lowest geom point below the floor.
+
+    Timeline: ``max(0, -min_g z_low,g(t)) * 1000`` mm over every body geom
+    (:func:`geom_lowest_z`: exact for capsules and boxes), so a sinking foot,
+    knee or hand counts. Value: the maximum over frames; passes when at most
+    ``geom_penetration_max_mm``. Details: ``mean_mm`` (PhysDiff's
+    "penetrate", here on geoms instead of mesh vertices) and
+    ``frames_below_floor`` (fraction of frames deeper than 1 mm).
+    """
+    lowest, _ = _lowest(result)
+    depth = np.maximum(-lowest, 0.0) * 1000.0
+    return MetricResult.from_timeline(
+        "body_penetration", depth, float(depth.max()), "mm",
+        thresholds.geom_penetration_max_mm,
+        details={"mean_mm": float(depth.mean()), "frames_below_floor": float((depth > 1).mean())},
+    )
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of each run of True in a 1-D mask."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def body_floating(result: RetargetResult,
+                  thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Floating on geoms: airborne frames whose centre of mass does not fall.
+
+    A frame is airborne when every body geom is more than
+    ``geom_float_clearance_m`` above the floor (hands, knees and the back all
+    count as support: the geoms are the skin). Each maximal airborne run is
+    a jump when the true centre of mass (body masses of the model) follows a
+    free-fall parabola within ``ballistic_tolerance_m`` RMS
+    (:func:`simenv.plausibility.contact.ballistic_residual`), and floating
+    otherwise. Timeline: clearance (mm) of the lowest geom on floating frames,
+    0 elsewhere; value: its maximum; passes when no frame floats. Details:
+    ``airborne_fraction``, ``floating_fraction``, ``worst_residual_m``,
+    ``jumps``. Assumes the floor is the only support.
+    """
+    thr = thresholds.geom_float_clearance_m * 1000.0
+    T = result.num_frames
+    if T < 3:
+        return MetricResult.not_available(
+            "body_floating", T, "mm", thr,
+            f"needs at least 3 frames to tell a jump from floating; the motion has {T}")
+    lowest, poses = _lowest(result)
+    airborne = lowest > thresholds.geom_float_clearance_m
+    floating_mask = np.zeros(T, dtype=bool)
+    worst, jumps = 0.0, 0
+    for start, stop in _runs(airborne):
+        residual = ballistic_residual(poses.com[start:stop, 2], result.fps,
+                                      thresholds.gravity_mps2)
+        worst = max(worst, residual)
+        if residual > thresholds.ballistic_tolerance_m:
+            floating_mask[start:stop] = True
+        else:
+            jumps += 1
+    timeline = np.where(floating_mask, lowest * 1000.0, 0.0)
+    return MetricResult.from_timeline(
+        "body_floating", timeline, float(timeline.max()), "mm", thr,
+        details={"airborne_fraction": float(airborne.mean()),
+                 "floating_fraction": float(floating_mask.mean()),
+                 "worst_residual_m": worst, "jumps": float(jumps)},
+    )
+
+
+# -- joint limits ----------------------------------------------------------------
+
+
+def relaxed_humanoid(humanoid: Humanoid, margin_deg: float) -> Humanoid:
+    """A copy of ``humanoid`` whose hinge ranges in ``model.jnt_range`` are
+    widened by ``margin_deg`` on both sides (for probing what a motion
+    demands); its :attr:`Humanoid.joint_limits` keep the anatomical ranges."""
+    wide = Humanoid(humanoid.dims, name=humanoid.name)
+    hinges = np.flatnonzero(wide.model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
+    margin = np.deg2rad(margin_deg)
+    wide.model.jnt_range[hinges, 0] -= margin
+    wide.model.jnt_range[hinges, 1] += margin
+    return wide
+
+
+def joint_limit_excess(humanoid: Humanoid, qpos: np.ndarray) -> np.ndarray:
+    """Per-frame excess of each hinge beyond its anatomical range.
+
+    Args:
+        humanoid: gives the ranges (:attr:`Humanoid.joint_limits`) and layout.
+        qpos: (T, nq) configurations.
+
+    Returns:
+        (T, H) degrees, 0 inside the range, in :attr:`Humanoid.joint_names` order.
+    """
+    q = check_qpos(humanoid.model, qpos)[:, humanoid.hinge_qpos]
+    lo, hi = humanoid.joint_limits[:, 0], humanoid.joint_limits[:, 1]
+    return np.rad2deg(np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0))
+
+
+def observed_hinges(humanoid: Humanoid, keypoints: Sequence[str]) -> np.ndarray:
+    """(H,) bool: hinges that move at least one of ``keypoints``' sites.
+
+    The others (the toes: no keypoint sits beyond the metatarsophalangeal
+    joint) get their angle from the retargeting's regulariser and floor
+    constraint only, not from the motion, so their limits say nothing
+    about it.
+    """
+    m = humanoid.model
+    sites = [s for k, s in zip(humanoid.keypoint_names, humanoid.site_ids, strict=True)
+             if k in keypoints]
+    moved = np.zeros(m.nbody, dtype=bool)
+    for b in m.site_bodyid[sites]:
+        while b > 0:
+            moved[b] = True
+            b = m.body_parentid[b]
+    hinges = np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
+    return moved[m.jnt_bodyid[hinges]]
+
+
+def joint_limits(source: Motion | RetargetResult,
+                 thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Anatomical joint-angle violations.
+
+    A trajectory from :func:`simenv.retarget.retarget` respects the limits by
+    construction (the solver projects onto them), so for a :class:`Motion`
+    this metric first retargets it onto :func:`relaxed_humanoid` (ranges
+    widened by ``joint_limit_probe_deg``): where the motion can only be
+    reached beyond a limit, the fit goes there. A :class:`RetargetResult` is
+    measured as it is (qpos from a relaxed fit, a policy or a generator).
+
+    Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`)
+    over the hinges the motion's keypoints observe (:func:`observed_hinges`).
+    Value: its maximum over frames; passes when at most
+    ``joint_limit_max_deg``. Details: ``frames_over`` (fraction of frames
+    with an excess above 1 degree), ``joints_over`` (hinges that exceed the
+    threshold anywhere), ``mean_deg``.
+    """
+    if isinstance(source, Motion):
+        fitted = retarget(source)
+        source = retarget(source, humanoid=relaxed_humanoid(
+            fitted.humanoid, thresholds.joint_limit_probe_deg))
+    excess = joint_limit_excess(source.humanoid, source.qpos)
+    excess = excess[:, observed_hinges(source.humanoid, source.keypoint_names)]
+    timeline = excess.max(axis=1)
+    thr = thresholds.joint_limit_max_deg
+    return MetricResult.from_timeline(
+        "joint_limits", timeline, float(timeline.max()), "deg", thr,
+        details={"frames_over": float((timeline > 1.0).mean()),
+                 "joints_over": float((excess.max(axis=0) > thr).sum()),
+                 "mean_deg": float(timeline.mean())},
+    )
+
+
+# -- penetration between geoms ---------------------------------------------------
+
+
+def contact_depths(model: mujoco.MjModel, qpos: np.ndarray,
+                   keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Deepest geom-geom penetration per frame among the selected geom pairs.
+
+    Runs ``mj_kinematics`` and ``mj_collision`` on every frame; MuJoCo's own
+    filters apply (contype/conaffinity, parent-child pairs, the model's
+    ``<exclude>`` pairs).
+
+    Args:
+        model: the model.
+        qpos: (T, nq).
+        keep: (ngeom, ngeom) bool, which geom pairs count.
+
+    Returns:
+        depth (T,) metres (0 without contact) and pair (T, 2) int geom ids of
+        the deepest counted contact (-1 without contact).
+    """
+    q = check_qpos(model, qpos)
+    data = mujoco.MjData(model)
+    depth = np.zeros(len(q))
+    pair = np.full((len(q), 2), -1)
+    for t in range(len(q)):
+        data.qpos[:] = q[t]
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        n = data.ncon
+        if n == 0:
+            continue
+        g = data.contact.geom[:n]
+        ok = keep[g[:, 0], g[:, 1]]
+        if not ok.any():
+            continue
+        d = -data.contact.dist[:n]
+        d[~ok] = -np.inf
+        i = int(np.argmax(d))
+        if d[i] > 0:
+            depth[t], pair[t] = d[i], g[i]
+    return depth, pair
+
+
+def _penetration_result(name: str, depth: np.ndarray, pair: np.ndarray, thr: float
+                        ) -> MetricResult:
+    mm = depth * 1000.0
+    return MetricResult.from_timeline(
+        name, mm, float(mm.max()), "mm", thr,
+        details={"mean_mm": float(mm.mean()), "frames_over": float((mm > thr).mean()),
+                 "frames_touching": float((pair[:, 0] >= 0).mean())},
+    )
+
+
+def self_penetration(result: RetargetResult,
+                     thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Penetration between non-neighbouring geoms of one retargeted body.
+
+    Pairs of bodies at tree distance 1 (parent-child, filtered by MuJoCo) and
+    2 (siblings, grandparents: excluded by :mod:`simenv.humanoid`) overlap at
+    the joints by construction and are not counted; everything else (an arm
+    in the torso, a hand in the head, thigh in thigh) is. Timeline: deepest
+    penetration (mm) per frame (``mj_collision`` contact distance); value:
+    its maximum; passes when at most ``self_penetration_max_mm``. Details:
+    ``mean_mm``, ``frames_over`` (fraction above the threshold),
+    ``frames_touching`` (any counted contact). See :func:`self_contact_pairs`
+    for the geom names per frame.
+    """
+    model = result.humanoid.model
+    body = model.geom_bodyid > 0
+    depth, pair = contact_depths(model, result.qpos, body[:, None] & body[None, :])
+    return _penetration_result("self_penetration", depth, pair,
+                               thresholds.self_penetration_max_mm)
+
+
+def self_contact_pairs(result: RetargetResult) -> list[tuple[int, str, str, float]]:
+    """Every frame with a self-contact: ``(frame, geom a, geom b, depth mm)``
+    of its deepest pair (for reports naming the parts)."""
+    model = result.humanoid.model
+    body = model.geom_bodyid > 0
+    depth, pair = contact_depths(model, result.qpos, body[:, None] & body[None, :])
+    return [(t, model.geom(int(a)).name, model.geom(int(b)).name, float(d * 1000))
+            for t, ((a, b), d) in enumerate(zip(pair, depth, strict=True)) if a >= 0]
+
+
+def inter_penetration(result: InteractionRetargetResult,
+                      thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Penetration between the geoms of two people of one scene.
+
+    A geom belongs to the person whose root body carries it
+    (``body_rootid``). Timeline: deepest penetration (mm) between geoms of
+    different people per frame; value: its maximum; passes when at most
+    ``inter_penetration_max_mm``. Details as :func:`self_penetration`
+    (``frames_touching``: the people's geoms touch).
+    """
+    model = result.scene.model
+    root = model.body_rootid[model.geom_bodyid]
+    person = np.where(model.geom_bodyid > 0, root, -1)
+    keep = (person[:, None] >= 0) & (person[None, :] >= 0) & (person[:, None] != person[None, :])
+    depth, pair = contact_depths(model, result.qpos, keep)
+    return _penetration_result("inter_penetration", depth, pair,
+                               thresholds.inter_penetration_max_mm)
+
+
+# -- interaction contacts ----------------------------------------------------------
+
+
+def _keypoint_tracks(names: Sequence[str], positions: np.ndarray,
+                     wanted: Sequence[str]) -> dict[str, np.ndarray]:
+    return {k: positions[:, list(names).index(k)] for k in wanted if k in names}
+
+
+def pair_distances(result: InteractionRetargetResult,
+                   pairs: Sequence[tuple[str, str]] = DEFAULT_CONTACT_PAIRS) -> np.ndarray:
+    """Distances between key joint pairs on the retargeted bodies.
+
+    Args:
+        result: two retargeted people in one scene.
+        pairs: (keypoint of person A, keypoint of person B), canonical names.
+
+    Returns:
+        (T, len(pairs)) metres, from the bodies' keypoint sites.
+    """
+    scene = result.scene
+    poses = body_poses(scene.model, result.qpos)
+    names = list(scene.humanoids[0].keypoint_names)
+    for a, b in pairs:
+        for k in (a, b):
+            if k not in names:
+                raise MotionError(f"contact pair ({a!r}, {b!r}): {k!r} is not a canonical "
+                                  f"keypoint; expected one of {', '.join(names)}", field=k)
+    sa = [scene.site_ids[0][names.index(a)] for a, _ in pairs]
+    sb = [scene.site_ids[1][names.index(b)] for _, b in pairs]
+    return np.linalg.norm(poses.site_xpos[:, sa] - poses.site_xpos[:, sb], axis=-1)
+
+
+def _reference_distances(reference: Interaction | InteractionRetargetResult,
+                         pairs: Sequence[tuple[str, str]], T: int) -> np.ndarray:
+    """(T, P) reference pair distances in metres; NaN where a keypoint is missing."""
+    if isinstance(reference, InteractionRetargetResult):
+        people = [(p.keypoint_names, p.targets) for p in reference.people]
+    else:
+        people = []
+        for m in reference.people:
+            canon = m.to_canonical()
+            people.append((canon.skeleton.joint_names, canon.positions))
+    for _, pos in people:
+        if len(pos) != T:
+            raise MotionError(f"reference has {len(pos)} frames; the scored interaction has "
+                              f"{T}: JPD compares frame by frame", field="reference")
+    out = np.full((T, len(pairs)), np.nan)
+    (na, pa), (nb, pb) = people
+    ta = _keypoint_tracks(na, pa, [a for a, _ in pairs])
+    tb = _keypoint_tracks(nb, pb, [b for _, b in pairs])
+    for i, (a, b) in enumerate(pairs):
+        if a in ta and b in tb:
+            out[:, i] = np.linalg.norm(ta[a].astype(float) - tb[b].astype(float), axis=-1)
+    return out
+
+
+def contact(result: InteractionRetargetResult,
+            reference: Interaction | InteractionRetargetResult | None = None,
+            pairs: Sequence[tuple[str, str]] = DEFAULT_CONTACT_PAIRS,
+            thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Key joint-pair distance error (JPD) and contact retention.
+
+    For each pair (A keypoint, B keypoint) -- by default A right hand - B right
+    hand (handshake), A right hand - B spine (the interaction-augmentation
+    seed's pair) and its mirror -- the distance ``d_p(t)`` on the retargeted
+    bodies is compared with the reference distance ``r_p(t)``: the keypoints
+    the bodies were fitted to (default), or another interaction of the same
+    length (e.g. the ground truth of a generated one).
+
+    Timeline: ``mean_p |d_p(t) - r_p(t)| * 1000`` mm (pairs missing in the
+    reference are skipped); value: its mean over frames (JPD); passes when at
+    most ``jpd_max_mm``. Details per pair ``i``: ``retention_i``, the fraction
+    of reference contact frames (``r_p < contact_distance_m``) on which the
+    bodies are in contact too (1 when the reference never touches),
+    ``min_mm_i`` (closest approach on the bodies) and ``reference_contact_i``
+    (fraction of frames in contact in the reference).
+    """
+    thr = thresholds.jpd_max_mm
+    T = result.qpos.shape[0]
+    d = pair_distances(result, pairs)
+    r = _reference_distances(reference if reference is not None else result, pairs, T)
+    have = ~np.isnan(r[0])
+    if not have.any():
+        return MetricResult.not_available(
+            "contact", T, "mm", thr, "the reference has none of the key joint pairs "
+            f"{list(pairs)}")
+    err = np.abs(d[:, have] - r[:, have]) * 1000.0
+    timeline = err.mean(axis=1)
+    details: dict[str, float] = {}
+    cd = thresholds.contact_distance_m
+    for i in np.flatnonzero(have):
+        ref_contact = r[:, i] < cd
+        kept = (d[:, i] < cd) & ref_contact
+        details[f"retention_{i}"] = float(kept.sum() / ref_contact.sum()) if ref_contact.any() \
+            else 1.0
+        details[f"min_mm_{i}"] = float(d[:, i].min() * 1000.0)
+        details[f"reference_contact_{i}"] = float(ref_contact.mean())
+    return MetricResult.from_timeline("contact", timeline, float(timeline.mean()), "mm", thr,
+                                      details=details)

@@ -1,0 +1,145 @@
+"""Named, documented, configurable thresholds of the body-level metrics.
+
+The body-level metrics (:mod:`simenv.plausibility.body`,
+:mod:`simenv.plausibility.dynamics`, :mod:`simenv.plausibility.tracking`)
+judge the retargeted MuJoCo humanoid rather than the keypoints. Each default
+states its source: a published metric, a physical bound, or the calibration
+on real CMU motion capture (``benchmarks/calibrate_body.py`` runs every
+metric on every real single-person clip; its table is quoted below).
+Override any of them with :func:`dataclasses.replace`::
+
+    from dataclasses import replace
+    strict = replace(BodyThresholds(), root_force_mean_max=0.05)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from simenv.errors import SimenvError
+
+
+@dataclass(frozen=True)
+class BodyThresholds:
+    """Thresholds of the body-level plausibility metrics (SI units).
+
+    Geoms against the floor (plane z = 0)
+        geom_penetration_max_mm: 30. Largest allowed depth of the lowest
+            point of any body geom below the floor. Soft tissue and shoe
+            soles compress by 1-2 cm under body weight, and the retargeting
+            lets the soles follow the data's own floor where the data sinks.
+            Calibrated: real CMU clips reach 0-27 mm (the deepest are
+            clips whose recorded toes dip below the floor).
+        geom_float_clearance_m: 0.04. A frame is airborne when the lowest
+            point of every geom is more than 4 cm above the floor. Real
+            planted soles of the retargeted body sit within 0-3 cm (the sole
+            height is fitted from the data's own lowest toe positions).
+        ballistic_tolerance_m: 0.03. An airborne run is a jump when the
+            body's true centre of mass (MuJoCo body masses) follows a
+            free-fall parabola within this RMS residual (as the keypoint-
+            level floating test, whose calibration this inherits).
+
+    Joint limits
+        joint_limit_probe_deg: 60. For the joint-limit metric a motion is
+            retargeted once more onto a copy of the body whose hinge ranges
+            are widened by this much on both sides, so the fit may leave the
+            anatomical range where the motion demands it; the violation is
+            measured against the anatomical range (AAOS normal ranges plus
+            margins, see :mod:`simenv.humanoid`).
+        joint_limit_max_deg: 10. Largest allowed excess of any hinge beyond
+            its anatomical range. Calibrated on real CMU clips (see the
+            module table).
+
+    Self- and inter-person penetration
+        self_penetration_max_mm: 30. Largest allowed penetration depth
+            between two non-neighbouring geoms of one body (bodies at tree
+            distance >= 3; neighbours overlap by construction). The geoms are
+            capsules and boxes, coarser than skin: a forearm resting on the
+            belly overlaps by 1-2 cm. Calibrated on real CMU clips.
+        inter_penetration_max_mm: 30. Same limit between geoms of two
+            people (the salsa and handshake clips touch but do not pierce).
+
+    Interaction contacts
+        contact_distance_m: 0.15. Two keypoints (e.g. the right hands in a
+            handshake) are *in contact* when their centres are closer than
+            this: hand keypoints sit at the knuckles, so clasped hands keep
+            them 5-12 cm apart.
+        jpd_max_mm: 50. Largest allowed mean error of the key joint-pair
+            distances against the reference (JPD of the interaction-
+            augmentation seed; 5 cm is about a hand's thickness).
+
+    Dynamics (inverse dynamics of the retargeted trajectory)
+        filter_cutoff_hz: 6. Velocities are low-pass filtered (4th-order
+            zero-phase Butterworth) before differentiation, the standard
+            cutoff for marker-based gait data (Winter, *Biomechanics and
+            Motor Control of Human Movement*, 4th ed., sec. 2.2.4.4).
+        friction: 1.0. Coulomb friction coefficient of the feet on the floor
+            (rubber soles on concrete 0.8-1.0; MuJoCo's default is 1).
+        support_height_m: 0.03. A geom point lower than this above the floor
+            may carry load (a contact candidate).
+        root_force_mean_max: 0.15. Largest allowed mean (over frames) of the
+            residual root force, as a fraction of body weight m g: the
+            "invisible help" the motion needs after the best feasible ground
+            reaction forces. Real walking needs (near) zero; a walk lifted
+            30 cm needs ~1. Calibrated on real CMU clips.
+        root_force_frame_max: 0.5. Per-frame limit (fraction of body weight)
+            for the residual's violation runs (landings of real jumps peak
+            briefly as the 6 Hz filter spreads the impact).
+        balance_accel_mps2: 0.5. A frame is quasi-static when the centre of
+            mass accelerates less than this (about 5 % of g).
+        balance_margin_mm: 50. Largest allowed distance of the centre of
+            mass ground projection outside the support polygon on
+            quasi-static frames (soft tissue and the shoe extend the support
+            beyond the box soles by a few centimetres).
+
+    Physics tracking
+        tracking_fail_m: 0.5. PHC's failure rule (Luo et al. 2023): the
+            simulation has failed once the mean distance between simulated
+            and reference keypoints exceeds 0.5 m.
+        tracking_max_seconds: 20. Longest stretch simulated per clip.
+        assist_kp: 2000. Gain of the optional root assistance (N/m per kg of
+            body mass is ``assist_kp / 70``): a PD spring on the root that
+            pulls it to the reference; the force it applies is the measured
+            help.
+    """
+
+    geom_penetration_max_mm: float = 30.0
+    geom_float_clearance_m: float = 0.05
+    ballistic_tolerance_m: float = 0.03
+
+    joint_limit_probe_deg: float = 60.0
+    joint_limit_max_deg: float = 10.0
+
+    self_penetration_max_mm: float = 30.0
+    inter_penetration_max_mm: float = 30.0
+
+    contact_distance_m: float = 0.15
+    jpd_max_mm: float = 50.0
+
+    filter_cutoff_hz: float = 6.0
+    friction: float = 1.0
+    support_height_m: float = 0.05
+    root_force_mean_max: float = 0.15
+    root_force_frame_max: float = 0.5
+    balance_accel_mps2: float = 0.5
+    balance_margin_mm: float = 50.0
+
+    tracking_fail_m: float = 0.5
+    tracking_max_seconds: float = 20.0
+    assist_kp: float = 2000.0
+
+    gravity_mps2: float = 9.81
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or not value > 0 or value != value:
+                raise SimenvError(
+                    f"threshold {f.name} must be a positive number; got {value!r}",
+                    field=f.name,
+                )
+            object.__setattr__(self, f.name, float(value))
+
+
+#: The defaults, shared by every body-level metric when no thresholds are passed.
+DEFAULT_BODY_THRESHOLDS = BodyThresholds()

@@ -1,0 +1,303 @@
+"""Dynamic plausibility of a retargeted trajectory: inverse dynamics and balance.
+
+Root residual ("invisible help")
+    The retargeted qpos trajectory is differentiated (:func:`finite_differences`)
+    and ``mj_inverse`` (constraints disabled) gives the generalized force
+    ``tau = M(q) qdd + c(q, qd) - tau_passive`` that would produce it. The six
+    entries of the free joint are the net external wrench the body needs:
+    force ``F`` and torque ``N`` about the root. Only the floor may provide it,
+    through contact forces at the geom points near the floor
+    (:func:`simenv.plausibility.body.geom_support_points`), each inside a
+    linearised friction cone (4-edge pyramid, unilateral). The best such
+    forces are found by non-negative least squares per frame::
+
+        min_{lambda >= 0} || A lambda - [F; N / L] ||,
+        A = [e_k ; (p_i - x_root) x e_k / L]   for support point i, edge k
+
+    (``L`` = the body's hip height, so torque and force rows weigh alike).
+    What remains is the residual wrench no floor contact can explain; its
+    force, divided by the body weight ``m g``, is the timeline. A real walk
+    needs almost none; a walk lifted 30 cm needs about one body weight all the
+    time (nothing touches the floor), which is the "residual force" of
+    residual-force control (Yuan & Kitani 2020) that a simulated character
+    would need to perform the motion.
+
+Balance
+    On quasi-static frames (centre-of-mass acceleration below
+    ``balance_accel_mps2``) the ground projection of the centre of mass must
+    lie inside the support polygon (convex hull of the support points); the
+    timeline is its distance outside the polygon in millimetres.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.optimize import nnls
+from scipy.signal import butter, filtfilt
+from scipy.spatial import ConvexHull, QhullError
+
+from simenv.errors import PhysicsError
+from simenv.plausibility.body import (
+    BodyPoses,
+    body_geoms,
+    body_poses,
+    check_qpos,
+    geom_support_points,
+)
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
+from simenv.plausibility.timeline import MetricResult
+from simenv.retarget import RetargetResult
+
+
+def lowpass(x: np.ndarray, fps: float, cutoff_hz: float) -> np.ndarray:
+    """Zero-phase 4th-order Butterworth low-pass along axis 0.
+
+    Returned unchanged when the cutoff is at or above 0.9 x Nyquist (nothing
+    to remove) or the signal is too short for ``filtfilt``'s padding.
+    """
+    nyq = fps / 2.0
+    if cutoff_hz >= 0.9 * nyq or len(x) <= 15:
+        return x
+    b, a = butter(4, cutoff_hz / nyq)
+    return filtfilt(b, a, x, axis=0)
+
+
+def finite_differences(model: mujoco.MjModel, qpos: np.ndarray, fps: float,
+                       cutoff_hz: float = DEFAULT_BODY_THRESHOLDS.filter_cutoff_hz
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Generalized velocities and accelerations of a qpos trajectory.
+
+    ``qvel_t`` is the central difference ``mj_differentiatePos(q_{t-1},
+    q_{t+1}) / (2 dt)`` (one-sided at the ends), which handles the free
+    joint's quaternion (its angular velocity is in the body frame). ``qvel``
+    is low-pass filtered (:func:`lowpass`, ``cutoff_hz``) and ``qacc`` is its
+    central difference: body-frame angular velocity differentiates to
+    body-frame angular acceleration (``omega x omega = 0``), so every
+    coordinate is differentiated alike.
+
+    Args:
+        model: the model of ``qpos``.
+        qpos: (T, nq), T >= 2.
+        fps: frames per second.
+
+    Returns:
+        qvel, qacc: (T, nv) float64 in MuJoCo's conventions (m/s, rad/s;
+        m/s^2, rad/s^2).
+    """
+    q = check_qpos(model, qpos)
+    T = len(q)
+    if T < 2:
+        raise PhysicsError(f"velocities need at least 2 frames; got {T}", field="qpos")
+    dt = 1.0 / fps
+    qvel = np.empty((T, model.nv))
+    v = np.empty(model.nv)
+    for t in range(T):
+        a, b = max(t - 1, 0), min(t + 1, T - 1)
+        mujoco.mj_differentiatePos(model, v, (b - a) * dt, q[a], q[b])
+        qvel[t] = v
+    qvel = lowpass(qvel, fps, cutoff_hz)
+    return qvel, np.gradient(qvel, dt, axis=0)
+
+
+def inverse_dynamics(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray,
+                     qacc: np.ndarray) -> np.ndarray:
+    """``mj_inverse`` of every frame with all constraints (contacts, limits)
+    disabled: the generalized force (T, nv) that produces ``qacc`` from
+    gravity, inertia and passive forces alone (N for the free joint's
+    translation, world frame; N m for its rotation, body frame)."""
+    m = copy.deepcopy(model)
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    d = mujoco.MjData(m)
+    out = np.empty_like(qvel)
+    for t in range(len(qpos)):
+        d.qpos[:], d.qvel[:], d.qacc[:] = qpos[t], qvel[t], qacc[t]
+        mujoco.mj_inverse(m, d)
+        out[t] = d.qfrc_inverse
+    bad = ~np.isfinite(out).all(axis=1)
+    if bad.any():
+        raise PhysicsError("inverse dynamics produced NaN/inf (degenerate configuration)",
+                           frame=int(np.flatnonzero(bad)[0]))
+    return out
+
+
+def _pyramid(friction: float) -> np.ndarray:
+    """(4, 3) unit edges of the linearised friction cone (normal +z)."""
+    e = np.array([[friction, 0, 1], [-friction, 0, 1], [0, friction, 1], [0, -friction, 1]])
+    return e / np.linalg.norm(e, axis=1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class RootResidual:
+    """Per-frame residual root wrench after the best floor contact forces.
+
+    Attributes:
+        force: (T,) residual force, fraction of body weight ``m g``.
+        torque: (T,) residual torque about the root, N m divided by ``m g``
+            (metres: the lever arm at which body weight makes that torque).
+        required: (T,) the whole external force the motion needs, fraction of
+            body weight (1 when standing still).
+        support_points: (T,) number of geom points near enough to the floor
+            to carry load.
+        com_accel: (T, 3) centre-of-mass acceleration, m/s^2 (filtered).
+        poses: the forward kinematics used.
+    """
+
+    force: np.ndarray
+    torque: np.ndarray
+    required: np.ndarray
+    support_points: np.ndarray
+    com_accel: np.ndarray
+    poses: BodyPoses
+
+
+def root_residual_wrench(result: RetargetResult,
+                         thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> RootResidual:
+    """The root's residual wrench per frame (see the module docstring)."""
+    h = result.humanoid
+    model = h.model
+    q = check_qpos(model, result.qpos)
+    qvel, qacc = finite_differences(model, q, result.fps, thresholds.filter_cutoff_hz)
+    tau = inverse_dynamics(model, q, qvel, qacc)
+    poses = body_poses(model, q)
+    weight = h.total_mass * thresholds.gravity_mps2
+    lever = h.dims.hip_height
+    quat = q[:, 3:7]
+    rot = np.empty((len(q), 9))
+    for t in range(len(q)):
+        mujoco.mju_quat2Mat(rot[t], quat[t])
+    rot = rot.reshape(-1, 3, 3)
+    force = tau[:, 0:3]
+    torque = np.einsum("tij,tj->ti", rot, tau[:, 3:6])
+    wrench = np.concatenate([force, torque / lever], axis=1)
+    points = geom_support_points(model, poses, body_geoms(model))
+    root = q[:, 0:3]  # free-joint origin = pelvis frame origin, about which tau acts
+    edges = _pyramid(thresholds.friction)
+    res_f = np.empty(len(q))
+    res_t = np.empty(len(q))
+    count = np.empty(len(q), dtype=int)
+    for t in range(len(q)):
+        p = points[t][points[t, :, 2] < thresholds.support_height_m]
+        count[t] = len(p)
+        if len(p) == 0:
+            r = wrench[t]
+        else:
+            arm = p - root[t]
+            cols_f = np.tile(edges, (len(p), 1))
+            cols_t = np.cross(np.repeat(arm, len(edges), axis=0), cols_f) / lever
+            A = np.concatenate([cols_f, cols_t], axis=1).T
+            lam, _ = nnls(A, wrench[t], maxiter=200)
+            r = wrench[t] - A @ lam
+        res_f[t] = np.linalg.norm(r[:3]) / weight
+        res_t[t] = np.linalg.norm(r[3:]) * lever / weight
+    com_acc = np.gradient(np.gradient(lowpass(poses.com, result.fps,
+                                              thresholds.filter_cutoff_hz),
+                                      1 / result.fps, axis=0), 1 / result.fps, axis=0)
+    return RootResidual(res_f, res_t, np.linalg.norm(force, axis=1) / weight, count,
+                        com_acc, poses)
+
+
+def root_residual(result: RetargetResult,
+                  thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Residual root force: the help from nowhere the motion needs.
+
+    Timeline: residual force per frame as a fraction of body weight
+    (:func:`root_residual_wrench`); value: its mean over frames; passes when
+    at most ``root_force_mean_max``; violation runs above
+    ``root_force_frame_max``. Details: ``p95``, ``max``, ``torque_mean_m`` and
+    ``torque_p95_m`` (residual torque / body weight, metres),
+    ``required_mean`` (mean total external force needed, body weights) and
+    ``unsupported_fraction`` (frames without any geom near the floor).
+    Needs 3 frames.
+    """
+    thr = thresholds.root_force_mean_max
+    T = result.num_frames
+    if T < 3:
+        return MetricResult.not_available(
+            "root_residual", T, "body weight", thr,
+            f"needs at least 3 frames for accelerations; the motion has {T}",
+            frame_threshold=thresholds.root_force_frame_max)
+    rr = root_residual_wrench(result, thresholds)
+    f = rr.force
+    return MetricResult.from_timeline(
+        "root_residual", f, float(f.mean()), "body weight", thr,
+        frame_threshold=thresholds.root_force_frame_max,
+        details={"p95": float(np.percentile(f, 95)), "max": float(f.max()),
+                 "torque_mean_m": float(rr.torque.mean()),
+                 "torque_p95_m": float(np.percentile(rr.torque, 95)),
+                 "required_mean": float(rr.required.mean()),
+                 "unsupported_fraction": float((rr.support_points == 0).mean())},
+    )
+
+
+def distance_outside(point: np.ndarray, support: np.ndarray) -> float:
+    """Distance (same unit) of a 2-D ``point`` outside the convex hull of
+    ``support`` (N, 2); 0 inside. Degenerate hulls (1 point, collinear
+    points) are a point or a segment."""
+    pts = np.unique(np.round(support, 6), axis=0)
+    if len(pts) >= 3:
+        try:
+            hull = ConvexHull(pts)
+        except QhullError:
+            hull = None
+        if hull is not None:
+            if np.all(hull.equations[:, :2] @ point + hull.equations[:, 2] <= 1e-9):
+                return 0.0
+            poly = pts[hull.vertices]
+            segs = zip(poly, np.roll(poly, -1, axis=0), strict=True)
+            return min(_point_segment(point, a, b) for a, b in segs)
+    if len(pts) == 1:
+        return float(np.linalg.norm(point - pts[0]))
+    # Collinear: the segment between the two extreme points.
+    d = pts - pts.mean(axis=0)
+    axis = np.linalg.svd(d, full_matrices=False)[2][0]
+    s = d @ axis
+    return _point_segment(point, pts[np.argmin(s)], pts[np.argmax(s)])
+
+
+def _point_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    s = np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-18), 0.0, 1.0)
+    return float(np.linalg.norm(p - (a + s * ab)))
+
+
+def balance(result: RetargetResult,
+            thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+    """Static balance: centre of mass over the support polygon when quasi-static.
+
+    A frame is judged when its centre-of-mass acceleration (6 Hz filtered,
+    second difference) is below ``balance_accel_mps2`` and some geom point
+    is within ``support_height_m`` of the floor. Timeline: distance (mm) of
+    the centre of mass ground projection outside the convex hull of those
+    points (:func:`distance_outside`), NaN on frames not judged; value: its
+    maximum over judged frames (0 when none); passes when at most
+    ``balance_margin_mm``. Details: ``judged_fraction``, ``outside_fraction``
+    (judged frames with the centre of mass outside by more than the margin).
+    """
+    thr = thresholds.balance_margin_mm
+    T = result.num_frames
+    if T < 3:
+        return MetricResult.not_available(
+            "balance", T, "mm", thr, f"needs at least 3 frames for accelerations; got {T}")
+    model = result.humanoid.model
+    poses = body_poses(model, result.qpos)
+    com = lowpass(poses.com, result.fps, thresholds.filter_cutoff_hz)
+    dt = 1.0 / result.fps
+    acc = np.linalg.norm(np.gradient(np.gradient(com, dt, axis=0), dt, axis=0), axis=1)
+    points = geom_support_points(model, poses, body_geoms(model))
+    timeline = np.full(T, np.nan)
+    for t in np.flatnonzero(acc < thresholds.balance_accel_mps2):
+        p = points[t][points[t, :, 2] < thresholds.support_height_m]
+        if len(p):
+            timeline[t] = distance_outside(poses.com[t, :2], p[:, :2]) * 1000.0
+    judged = ~np.isnan(timeline)
+    value = float(np.nanmax(timeline)) if judged.any() else 0.0
+    return MetricResult.from_timeline(
+        "balance", timeline, value, "mm", thr,
+        details={"judged_fraction": float(judged.mean()),
+                 "outside_fraction": float((timeline[judged] > thr).mean())
+                 if judged.any() else 0.0},
+    )
