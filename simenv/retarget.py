@@ -74,8 +74,8 @@ class RetargetOptions:
 
     iterations: int = 12
     reg: float = 1e-5
-    smooth: float = 2e-4
-    floor_weight: float = 1000.0
+    smooth: float = 2e-5
+    floor_weight: float = 100.0
     max_step: float = 0.5
     tol: float = 2e-3
     accept: float = 1e-4
