@@ -97,10 +97,12 @@ class BodyThresholds:
             simulation has failed once the mean distance between simulated
             and reference keypoints exceeds 0.5 m.
         tracking_max_seconds: 20. Longest stretch simulated per clip.
-        assist_kp: 2000. Gain of the optional root assistance (N/m per kg of
-            body mass is ``assist_kp / 70``): a PD spring on the root that
-            pulls it to the reference; the force it applies is the measured
-            help.
+        assist_timeconst_s: 0.02. Time constant of the optional root
+            assistance: a critically damped soft weld (MuJoCo equality
+            constraint, ``solref = (0.02, 1)``) between the pelvis and a
+            mocap body that follows the reference root; its constraint force
+            is the measured help. 20 ms is MuJoCo's default constraint time
+            constant, stable at the 2 ms timestep.
     """
 
     geom_penetration_max_mm: float = 30.0
@@ -126,7 +128,7 @@ class BodyThresholds:
 
     tracking_fail_m: float = 0.5
     tracking_max_seconds: float = 20.0
-    assist_kp: float = 2000.0
+    assist_timeconst_s: float = 0.02
 
     gravity_mps2: float = 9.81
 

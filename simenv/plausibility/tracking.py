@@ -1,0 +1,259 @@
+"""Physics tracking: can a simulated body perform the retargeted motion?
+
+The humanoid's own position actuators (one PD servo per hinge, torque
+``kp (q_ref - q) - kv qd`` with the gains and force limits of
+:data:`simenv.humanoid.JOINTS`) follow the retargeted hinge angles in forward
+simulation (``mj_step``, the model's 2 ms implicit-fast integrator), starting
+from the first reference pose and velocity. No learning, no feed-forward
+torques: this is the baseline a learned tracker (PHC, ProtoMotions) improves
+on. The root is free, so the body must balance with its feet alone, or
+optionally (``assist=True``) a soft weld to a mocap body that follows the
+reference root ("hand of god") pulls it along, and the weld's force is
+measured. Caveat, measured: MuJoCo's constraints are soft, so a static load
+is shared between the weld and the floor contacts by their compliance (a
+body standing still in its rest pose puts ~0.5 body weight on the weld); the
+assisted force therefore compares clips, it is not the minimal help -- that
+is :func:`simenv.plausibility.dynamics.root_residual`.
+
+Per reference frame the simulated keypoints (the body's keypoint sites) are
+compared with the reference body's keypoints:
+
+* body error ``e_t = mean_k |x_sim,k(t) - x_ref,k(t)|`` (metres);
+* failure (PHC, Luo et al. 2023): the first frame with ``e_t > 0.5 m``; the
+  simulation stops there and ``time_to_failure_s`` is its time;
+* global MPJPE: mean of ``e_t`` over the tracked frames, millimetres;
+* acceleration error (PHC's "Acc"): mean over tracked frames and keypoints of
+  ``|a_sim - a_ref|`` with ``a`` the second difference of keypoint positions,
+  mm/frame^2.
+
+Blow-ups never raise: a non-finite state, an acceleration beyond
+:data:`MAX_QACC` or a MuJoCo warning (bad qacc, constraint arena overflow)
+stops the simulation, marks the result failed and records a
+:class:`~simenv.errors.PhysicsError` message naming the frame.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from simenv.errors import PhysicsError
+from simenv.humanoid import Humanoid
+from simenv.plausibility.body import check_qpos
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
+from simenv.plausibility.dynamics import finite_differences
+from simenv.plausibility.timeline import MetricResult
+from simenv.retarget import RetargetResult
+
+#: Largest generalized acceleration accepted from the simulator (rad/s^2 or
+#: m/s^2); beyond it the state is taken as diverged.
+MAX_QACC = 1e6
+
+_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_CNSTRFULL,
+             mujoco.mjtWarning.mjWARN_CONTACTFULL)
+
+
+@dataclass(frozen=True)
+class TrackingResult:
+    """Outcome of one tracking simulation.
+
+    Attributes:
+        success: the body error stayed within the failure distance over the
+            whole simulated stretch and nothing diverged.
+        frames_tracked: reference frames reached before stopping.
+        time_to_failure_s: time of the failing frame, or the simulated
+            duration on success.
+        simulated_s: duration of the reference stretch attempted.
+        body_error: (T,) metres per reference frame, NaN after the stop.
+        mpjpe_mm: mean body error over the tracked frames, mm.
+        accel_error: mean keypoint acceleration error, mm/frame^2 (NaN below
+            3 tracked frames).
+        assisted: whether the root assistance was on.
+        assist_force: (T,) root assistance force per frame as a fraction of
+            body weight (zeros without assistance), NaN after the stop.
+        error: PhysicsError message when the simulation diverged, else None.
+        steps: simulator steps taken. wall_s: wall time, seconds.
+        sim_keypoints: (T, K, 3) simulated keypoints, NaN after the stop.
+    """
+
+    success: bool
+    frames_tracked: int
+    time_to_failure_s: float
+    simulated_s: float
+    body_error: np.ndarray
+    mpjpe_mm: float
+    accel_error: float
+    assisted: bool
+    assist_force: np.ndarray
+    error: str | None
+    steps: int
+    wall_s: float
+    sim_keypoints: np.ndarray
+
+
+def _diverged(model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
+    for w in _WARNINGS:
+        if data.warning[w].number > 0:
+            return f"MuJoCo warning {mujoco.mjtWarning(w).name}"
+    if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
+        return "non-finite state"
+    peak = float(np.abs(data.qacc).max()) if model.nv else 0.0
+    if not np.isfinite(peak) or peak > MAX_QACC:
+        return f"generalized acceleration {peak:.3g} beyond {MAX_QACC:.0e}"
+    return None
+
+
+def _assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
+    """The humanoid plus a mocap body welded to the pelvis by a soft
+    equality constraint (MuJoCo's implicit, stable "hand of god"): moving the
+    mocap body along the reference root pulls the body along, and the weld's
+    constraint force is the help. Time constant ``assist_timeconst_s``,
+    critically damped."""
+    spec = h.spec.copy()
+    target = spec.worldbody.add_body()
+    target.name = "assist_target"
+    target.mocap = True
+    target.pos = [0.0, 0.0, h.dims.hip_height]
+    weld = spec.add_equality()
+    weld.type = mujoco.mjtEq.mjEQ_WELD
+    weld.objtype = mujoco.mjtObj.mjOBJ_BODY
+    weld.name1, weld.name2 = "assist_target", "pelvis"
+    weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
+    weld.solref = [thresholds.assist_timeconst_s, 1.0]
+    return spec.compile()
+
+
+def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
+          assist: bool = False, max_seconds: float | None = None) -> TrackingResult:
+    """PD-track ``result.qpos`` in forward simulation (see the module docstring).
+
+    Args:
+        result: the retargeted reference trajectory (T >= 2 frames).
+        thresholds: failure distance, assistance gain, default length cap.
+        assist: add the root assistance spring and measure its force.
+        max_seconds: simulate at most this much of the clip (default
+            ``thresholds.tracking_max_seconds``).
+    """
+    h = result.humanoid
+    model = _assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
+    ref = check_qpos(model, result.qpos)
+    T = len(ref)
+    if T < 2:
+        raise PhysicsError(f"tracking needs at least 2 frames; got {T}", field="qpos")
+    fps = float(result.fps)
+    limit = thresholds.tracking_max_seconds if max_seconds is None else float(max_seconds)
+    n_frames = min(T, int(np.floor(limit * fps)) + 1)
+    ref_kp = h.keypoints(ref[:n_frames])
+    qvel_ref, _ = finite_differences(model, ref[:n_frames], fps, thresholds.filter_cutoff_hz)
+    act_qpos = model.jnt_qposadr[model.actuator_trnid[:, 0]]
+    act_dof = model.jnt_dofadr[model.actuator_trnid[:, 0]]
+    # A position actuator applies kp (ctrl - q) - kv qd; offsetting ctrl by
+    # (kv / kp) qd_ref turns that into kp (q_ref - q) + kv (qd_ref - qd), a PD
+    # on the velocity error instead of a brake on all motion.
+    ratio = -model.actuator_biasprm[:, 2] / model.actuator_gainprm[:, 0]
+    ctrl_ref = ref[:n_frames, act_qpos] + ratio * qvel_ref[:, act_dof]
+    dt = model.opt.timestep
+    frame_step = np.round(np.arange(n_frames) / fps / dt).astype(int)
+
+    data = mujoco.MjData(model)
+    data.qpos[:] = ref[0]
+    data.qvel[:] = qvel_ref[0]
+    mujoco.mj_forward(model, data)
+    weight = h.total_mass * thresholds.gravity_mps2
+    weld_rows = None
+
+    kp_sim = np.full((n_frames, len(h.site_ids), 3), np.nan)
+    kp_sim[0] = data.site_xpos[h.site_ids]
+    body_err = np.full(T, np.nan)
+    body_err[0] = np.linalg.norm(kp_sim[0] - ref_kp[0], axis=-1).mean()
+    assist_f = np.full(T, np.nan)
+    assist_f[0] = 0.0
+    error: str | None = None
+    failed_at: int | None = None
+    steps = 0
+    wall = time.perf_counter()
+    for k in range(1, n_frames):
+        force_sum, n_sub = 0.0, 0
+        for s in range(frame_step[k - 1], frame_step[k]):
+            alpha = float(np.clip(s * dt * fps - (k - 1), 0.0, 1.0))
+            target = ctrl_ref[k - 1] + alpha * (ctrl_ref[k] - ctrl_ref[k - 1])
+            data.ctrl[:] = target
+            if assist:
+                data.mocap_pos[0] = ref[k - 1, :3] + alpha * (ref[k, :3] - ref[k - 1, :3])
+                data.mocap_quat[0] = ref[k, 3:7]
+            mujoco.mj_step(model, data)
+            steps += 1
+            if assist:
+                weld_rows = data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+                force_sum += float(np.linalg.norm(data.efc_force[:data.nefc][weld_rows][:3]))
+                n_sub += 1
+        reason = _diverged(model, data)
+        if reason is not None:
+            error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
+                                     source=result.name))
+            failed_at = k
+            break
+        kp_sim[k] = data.site_xpos[h.site_ids]
+        body_err[k] = np.linalg.norm(kp_sim[k] - ref_kp[k], axis=-1).mean()
+        assist_f[k] = force_sum / max(n_sub, 1) / weight
+        if body_err[k] > thresholds.tracking_fail_m:
+            failed_at = k
+            break
+    wall = time.perf_counter() - wall
+    tracked = n_frames if failed_at is None else failed_at + (0 if error else 1)
+    ok = failed_at is None
+    sim_pos = kp_sim[:tracked]
+    if tracked >= 3:
+        acc_s = sim_pos[2:] - 2 * sim_pos[1:-1] + sim_pos[:-2]
+        acc_r = ref_kp[2:tracked] - 2 * ref_kp[1:tracked - 1] + ref_kp[:tracked - 2]
+        acc_err = float(np.linalg.norm(acc_s - acc_r, axis=-1).mean() * 1000.0)
+    else:
+        acc_err = float("nan")
+    full = np.full((T, len(h.site_ids), 3), np.nan)
+    full[:n_frames] = kp_sim
+    return TrackingResult(
+        success=ok,
+        frames_tracked=int(tracked),
+        time_to_failure_s=(n_frames - 1) / fps if ok else failed_at / fps,
+        simulated_s=(n_frames - 1) / fps,
+        body_error=body_err,
+        mpjpe_mm=float(np.nanmean(body_err[:tracked]) * 1000.0),
+        accel_error=acc_err,
+        assisted=assist,
+        assist_force=assist_f,
+        error=error,
+        steps=steps,
+        wall_s=wall,
+        sim_keypoints=full,
+    )
+
+
+def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
+             assist: bool = False, max_seconds: float | None = None) -> MetricResult:
+    """Physics tracking as a metric (:func:`track`).
+
+    Timeline: body error per frame (m), NaN after the simulation stopped.
+    Value: the largest body error reached (inf when the simulation
+    diverged); passes when at most ``tracking_fail_m`` (PHC's success rule),
+    i.e. the body tracked the whole simulated stretch. Details: ``success``
+    (0/1), ``time_to_failure_s``, ``tracked_fraction`` (of the simulated
+    stretch), ``simulated_s``, ``mpjpe_mm``, ``accel_error_mm_per_frame2``,
+    ``assist_force_mean`` (body weights; 0 without assistance), ``diverged``
+    (0/1) and ``steps_per_s`` (simulator throughput).
+    """
+    tr = track(result, thresholds, assist=assist, max_seconds=max_seconds)
+    value = float("inf") if tr.error else float(np.nanmax(tr.body_error))
+    n_sim = int(round(tr.simulated_s * result.fps)) + 1
+    return MetricResult.from_timeline(
+        "tracking", tr.body_error, value, "m", thresholds.tracking_fail_m,
+        details={"success": float(tr.success), "time_to_failure_s": tr.time_to_failure_s,
+                 "tracked_fraction": tr.frames_tracked / n_sim, "simulated_s": tr.simulated_s,
+                 "mpjpe_mm": tr.mpjpe_mm, "accel_error_mm_per_frame2": tr.accel_error,
+                 "assist_force_mean": float(np.nanmean(tr.assist_force)),
+                 "diverged": float(tr.error is not None),
+                 "steps_per_s": tr.steps / max(tr.wall_s, 1e-9)},
+    )
