@@ -1,0 +1,566 @@
+"""The gesture vocabulary shared with the room, and the gesture dataset builder.
+
+Vocabulary
+----------
+One label set for every gesture source (MSR Action3D, UTKinect-Action3D, Florence 3D;
+see ``shared/data/gestures/SOURCES.md``). Every dataset class maps to exactly one label
+(:data:`SOURCE_CLASSES`); nothing is dropped. Classes the room has no reason to tell apart
+(sports moves, drawing in the air, pushing a cart) are pooled as ``other``.
+
+============= ================================================================== =========
+label         dataset classes                                                     room
+============= ================================================================== =========
+wave          MSR high arm wave, horizontal arm wave, two hand wave;             greet
+              UTKinect waveHands; Florence wave
+answer_phone  Florence answer phone                                               hifi_down
+bow           Florence bow                                                        bow_back
+clap          MSR hand clap; UTKinect clapHands; Florence clap                    keep
+drink         Florence drink                                                      keep
+read_watch    Florence read watch                                                 keep
+sit_down      UTKinect sitDown; Florence sit down                                 keep
+stand_up      UTKinect standUp; Florence stand up                                 keep
+bend_down     MSR bend; UTKinect pickUp; Florence tight lace (the trunk folds     keep
+              toward the floor, hands near the feet)
+walk          UTKinect walk, carry                                                keep
+other         MSR hammer, hand catch, forward punch, high throw, draw x, draw     keep
+              tick, draw circle, side-boxing, forward kick, side kick, jogging,
+              tennis swing, tennis serve, golf swing, pick up & throw;
+              UTKinect throw, push, pull
+============= ================================================================== =========
+
+The room column is :data:`ROOM_REACTIONS` (issue 4): ``greet`` = stop idling, face the
+user and wave back; ``hifi_down`` = turn the hi-fi down; ``bow_back`` = nod/bow back;
+``keep`` = keep working.
+
+Dataset builder
+---------------
+1. **Load** every recording: MSR files (one clip each; the all-zero ``a13_s09_e02`` is
+   skipped and listed), UTKinect sessions cut into their labelled segments
+   (``metadata["segments"]``; the NaN ``s10_e02 carry`` is absent), Florence videos.
+   The readers give world-frame (Z-up, metres, floor at 0) motions.
+2. **Joints.** From the canonical keypoints of each skeleton to a joint set measured by
+   all three datasets: ``gesture15`` (default; the thesis's 9 upper-body joints of
+   :func:`simenv.skeletons.gesture9_skeleton` plus hips, knees and ankles, which sitting,
+   standing, bending and walking need) or ``gesture9``. Both are rooted at ``spine``
+   (Kinect v1 ``Spine``, OpenNI ``Torso``), with the hips as children of the spine.
+3. **Resample** to 25 fps (linear, :meth:`simenv.motion.Motion.resample`).
+4. **Windows** of 3 s = 75 frames. *Cropping*: a longer clip gives its centre 75 frames
+   (``crop="centre"``, evaluation), its first 75 (``"start"``) or a seeded random 75
+   (``"random"``, training). *Padding*: a shorter clip is padded at the end by holding
+   its last pose, and the padded frames are marked invalid in ``valid`` (the classifier
+   masks them out of temporal attention and pooling, so padding carries no signal).
+   ``real_frames=k`` keeps only the first ``k`` frames as real (the thesis's "1 s of
+   real motion": ``k = 25``); the rest is padded by the same rule.
+5. **Normalise** each window from its own first :data:`NORM_FRAMES` valid frames (so a
+   window made of 1 s real + 2 s predicted is normalised by its real part only):
+   translate so the mean ``spine`` there is the origin; turn about Z so the person faces
+   +X (forward = Z x (right shoulder - left shoulder), left = +Y); scale so the mean of
+   shoulder width, upper-arm and forearm lengths is :data:`REFERENCE_SIZE_M`. Positions
+   stay roughly metres of a reference adult. Vertical (Z) motion of the root is kept
+   (sitting down lowers the spine).
+6. **Subjects.** A subject is ``"<dataset>/s<id>"`` (subject 1 of MSR is not subject 1
+   of UTKinect). :func:`split_cross_subject`: odd subject ids train, even ids test, in
+   every dataset (MSR's usual protocol; MSR s10 is held out of the corpus, so its test
+   side has s02, s04, s06, s08). No subject is in both.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from simenv.errors import MotionError, SimenvError, SkeletonError
+from simenv.motion import Motion, Skeleton
+from simenv.skeletons import GESTURE9_JOINTS, gesture9_skeleton
+
+#: Gesture label -> what it means.
+VOCABULARY: dict[str, str] = {
+    "wave": "waving hello with one or both arms",
+    "answer_phone": "bringing a phone to the ear",
+    "bow": "bowing the trunk forward as a greeting",
+    "clap": "clapping the hands",
+    "drink": "bringing a cup or bottle to the mouth",
+    "read_watch": "looking at a wrist watch",
+    "sit_down": "sitting down on a chair",
+    "stand_up": "standing up from a chair",
+    "bend_down": "folding the trunk toward the floor (pick up, tie a lace)",
+    "walk": "walking (possibly carrying something)",
+    "other": "any other action (sports moves, drawing in the air, pushing, throwing)",
+}
+
+#: Class order of the classifier (index = class id).
+GESTURE_LABELS: tuple[str, ...] = tuple(VOCABULARY)
+
+#: What the room's agent does for each label (issue 4); labels not listed: ``keep``.
+ROOM_REACTIONS: dict[str, str] = {"wave": "greet", "answer_phone": "hifi_down",
+                                  "bow": "bow_back"}
+
+#: Dataset keys, as in the ``dataset`` column of ``gestures/index.csv``.
+DATASETS: tuple[str, ...] = ("msr_action3d", "utkinect", "florence3d")
+
+#: (dataset, class name as the dataset spells it) -> gesture label.
+SOURCE_CLASSES: dict[tuple[str, str], str] = {
+    ("msr_action3d", "high arm wave"): "wave",
+    ("msr_action3d", "horizontal arm wave"): "wave",
+    ("msr_action3d", "two hand wave"): "wave",
+    ("msr_action3d", "hand clap"): "clap",
+    ("msr_action3d", "bend"): "bend_down",
+    **{("msr_action3d", c): "other" for c in (
+        "hammer", "hand catch", "forward punch", "high throw", "draw x", "draw tick",
+        "draw circle", "side-boxing", "forward kick", "side kick", "jogging", "tennis swing",
+        "tennis serve", "golf swing", "pick up & throw")},
+    ("utkinect", "waveHands"): "wave",
+    ("utkinect", "clapHands"): "clap",
+    ("utkinect", "sitDown"): "sit_down",
+    ("utkinect", "standUp"): "stand_up",
+    ("utkinect", "pickUp"): "bend_down",
+    ("utkinect", "walk"): "walk",
+    ("utkinect", "carry"): "walk",
+    ("utkinect", "throw"): "other",
+    ("utkinect", "push"): "other",
+    ("utkinect", "pull"): "other",
+    ("florence3d", "wave"): "wave",
+    ("florence3d", "answer phone"): "answer_phone",
+    ("florence3d", "bow"): "bow",
+    ("florence3d", "clap"): "clap",
+    ("florence3d", "drink"): "drink",
+    ("florence3d", "read watch"): "read_watch",
+    ("florence3d", "sit down"): "sit_down",
+    ("florence3d", "stand up"): "stand_up",
+    ("florence3d", "tight lace"): "bend_down",
+}
+
+#: Frame rate of every gesture window, frames/s.
+GESTURE_FPS = 25.0
+#: Window length: 3 s at 25 fps.
+WINDOW_FRAMES = 75
+#: Frames of real motion in the thesis's short condition: 1 s at 25 fps.
+SHORT_FRAMES = 25
+#: Leading valid frames a window's normalisation is computed from (0.4 s).
+NORM_FRAMES = 10
+#: Mean of shoulder width, upper-arm and forearm lengths after normalisation, metres
+#: (typical adult: 0.34, 0.28 and 0.25 m; Kinect joint centres give ~0.27-0.30).
+REFERENCE_SIZE_M = 0.28
+
+#: Joints of ``gesture15``: gesture9 plus the legs. Parents: spine is the root; the hips
+#: hang from the spine (Florence has no pelvis joint).
+GESTURE15_JOINTS: tuple[str, ...] = GESTURE9_JOINTS + (
+    "left_hip", "left_knee", "left_ankle", "right_hip", "right_knee", "right_ankle",
+)
+_GESTURE15_PARENTS = (-1, 0, 1, 1, 3, 4, 1, 6, 7, 0, 9, 10, 0, 12, 13)
+
+JointSet = Literal["gesture15", "gesture9"]
+Crop = Literal["centre", "start", "random"]
+
+#: Left/right joint pairs by name, for mirroring.
+_MIRROR = {"left_shoulder": "right_shoulder", "left_elbow": "right_elbow",
+           "left_wrist": "right_wrist", "left_hip": "right_hip", "left_knee": "right_knee",
+           "left_ankle": "right_ankle"}
+
+
+def gesture_label(dataset: str, class_name: str) -> str:
+    """Gesture label of a dataset class (see the module table).
+
+    Raises:
+        SimenvError: the (dataset, class) pair is not in :data:`SOURCE_CLASSES`.
+    """
+    key = (dataset, class_name.strip())
+    if key not in SOURCE_CLASSES:
+        known = sorted(c for d, c in SOURCE_CLASSES if d == dataset)
+        raise SimenvError(
+            f"class {class_name!r} of dataset {dataset!r} is not in the gesture vocabulary; "
+            f"known classes of {dataset!r}: {', '.join(known) or 'none (unknown dataset)'}",
+            field="class_name",
+        )
+    return SOURCE_CLASSES[key]
+
+
+def room_reaction(label: str) -> str:
+    """Reaction of the room's agent to a gesture label (``keep`` = keep working)."""
+    if label not in VOCABULARY:
+        raise SimenvError(
+            f"unknown gesture label {label!r}; expected one of {', '.join(GESTURE_LABELS)}",
+            field="label",
+        )
+    return ROOM_REACTIONS.get(label, "keep")
+
+
+def gesture_skeleton(joints: JointSet = "gesture15") -> Skeleton:
+    """The classifier's joint layout: ``gesture15`` (default) or ``gesture9``."""
+    if joints == "gesture9":
+        return gesture9_skeleton()
+    if joints == "gesture15":
+        return Skeleton("gesture15", GESTURE15_JOINTS, _GESTURE15_PARENTS,
+                        {k: k for k in GESTURE15_JOINTS})
+    raise SkeletonError(f"unknown gesture joint set {joints!r}; expected gesture15 or gesture9",
+                        field="joints")
+
+
+def to_gesture_joints(motion: Motion, joints: JointSet = "gesture15") -> np.ndarray:
+    """(T, J, 3) float32 positions of ``motion`` on the gesture joint set, metres.
+
+    Joints are found through the motion skeleton's canonical keypoint map.
+
+    Raises:
+        SkeletonError: the skeleton lacks one of the keypoints (all missing ones named).
+    """
+    names = gesture_skeleton(joints).joint_names
+    canon = motion.skeleton.canonical
+    missing = [k for k in names if k not in canon]
+    if missing:
+        raise SkeletonError(
+            f"skeleton {motion.skeleton.name!r} lacks canonical keypoint(s) "
+            f"{', '.join(missing)} needed by the {joints} gesture joints",
+            source=motion.metadata.get("source"),
+        )
+    idx = [motion.skeleton.index(canon[k]) for k in names]
+    return np.ascontiguousarray(motion.positions[:, idx], dtype=np.float32)
+
+
+# -- normalisation --------------------------------------------------------------------
+
+
+def _first_valid(valid: np.ndarray, n: int) -> np.ndarray:
+    """(N, T) bool: the first ``n`` valid frames of each row."""
+    return valid & (np.cumsum(valid, axis=1) <= n)
+
+
+def normalise_windows(
+    windows: np.ndarray, valid: np.ndarray | None = None, *,
+    joints: Sequence[str] = GESTURE15_JOINTS,
+) -> np.ndarray:
+    """Root-relative, facing- and scale-normalised copies of gesture windows.
+
+    See the module docstring (step 5) for the transform: ``x' = k R_z(-theta) (x - o)``,
+    with origin ``o``, heading ``theta`` and scale ``k = REFERENCE_SIZE_M / size``
+    measured on the first :data:`NORM_FRAMES` valid frames of each window.
+
+    Args:
+        windows: (N, T, J, 3) or (T, J, 3) positions, metres, Z up.
+        valid: (N, T) or (T,) bool, True for real frames; default all real.
+        joints: joint names of axis J (must include spine, shoulders, elbows, wrists).
+
+    Returns:
+        float32 array of the shape of ``windows``.
+
+    Raises:
+        MotionError: wrong shape, no valid frame, non-finite values, or a degenerate
+            pose (shoulders on top of each other) in a window.
+    """
+    x = np.asarray(windows, dtype=np.float64)
+    single = x.ndim == 3
+    if single:
+        x = x[None]
+    if x.ndim != 4 or x.shape[-1] != 3 or x.shape[2] != len(joints):
+        raise MotionError(
+            f"windows must have shape (N, T, {len(joints)}, 3); got {np.shape(windows)}",
+            field="windows",
+        )
+    v = np.ones(x.shape[:2], bool) if valid is None else np.asarray(valid, bool)
+    if single and valid is not None:
+        v = v[None]
+    if v.shape != x.shape[:2]:
+        raise MotionError(f"valid must have shape {x.shape[:2]}; got {v.shape}", field="valid")
+    empty = np.flatnonzero(~v.any(axis=1))
+    if empty.size:
+        raise MotionError(f"window {int(empty[0])} has no valid frame", field="valid")
+    bad = np.argwhere(~np.isfinite(x).all(axis=(2, 3)) & v)
+    if bad.size:
+        raise MotionError(f"window {int(bad[0, 0])} has a non-finite position",
+                          frame=int(bad[0, 1]), field="windows")
+    names = list(joints)
+    spine = names.index("spine")
+    ls, rs = names.index("left_shoulder"), names.index("right_shoulder")
+    le, re_ = names.index("left_elbow"), names.index("right_elbow")
+    lw, rw = names.index("left_wrist"), names.index("right_wrist")
+
+    ref = _first_valid(v, NORM_FRAMES)[..., None]  # (N, T, 1)
+    cnt = ref.sum(axis=1)  # (N, 1)
+
+    def ref_mean(a: np.ndarray) -> np.ndarray:
+        return (a * ref[..., None] if a.ndim == 4 else a * ref).sum(axis=1) / cnt
+
+    origin = ref_mean(x[:, :, spine])  # (N, 3)
+    across = ref_mean(x[:, :, rs] - x[:, :, ls])  # left -> right shoulder
+    norm_h = np.hypot(across[:, 0], across[:, 1])
+    flat = np.flatnonzero(norm_h < 1e-4)
+    if flat.size:
+        raise MotionError(
+            f"window {int(flat[0])}: shoulders have no horizontal separation; cannot tell "
+            "which way the person faces",
+            field="windows",
+        )
+    # forward = Z x across = (-across_y, across_x); rotate it onto +X.
+    theta = np.arctan2(across[:, 0], -across[:, 1])
+    c, s = np.cos(-theta), np.sin(-theta)
+    rot = np.zeros((len(x), 3, 3))
+    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1] = c, -s, s, c
+    rot[:, 2, 2] = 1.0
+
+    def length(a: int, b: int) -> np.ndarray:
+        return np.linalg.norm(x[:, :, a] - x[:, :, b], axis=-1)
+
+    size = ref_mean(np.mean([length(ls, rs), length(ls, le), length(rs, re_),
+                             length(le, lw), length(re_, rw)], axis=0)[..., None])[:, 0]
+    tiny = np.flatnonzero(size < 1e-3)
+    if tiny.size:
+        raise MotionError(f"window {int(tiny[0])}: arm bones of zero length", field="windows")
+    k = (REFERENCE_SIZE_M / size)[:, None, None, None]
+    out = np.einsum("nij,ntkj->ntki", rot, x - origin[:, None, None, :]) * k
+    out = out.astype(np.float32)
+    return out[0] if single else out
+
+
+def mirror_windows(windows: np.ndarray, joints: Sequence[str] = GESTURE15_JOINTS
+                   ) -> np.ndarray:
+    """Left-right mirror image of normalised windows (Y negated, left/right joints
+    swapped): a left-handed wave from a right-handed one. Shape kept, (..., J, 3)."""
+    names = list(joints)
+    perm = list(range(len(names)))
+    for a, b in _MIRROR.items():
+        if a in names and b in names:
+            perm[names.index(a)], perm[names.index(b)] = names.index(b), names.index(a)
+    out = np.array(windows, dtype=np.float32)[..., perm, :]
+    out[..., 1] *= -1
+    return out
+
+
+# -- clips ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class GestureClip:
+    """One labelled gesture recording on the gesture joints.
+
+    Attributes:
+        positions: (T, J, 3) float32, metres, world frame Z up, :data:`GESTURE_FPS`.
+        label: gesture label (:data:`GESTURE_LABELS`).
+        source_label: the dataset's own class name.
+        dataset: dataset key (:data:`DATASETS`).
+        subject: the dataset's subject id.
+        name: clip name (file stem, session + segment, or Florence video).
+    """
+
+    positions: np.ndarray
+    label: str
+    source_label: str
+    dataset: str
+    subject: int
+    name: str
+
+    @property
+    def subject_key(self) -> str:
+        """Subject id unique across datasets, e.g. ``"utkinect/s03"``."""
+        return f"{self.dataset}/s{self.subject:02d}"
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.positions.shape[0])
+
+
+@dataclass
+class LoadReport:
+    """What :func:`load_gesture_clips` skipped, and why (one line per recording)."""
+
+    skipped: list[str] = field(default_factory=list)
+
+
+def _clip(motion: Motion, dataset: str, source_label: str, subject: int, name: str,
+          joints: JointSet) -> GestureClip:
+    sub = motion.with_positions(to_gesture_joints(motion, joints),
+                                skeleton=gesture_skeleton(joints))
+    if sub.num_frames >= 2:
+        sub = sub.resample(GESTURE_FPS)
+    return GestureClip(sub.positions, gesture_label(dataset, source_label), source_label,
+                       dataset, int(subject), name)
+
+
+def load_gesture_clips(
+    root: str | Path,
+    *,
+    datasets: Iterable[str] = DATASETS,
+    joints: JointSet = "gesture15",
+    report: LoadReport | None = None,
+) -> list[GestureClip]:
+    """Load the labelled gesture recordings under ``root`` (the ``gestures`` folder).
+
+    Args:
+        root: folder holding ``msr_action3d/``, ``utkinect/joints/`` and ``florence3d/``.
+        datasets: which of :data:`DATASETS` to load.
+        joints: gesture joint set.
+        report: if given, filled with the recordings that were skipped and why.
+
+    Returns:
+        Clips in a deterministic order (dataset, then file order).
+
+    Raises:
+        SimenvError: unknown dataset key, or no usable recording at all.
+    """
+    from simenv.io import florence3d, msr_action3d, utkinect
+
+    root = Path(root)
+    report = report if report is not None else LoadReport()
+    clips: list[GestureClip] = []
+    for ds in datasets:
+        if ds not in DATASETS:
+            raise SimenvError(f"unknown gesture dataset {ds!r}; expected one of "
+                              f"{', '.join(DATASETS)}", field="datasets")
+        if ds == "msr_action3d":
+            for path in sorted((root / "msr_action3d").glob("a*_s*_e*_skeleton3D.txt")):
+                try:
+                    m = msr_action3d.read(path)
+                except SimenvError as exc:
+                    report.skipped.append(f"{path.name}: {exc.detail}")
+                    continue
+                clips.append(_clip(m, ds, str(m.metadata["label"]), int(m.metadata["subject"]),
+                                   m.name, joints))
+        elif ds == "utkinect":
+            for path in sorted((root / "utkinect" / "joints").glob("joints_s*_e*.txt")):
+                session = utkinect.read(path)
+                report.skipped += [f"{path.name}: {q}" for q in session.metadata["quirks"]]
+                for seg in session.metadata["segments"]:
+                    start, end = int(seg["start"]), int(seg["end"])
+                    if end - start < 2:
+                        report.skipped.append(f"{path.name} {seg['label']}: {end - start} frame")
+                        continue
+                    clips.append(_clip(session.slice(start, end), ds, str(seg["label"]),
+                                       int(session.metadata["subject"]),
+                                       f"{session.name}_{seg['label']}", joints))
+        else:
+            mat = root / "florence3d" / "skeletal_data.mat"
+            if not mat.is_file():
+                continue
+            for m in florence3d.read(mat):
+                clips.append(_clip(m, ds, str(m.metadata["label"]), int(m.metadata["subject"]),
+                                   m.name, joints))
+    if not clips:
+        raise SimenvError(
+            f"no gesture recording found under {root} (expected msr_action3d/, "
+            "utkinect/joints/ or florence3d/skeletal_data.mat)",
+            source=root,
+        )
+    return clips
+
+
+def split_cross_subject(clips: Sequence[GestureClip]
+                        ) -> tuple[list[GestureClip], list[GestureClip]]:
+    """Cross-subject split: odd subject ids train, even ids test, in every dataset."""
+    train = [c for c in clips if c.subject % 2 == 1]
+    test = [c for c in clips if c.subject % 2 == 0]
+    return train, test
+
+
+# -- windows --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class GestureWindows:
+    """Fixed-length, normalised gesture windows ready for the classifier.
+
+    Attributes:
+        x: (N, T, J, 3) float32 normalised positions (see :func:`normalise_windows`).
+        valid: (N, T) bool, False on padded frames.
+        y: (N,) int64 class index into :data:`GESTURE_LABELS`.
+        subjects: (N,) subject keys (``"<dataset>/s<id>"``).
+        datasets: (N,) dataset keys.
+        names: (N,) clip names.
+        joints: joint names of axis J.
+    """
+
+    x: np.ndarray
+    valid: np.ndarray
+    y: np.ndarray
+    subjects: tuple[str, ...]
+    datasets: tuple[str, ...]
+    names: tuple[str, ...]
+    joints: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+    def take(self, idx: np.ndarray) -> GestureWindows:
+        """Windows at indices ``idx``."""
+        idx = np.asarray(idx)
+        return GestureWindows(self.x[idx], self.valid[idx], self.y[idx],
+                              tuple(self.subjects[i] for i in idx),
+                              tuple(self.datasets[i] for i in idx),
+                              tuple(self.names[i] for i in idx), self.joints)
+
+
+def cut_window(positions: np.ndarray, *, length: int = WINDOW_FRAMES, offset: int = 0,
+               real_frames: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Frames ``[offset, offset + length)`` of a clip, padded by holding the last real pose.
+
+    Args:
+        positions: (T, J, 3) clip.
+        length: window length, frames.
+        offset: first frame taken.
+        real_frames: keep at most this many frames real (the rest padded).
+
+    Returns:
+        ((length, J, 3) float32 window, (length,) bool valid mask).
+    """
+    seg = positions[offset:offset + length]
+    if real_frames is not None:
+        seg = seg[:real_frames]
+    if len(seg) == 0:
+        raise MotionError(f"window at frame {offset} of a {len(positions)}-frame clip is empty",
+                          frame=offset)
+    n = len(seg)
+    window = np.concatenate([seg, np.repeat(seg[-1:], length - n, axis=0)])
+    valid = np.arange(length) < n
+    return window.astype(np.float32), valid
+
+
+def make_windows(
+    clips: Sequence[GestureClip],
+    *,
+    crop: Crop = "centre",
+    length: int = WINDOW_FRAMES,
+    real_frames: int | None = None,
+    rng: np.random.Generator | None = None,
+    joints: Sequence[str] = GESTURE15_JOINTS,
+) -> GestureWindows:
+    """One normalised window per clip (rules in the module docstring, step 4).
+
+    Args:
+        clips: gesture clips (all on the joint set ``joints``).
+        crop: ``"centre"``, ``"start"`` or ``"random"`` (needs ``rng``).
+        length: window length, frames.
+        real_frames: if given, only the first ``real_frames`` frames of each window are real.
+        rng: random generator for ``crop="random"``.
+        joints: joint names of the clips.
+    """
+    if not clips:
+        raise SimenvError("no clips to cut windows from")
+    if crop == "random" and rng is None:
+        raise SimenvError("crop='random' needs a seeded rng", field="rng")
+    xs, vs = [], []
+    for clip in clips:
+        if clip.positions.shape[1] != len(joints):
+            raise SkeletonError(
+                f"clip {clip.name!r} has {clip.positions.shape[1]} joints; expected "
+                f"{len(joints)} ({', '.join(joints)})", field="joints")
+        spare = max(clip.num_frames - length, 0)
+        if crop == "centre":
+            offset = spare // 2
+        elif crop == "start":
+            offset = 0
+        elif crop == "random":
+            offset = int(rng.integers(0, spare + 1))
+        else:
+            raise SimenvError(f"unknown crop {crop!r}; expected centre, start or random",
+                              field="crop")
+        w, v = cut_window(clip.positions, length=length, offset=offset, real_frames=real_frames)
+        xs.append(w)
+        vs.append(v)
+    valid = np.stack(vs)
+    x = normalise_windows(np.stack(xs), valid, joints=joints)
+    y = np.array([GESTURE_LABELS.index(c.label) for c in clips], dtype=np.int64)
+    return GestureWindows(x, valid, y, tuple(c.subject_key for c in clips),
+                          tuple(c.dataset for c in clips), tuple(c.name for c in clips),
+                          tuple(joints))
