@@ -55,7 +55,8 @@ def run_demo(
         source = asset_path(asset)
         print(f"[{name}] loading bundled {asset}")
         clip = load(source)
-        print(f"[{name}] retargeting {describe(clip)['frames']} frames")
+        info = describe(clip)
+        print(f"[{name}] retargeting {info['frames']} frames ({info['people']} people)")
         result = retarget_clip(clip)
         entry = summary(result)
         npz = save_npz(result, out_dir / f"{name}.npz")
@@ -65,7 +66,7 @@ def run_demo(
                               width=width, height=height, progress=True)
         entry.update(
             asset=asset,
-            info=describe(clip),
+            info=info,
             npz=str(npz),
             video=str(video),
             render_stride=clip_stride,
