@@ -104,10 +104,12 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     # Glenohumeral (AAOS: flexion 180, extension 60, abduction 180, adduction
     # ~45 across the body, internal rotation 70, external rotation 90). The
     # third Euler angle is axial rotation only near neutral elevation; with the
-    # arm raised it absorbs the Codman coupling, hence its wider range.
+    # arm raised it absorbs the Codman coupling, hence its wider range. Angles
+    # are measured from the A-pose of :data:`ARM_TILT` (abduction -50..185 deg
+    # from the hanging arm becomes -84..151).
     "upper_arm": (
         JointSpec("flex", (0, -1, 0), (-65, 185), 200),
-        JointSpec("abd", (1, 0, 0), (-50, 185), 200),
+        JointSpec("abd", (1, 0, 0), (-84, 151), 200),
         JointSpec("rot", (0, 0, -1), (-150, 150), 100),
     ),
     # Elbow 0..150 flexion; forearm pronation 80 / supination 80.
@@ -354,6 +356,26 @@ def _foot_vector(d: BodyDimensions, side: str) -> np.ndarray:
     return np.array([np.sqrt(max(length**2 - drop**2, 0.0)), 0.0, -drop])
 
 
+#: The upper arm's frame is tilted about x by this angle (abducted, an A-pose
+#: at zero angles). Reason: a hinge triplet is singular when its middle angle
+#: is +-90 deg, i.e. when the arm points along the first hinge axis. Untilted,
+#: that is the arm held out sideways (T-pose, frequent in mocap); tilted, it is
+#: the arm raised 34 deg above horizontal sideways or held down across the
+#: body, the rarest arm directions in the CMU clips (0.1 % of frames within
+#: 25 deg, against 1.7 % for the T-pose direction).
+ARM_TILT = np.deg2rad(34.0)
+
+
+def _arm_rest_dir(side: str) -> np.ndarray:
+    sy = 1.0 if side == "left" else -1.0
+    return np.array([0.0, sy * np.sin(ARM_TILT), -np.cos(ARM_TILT)])
+
+
+def _arm_quat(side: str) -> list[float]:
+    a = ARM_TILT if side == "left" else -ARM_TILT
+    return [float(np.cos(a / 2)), float(np.sin(a / 2)), 0.0, 0.0]
+
+
 def _rest_keypoints(d: BodyDimensions) -> np.ndarray:
     kp: dict[str, np.ndarray] = {"pelvis": np.zeros(3)}
     kp["spine"] = np.array([0, 0, d.lumbar])
@@ -367,9 +389,10 @@ def _rest_keypoints(d: BodyDimensions) -> np.ndarray:
         kp[f"{s}_toe"] = kp[f"{s}_ankle"] + _foot_vector(d, s)
         pivot = kp["chest"] + [0, 0, d.clavicle_pivot]
         kp[f"{s}_shoulder"] = pivot + _clavicle_dir(s) * getattr(d, f"{s}_clavicle")
-        kp[f"{s}_elbow"] = kp[f"{s}_shoulder"] - [0, 0, getattr(d, f"{s}_upper_arm")]
-        kp[f"{s}_wrist"] = kp[f"{s}_elbow"] - [0, 0, getattr(d, f"{s}_forearm")]
-        kp[f"{s}_hand"] = kp[f"{s}_wrist"] - [0, 0, getattr(d, f"{s}_hand")]
+        arm = _arm_rest_dir(s)
+        kp[f"{s}_elbow"] = kp[f"{s}_shoulder"] + arm * getattr(d, f"{s}_upper_arm")
+        kp[f"{s}_wrist"] = kp[f"{s}_elbow"] + arm * getattr(d, f"{s}_forearm")
+        kp[f"{s}_hand"] = kp[f"{s}_wrist"] + arm * getattr(d, f"{s}_hand")
     return np.stack([kp[k] for k in CANONICAL_KEYPOINTS])
 
 
@@ -499,6 +522,7 @@ def _add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
                  f"{prefix}{s}_clavicle")
         _site(clav, f"{prefix}{s}_shoulder", _clavicle_dir(s) * cl)
         ua = body(clav, f"{s}_upper_arm", _clavicle_dir(s) * cl)
+        ua.quat = _arm_quat(s)
         _joints(ua, "upper_arm", s, prefix, actuated)
         lu = getattr(d, f"{s}_upper_arm")
         _capsule(ua, (0, 0, -0.05 * lu), (0, 0, -lu), 0.042 * g, f"{prefix}{s}_upper_arm")

@@ -303,7 +303,8 @@ def _swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
 _EVEN = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
 
-def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
+def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray, clip: bool = True,
+                  ) -> np.ndarray:
     """Hinge angles of body b reproducing R_local as well as its hinges can.
 
     Closed-form intrinsic Tait-Bryan decomposition R = R_i(a) R_j(b) R_k(c)
@@ -339,12 +340,24 @@ def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
         return np.sum(np.maximum(lo - x, 0) + np.maximum(x - hi, 0), axis=1)
 
     sol1, sol2 = wrap(sol1), wrap(sol2)
+    if n < 3:
+        # The dropped angles should vanish for a pose the joint can reach; the
+        # arcsine of the middle angle hides which branch has them vanish.
+        full1 = np.stack([first, mid, last], axis=1)[:, n:]
+        full2 = np.stack([first + np.pi, np.pi - mid, last + np.pi], axis=1)[:, n:]
+
+        def dropped(x: np.ndarray) -> np.ndarray:
+            return np.abs((x + np.pi) % (2 * np.pi) - np.pi).sum(axis=1)
+
+        score1 = violation(sol1) + dropped(full1)
+        score2 = violation(sol2) + dropped(full2)
+        sol1 = np.where((score2 < score1)[:, None], sol2, sol1)
     if n == 3:
         sols = np.stack([np.clip(sol1, lo, hi), np.clip(sol2, lo, hi)], axis=1)
         viol = np.stack([violation(sol1), violation(sol2)], axis=1)
         pick = _continuous_branch(sols, viol)
         return sols[np.arange(len(sols)), pick]
-    return np.clip(sol1, lo, hi)
+    return np.clip(sol1, lo, hi) if clip else sol1
 
 
 def _continuous_branch(sols: np.ndarray, viol: np.ndarray) -> np.ndarray:
@@ -406,6 +419,8 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
         p = tree.parent[b]
         Rp = Rb[:, p]
         x = xb[:, p] + Rp @ tree.body_offset[b]
+        if tree.body_has_rot[b]:  # the body's fixed frame rotation (e.g. the arm tilt)
+            Rp = Rp @ tree.body_quat_rot[b]
         name = names[b]
         side, _, part = name.partition("_") if name.startswith(("left_", "right_")) \
             else ("", "", name)
@@ -442,6 +457,25 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                     wgt = np.clip((strength - 0.02) / 0.1, 0, 1)[:, None]
                     cue = wgt * _unit(cue) + (1 - wgt) * (R @ w0)
                     R = _two_vector(v0, w0, u, cue)
+            elif ok and part == "forearm" and has(f"{pre}hand") \
+                    and np.linalg.norm(prob.site_offset[f"{pre}hand"]) > 0.01:
+                # Pronation puts the hand in the wrist's flexion plane (flexion
+                # axis = body x). The plane normal's sign is chosen over the
+                # whole clip (Viterbi) to keep pronation in range and continuous.
+                Rs = _swing(Rp, v0, u)
+                bend = np.cross(_unit(u), _unit(targets[f"{pre}hand"] - targets[child]))
+                wgt = np.clip((np.linalg.norm(bend, axis=1) - 0.05) / 0.2, 0, 1)[:, None]
+                ex = np.array([1.0, 0.0, 0.0])
+                cands = [_two_vector(v0, ex, u, wgt * sgn * _unit(bend) + (1 - wgt) * (Rs @ ex))
+                         for sgn in (1.0, -1.0)]
+                hs = tree.body_hinges[b]
+                raw = [_euler_angles(tree, b, np.swapaxes(Rp, -1, -2) @ c, clip=False)
+                       for c in cands]
+                lo, hi = tree.lower[hs], tree.upper[hs]
+                viol = np.stack([np.sum(np.maximum(lo - a, 0) + np.maximum(a - hi, 0), axis=1)
+                                 for a in raw], axis=1)
+                pick = _continuous_branch(np.stack([np.clip(a, lo, hi) for a in raw], 1), viol)
+                R = np.where((pick == 0)[:, None, None], cands[0], cands[1])
             elif ok:
                 R = _swing(Rp, v0, u)
         if len(tree.body_hinges[b]):
