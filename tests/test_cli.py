@@ -100,7 +100,9 @@ def test_retarget_json_and_npz(tmp_path: Path, capsys, shared_data: Path):
     summary = json.loads(stdout)  # exactly one JSON object on stdout
     assert set(summary) == SUMMARY_KEYS
     assert summary["people"] == 1 and summary["fps"] == 120 and summary["frames"] == 167
-    assert 0 < summary["mean_residual_m"] <= summary["p95_residual_m"] <= summary["max_residual_m"]
+    # (a heavy tail can put the mean above the 95th percentile; both stay below the max)
+    assert 0 < summary["p95_residual_m"] <= summary["max_residual_m"]
+    assert 0 < summary["mean_residual_m"] <= summary["max_residual_m"]
     assert summary["mean_residual_m"] < 0.05 and summary["seconds"] > 0
     with np.load(out) as npz:
         qpos = npz["qpos"]
