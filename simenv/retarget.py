@@ -303,8 +303,7 @@ def _swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
 _EVEN = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
 
 
-def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray, clip: bool = True,
-                  ) -> np.ndarray:
+def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
     """Hinge angles of body b reproducing R_local as well as its hinges can.
 
     Closed-form intrinsic Tait-Bryan decomposition R = R_i(a) R_j(b) R_k(c)
@@ -357,7 +356,7 @@ def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray, clip: bool = Tru
         viol = np.stack([violation(sol1), violation(sol2)], axis=1)
         pick = _continuous_branch(sols, viol)
         return sols[np.arange(len(sols)), pick]
-    return np.clip(sol1, lo, hi) if clip else sol1
+    return np.clip(sol1, lo, hi)
 
 
 def _continuous_branch(sols: np.ndarray, viol: np.ndarray) -> np.ndarray:
@@ -457,25 +456,6 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                     wgt = np.clip((strength - 0.02) / 0.1, 0, 1)[:, None]
                     cue = wgt * _unit(cue) + (1 - wgt) * (R @ w0)
                     R = _two_vector(v0, w0, u, cue)
-            elif ok and part == "forearm" and has(f"{pre}hand") \
-                    and np.linalg.norm(prob.site_offset[f"{pre}hand"]) > 0.01:
-                # Pronation puts the hand in the wrist's flexion plane (flexion
-                # axis = body x). The plane normal's sign is chosen over the
-                # whole clip (Viterbi) to keep pronation in range and continuous.
-                Rs = _swing(Rp, v0, u)
-                bend = np.cross(_unit(u), _unit(targets[f"{pre}hand"] - targets[child]))
-                wgt = np.clip((np.linalg.norm(bend, axis=1) - 0.05) / 0.2, 0, 1)[:, None]
-                ex = np.array([1.0, 0.0, 0.0])
-                cands = [_two_vector(v0, ex, u, wgt * sgn * _unit(bend) + (1 - wgt) * (Rs @ ex))
-                         for sgn in (1.0, -1.0)]
-                hs = tree.body_hinges[b]
-                raw = [_euler_angles(tree, b, np.swapaxes(Rp, -1, -2) @ c, clip=False)
-                       for c in cands]
-                lo, hi = tree.lower[hs], tree.upper[hs]
-                viol = np.stack([np.sum(np.maximum(lo - a, 0) + np.maximum(a - hi, 0), axis=1)
-                                 for a in raw], axis=1)
-                pick = _continuous_branch(np.stack([np.clip(a, lo, hi) for a in raw], 1), viol)
-                R = np.where((pick == 0)[:, None, None], cands[0], cands[1])
             elif ok:
                 R = _swing(Rp, v0, u)
         if len(tree.body_hinges[b]):
