@@ -106,9 +106,10 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     # third Euler angle is axial rotation only near neutral elevation; with the
     # arm raised it absorbs the Codman coupling, hence its wider range. Angles
     # are measured from the A-pose of :data:`ARM_TILT` (abduction -50..185 deg
-    # from the hanging arm becomes -84..151).
+    # from the hanging arm becomes -84..151); flexion in the tilted plane
+    # reaches -90 (extension with the arm abducted, seen in CMU dance clips).
     "upper_arm": (
-        JointSpec("flex", (0, -1, 0), (-65, 185), 200),
+        JointSpec("flex", (0, -1, 0), (-90, 185), 200),
         JointSpec("abd", (1, 0, 0), (-84, 151), 200),
         JointSpec("rot", (0, 0, -1), (-150, 150), 100),
     ),
