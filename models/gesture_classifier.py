@@ -229,9 +229,13 @@ class GestureClassifier(nn.Module):
     def pooled(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
         """(B, dim) tokens averaged over joints and valid frames."""
         valid = self._check(x, valid)
+        # Frames after the batch's last valid frame are neither keys nor pooled, so
+        # dropping them is exact (and saves work on padded short clips).
+        last = int(torch.nonzero(valid.any(dim=0)).max()) + 1
+        x, valid = x[:, :last], valid[:, :last]
         vel = torch.zeros_like(x)
         vel[:, 1:] = (x[:, 1:] - x[:, :-1]) * self.config.fps
-        h = self.embed(torch.cat([x, vel], dim=-1)) + self.joint_embed + self.time_pe[:, None]
+        h = self.embed(torch.cat([x, vel], dim=-1)) + self.joint_embed + self.time_pe[:last, None]
         for block in self.blocks:
             h = block(h, self.adjacency, valid)
         h = self.norm(h).mean(dim=2)  # (B, T, D)

@@ -103,6 +103,11 @@ def test_forward_shapes_and_padding_carries_no_signal(florence) -> None:
     with torch.no_grad():
         assert torch.allclose(model(scribbled, valid), logits, atol=1e-5)
         assert not torch.allclose(model(scribbled), logits, atol=1e-3)
+        # A window's logits do not depend on the other windows of its batch (the model
+        # drops the batch's trailing padding).
+        i = int(valid.sum(1).argmin())
+        assert valid[i].sum() < valid.sum(1).max()
+        assert torch.allclose(model(x[i:i + 1], valid[i:i + 1])[0], logits[i], atol=1e-5)
     raw, v = g.cut_window(florence[0].positions)
     assert np.allclose(model.classify_world(raw, v), model.predict_proba(w.x[:1], w.valid[:1])[0],
                        atol=1e-5)
