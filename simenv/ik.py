@@ -159,6 +159,11 @@ class HingeTree:
         self.hinge_axis = model.jnt_axis[hinges].copy()
         self.hinge_pos = model.jnt_pos[hinges].copy()
         self.qpos_hinge = model.jnt_qposadr[hinges].copy()
+        # Axis-aligned hinges (index of the axis, its sign) take a fast path.
+        idx = np.argmax(np.abs(self.hinge_axis), axis=1)
+        aligned = np.isclose(np.abs(self.hinge_axis[np.arange(self.H), idx]), 1.0)
+        self.hinge_index = np.where(aligned, idx, -1)
+        self.hinge_sign = np.sign(self.hinge_axis[np.arange(self.H), idx])
         limited = model.jnt_limited[hinges].astype(bool)
         self.lower = np.where(limited, model.jnt_range[hinges, 0], -np.inf)
         self.upper = np.where(limited, model.jnt_range[hinges, 1], np.inf)
@@ -211,10 +216,22 @@ class HingeTree:
                 x = xb[:, p] + Rp @ self.body_offset[b]
                 R = Rp @ self.body_quat_rot[b] if self.body_has_rot[b] else Rp
             for j in self.body_hinges[b]:
-                a = R @ self.hinge_axis[j]
-                axes[:, j] = a
                 anchors[:, j] = x + R @ self.hinge_pos[j] if self.hinge_pos[j].any() else x
-                R = R @ hinge_mat(self.hinge_axis[j], theta[:, j])
+                i = self.hinge_index[j]
+                if i < 0:
+                    axes[:, j] = R @ self.hinge_axis[j]
+                    R = R @ hinge_mat(self.hinge_axis[j], theta[:, j])
+                    continue
+                # Axis-aligned hinge: the world axis is a column of R, and
+                # R @ H(theta) only mixes the two other columns.
+                sign = self.hinge_sign[j]
+                axes[:, j] = sign * R[:, :, i]
+                c, s = np.cos(theta[:, j])[:, None], (sign * np.sin(theta[:, j]))[:, None]
+                k1, k2 = (i + 1) % 3, (i + 2) % 3
+                col1, col2 = R[:, :, k1], R[:, :, k2]
+                R = R.copy()
+                R[:, :, k1] = c * col1 + s * col2
+                R[:, :, k2] = c * col2 - s * col1
             Rb[:, b] = R
             xb[:, b] = x
         pts = xb[:, self.point_bodies] + np.einsum(
