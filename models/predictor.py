@@ -129,6 +129,24 @@ def rotate_z(points: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.stack([c * x - s * y, s * x + c * y, points[..., 2]], axis=-1)
 
 
+def _mirror_index() -> list[int]:
+    swap = {n: n.replace("left_", "@").replace("right_", "left_").replace("@", "right_")
+            for n in PRED17_JOINTS}
+    return [PRED17_JOINTS.index(swap[n]) for n in PRED17_JOINTS]
+
+
+#: Joint permutation that swaps left and right in the pred17 layout.
+MIRROR: tuple[int, ...] = tuple(_mirror_index())
+
+
+def mirror(frames: np.ndarray) -> np.ndarray:
+    """Left-right mirror image of (..., 17, 3) poses: negate X, swap left/right joints
+    (a real motion of the mirrored body; used to double the training data)."""
+    out = np.array(frames[..., list(MIRROR), :], copy=True)
+    out[..., 0] *= -1
+    return out
+
+
 # -- torch versions of the sphere maps (same inner product as simenv.srvf) ---------
 
 
@@ -168,14 +186,16 @@ class Generator(nn.Module):
     """FC -> reshape -> 5 upsampling Conv1d blocks: condition (+ noise) -> (B, F, 51)."""
 
     def __init__(self, cond_dim: int, future_len: int, noise_dim: int = 16,
-                 hidden: int = 512, channels: Sequence[int] = (256, 128, 128, 64, 64)) -> None:
+                 hidden: int = 512, channels: Sequence[int] = (256, 128, 128, 64, 64),
+                 dropout: float = 0.0) -> None:
         super().__init__()
         self.noise_dim = noise_dim
         self.lengths = _schedule(future_len)
         self.c0 = channels[0]
         self.fc = nn.Sequential(
-            nn.Linear(cond_dim + noise_dim, hidden), nn.LeakyReLU(0.2),
-            nn.Linear(hidden, channels[0] * self.lengths[0]), nn.LeakyReLU(0.2),
+            nn.Dropout(dropout), nn.Linear(cond_dim + noise_dim, hidden), nn.LeakyReLU(0.2),
+            nn.Dropout(dropout), nn.Linear(hidden, channels[0] * self.lengths[0]),
+            nn.LeakyReLU(0.2),
         )
         outs = list(channels[1:]) + [DIMS]
         self.convs = nn.ModuleList(
@@ -221,9 +241,10 @@ class Critic(nn.Module):
 class AmplitudeHead(nn.Module):
     """MLP condition -> ``log a_F - log a_P``."""
 
-    def __init__(self, cond_dim: int, hidden: int = 128) -> None:
+    def __init__(self, cond_dim: int, hidden: int = 128, dropout: float = 0.0) -> None:
         super().__init__()
-        self.net = nn.Sequential(nn.Linear(cond_dim, hidden), nn.LeakyReLU(0.2),
+        self.net = nn.Sequential(nn.Dropout(dropout), nn.Linear(cond_dim, hidden),
+                                 nn.LeakyReLU(0.2),
                                  nn.Linear(hidden, hidden), nn.LeakyReLU(0.2),
                                  nn.Linear(hidden, 1))
 
@@ -281,6 +302,7 @@ class PredictorConfig:
     hidden: int = 512
     gen_channels: tuple[int, ...] = (256, 128, 128, 64, 64)
     critic_channels: tuple[int, ...] = (64, 128, 128)
+    dropout: float = 0.0
     scale_past: float = 1.0
     scale_future: float = 1.0
     info: dict = field(default_factory=dict)
@@ -353,10 +375,10 @@ class PredictiveMAWGAN:
             )
         self.mu_future_t = torch.as_tensor(self.mu_future, dtype=torch.float32)
         self.generator = Generator(config.cond_dim, config.future_len, config.noise_dim,
-                                   config.hidden, config.gen_channels)
+                                   config.hidden, config.gen_channels, config.dropout)
         self.critic = Critic(config.cond_dim, config.future_len,
                              channels=config.critic_channels)
-        self.amplitude = AmplitudeHead(config.cond_dim)
+        self.amplitude = AmplitudeHead(config.cond_dim, dropout=config.dropout)
 
     @property
     def history_len(self) -> int:
@@ -529,12 +551,18 @@ class PredictiveMAWGAN:
 
 
 def fit_geometry(windows: PredictionWindows, config: PredictorConfig,
-                 *, max_iter: int = 1000, tol: float = 1e-6) -> PredictiveMAWGAN:
+                 *, max_iter: int = 1000, tol: float = 1e-6, max_points: int = 4000,
+                 seed: int = 0) -> PredictiveMAWGAN:
     """A fresh model whose Karcher means and coordinate scales are fitted to ``windows``.
 
-    The means are computed on heading-normalised training windows; ``config.info``
-    receives the Karcher iterations, convergence and Fréchet variances.
+    The means are computed on heading-normalised training windows (a seeded random
+    subset of at most ``max_points`` of them: overlapping stride-1 windows are highly
+    redundant); ``config.info`` receives the Karcher iterations, convergence and
+    Fréchet variances.
     """
+    if len(windows) > max_points:
+        pick = np.random.default_rng(seed).choice(len(windows), max_points, replace=False)
+        windows = windows.subset(np.sort(pick))
     frames = windows.frames.astype(np.float64)
     frames = rotate_z(frames, -heading(frames[:, windows.past_len]))
     n = len(frames)

@@ -29,8 +29,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -50,9 +52,14 @@ from simenv.models.predictor import (
     critic_loss,
     fit_geometry,
     generator_loss,
+    mirror,
     rollout,
 )
 from simenv.motion import Interaction, Motion
+
+#: Default root of the shared corpus (``SIMENV_SHARED_DATA`` overrides).
+SHARED = Path(os.environ.get("SIMENV_SHARED_DATA",
+                             Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 #: Joints counted in the metrics: all but the pelvis (root-relative, error 0 always).
 EVAL_JOINTS: tuple[int, ...] = tuple(range(1, 17))
@@ -127,6 +134,33 @@ def collect_motions(paths: Iterable[str | Path]) -> tuple[list[Motion], list[str
     return motions, notes
 
 
+def speed_variants(motions: Sequence[Motion], speeds: Sequence[float],
+                   fps: float = pdata.TARGET_FPS) -> list[Motion]:
+    """Each clip played at each speed factor (1.25 = 25 % faster): resampled to
+    ``fps / speed`` and relabelled ``fps``. Names are kept, so variants of a clip stay
+    one clip for the split."""
+    out = []
+    for m in motions:
+        for s in speeds:
+            if s == 1.0:
+                out.append(m)
+            else:
+                out.append(replace(m.resample(fps / s), fps=fps))
+    return out
+
+
+def mirrored(windows: pdata.PredictionWindows) -> pdata.PredictionWindows:
+    """``windows`` followed by their left-right mirror images (same clip labels)."""
+    return pdata.PredictionWindows(
+        np.concatenate([windows.frames, mirror(windows.frames)]),
+        np.concatenate([windows.root, windows.root * np.array([-1, 1, 1], np.float32)]),
+        np.concatenate([windows.clip, windows.clip]),
+        np.concatenate([windows.start, windows.start]),
+        windows.clip_names, windows.past_len, windows.future_len, windows.fps,
+        windows.skipped,
+    )
+
+
 def make_split(windows: pdata.PredictionWindows, test_fraction: float, seed: int
                ) -> pdata.ClipSplit:
     """Split windows by clip group (see the module docstring)."""
@@ -150,7 +184,9 @@ def train(
     """Adversarial training of ``model`` on ``windows`` (WGAN-GP, Adam lr 1e-4, batch 64).
 
     Each iteration takes ``n_critic`` critic steps, one generator step and one
-    amplitude-head step, each on a fresh random batch.
+    amplitude-head step, each on a fresh random batch. ``minutes`` budgets the
+    process's CPU time (not wall time: the machine is shared, and CPU time makes the
+    budget reproducible).
 
     Returns:
         A log: one dict of losses every 50 iterations (and the last).
@@ -172,7 +208,7 @@ def train(
         net.train()
     bs = min(batch_size, len(data))
     log: list[dict[str, float]] = []
-    t0 = time.monotonic()
+    t0 = time.process_time()
     bar = tqdm(range(iterations), disable=not progress, desc="train", unit="it")
 
     def sample():
@@ -199,10 +235,10 @@ def train(
         opt_a.zero_grad()
         loss_a.backward()
         opt_a.step()
-        done = minutes is not None and time.monotonic() - t0 > 60 * minutes
+        done = minutes is not None and time.process_time() - t0 > 60 * minutes
         if it % 50 == 0 or it == iterations - 1 or done:
             entry = {"iteration": it, **info_c, **info_g, "amplitude": loss_a.item(),
-                     "seconds": time.monotonic() - t0}
+                     "seconds": time.process_time() - t0}
             log.append(entry)
             bar.set_postfix(rec=f"{info_g['rec']:.3f}", W=f"{info_c.get('wasserstein', 0):.2f}")
         if done:
@@ -320,8 +356,13 @@ def run(args: argparse.Namespace) -> dict:
     motions, notes = collect_motions(paths)
     windows = pdata.windows_from_motions(motions, args.past, args.future, stride=1)
     split = make_split(windows, args.test_fraction, args.seed)
-    train_w, test_w = windows.subset(split.train), windows.subset(split.test)
-    config = PredictorConfig(args.past, args.future)
+    test_w = windows.subset(split.test)
+    train_motions = [m for m in motions if group_of(m.name) in set(split.train_clips)]
+    train_w = pdata.windows_from_motions(speed_variants(train_motions, args.speeds),
+                                         args.past, args.future, stride=1)
+    if args.mirror:
+        train_w = mirrored(train_w)
+    config = PredictorConfig(args.past, args.future, dropout=args.dropout)
     model = fit_geometry(train_w, config)
     log = train(model, train_w, iterations=args.iterations, minutes=args.minutes,
                 n_critic=args.n_critic, lr=args.lr, adv_weight=args.adv_weight,
@@ -329,6 +370,8 @@ def run(args: argparse.Namespace) -> dict:
     config.info.update({"train_clips": list(split.train_clips),
                         "test_clips": list(split.test_clips),
                         "train_windows": len(train_w), "test_windows": len(test_w),
+                        "speeds": list(args.speeds), "mirror": args.mirror,
+                        "dropout": args.dropout,
                         "iterations": log[-1]["iteration"] + 1,
                         "train_seconds": round(log[-1]["seconds"], 1), "seed": args.seed,
                         "n_critic": args.n_critic, "lr": args.lr,
@@ -348,19 +391,141 @@ def run(args: argparse.Namespace) -> dict:
     return metrics
 
 
+def _table(rows: dict[str, dict], key: str) -> list[str]:
+    head = "| method | " + " | ".join(f"{h} ms" for h in pm.HORIZONS_MS) + " |"
+    lines = [head, "|" + "---|" * (len(pm.HORIZONS_MS) + 1)]
+    for name, m in rows.items():
+        vals = m[key] if key else m
+        cells = [f"{vals[str(h)]:.1f}" if str(h) in vals else (
+            f"{vals[h]:.1f}" if h in vals else "-") for h in pm.HORIZONS_MS]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def model_card(name: str, metrics: dict) -> str:
+    """Markdown model card of a trained predictor from its ``metrics.json`` content."""
+    cfg = metrics["config"]
+    ov = metrics["overall"]
+    lines = [
+        f"# {name}: PredictiveMA-WGAN motion predictor "
+        f"({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
+        "",
+        "Predicts the next "
+        f"{cfg['future_len']} frames ({1000 * cfg['future_len'] / 25:.0f} ms) of a 17-joint "
+        "root-relative skeleton (simenv.prediction_data pred17 layout, metres, Z-up) from "
+        f"the last {cfg['past_len'] + 1} frames (lead-in + {cfg['past_len']} observed). "
+        "Method and every choice that differs from the papers: docstring of "
+        "`simenv.models.predictor`. Load with "
+        f"`simenv.models.load(\"{name}\")`, then `.predict(history)`.",
+        "",
+        "## Data and split",
+        "",
+        "Real CMU motion capture from the shared corpus (BVH, ASF/AMC and both people of "
+        "the two-person trials), resampled to 25 fps, sliding windows with stride 1. "
+        "Split by clip group with `prediction_data.split_by_clip` (test fraction 0.25, "
+        f"seed {cfg['seed']}; partners of one two-person trial are one group).",
+        "",
+        f"* train clips ({len(cfg['train_clips'])}): {', '.join(cfg['train_clips'])}",
+        f"* held-out clips ({len(cfg['test_clips'])}): {', '.join(cfg['test_clips'])}",
+        f"* training windows: {cfg['train_windows']} (with speed variants "
+        f"{cfg['speeds']} and left-right mirroring: {cfg['mirror']}); held-out windows: "
+        f"{cfg['test_windows']}",
+        f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} CPU s on one "
+        f"thread, batch 64, Adam lr {cfg['lr']}, {cfg['n_critic']} critic step(s) per "
+        f"generator step, adversarial weight {cfg['adv_weight']}, dropout {cfg['dropout']}",
+        "",
+        "## Held-out results",
+        "",
+        "Per-frame MPJPE at the horizon [mm] (16 joints, pelvis excluded; root-relative):",
+        "",
+        *_table(ov, "mpjpe_mm"),
+        "",
+        "RMS-up-to-horizon MPJPE [mm] (the thesis's form):",
+        "",
+        *_table(ov, "rms_mpjpe_up_to_horizon_mm"),
+        "",
+        f"MPJS [m/s] (ground truth {metrics['gt_mpjs_m_s']:.3f}): " + ", ".join(
+            f"{k} {v['mpjs_m_s']:.3f}" for k, v in ov.items()),
+        "",
+        "Bone-length drift [mm] (mean |b - b_last observed|): " + ", ".join(
+            f"{k} {v['bone_drift_mm']['mean']:.1f}" for k, v in ov.items()),
+        "",
+        "Per action type, per-frame MPJPE [mm] (model / zero-velocity):",
+        "",
+        "| action | windows | " + " | ".join(f"{h} ms" for h in pm.HORIZONS_MS) + " |",
+        "|" + "---|" * (len(pm.HORIZONS_MS) + 2),
+    ]
+    for action, m in metrics["per_action"].items():
+        cells = []
+        for h in pm.HORIZONS_MS:
+            a, b = m["model"].get(str(h), m["model"].get(h)), \
+                m["zero_velocity"].get(str(h), m["zero_velocity"].get(h))
+            cells.append("-" if a is None else f"{a:.0f} / {b:.0f}")
+        lines.append(f"| {action} | {m['windows']} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Licence of the training data: CMU Graphics Lab Motion Capture Database. The data "
+        "used in this project was obtained from mocap.cs.cmu.edu. The database was created "
+        "with funding from NSF EIA-0196217.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def evaluate_json(model: PredictiveMAWGAN, paths: Sequence[str | Path] | None = None,
+                  shared: str | Path | None = None) -> dict:
+    """The ``simenv eval predictor --json`` object for ``model`` on clips.
+
+    Args:
+        model: a trained predictor (e.g. ``simenv.models.load("predictor-25-25")``).
+        paths: motion files/folders; default: the model's own held-out clips (its
+            checkpoint's ``config.info["test_clips"]``) from the shared corpus.
+        shared: root of the shared corpus for the default.
+
+    Returns:
+        ``{"fps", "horizons_ms", "clips", "windows", "mpjpe_mm": {"model": [...],
+        "zero_velocity": [...], "constant_velocity": [...]}}``: per-frame MPJPE (mm, no
+        pelvis) at each horizon; ``None`` for horizons beyond the model's F frames.
+    """
+    if paths:
+        motions, _ = collect_motions(paths)
+    else:
+        motions, _ = collect_motions(default_data(Path(shared or SHARED)))
+        test = set(model.config.info.get("test_clips", []))
+        motions = [m for m in motions if group_of(m.name) in test]
+        if not motions:
+            raise MotionError("the model records no held-out clips; pass clips to evaluate")
+    windows = pdata.windows_from_motions(motions, model.past_len, model.future_len, stride=1)
+    preds = predictions(model, windows)
+    result = {}
+    for name in ("model", "zero_velocity", "constant_velocity"):
+        got = pm.mpjpe_at_horizons_mm(preds[name], windows.future, windows.fps,
+                                      joints=EVAL_JOINTS)
+        result[name] = [got.get(h) for h in pm.HORIZONS_MS]
+    return {"fps": windows.fps, "horizons_ms": list(pm.HORIZONS_MS),
+            "clips": len(windows.clip_names), "windows": len(windows), "mpjpe_mm": result}
+
+
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--past", type=int, default=25, help="observed frames P (25 fps)")
     ap.add_argument("--future", type=int, default=25, help="predicted frames F")
     ap.add_argument("--data", nargs="*", help="motion files/folders (default: shared CMU)")
-    ap.add_argument("--shared", default=str(Path(__file__).resolve().parents[2] / "shared"
-                                              / "data"), help="shared corpus root")
+    ap.add_argument("--shared", default=str(SHARED), help="shared corpus root")
+    ap.add_argument("--evaluate", metavar="NAME",
+                    help="evaluate a shipped model (e.g. predictor-25-25) instead of training")
+    ap.add_argument("--json", action="store_true", help="with --evaluate: print JSON")
     ap.add_argument("--iterations", type=int, default=20000)
     ap.add_argument("--minutes", type=float, default=6.0, help="training time budget")
     ap.add_argument("--n-critic", type=int, default=2, help="critic steps per G step")
     ap.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate")
     ap.add_argument("--adv-weight", type=float, default=1.0,
                     help="weight of the adversarial term (0: no critic, regression only)")
+    ap.add_argument("--speeds", type=float, nargs="+", default=[0.8, 1.0, 1.25],
+                    help="speed augmentation factors of the training clips")
+    ap.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
+                    help="add left-right mirrored training windows")
+    ap.add_argument("--dropout", type=float, default=0.2)
     ap.add_argument("--test-fraction", type=float, default=0.25)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1)
@@ -370,8 +535,23 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
     try:
-        metrics = run(parse_args(argv))
+        if args.evaluate:
+            from simenv.models import load
+
+            torch.set_num_threads(args.threads)
+            result = evaluate_json(load(args.evaluate), args.data, args.shared)
+            if args.json:
+                print(json.dumps(result))
+            else:
+                print(f"{result['clips']} clips, {result['windows']} windows; per-frame "
+                      f"MPJPE [mm] at {result['horizons_ms']} ms")
+                for name, row in result["mpjpe_mm"].items():
+                    print(f"{name:>18s} " + " ".join(
+                        "    n/a" if v is None else f"{v:7.1f}" for v in row))
+            return 0
+        metrics = run(args)
     except SimenvError as exc:
         print(f"error: {exc}")
         return 2

@@ -300,33 +300,45 @@ def joint_limits(source: Motion | RetargetResult,
     """Anatomical joint-angle violations.
 
     A trajectory from :func:`simenv.retarget.retarget` respects the limits by
-    construction (the solver projects onto them), so for a :class:`Motion`
-    this metric first retargets it onto :func:`relaxed_humanoid` (ranges
-    widened by ``joint_limit_probe_deg``): where the motion can only be
-    reached beyond a limit, the fit goes there. A :class:`RetargetResult` is
-    measured as it is (qpos from a relaxed fit, a policy or a generator).
+    construction (the solver projects onto them), so a :class:`Motion` is
+    retargeted twice: onto its fitted body, and onto :func:`relaxed_humanoid`
+    (ranges widened by ``joint_limit_probe_deg``). A frame *needs* a
+    violation when the limits cost keypoint accuracy there: the worst
+    keypoint residual of the limited fit exceeds the relaxed fit's by more
+    than ``joint_limit_cost_m``. Elsewhere a relaxed angle beyond a limit is
+    an equivalent pose the limited fit also reaches (a twist shared between
+    hip rotation and foot abduction, a foot roll no keypoint observes), not a
+    demand of the motion. A :class:`RetargetResult` is measured as it is
+    (qpos from a policy, a generator, a relaxed fit), every frame counting.
 
-    Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`)
-    over the hinges the motion's keypoints observe (:func:`observed_hinges`).
-    Value: its maximum over frames; passes when at most
-    ``joint_limit_max_deg``. Details: ``frames_over`` (fraction of frames
-    with an excess above 1 degree), ``joints_over`` (hinges that exceed the
-    threshold anywhere), ``mean_deg``.
+    Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`) over
+    the hinges the motion's keypoints observe (:func:`observed_hinges`), 0 on
+    frames that need no violation. Value: its maximum over frames; passes
+    when at most ``joint_limit_max_deg``. Details: ``frames_over`` (fraction
+    of frames above 1 degree), ``joints_over`` (hinges above the threshold
+    anywhere), ``mean_deg``, and for a Motion ``limit_cost_p95_mm`` (95th
+    percentile of the residual the limits add).
     """
+    details: dict[str, float] = {}
+    needed: np.ndarray | None = None
     if isinstance(source, Motion):
         fitted = retarget(source)
         source = retarget(source, humanoid=relaxed_humanoid(
             fitted.humanoid, thresholds.joint_limit_probe_deg))
+        cost = fitted.residuals.max(axis=1) - source.residuals.max(axis=1)
+        needed = cost > thresholds.joint_limit_cost_m
+        details["limit_cost_p95_mm"] = float(np.percentile(cost, 95) * 1000.0)
     excess = joint_limit_excess(source.humanoid, source.qpos)
     excess = excess[:, observed_hinges(source.humanoid, source.keypoint_names)]
+    if needed is not None:
+        excess = excess * needed[:, None]
     timeline = excess.max(axis=1)
     thr = thresholds.joint_limit_max_deg
-    return MetricResult.from_timeline(
-        "joint_limits", timeline, float(timeline.max()), "deg", thr,
-        details={"frames_over": float((timeline > 1.0).mean()),
-                 "joints_over": float((excess.max(axis=0) > thr).sum()),
-                 "mean_deg": float(timeline.mean())},
-    )
+    details.update({"frames_over": float((timeline > 1.0).mean()),
+                    "joints_over": float((excess.max(axis=0) > thr).sum()),
+                    "mean_deg": float(timeline.mean())})
+    return MetricResult.from_timeline("joint_limits", timeline, float(timeline.max()), "deg",
+                                      thr, details=details)
 
 
 # -- penetration between geoms ---------------------------------------------------

@@ -46,6 +46,10 @@ class BodyThresholds:
             anatomical range where the motion demands it; the violation is
             measured against the anatomical range (AAOS normal ranges plus
             margins, see :mod:`simenv.humanoid`).
+        joint_limit_cost_m: 0.01. A frame needs a limit violation when the
+            limited fit's worst keypoint is this much further from its
+            target than the relaxed fit's (1 cm: above the retargeting's
+            typical residual of a few millimetres on real clips).
         joint_limit_max_deg: 10. Largest allowed excess of any hinge beyond
             its anatomical range. Calibrated on real CMU clips (see the
             module table).
@@ -111,6 +115,7 @@ class BodyThresholds:
 
     joint_limit_probe_deg: float = 60.0
     joint_limit_max_deg: float = 10.0
+    joint_limit_cost_m: float = 0.01
 
     self_penetration_max_mm: float = 30.0
     inter_penetration_max_mm: float = 30.0

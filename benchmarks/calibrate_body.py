@@ -1,0 +1,173 @@
+"""Calibrate the body-level plausibility metrics on real motion capture.
+
+Retargets every real single-person CMU clip of the shared corpus
+(``cmu/bvh/*.bvh`` and ``cmu/asf_amc/*.amc``) onto its fitted MuJoCo humanoid
+and runs every body-level metric: geom ground penetration and floating,
+joint limits (relaxed refit), self-penetration, root residual, balance, and
+PD physics tracking without and with root assistance. Also runs the pairwise
+metrics (inter-person penetration, contact JPD) on the real two-person pairs.
+Prints a table (``!`` marks a failed metric) and writes values, verdicts,
+details and violations as JSON.
+
+Usage::
+
+    .venv/bin/python benchmarks/calibrate_body.py [--data DIR] [--frames N] [--out FILE.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict
+from pathlib import Path
+
+import simenv
+from simenv.io import asf_amc, bvh
+from simenv.motion import Interaction, Motion
+from simenv.plausibility.body import (
+    body_floating,
+    body_penetration,
+    contact,
+    inter_penetration,
+    joint_limits,
+    self_penetration,
+)
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+from simenv.plausibility.dynamics import balance, root_residual
+from simenv.plausibility.timeline import MetricResult
+from simenv.plausibility.tracking import tracking
+from simenv.retarget import RetargetResult, retarget
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+#: Single-person metrics on a retargeted clip, in table order.
+METRICS: dict[str, Callable[[RetargetResult], MetricResult]] = {
+    "body_penetration": body_penetration,
+    "body_floating": body_floating,
+    "self_penetration": self_penetration,
+    "root_residual": root_residual,
+    "balance": balance,
+    "tracking": tracking,
+    "tracking_assisted": lambda r: tracking(r, assist=True),
+}
+#: Table cells: (metric, detail or None for the value, header).
+COLUMNS = (
+    ("body_penetration", None, "pen mm"),
+    ("body_floating", None, "float mm"),
+    ("joint_limits", None, "jlim deg"),
+    ("self_penetration", None, "self mm"),
+    ("root_residual", None, "root BW"),
+    ("root_residual", "p95", "root p95"),
+    ("balance", None, "bal mm"),
+    ("tracking", "time_to_failure_s", "PD ttf s"),
+    ("tracking", "mpjpe_mm", "PD mpjpe"),
+    ("tracking_assisted", "mpjpe_mm", "as mpjpe"),
+    ("tracking_assisted", "assist_force_mean", "as BW"),
+)
+
+
+def single_person_clips(data: Path) -> list[Path]:
+    """The real single-person CMU clips of the corpus, BVH then AMC."""
+    cmu = data / "cmu"
+    return sorted((cmu / "bvh").glob("*.bvh")) + sorted((cmu / "asf_amc").glob("*.amc"))
+
+
+def load(path: Path, frames: int | None) -> Motion:
+    motion = bvh.read(path) if path.suffix == ".bvh" else asf_amc.read(path)
+    return motion.slice(0, frames) if frames and motion.num_frames > frames else motion
+
+
+def score_clip(motion: Motion) -> dict:
+    t0 = time.perf_counter()
+    result = retarget(motion)
+    t_ret = time.perf_counter() - t0
+    metrics: dict[str, dict] = {}
+    seconds: dict[str, float] = {"retarget": t_ret}
+    for name, fn in {**METRICS, "joint_limits": None}.items():
+        t = time.perf_counter()
+        r = joint_limits(motion) if name == "joint_limits" else fn(result)
+        seconds[name] = time.perf_counter() - t
+        metrics[name] = r.to_dict()
+    return {"frames": motion.num_frames, "fps": motion.fps,
+            "mean_residual_m": result.mean_residual, "mass_kg": result.humanoid.total_mass,
+            "height_m": result.humanoid.dims.height, "seconds": seconds, "metrics": metrics}
+
+
+def score_pair(pair: Interaction) -> dict:
+    result = retarget(pair)
+    out = {}
+    for r in (inter_penetration(result), contact(result)):
+        out[r.name] = r.to_dict()
+    return {"frames": int(result.qpos.shape[0]), "metrics": out}
+
+
+def _cell(row: dict, metric: str, detail: str | None) -> str:
+    m = row["metrics"][metric]
+    v = m["value"] if detail is None else m["details"].get(detail)
+    if v is None:
+        return "n/a"
+    mark = "!" if detail is None and m["passed"] is False else ""
+    return f"{v:.3g}{mark}"
+
+
+def print_table(rows: list[dict]) -> None:
+    head = f"{'clip':26s} {'frames':>6s} " + " ".join(f"{h:>9s}" for *_, h in COLUMNS)
+    print(head)
+    print("-" * len(head))
+    for row in rows:
+        cells = " ".join(f"{_cell(row, m, d):>9s}" for m, d, _ in COLUMNS)
+        print(f"{row['clip']:26s} {row['frames']:6d} {cells}")
+    print("-" * len(head))
+    if rows:
+        thr = " ".join(f"{(rows[0]['metrics'][m]['threshold'] if d is None else ''):>9}"
+                       for m, d, _ in COLUMNS)
+        print(f"{'threshold':26s} {'':6s} {thr}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--frames", type=int, default=None,
+                        help="score at most the first N frames of each clip")
+    parser.add_argument("--out", type=Path, default=REPO / "out" / "calibrate_body.json")
+    args = parser.parse_args()
+    paths = single_person_clips(args.data)
+    if not paths:
+        raise SystemExit(f"no CMU clips under {args.data}/cmu")
+    rows = []
+    for path in paths:
+        row = score_clip(load(path, args.frames))
+        row["clip"] = f"{path.parent.name}/{path.name}"
+        rows.append(row)
+        print(f"  scored {row['clip']} ({row['frames']} frames, "
+              f"{sum(row['seconds'].values()):.1f} s)", flush=True)
+    print()
+    print_table(rows)
+    pairs = []
+    for folder in sorted((args.data / "cmu" / "two_person").glob("*")):
+        pair = simenv.load(folder)
+        if args.frames:
+            pair = Interaction(pair.actor.slice(0, min(args.frames, pair.actor.num_frames)),
+                               pair.reactor.slice(0, min(args.frames, pair.reactor.num_frames)),
+                               label=pair.label, name=pair.name)
+        row = score_pair(pair)
+        row["pair"] = folder.name
+        pairs.append(row)
+        m = row["metrics"]
+        ip, ct = m["inter_penetration"], m["contact"]
+        hands = ct["details"].get("min_mm_0", float("nan"))
+        print(f"{folder.name:26s} {row['frames']:6d} inter_penetration "
+              f"{ip['value']:.3g} mm{'' if ip['passed'] else '!'}  contact JPD "
+              f"{ct['value']:.3g} mm  min hand-hand {hands:.0f} mm")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"thresholds": asdict(DEFAULT_BODY_THRESHOLDS),
+                                    "clips": rows, "pairs": pairs}, indent=1))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
