@@ -1,0 +1,83 @@
+"""The joint-level metrics give the same results as the unoptimised code.
+
+``tests/data/kinematic_golden.npz`` holds every result (value, verdict,
+details, violations, timeline) of the straightforward implementation on the
+bundled walk, seeded corruptions of it, its edge cases, and every real CMU
+clip of the shared corpus (see ``tests/kinematic_cases.py``). Values must be
+equal; float tolerances are at rounding level only, so that a different
+numpy SIMD path cannot fail the test while any change of formula does.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from kinematic_cases import GOLDEN, cases, summary
+
+from simenv.motion import Motion
+from simenv.plausibility import KINEMATIC_METRICS, MetricResult, kinematic_metrics
+
+
+@pytest.fixture(scope="module")
+def golden() -> tuple[dict, dict[str, np.ndarray]]:
+    with np.load(GOLDEN) as npz:
+        return json.loads(str(npz["_meta"])), {k: npz[k] for k in npz.files if k != "_meta"}
+
+
+def _same(a: object, b: object, where: str) -> None:
+    """Recursive equality of summaries: floats to 1e-12 relative."""
+    if isinstance(b, dict):
+        assert isinstance(a, dict) and a.keys() == b.keys(), where
+        for k in b:
+            _same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(b, list):
+        assert isinstance(a, list) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    elif isinstance(b, float) and not isinstance(a, bool):
+        assert a == pytest.approx(b, rel=1e-12, abs=1e-300), where
+    else:
+        assert a == b, where
+
+
+def _check(name: str, results: dict[str, MetricResult], golden) -> None:
+    meta, timelines = golden
+    assert list(results) == list(KINEMATIC_METRICS)
+    for metric, r in results.items():
+        where = f"{name}:{metric}"
+        _same(summary(r), meta[name][metric], where)
+        np.testing.assert_allclose(r.timeline, timelines[where], rtol=1e-6, atol=0,
+                                   equal_nan=True, err_msg=where)
+
+
+@pytest.fixture(scope="module")
+def bundled() -> list[tuple[str, Motion]]:
+    """The bundled walk, its corruptions and edge cases."""
+    return list(cases(None))
+
+
+@pytest.fixture(scope="module")
+def corpus(shared_data) -> list[tuple[str, Motion]]:
+    """The real CMU clips of the shared corpus (BVH and AMC)."""
+    return list(cases(shared_data))[len(list(cases(None))):]
+
+
+def test_golden_pins_every_verdict(golden) -> None:
+    # Every metric has passing, failing and not-available cases pinned.
+    for metric in KINEMATIC_METRICS:
+        verdicts = {golden[0][n][metric]["passed"] for n in golden[0]}
+        assert verdicts == {True, False, None}, metric
+
+
+@pytest.mark.parametrize("source", ["bundled", "corpus"])
+def test_each_metric_matches_the_golden_results(source, request, golden) -> None:
+    for name, motion in request.getfixturevalue(source):
+        _check(name, {m: fn(motion) for m, fn in KINEMATIC_METRICS.items()}, golden)
+
+
+@pytest.mark.parametrize("source", ["bundled", "corpus"])
+def test_kinematic_metrics_matches_the_golden_results(source, request, golden) -> None:
+    for name, motion in request.getfixturevalue(source):
+        _check(name, kinematic_metrics(motion), golden)
