@@ -126,6 +126,9 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     the first 20-100 ms of every swing while already moving fast, which the
     published test (with its 0.25 s moving average) counts as skating; a
     planted foot that really slides does so for a good part of its stance.
+    A low foot sliding while the other foot is planted and lower (by more
+    than ``skate_support_margin_m``) is unloaded -- the weight is on the
+    other foot -- and does not count either.
 
     Timeline: ``max_f v_f(t)`` over skating feet (0 when none) in **mm per
     frame at 20 fps** (``speed * 1000 / skate_reference_fps``, PhysDiff's
@@ -166,7 +169,15 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     low = rel < heights
     low_pair = low[1:] & low[:-1]  # (T-1, F)
     v_h = np.linalg.norm(np.diff(foot_pos[..., :2], axis=0), axis=-1) * fps
-    sliding = low_pair & (v_h > thresholds.skate_speed_mps)
+    raw_sliding = low_pair & (v_h > thresholds.skate_speed_mps)
+    sliding = raw_sliding
+    if sliding.shape[1] == 2:
+        # The other foot, planted and lower, carries the weight: this one is unloaded.
+        margin = thresholds.skate_support_margin_m
+        other = slice(None, None, -1)
+        supported = ((v_h[:, other] <= thresholds.skate_speed_mps)
+                     & (rel[1:, other] + margin < rel[1:]) & (rel[:-1, other] + margin < rel[:-1]))
+        sliding = raw_sliding & ~supported
     min_len = max(1, round(thresholds.skate_min_duration_s * fps))
     skating = np.zeros_like(sliding)
     for f in range(sliding.shape[1]):
@@ -181,7 +192,7 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
 
     window = max(1, round(thresholds.skate_window_s * fps))
     v_avg = uniform_filter1d(v_h, size=window, axis=0, mode="constant")
-    gmd = sliding & (v_avg > thresholds.skate_speed_mps)
+    gmd = raw_sliding & (v_avg > thresholds.skate_speed_mps)
     _, planted = foot_contacts(canon, thresholds)
     planted_pair = planted[1:] & planted[:-1]
     n_planted = planted_pair.sum(axis=1)
