@@ -4,6 +4,8 @@ import simenv._glenv  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 from simenv.errors import SimenvError
 from simenv.io.loader import load
 from simenv.motion import Interaction, Motion, Skeleton
+from simenv.plausibility.report import PlausibilityReport, ScoreConfig, score
 
-__all__ = ["Interaction", "Motion", "SimenvError", "Skeleton", "load"]
+__all__ = ["Interaction", "Motion", "PlausibilityReport", "ScoreConfig", "SimenvError",
+           "Skeleton", "load", "score"]
 __version__ = "0.1.0"

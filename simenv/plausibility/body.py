@@ -296,7 +296,8 @@ def observed_hinges(humanoid: Humanoid, keypoints: Sequence[str]) -> np.ndarray:
 
 
 def joint_limits(source: Motion | RetargetResult,
-                 thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+                 thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
+                 fitted: RetargetResult | None = None) -> MetricResult:
     """Anatomical joint-angle violations.
 
     A trajectory from :func:`simenv.retarget.retarget` respects the limits by
@@ -310,6 +311,8 @@ def joint_limits(source: Motion | RetargetResult,
     hip rotation and foot abduction, a foot roll no keypoint observes), not a
     demand of the motion. A :class:`RetargetResult` is measured as it is
     (qpos from a policy, a generator, a relaxed fit), every frame counting.
+    ``fitted``: the motion's retargeting onto its fitted body when the caller
+    already has it (saves one of the two fits).
 
     Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`) over
     the hinges the motion's keypoints observe (:func:`observed_hinges`), 0 on
@@ -322,7 +325,7 @@ def joint_limits(source: Motion | RetargetResult,
     details: dict[str, float] = {}
     needed: np.ndarray | None = None
     if isinstance(source, Motion):
-        fitted = retarget(source)
+        fitted = fitted if fitted is not None else retarget(source)
         source = retarget(source, humanoid=relaxed_humanoid(
             fitted.humanoid, thresholds.joint_limit_probe_deg))
         cost = fitted.residuals.max(axis=1) - source.residuals.max(axis=1)
