@@ -4,8 +4,18 @@ import simenv._glenv  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 from simenv.errors import SimenvError
 from simenv.io.loader import load
 from simenv.motion import Interaction, Motion, Skeleton
-from simenv.plausibility.report import PlausibilityReport, ScoreConfig, score
 
 __all__ = ["Interaction", "Motion", "PlausibilityReport", "ScoreConfig", "SimenvError",
            "Skeleton", "load", "score"]
 __version__ = "0.1.0"
+
+_LAZY = {"score", "PlausibilityReport", "ScoreConfig"}
+
+
+def __getattr__(name: str):
+    # The scorer pulls in MuJoCo and the retargeting; import it only when used.
+    if name in _LAZY:
+        from simenv.plausibility import report
+
+        return getattr(report, name)
+    raise AttributeError(f"module 'simenv' has no attribute {name!r}")
