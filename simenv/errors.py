@@ -74,6 +74,11 @@ class RetargetError(SimenvError):
     """Retargeting could not be carried out (missing keypoints, bad model)."""
 
 
+class ScenarioError(SimenvError):
+    """A room scenario file is invalid: TOML syntax, unknown or missing field, wrong type,
+    value out of range, furniture outside the room or overlapping openings."""
+
+
 class PhysicsError(SimenvError):
     """The simulation diverged (NaN state, MuJoCo warnings, blow-up)."""
 
