@@ -17,6 +17,7 @@ that wall. ``yaw_deg`` is the direction an object's front (or a person) faces: 0
 
 from __future__ import annotations
 
+import difflib
 import os
 import sys
 from collections.abc import Mapping
@@ -217,26 +218,35 @@ class _Table:
     def __init__(self, raw: Any, name: str, source: str) -> None:
         self.name, self.source = name, source
         if not isinstance(raw, dict):
-            self.fail(name, f"expected a table [{name}], got {type(raw).__name__}")
+            self.fail(name, f"expected a table {self.where}, got {type(raw).__name__}")
         self.raw: dict[str, Any] = raw
         self.used: set[str] = set()
 
     def fail(self, field: str, message: str) -> None:
         raise ScenarioError(message, source=self.source, field=field)
 
+    @property
+    def where(self) -> str:
+        return f"[{self.name}]" if self.name else "the scenario file"
+
+    def _field(self, key: str) -> str:
+        return f"{self.name}.{key}" if self.name else key
+
     def _get(self, key: str) -> Any:
         self.used.add(key)
         if key not in self.raw:
-            self.fail(f"{self.name}.{key}", f"missing key {key!r} in [{self.name}]")
+            typo = difflib.get_close_matches(key, [k for k in self.raw if k not in self.used], 1)
+            hint = f" (found {typo[0]!r}: a typo?)" if typo else ""
+            self.fail(self._field(key), f"missing key {key!r} in {self.where}{hint}")
         return self.raw[key]
 
     def number(self, key: str, lo: float | None = None, hi: float | None = None) -> float:
         v = self._get(key)
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.fail(f"{self.name}.{key}", f"expected a number, got {v!r}")
+            self.fail(self._field(key), f"expected a number, got {v!r}")
         v = float(v)
         if v != v or (lo is not None and v < lo) or (hi is not None and v > hi):
-            self.fail(f"{self.name}.{key}", f"{v} is outside [{lo}, {hi}]")
+            self.fail(self._field(key), f"{v} is outside [{lo}, {hi}]")
         return v
 
     def pair(self, key: str, lo: float | None = None) -> tuple[float, float]:
@@ -244,34 +254,33 @@ class _Table:
         ok = (isinstance(v, list) and len(v) == 2
               and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
         if not ok:
-            self.fail(f"{self.name}.{key}", f"expected two numbers [x, y], got {v!r}")
+            self.fail(self._field(key), f"expected two numbers [x, y], got {v!r}")
         if lo is not None and min(v) < lo:
-            self.fail(f"{self.name}.{key}", f"{v} has a value below {lo}")
+            self.fail(self._field(key), f"{v} has a value below {lo}")
         return (float(v[0]), float(v[1]))
 
     def string(self, key: str, choices: tuple[str, ...] | None = None) -> str:
         v = self._get(key)
         if not isinstance(v, str):
-            self.fail(f"{self.name}.{key}", f"expected a string, got {v!r}")
+            self.fail(self._field(key), f"expected a string, got {v!r}")
         if choices is not None and v not in choices:
-            self.fail(f"{self.name}.{key}", f"{v!r} is not one of {list(choices)}")
+            self.fail(self._field(key), f"{v!r} is not one of {list(choices)}")
         return v
 
     def boolean(self, key: str) -> bool:
         v = self._get(key)
         if not isinstance(v, bool):
-            self.fail(f"{self.name}.{key}", f"expected true or false, got {v!r}")
+            self.fail(self._field(key), f"expected true or false, got {v!r}")
         return v
 
     def table(self, key: str) -> _Table:
-        return _Table(self._get(key), f"{self.name}.{key}", self.source)
+        return _Table(self._get(key), self._field(key), self.source)
 
     def done(self) -> None:
         extra = sorted(set(self.raw) - self.used)
         if extra:
-            self.fail(f"{self.name}.{extra[0]}",
-                      f"unknown key {extra[0]!r} in [{self.name}]; expected one of "
-                      f"{sorted(self.used)}")
+            self.fail(self._field(extra[0]), f"unknown key {extra[0]!r} in {self.where}; "
+                      f"expected one of {sorted(self.used)}")
 
 
 def _bundled_dir() -> Path:
@@ -312,7 +321,7 @@ def load_scenario(name_or_path: str | os.PathLike[str] = "default") -> Scenario:
 
 def parse_scenario(raw: Mapping[str, Any], source: str = "<scenario>") -> Scenario:
     """Validate a decoded scenario (the dict of a TOML file); ``source`` names it in errors."""
-    top = _Table(dict(raw), "scenario file", source)
+    top = _Table(dict(raw), "", source)
     head = top.table("scenario")
     name, description = head.string("name"), head.string("description")
     head.done()
