@@ -1,9 +1,10 @@
-"""simenv.models: the seed networks (motion predictor and baselines) and their checkpoints.
+"""simenv.models: the seed networks (motion predictor, baselines, gesture classifier) and
+their checkpoints.
 
-Shipped checkpoints live in ``simenv.assets`` under ``models/<name>.npz`` with a model
-card ``models/<name>.md``; :func:`load` reads them by name, e.g.
-``simenv.models.load("predictor-25-25")``. PyTorch is imported only when a model is
-loaded.
+Shipped checkpoints live in ``simenv.assets`` under ``models/<name>.npz`` (arrays only,
+no pickle) with a model card ``models/<name>.md``; :func:`load` reads them by name, e.g.
+``simenv.models.load("predictor-25-25")`` or ``simenv.models.load("gesture-classifier")``.
+PyTorch is imported only when a model is loaded.
 """
 
 from __future__ import annotations
@@ -14,7 +15,10 @@ from typing import Any
 
 from simenv.errors import SimenvError
 
-__all__ = ["available", "load"]
+__all__ = ["available", "checkpoint_path", "load"]
+
+#: Name prefixes of shipped checkpoints and what they hold.
+KINDS: tuple[str, ...] = ("predictor-", "gesture-classifier")
 
 
 def _folder() -> Path:
@@ -22,17 +26,37 @@ def _folder() -> Path:
 
 
 def available() -> list[str]:
-    """Names of the shipped checkpoints (``predictor-<P>-<F>``)."""
+    """Names of the shipped checkpoints (``predictor-<P>-<F>``, ``gesture-classifier``)."""
     folder = _folder()
     return sorted(p.stem for p in folder.glob("*.npz")) if folder.is_dir() else []
 
 
+def checkpoint_path(name: str) -> Path:
+    """The checkpoint file of a shipped model.
+
+    Raises:
+        SimenvError: unknown name (the message lists the available ones).
+    """
+    path = _folder() / f"{name}.npz"
+    if not name.startswith(KINDS) or not path.is_file():
+        names = ", ".join(available()) or "none shipped"
+        raise SimenvError(
+            f"unknown model {name!r}; available: {names} (and zero-velocity-<F>, "
+            "constant-velocity-<F>)",
+            field="name",
+        )
+    return path
+
+
 def load(name: str) -> Any:
-    """A shipped model by name, ready to ``predict``.
+    """A shipped model by name.
 
     ``predictor-<P>-<F>`` names give a
     :class:`simenv.models.predictor.PredictiveMAWGAN` (P observed -> F predicted frames
-    at 25 fps); ``zero-velocity-<F>`` / ``constant-velocity-<F>`` give the baselines.
+    at 25 fps, ``predict(history)``); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
+    give the baselines; ``gesture-classifier`` gives a
+    :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
+    ``predict_proba``, ``features``).
 
     Raises:
         SimenvError: unknown name (the message lists the available ones).
@@ -43,14 +67,11 @@ def load(name: str) -> Any:
                         ("constant-velocity-", ConstantVelocity)):
         if name.startswith(prefix) and name[len(prefix):].isdigit():
             return cls(int(name[len(prefix):]))
-    path = _folder() / f"{name}.npz"
-    if not name.startswith("predictor-") or not path.is_file():
-        names = ", ".join(available()) or "none shipped"
-        raise SimenvError(
-            f"unknown model {name!r}; available: {names} (and zero-velocity-<F>, "
-            "constant-velocity-<F>)",
-            field="name",
-        )
+    path = checkpoint_path(name)
+    if name.startswith("gesture-classifier"):
+        from simenv.models.gesture_classifier import GestureClassifier
+
+        return GestureClassifier.load(path)
     from simenv.models.predictor import PredictiveMAWGAN
 
     return PredictiveMAWGAN.load(path)

@@ -32,6 +32,7 @@ FID/FVD elsewhere) and ``logits = W_2 φ + b_2``.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -45,7 +46,7 @@ from torch import nn
 from simenv.errors import FormatError, MotionError
 
 CHECKPOINT_FORMAT = "simenv-gesture-classifier"
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
 
 
 def adjacency_matrices(parents: Sequence[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -282,13 +283,19 @@ class GestureClassifier(nn.Module):
     # -- checkpoints --------------------------------------------------------------------
 
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write config, weights and ``metadata`` (JSON-like) with :func:`torch.save`."""
+        """Write an ``.npz`` checkpoint (arrays only, no pickle): format tag, version,
+        config and ``metadata`` (JSON-like) as JSON strings, and the weights."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        torch.save({"format": CHECKPOINT_FORMAT, "version": CHECKPOINT_VERSION,
-                    "config": asdict(self.config),
-                    "state_dict": {k: v.detach().clone() for k, v in self.state_dict().items()},
-                    "metadata": metadata or {}}, path)
+        arrays: dict[str, np.ndarray] = {
+            "format": np.array(CHECKPOINT_FORMAT), "version": np.array(CHECKPOINT_VERSION),
+            "config": np.array(json.dumps(asdict(self.config))),
+            "metadata": np.array(json.dumps(metadata or {})),
+        }
+        for key, value in self.state_dict().items():
+            arrays[f"weights.{key}"] = value.detach().cpu().numpy()
+        with path.open("wb") as fh:
+            np.savez_compressed(fh, **arrays)
         return path
 
     @classmethod
@@ -299,16 +306,25 @@ class GestureClassifier(nn.Module):
         if not path.is_file():
             raise FormatError("gesture classifier checkpoint not found", source=path)
         try:
-            blob = torch.load(path, map_location="cpu", weights_only=True)
-        except Exception as exc:  # torch raises many types for damaged files
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
             raise FormatError(f"cannot read checkpoint ({type(exc).__name__}: {exc})",
                               source=path) from None
-        if not isinstance(blob, dict) or blob.get("format") != CHECKPOINT_FORMAT:
-            raise FormatError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-        if blob.get("version") != CHECKPOINT_VERSION:
-            raise FormatError(f"checkpoint version {blob.get('version')!r}; this simenv reads "
-                              f"version {CHECKPOINT_VERSION}", source=path, field="version")
-        model = cls(ClassifierConfig(**blob["config"]))
-        model.load_state_dict(blob["state_dict"])
-        model.metadata = blob.get("metadata", {})
+        with data:
+            if "format" not in data.files or str(data["format"]) != CHECKPOINT_FORMAT:
+                raise FormatError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
+            version = int(data["version"]) if "version" in data.files else None
+            if version != CHECKPOINT_VERSION:
+                raise FormatError(f"checkpoint version {version!r}; this simenv reads "
+                                  f"version {CHECKPOINT_VERSION}", source=path,
+                                  field="version")
+            model = cls(ClassifierConfig(**json.loads(str(data["config"]))))
+            state = {k.removeprefix("weights."): torch.as_tensor(data[k])
+                     for k in data.files if k.startswith("weights.")}
+            try:
+                model.load_state_dict(state)
+            except RuntimeError as exc:
+                raise FormatError(f"weights do not fit the config: {exc}",
+                                  source=path) from None
+            model.metadata = json.loads(str(data["metadata"]))
         return model.eval()

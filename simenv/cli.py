@@ -321,6 +321,30 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_train(args: argparse.Namespace) -> int:
+    """Forward the options after KIND to the training script of the predictor/classifier."""
+    if args.kind == "predictor":
+        from simenv.train_predictor import main as predictor_main
+
+        return predictor_main(args.options)
+    from simenv.train_classifier import main as classifier_main
+
+    return classifier_main(["train", *args.options])
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    """Evaluate a shipped model: an optional NAME, then the script's own options."""
+    options = list(args.options)
+    name = options.pop(0) if options and not options[0].startswith("-") else None
+    if args.kind == "predictor":
+        from simenv.train_predictor import main as predictor_main
+
+        return predictor_main(["--evaluate", name or "predictor-25-25", *options])
+    from simenv.train_classifier import main as classifier_main
+
+    return classifier_main(["eval", "--model", name or "gesture-classifier", *options])
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -412,6 +436,22 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--stride", type=_positive_int, default=None,
                       help="render every S-th frame (default: chosen to keep the demo short)")
     demo.set_defaults(func=cmd_demo)
+
+    for verb, func, text in (
+        ("train", cmd_train, "train the motion predictor or the gesture classifier on the "
+         "real mocap of the shared corpus (CPU, seeded, progress bar): checkpoint, model card, "
+         "metrics.json and plots. Options after KIND go to its training script (see `simenv "
+         "train KIND --help`); --config FILE reads them from a TOML or JSON file."),
+        ("eval", cmd_eval, "evaluate a shipped model [NAME] (default predictor-25-25 / "
+         "gesture-classifier) on its held-out split, or for the predictor on --data PATH... "
+         "(--json prints one object); writes metrics.json and plots (--out DIR)."),
+    ):
+        cmd = sub.add_parser(verb, help=text.split(" (")[0].split(":")[0], description=text)
+        cmd.add_argument("kind", choices=("predictor", "classifier"), metavar="KIND",
+                         help="predictor or classifier")
+        cmd.add_argument("options", nargs=argparse.REMAINDER, metavar="...",
+                         help="options of the training/evaluation script")
+        cmd.set_defaults(func=func)
     return parser
 
 

@@ -29,10 +29,11 @@ Per condition: accuracy, balanced accuracy (mean per-class recall), per-class re
 confusion matrix (rows = true, columns = predicted), accuracy per dataset, and the room's
 reaction accuracy (true and predicted labels mapped through
 :func:`simenv.gestures.room_reaction`). Outputs: ``metrics.json``, ``confusion.png``,
-``gesture-classifier.pt`` and a model card ``gesture-classifier.md``.
+``gesture-classifier.npz`` and a model card ``gesture-classifier.md``.
 
 Command line: ``python -m simenv.train_classifier train --out DIR [--config FILE]``,
-``python -m simenv.train_classifier eval --checkpoint FILE --out DIR``.
+``python -m simenv.train_classifier eval [--model NAME | --checkpoint FILE] --out DIR``
+(also ``simenv train classifier`` / ``simenv eval classifier [NAME]``).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
@@ -51,6 +53,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from simenv.config import read_options
 from simenv.errors import SimenvError
 from simenv.gestures import (
     GESTURE_LABELS,
@@ -117,17 +120,7 @@ class TrainConfig:
     @classmethod
     def from_file(cls, path: str | Path, **overrides: Any) -> TrainConfig:
         """Config from a TOML or JSON file (unknown keys are an error)."""
-        path = Path(path)
-        try:
-            text = path.read_text()
-            if path.suffix == ".json":
-                raw = json.loads(text)
-            else:
-                import tomllib  # Python >= 3.11; use JSON on 3.10
-
-                raw = tomllib.loads(text)
-        except (OSError, ValueError, ImportError) as exc:
-            raise SimenvError(f"cannot read config: {exc}", source=path) from None
+        raw = read_options(path)
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(raw) - known)
         if unknown:
@@ -374,7 +367,8 @@ scale); padded frames masked. Output: the {len(GESTURE_LABELS)} labels of the ro
 gesture vocabulary ({', '.join(GESTURE_LABELS)}). `features()` gives the
 {cfg['feature_dim']}-d penultimate features for FID/FVD.
 
-Load: `GestureClassifier.load(path)`; raw world-frame windows: `model.classify_world(x)`.
+Load: `simenv.models.load("gesture-classifier")` (or `GestureClassifier.load(path)`); raw
+world-frame windows: `model.classify_world(x)`.
 
 ## Data
 Real Kinect-era recordings in `shared/data/gestures` (research use; see its SOURCES.md):
@@ -439,7 +433,7 @@ def run_training(config: TrainConfig, out: Path, *, progress: bool = True) -> di
     out.mkdir(parents=True, exist_ok=True)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
     plot_confusions(results, out / "confusion.png")
-    model.save(out / "gesture-classifier.pt", metadata={
+    model.save(out / "gesture-classifier.npz", metadata={
         "labels": list(GESTURE_LABELS), "split": metrics["split"]["rule"],
         "test_accuracy": {c: results[c]["accuracy"] for c in results},
         "seed": config.seed})
@@ -483,7 +477,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p_train.add_argument("--seed", type=int)
     p_train.add_argument("--max-minutes", type=float)
     p_eval = sub.add_parser("eval", help="evaluate a checkpoint on the test subjects")
-    p_eval.add_argument("--checkpoint", required=True)
+    p_eval.add_argument("--model", default="gesture-classifier",
+                        help="shipped classifier name (default gesture-classifier)")
+    p_eval.add_argument("--checkpoint", help="a checkpoint file instead of a shipped model")
     p_eval.add_argument("--data", default=str(DEFAULT_DATA))
     p_eval.add_argument("--out", default="out/gesture-classifier-eval")
     args = parser.parse_args(argv)
@@ -496,9 +492,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                       else TrainConfig(**overrides))
             metrics = run_training(config, Path(args.out))
         else:
-            metrics = run_evaluation(Path(args.checkpoint), Path(args.data), Path(args.out))
+            from simenv.models import checkpoint_path
+
+            checkpoint = Path(args.checkpoint) if args.checkpoint else \
+                checkpoint_path(args.model)
+            metrics = run_evaluation(checkpoint, Path(args.data), Path(args.out))
     except SimenvError as exc:
-        print(f"error: {exc}")
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     _print_summary(metrics["test"])
     print(f"outputs in {args.out}")

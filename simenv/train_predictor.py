@@ -1,6 +1,8 @@
 """Train and evaluate the PredictiveMA-WGAN predictor on real motion capture.
 
-``python -m simenv.train_predictor --past 25 --future 25 --minutes 6 --out runs/p25``
+``simenv train predictor --past 25 --future 25 --minutes 6 --out out/p25`` (or
+``python -m simenv.train_predictor ...``); ``simenv eval predictor [NAME] [--data PATH...]
+[--json]`` evaluates a shipped model.
 
 Data and split
 --------------
@@ -22,7 +24,8 @@ model (predicted and carried amplitude) with zero- and constant-velocity on the 
 windows: per-frame MPJPE and RMS-up-to-horizon MPJPE at 80/160/320/400/1000 ms (joints
 without the pelvis, whose root-relative error is 0 for every method), MPJS and
 bone-length drift, per action type and per clip, plus recursive prediction to 3 F
-frames. :func:`main` writes ``metrics.json``, ``error_curve.png`` and ``model.npz``.
+frames. Training writes ``metrics.json``, ``error_curve.png`` and ``model.npz``;
+evaluation (:func:`run_evaluation`) writes ``metrics.json`` and ``error_curve.png``.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
@@ -40,6 +44,7 @@ import torch
 
 from simenv import prediction_data as pdata
 from simenv import prediction_metrics as pm
+from simenv.config import read_options
 from simenv.errors import MotionError, SimenvError, SkeletonError
 from simenv.io import load
 from simenv.models.baselines import ConstantVelocity, ZeroVelocity
@@ -472,51 +477,75 @@ def model_card(name: str, metrics: dict) -> str:
     return "\n".join(lines)
 
 
-def evaluate_json(model: PredictiveMAWGAN, paths: Sequence[str | Path] | None = None,
-                  shared: str | Path | None = None) -> dict:
-    """The ``simenv eval predictor --json`` object for ``model`` on clips.
+def eval_motions(model: PredictiveMAWGAN, paths: Sequence[str | Path] | None = None,
+                 shared: str | Path | None = None) -> list[Motion]:
+    """The clips to evaluate ``model`` on: those in ``paths`` or, by default, the model's
+    own held-out clips (its checkpoint's ``config.info["test_clips"]``) from the shared
+    corpus under ``shared``.
 
-    Args:
-        model: a trained predictor (e.g. ``simenv.models.load("predictor-25-25")``).
-        paths: motion files/folders; default: the model's own held-out clips (its
-            checkpoint's ``config.info["test_clips"]``) from the shared corpus.
-        shared: root of the shared corpus for the default.
-
-    Returns:
-        ``{"fps", "horizons_ms", "clips", "windows", "mpjpe_mm": {"model": [...],
-        "zero_velocity": [...], "constant_velocity": [...]}}``: per-frame MPJPE (mm, no
-        pelvis) at each horizon; ``None`` for horizons beyond the model's F frames.
+    Raises:
+        SimenvError: no usable clip, or no default because the model records no split.
     """
     if paths:
-        motions, _ = collect_motions(paths)
-    else:
-        motions, _ = collect_motions(default_data(Path(shared or SHARED)))
-        test = set(model.config.info.get("test_clips", []))
-        motions = [m for m in motions if group_of(m.name) in test]
-        if not motions:
-            raise MotionError("the model records no held-out clips; pass clips to evaluate")
+        return collect_motions(paths)[0]
+    motions, _ = collect_motions(default_data(Path(shared or SHARED)))
+    test = set(model.config.info.get("test_clips", []))
+    motions = [m for m in motions if group_of(m.name) in test]
+    if not motions:
+        raise MotionError("the model records no held-out clips; pass clips to evaluate")
+    return motions
+
+
+def run_evaluation(model: PredictiveMAWGAN, motions: Sequence[Motion],
+                   out: str | Path | None = None) -> dict:
+    """Full metrics of ``model`` and the baselines on ``motions`` (as :func:`evaluate`,
+    plus recursive prediction); with ``out``, also writes ``metrics.json`` and
+    ``error_curve.png`` there."""
     windows = pdata.windows_from_motions(motions, model.past_len, model.future_len, stride=1)
-    preds = predictions(model, windows)
-    result = {}
-    for name in ("model", "zero_velocity", "constant_velocity"):
-        got = pm.mpjpe_at_horizons_mm(preds[name], windows.future, windows.fps,
-                                      joints=EVAL_JOINTS)
-        result[name] = [got.get(h) for h in pm.HORIZONS_MS]
-    return {"fps": windows.fps, "horizons_ms": list(pm.HORIZONS_MS),
-            "clips": len(windows.clip_names), "windows": len(windows), "mpjpe_mm": result}
+    metrics = evaluate(model, windows)
+    metrics["clips"] = len(windows.clip_names)
+    metrics["recursive"] = evaluate_recursive(model, motions, {group_of(m.name) for m in motions})
+    metrics["config"] = {"past_len": model.past_len, "future_len": model.future_len,
+                         **model.config.info}
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
+        plot_curves(metrics, out / "error_curve.png")
+    return metrics
+
+
+def summary_json(metrics: dict) -> dict:
+    """The ``simenv eval predictor --json`` object of :func:`run_evaluation` metrics:
+    ``{"fps", "horizons_ms", "clips", "windows", "mpjpe_mm": {"model": [...],
+    "zero_velocity": [...], "constant_velocity": [...]}}``, per-frame MPJPE (mm, no pelvis)
+    at each horizon, ``None`` for horizons beyond the model's F frames."""
+    rows = {name: [metrics["overall"][name]["mpjpe_mm"].get(h) for h in pm.HORIZONS_MS]
+            for name in ("model", "zero_velocity", "constant_velocity")}
+    return {"fps": metrics["fps"], "horizons_ms": list(pm.HORIZONS_MS),
+            "clips": metrics["clips"], "windows": metrics["windows"], "mpjpe_mm": rows}
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    """Options; ``--config FILE`` (TOML/JSON, :mod:`simenv.config`) sets defaults that
+    explicit command-line options override.
+
+    Raises:
+        SimenvError: unreadable config or an unknown key in it.
+    """
+    ap = argparse.ArgumentParser(prog="simenv train predictor",
+                                 description=__doc__.split("\n")[0])
+    ap.add_argument("--config", help="TOML/JSON file of option values")
     ap.add_argument("--past", type=int, default=25, help="observed frames P (25 fps)")
     ap.add_argument("--future", type=int, default=25, help="predicted frames F")
     ap.add_argument("--data", nargs="*", help="motion files/folders (default: shared CMU)")
     ap.add_argument("--shared", default=str(SHARED), help="shared corpus root")
     ap.add_argument("--evaluate", metavar="NAME",
                     help="evaluate a shipped model (e.g. predictor-25-25) instead of training")
-    ap.add_argument("--json", action="store_true", help="with --evaluate: print JSON")
+    ap.add_argument("--json", action="store_true",
+                    help="with --evaluate: print the summary as one JSON object")
     ap.add_argument("--iterations", type=int, default=20000)
-    ap.add_argument("--minutes", type=float, default=6.0, help="training time budget")
+    ap.add_argument("--minutes", type=float, default=6.0, help="training CPU-time budget")
     ap.add_argument("--n-critic", type=int, default=2, help="critic steps per G step")
     ap.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate")
     ap.add_argument("--adv-weight", type=float, default=1.0,
@@ -529,35 +558,55 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--test-fraction", type=float, default=0.25)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--out", default="runs/predictor")
-    ap.add_argument("--quiet", action="store_true")
-    return ap.parse_args(argv)
+    ap.add_argument("--out", help="output folder (metrics.json, error_curve.png and, when "
+                    "training, model.npz; default out/predictor or out/eval-NAME)")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = ap.parse_args(argv)
+    if args.config:
+        options = {k.replace("-", "_"): v for k, v in read_options(args.config).items()}
+        known = set(vars(args)) - {"config"}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise SimenvError(f"unknown option(s) {', '.join(unknown)}; known: "
+                              f"{', '.join(sorted(known))}", source=args.config)
+        ap.set_defaults(**options)
+        args = ap.parse_args(argv)
+    return args
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = parse_args(argv)
+    """Train (default) or, with ``--evaluate NAME``, evaluate; returns the exit status
+    (2 on a user error)."""
     try:
+        args = parse_args(argv)
         if args.evaluate:
             from simenv.models import load
 
             torch.set_num_threads(args.threads)
-            result = evaluate_json(load(args.evaluate), args.data, args.shared)
+            model = load(args.evaluate)
+            args.out = args.out or f"out/eval-{args.evaluate}"
+            metrics = run_evaluation(model, eval_motions(model, args.data, args.shared),
+                                     args.out)
+            result = summary_json(metrics)
             if args.json:
                 print(json.dumps(result))
             else:
                 print(f"{result['clips']} clips, {result['windows']} windows; per-frame "
-                      f"MPJPE [mm] at {result['horizons_ms']} ms")
+                      f"MPJPE [mm] at {result['horizons_ms']} ms (metrics.json and "
+                      f"error_curve.png in {args.out})")
                 for name, row in result["mpjpe_mm"].items():
                     print(f"{name:>18s} " + " ".join(
                         "    n/a" if v is None else f"{v:7.1f}" for v in row))
             return 0
+        args.out = args.out or "out/predictor"
         metrics = run(args)
     except SimenvError as exc:
-        print(f"error: {exc}")
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     for name, m in metrics["overall"].items():
         row = " ".join(f"{m['mpjpe_mm'].get(h, float('nan')):7.1f}" for h in pm.HORIZONS_MS)
         print(f"{name:>26s} {row}")
+    print(f"outputs in {args.out}")
     return 0
 
 

@@ -26,7 +26,7 @@ from simenv.train_classifier import (
     train_step,
 )
 
-SHIPPED = Path(__file__).resolve().parent.parent / "assets" / "models" / "gesture-classifier.pt"
+SHIPPED = Path(__file__).resolve().parent.parent / "assets" / "models" / "gesture-classifier.npz"
 
 
 @pytest.fixture(scope="module")
@@ -141,19 +141,19 @@ def test_training_steps_reduce_loss_on_real_windows(florence) -> None:
 def test_checkpoint_round_trip(tmp_path: Path, florence) -> None:
     model = _small_model(seed=2).eval()
     w = g.make_windows(florence[:3])
-    path = model.save(tmp_path / "gc.pt", metadata={"note": "test"})
+    path = model.save(tmp_path / "gc.npz", metadata={"note": "test"})
     loaded = GestureClassifier.load(path)
     assert loaded.metadata == {"note": "test"}
     assert loaded.config == model.config
     assert np.allclose(loaded.predict_proba(w.x, w.valid), model.predict_proba(w.x, w.valid))
-    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    (tmp_path / "junk.npz").write_bytes(b"not a checkpoint")
     with pytest.raises(FormatError, match="cannot read checkpoint"):
-        GestureClassifier.load(tmp_path / "junk.pt")
-    torch.save({"format": "other"}, tmp_path / "other.pt")
+        GestureClassifier.load(tmp_path / "junk.npz")
+    np.savez(tmp_path / "other.npz", format=np.array("other"))
     with pytest.raises(FormatError, match="not a simenv-gesture-classifier"):
-        GestureClassifier.load(tmp_path / "other.pt")
+        GestureClassifier.load(tmp_path / "other.npz")
     with pytest.raises(FormatError, match="not found"):
-        GestureClassifier.load(tmp_path / "missing.pt")
+        GestureClassifier.load(tmp_path / "missing.npz")
 
 
 def test_extrapolation_and_scores(florence) -> None:

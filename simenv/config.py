@@ -1,0 +1,37 @@
+"""Option files of the training and evaluation commands (``--config FILE``).
+
+A config file is a flat table of option values, TOML (``.toml``) or JSON (``.json``),
+e.g. ``minutes = 3`` or ``{"minutes": 3}``. Keys are the option names without the
+leading dashes, with ``-`` or ``_`` (``n_critic`` = ``n-critic``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from simenv.errors import SimenvError
+
+
+def read_options(path: str | Path) -> dict[str, Any]:
+    """The option table of a TOML or JSON config file.
+
+    Raises:
+        SimenvError: the file cannot be read or parsed, or is not a table (the message
+            names the file).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+        if path.suffix.lower() == ".json":
+            raw = json.loads(text)
+        else:
+            import tomllib  # Python >= 3.11; use JSON on 3.10
+
+            raw = tomllib.loads(text)
+    except (OSError, ValueError, ImportError) as exc:
+        raise SimenvError(f"cannot read config: {exc}", source=path) from None
+    if not isinstance(raw, dict):
+        raise SimenvError("a config file must hold one table of option values", source=path)
+    return raw
