@@ -27,7 +27,7 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
 
 
 def test_help_on_every_command(capsys):
-    for argv in ([], ["info"], ["retarget"], ["render"], ["demo"]):
+    for argv in ([], ["info"], ["retarget"], ["render"], ["score"], ["demo"]):
         with pytest.raises(SystemExit) as exc:
             cli.main([*argv, "--help"])
         assert exc.value.code == 0
@@ -167,3 +167,29 @@ def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
         cap.release()
         with np.load(clip["npz"]) as npz:
             assert npz["qpos"].shape[0] == clip["frames"]
+
+
+def test_score_json_prints_one_object_per_person(capsys, tmp_path):
+    out = tmp_path / "results.jsonl"
+    status, text, _ = run(capsys, "score", asset_path(WALK), asset_path(HANDSHAKE_PAIR),
+                          "--no-physics", "--json", "--out", out)
+    assert status == 0
+    records = [json.loads(line) for line in text.splitlines()]
+    assert [(Path(r["file"]).name, r["person"]) for r in records] == [
+        (WALK, 0), (HANDSHAKE_PAIR, 0), (HANDSHAKE_PAIR, 1)]
+    for r in records:
+        assert r["verdict"] in ("plausible", "implausible") and 0 <= r["score"] <= 100
+        assert {"value", "unit", "threshold", "passed"} <= set(r["metrics"]["foot_skate"])
+    assert "interaction" in records[1] and "interaction" not in records[0]
+    assert len(out.read_text().splitlines()) == 3
+    # A rerun with the same results file has nothing left to do.
+    status, text, _ = run(capsys, "score", asset_path(WALK), "--no-physics", "--json",
+                          "--out", out)
+    assert status == 0 and text == ""
+
+
+def test_score_text_output_and_bad_path(capsys, tmp_path):
+    status, text, _ = run(capsys, "score", asset_path(WALK), "--no-physics")
+    assert status == 0 and "plausible" in text and "not available: joint_limits" in text
+    status, _, err = run(capsys, "score", tmp_path / "nothing.bvh")
+    assert status == 2 and "no such file" in err
