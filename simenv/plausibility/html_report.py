@@ -76,7 +76,7 @@ from simenv.plausibility.report import (
     VERDICT_PLAUSIBLE,
     PersonReport,
     PlausibilityReport,
-    _violations,
+    _violations,  # the report's own violation ranges: page, video and JSON agree
     metric_score,
 )
 from simenv.plausibility.timeline import MetricResult
@@ -98,7 +98,7 @@ BORDER_PX = 5
 MAX_LABEL_LINES = 4
 
 #: One row of the batch index: (file, page or None, score or None, verdict or error message).
-IndexEntry = tuple[str, "str | os.PathLike[str] | None", "float | None", str]
+IndexEntry = tuple[str, str | os.PathLike[str] | None, float | None, str]
 
 _RED_RGB = (230, 30, 30)
 
