@@ -115,6 +115,7 @@ class Cell:
     target_runs: int = 0  # runs on clips whose clean version passes the target
     target_hits: int = 0
     by_metric: dict[str, int] = field(default_factory=dict)
+    misses: list[str] = field(default_factory=list)  # "clip#seed" the target missed
     errors: list[str] = field(default_factory=list)
 
 
@@ -154,7 +155,10 @@ def run(motions: dict[str, Motion], strengths: dict[str, tuple[float, ...]], see
                 cell.by_metric[metric] = cell.by_metric.get(metric, 0) + (passed is False)
             if all(clean[clip][1].get(t) is not False for t in entry.targets):
                 cell.target_runs += 1
-                cell.target_hits += any(verdicts.get(t) is False for t in entry.targets)
+                hit = any(verdicts.get(t) is False for t in entry.targets)
+                cell.target_hits += hit
+                if not hit:
+                    cell.misses.append(f"{clip}#{seed}")
             bar.update()
     return clean, cells, metrics
 
@@ -190,6 +194,11 @@ def tables(clean: dict, cells: dict, metrics: list[str],
                 f"({cell.target_hits}/{cell.target_runs}) | {pct(cell.flagged, cell.runs)} | "
                 f"{cause} |"
             )
+    missed = [(name, s, c.misses) for (name, s), c in cells.items()
+              if c.misses and np.isclose(s, CORRUPTIONS[name].moderate)]
+    lines += ["", "Not caught by the target metric at the moderate strength (clip#seed): "
+              + ("; ".join(f"{name} {s:g} {STRENGTH_UNITS[name]}: {', '.join(m)}"
+                           for name, s, m in missed) or "none") + "."]
     errors = [(k, e) for k, c in cells.items() for e in c.errors]
     if errors:
         lines += ["", "Runs that could not be corrupted (not counted):", ""]
@@ -201,7 +210,10 @@ def tables(clean: dict, cells: dict, metrics: list[str],
         "| metric | clips failing | rate | which |",
         "|---|---|---|---|",
     ]
+    never = [m for m in metrics if all(v.get(m) is None for _, v in clean.values())]
     for metric in metrics:
+        if metric in never:
+            continue
         failing = [c for c, (_, v) in clean.items() if v.get(metric) is False]
         na = sum(v.get(metric) is None for _, v in clean.values())
         which = ", ".join(failing) or "-"
@@ -212,6 +224,8 @@ def tables(clean: dict, cells: dict, metrics: list[str],
     flagged = [c for c, (f, _) in clean.items() if f]
     lines.append(f"| **any (verdict)** | {len(flagged)}/{len(clean)} | "
                  f"{pct(len(flagged), len(clean))} | {', '.join(flagged) or '-'} |")
+    if never:
+        lines += ["", f"Not available in this mode (no verdict): {', '.join(never)}."]
     return lines
 
 
