@@ -21,9 +21,10 @@ door         ``door/hinge`` hinge   rad      [0, 100 deg]      ``open`` when > 1
 the width of window it covers; the hi-fi's knob angle gives the volume level
 ``angle / (3 pi / 2)``; the cigarette's is how far it has been pressed into the ashtray, so
 it is lit until pressed; the door's is its opening angle.) Every joint has Coulomb friction
-(``frictionloss``) larger than the loads it carries at rest, so an object released anywhere
-holds its state, as a real sash, knob detent or hinge does, plus viscous damping; the
-window pane and the cigarette move only along their slide, so gravity never changes them.
+(``frictionloss``), so an object released anywhere holds its state, as a real sash, knob
+detent or hinge does, plus viscous damping. MuJoCo's friction loss is a soft constraint that
+lets a steady load creep, so no joint carries one at rest: the window, curtain and door move
+perpendicular to gravity, and the knob and the cigarette are gravity-compensated.
 
 Each object has a *handle* site where a hand acts on it, and for each hand an inactive
 ``connect`` equality constraint between the hand's keypoint site and the handle:
@@ -352,6 +353,7 @@ class Room:
               (tray[0], tray[1], top + 0.01), (0.3, 0.35, 0.4, 0.9), _STATIC)
         # Cigarette across the tray: slides down (into the ash) when pressed; lit until then.
         cig = _body(desk, "cigarette", (tray[0], tray[1], top + 0.024))
+        cig.gravcomp = 1.0  # it rests on the tray's rim: its weight must not press it out
         _joint(cig, "cigarette/press", mujoco.mjtJoint.mjJNT_SLIDE, (0, 0, -1),
                (0.0, CIGARETTE_TRAVEL), friction=0.3, damping=1.0, armature=0.02)
         _geom(cig, "cigarette/body", mujoco.mjtGeom.mjGEOM_CAPSULE, (0.004, 0.035), (0, 0, 0),
@@ -378,6 +380,7 @@ class Room:
             _box(hifi, f"hifi/speaker{i}", (0.12, 0.07, 0.16), (0, y, 0.76), _DARK)
         # Volume knob on the front face (+x); its hinge axis points out of the face.
         knob = _body(hifi, "hifi_knob", (0.19, 0.12, 0.66))
+        knob.gravcomp = 1.0  # the pointer's weight must not turn the knob
         _joint(knob, "hifi/volume", mujoco.mjtJoint.mjJNT_HINGE, (1, 0, 0), (0.0, KNOB_TRAVEL),
                friction=0.05, damping=0.02, armature=0.002)
         _geom(knob, "hifi/knob", mujoco.mjtGeom.mjGEOM_CYLINDER, (0.03, 0.012), (0.012, 0, 0),
@@ -582,18 +585,12 @@ class Room:
         """Move a user trajectory (T, nq_user) to the scenario's place: rotated about z and
         translated so that frame 0's pelvis stands at ``user.position`` (x, y; its height
         is kept) facing ``user.yaw_deg``. The motion's shape is unchanged."""
-        q = np.array(qpos, dtype=float, copy=True)
+        q = np.asarray(qpos, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.user.nq:
             raise SimenvError(f"user qpos must be (T, {self.user.nq}); got {q.shape}",
                               field="qpos")
-        heading = _heading(q[0, 3:7])
-        turn = np.deg2rad(self.scenario.user.yaw_deg) - heading
-        c, sn = np.cos(turn), np.sin(turn)
-        xy = q[:, :2] - q[0, :2]
-        q[:, 0] = c * xy[:, 0] - sn * xy[:, 1] + self.scenario.user.position[0]
-        q[:, 1] = sn * xy[:, 0] + c * xy[:, 1] + self.scenario.user.position[1]
-        q[:, 3:7] = _quat_mul(np.array(_yaw_quat(turn)), q[:, 3:7])
-        return q
+        u = self.scenario.user
+        return place_on_floor(q, u.position, np.deg2rad(u.yaw_deg))
 
     def set_user_pose(self, data: mujoco.MjData, qpos: np.ndarray) -> None:
         """Drive the user's mocap bodies to one configuration (nq_user,) of the user's
@@ -625,6 +622,19 @@ def _wall_slabs(holes: list[tuple[float, float, float, float]], half_len: float,
         cursor = u1
     slabs.append((cursor, half_len, 0.0, height))
     return [b for b in slabs if b[1] - b[0] > 1e-6 and b[3] - b[2] > 1e-6]
+
+
+def place_on_floor(qpos: np.ndarray, position: Sequence[float], yaw: float) -> np.ndarray:
+    """A free-root trajectory (T, nq) turned about z and shifted so that frame 0's root is
+    at ``position`` (x, y, m; height kept) with heading ``yaw`` (rad); a copy."""
+    q = np.array(qpos, dtype=float, copy=True)
+    turn = yaw - _heading(q[0, 3:7])
+    c, sn = np.cos(turn), np.sin(turn)
+    xy = q[:, :2] - q[0, :2]
+    q[:, 0] = c * xy[:, 0] - sn * xy[:, 1] + position[0]
+    q[:, 1] = sn * xy[:, 0] + c * xy[:, 1] + position[1]
+    q[:, 3:7] = _quat_mul(np.array(_yaw_quat(turn)), q[:, 3:7])
+    return q
 
 
 def _scaled_default(height: float) -> BodyDimensions:
@@ -682,4 +692,4 @@ def _look_at(parent: mujoco.MjsBody, name: str, eye: Sequence[float],
     cam.fovy = 60.0
 
 
-__all__ = ["GRASP_RADIUS", "KNOB_TRAVEL", "Room", "RoomObject"]
+__all__ = ["GRASP_RADIUS", "KNOB_TRAVEL", "Room", "RoomObject", "place_on_floor"]

@@ -146,6 +146,18 @@ def test_seated_agent_is_stable_under_pd(room: Room):
     assert touching, "the agent does not sit on the chair"
 
 
+def test_untouched_objects_hold_their_state():
+    """Five seconds of simulation leave every object where it was (no creep under load)."""
+    room = Room("discomfort")
+    data = room.make_data()
+    before = room.object_states(data)
+    for _ in range(int(round(5.0 / room.model.opt.timestep))):
+        mujoco.mj_step(room.model, data)
+    after = room.object_states(data)
+    for name in OBJECTS:
+        assert after[name] == pytest.approx(before[name], abs=1e-4), name
+
+
 def test_window_opens_when_pushed_and_holds(room: Room):
     """A force on the pane along its slide opens the window through the simulation; a push
     weaker than the sash's friction does not move it, and a released pane stays put."""

@@ -2,6 +2,8 @@
 
 * ``simenv/HumanoidTrack-v0`` -- :class:`~simenv.envs.humanoid_track.HumanoidTrackEnv`:
   low-level control, PD targets of a subject-fitted humanoid tracking a reference motion.
+* ``simenv/InteractionRoom-v0`` -- :class:`~simenv.envs.interaction_room.InteractionRoomEnv`:
+  the room's agent decides its reactions to a recorded user's gestures.
 
 Example::
 
@@ -17,19 +19,24 @@ import gymnasium
 
 _ENVS = {
     "simenv/HumanoidTrack-v0": "simenv.envs.humanoid_track:HumanoidTrackEnv",
+    "simenv/InteractionRoom-v0": "simenv.envs.interaction_room:InteractionRoomEnv",
 }
 
 for _id, _entry in _ENVS.items():
     if _id not in gymnasium.registry:
         gymnasium.register(id=_id, entry_point=_entry)
 
-__all__ = ["HumanoidTrackEnv"]
+__all__ = ["HumanoidTrackEnv", "InteractionRoomEnv"]
 
 
 def __getattr__(name: str) -> object:
-    # Lazy: importing the package (to register) does not build any model.
+    # Lazy: importing the package (to register) loads no model and no heavy module.
     if name == "HumanoidTrackEnv":
         from simenv.envs.humanoid_track import HumanoidTrackEnv
 
         return HumanoidTrackEnv
+    if name == "InteractionRoomEnv":
+        from simenv.envs.interaction_room import InteractionRoomEnv
+
+        return InteractionRoomEnv
     raise AttributeError(name)

@@ -1,0 +1,267 @@
+"""``simenv/InteractionRoom-v0``: decide the agent's reaction to the user's gestures.
+
+The room of a scenario (:class:`simenv.room.Room`) with the user's avatar replaying a
+session (:class:`simenv.session.Session`, retargeted onto a body fitted to the subject) at
+the perception rate, 25 fps; one environment step is one user frame (0.04 s, 20 physics
+steps of 2 ms). The agent sits at the desk, its PD servos holding the seated pose.
+
+Observation (``Dict``, float32)
+    ``user_history`` (H, K, 3): the user's last H = 25 frames (1 s) of canonical keypoints
+    in the room frame, m (frames before the session start repeat its first frame);
+    ``user_future`` (F, K, 3): the predictor's F frames ahead of them (default the
+    constant-velocity baseline ``constant-velocity-50``, 2 s, until a trained
+    PredictiveMA-WGAN on these keypoints exists); ``agent`` (nq_a - 2 + nv_a,): the agent's
+    ``qpos[2:]`` and ``qvel``; ``objects`` (5,): each object's state as a fraction of its
+    joint range (order :data:`OBJECTS`; see :mod:`simenv.room` for thresholds).
+
+Action (``Discrete(1 + R)``)
+    0 = no-op (keep doing what the agent does), ``1..R`` = the scenario's reactions other
+    than ``keep``, in the order of :data:`simenv.scenario.REACTIONS` (:attr:`reactions`).
+
+Reward (per step, documented constants below)
+    * a decision during a labelled gesture (from its onset to :data:`GRACE_S` after its end)
+      that is the scenario's reaction to it: ``+exp(-(t - onset) / TIMELINESS_S)``, once per
+      gesture (earlier is better; deciding on predicted motion pays);
+    * any other decision (wrong reaction, no gesture, gesture already answered):
+      ``-FALSE_ALARM``;
+    * a gesture whose reaction is not ``keep`` left unanswered :data:`GRACE_S` after its
+      end: ``-MISS``;
+    * implausible agent motion: ``-PLAUSIBILITY_WEIGHT`` per centimetre by which the agent's
+      deepest contact with the floor, the furniture, the objects or itself penetrates beyond
+      :data:`PENETRATION_TOLERANCE_M` (contacts with the kinematic user, who pushes with
+      unbounded force, are not the agent's doing).
+
+Episode
+    Truncated :data:`TAIL_S` after the session ends (the user holding the last pose), or
+    when the physics diverges (``info["truncation_reason"]``). Stepping before ``reset``, after
+    the end, or with an action outside the space raises :class:`~simenv.errors.SimenvError`.
+
+Scope of this version: the decision is logged (``info["reaction"]``) and rewarded; carrying
+it out physically (stand, walk, reach, act through :meth:`simenv.room.Room.set_grasp`) is
+the next layer, so object states change here only through contact with the user.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from simenv.assets import WALK
+from simenv.envs._physics import physics_problem, warning_counts
+from simenv.errors import SimenvError
+from simenv.motion import Motion
+from simenv.scenario import REACTIONS, Scenario, load_scenario
+from simenv.session import PERCEPTION_FPS, GestureEvent, Session, user_track
+
+#: Object order of the ``objects`` observation.
+OBJECTS = ("window", "curtain", "hifi", "cigarette", "door")
+#: Time constant of the timeliness reward, s.
+TIMELINESS_S = 1.0
+#: How long after a gesture's end a decision still answers it, s.
+GRACE_S = 1.0
+#: Penalty of a decision that answers no gesture.
+FALSE_ALARM = 0.2
+#: Penalty of a gesture left unanswered.
+MISS = 0.5
+#: Penalty per cm of agent penetration beyond the tolerance.
+PLAUSIBILITY_WEIGHT = 0.1
+#: Contact penetration (m) that soft contacts produce at rest; not penalised.
+PENETRATION_TOLERANCE_M = 0.01
+#: The user holds the last pose this long after the recording ends, s.
+TAIL_S = 2.0
+
+
+class InteractionRoomEnv(gym.Env[dict, int]):
+    """Choose the agent's reactions to a recorded user (see the module docstring).
+
+    Args:
+        session: a :class:`~simenv.session.Session`, a motion file, a bundled asset name
+            or a Motion (default: the bundled CMU walk, which holds no gesture).
+        gestures: labelled gestures of the session when ``session`` is not a Session.
+        scenario: a :class:`~simenv.scenario.Scenario`, a bundled name or a TOML path.
+        history_frames: H, frames of user history observed.
+        predictor: a ``simenv.models.load`` name or an object with ``predict(history)``
+            ((H, K, 3) -> (F, K, 3)), ``history_len`` and ``future_len``.
+        render_mode: None or ``"rgb_array"`` (the room camera). width, height: pixels.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": int(PERCEPTION_FPS)}
+
+    def __init__(self, session: Session | str | os.PathLike[str] | Motion = WALK, *,
+                 gestures: Sequence[GestureEvent] = (), scenario: Scenario | str = "default",
+                 history_frames: int = 25, predictor: Any = "constant-velocity-50",
+                 render_mode: str | None = None, width: int = 480, height: int = 360) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise SimenvError(f"render_mode {render_mode!r} is not supported; expected None "
+                              "or 'rgb_array'", field="render_mode")
+        self.render_mode = render_mode
+        self._size = (int(width), int(height))
+        self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        if not isinstance(session, Session):
+            session = Session.load(session, gestures)
+        self.session = session
+        self.track = user_track(session, self.scenario)
+        self.room = self.track.room()
+        self.model = self.room.model
+        self.data = mujoco.MjData(self.model)
+        if isinstance(predictor, str):
+            import simenv.models
+
+            predictor = simenv.models.load(predictor)
+        self.predictor = predictor
+        self.history_frames = int(history_frames)
+        if self.history_frames < max(2, int(predictor.history_len)):
+            raise SimenvError(f"history_frames {history_frames} is shorter than the "
+                              f"predictor's history ({predictor.history_len})",
+                              field="history_frames")
+        self.frame_skip = int(round(1.0 / PERCEPTION_FPS / self.model.opt.timestep))
+        used = {self.scenario.behaviour.otherwise, *self.scenario.behaviour.reactions.values()}
+        #: Reaction of each action index (index 0: no-op).
+        self.reactions: tuple[str | None, ...] = (None, *(
+            r for r in REACTIONS if r in used and r != "keep"))
+        self.action_space = spaces.Discrete(len(self.reactions))
+        K = len(self.room.user.keypoint_names)
+        n_agent = self.room.agent.nq - 2 + self.room.agent.nv
+        inf = np.float32(np.inf)
+        self.observation_space = spaces.Dict({
+            "user_history": spaces.Box(-inf, inf, (self.history_frames, K, 3), np.float32),
+            "user_future": spaces.Box(-inf, inf, (int(predictor.future_len), K, 3), np.float32),
+            "agent": spaces.Box(-inf, inf, (n_agent,), np.float32),
+            "objects": spaces.Box(0.0, 1.0, (len(OBJECTS),), np.float32),
+        })
+        self.n_frames = len(self.track.qpos)
+        self.max_steps = self.n_frames - 1 + int(round(TAIL_S * PERCEPTION_FPS))
+        geom_body = self.model.geom_bodyid
+        names = [self.model.body(b).name for b in range(self.model.nbody)]
+        owner = [names[geom_body[g]].split("/")[0] for g in range(self.model.ngeom)]
+        self._agent_geom = np.array([o == "agent" for o in owner])
+        self._user_geom = np.array([o == "user" for o in owner])
+        self._step: int | None = None
+        self._obs: dict[str, np.ndarray] | None = None
+        self._renderer: mujoco.Renderer | None = None
+
+    # -- Gymnasium API ----------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        self.room.reset(self.data)
+        self.room.set_user_pose(self.data, self.track.qpos[0])
+        mujoco.mj_forward(self.model, self.data)
+        self._step = 0
+        self._answered: set[int] = set()
+        self._missed: set[int] = set()
+        self.decisions: list[tuple[float, str]] = []
+        self._obs = self._observe()
+        return self._obs, self._info(None, {})
+
+    def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool,
+                                         dict[str, Any]]:
+        if self._step is None:
+            raise SimenvError("step() called before reset() (or after the episode ended); "
+                              "call reset() first")
+        a = np.asarray(action)
+        if a.shape != () or a.dtype.kind not in "iu" or not self.action_space.contains(int(a)):
+            raise SimenvError(f"action must be one integer in [0, {self.action_space.n}) "
+                              f"(reactions {list(self.reactions)}); got {action!r}",
+                              field="action")
+        t = self._step / PERCEPTION_FPS
+        reaction = self.reactions[int(a)]
+        terms = {"decision": self._decide(t, reaction), "miss": self._misses(t)}
+        m, d = self.model, self.data
+        self._step += 1
+        self.room.set_user_pose(d, self.track.qpos[min(self._step, self.n_frames - 1)])
+        counts = warning_counts(d)
+        mujoco.mj_step(m, d, nstep=self.frame_skip)
+        problem = physics_problem(m, d, counts)
+        if problem is not None:
+            self._step = None
+            return self._obs, 0.0, False, True, {"truncation_reason": f"physics: {problem}"}
+        terms["plausibility"] = -PLAUSIBILITY_WEIGHT * self._excess_penetration() / 0.01
+        self._obs = self._observe()
+        info = self._info(reaction, terms)
+        truncated = self._step >= self.max_steps
+        if truncated:
+            info["truncation_reason"] = "end of the session"
+            self._step = None
+        return self._obs, float(sum(terms.values())), False, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            from simenv.render import make_renderer
+
+            self._renderer = make_renderer(self.model, *self._size)
+        self._renderer.update_scene(self.data, camera="room")
+        return self._renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- reward ----------------------------------------------------------------
+
+    def _decide(self, t: float, reaction: str | None) -> float:
+        if reaction is None:
+            return 0.0
+        self.decisions.append((t, reaction))
+        behaviour = self.scenario.behaviour
+        for i, g in enumerate(self.session.gestures):
+            if i in self._answered or not g.onset_s <= t <= g.end_s + GRACE_S:
+                continue
+            if behaviour.reaction_for(g.label).name == reaction:
+                self._answered.add(i)
+                return float(np.exp(-(t - g.onset_s) / TIMELINESS_S))
+        return -FALSE_ALARM
+
+    def _misses(self, t: float) -> float:
+        penalty = 0.0
+        for i, g in enumerate(self.session.gestures):
+            late = t > g.end_s + GRACE_S
+            if late and i not in self._answered and i not in self._missed:
+                self._missed.add(i)
+                if self.scenario.behaviour.reaction_for(g.label).name != "keep":
+                    penalty -= MISS
+        return penalty
+
+    def _excess_penetration(self) -> float:
+        d = self.data
+        if d.ncon == 0:
+            return 0.0
+        geoms = d.contact.geom[:d.ncon]
+        # The kinematic user pushes with unbounded force: its contacts are not the agent's doing.
+        mine = self._agent_geom[geoms].any(axis=1) & ~self._user_geom[geoms].any(axis=1)
+        if not mine.any():
+            return 0.0
+        deepest = -float(d.contact.dist[:d.ncon][mine].min())
+        return max(0.0, deepest - PENETRATION_TOLERANCE_M)
+
+    # -- observation -----------------------------------------------------------
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        k = min(self._step, self.n_frames - 1)
+        idx = np.clip(np.arange(k - self.history_frames + 1, k + 1), 0, None)
+        history = self.track.keypoints[idx].astype(np.float32)
+        future = self.predictor.predict(history[-int(self.predictor.history_len):])
+        d, room = self.data, self.room
+        agent = np.concatenate([d.qpos[room.agent_qpos][2:], d.qvel[room.agent_qvel]])
+        states = room.object_states(d)
+        levels = [room.objects[n].level(states[n]) for n in OBJECTS]
+        return {"user_history": history,
+                "user_future": np.asarray(future, dtype=np.float32),
+                "agent": agent.astype(np.float32),
+                "objects": np.clip(levels, 0.0, 1.0).astype(np.float32)}
+
+    def _info(self, reaction: str | None, terms: dict[str, float]) -> dict[str, Any]:
+        t = self._step / PERCEPTION_FPS
+        active = [g.label for g in self.session.gestures if g.onset_s <= t <= g.end_s]
+        return {"time_s": t, "gesture": active[0] if active else None, "reaction": reaction,
+                "reward_terms": terms, "object_labels": self.room.object_labels(self.data)}

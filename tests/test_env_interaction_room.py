@@ -1,0 +1,147 @@
+"""simenv/InteractionRoom-v0: Gymnasium API conformance, vector envs, reward rules, guards."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import simenv
+import simenv.envs  # noqa: F401  (registers the ids)
+from simenv.assets import WALK, asset_path
+from simenv.envs.interaction_room import (
+    FALSE_ALARM,
+    GRACE_S,
+    MISS,
+    OBJECTS,
+    TIMELINESS_S,
+    InteractionRoomEnv,
+)
+from simenv.errors import SimenvError
+from simenv.session import PERCEPTION_FPS, GestureEvent, Session
+
+#: The bundled walk with a "wave" label on 0.4-1.0 s (the reward only reads labels).
+WAVE = GestureEvent("wave", 0.4, 1.0)
+
+
+@pytest.fixture(scope="module")
+def env() -> InteractionRoomEnv:
+    return InteractionRoomEnv(gestures=[WAVE])
+
+
+def _run(env: InteractionRoomEnv, actions: dict[int, int]) -> list[dict]:
+    """Step to the end, taking ``actions[step]`` (else no-op); returns the infos with reward."""
+    env.reset(seed=0)
+    out, k, truncated = [], 0, False
+    while not truncated:
+        _, r, terminated, truncated, info = env.step(actions.get(k, 0))
+        assert not terminated
+        out.append({**info, "reward": r, "qpos": env.data.qpos.copy()})
+        k += 1
+    return out
+
+
+def test_registered_and_passes_check_env():
+    env = gym.make("simenv/InteractionRoom-v0", render_mode="rgb_array")
+    with pytest.warns(UserWarning):  # infinite observation bounds
+        check_env(env.unwrapped)
+    frame = env.unwrapped.render()
+    assert frame.shape == (360, 480, 3) and frame.dtype == np.uint8
+    env.close()
+
+
+def test_spaces_and_observation(env: InteractionRoomEnv):
+    assert env.reactions[0] is None
+    assert set(env.reactions[1:]) == {"greet", "bow_back", "hifi_down"}
+    obs, info = env.reset(seed=1)
+    assert env.observation_space.contains(obs)
+    K = len(env.room.user.keypoint_names)
+    assert obs["user_history"].shape == (25, K, 3)
+    assert obs["user_future"].shape == (50, K, 3)
+    # Before the session starts, the history repeats frame 0; the prediction continues it.
+    np.testing.assert_allclose(obs["user_history"][0], obs["user_history"][-1])
+    states = env.room.object_states(env.data)
+    levels = [env.room.objects[n].level(states[n]) for n in OBJECTS]
+    np.testing.assert_allclose(obs["objects"], levels, atol=1e-6)
+    assert info["object_labels"]["hifi"] == "loud"
+
+
+def test_timely_correct_reaction_is_rewarded(env: InteractionRoomEnv):
+    greet = env.reactions.index("greet")
+    step = int(round(0.6 * PERCEPTION_FPS))  # 0.2 s after the onset
+    infos = _run(env, {step: greet})
+    expected = np.exp(-(step / PERCEPTION_FPS - WAVE.onset_s) / TIMELINESS_S)
+    assert infos[step]["reward_terms"]["decision"] == pytest.approx(expected)
+    assert infos[step]["reaction"] == "greet" and infos[step]["gesture"] == "wave"
+    assert all(i["reward_terms"]["miss"] == 0 for i in infos)
+    assert infos[-1]["truncation_reason"] == "end of the session"
+    assert env.decisions == [(step / PERCEPTION_FPS, "greet")]
+
+
+def test_wrong_late_and_missing_reactions_are_penalised(env: InteractionRoomEnv):
+    greet, hifi = env.reactions.index("greet"), env.reactions.index("hifi_down")
+    early = int(round(0.2 * PERCEPTION_FPS))  # before the onset: nothing to answer
+    infos = _run(env, {early: greet, early + 15: hifi})
+    assert infos[early]["reward_terms"]["decision"] == -FALSE_ALARM
+    assert infos[early + 15]["reward_terms"]["decision"] == -FALSE_ALARM
+    misses = [i["reward_terms"]["miss"] for i in infos]
+    assert sum(misses) == -MISS
+    first = next(k for k, m in enumerate(misses) if m)
+    assert first / PERCEPTION_FPS > WAVE.end_s + GRACE_S - 1e-9
+    # The same answer twice: the second is a false alarm.
+    step = int(round(0.5 * PERCEPTION_FPS))
+    infos = _run(env, {step: greet, step + 1: greet})
+    assert infos[step]["reward_terms"]["decision"] > 0
+    assert infos[step + 1]["reward_terms"]["decision"] == -FALSE_ALARM
+
+
+def test_no_op_rehearsal_is_plausible_and_deterministic(env: InteractionRoomEnv):
+    """Idle agent, replayed user (the walk's first half second, before the user reaches the
+    desk and shoves the agent): no penalties, the same rollout twice."""
+    clean = InteractionRoomEnv(simenv.load(asset_path(WALK)).slice(0, 60))
+    a = _run(clean, {})
+    b = _run(clean, {})
+    assert all(i["reward"] == 0.0 for i in a)
+    assert [i["object_labels"] for i in a] == [i["object_labels"] for i in b]
+    np.testing.assert_array_equal([i["qpos"] for i in a], [i["qpos"] for i in b])
+
+
+def test_guards(env: InteractionRoomEnv):
+    fresh = InteractionRoomEnv(gestures=[WAVE])
+    with pytest.raises(SimenvError, match="before reset"):
+        fresh.step(0)
+    fresh.reset(seed=0)
+    for bad in (len(fresh.reactions), -1, np.array([0, 1]), 0.5):
+        with pytest.raises(SimenvError, match="action"):
+            fresh.step(bad)
+    with pytest.raises(SimenvError, match="vocabulary"):
+        InteractionRoomEnv(gestures=[GestureEvent("cold", 0.0, 1.0)])
+    with pytest.raises(SimenvError, match="onset"):
+        GestureEvent("wave", 2.0, 1.0)
+    with pytest.raises(SimenvError, match="history"):
+        InteractionRoomEnv(history_frames=1)
+
+
+def test_discomfort_scenario_actions():
+    env = InteractionRoomEnv(Session.load("cmu_02_01_walk.bvh",
+                                          [GestureEvent("cold", 0.0, 1.0)]),
+                             scenario="discomfort")
+    assert set(env.reactions[1:]) == {"greet", "hifi_down", "close_window", "open_window",
+                                      "cigarette_out", "close_curtain"}
+    env.reset(seed=0)
+    _, r, *_ = env.step(env.reactions.index("close_window"))
+    assert r == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_vector_envs(mode: str):
+    envs = gym.make_vec("simenv/InteractionRoom-v0", num_envs=2, vectorization_mode=mode)
+    try:
+        obs, _ = envs.reset(seed=0)
+        assert obs["user_history"].shape[0] == 2
+        obs, reward, terminated, truncated, _ = envs.step(np.array([0, 1]))
+        assert reward.shape == (2,) and reward[0] == 0.0 and reward[1] == -FALSE_ALARM
+        assert envs.single_observation_space.contains({k: v[0] for k, v in obs.items()})
+    finally:
+        envs.close()
