@@ -23,9 +23,12 @@ WARNINGS: tuple[mujoco.mjtWarning, ...] = (
 )
 
 
+_WATCHED = np.array([int(w) for w in WARNINGS])
+
+
 def warning_counts(data: mujoco.MjData) -> np.ndarray:
     """(len(WARNINGS),) how often each watched warning has fired in ``data`` so far."""
-    return np.array([data.warning[w].number for w in WARNINGS])
+    return data.warning.number[_WATCHED]
 
 
 def physics_problem(model: mujoco.MjModel, data: mujoco.MjData,
