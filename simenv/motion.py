@@ -127,6 +127,26 @@ class Skeleton:
         return Skeleton(name or f"{self.name}_subset", tuple(kept_names), tuple(parents), canonical)
 
 
+def resample_weights(num_frames: int, fps: float, new_fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Linear-interpolation weights of :meth:`Motion.resample`.
+
+    New frame ``k`` (at time ``k / new_fps``, up to the last original time)
+    is ``(1 - w[k]) * p[i[k]] + w[k] * p[i[k] + 1]`` of the original frames.
+
+    Args:
+        num_frames: original frame count, at least 2.
+        fps: original frame rate. new_fps: target frame rate.
+
+    Returns:
+        i: (N,) int64 indices in ``[0, num_frames - 2]``; w: (N,) float32.
+    """
+    n = int(np.floor((num_frames - 1) / fps * new_fps + 1e-9)) + 1
+    t_new = np.arange(n) / new_fps
+    t_old = np.arange(num_frames, dtype=np.float64) / fps
+    i = np.clip(np.searchsorted(t_old, t_new, side="right") - 1, 0, num_frames - 2)
+    return i, ((t_new - t_old[i]) * fps).astype(np.float32)
+
+
 @dataclass(frozen=True, eq=False)
 class Motion:
     """One person's skeleton motion.
@@ -280,11 +300,8 @@ class Motion:
         if not np.isfinite(fps) or fps <= 0:
             raise MotionError(f"target fps must be positive; got {fps!r}")
         self.require_frames(2, "resampling")
-        n = int(np.floor(self.duration * fps + 1e-9)) + 1
-        t_new = np.arange(n) / fps
-        t_old = self.times
-        i = np.clip(np.searchsorted(t_old, t_new, side="right") - 1, 0, self.num_frames - 2)
-        w = ((t_new - t_old[i]) * self.fps).astype(np.float32)[:, None, None]
+        i, w = resample_weights(self.num_frames, self.fps, fps)
+        w = w[:, None, None]
         pos = (1 - w) * self.positions[i] + w * self.positions[i + 1]
         meta = dict(self.metadata)
         meta["resampled_from_fps"] = self.fps

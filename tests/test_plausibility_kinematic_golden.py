@@ -17,7 +17,12 @@ import pytest
 from kinematic_cases import GOLDEN, cases, summary
 
 from simenv.motion import Motion
-from simenv.plausibility import KINEMATIC_METRICS, MetricResult, kinematic_metrics
+from simenv.plausibility import (
+    KINEMATIC_METRICS,
+    MetricResult,
+    kinematic_metrics,
+    kinematic_metrics_batch,
+)
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +86,27 @@ def test_each_metric_matches_the_golden_results(source, request, golden) -> None
 def test_kinematic_metrics_matches_the_golden_results(source, request, golden) -> None:
     for name, motion in request.getfixturevalue(source):
         _check(name, kinematic_metrics(motion), golden)
+
+
+def _identical(a: MetricResult, b: MetricResult) -> None:
+    assert summary(a) == summary(b), a.name  # NaN is compared as its repr
+    np.testing.assert_array_equal(a.timeline, b.timeline, err_msg=a.name)
+
+
+@pytest.mark.parametrize("source", ["bundled", "corpus"])
+def test_batch_equals_one_clip_at_a_time(source, request) -> None:
+    motions = [m for _, m in request.getfixturevalue(source)]
+    # Equal-length copies form real multi-clip batches; mixed lengths, rates
+    # and skeletons are grouped apart; order is kept.
+    walk = motions[0]
+    shifted = [walk.with_positions(walk.positions + np.float32(dz)) for dz in (0.02, -0.04, 0.3)]
+    mixed = motions + shifted + motions[:3]
+    batched = kinematic_metrics_batch(mixed)
+    assert len(batched) == len(mixed)
+    for motion, got in zip(mixed, batched, strict=True):
+        for name, fn in KINEMATIC_METRICS.items():
+            _identical(got[name], fn(motion))
+
+
+def test_batch_of_nothing_is_empty() -> None:
+    assert kinematic_metrics_batch([]) == []

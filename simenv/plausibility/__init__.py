@@ -15,25 +15,36 @@ jitter             windows of high normalized jerk (ProtoMotions), jerk   kinema
 velocity           speeds beyond human limits, teleports                  kinematic
 ================== ====================================================== =========
 
-:func:`kinematic_metrics` runs them all. Thresholds: :class:`Thresholds`.
+:func:`kinematic_metrics` runs them all on one motion,
+:func:`kinematic_metrics_batch` on many at once (vectorised over clips of
+equal length; same values). Thresholds: :class:`Thresholds`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from simenv.motion import Motion
+from simenv.plausibility.clips import batches
 from simenv.plausibility.contact import (
     floating,
+    floating_batch,
     foot_contacts,
     foot_skate,
+    foot_skate_batch,
     ground_penetration,
+    ground_penetration_batch,
 )
 from simenv.plausibility.kinematic import (
     bone_length,
+    bone_length_batch,
     bone_length_error,
     bone_lengths,
     jitter,
+    jitter_batch,
     reference_lengths,
     velocity,
+    velocity_batch,
 )
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult, find_violations
@@ -49,11 +60,41 @@ KINEMATIC_METRICS = {
 }
 
 
+#: The same metrics on a :class:`~simenv.plausibility.clips.ClipBatch`.
+_BATCH_METRICS = {
+    "bone_length": bone_length_batch,
+    "foot_skate": foot_skate_batch,
+    "ground_penetration": ground_penetration_batch,
+    "floating": floating_batch,
+    "jitter": jitter_batch,
+    "velocity": velocity_batch,
+}
+
+
 def kinematic_metrics(
     motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
 ) -> dict[str, MetricResult]:
     """Every joint-level metric of ``motion``, keyed by metric name."""
-    return {name: fn(motion, thresholds) for name, fn in KINEMATIC_METRICS.items()}
+    return kinematic_metrics_batch([motion], thresholds)[0]
+
+
+def kinematic_metrics_batch(
+    motions: Sequence[Motion], thresholds: Thresholds = DEFAULT_THRESHOLDS
+) -> list[dict[str, MetricResult]]:
+    """Every joint-level metric of every motion, in input order.
+
+    Results equal :func:`kinematic_metrics` of each motion. Clips of equal
+    skeleton, frame rate and length (e.g. a batch of generated motions) are
+    scored together, vectorised over clips
+    (:func:`simenv.plausibility.clips.batches`), which removes the per-call
+    overhead that dominates short clips; any mix of clips is accepted.
+    """
+    out: list[dict[str, MetricResult]] = [{} for _ in motions]
+    for members, batch in batches(motions):
+        per_metric = {name: fn(batch, thresholds) for name, fn in _BATCH_METRICS.items()}
+        for k, i in enumerate(members):
+            out[i] = {name: rs[k] for name, rs in per_metric.items()}
+    return out
 
 
 __all__ = [
@@ -71,6 +112,7 @@ __all__ = [
     "ground_penetration",
     "jitter",
     "kinematic_metrics",
+    "kinematic_metrics_batch",
     "reference_lengths",
     "velocity",
 ]

@@ -16,10 +16,13 @@ keypoints give ``MetricResult.not_available`` with a reason, as in
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from simenv.motion import Motion
+from simenv.plausibility.clips import ClipBatch, norm3, results
 from simenv.plausibility.kinematic import canonical_or_reason, keypoint_indices
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
@@ -44,7 +47,12 @@ def foot_keypoints(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
         toe is missing; ``heights`` (F,) metres are ``contact_height_m`` for
         toes and ``contact_height_ankle_m`` for ankles.
     """
-    present = set(motion.skeleton.joint_names)
+    return _foot_keypoints(motion.skeleton.joint_names, thresholds)
+
+
+def _foot_keypoints(keypoints: Sequence[str], thresholds: Thresholds
+                    ) -> tuple[list[str], np.ndarray]:
+    present = set(keypoints)
     names, heights = [], []
     for side in ("left", "right"):
         if f"{side}_toe" in present:
@@ -108,7 +116,7 @@ def foot_contacts(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
     low = rel < heights
     if motion.num_frames < 2:
         return feet, low
-    speed = np.linalg.norm(np.diff(foot_pos, axis=0), axis=-1) * motion.fps
+    speed = norm3(np.diff(foot_pos, axis=0)) * motion.fps
     speed = np.concatenate([speed, speed[-1:]])
     return feet, low & (speed < thresholds.contact_speed_mps)
 
@@ -145,66 +153,95 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     20 fps), ``max_slide_mm`` and ``contact_fraction`` (frames with a planted
     foot). Needs two frames and a toe or ankle keypoint.
     """
+    return foot_skate_batch(ClipBatch([motion]), thresholds)[0]
+
+
+def _long_runs(mask: np.ndarray, min_len: int) -> np.ndarray:
+    """``mask`` (B, N, F) with only its runs along axis 1 of at least
+    ``min_len`` True values kept."""
+    if min_len <= 1 or not mask.any():
+        return mask.copy()
+    b, n, f = mask.shape
+    lanes = np.moveaxis(mask, 1, -1).reshape(-1, n)
+    edges = np.diff(lanes.astype(np.int8), axis=1, prepend=0, append=0)
+    rows, starts = np.nonzero(edges == 1)
+    stops = np.nonzero(edges == -1)[1]  # row-major order: pairs with starts
+    long = stops - starts >= min_len
+    marks = np.zeros((len(lanes), n + 1), dtype=np.int8)
+    marks[rows[long], starts[long]] = 1
+    marks[rows[long], stops[long]] = -1
+    kept = np.cumsum(marks, axis=1)[:, :n] > 0
+    return np.moveaxis(kept.reshape(b, f, n), -1, 1)
+
+
+def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                     ) -> list[MetricResult]:
+    """:func:`foot_skate` of every clip of ``batch``."""
     ref = thresholds.skate_reference_fps
     name, unit, thr = "foot_skate", "fraction", thresholds.skate_ratio_max
     kwargs = {"frame_threshold": thresholds.skate_speed_mps * 1000.0 / ref,
               "timeline_unit": f"mm/frame at {ref:g} fps"}
-    canon, reason = canonical_or_reason(motion)
-    if canon is None:
-        return MetricResult.not_available(name, motion.num_frames, unit, thr, reason or "",
-                                          **kwargs)
-    feet, heights = foot_keypoints(canon, thresholds)
+    if batch.skeleton is None:
+        return batch.not_available(name, unit, thr, "", **kwargs)
+    feet, heights = _foot_keypoints(batch.names, thresholds)
     if not feet:
-        return MetricResult.not_available(
-            name, motion.num_frames, unit, thr,
-            "needs a toe or ankle keypoint (the skeleton has neither)", **kwargs,
-        )
-    if motion.num_frames < 2:
-        return MetricResult.not_available(
-            name, motion.num_frames, unit, thr,
-            f"needs at least 2 frames for a speed; the motion has {motion.num_frames}", **kwargs,
-        )
-    fps = motion.fps
-    foot_pos, rel = _foot_heights(canon, feet)
+        return batch.not_available(
+            name, unit, thr, "needs a toe or ankle keypoint (the skeleton has neither)",
+            **kwargs)
+    frames = batch.num_frames
+    if frames < 2:
+        return batch.not_available(
+            name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}",
+            **kwargs)
+    fps = batch.fps
+    idx = batch.indices(feet)
+    # Heights above the feet's floors, as _foot_heights.
+    foot_z = batch.z[..., idx]  # (B, T, F)
+    floors = np.repeat(np.percentile(batch.zmin, 1, axis=1)[:, None], len(feet), axis=1)
+    ankles = np.array([f.endswith("_ankle") for f in feet])
+    if ankles.any():
+        floors[:, ankles] = np.percentile(foot_z[..., ankles].min(axis=2), 1, axis=1)[:, None]
+    rel = foot_z - floors[:, None]
     low = rel < heights
-    low_pair = low[1:] & low[:-1]  # (T-1, F)
-    v_h = np.linalg.norm(np.diff(foot_pos[..., :2], axis=0), axis=-1) * fps
+    low_pair = low[:, 1:] & low[:, :-1]  # (B, T-1, F)
+    dx, dy, dz = (d[..., idx] for d in batch.diffs)
+    v_h = np.sqrt(dx * dx + dy * dy) * fps
     raw_sliding = low_pair & (v_h > thresholds.skate_speed_mps)
     sliding = raw_sliding
-    if sliding.shape[1] == 2:
+    if len(feet) == 2:
         # The other foot, planted and lower, carries the weight: this one is unloaded.
         margin = thresholds.skate_support_margin_m
         other = slice(None, None, -1)
-        supported = ((v_h[:, other] <= thresholds.skate_speed_mps)
-                     & (rel[1:, other] + margin < rel[1:]) & (rel[:-1, other] + margin < rel[:-1]))
+        supported = ((v_h[..., other] <= thresholds.skate_speed_mps)
+                     & (rel[:, 1:, other] + margin < rel[:, 1:])
+                     & (rel[:, :-1, other] + margin < rel[:, :-1]))
         sliding = raw_sliding & ~supported
-    min_len = max(1, round(thresholds.skate_min_duration_s * fps))
-    skating = np.zeros_like(sliding)
-    for f in range(sliding.shape[1]):
-        for start, stop in _runs(sliding[:, f]):
-            if stop - start >= min_len:
-                skating[start:stop, f] = True
-    slide = np.where(skating, v_h, 0.0).max(axis=1)
+    skating = _long_runs(sliding, max(1, round(thresholds.skate_min_duration_s * fps)))
+    slide = np.where(skating, v_h, 0.0).max(axis=2)
     to_mm = 1000.0 / ref
-    timeline = np.full(motion.num_frames, np.nan)
-    timeline[1:] = slide * to_mm
-    ratio = float(skating.any(axis=1).mean())
+    timeline = np.full((batch.size, frames), np.nan)
+    timeline[:, 1:] = slide * to_mm
+    ratio = skating.any(axis=2).mean(axis=1)
 
     window = max(1, round(thresholds.skate_window_s * fps))
-    v_avg = uniform_filter1d(v_h, size=window, axis=0, mode="constant")
+    v_avg = uniform_filter1d(v_h, size=window, axis=1, mode="constant")
     gmd = raw_sliding & (v_avg > thresholds.skate_speed_mps)
-    _, planted = foot_contacts(canon, thresholds)
-    planted_pair = planted[1:] & planted[:-1]
-    n_planted = planted_pair.sum(axis=1)
-    disp = np.where(planted_pair, v_h, 0.0).sum(axis=1) / np.maximum(n_planted, 1)
-    return MetricResult.from_timeline(
-        name, timeline, ratio, unit, thr, **kwargs,
+    # Planted feet as foot_contacts: low and slow (the last frame reuses the
+    # last speed).
+    speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
+    planted = low & (np.concatenate([speed, speed[:, -1:]], axis=1)
+                     < thresholds.contact_speed_mps)
+    planted_pair = planted[:, 1:] & planted[:, :-1]
+    n_planted = planted_pair.sum(axis=2)
+    disp = np.where(planted_pair, v_h, 0.0).sum(axis=2) / np.maximum(n_planted, 1)
+    return results(
+        batch, name, timeline, ratio, unit, thr, **kwargs,
         details={
-            "gmd_skating_ratio": float(gmd.any(axis=1).mean()),
-            "physdiff_skate_mm": float(disp.mean() * to_mm),
-            "max_slide_mm": float(slide.max() * to_mm),
-            "contact_fraction": float(planted.any(axis=1).mean()),
-            "ankle_fallback": float(any(f.endswith("_ankle") for f in feet)),
+            "gmd_skating_ratio": gmd.any(axis=2).mean(axis=1),
+            "physdiff_skate_mm": disp.mean(axis=1) * to_mm,
+            "max_slide_mm": slide.max(axis=1) * to_mm,
+            "contact_fraction": planted.any(axis=2).mean(axis=1),
+            "ankle_fallback": float(ankles.any()),
         },
     )
 
@@ -220,15 +257,19 @@ def ground_penetration(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOL
     ``mean_mm`` (PhysDiff's per-clip mean over frames) and
     ``frames_below_floor`` (fraction). Works on a single frame.
     """
+    return ground_penetration_batch(ClipBatch([motion]), thresholds)[0]
+
+
+def ground_penetration_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                             ) -> list[MetricResult]:
+    """:func:`ground_penetration` of every clip of ``batch``."""
     name, unit, thr = "ground_penetration", "mm", thresholds.penetration_max_mm
-    canon, reason = canonical_or_reason(motion)
-    if canon is None:
-        return MetricResult.not_available(name, motion.num_frames, unit, thr, reason or "")
-    lowest = canon.positions[..., 2].astype(np.float64).min(axis=1)
-    depth = np.maximum(-lowest, 0.0) * 1000.0
-    return MetricResult.from_timeline(
-        name, depth, float(depth.max()), unit, thr,
-        details={"mean_mm": float(depth.mean()), "frames_below_floor": float((depth > 0).mean())},
+    if batch.skeleton is None:
+        return batch.not_available(name, unit, thr, "")
+    depth = np.maximum(-batch.zmin, 0.0) * 1000.0
+    return results(
+        batch, name, depth, depth.max(axis=1), unit, thr,
+        details={"mean_mm": depth.mean(axis=1), "frames_below_floor": (depth > 0).mean(axis=1)},
     )
 
 
@@ -278,46 +319,56 @@ def floating(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
     Assumes the floor is the only support (no chairs, props or partners:
     those need the body-level metrics). Needs three frames.
     """
+    return floating_batch(ClipBatch([motion]), thresholds)[0]
+
+
+def floating_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                   ) -> list[MetricResult]:
+    """:func:`floating` of every clip of ``batch``."""
     name, unit, thr = "floating", "mm", thresholds.float_height_m * 1000.0
-    canon, reason = canonical_or_reason(motion)
-    if canon is None:
-        return MetricResult.not_available(name, motion.num_frames, unit, thr, reason or "")
-    com_idx = keypoint_indices(canon, COM_KEYPOINTS)
+    if batch.skeleton is None:
+        return batch.not_available(name, unit, thr, "")
+    com_idx = batch.indices(COM_KEYPOINTS)
     if not com_idx:
-        return MetricResult.not_available(
-            name, motion.num_frames, unit, thr,
+        return batch.not_available(
+            name, unit, thr,
             "needs a trunk keypoint (pelvis, hips, spine, chest, neck or shoulders) for the "
             "centre-of-mass proxy",
         )
-    if motion.num_frames < 3:
-        return MetricResult.not_available(
-            name, motion.num_frames, unit, thr,
-            "needs at least 3 frames to tell a jump from floating; the motion has "
-            f"{motion.num_frames}",
+    frames = batch.num_frames
+    if frames < 3:
+        return batch.not_available(
+            name, unit, thr,
+            f"needs at least 3 frames to tell a jump from floating; the motion has {frames}",
         )
-    pos = canon.positions.astype(np.float64)
-    hands = keypoint_indices(canon, HAND_KEYPOINTS)
-    support = pos[..., 2].copy()
-    support[:, hands] -= thresholds.float_hand_reach_m
-    lowest = support.min(axis=1)
-    com_z = pos[:, com_idx, 2].mean(axis=1)
+    lowest = batch.zmin
+    hands = batch.indices(HAND_KEYPOINTS)
+    if hands:
+        # The lowest support point: hands count float_hand_reach_m lower. As
+        # the reach is positive, min(all raw, hands lowered) is exactly the
+        # minimum over the non-hand keypoints and the lowered hands.
+        lowest = np.minimum(lowest, (batch.z[..., hands] - thresholds.float_hand_reach_m)
+                            .min(axis=2))
+    com_z = batch.z[..., com_idx].mean(axis=2)
     airborne = lowest > thresholds.float_height_m
-    floating_mask = np.zeros(motion.num_frames, dtype=bool)
-    worst, jumps = 0.0, 0
-    for start, stop in _runs(airborne):
-        residual = ballistic_residual(com_z[start:stop], motion.fps, thresholds.gravity_mps2)
-        worst = max(worst, residual)
-        if residual > thresholds.ballistic_tolerance_m:
-            floating_mask[start:stop] = True
-        else:
-            jumps += 1
+    floating_mask = np.zeros((batch.size, frames), dtype=bool)
+    worst, jumps = np.zeros(batch.size), np.zeros(batch.size)
+    for b in np.flatnonzero(airborne.any(axis=1)):
+        for start, stop in _runs(airborne[b]):
+            residual = ballistic_residual(com_z[b, start:stop], batch.fps,
+                                          thresholds.gravity_mps2)
+            worst[b] = max(worst[b], residual)
+            if residual > thresholds.ballistic_tolerance_m:
+                floating_mask[b, start:stop] = True
+            else:
+                jumps[b] += 1
     timeline = np.where(floating_mask, lowest * 1000.0, 0.0)
-    return MetricResult.from_timeline(
-        name, timeline, float(timeline.max()), unit, thr,
+    return results(
+        batch, name, timeline, timeline.max(axis=1), unit, thr,
         details={
-            "airborne_fraction": float(airborne.mean()),
-            "floating_fraction": float(floating_mask.mean()),
+            "airborne_fraction": airborne.mean(axis=1),
+            "floating_fraction": floating_mask.mean(axis=1),
             "worst_residual_m": worst,
-            "jumps": float(jumps),
+            "jumps": jumps,
         },
     )

@@ -20,7 +20,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from simenv.errors import MotionError
-from simenv.motion import Motion
+from simenv.motion import Motion, resample_weights
+from simenv.plausibility.clips import ClipBatch, norm3, results
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 from simenv.skeletons import CANONICAL_TREE
@@ -77,7 +78,7 @@ def bone_lengths(motion: Motion) -> tuple[list[str], np.ndarray]:
         return names, np.zeros((canon.num_frames, 0))
     parent, child = np.array(bones).T
     pos = canon.positions.astype(np.float64)
-    return names, np.linalg.norm(pos[:, child] - pos[:, parent], axis=-1)
+    return names, norm3(pos[:, child] - pos[:, parent])
 
 
 def reference_lengths(motion: Motion) -> dict[str, float]:
@@ -105,26 +106,32 @@ def bone_length(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> 
     (MA-GAN's bone-length loss, the reactive GAN's bone constraint); works on
     one frame (the value is then 0).
     """
+    return bone_length_batch(ClipBatch([motion]), thresholds)[0]
+
+
+def bone_length_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                      ) -> list[MetricResult]:
+    """:func:`bone_length` of every clip of ``batch``."""
     name, unit, thr = "bone_length", "fraction of tolerance", 1.0
-    canon, reason = canonical_or_reason(motion)
-    if canon is None:
-        return _limited(name, reason or "", motion.num_frames, unit, thr)
-    names, lengths = bone_lengths(canon)
-    median = np.median(lengths, axis=0) if lengths.size else np.zeros(0)
+    reason = "needs two canonical keypoints joined by a bone of non-zero length"
+    if batch.skeleton is None or not batch.skeleton.bones:
+        return batch.not_available(name, unit, thr, reason)
+    parent, child = np.array(batch.skeleton.bones).T
+    dx, dy, dz = (c[..., child] - c[..., parent] for c in (batch.x, batch.y, batch.z))
+    lengths = np.sqrt((dx * dx + dy * dy) + dz * dz)  # (B, T, bones)
+    median = np.median(lengths, axis=1)
     keep = median >= thresholds.bone_min_length_m
-    if not keep.any():
-        return _limited(
-            name, "needs two canonical keypoints joined by a bone of non-zero length",
-            motion.num_frames, unit, thr,
-        )
-    tol = np.array([thresholds.bone_length_head_rel_max if n == "head"
-                    else thresholds.bone_length_rel_max for n in names])[keep]
-    dev = np.abs(lengths[:, keep] / median[keep] - 1.0)
-    timeline = (dev / tol).max(axis=1)
-    return MetricResult.from_timeline(
-        name, timeline, float(np.percentile(timeline, 95)), unit, thr,
-        details={"max": float(timeline.max()), "max_rel_deviation": float(dev.max()),
-                 "bones_checked": float(keep.sum())},
+    tol = np.array([thresholds.bone_length_head_rel_max if batch.names[c] == "head"
+                    else thresholds.bone_length_rel_max for c in child])
+    # Skipped bones divide by 1 and count 0, which leaves the maxima over the
+    # kept bones (all >= 0) unchanged.
+    dev = np.abs(lengths / np.where(keep, median, 1.0)[:, None] - 1.0) * keep[:, None]
+    timeline = (dev / tol).max(axis=2)
+    return results(
+        batch, name, timeline, np.percentile(timeline, 95, axis=1), unit, thr,
+        details={"max": timeline.max(axis=1), "max_rel_deviation": dev.max(axis=(1, 2)),
+                 "bones_checked": keep.sum(axis=1)},
+        available=keep.any(axis=1), reason=reason,
     )
 
 
@@ -188,14 +195,6 @@ def bone_length_error(
 # -- jitter --------------------------------------------------------------------
 
 
-def _analysis_motion(motion: Motion, fps: float) -> Motion:
-    """The motion at most at ``fps`` (linear resampling down, never up:
-    interpolating up would add jerk at every original sample)."""
-    if motion.fps > fps * (1 + 1e-9):
-        return motion.resample(fps)
-    return motion
-
-
 def windowed_normalized_jerk(
     positions: np.ndarray, fps: float, window_frames: int, eps: float = 0.1
 ) -> np.ndarray:
@@ -208,29 +207,32 @@ def windowed_normalized_jerk(
     ``L = sum |v| dt``. Dimensionless; windows advance one frame.
 
     Args:
-        positions: (T, J, 3) metres.
+        positions: (..., T, J, 3) metres; leading axes (e.g. clips) are
+            batch axes.
         fps: frame rate of ``positions``.
         window_frames: ``w >= 4``.
 
     Returns:
-        (T - w + 1, J) float64; empty when ``T < w``.
+        (..., T - w + 1, J) float64; empty along the window axis when ``T < w``.
     """
     pos = np.asarray(positions, dtype=np.float64)
-    t_count, j_count = pos.shape[:2]
+    *lead, t_count, j_count, _ = pos.shape
     w = int(window_frames)
     if t_count < w or w < 4:
-        return np.zeros((0, j_count))
+        return np.zeros((*lead, 0, j_count))
     dt = 1.0 / fps
-    vel = np.diff(pos, axis=0) / dt
-    jerk = np.diff(pos, 3, axis=0) / dt**3
-    step = np.linalg.norm(vel, axis=-1) * dt  # (T-1, J)
-    jerk_sq = (jerk**2).sum(axis=-1) * dt  # (T-3, J)
+    vel = np.diff(pos, axis=-3) / dt
+    jerk = np.diff(pos, 3, axis=-3) / dt**3
+    step = norm3(vel) * dt  # (..., T-1, J)
+    jx, jy, jz = jerk[..., 0], jerk[..., 1], jerk[..., 2]
+    jerk_sq = ((jx * jx + jy * jy) + jz * jz) * dt  # (..., T-3, J)
     # Window sums from cumulative sums: O(T) whatever the window length.
-    cs_step = np.concatenate([np.zeros((1, j_count)), np.cumsum(step, axis=0)])
-    cs_jerk = np.concatenate([np.zeros((1, j_count)), np.cumsum(jerk_sq, axis=0)])
+    zero = np.zeros((*lead, 1, j_count))
+    cs_step = np.concatenate([zero, np.cumsum(step, axis=-2)], axis=-2)
+    cs_jerk = np.concatenate([zero, np.cumsum(jerk_sq, axis=-2)], axis=-2)
     n = t_count - w + 1
-    path = cs_step[w - 1 : w - 1 + n] - cs_step[:n]
-    integrated = cs_jerk[w - 3 : w - 3 + n] - cs_jerk[:n]
+    path = cs_step[..., w - 1 : w - 1 + n, :] - cs_step[..., :n, :]
+    integrated = cs_jerk[..., w - 3 : w - 3 + n, :] - cs_jerk[..., :n, :]
     duration = (w - 1) * dt
     return duration**5 * integrated / (np.maximum(path, eps) ** 2 + eps)
 
@@ -257,43 +259,57 @@ def jitter(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Metri
     (ProtoMotions' ``normalized_jerk_mean``: mean over keypoints and windows)
     and ``analysis_fps``. Not available for clips shorter than one window.
     """
+    return jitter_batch(ClipBatch([motion]), thresholds)[0]
+
+
+def jitter_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                 ) -> list[MetricResult]:
+    """:func:`jitter` of every clip of ``batch``."""
     name, unit, thr = "jitter", "%", thresholds.high_jerk_percent_max
     kwargs = {"frame_threshold": thresholds.normalized_jerk_max,
               "timeline_unit": "normalized jerk"}
-    canon, reason = canonical_or_reason(motion)
-    if canon is None:
-        return _limited(name, reason or "", motion.num_frames, unit, thr, **kwargs)
-    fa = min(motion.fps, thresholds.jerk_fps)
+    if batch.skeleton is None:
+        return batch.not_available(name, unit, thr, "", **kwargs)
+    fps, frames = batch.fps, batch.num_frames
+    fa = min(fps, thresholds.jerk_fps)
     w = max(4, round(thresholds.jerk_window_s * fa))
-    needed = max(int(np.ceil((w - 1) * motion.fps / fa)) + 1, 4)
-    if motion.num_frames < needed:
-        return _limited(
+    needed = max(int(np.ceil((w - 1) * fps / fa)) + 1, 4)
+    if frames < needed:
+        return batch.not_available(
             name,
+            unit, thr,
             f"needs at least {needed} frames ({thresholds.jerk_window_s:g} s window at "
-            f"{fa:g} fps); the motion has {motion.num_frames}",
-            motion.num_frames, unit, thr, **kwargs,
+            f"{fa:g} fps); the motion has {frames}",
+            **kwargs,
         )
-    analysed = _analysis_motion(canon, fa)
-    pos = analysed.positions.astype(np.float64)
-    nj = windowed_normalized_jerk(pos, fa, w)
-    if nj.shape[0] == 0:
-        return _limited(
-            name, f"resampled clip is shorter than one {w}-frame window",
-            motion.num_frames, unit, thr, **kwargs,
-        )
+    # Down to the analysis rate (never up: interpolating up would add jerk
+    # at every original sample), in float32 as Motion.resample.
+    raw = batch.raw
+    if fps > fa * (1 + 1e-9):
+        i, wt = resample_weights(frames, fps, fa)
+        wt = wt[:, None, None]
+        raw = (1 - wt) * raw[:, i] + wt * raw[:, i + 1]
+    pos = raw.astype(np.float64)
+    nj = windowed_normalized_jerk(pos, fa, w)  # (B, windows, J)
+    if nj.shape[1] == 0:
+        return batch.not_available(
+            name, unit, thr, f"resampled clip is shorter than one {w}-frame window", **kwargs)
     limit = thresholds.normalized_jerk_max
-    typical = np.median(nj, axis=1)
-    percent = 100.0 * float((typical > limit).mean())
-    centres = (np.arange(len(typical)) + (w - 1) / 2.0) / fa
-    timeline = np.interp(motion.times, centres, typical, left=np.nan, right=np.nan)
-    jerk = np.linalg.norm(np.diff(pos, 3, axis=0), axis=-1) * fa**3
-    return MetricResult.from_timeline(
-        name, timeline, percent, unit, thr, **kwargs,
+    typical = np.median(nj, axis=2)
+    centres = (np.arange(typical.shape[1]) + (w - 1) / 2.0) / fa
+    times = batch.motions[0].times
+    timeline = np.stack([np.interp(times, centres, t, left=np.nan, right=np.nan)
+                         for t in typical])
+    jerk = norm3(np.diff(pos, 3, axis=1)) * fa**3
+    return results(
+        batch, name, timeline, 100.0 * (typical > limit).mean(axis=1), unit, thr, **kwargs,
         details={
-            "protomotions_high_jerk_percent": 100.0 * float((nj.max(axis=1) > limit).mean()),
-            "mean_jerk_mps3": float(jerk.mean()),
-            "normalized_jerk_mean": float(nj.mean()),
-            "analysis_fps": float(fa),
+            "protomotions_high_jerk_percent": 100.0 * (nj.max(axis=2) > limit).mean(axis=1),
+            # Per clip and C-ordered, whatever the batch's memory layout: a
+            # mean's summation order follows the layout (last-bit effects).
+            "mean_jerk_mps3": np.array([np.ascontiguousarray(j).mean() for j in jerk]),
+            "normalized_jerk_mean": np.array([np.ascontiguousarray(n).mean() for n in nj]),
+            "analysis_fps": fa,
         },
     )
 
@@ -304,13 +320,17 @@ def jitter(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Metri
 def speed_limits(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> np.ndarray:
     """(J,) speed limit in m/s of each keypoint of a canonical ``motion``
     (trunk, mid-limb or distal limit; unknown names get the distal limit)."""
+    return _speed_limits(motion.skeleton.joint_names, thresholds)
+
+
+def _speed_limits(names: Sequence[str], thresholds: Thresholds) -> np.ndarray:
     group_limit = {
         **{n: thresholds.speed_limit_trunk_mps for n in TRUNK_KEYPOINTS},
         **{n: thresholds.speed_limit_limb_mps for n in LIMB_KEYPOINTS},
         **{n: thresholds.speed_limit_distal_mps for n in DISTAL_KEYPOINTS},
     }
     limits = [group_limit.get(n, thresholds.speed_limit_distal_mps)
-              for n in motion.skeleton.joint_names]
+              for n in names]
     return np.array(limits)
 
 
@@ -328,35 +348,40 @@ def velocity(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
     ``max_speed_ratio``, ``max_jump_m``, ``teleport_frames``. Needs two frames
     (teleports need three; with two only speeds are checked).
     """
+    return velocity_batch(ClipBatch([motion]), thresholds)[0]
+
+
+def velocity_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                   ) -> list[MetricResult]:
+    """:func:`velocity` of every clip of ``batch``."""
     name, unit, thr = "velocity", "fraction of limit", 1.0
-    canon, reason = canonical_or_reason(motion)
-    if canon is None:
-        return _limited(name, reason or "", motion.num_frames, unit, thr)
-    if motion.num_frames < 2:
-        return _limited(
-            name, f"needs at least 2 frames for a speed; the motion has {motion.num_frames}",
-            motion.num_frames, unit, thr,
-        )
-    pos = canon.positions.astype(np.float64)
-    fps = motion.fps
-    speed = np.linalg.norm(np.diff(pos, axis=0), axis=-1) * fps  # (T-1, J)
-    speed_ratio = (speed / speed_limits(canon, thresholds)).max(axis=1)
-    timeline = np.full(motion.num_frames, np.nan)
-    timeline[1:] = speed_ratio
+    frames = batch.num_frames
+    if batch.skeleton is None:
+        return batch.not_available(name, unit, thr, "")
+    if frames < 2:
+        return batch.not_available(
+            name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}")
+    fps = batch.fps
+    dx, dy, dz = batch.diffs
+    speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps  # (B, T-1, J)
+    speed_ratio = (speed / _speed_limits(batch.names, thresholds)).max(axis=2)
+    timeline = np.full((batch.size, frames), np.nan)
+    timeline[:, 1:] = speed_ratio
     jump_limit = max(thresholds.teleport_distance_m, thresholds.teleport_accel_mps2 / fps**2)
-    max_jump, teleports = 0.0, 0
-    if motion.num_frames >= 3:
-        jump = np.linalg.norm(np.diff(pos, 2, axis=0), axis=-1).max(axis=1)  # frames 1..T-2
+    max_jump, teleports = np.zeros(batch.size), np.zeros(batch.size)
+    if frames >= 3:
+        ddx, ddy, ddz = (np.diff(d, axis=1) for d in batch.diffs)  # frames 1..T-2
+        jump = np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz).max(axis=2)
         jump_ratio = jump / jump_limit
-        timeline[1:-1] = np.maximum(timeline[1:-1], jump_ratio)
-        max_jump, teleports = float(jump.max()), int((jump_ratio > 1).sum())
-    return MetricResult.from_timeline(
-        name, timeline, float(np.nanmax(timeline)), unit, thr,
+        timeline[:, 1:-1] = np.maximum(timeline[:, 1:-1], jump_ratio)
+        max_jump, teleports = jump.max(axis=1), (jump_ratio > 1).sum(axis=1)
+    return results(
+        batch, name, timeline, timeline[:, 1:].max(axis=1), unit, thr,
         details={
-            "max_speed_mps": float(speed.max()),
-            "max_speed_ratio": float(speed_ratio.max()),
+            "max_speed_mps": speed.max(axis=(1, 2)),
+            "max_speed_ratio": speed_ratio.max(axis=1),
             "max_jump_m": max_jump,
             "jump_limit_m": jump_limit,
-            "teleport_frames": float(teleports),
+            "teleport_frames": teleports,
         },
     )
