@@ -171,3 +171,18 @@ def test_score_is_at_least_50_exactly_when_plausible(walk):
     for motion in (walk, _lowered(walk, 0.08)):
         person = score(motion, physics=False).people[0]
         assert (person.score >= 50.0) == (person.verdict == "plausible")
+
+
+def test_standing_body_leaning_off_its_feet_fails_balance(shared_data):
+    # CMU 131_01 frames 820-940: standing still (quasi-static, judged by balance).
+    stand = simenv.load(shared_data / "cmu/bvh/131_01.bvh").slice(820, 940).to_canonical()
+    fixed = [i for i, n in enumerate(stand.skeleton.joint_names) if "toe" in n or "ankle" in n]
+    lean = stand.positions.copy()
+    moved = np.ones(stand.num_joints, dtype=bool)
+    moved[fixed] = False
+    lean[:, moved, 0] += 0.2  # everything above the ankles 20 cm forward, feet planted
+    config = ScoreConfig(tracking=False, joint_limits=False)
+    real = score(stand, config=config).people[0].metrics["balance"]
+    leaning = score(stand.with_positions(lean), config=config).people[0].metrics["balance"]
+    assert real.passed is True
+    assert leaning.passed is False and leaning.value > 100.0

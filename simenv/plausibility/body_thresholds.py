@@ -90,7 +90,17 @@ class BodyThresholds:
             for the residual's violation runs (landings of real jumps peak
             briefly as the 6 Hz filter spreads the impact).
         balance_accel_mps2: 0.5. A frame is quasi-static when the centre of
-            mass accelerates less than this (about 5 % of g).
+            mass accelerates less than this (about 5 % of g) ...
+        balance_speed_mps: 0.1. ... and moves horizontally slower than this.
+            Static balance only binds a body at rest: a dancer turning or a
+            walker starting a step moves the centre of mass past the support
+            edge with little acceleration (measured on real CMU clips: the
+            05_02 pirouette at 0.13 m/s, 01_01 turning between hops at
+            0.07-0.11 m/s, the 49_06 cartwheel at 0.68 m/s); those frames are
+            judged by the full dynamics of ``root_residual``.
+        balance_support_band_m: 0.03. Geom points within this of the frame's
+            lowest point also support the body (CMU 131_01's wide stance: one
+            sole at 3.1 cm, the other at 5.5 cm above z = 0).
         balance_margin_mm: 50. Largest allowed distance of the centre of
             mass ground projection outside the support polygon on
             quasi-static frames (soft tissue and the shoe extend the support
@@ -129,6 +139,8 @@ class BodyThresholds:
     root_force_mean_max: float = 0.15
     root_force_frame_max: float = 0.5
     balance_accel_mps2: float = 0.5
+    balance_speed_mps: float = 0.1
+    balance_support_band_m: float = 0.03
     balance_margin_mm: float = 50.0
 
     tracking_fail_m: float = 0.5

@@ -268,11 +268,16 @@ def balance(result: RetargetResult,
             thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
     """Static balance: centre of mass over the support polygon when quasi-static.
 
-    A frame is judged when its centre-of-mass acceleration (6 Hz filtered,
-    second difference) is below ``balance_accel_mps2`` and some geom point
-    is within ``support_height_m`` of the floor. Timeline: distance (mm) of
-    the centre of mass ground projection outside the convex hull of those
-    points (:func:`distance_outside`), NaN on frames not judged; value: its
+    A frame is judged when it is quasi-static -- the centre of mass (6 Hz
+    filtered) moves horizontally slower than ``balance_speed_mps`` and
+    accelerates less than ``balance_accel_mps2`` -- and some geom point is
+    within ``support_height_m`` of the floor. The support points are the geom
+    points within ``support_height_m`` of the floor or within
+    ``balance_support_band_m`` of the frame's lowest point (a foot standing a
+    few centimetres higher than the other, on data whose floor is uneven, still
+    carries weight). Timeline: distance (mm) of the centre of mass ground
+    projection outside the convex hull of those points
+    (:func:`distance_outside`), NaN on frames not judged; value: its
     maximum over judged frames (0 when none); passes when at most
     ``balance_margin_mm``. Details: ``judged_fraction``, ``outside_fraction``
     (judged frames with the centre of mass outside by more than the margin).
@@ -286,11 +291,17 @@ def balance(result: RetargetResult,
     poses = body_poses(model, result.qpos)
     com = lowpass(poses.com, result.fps, thresholds.filter_cutoff_hz)
     dt = 1.0 / result.fps
-    acc = np.linalg.norm(np.gradient(np.gradient(com, dt, axis=0), dt, axis=0), axis=1)
+    vel = np.gradient(com, dt, axis=0)
+    acc = np.linalg.norm(np.gradient(vel, dt, axis=0), axis=1)
+    speed = np.linalg.norm(vel[:, :2], axis=1)
     points = geom_support_points(model, poses, body_geoms(model))
+    lowest = points[..., 2].min(axis=1)
     timeline = np.full(T, np.nan)
-    for t in np.flatnonzero(acc < thresholds.balance_accel_mps2):
-        p = points[t][points[t, :, 2] < thresholds.support_height_m]
+    static = (acc < thresholds.balance_accel_mps2) & (speed < thresholds.balance_speed_mps)
+    for t in np.flatnonzero(static & (lowest < thresholds.support_height_m)):
+        z = points[t, :, 2]
+        p = points[t][(z < thresholds.support_height_m)
+                      | (z < lowest[t] + thresholds.balance_support_band_m)]
         if len(p):
             timeline[t] = distance_outside(poses.com[t, :2], p[:, :2]) * 1000.0
     judged = ~np.isnan(timeline)
