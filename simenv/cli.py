@@ -287,7 +287,7 @@ def _print_score(rec: dict[str, Any]) -> None:
 
 
 def cmd_score(args: argparse.Namespace) -> int:
-    from simenv.scoring import ScoreJob, find_targets, score_batch
+    from simenv.scoring import ScoreJob, find_targets, index_entries, score_batch
 
     targets = find_targets(args.paths)
     if not targets:
@@ -306,7 +306,7 @@ def cmd_score(args: argparse.Namespace) -> int:
     if report_dir is not None:
         from simenv.plausibility.html_report import write_index
 
-        index = write_index(records, report_dir)
+        index = write_index(index_entries(records), report_dir)
         if not args.json:
             print(f"wrote {index}")
     if args.out and not args.json:

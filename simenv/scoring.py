@@ -133,6 +133,27 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
     return records
 
 
+def index_entries(records: Sequence[dict[str, Any]]
+                  ) -> list[tuple[str, str | None, float | None, str]]:
+    """Rows of the report index (:func:`simenv.plausibility.html_report.write_index`),
+    one per file in first-seen order: ``(file, report page, score, verdict)``, the score
+    and verdict of the clip's worst person (and pairwise verdict); ``(file, None, None,
+    error message)`` for a file that could not be scored."""
+    rows: dict[str, list[dict[str, Any]]] = {}
+    for rec in records:
+        rows.setdefault(rec["file"], []).append(rec)
+    out = []
+    for file, recs in rows.items():
+        if "error" in recs[0]:
+            out.append((file, None, None, recs[0]["error"]))
+            continue
+        verdicts = [r["verdict"] for r in recs] + [r["interaction"]["verdict"] for r in recs
+                                                    if "interaction" in r]
+        verdict = "implausible" if "implausible" in verdicts else "plausible"
+        out.append((file, recs[0].get("report"), min(r["score"] for r in recs), verdict))
+    return out
+
+
 def done_files(path: str | Path) -> set[str]:
     """Files already recorded in a results JSON-lines file (missing file: none).
 
@@ -235,4 +256,5 @@ def score_batch(
     return collected
 
 
-__all__ = ["BACKENDS", "ScoreJob", "done_files", "find_targets", "score_batch", "score_target"]
+__all__ = ["BACKENDS", "ScoreJob", "done_files", "find_targets", "index_entries", "score_batch",
+           "score_target"]

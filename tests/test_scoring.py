@@ -10,7 +10,14 @@ import pytest
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.errors import SimenvError
-from simenv.scoring import ScoreJob, done_files, find_targets, score_batch, score_target
+from simenv.scoring import (
+    ScoreJob,
+    done_files,
+    find_targets,
+    index_entries,
+    score_batch,
+    score_target,
+)
 
 FAST = ScoreJob(physics=False)
 
@@ -89,3 +96,13 @@ def test_ray_backend_on_a_local_instance(corpus):
         sorted(json.dumps(r, sort_keys=True) for r in remote if "error" in r)
     assert sorted((r["file"], r.get("person"), r.get("score")) for r in local) == \
         sorted((r["file"], r.get("person"), r.get("score")) for r in remote)
+
+
+def test_index_entries_one_row_per_file(corpus):
+    records = score_batch(find_targets([corpus]), FAST, progress=False)
+    rows = {Path(f).name: (page, s, status) for f, page, s, status in index_entries(records)}
+    assert set(rows) == {"walk.bvh", "broken.bvh", "pair"}
+    assert rows["broken.bvh"][0] is None and "line" in rows["broken.bvh"][2]
+    assert rows["walk.bvh"][2] in ("plausible", "implausible")
+    pair_scores = [r["score"] for r in records if Path(r["file"]).name == "pair"]
+    assert rows["pair"][1] == min(pair_scores)
