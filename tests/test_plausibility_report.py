@@ -186,3 +186,17 @@ def test_standing_body_leaning_off_its_feet_fails_balance(shared_data):
     leaning = score(stand.with_positions(lean), config=config).people[0].metrics["balance"]
     assert real.passed is True
     assert leaning.passed is False and leaning.value > 100.0
+
+
+def test_forearm_through_the_torso_fails_self_penetration(walk):
+    clip = walk.slice(0, 120).to_canonical()
+    names = clip.skeleton.joint_names
+    pos = clip.positions.copy()
+    chest, spine = pos[:, names.index("chest")], pos[:, names.index("spine")]
+    pos[:, names.index("right_hand")] = chest
+    pos[:, names.index("right_wrist")] = 0.5 * (chest + spine)
+    config = ScoreConfig(tracking=False, joint_limits=False)
+    real = score(clip, config=config).people[0].metrics["self_penetration"]
+    through = score(clip.with_positions(pos), config=config).people[0].metrics["self_penetration"]
+    assert real.passed is True and real.value < 30.0
+    assert through.passed is False
