@@ -348,9 +348,18 @@ class Room:
              quat=[float(np.cos(lean / 2)), 0.0, float(np.sin(lean / 2)), 0.0])
         _box(desk, "desk/notebook", (0.1, 0.075, 0.006), (-0.12, 0.45, top + 0.006),
              (0.7, 0.15, 0.1, 1.0))
-        tray = (0.05, -0.5, top)
-        _geom(desk, "desk/ashtray", mujoco.mjtGeom.mjGEOM_CYLINDER, (0.05, 0.01),
-              (tray[0], tray[1], top + 0.01), (0.3, 0.35, 0.4, 0.9), _STATIC)
+        tray = (-0.1, -0.45, top)  # within the seated agent's right-hand reach
+        # A flat dish: its base collides; its rim is drawn only, so that a hand pressing
+        # inside it reaches the cigarette instead of resting on the rim.
+        glass = (0.3, 0.35, 0.4, 0.9)
+        _geom(desk, "desk/ashtray", mujoco.mjtGeom.mjGEOM_CYLINDER, (0.06, 0.003),
+              (tray[0], tray[1], top + 0.003), glass, _STATIC)
+        for i in range(12):
+            a = 2 * np.pi * i / 12
+            rim = _box(desk, f"desk/ashtray_rim{i}", (0.004, 0.016, 0.008),
+                       (tray[0] + 0.058 * np.cos(a), tray[1] + 0.058 * np.sin(a), top + 0.008),
+                       glass, quat=_yaw_quat(a))
+            rim.contype = rim.conaffinity = 0
         # Cigarette across the tray: slides down (into the ash) when pressed; lit until then.
         cig = _body(desk, "cigarette", (tray[0], tray[1], top + 0.024))
         cig.gravcomp = 1.0  # it rests on the tray's rim: its weight must not press it out
