@@ -19,7 +19,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import mujoco
-import numpy as np
 
 from simenv.agents.reach import (
     PDPlan,
@@ -86,17 +85,4 @@ def object_success(room: Room, before: dict[str, str], after: dict[str, str],
     return before[r.object] != r.target and after[r.object] == r.target
 
 
-def play(room: Room, data: mujoco.MjData, plan: PDPlan, extra_s: float = 0.0) -> np.ndarray:
-    """Simulate ``plan`` (then ``extra_s`` more seconds holding its end), updating the
-    agent's targets every physics step; returns the (T, 3) path of the agent's pelvis."""
-    dt = room.model.opt.timestep
-    n = int(round((plan.duration + extra_s) / dt))
-    pelvis = np.empty((n, 3))
-    for i in range(n):
-        data.ctrl[room.agent_ctrl] = plan.at(i * dt)
-        mujoco.mj_step(room.model, data)
-        pelvis[i] = data.qpos[room.agent_qpos][:3]
-    return pelvis
-
-
-__all__ = ["PLANNERS", "object_success", "plan_cigarette_out", "play"]
+__all__ = ["PLANNERS", "object_success", "plan_cigarette_out"]

@@ -15,6 +15,8 @@ from simenv.envs.interaction_room import (
     GRACE_S,
     MISS,
     OBJECTS,
+    SUCCESS,
+    TAIL_S,
     TIMELINESS_S,
     InteractionRoomEnv,
 )
@@ -76,7 +78,8 @@ def test_timely_correct_reaction_is_rewarded(env: InteractionRoomEnv):
     assert infos[step]["reaction"] == "greet" and infos[step]["gesture"] == "wave"
     assert all(i["reward_terms"]["miss"] == 0 for i in infos)
     assert infos[-1]["truncation_reason"] == "end of the session"
-    assert env.decisions == [(step / PERCEPTION_FPS, "greet")]
+    assert [(e["t_decision"], e["reaction"], e["gesture"], e["started"]) for e in env.log] == [
+        (step / PERCEPTION_FPS, "greet", "wave", False)]  # greeting is not carried out yet
 
 
 def test_wrong_late_and_missing_reactions_are_penalised(env: InteractionRoomEnv):
@@ -145,3 +148,24 @@ def test_vector_envs(mode: str):
         assert envs.single_observation_space.contains({k: v[0] for k, v in obs.items()})
     finally:
         envs.close()
+
+
+def test_reaction_carried_out_in_simulation_changes_the_object():
+    """Discomfort scenario, "smell": the agent's decision starts the cigarette_out plan; the
+    cigarette goes out through the agent's hand, the episode runs past the recording until
+    the plan ends, and the success is measured and rewarded."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)  # 0.5 s, the user far from the desk
+    env = InteractionRoomEnv(short, gestures=[GestureEvent("smell", 0.2, 0.5)],
+                             scenario="discomfort")
+    act = env.reactions.index("cigarette_out")
+    decide = int(round(0.3 * PERCEPTION_FPS))
+    infos = _run(env, {decide: act})
+    assert infos[decide]["executing"] == "cigarette_out"
+    (entry,) = env.log
+    assert entry["started"] and entry["success"] is True
+    assert entry["t_decision"] < entry["t_object_changed"] < infos[-1]["time_s"]
+    assert sum(i["reward_terms"]["success"] for i in infos) == SUCCESS
+    assert infos[-1]["time_s"] > 0.5 + TAIL_S  # kept simulating for the running reaction
+    assert infos[-1]["object_labels"]["cigarette"] == "out"
+    assert env._obs["objects"][OBJECTS.index("cigarette")] > 0.5
+    assert all(i["reward_terms"]["plausibility"] == 0 for i in infos)

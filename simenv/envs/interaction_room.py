@@ -26,19 +26,27 @@ Reward (per step, documented constants below)
       ``-FALSE_ALARM``;
     * a gesture whose reaction is not ``keep`` left unanswered :data:`GRACE_S` after its
       end: ``-MISS``;
+    * a started reaction whose object reached its target state in simulation by the end of
+      its plan (:func:`simenv.agents.scripted.object_success`): ``+SUCCESS``;
     * implausible agent motion: ``-PLAUSIBILITY_WEIGHT`` per centimetre by which the agent's
       deepest contact with the floor, the furniture, the objects or itself penetrates beyond
       :data:`PENETRATION_TOLERANCE_M` (contacts with the kinematic user, who pushes with
       unbounded force, are not the agent's doing).
 
 Episode
-    Truncated :data:`TAIL_S` after the session ends (the user holding the last pose), or
-    when the physics diverges (``info["truncation_reason"]``). Stepping before ``reset``, after
-    the end, or with an action outside the space raises :class:`~simenv.errors.SimenvError`.
+    Truncated :data:`TAIL_S` after the session ends (the user holding the last pose; later
+    while a reaction still runs, at most :data:`MAX_TAIL_S`), or when the physics diverges,
+    with ``info["truncation_reason"]``. Stepping before ``reset``, after the end, or with an
+    action outside the space raises :class:`~simenv.errors.SimenvError`.
 
-Scope of this version: the decision is logged (``info["reaction"]``) and rewarded; carrying
-it out physically (stand, walk, reach, act through :meth:`simenv.room.Room.set_grasp`) is
-the next layer, so object states change here only through contact with the user.
+Execution
+    A decision whose reaction has a planner in :data:`simenv.agents.scripted.PLANNERS`
+    (now: ``cigarette_out``) starts it when the agent is idle: the plan's PD targets are
+    applied at every physics step until it ends, and the object changes state only if the
+    agent's hand makes it so. Other decisions are logged and rewarded as decisions but not
+    carried out yet (``started`` False); a decision while a plan runs is not started either.
+    :attr:`log` lists every decision with ``t_decision``, ``reaction``, ``gesture``,
+    ``started``, ``t_object_changed`` and ``success``.
 """
 
 from __future__ import annotations
@@ -52,6 +60,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from simenv.agents.scripted import PLANNERS, object_success
 from simenv.assets import WALK
 from simenv.envs._physics import physics_problem, warning_counts
 from simenv.errors import SimenvError
@@ -69,12 +78,16 @@ GRACE_S = 1.0
 FALSE_ALARM = 0.2
 #: Penalty of a gesture left unanswered.
 MISS = 0.5
+#: Reward of a reaction whose object reached its target state through the agent.
+SUCCESS = 0.5
 #: Penalty per cm of agent penetration beyond the tolerance.
 PLAUSIBILITY_WEIGHT = 0.1
 #: Contact penetration (m) that soft contacts produce at rest; not penalised.
 PENETRATION_TOLERANCE_M = 0.01
-#: The user holds the last pose this long after the recording ends, s.
+#: The user holds the last pose this long after the recording ends, s ...
 TAIL_S = 2.0
+#: ... or longer while a reaction is still running, up to this bound, s.
+MAX_TAIL_S = 10.0
 
 
 class InteractionRoomEnv(gym.Env[dict, int]):
@@ -137,6 +150,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         })
         self.n_frames = len(self.track.qpos)
         self.max_steps = self.n_frames - 1 + int(round(TAIL_S * PERCEPTION_FPS))
+        self.hard_max_steps = self.n_frames - 1 + int(round(MAX_TAIL_S * PERCEPTION_FPS))
         geom_body = self.model.geom_bodyid
         names = [self.model.body(b).name for b in range(self.model.nbody)]
         owner = [names[geom_body[g]].split("/")[0] for g in range(self.model.ngeom)]
@@ -157,7 +171,8 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._step = 0
         self._answered: set[int] = set()
         self._missed: set[int] = set()
-        self.decisions: list[tuple[float, str]] = []
+        self.log: list[dict[str, Any]] = []
+        self._running: dict[str, Any] | None = None
         self._obs = self._observe()
         return self._obs, self._info(None, {})
 
@@ -174,19 +189,24 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         t = self._step / PERCEPTION_FPS
         reaction = self.reactions[int(a)]
         terms = {"decision": self._decide(t, reaction), "miss": self._misses(t)}
+        if reaction is not None:
+            self._start(t, reaction)
         m, d = self.model, self.data
         self._step += 1
         self.room.set_user_pose(d, self.track.qpos[min(self._step, self.n_frames - 1)])
         counts = warning_counts(d)
-        mujoco.mj_step(m, d, nstep=self.frame_skip)
+        self._simulate(t)
         problem = physics_problem(m, d, counts)
         if problem is not None:
             self._step = None
             return self._obs, 0.0, False, True, {"truncation_reason": f"physics: {problem}"}
+        terms["success"] = self._follow_up(self._step / PERCEPTION_FPS)
         terms["plausibility"] = -PLAUSIBILITY_WEIGHT * self._excess_penetration() / 0.01
         self._obs = self._observe()
         info = self._info(reaction, terms)
-        truncated = self._step >= self.max_steps
+        # After the recording the user holds its last pose until running reactions finish.
+        truncated = (self._step >= self.max_steps and self._running is None
+                     or self._step >= self.hard_max_steps)
         if truncated:
             info["truncation_reason"] = "end of the session"
             self._step = None
@@ -207,12 +227,50 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             self._renderer.close()
             self._renderer = None
 
+    # -- execution -------------------------------------------------------------
+
+    def _start(self, t: float, reaction: str) -> None:
+        entry = {"t_decision": t, "reaction": reaction, "gesture": self._active(t),
+                 "started": False, "t_object_changed": None, "success": None}
+        self.log.append(entry)
+        if self._running is None and reaction in PLANNERS:
+            entry["started"] = True
+            self._running = {"entry": entry, "t0": t,
+                             "plan": PLANNERS[reaction](self.room, self.data),
+                             "before": self.room.object_labels(self.data)}
+
+    def _simulate(self, t: float) -> None:
+        """One env step of physics; a running plan sets the agent's targets every substep."""
+        m, d = self.model, self.data
+        if self._running is None:
+            mujoco.mj_step(m, d, nstep=self.frame_skip)
+            return
+        plan, t0, dt = self._running["plan"], self._running["t0"], m.opt.timestep
+        for i in range(self.frame_skip):
+            d.ctrl[self.room.agent_ctrl] = plan.at(t - t0 + i * dt)
+            mujoco.mj_step(m, d)
+
+    def _follow_up(self, t: float) -> float:
+        """Record when the running reaction's object changes; score it when its plan ends."""
+        run = self._running
+        if run is None:
+            return 0.0
+        entry = run["entry"]
+        labels = self.room.object_labels(self.data)
+        if entry["t_object_changed"] is None and object_success(
+                self.room, run["before"], labels, entry["reaction"]):
+            entry["t_object_changed"] = t
+        if t - run["t0"] < run["plan"].duration:
+            return 0.0
+        self._running = None
+        entry["success"] = object_success(self.room, run["before"], labels, entry["reaction"])
+        return SUCCESS if entry["success"] else 0.0
+
     # -- reward ----------------------------------------------------------------
 
     def _decide(self, t: float, reaction: str | None) -> float:
         if reaction is None:
             return 0.0
-        self.decisions.append((t, reaction))
         behaviour = self.scenario.behaviour
         for i, g in enumerate(self.session.gestures):
             if i in self._answered or not g.onset_s <= t <= g.end_s + GRACE_S:
@@ -260,8 +318,13 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 "agent": agent.astype(np.float32),
                 "objects": np.clip(levels, 0.0, 1.0).astype(np.float32)}
 
+    def _active(self, t: float) -> str | None:
+        active = [g.label for g in self.session.gestures if g.onset_s <= t <= g.end_s]
+        return active[0] if active else None
+
     def _info(self, reaction: str | None, terms: dict[str, float]) -> dict[str, Any]:
         t = self._step / PERCEPTION_FPS
-        active = [g.label for g in self.session.gestures if g.onset_s <= t <= g.end_s]
-        return {"time_s": t, "gesture": active[0] if active else None, "reaction": reaction,
+        return {"time_s": t, "gesture": self._active(t), "reaction": reaction,
+                "executing": None if self._running is None else self._running["entry"][
+                    "reaction"],
                 "reward_terms": terms, "object_labels": self.room.object_labels(self.data)}
