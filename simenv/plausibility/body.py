@@ -283,16 +283,124 @@ def observed_hinges(humanoid: Humanoid, keypoints: Sequence[str]) -> np.ndarray:
     constraint only, not from the motion, so their limits say nothing
     about it.
     """
+    return hinge_keypoints(humanoid, keypoints).any(axis=1)
+
+
+def hinge_keypoints(humanoid: Humanoid, keypoints: Sequence[str]) -> np.ndarray:
+    """(H, K) bool: which of ``keypoints`` (in that order) each hinge moves.
+
+    A hinge moves the keypoint sites on the bodies of its body's subtree
+    (e.g. ``left_foot_flex`` moves ``left_toe`` only: the ankle site sits on
+    the shin). Rows in :attr:`Humanoid.joint_names` order.
+    """
     m = humanoid.model
-    sites = [s for k, s in zip(humanoid.keypoint_names, humanoid.site_ids, strict=True)
-             if k in keypoints]
-    moved = np.zeros(m.nbody, dtype=bool)
-    for b in m.site_bodyid[sites]:
-        while b > 0:
-            moved[b] = True
-            b = m.body_parentid[b]
+    index = dict(zip(humanoid.keypoint_names, humanoid.site_ids, strict=True))
+    site_body = m.site_bodyid[[index[k] for k in keypoints]]
     hinges = np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
-    return moved[m.jnt_bodyid[hinges]]
+    out = np.zeros((len(hinges), len(site_body)), dtype=bool)
+    for i, b0 in enumerate(site_body):
+        b = int(b0)
+        while b > 0:  # every ancestor body's hinges move this site
+            out[m.jnt_bodyid[hinges] == b, i] = True
+            b = int(m.body_parentid[b])
+    return out
+
+
+def joint_limit_clamp_cost(humanoid: Humanoid, qpos: np.ndarray, targets: np.ndarray,
+                           keypoints: Sequence[str], candidates: np.ndarray) -> np.ndarray:
+    """What clamping one hinge back into its range costs, without re-solving.
+
+    For each candidate (frame, hinge): the hinge alone is set to the nearest
+    end of its anatomical range in ``qpos`` (every other coordinate kept),
+    forward kinematics (``mj_kinematics``) places the keypoint sites, and the
+    cost is the increase of the worst residual over the keypoints that hinge
+    moves (:func:`hinge_keypoints`).
+
+    Args:
+        humanoid: gives the ranges (:attr:`Humanoid.joint_limits`) and model.
+        qpos: (T, nq) configurations (a relaxed fit).
+        targets: (T, K, 3) target keypoints, metres, in ``keypoints`` order.
+        keypoints: the K keypoint names of ``targets``.
+        candidates: (N, 2) int (frame, hinge index) pairs.
+
+    Returns:
+        (N,) metres (negative when clamping brings the sites closer).
+    """
+    m, d = humanoid.model, mujoco.MjData(humanoid.model)
+    moves = hinge_keypoints(humanoid, keypoints)
+    index = dict(zip(humanoid.keypoint_names, humanoid.site_ids, strict=True))
+    sites = np.array([index[k] for k in keypoints])
+    lo, hi = humanoid.joint_limits[:, 0], humanoid.joint_limits[:, 1]
+    cost = np.zeros(len(candidates))
+    last = -1
+    for n, (t, h) in enumerate(np.asarray(candidates, dtype=int).reshape(-1, 2)):
+        ks = moves[h]
+        if not ks.any():
+            continue
+        if t != last:
+            d.qpos[:] = qpos[t]
+            mujoco.mj_kinematics(m, d)
+            before = np.linalg.norm(d.site_xpos[sites] - targets[t], axis=1)
+            last = t
+        q = qpos[t].copy()
+        a = humanoid.hinge_qpos[h]
+        q[a] = np.clip(q[a], lo[h], hi[h])
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        after = np.linalg.norm(d.site_xpos[sites[ks]] - targets[t, ks], axis=1)
+        cost[n] = after.max() - before[ks].max()
+    return cost
+
+
+def joint_limit_demand(motion: Motion, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
+                       *, fitted: RetargetResult | None = None
+                       ) -> tuple[np.ndarray, RetargetResult, RetargetResult]:
+    """Per frame and hinge, the excess beyond the anatomical range the motion demands.
+
+    ``motion`` is retargeted onto its fitted body (``fitted`` when given) and
+    onto :func:`relaxed_humanoid` (ranges widened by
+    ``joint_limit_probe_deg``). A hinge's excess in the relaxed fit counts on
+    a frame only when both hold:
+
+    * *the limits cost accuracy where the hinge acts*: over the keypoints the
+      hinge moves (:func:`hinge_keypoints`), the limited fit's worst residual
+      exceeds the relaxed fit's by more than ``joint_limit_cost_m``. (A
+      per-hinge form of the whole-frame test: a frame whose worst keypoint
+      is a toe the ankle limit costs does not make a wrist the relaxed solver
+      bent on the same frame count, and an unrelated noisy keypoint does not
+      hide a knee bent backwards.)
+    * *this hinge's violation buys it*: clamping that hinge alone back into
+      its range in the relaxed solution raises the worst residual of the
+      keypoints it moves by more than ``joint_limit_cost_m``
+      (:func:`joint_limit_clamp_cost`). A hinge the relaxed solver twists
+      freely because no keypoint observes it (a foot rolled about its long
+      axis, which the ankle and toe keypoints barely see) costs nothing to
+      clamp, so it is not blamed for a cost another hinge causes.
+
+    Returns:
+        ``(demand, limited, relaxed)``: (T, H) degrees in
+        :attr:`Humanoid.joint_names` order (0 where not demanded, and on the
+        hinges no keypoint observes), and the two fits.
+    """
+    fitted = fitted if fitted is not None else retarget(motion)
+    relaxed = retarget(motion, humanoid=relaxed_humanoid(
+        fitted.humanoid, thresholds.joint_limit_probe_deg))
+    body, names = fitted.humanoid, relaxed.keypoint_names
+    excess = joint_limit_excess(body, relaxed.qpos)
+    moves = hinge_keypoints(body, names)
+    excess[:, ~moves.any(axis=1)] = 0.0
+    cand = np.argwhere(excess > 0.0)
+    if len(cand):
+        t, h = cand[:, 0], cand[:, 1]
+        lim_res = np.where(moves[h], fitted.residuals[t], -np.inf).max(axis=1)
+        rel_res = np.where(moves[h], relaxed.residuals[t], -np.inf).max(axis=1)
+        local = lim_res - rel_res > thresholds.joint_limit_cost_m
+        clamp = np.zeros(len(cand), dtype=bool)
+        clamp[local] = joint_limit_clamp_cost(
+            body, relaxed.qpos, relaxed.targets.astype(np.float64), names, cand[local]
+        ) > thresholds.joint_limit_cost_m
+        excess[t[~clamp], h[~clamp]] = 0.0
+    return excess, fitted, relaxed
 
 
 def joint_limits(source: Motion | RetargetResult,
@@ -302,44 +410,46 @@ def joint_limits(source: Motion | RetargetResult,
 
     A trajectory from :func:`simenv.retarget.retarget` respects the limits by
     construction (the solver projects onto them), so a :class:`Motion` is
-    retargeted twice: onto its fitted body, and onto :func:`relaxed_humanoid`
-    (ranges widened by ``joint_limit_probe_deg``). A frame *needs* a
-    violation when the limits cost keypoint accuracy there: the worst
-    keypoint residual of the limited fit exceeds the relaxed fit's by more
-    than ``joint_limit_cost_m``. Elsewhere a relaxed angle beyond a limit is
-    an equivalent pose the limited fit also reaches (a twist shared between
-    hip rotation and foot abduction, a foot roll no keypoint observes), not a
-    demand of the motion. A :class:`RetargetResult` is measured as it is
-    (qpos from a policy, a generator, a relaxed fit), every frame counting.
-    ``fitted``: the motion's retargeting onto its fitted body when the caller
-    already has it (saves one of the two fits).
+    retargeted twice, onto its fitted body and onto :func:`relaxed_humanoid`
+    (ranges widened by ``joint_limit_probe_deg``), and a hinge's excess in
+    the relaxed fit counts on a frame only where the motion demands it
+    (:func:`joint_limit_demand`): the limits cost more than
+    ``joint_limit_cost_m`` of keypoint accuracy where that hinge acts, and
+    clamping that hinge alone back into its range costs that much too.
+    Elsewhere a relaxed angle beyond a limit is an equivalent pose the
+    limited fit also reaches (a twist shared between hip rotation and foot
+    abduction, a wrist bend the solver put into deviation instead of
+    pronation plus flexion), or a rotation no keypoint observes. A
+    :class:`RetargetResult` is measured as it is (qpos from a policy, a
+    generator, a relaxed fit), every frame counting. ``fitted``: the
+    motion's retargeting onto its fitted body when the caller already has
+    it (saves one of the two fits).
 
     Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`) over
-    the hinges the motion's keypoints observe (:func:`observed_hinges`), 0 on
-    frames that need no violation. Value: its maximum over frames; passes
-    when at most ``joint_limit_max_deg``. Details: ``frames_over`` (fraction
-    of frames above 1 degree), ``joints_over`` (hinges above the threshold
-    anywhere), ``mean_deg``, and for a Motion ``limit_cost_p95_mm`` (95th
-    percentile of the residual the limits add).
+    the hinges the motion's keypoints observe (:func:`observed_hinges`), 0
+    where not demanded. Value: its maximum over frames; passes when at most
+    ``joint_limit_max_deg``. Details: ``frames_over`` (fraction of frames
+    above 1 degree), ``joints_over`` (hinges above the threshold anywhere),
+    ``mean_deg``, ``worst_hinge`` (index into :attr:`Humanoid.joint_names`
+    of the hinge with the largest excess, -1 when none), and for a Motion
+    ``limit_cost_p95_mm`` (95th percentile over frames of the worst
+    residual the limits add).
     """
     details: dict[str, float] = {}
-    needed: np.ndarray | None = None
     if isinstance(source, Motion):
-        fitted = fitted if fitted is not None else retarget(source)
-        source = retarget(source, humanoid=relaxed_humanoid(
-            fitted.humanoid, thresholds.joint_limit_probe_deg))
-        cost = fitted.residuals.max(axis=1) - source.residuals.max(axis=1)
-        needed = cost > thresholds.joint_limit_cost_m
+        excess, fitted, relaxed = joint_limit_demand(source, thresholds, fitted=fitted)
+        cost = fitted.residuals.max(axis=1) - relaxed.residuals.max(axis=1)
         details["limit_cost_p95_mm"] = float(np.percentile(cost, 95) * 1000.0)
-    excess = joint_limit_excess(source.humanoid, source.qpos)
-    excess = excess[:, observed_hinges(source.humanoid, source.keypoint_names)]
-    if needed is not None:
-        excess = excess * needed[:, None]
+    else:
+        excess = joint_limit_excess(source.humanoid, source.qpos)
+        excess[:, ~observed_hinges(source.humanoid, source.keypoint_names)] = 0.0
     timeline = excess.max(axis=1)
     thr = thresholds.joint_limit_max_deg
+    peak = excess.max(axis=0)
     details.update({"frames_over": float((timeline > 1.0).mean()),
-                    "joints_over": float((excess.max(axis=0) > thr).sum()),
-                    "mean_deg": float(timeline.mean())})
+                    "joints_over": float((peak > thr).sum()),
+                    "mean_deg": float(timeline.mean()),
+                    "worst_hinge": float(peak.argmax()) if peak.max() > 0 else -1.0})
     return MetricResult.from_timeline("joint_limits", timeline, float(timeline.max()), "deg",
                                       thr, details=details)
 
