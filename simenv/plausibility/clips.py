@@ -1,10 +1,12 @@
 """Clips prepared once for the vectorised joint-level metrics.
 
 A :class:`ClipBatch` holds B clips of equal length and frame rate on one
-canonical keypoint layout as arrays with a leading clip axis, so every
-joint-level metric runs as a few numpy passes over all B clips at once,
-and shares the canonical keypoints, float64 coordinates, frame differences
-and lowest keypoint heights instead of recomputing them per metric.
+canonical keypoint layout as keypoint-major coordinate planes (J, B, T), so
+every joint-level metric runs as a few numpy passes over all B clips at
+once -- gathering keypoints takes whole rows and reducing over keypoints is
+an elementwise pass over rows -- and the metrics share the canonical
+keypoints, float64 coordinates, frame differences and lowest keypoint
+heights instead of recomputing them per metric.
 :func:`batches` groups any list of motions into such batches (clips of other
 lengths or skeletons go to other batches), small enough to stay in the CPU
 cache. :func:`results` turns per-clip arrays back into one
@@ -12,9 +14,11 @@ cache. :func:`results` turns per-clip arrays back into one
 
 Numerics are those of the per-clip formulas: each operation is the same
 IEEE operation on the same numbers (e.g. a Euclidean norm is
-``sqrt((x*x + y*y) + z*z)``, the summation order of ``np.linalg.norm``), so
-batched results equal per-clip results exactly
-(``tests/test_plausibility_kinematic_golden.py``).
+``sqrt((x*x + y*y) + z*z)``, the summation order of ``np.linalg.norm``), and
+every operation is independent per clip, so a clip scores exactly the same
+alone or in any batch. Only means over several keypoints may sum in another
+order than the straightforward per-clip code (last-bit differences;
+``tests/test_plausibility_kinematic_golden.py``).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from simenv.motion import MIN_PERSON_EXTENT_M, Motion, Skeleton
 from simenv.plausibility.timeline import MetricResult
 from simenv.skeletons import canonical_skeleton
 
-#: Frames per batch (clips x frames): keeps the (3, B, T, J) float64 planes
+#: Frames per batch (clips x frames): keeps the (3, J, B, T) float64 planes
 #: and their temporaries within a few MB of cache.
 BATCH_FRAMES = 8192
 
@@ -72,7 +76,7 @@ class ClipBatch:
         reasons: per clip, why the canonical keypoints cannot be used (the
             message of :meth:`Motion.to_canonical`'s error), or None.
         raw: (B, T, J, 3) float32 canonical keypoints, metres (Z-up).
-        x, y, z: (B, T, J) float64 coordinate planes, metres.
+        x, y, z: (J, B, T) float64 coordinate planes, metres.
     """
 
     def __init__(self, motions: Sequence[Motion]) -> None:
@@ -89,7 +93,7 @@ class ClipBatch:
         self.skeleton, idx = layout
         self.names = self.skeleton.joint_names
         self.raw = np.stack([m.positions[:, idx] for m in motions])
-        planes = np.ascontiguousarray(np.moveaxis(self.raw, -1, 0), dtype=np.float64)
+        planes = np.ascontiguousarray(self.raw.transpose(3, 2, 0, 1), dtype=np.float64)
         self.x, self.y, self.z = planes
         self._check_extent()
 
@@ -101,7 +105,7 @@ class ClipBatch:
         check for the rare clips that fail it."""
         if len(self.names) < 2:
             return
-        span = (self.z.max(axis=2) - self.zmin).min(axis=1)
+        span = (self.z.max(axis=0) - self.zmin).min(axis=1)
         for b in np.flatnonzero(~(span > MIN_PERSON_EXTENT_M * 1.1)):
             self.reasons[b] = _canonical_reason(self.motions[b])
 
@@ -116,12 +120,12 @@ class ClipBatch:
     @cached_property
     def zmin(self) -> np.ndarray:
         """(B, T) height of the lowest keypoint, metres."""
-        return self.z.min(axis=2)
+        return self.z.min(axis=0)
 
     @cached_property
     def diffs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(B, T-1, J) x, y, z displacement from each frame to the next, metres."""
-        return tuple(np.diff(c, axis=1) for c in (self.x, self.y, self.z))
+        """(J, B, T-1) x, y, z displacement from each frame to the next, metres."""
+        return tuple(c[..., 1:] - c[..., :-1] for c in (self.x, self.y, self.z))
 
     def not_available(self, name: str, unit: str, threshold: float, reason: str,
                       **kwargs: object) -> list[MetricResult]:
@@ -139,17 +143,18 @@ def _canonical_reason(motion: Motion) -> str | None:
     return None
 
 
-def batches(motions: Sequence[Motion], max_frames: int = BATCH_FRAMES
+def batches(motions: Sequence[Motion], max_frames: int | None = None
             ) -> Iterator[tuple[list[int], ClipBatch]]:
     """Group ``motions`` into :class:`ClipBatch` es.
 
     Clips share a batch when they have the same skeleton (and canonical
     map), frame rate and length; a batch holds at most ``max_frames``
-    frames in total (at least one clip).
+    frames in total (default :data:`BATCH_FRAMES`; at least one clip).
 
     Yields:
         (positions of the batch's clips in ``motions``, the batch).
     """
+    max_frames = BATCH_FRAMES if max_frames is None else max_frames
     groups: dict[tuple, list[int]] = {}
     for i, m in enumerate(motions):
         groups.setdefault((_layout_key(m.skeleton), m.fps, m.num_frames), []).append(i)
@@ -178,8 +183,11 @@ def results(batch: ClipBatch, name: str, timeline: np.ndarray, value: np.ndarray
     tl = np.asarray(timeline, dtype=np.float32)
     with np.errstate(invalid="ignore"):
         over = tl > ft
-    details = {k: np.broadcast_to(np.asarray(v, dtype=np.float64), (batch.size,))
+    any_over = over.any(axis=1)
+    columns = {k: np.broadcast_to(np.asarray(v, dtype=np.float64), (batch.size,)).tolist()
                for k, v in (details or {}).items()}
+    values = np.asarray(value, dtype=np.float64).tolist()
+    unit_tl, thr = timeline_unit or unit, float(threshold)
     out = []
     for b in range(batch.size):
         r = batch.reasons[b] or (None if available is None or available[b] else reason)
@@ -189,16 +197,15 @@ def results(batch: ClipBatch, name: str, timeline: np.ndarray, value: np.ndarray
                                                   timeline_unit=timeline_unit))
             continue
         violations = []
-        if over[b].any():
+        if any_over[b]:
             edges = np.diff(over[b].astype(np.int8), prepend=0, append=0)
             for s, e in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1,
                             strict=True):
                 violations.append((int(s), int(e), float(tl[b, s:e + 1].max())))
-        v = float(value[b])
+        v = values[b]
         out.append(MetricResult(
-            name=name, value=v, unit=unit, threshold=float(threshold),
-            passed=bool(v <= threshold), timeline=tl[b], violations=violations,
-            frame_threshold=float(ft), timeline_unit=timeline_unit or unit,
-            details={k: float(d[b]) for k, d in details.items()},
+            name=name, value=v, unit=unit, threshold=thr, passed=v <= threshold,
+            timeline=tl[b], violations=violations, frame_threshold=float(ft),
+            timeline_unit=unit_tl, details={k: c[b] for k, c in columns.items()},
         ))
     return out

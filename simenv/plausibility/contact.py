@@ -157,12 +157,12 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
 
 
 def _long_runs(mask: np.ndarray, min_len: int) -> np.ndarray:
-    """``mask`` (B, N, F) with only its runs along axis 1 of at least
+    """``mask`` (..., N) with only its runs along the last axis of at least
     ``min_len`` True values kept."""
     if min_len <= 1 or not mask.any():
         return mask.copy()
-    b, n, f = mask.shape
-    lanes = np.moveaxis(mask, 1, -1).reshape(-1, n)
+    n = mask.shape[-1]
+    lanes = mask.reshape(-1, n)
     edges = np.diff(lanes.astype(np.int8), axis=1, prepend=0, append=0)
     rows, starts = np.nonzero(edges == 1)
     stops = np.nonzero(edges == -1)[1]  # row-major order: pairs with starts
@@ -170,8 +170,7 @@ def _long_runs(mask: np.ndarray, min_len: int) -> np.ndarray:
     marks = np.zeros((len(lanes), n + 1), dtype=np.int8)
     marks[rows[long], starts[long]] = 1
     marks[rows[long], stops[long]] = -1
-    kept = np.cumsum(marks, axis=1)[:, :n] > 0
-    return np.moveaxis(kept.reshape(b, f, n), -1, 1)
+    return (np.cumsum(marks, axis=1)[:, :n] > 0).reshape(mask.shape)
 
 
 def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -196,15 +195,15 @@ def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOL
     fps = batch.fps
     idx = batch.indices(feet)
     # Heights above the feet's floors, as _foot_heights.
-    foot_z = batch.z[..., idx]  # (B, T, F)
-    floors = np.repeat(np.percentile(batch.zmin, 1, axis=1)[:, None], len(feet), axis=1)
+    foot_z = batch.z[idx]  # (F, B, T)
+    floors = np.repeat(np.percentile(batch.zmin, 1, axis=1)[None], len(feet), axis=0)
     ankles = np.array([f.endswith("_ankle") for f in feet])
     if ankles.any():
-        floors[:, ankles] = np.percentile(foot_z[..., ankles].min(axis=2), 1, axis=1)[:, None]
-    rel = foot_z - floors[:, None]
-    low = rel < heights
-    low_pair = low[:, 1:] & low[:, :-1]  # (B, T-1, F)
-    dx, dy, dz = (d[..., idx] for d in batch.diffs)
+        floors[ankles] = np.percentile(foot_z[ankles].min(axis=0), 1, axis=1)
+    rel = foot_z - floors[..., None]
+    low = rel < heights[:, None, None]
+    low_pair = low[..., 1:] & low[..., :-1]  # (F, B, T-1)
+    dx, dy, dz = (d[idx] for d in batch.diffs)
     v_h = np.sqrt(dx * dx + dy * dy) * fps
     raw_sliding = low_pair & (v_h > thresholds.skate_speed_mps)
     sliding = raw_sliding
@@ -212,35 +211,35 @@ def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOL
         # The other foot, planted and lower, carries the weight: this one is unloaded.
         margin = thresholds.skate_support_margin_m
         other = slice(None, None, -1)
-        supported = ((v_h[..., other] <= thresholds.skate_speed_mps)
-                     & (rel[:, 1:, other] + margin < rel[:, 1:])
-                     & (rel[:, :-1, other] + margin < rel[:, :-1]))
+        supported = ((v_h[other] <= thresholds.skate_speed_mps)
+                     & (rel[other, :, 1:] + margin < rel[..., 1:])
+                     & (rel[other, :, :-1] + margin < rel[..., :-1]))
         sliding = raw_sliding & ~supported
     skating = _long_runs(sliding, max(1, round(thresholds.skate_min_duration_s * fps)))
-    slide = np.where(skating, v_h, 0.0).max(axis=2)
+    slide = np.where(skating, v_h, 0.0).max(axis=0)
     to_mm = 1000.0 / ref
     timeline = np.full((batch.size, frames), np.nan)
     timeline[:, 1:] = slide * to_mm
-    ratio = skating.any(axis=2).mean(axis=1)
+    ratio = skating.any(axis=0).mean(axis=1)
 
     window = max(1, round(thresholds.skate_window_s * fps))
-    v_avg = uniform_filter1d(v_h, size=window, axis=1, mode="constant")
+    v_avg = uniform_filter1d(v_h, size=window, axis=2, mode="constant")
     gmd = raw_sliding & (v_avg > thresholds.skate_speed_mps)
     # Planted feet as foot_contacts: low and slow (the last frame reuses the
     # last speed).
     speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
-    planted = low & (np.concatenate([speed, speed[:, -1:]], axis=1)
+    planted = low & (np.concatenate([speed, speed[..., -1:]], axis=2)
                      < thresholds.contact_speed_mps)
-    planted_pair = planted[:, 1:] & planted[:, :-1]
-    n_planted = planted_pair.sum(axis=2)
-    disp = np.where(planted_pair, v_h, 0.0).sum(axis=2) / np.maximum(n_planted, 1)
+    planted_pair = planted[..., 1:] & planted[..., :-1]
+    n_planted = planted_pair.sum(axis=0)
+    disp = np.where(planted_pair, v_h, 0.0).sum(axis=0) / np.maximum(n_planted, 1)
     return results(
         batch, name, timeline, ratio, unit, thr, **kwargs,
         details={
-            "gmd_skating_ratio": gmd.any(axis=2).mean(axis=1),
+            "gmd_skating_ratio": gmd.any(axis=0).mean(axis=1),
             "physdiff_skate_mm": disp.mean(axis=1) * to_mm,
             "max_slide_mm": slide.max(axis=1) * to_mm,
-            "contact_fraction": planted.any(axis=2).mean(axis=1),
+            "contact_fraction": planted.any(axis=0).mean(axis=1),
             "ankle_fallback": float(ankles.any()),
         },
     )
@@ -347,9 +346,9 @@ def floating_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
         # The lowest support point: hands count float_hand_reach_m lower. As
         # the reach is positive, min(all raw, hands lowered) is exactly the
         # minimum over the non-hand keypoints and the lowered hands.
-        lowest = np.minimum(lowest, (batch.z[..., hands] - thresholds.float_hand_reach_m)
-                            .min(axis=2))
-    com_z = batch.z[..., com_idx].mean(axis=2)
+        lowest = np.minimum(lowest, (batch.z[hands] - thresholds.float_hand_reach_m)
+                            .min(axis=0))
+    com_z = batch.z[com_idx].mean(axis=0)
     airborne = lowest > thresholds.float_height_m
     floating_mask = np.zeros((batch.size, frames), dtype=bool)
     worst, jumps = np.zeros(batch.size), np.zeros(batch.size)

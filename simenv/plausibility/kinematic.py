@@ -117,21 +117,21 @@ def bone_length_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHO
     if batch.skeleton is None or not batch.skeleton.bones:
         return batch.not_available(name, unit, thr, reason)
     parent, child = np.array(batch.skeleton.bones).T
-    dx, dy, dz = (c[..., child] - c[..., parent] for c in (batch.x, batch.y, batch.z))
-    lengths = np.sqrt((dx * dx + dy * dy) + dz * dz)  # (B, T, bones)
-    median = np.median(lengths, axis=1)
-    keep = median >= thresholds.bone_min_length_m
+    dx, dy, dz = (c[child] - c[parent] for c in (batch.x, batch.y, batch.z))
+    lengths = np.sqrt((dx * dx + dy * dy) + dz * dz)  # (bones, B, T)
+    median = np.median(lengths, axis=2)
+    keep = median >= thresholds.bone_min_length_m  # (bones, B)
     tol = np.array([thresholds.bone_length_head_rel_max if batch.names[c] == "head"
-                    else thresholds.bone_length_rel_max for c in child])
+                    else thresholds.bone_length_rel_max for c in child])[:, None, None]
     # Skipped bones divide by 1 and count 0, which leaves the maxima over the
     # kept bones (all >= 0) unchanged.
-    dev = np.abs(lengths / np.where(keep, median, 1.0)[:, None] - 1.0) * keep[:, None]
-    timeline = (dev / tol).max(axis=2)
+    dev = np.abs(lengths / np.where(keep, median, 1.0)[..., None] - 1.0) * keep[..., None]
+    timeline = (dev / tol).max(axis=0)
     return results(
         batch, name, timeline, np.percentile(timeline, 95, axis=1), unit, thr,
-        details={"max": timeline.max(axis=1), "max_rel_deviation": dev.max(axis=(1, 2)),
-                 "bones_checked": keep.sum(axis=1)},
-        available=keep.any(axis=1), reason=reason,
+        details={"max": timeline.max(axis=1), "max_rel_deviation": dev.max(axis=(0, 2)),
+                 "bones_checked": keep.sum(axis=0)},
+        available=keep.any(axis=0), reason=reason,
     )
 
 
@@ -363,22 +363,22 @@ def velocity_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
             name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}")
     fps = batch.fps
     dx, dy, dz = batch.diffs
-    speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps  # (B, T-1, J)
-    speed_ratio = (speed / _speed_limits(batch.names, thresholds)).max(axis=2)
+    speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps  # (J, B, T-1)
+    speed_ratio = (speed / _speed_limits(batch.names, thresholds)[:, None, None]).max(axis=0)
     timeline = np.full((batch.size, frames), np.nan)
     timeline[:, 1:] = speed_ratio
     jump_limit = max(thresholds.teleport_distance_m, thresholds.teleport_accel_mps2 / fps**2)
     max_jump, teleports = np.zeros(batch.size), np.zeros(batch.size)
     if frames >= 3:
-        ddx, ddy, ddz = (np.diff(d, axis=1) for d in batch.diffs)  # frames 1..T-2
-        jump = np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz).max(axis=2)
+        ddx, ddy, ddz = (np.diff(d, axis=2) for d in batch.diffs)  # frames 1..T-2
+        jump = np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz).max(axis=0)
         jump_ratio = jump / jump_limit
         timeline[:, 1:-1] = np.maximum(timeline[:, 1:-1], jump_ratio)
         max_jump, teleports = jump.max(axis=1), (jump_ratio > 1).sum(axis=1)
     return results(
         batch, name, timeline, timeline[:, 1:].max(axis=1), unit, thr,
         details={
-            "max_speed_mps": speed.max(axis=(1, 2)),
+            "max_speed_mps": speed.max(axis=(0, 2)),
             "max_speed_ratio": speed_ratio.max(axis=1),
             "max_jump_m": max_jump,
             "jump_limit_m": jump_limit,

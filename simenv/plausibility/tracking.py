@@ -45,6 +45,7 @@ from simenv.errors import PhysicsError
 from simenv.humanoid import Humanoid
 from simenv.plausibility.body import check_qpos
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
+from simenv.plausibility.clips import norm3
 from simenv.plausibility.dynamics import finite_differences
 from simenv.plausibility.timeline import MetricResult
 from simenv.retarget import RetargetResult
@@ -158,6 +159,18 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
     ctrl_ref = ref[:n_frames, act_qpos] + ratio * qvel_ref[:, act_dof]
     dt = model.opt.timestep
     frame_step = np.round(np.arange(n_frames) / fps / dt).astype(int)
+    # Every step's control (and assistance) target, interpolated linearly
+    # between the reference frames around it, computed up front so the
+    # stepping loop is little more than mj_step: step s of the interval from
+    # frame k-1 to k has alpha = clip(s dt fps - (k-1), 0, 1).
+    step_frame = np.repeat(np.arange(1, n_frames), np.diff(frame_step))
+    alpha = np.clip(np.arange(frame_step[0], frame_step[-1]) * dt * fps - (step_frame - 1),
+                    0.0, 1.0)[:, None]
+    prev = step_frame - 1
+    ctrl_steps = ctrl_ref[prev] + alpha * (ctrl_ref[step_frame] - ctrl_ref[prev])
+    if assist:
+        root = ref[:n_frames, :3]
+        mocap_steps = root[prev] + alpha * (root[step_frame] - root[prev])
 
     data = mujoco.MjData(model)
     data.qpos[:] = ref[0]
@@ -178,19 +191,19 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
     wall = time.perf_counter()
     for k in range(1, n_frames):
         force_sum, n_sub = 0.0, 0
-        for s in range(frame_step[k - 1], frame_step[k]):
-            alpha = float(np.clip(s * dt * fps - (k - 1), 0.0, 1.0))
-            target = ctrl_ref[k - 1] + alpha * (ctrl_ref[k] - ctrl_ref[k - 1])
-            data.ctrl[:] = target
+        first, last = frame_step[k - 1] - frame_step[0], frame_step[k] - frame_step[0]
+        if assist:
+            data.mocap_quat[0] = ref[k, 3:7]
+        for s in range(first, last):
+            data.ctrl[:] = ctrl_steps[s]
             if assist:
-                data.mocap_pos[0] = ref[k - 1, :3] + alpha * (ref[k, :3] - ref[k - 1, :3])
-                data.mocap_quat[0] = ref[k, 3:7]
+                data.mocap_pos[0] = mocap_steps[s]
             mujoco.mj_step(model, data)
-            steps += 1
             if assist:
                 weld_rows = data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
                 force_sum += float(np.linalg.norm(data.efc_force[:data.nefc][weld_rows][:3]))
                 n_sub += 1
+        steps += last - first
         reason = _diverged(model, data)
         if reason is not None:
             error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
@@ -198,7 +211,7 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
             failed_at = k
             break
         kp_sim[k] = data.site_xpos[h.site_ids]
-        body_err[k] = np.linalg.norm(kp_sim[k] - ref_kp[k], axis=-1).mean()
+        body_err[k] = norm3(kp_sim[k] - ref_kp[k]).mean()
         assist_f[k] = force_sum / max(n_sub, 1) / weight
         if body_err[k] > thresholds.tracking_fail_m:
             failed_at = k
