@@ -176,8 +176,10 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
     data.qpos[:] = ref[0]
     data.qvel[:] = qvel_ref[0]
     mujoco.mj_forward(model, data)
+    # The assistance force is read from the first three constraint rows (see
+    # the stepping loop); MuJoCo orders equality constraints first.
+    assert not assist or (data.efc_type[:3] == mujoco.mjtConstraint.mjCNSTR_EQUALITY).all()
     weight = h.total_mass * thresholds.gravity_mps2
-    weld_rows = None
 
     kp_sim = np.full((n_frames, len(h.site_ids), 3), np.nan)
     kp_sim[0] = data.site_xpos[h.site_ids]
@@ -200,8 +202,9 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
                 data.mocap_pos[0] = mocap_steps[s]
             mujoco.mj_step(model, data)
             if assist:
-                weld_rows = data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-                force_sum += float(np.linalg.norm(data.efc_force[:data.nefc][weld_rows][:3]))
+                # The weld is the model's only equality constraint, and MuJoCo
+                # puts equality rows first: rows 0-2 are its translation.
+                force_sum += float(np.linalg.norm(data.efc_force[:3]))
                 n_sub += 1
         steps += last - first
         reason = _diverged(model, data)

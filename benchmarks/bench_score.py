@@ -1,0 +1,152 @@
+"""Speed of the plausibility scorer (issue 3, "Scale and speed"), one core.
+
+1. Joint-level (kinematic) metrics: frames per second of all six metrics
+   (:func:`simenv.plausibility.kinematic_metrics`) on real 31-joint CMU BVH
+   clips -- one call on the bundled walk (343 frames), one call per whole
+   corpus clip, and :func:`simenv.plausibility.kinematic_metrics_batch` on a
+   batch of equal-length windows cut from the corpus clips (the shape of a
+   generator's output). Goal: 2M frames/s.
+2. Physics tracking: simulator steps per second of
+   :func:`simenv.plausibility.tracking.track` on the retargeted walk
+   (unassisted, and with the root assistance the scorer uses) against a raw
+   ``mujoco.mj_step`` loop on the same model from the same state, in the
+   same run, as a ratio (goal: 0.5). Both the whole ``track`` call and its
+   stepping loop alone are reported.
+
+Every timing is the best of a few repeats (the machine may be shared); the
+load average is printed for context. numpy/BLAS/torch threads are pinned
+to 1 before anything is imported.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_score.py [--data DIR] [--window-s 2] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import copy  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import mujoco  # noqa: E402
+
+from simenv.assets import WALK, asset_path  # noqa: E402
+from simenv.io import bvh  # noqa: E402
+from simenv.motion import Motion  # noqa: E402
+from simenv.plausibility import kinematic_metrics, kinematic_metrics_batch  # noqa: E402
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS  # noqa: E402
+from simenv.plausibility.tracking import _assisted_model, track  # noqa: E402
+from simenv.retarget import RetargetResult, retarget  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+GOAL_FRAMES_PER_S = 2e6
+GOAL_RATIO = 0.5
+
+
+def best_seconds(fn: Callable[[], object], repeats: int, min_s: float = 0.3) -> float:
+    """Best wall time (s) of one call of ``fn`` over ``repeats`` rounds, each
+    round timing as many calls as fit in ``min_s``."""
+    fn()
+    best = float("inf")
+    for _ in range(repeats):
+        calls, start = 0, time.perf_counter()
+        while True:
+            fn()
+            calls += 1
+            elapsed = time.perf_counter() - start
+            if elapsed >= min_s:
+                break
+        best = min(best, elapsed / calls)
+    return best
+
+
+def windows(clips: list[Motion], frames: int) -> list[Motion]:
+    """Non-overlapping windows of ``frames`` frames of every clip."""
+    return [c.slice(s, s + frames) for c in clips for s in range(0, c.num_frames - frames + 1,
+                                                                  frames)]
+
+
+def bench_kinematic(clips: list[Motion], walk: Motion, window_s: float, repeats: int) -> None:
+    print(f"kinematic metrics (6 joint-level metrics, {walk.num_joints}-joint CMU BVH, one core)")
+    t = best_seconds(lambda: kinematic_metrics(walk), repeats)
+    rows = [("one call, bundled walk", walk.num_frames, 1, t)]
+    total = sum(c.num_frames for c in clips)
+    t = best_seconds(lambda: [kinematic_metrics(c) for c in clips], repeats)
+    rows.append(("one call per whole clip", total, len(clips), t))
+    batch = windows(clips, round(window_s * clips[0].fps))
+    t = best_seconds(lambda: kinematic_metrics_batch(batch), repeats)
+    rows.append((f"batch of {window_s:g} s windows", sum(b.num_frames for b in batch),
+                 len(batch), t))
+    for label, frames, n, seconds in rows:
+        rate = frames / seconds
+        print(f"  {label:28s} {n:4d} clip(s) {frames:7d} frames  {seconds * 1e3:8.2f} ms"
+              f"  {rate:12,.0f} frames/s  ({rate / GOAL_FRAMES_PER_S:.2f} x goal)")
+
+
+def raw_steps_per_s(model: mujoco.MjModel, result: RetargetResult, steps: int,
+                    repeats: int) -> float:
+    """mj_step loop on ``model`` from the first reference pose, ``steps`` steps."""
+    data = mujoco.MjData(model)
+    act_qpos = model.jnt_qposadr[model.actuator_trnid[:, 0]]
+
+    def run() -> None:
+        mujoco.mj_resetData(model, data)
+        data.qpos[:] = result.qpos[0]
+        data.ctrl[:] = result.qpos[0, act_qpos]
+        mujoco.mj_forward(model, data)
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+
+    return steps / best_seconds(run, repeats, min_s=0.0)
+
+
+def bench_tracking(walk: Motion, repeats: int) -> None:
+    result = retarget(walk)
+    h = result.humanoid
+    print(f"physics tracking (retargeted walk, {walk.num_frames} frames, "
+          f"timestep {h.model.opt.timestep * 1000:g} ms)")
+    for assist in (False, True):
+        tr = track(result, assist=assist)
+        call_s = best_seconds(lambda a=assist: track(result, assist=a), repeats, min_s=0.0)
+        loop_s = min(track(result, assist=assist).wall_s for _ in range(repeats))
+        model = _assisted_model(h, DEFAULT_BODY_THRESHOLDS) if assist else copy.deepcopy(h.model)
+        raw = raw_steps_per_s(model, result, tr.steps, repeats)
+        call, loop = tr.steps / call_s, tr.steps / loop_s
+        outcome = "tracked" if tr.success else f"fell at {tr.time_to_failure_s:.2f} s"
+        print(f"  {'assisted' if assist else 'unassisted':10s} {tr.steps:5d} steps ({outcome})"
+              f"  raw mj_step {raw:8,.0f} steps/s | track() {call:8,.0f} steps/s,"
+              f" ratio {call / raw:.2f} | stepping loop {loop:8,.0f} steps/s,"
+              f" ratio {loop / raw:.2f}  (goal {GOAL_RATIO})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    parser.add_argument("--window-s", type=float, default=2.0,
+                        help="length of the batched windows, seconds")
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    if "torch" in sys.modules:
+        import torch
+
+        torch.set_num_threads(1)
+    walk = bvh.read(asset_path(WALK))
+    clips = [bvh.read(p) for p in sorted((args.data / "cmu" / "bvh").glob("*.bvh"))]
+    clips = [c for c in clips if c.num_joints == 31 and c.fps == walk.fps] or [walk]
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; "
+          f"{len(clips)} real clip(s) from {args.data if len(clips) > 1 else 'the bundled walk'}")
+    bench_kinematic(clips, walk, args.window_s, args.repeats)
+    bench_tracking(walk, args.repeats)
+
+
+if __name__ == "__main__":
+    main()
