@@ -5,6 +5,9 @@
 * ``simenv/InteractionRoom-v0`` -- :class:`~simenv.envs.interaction_room.InteractionRoomEnv`:
   the room's agent decides its reactions to a recorded user's gestures.
 
+PettingZoo (not registered; construct it): :class:`~simenv.envs.room_parallel.RoomParallelEnv`,
+the room with agents ``user`` (replayed or a policy) and ``agent``.
+
 Example::
 
     import gymnasium as gym
@@ -26,7 +29,7 @@ for _id, _entry in _ENVS.items():
     if _id not in gymnasium.registry:
         gymnasium.register(id=_id, entry_point=_entry)
 
-__all__ = ["HumanoidTrackEnv", "InteractionRoomEnv"]
+__all__ = ["HumanoidTrackEnv", "InteractionRoomEnv", "RoomParallelEnv"]
 
 
 def __getattr__(name: str) -> object:
@@ -39,4 +42,8 @@ def __getattr__(name: str) -> object:
         from simenv.envs.interaction_room import InteractionRoomEnv
 
         return InteractionRoomEnv
+    if name == "RoomParallelEnv":
+        from simenv.envs.room_parallel import RoomParallelEnv
+
+        return RoomParallelEnv
     raise AttributeError(name)

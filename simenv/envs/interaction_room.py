@@ -173,33 +173,47 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._missed: set[int] = set()
         self.log: list[dict[str, Any]] = []
         self._running: dict[str, Any] | None = None
+        now = self.data.site_xpos[self.room.user_sites].astype(np.float32)
+        self._history = np.repeat(now[None], self.history_frames, axis=0)
         self._obs = self._observe()
         return self._obs, self._info(None, {})
 
     def step(self, action: int) -> tuple[dict[str, np.ndarray], float, bool, bool,
                                          dict[str, Any]]:
-        if self._step is None:
-            raise SimenvError("step() called before reset() (or after the episode ended); "
-                              "call reset() first")
         a = np.asarray(action)
         if a.shape != () or a.dtype.kind not in "iu" or not self.action_space.contains(int(a)):
             raise SimenvError(f"action must be one integer in [0, {self.action_space.n}) "
                               f"(reactions {list(self.reactions)}); got {action!r}",
                               field="action")
+        return self.advance(int(a))
+
+    def advance(self, action: int, user_qpos: np.ndarray | None = None
+                ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """:meth:`step` with a validated action index, the user's next pose optionally
+        given (``user_qpos`` (nq_user,), placed in the room; default: the recording's next
+        frame, holding the last one after the end). For multi-agent wrappers."""
+        if self._step is None:
+            raise SimenvError("step() called before reset() (or after the episode ended); "
+                              "call reset() first")
         t = self._step / PERCEPTION_FPS
-        reaction = self.reactions[int(a)]
+        reaction = self.reactions[action]
         terms = {"decision": self._decide(t, reaction), "miss": self._misses(t)}
         if reaction is not None:
             self._start(t, reaction)
         m, d = self.model, self.data
         self._step += 1
-        self.room.set_user_pose(d, self.track.qpos[min(self._step, self.n_frames - 1)])
+        if user_qpos is None:
+            user_qpos = self.track.qpos[min(self._step, self.n_frames - 1)]
+        self.room.set_user_pose(d, user_qpos)
         counts = warning_counts(d)
         self._simulate(t)
         problem = physics_problem(m, d, counts)
         if problem is not None:
             self._step = None
             return self._obs, 0.0, False, True, {"truncation_reason": f"physics: {problem}"}
+        # What the agent sees: the user's keypoints as simulated (mocap bodies moved).
+        self._history = np.concatenate(
+            [self._history[1:], d.site_xpos[self.room.user_sites][None]]).astype(np.float32)
         terms["success"] = self._follow_up(self._step / PERCEPTION_FPS)
         terms["plausibility"] = -PLAUSIBILITY_WEIGHT * self._excess_penetration() / 0.01
         self._obs = self._observe()
@@ -305,18 +319,21 @@ class InteractionRoomEnv(gym.Env[dict, int]):
     # -- observation -----------------------------------------------------------
 
     def _observe(self) -> dict[str, np.ndarray]:
-        k = min(self._step, self.n_frames - 1)
-        idx = np.clip(np.arange(k - self.history_frames + 1, k + 1), 0, None)
-        history = self.track.keypoints[idx].astype(np.float32)
+        history = self._history.copy()
         future = self.predictor.predict(history[-int(self.predictor.history_len):])
         d, room = self.data, self.room
         agent = np.concatenate([d.qpos[room.agent_qpos][2:], d.qvel[room.agent_qvel]])
-        states = room.object_states(d)
-        levels = [room.objects[n].level(states[n]) for n in OBJECTS]
         return {"user_history": history,
                 "user_future": np.asarray(future, dtype=np.float32),
                 "agent": agent.astype(np.float32),
-                "objects": np.clip(levels, 0.0, 1.0).astype(np.float32)}
+                "objects": self.object_levels()}
+
+    def object_levels(self) -> np.ndarray:
+        """(5,) float32 each object's state as a fraction of its joint range, in
+        :data:`OBJECTS` order (clipped to [0, 1]: soft joint limits overshoot slightly)."""
+        states = self.room.object_states(self.data)
+        levels = [self.room.objects[n].level(states[n]) for n in OBJECTS]
+        return np.clip(levels, 0.0, 1.0).astype(np.float32)
 
     def _active(self, t: float) -> str | None:
         active = [g.label for g in self.session.gestures if g.onset_s <= t <= g.end_s]
