@@ -2,8 +2,10 @@
 
 Reads the bundled CMU clips (a walk, 02_01, and the two-person "walk, shake hands" pair,
 18_01 + 19_01), retargets each person onto a humanoid fitted to their bone lengths, and writes
-per clip an MP4 (humanoid + source joints as a ghost) and an NPZ trajectory, plus one
-``summary.json`` with residuals, timings and which frames were rendered. Offscreen rendering
+per clip an MP4 (humanoid + source joints as a ghost) and an NPZ trajectory, scores each
+clip's physical plausibility (:func:`simenv.score`, physics on) into an HTML report
+(``report/index.html``), plus one ``summary.json`` with residuals, verdicts, timings and
+which frames were rendered. Offscreen rendering
 on a CPU manages a few frames per second, so each video shows every ``stride``-th frame
 (playing at ``fps / stride``, i.e. real time); retargeting always covers every frame.
 """
@@ -18,6 +20,8 @@ from typing import Any
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.cli import describe, retarget_clip, save_npz, summary
+from simenv.plausibility.html_report import report_score, write_index, write_report
+from simenv.plausibility.report import score
 from simenv.render import render_result
 
 #: Rendered frames per clip when no stride is given (keeps ``make demo`` to a minute or two).
@@ -51,6 +55,7 @@ def run_demo(
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     clips: dict[str, Any] = {}
+    index_rows = []
     for name, asset in DEMO_CLIPS:
         source = asset_path(asset)
         print(f"[{name}] loading bundled {asset}")
@@ -74,7 +79,19 @@ def run_demo(
             video_fps=entry["fps"] / clip_stride,
             render_seconds=round(time.perf_counter() - render_start, 3),
         )
+        print(f"[{name}] scoring physical plausibility")
+        scored = score(clip)
+        page = write_report(scored, out_dir / "report" / name, video=False)
+        index_rows.append((str(source), page, report_score(scored), scored.verdict))
+        entry["plausibility"] = {
+            "verdict": scored.verdict,
+            "report": str(page),
+            "people": [{"name": p.name, "verdict": p.verdict, "score": round(p.score, 1),
+                        "failed": p.failed} for p in scored.people],
+        }
         clips[name] = entry
+        print(f"[{name}] plausibility: {scored.verdict} (" + ", ".join(
+            f"{p.name} {p.score:.0f}" for p in scored.people) + ")")
         print(
             f"[{name}] residual mean {entry['mean_residual_m'] * 100:.2f} cm, p95 "
             f"{entry['p95_residual_m'] * 100:.2f} cm; retarget {entry['seconds']:.2f} s, "
@@ -88,7 +105,9 @@ def run_demo(
     }
     summary_path = out_dir / "summary.json"
     summary_path.write_text(json.dumps(report, indent=2) + "\n")
+    index = write_index(index_rows, out_dir / "report")
     print(f"wrote {summary_path}")
+    print(f"wrote {index}")
     for entry in clips.values():
         print(f"wrote {entry['video']}")
         print(f"wrote {entry['npz']}")

@@ -167,6 +167,10 @@ def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
         cap.release()
         with np.load(clip["npz"]) as npz:
             assert npz["qpos"].shape[0] == clip["frames"]
+        plaus = clip["plausibility"]
+        assert plaus["verdict"] in ("plausible", "implausible")
+        assert len(plaus["people"]) == people and Path(plaus["report"]).is_file()
+    assert (tmp_path / "demo" / "report" / "index.html").is_file()
 
 
 def test_score_json_prints_one_object_per_person(capsys, tmp_path):
