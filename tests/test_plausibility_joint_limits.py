@@ -1,0 +1,154 @@
+"""joint_limits: per-hinge attribution, real clips pass, broken joints are caught.
+
+The corruptions are built on the real CMU walk 02_01 (BVH): a knee bent
+backwards (the ankle and toe reflected across the hip-knee line on the swing
+frames, where the knee is flexed 35-72 degrees, so the reflection
+hyperextends it by as much) and an elbow hyperextended by 30 degrees (wrist
+and hand rotated about the elbow in the arm's plane).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simenv.humanoid import Humanoid
+from simenv.io import bvh
+from simenv.motion import Motion
+from simenv.plausibility.body import (
+    hinge_keypoints,
+    joint_limit_clamp_cost,
+    joint_limit_demand,
+    joint_limits,
+    observed_hinges,
+)
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+from simenv.retarget import retarget
+
+THR = DEFAULT_BODY_THRESHOLDS.joint_limit_max_deg
+
+
+@pytest.fixture(scope="module")
+def walk(shared_data: Path) -> Motion:
+    return bvh.read(shared_data / "cmu" / "bvh" / "02_01.bvh").to_canonical()
+
+
+def _angle(p: np.ndarray, a: str, b: str, c: str, names: list[str]) -> np.ndarray:
+    u = p[:, names.index(b)] - p[:, names.index(a)]
+    f = p[:, names.index(c)] - p[:, names.index(b)]
+    cos = (u * f).sum(1) / np.linalg.norm(u, axis=1) / np.linalg.norm(f, axis=1)
+    return np.rad2deg(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rodrigues rotation of (T, 3) vectors about (T, 3) unit axes by (T,) radians."""
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    return v * c + np.cross(axis, v) * s + axis * (axis * v).sum(1, keepdims=True) * (1 - c)
+
+
+def _bend_backwards(motion: Motion, root: str, mid: str, chain: tuple[str, ...],
+                    frames: np.ndarray, hyper_deg: float | None) -> Motion:
+    """Rotate ``chain`` (the joint after ``mid`` and its descendants) about ``mid``
+    in the root-mid-chain[0] plane, on ``frames``: past straight by
+    ``hyper_deg``, or (None) by twice the flexion (the reflection of chain[0]
+    across the root-mid line)."""
+    names = list(motion.skeleton.joint_names)
+    p = motion.positions.astype(np.float64).copy()
+    r, m, e = (p[frames, names.index(k)] for k in (root, mid, chain[0]))
+    u, f = m - r, e - m
+    axis = np.cross(u, f)
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    flex = np.deg2rad(_angle(p[frames], root, mid, chain[0], names))
+    turn = -2.0 * flex if hyper_deg is None else -(flex + np.deg2rad(hyper_deg))
+    for k in chain:
+        j = names.index(k)
+        p[frames, j] = m + _rotate(p[frames, j] - m, axis, turn)
+    return motion.with_positions(p.astype(motion.positions.dtype))
+
+
+def _worst(result) -> str:
+    return Humanoid().joint_names[int(result.details["worst_hinge"])]
+
+
+def test_hinge_keypoints_and_observed() -> None:
+    h = Humanoid()
+    moves = hinge_keypoints(h, h.keypoint_names)
+    row = dict(zip(h.joint_names, moves, strict=True))
+    kp = np.array(h.keypoint_names)
+    assert set(kp[row["left_foot_flex"]]) == {"left_toe"}
+    assert set(kp[row["left_shin_flex"]]) == {"left_ankle", "left_toe"}
+    assert set(kp[row["right_forearm_flex"]]) == {"right_wrist", "right_hand"}
+    assert not row["left_toes_ext"].any()
+    assert "head" in set(kp[row["lumbar_flex"]]) and "left_toe" not in set(kp[row["lumbar_flex"]])
+    np.testing.assert_array_equal(observed_hinges(h, h.keypoint_names), moves.any(axis=1))
+    # Without hand keypoints the wrist hinges are unobserved.
+    few = [k for k in h.keypoint_names if not k.endswith("_hand")]
+    obs = dict(zip(h.joint_names, observed_hinges(h, few), strict=True))
+    assert not obs["left_hand_flex"] and obs["left_forearm_flex"]
+
+
+def test_clamp_cost_of_a_knee_bent_backwards() -> None:
+    h = Humanoid()
+    q = h.default_qpos()
+    knee = h.joint_names.index("left_shin_flex")
+    q[h.hinge_qpos[knee]] = np.deg2rad(-30.0)  # 30 deg of hyperextension
+    targets = h.keypoints(q)[None]
+    cand = np.array([[0, knee], [0, h.joint_names.index("left_toes_ext")]])
+    cost = joint_limit_clamp_cost(h, q[None], targets, h.keypoint_names, cand)
+    # Clamping the knee to 0 moves the ankle by 2 * shin * sin(15 deg) (more for the toe).
+    assert cost[0] > 2 * h.dims.left_shin * np.sin(np.deg2rad(15.0)) - 1e-6
+    assert cost[1] == 0.0  # the toes move no keypoint
+
+
+def test_real_walk_passes(walk: Motion) -> None:
+    demand, limited, relaxed = joint_limit_demand(walk)
+    assert demand.shape == (walk.num_frames, len(limited.humanoid.joint_names))
+    assert relaxed.humanoid.model.jnt_range.max() > limited.humanoid.model.jnt_range.max()
+    r = joint_limits(walk, fitted=limited)
+    assert r.passed and r.value <= THR, r.to_dict()
+
+
+def test_knee_bent_backwards_is_caught(walk: Motion) -> None:
+    names = list(walk.skeleton.joint_names)
+    flex = _angle(walk.positions.astype(np.float64), "left_hip", "left_knee", "left_ankle", names)
+    frames = np.flatnonzero(flex >= 35.0)
+    frames = frames[(frames >= 80) & (frames < 130)]  # one swing phase
+    assert len(frames) >= 10 and flex[frames].max() > 60
+    broken = _bend_backwards(walk, "left_hip", "left_knee", ("left_ankle", "left_toe"),
+                             frames, None)
+    r = joint_limits(broken)
+    assert not r.passed and r.value >= 30.0, r.to_dict()
+    # The relaxed solver renders the backward bend as a forward one with the
+    # thigh twisted to its widened limit (range + probe): blamed on the left leg.
+    assert _worst(r).split("_")[:2] in (["left", "shin"], ["left", "thigh"], ["left", "foot"])
+    tl = r.timeline
+    assert tl[frames].max() >= 30.0
+    outside = np.setdiff1d(np.arange(walk.num_frames), np.arange(frames[0] - 3, frames[-1] + 4))
+    assert tl[outside].max() <= THR
+
+
+def test_elbow_hyperextended_is_caught(walk: Motion) -> None:
+    names = list(walk.skeleton.joint_names)
+    flex = _angle(walk.positions.astype(np.float64), "left_shoulder", "left_elbow",
+                  "left_wrist", names)
+    frames = np.flatnonzero(flex >= 25.0)
+    frames = frames[(frames >= 30) & (frames < 100)]
+    assert len(frames) >= 10
+    broken = _bend_backwards(walk, "left_shoulder", "left_elbow", ("left_wrist", "left_hand"),
+                             frames, 30.0)
+    r = joint_limits(broken)
+    assert not r.passed and r.value >= 20.0, r.to_dict()
+    # Caught on the left arm (the relaxed solver may twist the upper arm instead).
+    assert _worst(r).split("_")[:2] in (["left", "forearm"], ["left", "upper"])
+
+
+def test_retarget_result_counts_every_frame(walk: Motion) -> None:
+    fit = retarget(walk.slice(0, 60))
+    assert joint_limits(fit).value == 0.0  # the solver projects onto the limits
+    h = fit.humanoid
+    knee = h.joint_names.index("right_shin_flex")
+    fit.qpos[10:20, h.hinge_qpos[knee]] = np.deg2rad(-25.0)
+    r = joint_limits(fit)
+    assert r.value == pytest.approx(25.0) and _worst(r) == "right_shin_flex"
