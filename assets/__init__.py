@@ -19,6 +19,8 @@ WALK = "cmu_02_01_walk.bvh"
 HANDSHAKE_PAIR = "cmu-18-19-walk-shake-hands"
 
 _MOTION_SUFFIXES = (".bvh", ".asf", ".amc", ".npz", ".txt")
+#: Sub-folder of trained model checkpoints (``simenv.models``), not a motion asset.
+MODELS_DIR = "models"
 
 
 def assets_root() -> Path:
@@ -33,7 +35,8 @@ def list_assets() -> list[str]:
     for entry in root.iterdir():
         if entry.is_file() and entry.suffix.lower() in _MOTION_SUFFIXES:
             names.append(entry.name)
-        elif entry.is_dir() and any(p.suffix.lower() in _MOTION_SUFFIXES for p in entry.iterdir()):
+        elif entry.is_dir() and entry.name != MODELS_DIR and any(
+                p.suffix.lower() in _MOTION_SUFFIXES for p in entry.iterdir()):
             names.append(entry.name)
     return sorted(names)
 
