@@ -274,7 +274,9 @@ def _print_score(rec: dict[str, Any]) -> None:
         return
     failed = [n for n, m in rec["metrics"].items() if m["passed"] is False]
     na = [n for n, m in rec["metrics"].items() if m["passed"] is None]
-    line = (f"{rec['file']} [person {rec['person']}]: {rec['verdict']} (score "
+    where = f"clip {rec['clip']}, person {rec['person']}" if "clip" in rec \
+        else f"person {rec['person']}"
+    line = (f"{rec['file']} [{where}]: {rec['verdict']} (score "
             f"{rec['score']:.1f}, {rec['frames']} frames at {rec['fps']:g} fps)")
     if failed:
         line += "; failed: " + ", ".join(failed)

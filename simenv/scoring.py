@@ -108,28 +108,40 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
     Returns:
         One record per person (``file``, ``person``, ``verdict``, ``score``,
         ``metrics``, ``violations``, ... see
-        :meth:`PlausibilityReport.to_records`), plus ``seconds``; or, when the
+        :meth:`PlausibilityReport.to_records`), plus ``seconds``, and ``clip``
+        (0, 1, ...) when the file holds several clips (e.g. an SBU file with
+        two segments, a gesture session); or, when the
         input is bad (a :class:`SimenvError`), a single record
         ``{"file", "error"}`` with the message, so one bad file never stops
         a batch. Other exceptions are bugs and propagate.
     """
+    from simenv.io.loader import load
     from simenv.plausibility.report import score
 
     target = Path(target)
     try:
-        report = score(target, physics=job.physics, config=job.config)
+        loaded = load(target)
+        clips = loaded if isinstance(loaded, list) else [loaded]
+        reports = [score(clip, physics=job.physics, config=job.config) for clip in clips]
     except SimenvError as exc:
         return [{"file": str(target), "error": str(exc),
                  "error_type": type(exc).__name__}]
-    records = report.to_records()
-    if job.report_dir is not None:
-        from simenv.plausibility.html_report import write_report
+    records = []
+    for i, report in enumerate(reports):
+        recs = report.to_records()
+        if job.report_dir is not None:
+            from simenv.plausibility.html_report import write_report
 
-        page = write_report(report, Path(job.report_dir) / _report_name(target))
-        for rec in records:
-            rec["report"] = str(page)
-    for rec in records:
-        rec["seconds"] = round(report.seconds, 3)
+            name = _report_name(target) + (f"__clip{i}" if len(reports) > 1 else "")
+            page = write_report(report, Path(job.report_dir) / name)
+            for rec in recs:
+                rec["report"] = str(page)
+        for rec in recs:
+            rec["file"] = str(target)
+            rec["seconds"] = round(report.seconds, 3)
+            if len(reports) > 1:
+                rec["clip"] = i
+        records.extend(recs)
     return records
 
 

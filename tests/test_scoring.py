@@ -106,3 +106,10 @@ def test_index_entries_one_row_per_file(corpus):
     assert rows["walk.bvh"][2] in ("plausible", "implausible")
     pair_scores = [r["score"] for r in records if Path(r["file"]).name == "pair"]
     assert rows["pair"][1] == min(pair_scores)
+
+
+def test_file_with_several_clips_scores_each(shared_data):
+    # The SBU sample file holds two recording segments, each a two-person clip.
+    records = score_target(shared_data / "other/sbu_kinect_sample/skeleton_pos_2.txt", FAST)
+    assert [(r["clip"], r["person"]) for r in records] == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    assert records[0]["frames"] != records[2]["frames"]
