@@ -1,0 +1,223 @@
+"""The room's perception loop: predict ahead, classify real + predicted motion, decide.
+
+Every :attr:`PerceptionLoop.period` frames (25 = 1 s at 25 fps, the thesis's rate) the loop
+takes the user's last frames of canonical keypoints and
+
+1. **classifies the real frames alone**; when the top label's probability reaches
+   ``threshold`` the decision is taken on real motion (stage ``"real"``);
+2. otherwise **predicts ahead** (:attr:`predictor`, e.g. the constant-velocity baseline or
+   the PredictiveMA-WGAN) and classifies real + predicted frames; a confident label there is
+   a decision anticipated from prediction (stage ``"predicted"``);
+3. **decides** the scenario's reaction to the label
+   (:meth:`simenv.scenario.Behaviour.reaction_for`), with a refractory period
+   (``cooldown_s``) per label so one gesture triggers once.
+
+Each stage is an interface: any object with ``predict(history) -> future``, ``history_len``
+and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
+:mod:`simenv.models.baselines`; the PredictiveMA-WGAN works on its root-relative pred17
+layout and needs an adapter to plug in here); any :class:`GestureModel` classifies.
+:class:`TemplateClassifier` is the nearest-neighbour classifier built from labelled real
+clips, used until a trained classifier is supplied.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from simenv.errors import SimenvError
+from simenv.gestures import (
+    GESTURE15_JOINTS,
+    GESTURE_LABELS,
+    WINDOW_FRAMES,
+    GestureClip,
+    cut_window,
+    normalise_windows,
+)
+from simenv.scenario import Behaviour
+from simenv.skeletons import CANONICAL_KEYPOINTS
+
+
+@runtime_checkable
+class GestureModel(Protocol):
+    """A gesture classifier on world-frame windows (metres, Z up, 25 fps)."""
+
+    labels: tuple[str, ...]
+    joint_names: tuple[str, ...]
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """(T, J, 3) window on :attr:`joint_names`, (T,) valid mask -> (C,) probabilities."""
+        ...
+
+
+def _resample(x: np.ndarray, n: int) -> np.ndarray:
+    """(T, ...) -> (n, ...) by linear interpolation over normalised time."""
+    if len(x) == 1:
+        return np.repeat(x, n, axis=0)
+    s = np.linspace(0.0, len(x) - 1, n)
+    i0 = np.minimum(np.floor(s).astype(int), len(x) - 2)
+    a = (s - i0).reshape(-1, *([1] * (x.ndim - 1)))
+    return (1 - a) * x[i0] + a * x[i0 + 1]
+
+
+class TemplateClassifier:
+    """Nearest-neighbour gesture classifier over labelled template windows.
+
+    A window and every template are normalised (:func:`simenv.gestures.normalise_windows`:
+    root at the origin, facing +x, reference size) and their valid frames resampled to
+    ``length`` frames of normalised time (a gesture performed faster or slower still
+    matches). The distance is the mean per-frame, per-joint Euclidean distance (m of the
+    reference body); a class's distance is that of its nearest template, and the
+    probabilities are ``softmax(-d_c / temperature)``.
+
+    Args:
+        templates: (N, T, J, 3) world-frame windows, m. valid: (N, T) masks.
+        labels: (N,) label of each template.
+        joint_names: the J joints.
+        length: frames of normalised time compared.
+        temperature: softmax temperature, m.
+    """
+
+    def __init__(self, templates: np.ndarray, valid: np.ndarray, labels: Sequence[str],
+                 joint_names: Sequence[str] = GESTURE15_JOINTS, length: int = 25,
+                 temperature: float = 0.03) -> None:
+        if len(templates) == 0 or len(templates) != len(labels):
+            raise SimenvError(f"need one label per template; got {len(templates)} templates "
+                              f"and {len(labels)} labels", field="templates")
+        self.joint_names = tuple(joint_names)
+        self.labels = tuple(sorted(set(labels), key=lambda x: (
+            GESTURE_LABELS.index(x) if x in GESTURE_LABELS else len(GESTURE_LABELS), x)))
+        self.length, self.temperature = int(length), float(temperature)
+        valid = np.asarray(valid, dtype=bool)
+        normed = normalise_windows(np.asarray(templates, np.float32), valid,
+                                   joints=self.joint_names)
+        self._templates = np.stack([_resample(t[v], self.length)
+                                    for t, v in zip(normed, valid, strict=True)])
+        self._class = np.array([self.labels.index(label) for label in labels])
+
+    @classmethod
+    def from_clips(cls, clips: Sequence[GestureClip], **kwargs: Any) -> TemplateClassifier:
+        """Templates from the centre 3 s of each labelled clip (at most; shorter clips
+        whole), on the gesture joint set."""
+        if not clips:
+            raise SimenvError("no clips to build templates from", field="clips")
+        cuts = [cut_window(c.positions, offset=max(c.num_frames - WINDOW_FRAMES, 0) // 2)
+                for c in clips]
+        return cls(np.stack([w for w, _ in cuts]), np.stack([v for _, v in cuts]),
+                   [c.label for c in clips], GESTURE15_JOINTS, **kwargs)
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        valid = np.asarray(valid, dtype=bool)
+        if not valid.any():
+            raise SimenvError("window has no valid frame", field="valid")
+        x = normalise_windows(np.asarray(window, np.float32)[None], valid[None],
+                              joints=self.joint_names)[0]
+        q = _resample(x[valid], self.length)
+        d = np.linalg.norm(self._templates - q[None], axis=-1).mean(axis=(1, 2))
+        best = np.full(len(self.labels), np.inf)
+        np.minimum.at(best, self._class, d)
+        z = -(best - best.min()) / self.temperature
+        p = np.exp(z)
+        return p / p.sum()
+
+
+@dataclass(frozen=True)
+class Perception:
+    """One perception tick.
+
+    Attributes:
+        t_s: time of the last observed frame, s.
+        probabilities: label -> probability of the stage that decided (or of the
+            real + predicted stage when nothing was decided).
+        stage: ``"real"``, ``"predicted"`` or None (no confident label).
+        label, reaction: the decided gesture and reaction (None: no decision, or the
+            reaction is ``keep`` or in its cooldown).
+        predicted_motion_m: mean displacement of the predicted frames' joints from the last
+            observed pose, m (a summary of the prediction).
+        compute_s: wall time of the tick, s.
+    """
+
+    t_s: float
+    probabilities: dict[str, float]
+    stage: str | None
+    label: str | None
+    reaction: str | None
+    predicted_motion_m: float
+    compute_s: float = field(compare=False)
+
+
+class PerceptionLoop:
+    """Predict -> classify -> decide every ``period`` frames (see the module docstring).
+
+    Args:
+        behaviour: the scenario's gesture -> reaction map.
+        classifier: a :class:`GestureModel`; its labels outside the scenario vocabulary
+            never trigger.
+        predictor: forecaster on canonical-keypoint windows (None: real frames only).
+        real_frames: frames of real motion classified (25 = 1 s).
+        period: frames between ticks.
+        threshold: probability at which a label is decided.
+        cooldown_s: a decided label does not trigger again within this time, s.
+        fps: frame rate of the keypoints, Hz.
+    """
+
+    def __init__(self, behaviour: Behaviour, classifier: GestureModel, predictor: Any = None,
+                 *, real_frames: int = 25, period: int = 25, threshold: float = 0.6,
+                 cooldown_s: float = 3.0, fps: float = 25.0) -> None:
+        missing = [j for j in classifier.joint_names if j not in CANONICAL_KEYPOINTS]
+        if missing:
+            raise SimenvError(f"classifier joints {missing} are not canonical keypoints",
+                              field="classifier")
+        self.behaviour, self.classifier, self.predictor = behaviour, classifier, predictor
+        self.real_frames, self.period = int(real_frames), int(period)
+        self.threshold, self.cooldown_s, self.fps = float(threshold), float(cooldown_s), fps
+        self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
+        self._last: dict[str, float] = {}
+
+    def reset(self) -> None:
+        """Forget the cooldowns (a new session)."""
+        self._last.clear()
+
+    def due(self, frame: int) -> bool:
+        """Whether frame index ``frame`` (0-based) ends a perception period."""
+        return frame + 1 >= self.real_frames and (frame + 1) % self.period == 0
+
+    def perceive(self, t_s: float, history: np.ndarray) -> Perception:
+        """Run one tick on ``history`` (H >= real_frames, K = 21 canonical keypoints, 3)
+        ending at time ``t_s``."""
+        start = time.perf_counter()
+        h = np.asarray(history, dtype=np.float32)
+        if h.ndim != 3 or h.shape[1:] != (len(CANONICAL_KEYPOINTS), 3) or len(h) < self.real_frames:
+            raise SimenvError(f"history must be (H >= {self.real_frames}, "
+                              f"{len(CANONICAL_KEYPOINTS)}, 3) canonical keypoints; got "
+                              f"{h.shape}", field="history")
+        real = h[-self.real_frames:][:, self._joints]
+        p_real = self.classifier.classify(real, np.ones(len(real), bool))
+        stage, probs, motion = None, p_real, 0.0
+        if p_real.max() >= self.threshold:
+            stage = "real"
+        elif self.predictor is not None:
+            future = np.asarray(self.predictor.predict(h[-int(self.predictor.history_len):]),
+                                dtype=np.float32)
+            motion = float(np.linalg.norm(future - h[-1][None], axis=-1).mean())
+            both = np.concatenate([real, future[:, self._joints]])
+            probs = self.classifier.classify(both, np.ones(len(both), bool))
+            stage = "predicted" if probs.max() >= self.threshold else None
+        label = self.classifier.labels[int(np.argmax(probs))] if stage else None
+        reaction = None
+        if label is not None and label in self.behaviour.vocabulary:
+            cooling = t_s - self._last.get(label, -np.inf) < self.cooldown_s
+            r = self.behaviour.reaction_for(label).name
+            if not cooling and r != "keep":
+                reaction = r
+                self._last[label] = t_s
+        return Perception(t_s, dict(zip(self.classifier.labels, map(float, probs),
+                                        strict=True)), stage, label, reaction, motion,
+                          time.perf_counter() - start)
+
+
+__all__ = ["GestureModel", "Perception", "PerceptionLoop", "TemplateClassifier"]

@@ -1,0 +1,115 @@
+"""Perception loop: template classifier, real / predicted stages, decisions, cooldown."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simenv.errors import SimenvError
+from simenv.gestures import GESTURE15_JOINTS, load_gesture_clips, split_cross_subject
+from simenv.models.baselines import ConstantVelocity
+from simenv.perception import GestureModel, PerceptionLoop, TemplateClassifier
+from simenv.scenario import load_scenario
+from simenv.skeletons import CANONICAL_KEYPOINTS
+
+GESTURES = Path(__file__).resolve().parents[2] / "shared" / "data" / "gestures"
+K = len(CANONICAL_KEYPOINTS)
+
+
+def _standing(T: int) -> np.ndarray:
+    """(T, 21, 3) a still person: canonical keypoints of a simple standing layout."""
+    base = {"pelvis": (0, 0, 1.0), "spine": (0, 0, 1.12), "chest": (0, 0, 1.3),
+            "neck": (0, 0, 1.5), "head": (0, 0, 1.62)}
+    for side, y in (("left", 0.18), ("right", -0.18)):
+        base |= {f"{side}_shoulder": (0, y, 1.45), f"{side}_elbow": (0, y, 1.17),
+                 f"{side}_wrist": (0, y, 0.92), f"{side}_hand": (0, y, 0.84),
+                 f"{side}_hip": (0, y / 2, 0.92), f"{side}_knee": (0, y / 2, 0.5),
+                 f"{side}_ankle": (0, y / 2, 0.08), f"{side}_toe": (0.12, y / 2, 0.02)}
+    pose = np.array([base[k] for k in CANONICAL_KEYPOINTS], dtype=np.float32)
+    return np.repeat(pose[None], T, axis=0)
+
+
+def _waving(T: int) -> np.ndarray:
+    """The still person waving the right forearm side to side above the shoulder."""
+    x = _standing(T)
+    i_e, i_w = CANONICAL_KEYPOINTS.index("right_elbow"), CANONICAL_KEYPOINTS.index("right_wrist")
+    swing = 0.15 * np.sin(np.linspace(0, 4 * np.pi, T))
+    x[:, i_e] = [0.0, -0.35, 1.5]
+    x[:, i_w, 0], x[:, i_w, 1], x[:, i_w, 2] = 0.0, -0.35 + swing, 1.75
+    return x
+
+
+@pytest.fixture(scope="module")
+def classifier() -> TemplateClassifier:
+    joints = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]
+    templates = np.stack([_standing(75)[:, joints], _waving(75)[:, joints]])
+    return TemplateClassifier(templates, np.ones((2, 75), bool), ["walk", "wave"],
+                              length=25, temperature=0.01)
+
+
+def test_template_classifier_on_synthetic_motion(classifier: TemplateClassifier):
+    assert isinstance(classifier, GestureModel)
+    joints = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]
+    wave = _waving(50)[:, joints] + [2.0, 1.0, 0.0]  # elsewhere in the room, slower
+    p = classifier.classify(wave, np.ones(50, bool))
+    assert p.sum() == pytest.approx(1.0) and classifier.labels[int(np.argmax(p))] == "wave"
+    p = classifier.classify(_standing(30)[:, joints], np.ones(30, bool))
+    assert classifier.labels[int(np.argmax(p))] == "walk"
+    with pytest.raises(SimenvError, match="valid"):
+        classifier.classify(wave, np.zeros(50, bool))
+    with pytest.raises(SimenvError, match="label"):
+        TemplateClassifier(np.zeros((2, 5, 15, 3)), np.ones((2, 5), bool), ["wave"])
+
+
+def test_loop_decides_on_real_motion_once(classifier: TemplateClassifier):
+    loop = PerceptionLoop(load_scenario("default").behaviour, classifier)
+    assert not loop.due(0) and loop.due(24) and not loop.due(25) and loop.due(49)
+    first = loop.perceive(1.0, _waving(25))
+    assert (first.stage, first.label, first.reaction) == ("real", "wave", "greet")
+    again = loop.perceive(2.0, _waving(25))
+    assert again.label == "wave" and again.reaction is None  # cooldown
+    later = loop.perceive(1.0 + loop.cooldown_s + 0.1, _waving(25))
+    assert later.reaction == "greet"
+    idle = loop.perceive(9.0, _standing(25))
+    assert idle.label == "walk" and idle.reaction is None  # walk -> keep working
+    with pytest.raises(SimenvError, match="history"):
+        loop.perceive(0.0, _standing(10))
+
+
+class _LengthClassifier:
+    """Stub: confident about "wave" only when shown more than 25 frames."""
+
+    labels = ("wave", "other")
+    joint_names = GESTURE15_JOINTS
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        return np.array([0.9, 0.1]) if len(window) > 25 else np.array([0.5, 0.5])
+
+
+def test_loop_anticipates_with_the_prediction():
+    behaviour = load_scenario("default").behaviour
+    loop = PerceptionLoop(behaviour, _LengthClassifier(), ConstantVelocity(50))
+    out = loop.perceive(1.0, _waving(25))
+    assert (out.stage, out.reaction) == ("predicted", "greet")
+    assert out.predicted_motion_m > 0.0
+    blind = PerceptionLoop(behaviour, _LengthClassifier()).perceive(1.0, _waving(25))
+    assert blind.stage is None and blind.reaction is None
+
+
+@pytest.mark.skipif(not (GESTURES / "florence3d").is_dir(),
+                    reason="shared gesture recordings (../shared/data/gestures) absent")
+def test_templates_from_real_clips_cross_subject():
+    """Florence 3D, odd subjects as templates, even subjects classified (3 s windows)."""
+    clips = load_gesture_clips(GESTURES, datasets=("florence3d",))
+    train, test = split_cross_subject(clips)
+    tc = TemplateClassifier.from_clips(train)
+    hits = []
+    for c in test:
+        spare = max(c.num_frames - 75, 0) // 2
+        window = c.positions[spare:spare + 75]
+        p = tc.classify(window, np.ones(len(window), bool))
+        hits.append(tc.labels[int(np.argmax(p))] == c.label)
+    chance = 1.0 / len(tc.labels)
+    assert np.mean(hits) > max(0.6, 4 * chance)
