@@ -135,8 +135,16 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     "shin": (JointSpec("flex", (0, 1, 0), (0, 150), 500),),
     # Ankle (AAOS: dorsiflexion 20, plantarflexion 50) + subtalar inversion 35 /
     # eversion 15 + toe-out (tibial torsion, foot abduction) about the shin.
+    # flex > 0 is plantarflexion (toe down about +y; 0 = shin perpendicular to
+    # the flat sole, the toe keypoint the fitted drop below the ankle).
+    # Dorsiflexion is the weight-bearing range, not AAOS's passive one: under
+    # body weight with the knee bent (squats, landings, lunges) the ankle
+    # dorsiflexes about twice as far (Rabin & Kozol, J Am Podiatr Med Assoc
+    # 2012, 102(5):406-411; weight-bearing lunge test: tibia 30-45 deg over
+    # the foot), so 40 + 5 margin. Measured: real CMU jump, squat and dance
+    # clips demand 40-55 deg (joint_limits, simenv.plausibility.body_thresholds).
     "foot": (
-        JointSpec("flex", (0, 1, 0), (-30, 60), 300),
+        JointSpec("flex", (0, 1, 0), (-45, 60), 300),
         JointSpec("inv", (1, 0, 0), (-30, 40), 150),
         JointSpec("abd", (0, 0, 1), (-35, 35), 100),
     ),

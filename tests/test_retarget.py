@@ -129,8 +129,15 @@ def test_feet_stay_above_the_floor(shared_data, clip: str) -> None:
     low = lowest_foot_point(res.humanoid, res.qpos)
     assert (low >= level - 3e-3).all(), f"sole {1000 * (level - low).max():.1f} mm under floor"
     without = retarget(motion, res.humanoid, floor=False)
-    # The constraint is what keeps them up: the unconstrained solve goes deeper.
-    assert (level - lowest_foot_point(res.humanoid, without.qpos)).max() > (level - low).max()
+    deeper = (level - lowest_foot_point(res.humanoid, without.qpos)).max()
+    # The constraint never pushes the soles down...
+    assert deeper >= (level - low).max() - 1e-9
+    # ... and is what keeps them up where the keypoints alone put a sole below
+    # the floor (02_01). 01_01's first 300 frames fit above the floor without
+    # it since the ankle got its weight-bearing dorsiflexion range (45 deg; at
+    # 30 deg the limit forced the heels of its crouched landings down).
+    if clip == "02_01":
+        assert deeper > (level - low).max()
 
 
 @pytest.mark.parametrize("clip", ["02_01", "01_01", "12_01"])
