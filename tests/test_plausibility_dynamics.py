@@ -1,0 +1,119 @@
+"""Inverse-dynamics root residual and balance on real retargeted mocap."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from simenv.assets import WALK, asset_path
+from simenv.errors import PhysicsError
+from simenv.io import bvh
+from simenv.motion import Motion
+from simenv.plausibility.dynamics import (
+    balance,
+    distance_outside,
+    finite_differences,
+    root_residual,
+    root_residual_wrench,
+)
+from simenv.retarget import RetargetResult, retarget
+
+UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
+
+
+@pytest.fixture(scope="module")
+def walk() -> Motion:
+    """The bundled real CMU walk 02_01, first 2 s (240 frames at 120 fps)."""
+    return bvh.read(asset_path(WALK)).slice(0, 240)
+
+
+@pytest.fixture(scope="module")
+def fitted(walk) -> RetargetResult:
+    return retarget(walk)
+
+
+def test_real_walk_needs_no_invisible_help(fitted) -> None:
+    r = root_residual(fitted)
+    assert r.available and r.passed, (r.value, r.details)
+    assert r.value < 0.05
+    # Walking needs about one body weight of ground reaction on average,
+    # which the feet provide.
+    assert 0.8 < r.details["required_mean"] < 1.2
+    assert r.details["unsupported_fraction"] == 0.0
+
+
+def test_real_walk_is_balanced(fitted) -> None:
+    r = balance(fitted)
+    assert r.available and r.passed, (r.value, r.details)
+
+
+def test_walk_raised_30cm_needs_one_body_weight(walk) -> None:
+    high = retarget(walk.with_positions(walk.positions + 0.30 * UP))
+    r = root_residual(high)
+    assert r.passed is False
+    assert r.value == pytest.approx(1.0, abs=0.1)
+    assert r.details["unsupported_fraction"] == 1.0
+    assert r.violations == [(0, high.num_frames - 1, pytest.approx(r.details["max"], rel=1e-6))]
+
+
+def test_residual_grows_with_unsupported_time(fitted) -> None:
+    # Lift only the middle second: the residual is there and nowhere else.
+    q = fitted.qpos.copy()
+    q[60:180, 2] += 0.3
+    rr = root_residual_wrench(replace(fitted, qpos=q))
+    assert (rr.support_points[70:170] == 0).all()
+    assert np.median(rr.force[70:170]) > 0.8
+    assert np.median(rr.force[:50]) < 0.1
+
+
+def test_balance_flags_a_lean_past_the_feet(fitted) -> None:
+    # A frozen pose is quasi-static on every frame. Standing frozen in the
+    # walk's first pose is balanced; the same pose tipped forward by 0.4 rad
+    # about the root puts the centre of mass beyond the toes.
+    still = np.repeat(fitted.qpos[:1], 60, axis=0)
+    lean = still.copy()
+    lean[:, 3:7] = [np.cos(0.2), 0.0, np.sin(0.2), 0.0]
+    ok, bad = balance(replace(fitted, qpos=still)), balance(replace(fitted, qpos=lean))
+    assert ok.passed and ok.details["judged_fraction"] == 1.0
+    assert bad.passed is False
+    assert bad.details["outside_fraction"] == 1.0 and bad.value > 50.0
+
+
+def test_distance_outside_polygon() -> None:
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert distance_outside(np.array([0.5, 0.5]), square) == 0.0
+    assert distance_outside(np.array([2.0, 0.5]), square) == pytest.approx(1.0)
+    assert distance_outside(np.array([2.0, 2.0]), square) == pytest.approx(np.sqrt(2.0))
+    # Degenerate supports: one point, a segment (collinear points).
+    assert distance_outside(np.array([3.0, 4.0]), square[:1]) == pytest.approx(5.0)
+    seg = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    assert distance_outside(np.array([1.0, 1.0]), seg) == pytest.approx(1.0)
+    assert distance_outside(np.array([3.0, 0.0]), seg) == pytest.approx(1.0)
+
+
+def test_finite_differences_of_a_constant_velocity_root(fitted) -> None:
+    model = fitted.humanoid.model
+    q = np.repeat(fitted.qpos[:1], 50, axis=0)
+    q[:, 0] += 1.5 * np.arange(50) / 120.0  # 1.5 m/s along x
+    qvel, qacc = finite_differences(model, q, 120.0)
+    assert qvel.shape == qacc.shape == (50, model.nv)
+    np.testing.assert_allclose(qvel[5:-5, 0], 1.5, atol=1e-6)
+    np.testing.assert_allclose(qacc[5:-5], 0.0, atol=1e-6)
+
+
+def test_short_and_bad_input(fitted) -> None:
+    two = replace(fitted, qpos=fitted.qpos[:2])
+    for metric in (root_residual, balance):
+        r = metric(two)
+        assert r.passed is None and "3 frames" in r.reason
+    with pytest.raises(PhysicsError, match="at least 2 frames"):
+        finite_differences(fitted.humanoid.model, fitted.qpos[:1], 120.0)
+    q = fitted.qpos.copy()
+    q[33, 0] = np.inf
+    with pytest.raises(PhysicsError, match="NaN/inf") as err:
+        root_residual(replace(fitted, qpos=q))
+    assert err.value.frame == 33
+    with pytest.raises(PhysicsError, match="shape"):
+        balance(replace(fitted, qpos=fitted.qpos[:, :5]))
