@@ -96,10 +96,10 @@ class BodyThresholds:
             :func:`simenv.plausibility.body.joint_limit_demand`.
         joint_limit_max_deg: 10. Largest allowed excess of any hinge beyond
             its anatomical range. Calibrated on real CMU clips (module
-            table: 15 of 19 clips at 0-5 deg, four failing on frames whose
+            table: 17 of 21 clips at 0-5 deg, four failing on frames whose
             data are beyond human ranges or not yet explained); a knee bent
             30+ deg backwards or an elbow hyperextended 30 deg in a real
-            walk scores 30-60.
+            walk scores >= 30 and >= 20 (tests/test_plausibility_joint_limits.py).
 
     Self- and inter-person penetration
         self_penetration_max_mm: 100. Largest allowed penetration depth
