@@ -1,0 +1,223 @@
+"""Offline interaction rehearsal: replay a session in the room and record how the agent reacts.
+
+:func:`rehearse` runs :class:`~simenv.envs.interaction_room.InteractionRoomEnv` on a session
+with one of the agents below, and writes to ``out``:
+
+* ``rehearsal.mp4``: the room camera (user, agent, objects), 25 fps (unless ``render=False``);
+* ``log.jsonl``: one JSON line per step, flushed as it goes: ``t``, the labelled ``gesture``,
+  the last perception's ``probabilities``, ``stage`` and ``predicted_motion_m``, the
+  ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
+  (fractions of each joint's range) and ``labels``;
+* ``summary.json``: ``reactions`` (only those the agent started: ``gesture``, ``t_onset``,
+  ``t_decision``, ``t_object_changed``, ``object``, ``success``), ``decision_latency_s``
+  (statistics of decision time - gesture onset over labelled gestures),
+  ``agent_plausibility`` (joint-level metrics of the agent's keypoints,
+  :func:`simenv.plausibility.kinematic_metrics`), ``perception_compute_s``;
+* ``report.html``: a timeline of gestures, decisions and object states, and the agent's
+  plausibility table.
+
+Agents: ``"scripted"`` decides with a :class:`~simenv.perception.PerceptionLoop` (predict,
+classify, decide every second; needs a classifier), ``"labels"`` decides the scenario's
+reaction on the first frame of each labelled gesture (an oracle that rehearses execution
+without perception errors or latency), ``"random"`` decides a seeded random
+reaction at each perception tick.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simenv.envs.interaction_room import OBJECTS, InteractionRoomEnv
+from simenv.errors import SimenvError
+from simenv.motion import Motion
+from simenv.perception import GestureModel, Perception, PerceptionLoop
+from simenv.scenario import REACTIONS
+from simenv.session import PERCEPTION_FPS, Session
+from simenv.skeletons import canonical_skeleton
+
+AGENTS = ("scripted", "labels", "random")
+
+
+def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.PathLike[str],
+             *, scenario: str = "default", agent: str = "scripted",
+             classifier: GestureModel | None = None, predictor: Any = "constant-velocity-50",
+             render: bool = True, width: int = 480, height: int = 360,
+             seed: int = 0) -> dict[str, Any]:
+    """Rehearse ``session`` and write the outputs (module docstring) to ``out``.
+
+    Returns:
+        the summary (as written to ``summary.json``).
+    """
+    if agent not in AGENTS:
+        raise SimenvError(f"unknown agent {agent!r}; expected one of {list(AGENTS)}",
+                          field="agent")
+    if agent == "scripted" and classifier is None:
+        raise SimenvError("the scripted agent needs a gesture classifier (e.g. "
+                          "simenv.perception.TemplateClassifier.from_clips)", field="classifier")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env = InteractionRoomEnv(session, scenario=scenario, predictor=predictor,
+                             render_mode="rgb_array" if render else None,
+                             width=width, height=height)
+    loop = (PerceptionLoop(env.scenario.behaviour, classifier, env.predictor)
+            if agent == "scripted" else None)
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    frames, agent_kp, perceptions = [], [], []
+    last: Perception | None = None
+    answered: set[int] = set()
+    step, done = 0, False
+    if render:
+        frames.append(env.render())
+    with (out / "log.jsonl").open("w", encoding="utf-8") as log:
+        while not done:
+            t = step / PERCEPTION_FPS
+            action = 0
+            tick = (step + 1) % 25 == 0 and step + 1 >= 25
+            if loop is not None and tick:
+                last = loop.perceive(t, obs["user_history"])
+                perceptions.append(last)
+                if last.reaction in env.reactions:
+                    action = env.reactions.index(last.reaction)
+            elif agent == "labels":
+                action = _oracle(env, t, answered)
+            elif agent == "random" and tick:
+                action = int(rng.integers(0, env.action_space.n))
+            obs, _, _, truncated, info = env.step(action)
+            done = truncated
+            step += 1
+            agent_kp.append(env.room.agent_keypoints(env.data))
+            if render:
+                frames.append(env.render())
+            log.write(json.dumps({
+                "t": round(t, 4), "gesture": info.get("gesture"),
+                "probabilities": None if last is None else last.probabilities,
+                "stage": None if last is None else last.stage,
+                "predicted_motion_m": None if last is None else last.predicted_motion_m,
+                "decision": env.reactions[action], "executing": info.get("executing"),
+                "objects": env.room.object_states(env.data),
+                "levels": dict(zip(OBJECTS, map(float, env.object_levels()), strict=True)),
+                "labels": info.get("object_labels"),
+            }) + "\n")
+            log.flush()
+    if render:
+        from simenv.render import write_video
+
+        write_video(frames, out / "rehearsal.mp4", PERCEPTION_FPS)
+    env.close()
+    summary = _summary(env, np.array(agent_kp), perceptions)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+    _report(out, summary)
+    return summary
+
+
+def _oracle(env: InteractionRoomEnv, t: float, answered: set[int]) -> int:
+    """The scenario's reaction to the first unanswered labelled gesture under way."""
+    for i, g in enumerate(env.session.gestures):
+        if i not in answered and g.onset_s <= t <= g.end_s:
+            answered.add(i)
+            reaction = env.scenario.behaviour.reaction_for(g.label).name
+            return env.reactions.index(reaction) if reaction in env.reactions else 0
+    return 0
+
+
+def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
+             perceptions: list[Perception]) -> dict[str, Any]:
+    from simenv.plausibility import kinematic_metrics
+
+    reactions, latencies = [], []
+    for entry in env.log:
+        if not entry["started"]:
+            continue
+        onset = next((g.onset_s for g in env.session.gestures
+                      if g.label == entry["gesture"] and g.onset_s <= entry["t_decision"]),
+                     None)
+        if onset is not None:
+            latencies.append(entry["t_decision"] - onset)
+        reactions.append({"gesture": entry["gesture"], "t_onset": onset,
+                          "t_decision": entry["t_decision"],
+                          "t_object_changed": entry["t_object_changed"],
+                          "object": REACTIONS[entry["reaction"]].object,
+                          "reaction": entry["reaction"], "success": entry["success"]})
+    lat = np.array(latencies)
+    motion = Motion(agent_kp.astype(np.float32), PERCEPTION_FPS, canonical_skeleton(),
+                    name="agent")
+    metrics = kinematic_metrics(motion) if len(agent_kp) >= 3 else {}
+    compute = np.array([p.compute_s for p in perceptions])
+    return {
+        "session": env.session.motion.name, "scenario": env.scenario.name,
+        "duration_s": len(agent_kp) / PERCEPTION_FPS,
+        "reactions": reactions,
+        "decisions": [{"t_decision": e["t_decision"], "reaction": e["reaction"],
+                       "started": e["started"]} for e in env.log],
+        "decision_latency_s": {"n": int(lat.size),
+                               **({"mean": float(lat.mean()), "median": float(np.median(lat)),
+                                   "max": float(lat.max())} if lat.size else {})},
+        "agent_plausibility": {name: {"value": float(m.value), "unit": m.unit,
+                                      "passed": m.passed} for name, m in metrics.items()},
+        "perception_compute_s": {"n": int(compute.size),
+                                 **({"mean": float(compute.mean()),
+                                     "max": float(compute.max())} if compute.size else {})},
+    }
+
+
+def _report(out: Path, summary: dict[str, Any]) -> None:
+    """``report.html``: the timeline (from ``log.jsonl``) and the plausibility table."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    t = np.array([r["t"] for r in rows])
+    fig, axes = plt.subplots(2, 1, figsize=(9, 4.5), sharex=True)
+    gestures = sorted({r["gesture"] for r in rows if r["gesture"]})
+    for k, g in enumerate(gestures):
+        on = np.array([r["gesture"] == g for r in rows])
+        axes[0].fill_between(t, k, k + 0.8, where=on, step="post", alpha=0.5)
+        axes[0].text(t[np.argmax(on)], k + 0.3, g, fontsize=8)
+    for d in summary["decisions"]:
+        axes[0].axvline(d["t_decision"], color="k" if d["started"] else "grey", lw=1)
+        axes[0].text(d["t_decision"], len(gestures) + 0.1, d["reaction"], fontsize=7,
+                     rotation=60)
+    axes[0].set_yticks([])
+    axes[0].set_title("gestures (bands) and decisions (lines; black = started)")
+    for name in OBJECTS:
+        axes[1].plot(t, [r["levels"][name] for r in rows], label=name)
+    axes[1].set_xlabel("time (s)")
+    axes[1].set_ylabel("object state (fraction of range)")
+    axes[1].set_ylim(-0.05, 1.05)
+    axes[1].legend(fontsize=7, ncol=5)
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    image = base64.b64encode(buf.getvalue()).decode()
+    table = "".join(
+        f"<tr><td>{html.escape(k)}</td><td>{v['value']:.4g} {html.escape(v['unit'])}</td>"
+        f"<td>{v['passed']}</td></tr>" for k, v in summary["agent_plausibility"].items())
+    reactions = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in (
+            "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
+            "success")) + "</tr>" for r in summary["reactions"])
+    (out / "report.html").write_text(f"""<!doctype html><meta charset="utf-8">
+<title>simenv rehearsal: {html.escape(summary['session'])}</title>
+<h1>Rehearsal of {html.escape(summary['session'])} ({html.escape(summary['scenario'])})</h1>
+<img src="data:image/png;base64,{image}" alt="timeline">
+<h2>Reactions started</h2><table border=1><tr><th>gesture</th><th>onset (s)</th>
+<th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
+<th>success</th></tr>{reactions}</table>
+<h2>Agent plausibility</h2><table border=1><tr><th>metric</th><th>value</th><th>passed</th>
+</tr>{table}</table>
+""", encoding="utf-8")
+
+
+__all__ = ["AGENTS", "rehearse"]

@@ -1,0 +1,75 @@
+"""Offline rehearsal: every output written, reactions measured in simulation, agents wired."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import simenv
+from simenv.assets import WALK, asset_path
+from simenv.errors import SimenvError
+from simenv.gestures import GESTURE15_JOINTS
+from simenv.rehearsal import rehearse
+from simenv.session import GestureEvent, Session
+
+
+@pytest.fixture(scope="module")
+def short() -> simenv.Motion:
+    return simenv.load(asset_path(WALK)).slice(0, 60)  # 0.5 s: the user stays away
+
+
+class _Always:
+    """Stub classifier: always "smell"."""
+
+    labels = ("smell", "idle")
+    joint_names = GESTURE15_JOINTS
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        return np.array([0.95, 0.05])
+
+
+def test_labelled_rehearsal_writes_every_output(tmp_path: Path, short):
+    session = Session(short, (GestureEvent("smell", 0.2, 0.5),))
+    summary = rehearse(session, tmp_path, scenario="discomfort", agent="labels",
+                       width=160, height=120)
+    for name in ("rehearsal.mp4", "log.jsonl", "summary.json", "report.html"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    rows = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
+    assert len(rows) == round(summary["duration_s"] * 25)
+    assert {"t", "gesture", "probabilities", "decision", "objects", "levels",
+            "labels"} <= set(rows[0])
+    (reaction,) = summary["reactions"]
+    assert reaction["gesture"] == "smell" and reaction["object"] == "cigarette"
+    assert reaction["success"] is True
+    assert reaction["t_onset"] <= reaction["t_decision"] < reaction["t_object_changed"]
+    assert rows[-1]["labels"]["cigarette"] == "out"
+    assert summary["decision_latency_s"]["n"] == 1
+    assert summary["agent_plausibility"]["ground_penetration"]["passed"]
+    assert json.loads((tmp_path / "summary.json").read_text()) == summary
+    assert "cigarette" in (tmp_path / "report.html").read_text()
+
+
+def test_scripted_agent_decides_through_the_perception_loop(tmp_path: Path, short):
+    summary = rehearse(Session(short, (GestureEvent("smell", 0.0, 0.5),)), tmp_path,
+                       scenario="discomfort", agent="scripted", classifier=_Always(),
+                       render=False)
+    first = summary["decisions"][0]
+    assert first["reaction"] == "cigarette_out" and first["t_decision"] == pytest.approx(0.96)
+    assert summary["reactions"][0]["success"] is True
+    assert summary["perception_compute_s"]["n"] >= 1
+    assert not (tmp_path / "rehearsal.mp4").exists()
+    rows = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
+    assert rows[24]["stage"] == "real" and rows[24]["probabilities"]["smell"] > 0.9
+
+
+def test_random_agent_is_seeded_and_bad_agents_fail(tmp_path: Path, short):
+    a = rehearse(short, tmp_path / "a", agent="random", render=False, seed=3)
+    b = rehearse(short, tmp_path / "b", agent="random", render=False, seed=3)
+    assert a["decisions"] == b["decisions"]
+    with pytest.raises(SimenvError, match="unknown agent"):
+        rehearse(short, tmp_path, agent="oracle")
+    with pytest.raises(SimenvError, match="classifier"):
+        rehearse(short, tmp_path, agent="scripted")
