@@ -98,11 +98,15 @@ DESK_HEIGHT = 0.74
 CHAIR_OFFSET = (-0.65, 0.0)
 #: Hands of the agent (keypoint site suffixes) that can grasp.
 HANDS = ("left_hand", "right_hand")
+#: A greeting needs the agent's chest to face the user within this angle, degrees.
+GREET_FACING_DEG = 30.0
 
 _WOOD = (0.55, 0.38, 0.22, 1.0)
 _WALL = (0.85, 0.84, 0.8, 1.0)
 _DARK = (0.15, 0.15, 0.17, 1.0)
 _METAL = (0.6, 0.6, 0.63, 1.0)
+_EMBER = (1.0, 0.35, 0.05, 1.0)
+_ASH = (0.45, 0.45, 0.45, 1.0)
 
 
 @dataclass(frozen=True)
@@ -369,7 +373,7 @@ class Room:
               (0.95, 0.95, 0.9, 1.0), _OBJECT, quat=[np.sqrt(0.5), 0.0, np.sqrt(0.5), 0.0],
               mass=0.005)
         _geom(cig, "cigarette/tip", mujoco.mjtGeom.mjGEOM_SPHERE, (0.0045,), (0.037, 0, 0),
-              (1.0, 0.35, 0.05, 1.0), _OBJECT, mass=0.001)
+              _EMBER, _OBJECT, mass=0.001)
         _handle(cig, "cigarette/handle", (0.0, 0.0, 0.005))
         # The agent's chair: seat top at the agent's seated thigh height.
         chair = _body(desk, "chair", (*CHAIR_OFFSET, 0.0))
@@ -493,6 +497,7 @@ class Room:
             m.body_mocapid[mujoco.mj_name2id(m, body, f"user/{um.body(b).name}")]
             for b in range(1, um.nbody)])
         self._user_data = mujoco.MjData(um)
+        self._cigarette_tip = m.geom("cigarette/tip").id
         self._grasp_eq = {name: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, name)
                           for name in (f"grasp/{h}/{o}" for h in HANDS for o in self.objects)}
 
@@ -617,6 +622,34 @@ class Room:
         """(K, 3) the user's keypoints, m (after ``mj_forward``/``mj_step``)."""
         return data.site_xpos[self.user_sites].copy()
 
+    # -- measurements --------------------------------------------------------
+
+    def greeting(self, data: mujoco.MjData) -> dict[str, float | bool]:
+        """Whether the agent greets the user now (the issue's success rule).
+
+        ``facing_deg``: angle on the floor between the agent's chest forward axis and the
+        direction from its chest to the user's chest; ``hand_above_shoulder``: a hand
+        keypoint higher than the same side's shoulder; ``success``: facing within
+        :data:`GREET_FACING_DEG` and a hand raised.
+        """
+        names = self.agent.keypoint_names
+        agent, user = self.agent_keypoints(data), self.user_keypoints(data)
+        chest = self.model.body("agent/chest").id
+        forward = data.xmat[chest].reshape(3, 3)[:2, 0]
+        to_user = user[names.index("chest"), :2] - agent[names.index("chest"), :2]
+        cos = forward @ to_user / max(np.linalg.norm(forward) * np.linalg.norm(to_user), 1e-9)
+        facing = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+        raised = any(agent[names.index(f"{s}_hand"), 2] > agent[names.index(f"{s}_shoulder"), 2]
+                     for s in ("left", "right"))
+        return {"facing_deg": facing, "hand_above_shoulder": bool(raised),
+                "success": bool(facing <= GREET_FACING_DEG and raised)}
+
+    def sync_visuals(self, data: mujoco.MjData) -> None:
+        """Colour state that is not geometry: the cigarette's tip glows while it is lit.
+        (Writes ``model.geom_rgba``; call before rendering.)"""
+        lit = self.object_labels(data)["cigarette"] == "lit"
+        self.model.geom_rgba[self._cigarette_tip] = _EMBER if lit else _ASH
+
 
 # ---------------------------------------------------------------------------
 # Small pieces of geometry
@@ -704,4 +737,5 @@ def _look_at(parent: mujoco.MjsBody, name: str, eye: Sequence[float],
     cam.fovy = 60.0
 
 
-__all__ = ["GRASP_RADIUS", "KNOB_TRAVEL", "Room", "RoomObject", "place_on_floor"]
+__all__ = ["GRASP_RADIUS", "GREET_FACING_DEG", "KNOB_TRAVEL", "Room", "RoomObject",
+           "place_on_floor"]

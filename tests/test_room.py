@@ -230,3 +230,31 @@ def test_grasp_needs_the_hand_at_the_handle(room: Room):
     with pytest.raises(SimenvError, match="no grasp"):
         room.set_grasp(data, "right_foot", "window", True)
     assert GRASP_RADIUS < 0.1
+
+
+def test_greeting_measurement(room: Room):
+    """Seated at the desk the agent neither faces the user nor raises a hand; turned to
+    face the user with the right arm raised, it greets."""
+    data = room.make_data()
+    g = room.greeting(data)
+    assert not g["success"] and not g["hand_above_shoulder"] and g["facing_deg"] > 30.0
+    q = room.seated_pose()
+    user = room.user_keypoints(data)[room.user.keypoint_names.index("chest")]
+    yaw = np.arctan2(user[1] - q[1], user[0] - q[0])
+    q[3:7] = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    h = room.agent
+    q[h.hinge_qpos[h.joint_names.index("right_upper_arm_flex")]] = np.deg2rad(170.0)
+    data.qpos[room.agent_qpos] = q
+    mujoco.mj_forward(room.model, data)
+    g = room.greeting(data)
+    assert g["facing_deg"] < 5.0 and g["hand_above_shoulder"] and g["success"]
+
+
+def test_cigarette_tip_shows_its_state(room: Room):
+    data = room.make_data()
+    tip = room.model.geom("cigarette/tip").id
+    room.sync_visuals(data)
+    glowing = room.model.geom_rgba[tip].copy()
+    room.set_object_state(data, "cigarette", room.objects["cigarette"].upper)
+    room.sync_visuals(data)
+    assert not np.allclose(room.model.geom_rgba[tip], glowing)

@@ -233,6 +233,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             from simenv.render import make_renderer
 
             self._renderer = make_renderer(self.model, *self._size)
+        self.room.sync_visuals(self.data)
         self._renderer.update_scene(self.data, camera="room")
         return self._renderer.render()
 
