@@ -25,11 +25,13 @@ reaction at each perception tick.
 
 from __future__ import annotations
 
+import argparse
 import base64
 import html
 import io
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +42,7 @@ from simenv.errors import SimenvError
 from simenv.motion import Motion
 from simenv.perception import GestureModel, Perception, PerceptionLoop
 from simenv.scenario import REACTIONS
-from simenv.session import PERCEPTION_FPS, Session
+from simenv.session import PERCEPTION_FPS, GestureEvent, Session
 from simenv.skeletons import canonical_skeleton
 
 AGENTS = ("scripted", "labels", "random")
@@ -220,4 +222,46 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
 """, encoding="utf-8")
 
 
-__all__ = ["AGENTS", "rehearse"]
+def _gesture(text: str) -> GestureEvent:
+    try:
+        label, onset, end = text.split(":")
+        return GestureEvent(label, float(onset), float(end))
+    except ValueError:
+        raise SimenvError(f"--gesture {text!r}: expected LABEL:ONSET_S:END_S",
+                          field="gesture") from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m simenv.rehearsal SESSION --out DIR [...]`` (``--help`` lists options)."""
+    parser = argparse.ArgumentParser(prog="python -m simenv.rehearsal",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("session", help="motion file or bundled asset name")
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--agent", choices=AGENTS, default="labels")
+    parser.add_argument("--scenario", default="default", help="bundled name or TOML file")
+    parser.add_argument("--gesture", action="append", type=_gesture, default=[],
+                        metavar="LABEL:ONSET_S:END_S", help="a labelled gesture (repeatable)")
+    parser.add_argument("--templates", help="gesture recordings folder (msr_action3d/, "
+                        "utkinect/, florence3d/) for the scripted agent's classifier")
+    parser.add_argument("--no-render", action="store_true", help="skip the video")
+    args = parser.parse_args(argv)
+    classifier = None
+    if args.templates:
+        from simenv.gestures import load_gesture_clips
+        from simenv.perception import TemplateClassifier
+
+        classifier = TemplateClassifier.from_clips(load_gesture_clips(args.templates))
+    session = Session.load(args.session, args.gesture)
+    summary = rehearse(session, args.out, scenario=args.scenario, agent=args.agent,
+                       classifier=classifier, render=not args.no_render)
+    started = len(summary["reactions"])
+    done = sum(bool(r["success"]) for r in summary["reactions"])
+    print(f"{started} reaction(s) started, {done} succeeded; outputs in {args.out}")
+    return 0
+
+
+__all__ = ["AGENTS", "main", "rehearse"]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -73,3 +73,18 @@ def test_random_agent_is_seeded_and_bad_agents_fail(tmp_path: Path, short):
         rehearse(short, tmp_path, agent="oracle")
     with pytest.raises(SimenvError, match="classifier"):
         rehearse(short, tmp_path, agent="scripted")
+
+
+def test_module_command(tmp_path: Path, capsys):
+    from simenv.rehearsal import main
+
+    code = main([WALK, "--out", str(tmp_path), "--scenario", "discomfort", "--gesture",
+                 "smell:0.2:1.0", "--no-render"])
+    assert code == 0
+    assert "1 reaction(s) started" in capsys.readouterr().out
+    (reaction,) = json.loads((tmp_path / "summary.json").read_text())["reactions"]
+    # Measured, not assumed: here the walking user reaches the desk and shoves the agent's
+    # arm while it presses, and the cigarette stays lit.
+    assert reaction["success"] is False and reaction["t_object_changed"] is None
+    with pytest.raises(SimenvError, match="LABEL:ONSET_S:END_S"):
+        main([WALK, "--out", str(tmp_path), "--gesture", "smell"])
