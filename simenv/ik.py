@@ -8,9 +8,8 @@ The tree is read from a compiled :class:`mujoco.MjModel` with one free joint
 
 Forward kinematics composes, per body b with parent p,
 ``R_b = R_p R(q_b) H_1(theta_1) ... H_n(theta_n)`` and
-``x_b = x_p + R_p pos_b``, vectorised over frames (the Python loop runs over the
-~20 bodies, never over frames). Points are ``x_b + R_b s`` for body-fixed
-offsets ``s`` (sites, geom corners).
+``x_b = x_p + R_p pos_b`` (a compiled loop over frames, then bodies). Points
+are ``x_b + R_b s`` for body-fixed offsets ``s`` (sites, geom corners).
 
 Jacobians are analytic: with the tangent ``delta = (dx, dw, dtheta)`` (root
 translation, root rotation as a world-frame rotation vector, hinge angles),
@@ -22,6 +21,10 @@ translation, root rotation as a world-frame rotation vector, hinge angles),
 
 This matches MuJoCo's ``mj_jac`` up to the root-rotation frame (MuJoCo uses the
 body frame for the free joint's angular velocity; we use the world frame).
+
+:meth:`HingeTree.fit_iteration` runs one projected Levenberg-Marquardt step of
+a keypoint fit on many frames. FK, Jacobians and the fit are compiled per-frame
+kernels (numba, cached on disk), called once per batch of frames.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import mujoco
+import numba
 import numpy as np
 
 
@@ -122,6 +126,27 @@ class Kinematics:
     points: np.ndarray
 
 
+@dataclass(frozen=True)
+class PointFit:
+    """Settings of one :meth:`HingeTree.fit_iteration` (the objective's weights).
+
+    Attributes:
+        reg: weight of |theta|^2 (per rad^2).
+        smooth: weight of |theta - theta_nbr|^2 + |x_root - x_nbr|^2.
+        floor_weight: weight of min(0, z - floor)^2 per floor point.
+        max_step: largest |delta| over rotation and hinge coordinates (radians).
+        tol: relative cost decrease below which an accepted frame is done.
+        step_tol: largest |delta| below which an accepted frame is done.
+    """
+
+    reg: float
+    smooth: float
+    floor_weight: float
+    max_step: float
+    tol: float
+    step_tol: float
+
+
 class HingeTree:
     """Kinematic tree of a free-floating model with hinge joints, plus body-fixed points.
 
@@ -149,26 +174,21 @@ class HingeTree:
         self.model = model
         self.root_qpos = int(model.jnt_qposadr[free[0]])
         self.nb = model.nbody
-        self.parent = model.body_parentid.copy()
+        self.parent = model.body_parentid.astype(np.int64)
         self.body_offset = model.body_pos.copy()
         self.body_quat_rot = quat_to_mat(model.body_quat.copy())
         self.body_has_rot = ~np.all(np.isclose(model.body_quat, [1, 0, 0, 0]), axis=1)
         self.H = len(hinges)
         self.nv = 6 + self.H
-        self.hinge_body = model.jnt_bodyid[hinges].copy()
+        self.hinge_body = model.jnt_bodyid[hinges].astype(np.int64)
         self.hinge_axis = model.jnt_axis[hinges].copy()
         self.hinge_pos = model.jnt_pos[hinges].copy()
         self.qpos_hinge = model.jnt_qposadr[hinges].copy()
-        # Axis-aligned hinges (index of the axis, its sign) take a fast path.
-        idx = np.argmax(np.abs(self.hinge_axis), axis=1)
-        aligned = np.isclose(np.abs(self.hinge_axis[np.arange(self.H), idx]), 1.0)
-        self.hinge_index = np.where(aligned, idx, -1)
-        self.hinge_sign = np.sign(self.hinge_axis[np.arange(self.H), idx])
         limited = model.jnt_limited[hinges].astype(bool)
         self.lower = np.where(limited, model.jnt_range[hinges, 0], -np.inf)
         self.upper = np.where(limited, model.jnt_range[hinges, 1], np.inf)
         self.body_hinges = [np.flatnonzero(self.hinge_body == b) for b in range(self.nb)]
-        self.point_bodies = np.asarray(point_bodies, dtype=int)
+        self.point_bodies = np.asarray(point_bodies, dtype=np.int64)
         self.point_offsets = np.asarray(point_offsets, dtype=float)
         anc_body = np.zeros((self.nb, len(self.point_bodies)), dtype=bool)
         for p, b in enumerate(self.point_bodies):
@@ -176,7 +196,21 @@ class HingeTree:
                 anc_body[b, p] = True
                 b = self.parent[b]
         self.ancestor = anc_body[self.hinge_body]
-        self.pair_hinge, self.pair_point = np.nonzero(self.ancestor)
+        # MuJoCo numbers joints body by body, so body b's hinges are the
+        # contiguous range hinge_start[b]:hinge_start[b + 1] (what the kernels use).
+        if np.any(np.diff(self.hinge_body) < 0):
+            raise ValueError("HingeTree expects the hinges ordered by body")
+        hinge_start = np.searchsorted(self.hinge_body, np.arange(self.nb + 1)).astype(np.int64)
+        # Each point's ancestor hinges, CSR: anc_idx[anc_ptr[p]:anc_ptr[p + 1]].
+        anc_ptr = np.concatenate([[0], np.cumsum(self.ancestor.sum(axis=0))]).astype(np.int64)
+        anc_idx = np.nonzero(self.ancestor.T)[1].astype(np.int64)
+        # The arrays every kernel takes, in the order _unpack documents.
+        self.arrays = (self.parent, np.ascontiguousarray(self.body_offset),
+                       np.ascontiguousarray(self.body_quat_rot), hinge_start,
+                       np.ascontiguousarray(self.hinge_axis), np.ascontiguousarray(self.hinge_pos),
+                       self.point_bodies, np.ascontiguousarray(self.point_offsets), anc_ptr,
+                       anc_idx, np.ascontiguousarray(self.lower),
+                       np.ascontiguousarray(self.upper))
 
     # -- conversions between qpos and (root_pos, root_rot, theta) ------------
 
@@ -195,66 +229,368 @@ class HingeTree:
         q[:, self.qpos_hinge] = theta
         return q
 
-    # -- forward kinematics and Jacobians ------------------------------------
+    # -- forward kinematics, Jacobians, point fitting ------------------------
 
     def forward(self, root_pos: np.ndarray, root_rot: np.ndarray, theta: np.ndarray,
                 ) -> Kinematics:
         """Batched FK over T frames (see the class docstring for shapes)."""
-        T = len(theta)
-        Rb = np.empty((T, self.nb, 3, 3))
-        xb = np.empty((T, self.nb, 3))
-        axes = np.empty((T, self.H, 3))
-        anchors = np.empty((T, self.H, 3))
-        Rb[:, 0] = np.eye(3)
-        xb[:, 0] = 0.0
-        for b in range(1, self.nb):
-            if b == 1:
-                R, x = root_rot, root_pos
-            else:
-                p = self.parent[b]
-                Rp = Rb[:, p]
-                x = xb[:, p] + Rp @ self.body_offset[b]
-                R = Rp @ self.body_quat_rot[b] if self.body_has_rot[b] else Rp
-            for j in self.body_hinges[b]:
-                anchors[:, j] = x + R @ self.hinge_pos[j] if self.hinge_pos[j].any() else x
-                i = self.hinge_index[j]
-                if i < 0:
-                    axes[:, j] = R @ self.hinge_axis[j]
-                    R = R @ hinge_mat(self.hinge_axis[j], theta[:, j])
-                    continue
-                # Axis-aligned hinge: the world axis is a column of R, and
-                # R @ H(theta) only mixes the two other columns.
-                sign = self.hinge_sign[j]
-                axes[:, j] = sign * R[:, :, i]
-                c, s = np.cos(theta[:, j])[:, None], (sign * np.sin(theta[:, j]))[:, None]
-                k1, k2 = (i + 1) % 3, (i + 2) % 3
-                col1, col2 = R[:, :, k1], R[:, :, k2]
-                R = R.copy()
-                R[:, :, k1] = c * col1 + s * col2
-                R[:, :, k2] = c * col2 - s * col1
-            Rb[:, b] = R
-            xb[:, b] = x
-        pts = xb[:, self.point_bodies] + np.einsum(
-            "tpij,pj->tpi", Rb[:, self.point_bodies], self.point_offsets)
-        return Kinematics(Rb, xb, axes, anchors, pts)
+        T, P = len(theta), len(self.point_bodies)
+        kin = Kinematics(np.empty((T, self.nb, 3, 3)), np.empty((T, self.nb, 3)),
+                         np.empty((T, self.H, 3)), np.empty((T, self.H, 3)),
+                         np.empty((T, P, 3)))
+        _forward_batch(_f64(root_pos), _f64(root_rot), _f64(theta), self.arrays,
+                       kin.body_rot, kin.body_pos, kin.axes, kin.anchors, kin.points)
+        return kin
 
     def jacobian(self, kin: Kinematics, root_pos: np.ndarray) -> np.ndarray:
         """(T, P, 3, nv) Jacobian of every point w.r.t. (dx, dw, dtheta)."""
-        pts = kin.points
-        T, P, _ = pts.shape
+        T, P, _ = kin.points.shape
         J = np.zeros((T, P, 3, self.nv))
-        J[:, :, 0, 0] = J[:, :, 1, 1] = J[:, :, 2, 2] = 1.0
-        r = pts - root_pos[:, None, :]
-        # e_i x r: columns of the cross-product matrix -[r]x.
-        J[:, :, 0, 4], J[:, :, 0, 5] = r[..., 2], -r[..., 1]
-        J[:, :, 1, 3], J[:, :, 1, 5] = -r[..., 2], r[..., 0]
-        J[:, :, 2, 3], J[:, :, 2, 4] = r[..., 1], -r[..., 0]
-        # Only (hinge, point) pairs where the hinge moves the point.
-        jj, pp = self.pair_hinge, self.pair_point
-        a = kin.axes[:, jj]
-        lv = pts[:, pp] - kin.anchors[:, jj]
-        cols = np.stack([a[..., 1] * lv[..., 2] - a[..., 2] * lv[..., 1],
-                         a[..., 2] * lv[..., 0] - a[..., 0] * lv[..., 2],
-                         a[..., 0] * lv[..., 1] - a[..., 1] * lv[..., 0]], axis=0)
-        J[:, pp, :, 6 + jj] = cols.transpose(2, 1, 0)
+        _jacobian_batch(_f64(root_pos), kin.axes, kin.anchors, kin.points, self.arrays, J)
         return J
+
+    def fit_iteration(self, frames: np.ndarray, state: tuple[np.ndarray, np.ndarray, np.ndarray],
+                      nbr_pos: np.ndarray, nbr_theta: np.ndarray, mu: np.ndarray,
+                      active: np.ndarray, targets: np.ndarray, weights: np.ndarray,
+                      floor: np.ndarray | None, dofs: np.ndarray, fit: PointFit) -> None:
+        """One projected Levenberg-Marquardt iteration on each frame of ``frames``.
+
+        Per frame t, with the first K points as keypoints and the rest as floor
+        points, it decreases
+
+            E(q) = sum_k w_k |p_k(q) - x_tk|^2 + floor_weight sum_c min(0, z_c(q) - f_t)^2
+                 + reg |theta|^2 + smooth (|theta - theta_nbr|^2 + |x_root - x_nbr|^2)
+
+        by the Gauss-Newton step over the tangent coordinates ``dofs``,
+        ``(H + mu diag(H) + 1e-6 mu) delta = -g``, with H = J^T W J + the
+        regularisers (J sparse: a point moves only with its ancestor hinges,
+        so the normal matrix is accumulated point by point over those columns
+        only). Hinges at a bound whose gradient pushes outwards are frozen
+        (active set), the step is scaled to ``max_step`` and projected onto
+        the limits. The step is kept if E decreases (then mu *= 0.3, else
+        mu *= 8, mu in [1e-7, 1e6]); a frame leaves ``active`` when an accepted
+        step decreased E by less than ``tol`` E + 1e-10 or moved less than
+        ``step_tol``, or when mu reaches 1e6.
+
+        Args:
+            frames: (n,) int frame indices to iterate on.
+            state: (root_pos (T, 3), root_rot (T, 3, 3), theta (T, H)), updated in place.
+            nbr_pos, nbr_theta: (n, 3), (n, H) the smoothness targets of ``frames``.
+            mu: (T,) damping, updated in place. active: (T,) bool, updated in place.
+            targets: (T, K, 3) keypoint targets (m). weights: (K,) keypoint weights.
+            floor: (T,) lowest allowed height of the floor points (m), or None
+                (no floor term).
+            dofs: tangent coordinates that move (indices into the nv of (dx, dw, dtheta)).
+            fit: the objective's weights and the stopping rules.
+        """
+        root_pos, root_rot, theta = state
+        K = targets.shape[1]
+        col_map = np.full(self.nv, -1, dtype=np.int64)
+        col_map[dofs] = np.arange(len(dofs))
+        use_floor = floor is not None
+        fl = _f64(floor) if use_floor else np.zeros(len(theta))
+        _fit_iteration(frames.astype(np.int64), root_pos, root_rot, theta, _f64(nbr_pos),
+                       _f64(nbr_theta), mu, active, _f64(targets), _f64(weights), K, fl,
+                       use_floor, col_map, self.arrays, fit.reg, fit.smooth, fit.floor_weight,
+                       fit.max_step, fit.tol, fit.step_tol)
+
+
+def _f64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------
+# Compiled kernels (numba). The solver's work is many tiny per-frame problems
+# (a 20-body chain, a 52x52 normal system) on data-dependent subsets of
+# frames: as vectorised numpy each step costs a few hundred array operations
+# whose per-call overhead dwarfs the arithmetic, so the kernels loop over
+# frames in compiled code instead. cache=True keeps the machine code on disk
+# (compiled once per installation, for any clip length).
+# ---------------------------------------------------------------------------
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def _rodrigues(ax, ay, az, angle, out):
+    """out (3, 3) = rotation about the unit axis (ax, ay, az) by ``angle``:
+    c I + s [a]x + (1 - c) a a^T."""
+    c, s = np.cos(angle), np.sin(angle)
+    v = 1.0 - c
+    out[0, 0], out[0, 1], out[0, 2] = c + v * ax * ax, v * ax * ay - s * az, v * ax * az + s * ay
+    out[1, 0], out[1, 1], out[1, 2] = v * ay * ax + s * az, c + v * ay * ay, v * ay * az - s * ax
+    out[2, 0], out[2, 1], out[2, 2] = v * az * ax - s * ay, v * az * ay + s * ax, c + v * az * az
+
+
+@_jit
+def _forward_frame(rp, rr, th, arrays, Rb, xb, axes, anchors, pts):
+    """FK of one frame into Rb (B, 3, 3), xb (B, 3), axes/anchors (H, 3), pts (P, 3).
+
+    ``arrays`` = (parent, body_offset, body_rot, hinge_start, hinge_axis,
+    hinge_pos, point_body, point_offset, anc_ptr, anc_idx, lower, upper).
+    """
+    parent, body_offset, body_rot, hinge_start, hinge_axis, hinge_pos = arrays[:6]
+    point_body, point_offset = arrays[6], arrays[7]
+    nbody = parent.shape[0]
+    Hm = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    for i in range(3):
+        xb[0, i] = 0.0
+        for k in range(3):
+            Rb[0, i, k] = 1.0 if i == k else 0.0
+    for b in range(1, nbody):
+        if b == 1:
+            for i in range(3):
+                xb[1, i] = rp[i]
+                for k in range(3):
+                    Rb[1, i, k] = rr[i, k]
+        else:
+            p = parent[b]
+            for i in range(3):
+                xb[b, i] = xb[p, i] + (Rb[p, i, 0] * body_offset[b, 0]
+                                       + Rb[p, i, 1] * body_offset[b, 1]
+                                       + Rb[p, i, 2] * body_offset[b, 2])
+                for k in range(3):
+                    Rb[b, i, k] = (Rb[p, i, 0] * body_rot[b, 0, k] + Rb[p, i, 1] * body_rot[b, 1, k]
+                                   + Rb[p, i, 2] * body_rot[b, 2, k])
+        for j in range(hinge_start[b], hinge_start[b + 1]):
+            ax, ay, az = hinge_axis[j, 0], hinge_axis[j, 1], hinge_axis[j, 2]
+            for i in range(3):
+                anchors[j, i] = xb[b, i] + (Rb[b, i, 0] * hinge_pos[j, 0]
+                                            + Rb[b, i, 1] * hinge_pos[j, 1]
+                                            + Rb[b, i, 2] * hinge_pos[j, 2])
+                axes[j, i] = Rb[b, i, 0] * ax + Rb[b, i, 1] * ay + Rb[b, i, 2] * az
+            # R <- R H(a, theta).
+            _rodrigues(ax, ay, az, th[j], Hm)
+            for i in range(3):
+                for k in range(3):
+                    tmp[i, k] = (Rb[b, i, 0] * Hm[0, k] + Rb[b, i, 1] * Hm[1, k]
+                                 + Rb[b, i, 2] * Hm[2, k])
+            for i in range(3):
+                for k in range(3):
+                    Rb[b, i, k] = tmp[i, k]
+    for q in range(point_body.shape[0]):
+        b = point_body[q]
+        for i in range(3):
+            pts[q, i] = xb[b, i] + (Rb[b, i, 0] * point_offset[q, 0]
+                                    + Rb[b, i, 1] * point_offset[q, 1]
+                                    + Rb[b, i, 2] * point_offset[q, 2])
+
+
+@_jit
+def _forward_batch(root_pos, root_rot, theta, arrays, Rb, xb, axes, anchors, pts):
+    for t in range(theta.shape[0]):
+        _forward_frame(root_pos[t], root_rot[t], theta[t], arrays, Rb[t], xb[t], axes[t],
+                       anchors[t], pts[t])
+
+
+@_jit
+def _point_columns(q, rp, axes, anchors, pts, arrays, Jl):
+    """Nonzero Jacobian columns of point q into Jl (3, 6 + its ancestor hinges):
+    d/dx = I, d/dw_i = e_i x (p - x_root), d/dtheta_j = a_j x (p - c_j)."""
+    anc_ptr, anc_idx = arrays[8], arrays[9]
+    rx, ry, rz = pts[q, 0] - rp[0], pts[q, 1] - rp[1], pts[q, 2] - rp[2]
+    for i in range(3):
+        for k in range(6):
+            Jl[i, k] = 0.0
+        Jl[i, i] = 1.0
+    Jl[1, 3], Jl[2, 3] = -rz, ry
+    Jl[0, 4], Jl[2, 4] = rz, -rx
+    Jl[0, 5], Jl[1, 5] = -ry, rx
+    n = 6
+    for m in range(anc_ptr[q], anc_ptr[q + 1]):
+        j = anc_idx[m]
+        lx, ly, lz = pts[q, 0] - anchors[j, 0], pts[q, 1] - anchors[j, 1], pts[q, 2] - anchors[j, 2]
+        a0, a1, a2 = axes[j, 0], axes[j, 1], axes[j, 2]
+        Jl[0, n] = a1 * lz - a2 * ly
+        Jl[1, n] = a2 * lx - a0 * lz
+        Jl[2, n] = a0 * ly - a1 * lx
+        n += 1
+    return n
+
+
+@_jit
+def _jacobian_batch(root_pos, axes, anchors, pts, arrays, J):
+    anc_ptr, anc_idx = arrays[8], arrays[9]
+    Jl = np.empty((3, J.shape[3]))
+    for t in range(pts.shape[0]):
+        for q in range(pts.shape[1]):
+            n = _point_columns(q, root_pos[t], axes[t], anchors[t], pts[t], arrays, Jl)
+            for c in range(n):
+                col = c if c < 6 else 6 + anc_idx[anc_ptr[q] + c - 6]
+                for i in range(3):
+                    J[t, q, i, col] = Jl[i, c]
+
+
+@_jit
+def _frame_cost(pts, rp, th, x, w, K, use_floor, f, nbr_pos, nbr_th, reg, smooth, fw):
+    c = 0.0
+    for k in range(K):
+        if w[k] != 0.0:
+            c += w[k] * ((pts[k, 0] - x[k, 0]) ** 2 + (pts[k, 1] - x[k, 1]) ** 2
+                         + (pts[k, 2] - x[k, 2]) ** 2)
+    if use_floor:
+        for q in range(K, pts.shape[0]):
+            z = pts[q, 2] - f
+            if z < 0.0:
+                c += fw * z * z
+    for j in range(th.shape[0]):
+        c += reg * th[j] * th[j] + smooth * (th[j] - nbr_th[j]) ** 2
+    for i in range(3):
+        c += smooth * (rp[i] - nbr_pos[i]) ** 2
+    return c
+
+
+@_jit
+def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, active, targets,
+                   weights, K, floor, use_floor, col_map, arrays, reg, smooth, fw, max_step,
+                   tol, step_tol):
+    """See :meth:`HingeTree.fit_iteration`."""
+    parent, hinge_axis, point_body = arrays[0], arrays[4], arrays[6]
+    anc_ptr, anc_idx, lower, upper = arrays[8], arrays[9], arrays[10], arrays[11]
+    nbody, H, P = parent.shape[0], hinge_axis.shape[0], point_body.shape[0]
+    nv = 6 + H
+    nd = 0
+    for d in range(nv):
+        if col_map[d] >= 0:
+            nd += 1
+    Rb, xb = np.empty((nbody, 3, 3)), np.empty((nbody, 3))
+    axes, anchors, pts = np.empty((H, 3)), np.empty((H, 3)), np.empty((P, 3))
+    pts2 = np.empty((P, 3))
+    Jl = np.empty((3, nv))
+    cols = np.empty(nv, dtype=np.int64)
+    A = np.empty((nd, nd))
+    g = np.empty(nd)
+    delta = np.empty(nv)
+    rp2, rr2, th2 = np.empty(3), np.empty((3, 3)), np.empty(H)
+    Rw = np.empty((3, 3))
+    for n in range(frames.shape[0]):
+        t = frames[n]
+        rp, rr, th = root_pos[t], root_rot[t], theta[t]
+        x, f = targets[t], floor[t]
+        _forward_frame(rp, rr, th, arrays, Rb, xb, axes, anchors, pts)
+        c0 = _frame_cost(pts, rp, th, x, weights, K, use_floor, f, nbr_pos[n], nbr_theta[n],
+                         reg, smooth, fw)
+        # Normal equations over the reduced coordinates (upper triangle, then mirrored).
+        A[:, :] = 0.0
+        g[:] = 0.0
+        for q in range(P):
+            if q < K:
+                wq = weights[q]
+                if wq == 0.0:
+                    continue
+                r0, r1, r2 = pts[q, 0] - x[q, 0], pts[q, 1] - x[q, 1], pts[q, 2] - x[q, 2]
+                row0 = 0
+            else:
+                if not use_floor:
+                    break
+                z = pts[q, 2] - f
+                if z >= 0.0:
+                    continue
+                wq, r0, r1, r2 = fw, 0.0, 0.0, z
+                row0 = 2  # only the height row
+            m = _point_columns(q, rp, axes, anchors, pts, arrays, Jl)
+            for c in range(m):
+                cols[c] = col_map[c] if c < 6 else col_map[6 + anc_idx[anc_ptr[q] + c - 6]]
+            for a in range(m):
+                ia = cols[a]
+                if ia < 0:
+                    continue
+                ga = 0.0
+                for i in range(row0, 3):
+                    ga += Jl[i, a] * (r0 if i == 0 else (r1 if i == 1 else r2))
+                g[ia] += wq * ga
+                for b in range(m):
+                    ib = cols[b]
+                    if ib < ia:
+                        continue
+                    s = 0.0
+                    for i in range(row0, 3):
+                        s += Jl[i, a] * Jl[i, b]
+                    A[ia, ib] += wq * s
+        for a in range(nd):
+            for b in range(a):
+                A[a, b] = A[b, a]
+        for d in range(nv):
+            i = col_map[d]
+            if i < 0:
+                continue
+            if d < 3:
+                A[i, i] += smooth
+                g[i] += smooth * (rp[d] - nbr_pos[n, d])
+            elif d >= 6:
+                j = d - 6
+                A[i, i] += reg + smooth
+                g[i] += reg * th[j] + smooth * (th[j] - nbr_theta[n, j])
+        for i in range(nd):
+            A[i, i] += mu[t] * (A[i, i] + 1e-6)
+        # Active set: hinges at a bound whose gradient pushes outwards are frozen.
+        for d in range(6, nv):
+            i = col_map[d]
+            if i < 0:
+                continue
+            j = d - 6
+            if (th[j] <= lower[j] + 1e-9 and g[i] > 0) or (th[j] >= upper[j] - 1e-9 and g[i] < 0):
+                for k in range(nd):
+                    A[i, k] = 0.0
+                    A[k, i] = 0.0
+                A[i, i] = 1.0
+                g[i] = 0.0
+        # Cholesky A = L L^T in place (lower triangle), then delta = -A^-1 g.
+        for j in range(nd):
+            s = A[j, j]
+            for k in range(j):
+                s -= A[j, k] * A[j, k]
+            if not s > 0.0:
+                s = np.nan  # not positive definite: the step is rejected below
+            A[j, j] = np.sqrt(s)
+            for i in range(j + 1, nd):
+                s2 = A[i, j]
+                for k in range(j):
+                    s2 -= A[i, k] * A[j, k]
+                A[i, j] = s2 / A[j, j]
+        for i in range(nd):
+            s = -g[i]
+            for k in range(i):
+                s -= A[i, k] * g[k]
+            g[i] = s / A[i, i]
+        for i in range(nd - 1, -1, -1):
+            s = g[i]
+            for k in range(i + 1, nd):
+                s -= A[k, i] * g[k]
+            g[i] = s / A[i, i]
+        big = 0.0
+        finite = True
+        for d in range(nv):
+            delta[d] = g[col_map[d]] if col_map[d] >= 0 else 0.0
+            finite = finite and np.isfinite(delta[d])
+            if d >= 3 and abs(delta[d]) > big:
+                big = abs(delta[d])
+        scale = min(1.0, max_step / max(big, 1e-12))
+        largest = 0.0
+        for d in range(nv):
+            delta[d] *= scale
+            largest = max(largest, abs(delta[d]))
+        # Trial point: x + dx, exp([dw]x) R, clip(theta + dtheta).
+        for i in range(3):
+            rp2[i] = rp[i] + delta[i]
+        wx, wy, wz = delta[3], delta[4], delta[5]
+        ang = np.sqrt(wx * wx + wy * wy + wz * wz)
+        inv = 1.0 / max(ang, 1e-12)
+        _rodrigues(wx * inv, wy * inv, wz * inv, ang, Rw)
+        for i in range(3):
+            for k in range(3):
+                rr2[i, k] = Rw[i, 0] * rr[0, k] + Rw[i, 1] * rr[1, k] + Rw[i, 2] * rr[2, k]
+        for j in range(H):
+            th2[j] = min(max(th[j] + delta[6 + j], lower[j]), upper[j])
+        _forward_frame(rp2, rr2, th2, arrays, Rb, xb, axes, anchors, pts2)
+        c1 = _frame_cost(pts2, rp2, th2, x, weights, K, use_floor, f, nbr_pos[n], nbr_theta[n],
+                         reg, smooth, fw)
+        ok = finite and c1 < c0
+        if ok:
+            rp[:] = rp2
+            rr[:, :] = rr2
+            th[:] = th2
+        mu[t] = min(max(mu[t] * (0.3 if ok else 8.0), 1e-7), 1e6)
+        if (ok and (c0 - c1 < tol * c0 + 1e-10 or largest < step_tol)) or mu[t] >= 1e6:
+            active[t] = False

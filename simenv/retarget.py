@@ -26,8 +26,9 @@ Solver (all frames at once, numpy):
    clip this guess is already exact (< 0.1 mm) on most frames.
 2. **Keypoint refinement** of the other frames (joint limits or bone-length
    noise make them inexact): batched projected Levenberg-Marquardt with
-   analytic Jacobians (:mod:`simenv.ik`), one 52x52 normal system per frame,
-   built and solved for all active frames at once with batched BLAS/LAPACK;
+   analytic Jacobians (:mod:`simenv.ik`), one 52x52 normal system per frame
+   (accumulated over each point's ancestor joints only, Cholesky-solved in a
+   compiled per-frame kernel, one call per iteration for all active frames);
    per-frame adaptive damping with accept/reject; limits by projection with an
    active set (hinges held at a bound drop out of the step); steps bounded to
    ``max_step`` radians; the smoothness term uses the neighbours of the
@@ -52,7 +53,7 @@ from simenv.humanoid import (
     fit_humanoid,
     pelvis_frames,
 )
-from simenv.ik import HingeTree, Kinematics, hinge_mat, rotvec_mat
+from simenv.ik import HingeTree, PointFit, hinge_mat, rotvec_mat
 from simenv.motion import Interaction, Motion
 
 #: Keypoints without which the root cannot be placed.
@@ -76,7 +77,6 @@ class RetargetOptions:
         accept: frames whose analytic initial guess already fits every keypoint
             within this distance (m), with the soles above the floor, are kept
             as they are.
-        chunk: frames per batched linear-algebra block (memory bound).
         floor: apply the floor constraint.
     """
 
@@ -88,7 +88,6 @@ class RetargetOptions:
     tol: float = 2e-3
     accept: float = 1e-4
     step_tol: float = 1e-4
-    chunk: int = 1024
     floor: bool = True
 
 
@@ -514,127 +513,40 @@ def _toe_lift(tree: HingeTree, b: int, Rp: np.ndarray, x: np.ndarray, corners: n
 # ---------------------------------------------------------------------------
 
 
-def _neighbour_mean(a: np.ndarray) -> np.ndarray:
-    if len(a) == 1:
-        return a.copy()
-    out = np.empty_like(a)
-    out[1:-1] = 0.5 * (a[:-2] + a[2:])
-    out[0], out[-1] = a[1], a[-2]
-    return out
-
-
-class _Solver:
-    def __init__(self, prob: _Problem, targets: np.ndarray, weights: np.ndarray,
-                 floor: np.ndarray | None, opts: RetargetOptions, dofs: np.ndarray) -> None:
-        self.p, self.x, self.w, self.f, self.o = prob, targets, weights, floor, opts
-        self.dofs = dofs
-
-    def cost(self, kin: Kinematics, idx: np.ndarray, root_pos: np.ndarray, theta: np.ndarray,
-             nbr_pos: np.ndarray, nbr_th: np.ndarray) -> np.ndarray:
-        K, o = self.p.K, self.o
-        r = kin.points[:, :K] - self.x[idx]
-        c = np.einsum("tkc,tkc,k->t", r, r, self.w)
-        if self.f is not None:
-            z = np.minimum(kin.points[:, K:, 2] - self.f[idx, None], 0.0)
-            c += o.floor_weight * np.sum(z * z, axis=1)
-        c += o.reg * np.sum(theta * theta, axis=1)
-        c += o.smooth * (np.sum((theta - nbr_th) ** 2, axis=1)
-                         + np.sum((root_pos - nbr_pos) ** 2, axis=1))
-        return c
-
-    def step(self, kin: Kinematics, idx: np.ndarray, root_pos: np.ndarray, theta: np.ndarray,
-             nbr_pos: np.ndarray, nbr_th: np.ndarray, mu: np.ndarray) -> np.ndarray:
-        """Damped, limit-aware Gauss-Newton step (T, nv) for the frames ``idx``."""
-        tree, K, o = self.p.tree, self.p.K, self.o
-        dofs = self.dofs
-        J = tree.jacobian(kin, root_pos)
-        if len(dofs) < tree.nv:
-            J = J[..., dofs]
-        T, nv = len(idx), len(dofs)
-        hinge = dofs[dofs >= 6] - 6
-        nroot = int(np.sum(dofs < 6))
-        theta = theta[:, hinge]
-        nbr_th = nbr_th[:, hinge]
-        sw = np.sqrt(self.w)
-        Jk = (J[:, :K] * sw[None, :, None, None]).reshape(T, 3 * K, nv)
-        rk = ((kin.points[:, :K] - self.x[idx]) * sw[None, :, None]).reshape(T, 3 * K)
-        Jt = np.swapaxes(Jk, 1, 2)
-        Hm = Jt @ Jk
-        g = (Jt @ rk[..., None])[..., 0]
-        if self.f is not None:
-            z = kin.points[:, K:, 2] - self.f[idx, None]
-            act = z < 0
-            if act.any():
-                Jf = J[:, K:, 2, :] * act[..., None]
-                Hm += o.floor_weight * np.swapaxes(Jf, 1, 2) @ Jf
-                g += o.floor_weight * np.einsum("tci,tc->ti", Jf, np.where(act, z, 0.0))
-        hd = np.arange(nroot, nv)
-        Hm[:, hd, hd] += o.reg + o.smooth
-        g[:, nroot:] += o.reg * theta + o.smooth * (theta - nbr_th)
-        if nroot:
-            Hm[:, [0, 1, 2], [0, 1, 2]] += o.smooth
-            g[:, :3] += o.smooth * (root_pos - nbr_pos)
-        # Active set: hinges at a bound whose gradient pushes outwards are frozen.
-        lo = (theta <= tree.lower[hinge] + 1e-9) & (g[:, nroot:] > 0)
-        hi = (theta >= tree.upper[hinge] - 1e-9) & (g[:, nroot:] < 0)
-        frozen = np.concatenate([np.zeros((T, nroot), bool), lo | hi], axis=1)
-        diag = np.einsum("tii->ti", Hm).copy()
-        Hm[:, np.arange(nv), np.arange(nv)] += mu[:, None] * (diag + 1e-6)
-        if frozen.any():
-            keep = ~frozen
-            Hm *= keep[:, :, None]
-            Hm *= keep[:, None, :]
-            Hm[:, np.arange(nv), np.arange(nv)] += frozen
-            g *= keep
-        step = -np.linalg.solve(Hm, g[..., None])[..., 0]
-        delta = np.zeros((T, tree.nv))
-        delta[:, dofs] = step
-        big = np.abs(delta[:, 3:]).max(axis=1)
-        delta *= np.minimum(1.0, o.max_step / np.maximum(big, 1e-12))[:, None]
-        return delta
+def _neighbour_mean(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(n, ...) mean of the two neighbours of each frame ``idx`` of ``a`` (T, ...);
+    the end frames take their one neighbour, a one-frame clip itself."""
+    T = len(a)
+    before = np.where(idx == 0, min(1, T - 1), idx - 1)
+    after = np.where(idx == T - 1, max(T - 2, 0), idx + 1)
+    return 0.5 * (a[before] + a[after])
 
 
 def _solve(prob: _Problem, targets: np.ndarray, weights: np.ndarray, floor: np.ndarray | None,
            state: tuple[np.ndarray, np.ndarray, np.ndarray], active: np.ndarray,
            dofs: np.ndarray, opts: RetargetOptions) -> int:
     """Refine ``state`` (root_pos, root_rot, theta; updated in place) on the
-    frames ``active`` over the tangent coordinates ``dofs``. Returns the
+    frames ``active`` over the tangent coordinates ``dofs``
+    (:meth:`simenv.ik.HingeTree.fit_iteration` per iteration). Returns the
     number of iterations run."""
-    tree = prob.tree
     root_pos, root_rot, theta = state
-    T = len(theta)
-    solver = _Solver(prob, targets, weights, floor, opts, dofs)
-    mu = np.full(T, 1e-3)
+    fit = PointFit(reg=opts.reg, smooth=opts.smooth, floor_weight=opts.floor_weight,
+                   max_step=opts.max_step, tol=opts.tol, step_tol=opts.step_tol)
+    mu = np.full(len(theta), 1e-3)
     active = active.copy()
     iters = 0
     for _ in range(opts.iterations):
-        if not active.any():
+        idx = np.flatnonzero(active)
+        if not len(idx):
             break
         if _DEBUG:
-            print("active", int(active.sum()))
+            print("active", len(idx))
         iters += 1
-        nbr_pos, nbr_th = _neighbour_mean(root_pos), _neighbour_mean(theta)
-        for start in range(0, T, opts.chunk):
-            idx = np.flatnonzero(active[start:start + opts.chunk]) + start
-            if not len(idx):
-                continue
-            rp, rr, th = root_pos[idx], root_rot[idx], theta[idx]
-            kin = tree.forward(rp, rr, th)
-            c0 = solver.cost(kin, idx, rp, th, nbr_pos[idx], nbr_th[idx])
-            delta = solver.step(kin, idx, rp, th, nbr_pos[idx], nbr_th[idx], mu[idx])
-            rp2 = rp + delta[:, :3]
-            rr2 = rotvec_mat(delta[:, 3:6]) @ rr
-            th2 = np.clip(th + delta[:, 6:], tree.lower, tree.upper)
-            kin2 = tree.forward(rp2, rr2, th2)
-            c1 = solver.cost(kin2, idx, rp2, th2, nbr_pos[idx], nbr_th[idx])
-            ok = c1 < c0
-            acc = idx[ok]
-            root_pos[acc], root_rot[acc], theta[acc] = rp2[ok], rr2[ok], th2[ok]
-            mu[idx] = np.where(ok, mu[idx] * 0.3, mu[idx] * 8.0)
-            mu[idx] = np.clip(mu[idx], 1e-7, 1e6)
-            small = np.abs(delta).max(axis=1) < opts.step_tol
-            done = (ok & ((c0 - c1 < opts.tol * c0 + 1e-10) | small)) | (mu[idx] >= 1e6)
-            active[idx[done]] = False
+        # Jacobi sweep: every frame's smoothness target comes from the
+        # previous iterate, so the frames are independent within an iteration.
+        prob.tree.fit_iteration(idx, state, _neighbour_mean(root_pos, idx),
+                                _neighbour_mean(theta, idx), mu, active, targets, weights,
+                                floor, dofs, fit)
     return iters
 
 
