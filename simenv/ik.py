@@ -109,6 +109,84 @@ def rotvec_mat(v: np.ndarray) -> np.ndarray:
     return axis_angle_mat(axis, ang)
 
 
+def swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Smallest rotation turning ``R @ v0`` onto the direction ``u``, applied to R.
+
+    Args:
+        R: (T, 3, 3) rotations. v0: (3,) body vector. u: (T, 3) world directions.
+    Returns:
+        (T, 3, 3) ``exp([a]x phi) R`` with a = unit(R v0 x u) (x when parallel) and
+        phi the angle between R v0 and u.
+    """
+    out = np.empty((len(R), 3, 3))
+    _swing_batch(_f64(R), _f64(v0), _f64(u), out)
+    return out
+
+
+def _frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3, 3) orthonormal frame with columns unit(a), unit(b's part normal to a), their cross."""
+    e1 = a / max(np.linalg.norm(a), 1e-12)
+    e2 = b - (b @ e1) * e1
+    e2 = e2 / max(np.linalg.norm(e2), 1e-12)
+    return np.stack([e1, e2, np.cross(e1, e2)], axis=-1)
+
+
+def two_vector(v0: np.ndarray, w0: np.ndarray, u: np.ndarray, wt: np.ndarray) -> np.ndarray:
+    """World rotations taking the body vector v0 exactly onto u and w0 as close as
+    possible to wt: ``F(u, wt) F(v0, w0)^T`` with F the frame of :func:`_frame`.
+
+    Args:
+        v0, w0: (3,) body vectors. u, wt: (T, 3) world vectors.
+    Returns:
+        (T, 3, 3) rotations.
+    """
+    out = np.empty((len(u), 3, 3))
+    _two_vector_batch(_f64(_frame(v0, w0).T), _f64(u), _f64(wt), out)
+    return out
+
+
+def compose_hinges(R: np.ndarray, axes: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """``R H(a_1, angles_1) ... H(a_n, angles_n)`` per frame.
+
+    Args:
+        R: (T, 3, 3). axes: (n, 3) unit hinge axes (body frame). angles: (T, n) radians.
+    Returns:
+        (T, 3, 3).
+    """
+    out = _f64(R).copy()
+    _compose_batch(out, _f64(axes), _f64(angles.reshape(len(R), -1)))
+    return out
+
+
+def euler_branches(R: np.ndarray, order: tuple[int, int, int], signs: np.ndarray,
+                   lower: np.ndarray, upper: np.ndarray,
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Both intrinsic Tait-Bryan decompositions R = R_i(a) R_j(b) R_k(c), per frame.
+
+    The two solutions are (a, b, c) and (a + pi, pi - b, c + pi) with
+    b = asin(eps R_ik), a = atan2(-eps R_jk, R_kk), c = atan2(-eps R_ij, R_ii),
+    eps = +1 for an even (i, j, k), -1 for an odd one. The first n = len(signs)
+    angles are a joint's hinge angles (times the hinge axis signs), wrapped
+    into the 2 pi window centred on the joint range; the others are dropped.
+
+    Args:
+        R: (T, 3, 3) local rotations. order: axis indices (i, j, k), a permutation.
+        signs: (n,) +-1 sign of each hinge axis. lower, upper: (n,) limits, radians.
+    Returns:
+        sols (T, 2, n) wrapped hinge angles clipped to the limits; viol (T, 2) sum
+        of the limit violations before clipping (radians); dropped (T, 2) sum of
+        |dropped angle| (wrapped to [-pi, pi)).
+    """
+    T, n = len(R), len(signs)
+    eps = 1.0 if tuple(order) in ((0, 1, 2), (1, 2, 0), (2, 0, 1)) else -1.0
+    finite = np.isfinite(lower + upper)
+    centre = np.where(finite, (lower + upper) / 2, 0.0)
+    sols, viol, dropped = np.empty((T, 2, n)), np.empty((T, 2)), np.empty((T, 2))
+    _euler_batch(_f64(R), np.asarray(order, dtype=np.int64), eps, _f64(signs), _f64(lower),
+                 _f64(upper), _f64(centre), sols, viol, dropped)
+    return sols, viol, dropped
+
+
 @dataclass
 class Kinematics:
     """FK result for T frames.
@@ -241,6 +319,13 @@ class HingeTree:
         _forward_batch(_f64(root_pos), _f64(root_rot), _f64(theta), self.arrays,
                        kin.body_rot, kin.body_pos, kin.axes, kin.anchors, kin.points)
         return kin
+
+    def points(self, root_pos: np.ndarray, root_rot: np.ndarray, theta: np.ndarray,
+               ) -> np.ndarray:
+        """(T, P, 3) world positions of the points only (FK without keeping the bodies)."""
+        pts = np.empty((len(theta), len(self.point_bodies), 3))
+        _points_batch(_f64(root_pos), _f64(root_rot), _f64(theta), self.arrays, pts)
+        return pts
 
     def jacobian(self, kin: Kinematics, root_pos: np.ndarray) -> np.ndarray:
         """(T, P, 3, nv) Jacobian of every point w.r.t. (dx, dw, dtheta)."""
@@ -382,6 +467,15 @@ def _forward_batch(root_pos, root_rot, theta, arrays, Rb, xb, axes, anchors, pts
     for t in range(theta.shape[0]):
         _forward_frame(root_pos[t], root_rot[t], theta[t], arrays, Rb[t], xb[t], axes[t],
                        anchors[t], pts[t])
+
+
+@_jit
+def _points_batch(root_pos, root_rot, theta, arrays, pts):
+    nbody, H = arrays[0].shape[0], arrays[4].shape[0]
+    Rb, xb = np.empty((nbody, 3, 3)), np.empty((nbody, 3))
+    axes, anchors = np.empty((H, 3)), np.empty((H, 3))
+    for t in range(theta.shape[0]):
+        _forward_frame(root_pos[t], root_rot[t], theta[t], arrays, Rb, xb, axes, anchors, pts[t])
 
 
 @_jit
@@ -594,3 +688,88 @@ def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, ac
         mu[t] = min(max(mu[t] * (0.3 if ok else 8.0), 1e-7), 1e6)
         if (ok and (c0 - c1 < tol * c0 + 1e-10 or largest < step_tol)) or mu[t] >= 1e6:
             active[t] = False
+
+
+@_jit
+def _swing_batch(R, v0, u, out):
+    """See :func:`swing`."""
+    M = np.empty((3, 3))
+    c = np.empty(3)
+    for t in range(R.shape[0]):
+        for i in range(3):
+            c[i] = R[t, i, 0] * v0[0] + R[t, i, 1] * v0[1] + R[t, i, 2] * v0[2]
+        nc = max(np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), 1e-12)
+        nu = max(np.sqrt(u[t, 0] * u[t, 0] + u[t, 1] * u[t, 1] + u[t, 2] * u[t, 2]), 1e-12)
+        c0, c1, c2 = c[0] / nc, c[1] / nc, c[2] / nc
+        u0, u1, u2 = u[t, 0] / nu, u[t, 1] / nu, u[t, 2] / nu
+        a0, a1, a2 = c1 * u2 - c2 * u1, c2 * u0 - c0 * u2, c0 * u1 - c1 * u0
+        s = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        ang = np.arctan2(s, c0 * u0 + c1 * u1 + c2 * u2)
+        if s > 1e-9:
+            _rodrigues(a0 / s, a1 / s, a2 / s, ang, M)
+        else:  # parallel (no turn) or antiparallel (half turn about x)
+            _rodrigues(1.0, 0.0, 0.0, ang, M)
+        for i in range(3):
+            for k in range(3):
+                out[t, i, k] = M[i, 0] * R[t, 0, k] + M[i, 1] * R[t, 1, k] + M[i, 2] * R[t, 2, k]
+
+
+@_jit
+def _two_vector_batch(F0T, u, wt, out):
+    """See :func:`two_vector`; F0T = F(v0, w0)^T."""
+    F = np.empty((3, 3))
+    for t in range(u.shape[0]):
+        n1 = max(np.sqrt(u[t, 0] ** 2 + u[t, 1] ** 2 + u[t, 2] ** 2), 1e-12)
+        e0, e1, e2 = u[t, 0] / n1, u[t, 1] / n1, u[t, 2] / n1
+        d = wt[t, 0] * e0 + wt[t, 1] * e1 + wt[t, 2] * e2
+        f0, f1, f2 = wt[t, 0] - d * e0, wt[t, 1] - d * e1, wt[t, 2] - d * e2
+        n2 = max(np.sqrt(f0 * f0 + f1 * f1 + f2 * f2), 1e-12)
+        f0, f1, f2 = f0 / n2, f1 / n2, f2 / n2
+        F[0, 0], F[1, 0], F[2, 0] = e0, e1, e2
+        F[0, 1], F[1, 1], F[2, 1] = f0, f1, f2
+        F[0, 2], F[1, 2], F[2, 2] = e1 * f2 - e2 * f1, e2 * f0 - e0 * f2, e0 * f1 - e1 * f0
+        for i in range(3):
+            for k in range(3):
+                out[t, i, k] = F[i, 0] * F0T[0, k] + F[i, 1] * F0T[1, k] + F[i, 2] * F0T[2, k]
+
+
+@_jit
+def _compose_batch(R, axes, angles):
+    """See :func:`compose_hinges` (R updated in place)."""
+    M = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    for t in range(R.shape[0]):
+        for j in range(axes.shape[0]):
+            _rodrigues(axes[j, 0], axes[j, 1], axes[j, 2], angles[t, j], M)
+            for i in range(3):
+                for k in range(3):
+                    tmp[i, k] = R[t, i, 0] * M[0, k] + R[t, i, 1] * M[1, k] + R[t, i, 2] * M[2, k]
+            R[t] = tmp
+
+
+@_jit
+def _euler_batch(R, order, eps, signs, lower, upper, centre, sols, viol, dropped):
+    """See :func:`euler_branches`."""
+    i, j, k = order[0], order[1], order[2]
+    n = signs.shape[0]
+    ang = np.empty(3)
+    for t in range(R.shape[0]):
+        mid = np.arcsin(min(max(eps * R[t, i, k], -1.0), 1.0))
+        first = np.arctan2(-eps * R[t, j, k], R[t, k, k])
+        last = np.arctan2(-eps * R[t, i, j], R[t, i, i])
+        for br in range(2):
+            if br == 0:
+                ang[0], ang[1], ang[2] = first, mid, last
+            else:
+                ang[0], ang[1], ang[2] = first + np.pi, np.pi - mid, last + np.pi
+            v = 0.0
+            for m in range(n):
+                x = ang[m] * signs[m]
+                x = centre[m] + (x - centre[m] + np.pi) % (2 * np.pi) - np.pi
+                v += max(lower[m] - x, 0.0) + max(x - upper[m], 0.0)
+                sols[t, br, m] = min(max(x, lower[m]), upper[m])
+            d = 0.0
+            for m in range(n, 3):
+                d += abs((ang[m] + np.pi) % (2 * np.pi) - np.pi)
+            viol[t, br] = v
+            dropped[t, br] = d

@@ -40,6 +40,7 @@ Solver (all frames at once, numpy):
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,7 +54,7 @@ from simenv.humanoid import (
     fit_humanoid,
     pelvis_frames,
 )
-from simenv.ik import HingeTree, PointFit, hinge_mat, rotvec_mat
+from simenv.ik import HingeTree, PointFit, compose_hinges, euler_branches, swing, two_vector
 from simenv.motion import Interaction, Motion
 
 #: Keypoints without which the root cannot be placed.
@@ -264,6 +265,18 @@ class _Problem:
                                            kp["right_hip"][None], kp["spine"][None])[0]
 
 
+#: One problem per humanoid: its tree and point tables depend only on the
+#: compiled model, so retargeting many clips onto one body builds them once.
+_PROBLEMS: weakref.WeakKeyDictionary[Humanoid, _Problem] = weakref.WeakKeyDictionary()
+
+
+def _problem(humanoid: Humanoid) -> _Problem:
+    prob = _PROBLEMS.get(humanoid)
+    if prob is None:
+        prob = _PROBLEMS[humanoid] = _Problem(humanoid)
+    return prob
+
+
 def _canonical(motion: Motion) -> Motion:
     canon = motion.to_canonical()
     missing = [k for k in REQUIRED_KEYPOINTS if k not in canon.skeleton.joint_names]
@@ -284,86 +297,30 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
-def _frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    e1 = _unit(a)
-    e2 = _unit(b - np.sum(b * e1, axis=-1, keepdims=True) * e1)
-    return np.stack([e1, e2, np.cross(e1, e2)], axis=-1)
-
-
-def _two_vector(v0: np.ndarray, w0: np.ndarray, u: np.ndarray, wt: np.ndarray) -> np.ndarray:
-    """World rotation taking body vector v0 exactly to u and w0 as close as possible to wt."""
-    F0 = _frame(np.broadcast_to(v0, u.shape), np.broadcast_to(w0, u.shape))
-    return _frame(u, wt) @ np.swapaxes(F0, -1, -2)
-
-
-def _swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Smallest rotation turning R @ v0 onto u, applied to R."""
-    c = _unit(R @ v0)
-    u = _unit(u)
-    axis = np.cross(c, u)
-    s = np.linalg.norm(axis, axis=-1)
-    ang = np.arctan2(s, np.sum(c * u, axis=-1))
-    axis = np.where(s[:, None] > 1e-9, axis / np.maximum(s, 1e-12)[:, None], [1.0, 0, 0])
-    return rotvec_mat(axis * ang[:, None]) @ R
-
-
-_EVEN = {(0, 1, 2), (1, 2, 0), (2, 0, 1)}
-
-
 def _euler_angles(tree: HingeTree, b: int, R_local: np.ndarray) -> np.ndarray:
     """Hinge angles of body b reproducing R_local as well as its hinges can.
 
     Closed-form intrinsic Tait-Bryan decomposition R = R_i(a) R_j(b) R_k(c)
     along the body's hinge axes (completed with the missing axes when the body
-    has fewer than three hinges; their angles are dropped). Of the two
-    solutions (a, b, c) and (a + pi, pi - b, c + pi) the one closer to the
-    joint's limits is kept, then clipped.
+    has fewer than three hinges; their angles are dropped), see
+    :func:`simenv.ik.euler_branches`. Of the two solutions (a, b, c) and
+    (a + pi, pi - b, c + pi) the one closer to the joint's limits is kept
+    (for 3 hinges: chosen over the whole clip), then clipped.
     """
     hinges = tree.body_hinges[b]
     n = len(hinges)
-    idx, signs = [], []
-    for j in hinges:
-        a = tree.hinge_axis[j]
-        i = int(np.argmax(np.abs(a)))
-        idx.append(i)
-        signs.append(np.sign(a[i]))
+    idx = [int(np.argmax(np.abs(tree.hinge_axis[j]))) for j in hinges]
+    signs = np.sign(tree.hinge_axis[hinges, idx])
     idx += [i for i in range(3) if i not in idx]
-    i, j, k = idx
-    eps = 1.0 if (i, j, k) in _EVEN else -1.0
-    R = R_local
-    mid = np.arcsin(np.clip(eps * R[:, i, k], -1.0, 1.0))
-    first = np.arctan2(-eps * R[:, j, k], R[:, k, k])
-    last = np.arctan2(-eps * R[:, i, j], R[:, i, i])
-    sol1 = np.stack([first, mid, last], axis=1)[:, :n] * np.array(signs)
-    sol2 = np.stack([first + np.pi, np.pi - mid, last + np.pi], axis=1)[:, :n] * np.array(signs)
-    lo, hi = tree.lower[hinges], tree.upper[hinges]
-    centre = np.where(np.isfinite(lo + hi), (lo + hi) / 2, 0.0)
-
-    def wrap(x: np.ndarray) -> np.ndarray:
-        return centre + (x - centre + np.pi) % (2 * np.pi) - np.pi
-
-    def violation(x: np.ndarray) -> np.ndarray:
-        return np.sum(np.maximum(lo - x, 0) + np.maximum(x - hi, 0), axis=1)
-
-    sol1, sol2 = wrap(sol1), wrap(sol2)
-    if n < 3:
-        # The dropped angles should vanish for a pose the joint can reach; the
-        # arcsine of the middle angle hides which branch has them vanish.
-        full1 = np.stack([first, mid, last], axis=1)[:, n:]
-        full2 = np.stack([first + np.pi, np.pi - mid, last + np.pi], axis=1)[:, n:]
-
-        def dropped(x: np.ndarray) -> np.ndarray:
-            return np.abs((x + np.pi) % (2 * np.pi) - np.pi).sum(axis=1)
-
-        score1 = violation(sol1) + dropped(full1)
-        score2 = violation(sol2) + dropped(full2)
-        sol1 = np.where((score2 < score1)[:, None], sol2, sol1)
+    sols, viol, dropped = euler_branches(R_local, tuple(idx), signs, tree.lower[hinges],
+                                         tree.upper[hinges])
     if n == 3:
-        sols = np.stack([np.clip(sol1, lo, hi), np.clip(sol2, lo, hi)], axis=1)
-        viol = np.stack([violation(sol1), violation(sol2)], axis=1)
         pick = _continuous_branch(sols, viol)
         return sols[np.arange(len(sols)), pick]
-    return np.clip(sol1, lo, hi)
+    # The dropped angles should vanish for a pose the joint can reach; the
+    # arcsine of the middle angle hides which branch has them vanish.
+    score = viol + dropped
+    return np.where((score[:, 1] < score[:, 0])[:, None], sols[:, 1], sols[:, 0])
 
 
 def _continuous_branch(sols: np.ndarray, viol: np.ndarray) -> np.ndarray:
@@ -447,10 +404,10 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
             u = targets[child] - x
             ok = np.linalg.norm(v0) > 0.01
             if ok and part in ("lumbar", "thorax", "chest"):
-                R = _two_vector(v0, y, u, lateral)
+                R = two_vector(v0, y, u, lateral)
             elif ok and part in ("upper_arm", "thigh"):
                 nxt = {"upper_arm": f"{pre}wrist", "thigh": f"{pre}ankle"}[part]
-                R = _swing(Rp, v0, u)
+                R = swing(Rp, v0, u)
                 if has(nxt):
                     # Flexion-plane normal of the elbow / knee (hinge axis -y / +y).
                     bend = np.cross(_unit(u), _unit(targets[nxt] - targets[child]))
@@ -468,19 +425,17 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                     # straightens, so the twist never jumps between frames.
                     wgt = np.clip((strength - 0.02) / 0.1, 0, 1)[:, None]
                     cue = wgt * _unit(cue) + (1 - wgt) * (R @ w0)
-                    R = _two_vector(v0, w0, u, cue)
+                    R = two_vector(v0, w0, u, cue)
             elif ok:
-                R = _swing(Rp, v0, u)
+                R = swing(Rp, v0, u)
         if len(tree.body_hinges[b]):
             th = _euler_angles(tree, b, np.swapaxes(Rp, -1, -2) @ R)
             theta[:, tree.body_hinges[b]] = th
-            R = Rp
-            for j, t in zip(tree.body_hinges[b], th.T, strict=True):
-                R = R @ hinge_mat(tree.hinge_axis[j], t)
+            R = compose_hinges(Rp, tree.hinge_axis[tree.body_hinges[b]], th)
         if part == "toes" and floor is not None:
             th = _toe_lift(tree, b, Rp, x, prob.toe_corners[b], floor)
             theta[:, tree.body_hinges[b][0]] = th
-            R = Rp @ hinge_mat(tree.hinge_axis[tree.body_hinges[b][0]], th)
+            R = compose_hinges(Rp, tree.hinge_axis[tree.body_hinges[b][:1]], th[:, None])
         Rb[:, b], xb[:, b] = R, x
     return root_pos, root_rot, theta
 
@@ -577,7 +532,7 @@ def retarget_motion(motion: Motion, humanoid: Humanoid | None = None,
     if humanoid is None:
         humanoid = fit_humanoid(motion)
         notes.extend(humanoid.dims.notes)
-    prob = _Problem(humanoid)
+    prob = _problem(humanoid)
     names = canon.skeleton.joint_names
     T = canon.num_frames
     pos = canon.positions.astype(np.float64)
@@ -593,25 +548,26 @@ def retarget_motion(motion: Motion, humanoid: Humanoid | None = None,
     tree = prob.tree
     # Stage 1: all coordinates, keypoints only, on the frames the analytic
     # guess does not already solve.
-    kin = tree.forward(*state)
-    err = np.linalg.norm(kin.points[:, :prob.K] - targets, axis=-1) * (weights > 0)
-    iters = _solve(prob, targets, weights, None, state, err.max(axis=1) > opts.accept,
-                   np.arange(tree.nv), opts)
+    pts = tree.points(*state)
+    err = np.linalg.norm(pts[:, :prob.K] - targets, axis=-1) * (weights > 0)
+    stage1 = err.max(axis=1) > opts.accept
+    iters = _solve(prob, targets, weights, None, state, stage1, np.arange(tree.nv), opts)
+    # Only the frames a stage worked on have moved: FK of those alone.
+    pts[stage1] = tree.points(root_pos[stage1], root_rot[stage1], theta[stage1])
     # Stage 2: the floor. Only the ankle and toe joints move, on the frames
     # whose soles are below the floor level.
     if floor is not None:
-        kin = tree.forward(*state)
-        below = (kin.points[:, prob.K:, 2] < floor[:, None] - 1e-6).any(axis=1)
+        below = (pts[:, prob.K:, 2] < floor[:, None] - 1e-6).any(axis=1)
         if below.any():
             iters += _solve(prob, targets, weights, floor, state, below, prob.foot_dofs, opts)
+            pts[below] = tree.points(root_pos[below], root_rot[below], theta[below])
     if not (np.isfinite(root_pos).all() and np.isfinite(theta).all()):
         bad = np.flatnonzero(~(np.isfinite(theta).all(1) & np.isfinite(root_pos).all(1)))
         raise RetargetError("solver diverged (non-finite configuration)", frame=int(bad[0]))
-    qpos = prob.tree.join_qpos(root_pos, root_rot, theta)
-    kin = prob.tree.forward(root_pos, root_rot, theta)
+    qpos = tree.join_qpos(root_pos, root_rot, theta)
     seconds = time.perf_counter() - t0
     sel = [order.index(k) for k in names]
-    res = np.linalg.norm(kin.points[:, sel] - targets[:, sel], axis=-1).astype(np.float32)
+    res = np.linalg.norm(pts[:, sel] - targets[:, sel], axis=-1).astype(np.float32)
     return RetargetResult(qpos=qpos, residuals=res, keypoint_names=tuple(names),
                           targets=pos.astype(np.float32), humanoid=humanoid, fps=motion.fps,
                           seconds=seconds, iterations=iters, name=motion.name, notes=notes)
