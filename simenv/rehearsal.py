@@ -12,7 +12,9 @@ with one of the agents below, and writes to ``out``:
   ``t_decision``, ``t_object_changed``, ``object``, ``success``), ``decision_latency_s``
   (statistics of decision time - gesture onset over labelled gestures),
   ``agent_plausibility`` (joint-level metrics of the agent's keypoints,
-  :func:`simenv.plausibility.kinematic_metrics`), ``perception_compute_s``;
+  :func:`simenv.plausibility.kinematic_metrics`), ``perception_compute_s``, ``timing_s``
+  (wall time of the preparation -- retargeting, room --, the simulation loop -- rendering
+  included when on -- and the outputs, and the loop's real-time factor);
 * ``report.html``: a timeline of gestures, decisions and object states, and the agent's
   plausibility table.
 
@@ -31,6 +33,7 @@ import html
 import io
 import json
 import os
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -66,6 +69,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
                           "simenv.perception.TemplateClassifier.from_clips)", field="classifier")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    clock = [time.perf_counter()]
     env = InteractionRoomEnv(session, scenario=scenario, predictor=predictor,
                              render_mode="rgb_array" if render else None,
                              width=width, height=height)
@@ -73,6 +77,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             if agent == "scripted" else None)
     rng = np.random.default_rng(seed)
     obs, _ = env.reset(seed=seed)
+    clock.append(time.perf_counter())
     frames, agent_kp, perceptions = [], [], []
     last: Perception | None = None
     answered: set[int] = set()
@@ -110,14 +115,19 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
                 "labels": info.get("object_labels"),
             }) + "\n")
             log.flush()
+    clock.append(time.perf_counter())
     if render:
         from simenv.render import write_video
 
         write_video(frames, out / "rehearsal.mp4", PERCEPTION_FPS)
     env.close()
     summary = _summary(env, np.array(agent_kp), perceptions)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     _report(out, summary)
+    clock.append(time.perf_counter())
+    prep, loop_s, outputs = np.diff(clock)
+    summary["timing_s"] = {"preparation": prep, "loop": loop_s, "outputs": outputs,
+                           "loop_real_time_factor": summary["duration_s"] / loop_s}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     return summary
 
 
