@@ -14,8 +14,9 @@ takes the user's last frames of canonical keypoints and
 
 Each stage is an interface: any object with ``predict(history) -> future``, ``history_len``
 and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
-:mod:`simenv.models.baselines`; the PredictiveMA-WGAN works on its root-relative pred17
-layout and needs an adapter to plug in here); any :class:`GestureModel` classifies.
+:mod:`simenv.models.baselines` directly; the PredictiveMA-WGAN, which works on its
+root-relative pred17 layout, through :class:`CanonicalPredictor`); any
+:class:`GestureModel` classifies.
 :class:`TemplateClassifier` is the nearest-neighbour classifier built from labelled real
 clips, used until a trained classifier is supplied.
 """
@@ -38,8 +39,9 @@ from simenv.gestures import (
     cut_window,
     normalise_windows,
 )
+from simenv.prediction_data import PRED17_JOINTS
 from simenv.scenario import Behaviour
-from simenv.skeletons import CANONICAL_KEYPOINTS
+from simenv.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE
 
 
 @runtime_checkable
@@ -123,6 +125,55 @@ class TemplateClassifier:
         z = -(best - best.min()) / self.temperature
         p = np.exp(z)
         return p / p.sum()
+
+
+class CanonicalPredictor:
+    """A predictor of a canonical-keypoint subset, run on all 21 canonical keypoints.
+
+    The history is cut to the predictor's joints (made root-relative -- minus each frame's
+    pelvis -- when the predictor works that way, as the PredictiveMA-WGAN's pred17 layout
+    does); the forecast is put back at the last observed pelvis (the predictor forecasts
+    the body's shape, not its root), and each keypoint the predictor lacks (toes, hands)
+    keeps its last offset from its canonical parent.
+
+    Args:
+        predictor: ``predict(history (H, J, 3)) -> (F, J, 3)``, ``history_len``,
+            ``future_len``.
+        joints: the predictor's J joints, canonical keypoint names.
+        root_relative: whether the predictor takes pelvis-relative positions.
+    """
+
+    def __init__(self, predictor: Any, joints: Sequence[str] = PRED17_JOINTS,
+                 root_relative: bool = True) -> None:
+        missing = [j for j in joints if j not in CANONICAL_KEYPOINTS]
+        if missing:
+            raise SimenvError(f"predictor joints {missing} are not canonical keypoints",
+                              field="joints")
+        self.predictor, self.root_relative = predictor, bool(root_relative)
+        self.history_len = int(predictor.history_len)
+        self.future_len = int(predictor.future_len)
+        self._idx = [CANONICAL_KEYPOINTS.index(j) for j in joints]
+        self._pelvis = CANONICAL_KEYPOINTS.index("pelvis")
+        # Keypoints the predictor lacks, parents first (CANONICAL_KEYPOINTS is tree-ordered).
+        self._carried = [(k, CANONICAL_KEYPOINTS.index(CANONICAL_TREE[name]))
+                         for k, name in enumerate(CANONICAL_KEYPOINTS)
+                         if k not in self._idx and CANONICAL_TREE[name] is not None]
+
+    def predict(self, history: np.ndarray) -> np.ndarray:
+        """(H, 21, 3) canonical keypoints, m -> (F, 21, 3) float32."""
+        h = np.asarray(history, dtype=np.float32)
+        sub = h[:, self._idx]
+        root = h[-1, self._pelvis]
+        if self.root_relative:
+            sub = sub - h[:, self._pelvis][:, None]
+        future = np.asarray(self.predictor.predict(sub), dtype=np.float32)
+        if self.root_relative:
+            future = future + root
+        out = np.repeat(h[-1:], len(future), axis=0)
+        out[:, self._idx] = future
+        for k, parent in self._carried:
+            out[:, k] = out[:, parent] + (h[-1, k] - h[-1, parent])
+        return out
 
 
 @dataclass(frozen=True)
@@ -220,4 +271,5 @@ class PerceptionLoop:
                           time.perf_counter() - start)
 
 
-__all__ = ["GestureModel", "Perception", "PerceptionLoop", "TemplateClassifier"]
+__all__ = ["CanonicalPredictor", "GestureModel", "Perception", "PerceptionLoop",
+           "TemplateClassifier"]

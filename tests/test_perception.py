@@ -7,10 +7,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import simenv.models
 from simenv.errors import SimenvError
 from simenv.gestures import GESTURE15_JOINTS, load_gesture_clips, split_cross_subject
-from simenv.models.baselines import ConstantVelocity
-from simenv.perception import GestureModel, PerceptionLoop, TemplateClassifier
+from simenv.models.baselines import ConstantVelocity, ZeroVelocity
+from simenv.perception import (
+    CanonicalPredictor,
+    GestureModel,
+    PerceptionLoop,
+    TemplateClassifier,
+)
 from simenv.scenario import load_scenario
 from simenv.skeletons import CANONICAL_KEYPOINTS
 
@@ -113,3 +119,34 @@ def test_templates_from_real_clips_cross_subject():
         hits.append(tc.labels[int(np.argmax(p))] == c.label)
     chance = 1.0 / len(tc.labels)
     assert np.mean(hits) > max(0.6, 4 * chance)
+
+
+def test_canonical_predictor_adapts_a_joint_subset():
+    still = CanonicalPredictor(ZeroVelocity(10))
+    h = _waving(30)
+    out = still.predict(h)
+    assert out.shape == (10, K, 3)
+    np.testing.assert_allclose(out, np.repeat(h[-1:], 10, axis=0), atol=1e-6)
+    # A body gliding +x at 1 cm/frame, forecast in world coordinates on pred17: the hands
+    # and toes the predictor lacks ride along with their wrists and ankles.
+    glide = _standing(5) + np.arange(5)[:, None, None] * np.array([0.01, 0.0, 0.0])
+    moving = CanonicalPredictor(ConstantVelocity(3), root_relative=False).predict(glide)
+    hand, wrist = CANONICAL_KEYPOINTS.index("right_hand"), CANONICAL_KEYPOINTS.index(
+        "right_wrist")
+    np.testing.assert_allclose(moving[:, wrist, 0], glide[-1, wrist, 0] + [0.01, 0.02, 0.03],
+                               atol=1e-6)
+    np.testing.assert_allclose(moving[:, hand] - moving[:, wrist],
+                               np.repeat((glide[-1, hand] - glide[-1, wrist])[None], 3, 0),
+                               atol=1e-6)
+    with pytest.raises(SimenvError, match="canonical"):
+        CanonicalPredictor(ZeroVelocity(3), joints=("pelvis", "tail"))
+
+
+@pytest.mark.skipif("predictor-25-25" not in simenv.models.available(),
+                    reason="shipped predictor checkpoint absent")
+def test_loop_with_the_shipped_predictor():
+    predictor = CanonicalPredictor(simenv.models.load("predictor-25-25"))
+    loop = PerceptionLoop(load_scenario("default").behaviour, _LengthClassifier(), predictor)
+    out = loop.perceive(1.2, _waving(30))
+    assert out.stage == "predicted" and out.reaction == "greet"
+    assert np.isfinite(out.predicted_motion_m)
