@@ -1,0 +1,61 @@
+"""Tests for simenv.eval_interaction: the real reactions score zero error, the JSON
+contract, the generated report and the physics summary of one window."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simenv import eval_interaction as ev
+from simenv import interaction_data as idata
+from simenv import interaction_metrics as im
+
+
+@pytest.fixture(scope="module")
+def results(shared_data: Path) -> dict:
+    return ev.evaluate(shared_data, physics=False, progress=False)
+
+
+def test_json_contract_and_reference_row(results):
+    assert results["pairs"] == results["data"]["test_windows"] > 0
+    assert {"nearest_neighbour", "mirror", "copy", "zero_velocity", ev.REAL} == \
+        set(results["results"])
+    real = results["results"][ev.REAL]
+    for key in ("AFD", "E_r_mm", "JPD_mm", "FVD", "FID", "lag_error_s"):
+        assert real[key] == pytest.approx(0.0, abs=1e-9), key
+    zero = results["results"]["zero_velocity"]
+    assert zero["E_b_mm"] == pytest.approx(0.0, abs=1e-3)  # holds the reference frame
+    assert zero["lag_defined_windows"] == 0 and zero["lag_error_s"] is None
+    for name in ("nearest_neighbour", "mirror", "copy"):
+        r = results["results"][name]
+        assert r["AFD"] > 0 and r["E_r_mm"] > 0 and r["lag_defined_windows"] > 0
+    assert set(results["data"]["test_recordings"]) == set(idata.DEFAULT_TEST_RECORDINGS)
+    assert not set(results["data"]["train_recordings"]) & \
+        set(results["data"]["test_recordings"])
+
+
+def test_markdown_holds_the_computed_numbers(results, tmp_path):
+    md = ev.render_markdown(results)
+    afd = results["results"]["mirror"]["AFD"]
+    assert f"| mirror | {afd:.3f} |" in md
+    assert results["feature_extractor"] in md
+    assert "shake_hands" in md
+    png = ev.plot(results, tmp_path / "p.png")
+    assert png.stat().st_size > 1000
+
+
+def test_physics_summary_of_one_window(shared_data):
+    windows = idata.make_windows(idata.load_recordings(shared_data))
+    test = windows.subset(idata.split_by_recording(windows).test)
+    index = ev.physics_windows(test)
+    assert len(index) == len(idata.DEFAULT_TEST_RECORDINGS)
+    d = im.joint_pair_distances(test.actor, test.reactor, [("right_hand", "right_hand")])
+    first = np.flatnonzero(test.recording == test.recording[index[0]])
+    assert d[index[0]].min() == pytest.approx(d[first].min())
+    phys = ev.physics_of(test, index[1:2], {ev.REAL: test.reactor}, progress=False)
+    row = phys[ev.REAL]
+    assert row["windows"] == 1 and 0.0 <= row["reactor_plausible"] <= 1.0
+    assert row["inter_penetration_max_mm"] is not None
+    assert row["records"][0]["start_frame"] == int(test.start[index[1]])
