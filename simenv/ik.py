@@ -71,44 +71,6 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
     return q * np.where(q[..., :1] < 0, -1.0, 1.0)
 
 
-def axis_angle_mat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rodrigues: (..., 3) unit axes, (...) angles -> (..., 3, 3)."""
-    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
-    x, y, z = np.moveaxis(axis, -1, 0)
-    zero = np.zeros_like(x)
-    K = np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
-                  np.stack([-y, x, zero], -1)], -2)
-    eye = np.broadcast_to(np.eye(3), K.shape)
-    return eye + s * K + (1 - c) * (K @ K)
-
-
-def hinge_mat(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rotation matrices (T, 3, 3) about one fixed unit ``axis`` (3,) by ``angle`` (T,).
-
-    Axis-aligned hinges (the usual case) are filled in directly; other axes use
-    Rodrigues' formula.
-    """
-    i = int(np.argmax(np.abs(axis)))
-    if abs(abs(axis[i]) - 1.0) > 1e-12:
-        return axis_angle_mat(np.broadcast_to(axis, (len(angle), 3)), angle)
-    c, s = np.cos(angle), np.sin(angle) * np.sign(axis[i])
-    j, k = (i + 1) % 3, (i + 2) % 3
-    R = np.zeros((len(angle), 3, 3))
-    R[:, i, i] = 1.0
-    R[:, j, j] = c
-    R[:, k, k] = c
-    R[:, k, j] = s
-    R[:, j, k] = -s
-    return R
-
-
-def rotvec_mat(v: np.ndarray) -> np.ndarray:
-    """(..., 3) rotation vectors -> (..., 3, 3)."""
-    ang = np.linalg.norm(v, axis=-1)
-    axis = v / np.maximum(ang, 1e-12)[..., None]
-    return axis_angle_mat(axis, ang)
-
-
 def swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Smallest rotation turning ``R @ v0`` onto the direction ``u``, applied to R.
 
@@ -558,6 +520,13 @@ def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, ac
     delta = np.empty(nv)
     rp2, rr2, th2 = np.empty(3), np.empty((3, 3)), np.empty(H)
     Rw = np.empty((3, 3))
+    # Points that none of the moving coordinates moves add nothing to the step.
+    moves = np.zeros(P, dtype=np.bool_)
+    for q in range(P):
+        for d in range(6):
+            moves[q] = moves[q] or col_map[d] >= 0
+        for m in range(anc_ptr[q], anc_ptr[q + 1]):
+            moves[q] = moves[q] or col_map[6 + anc_idx[m]] >= 0
     for n in range(frames.shape[0]):
         t = frames[n]
         rp, rr, th = root_pos[t], root_rot[t], theta[t]
@@ -569,20 +538,21 @@ def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, ac
         A[:, :] = 0.0
         g[:] = 0.0
         for q in range(P):
-            if q < K:
+            if not moves[q]:
+                continue
+            floor_row = q >= K
+            if floor_row:  # floor points: only the height row, only below the floor
+                if not use_floor:
+                    break
+                r2 = pts[q, 2] - f
+                if r2 >= 0.0:
+                    continue
+                wq, r0, r1 = fw, 0.0, 0.0
+            else:
                 wq = weights[q]
                 if wq == 0.0:
                     continue
                 r0, r1, r2 = pts[q, 0] - x[q, 0], pts[q, 1] - x[q, 1], pts[q, 2] - x[q, 2]
-                row0 = 0
-            else:
-                if not use_floor:
-                    break
-                z = pts[q, 2] - f
-                if z >= 0.0:
-                    continue
-                wq, r0, r1, r2 = fw, 0.0, 0.0, z
-                row0 = 2  # only the height row
             m = _point_columns(q, rp, axes, anchors, pts, arrays, Jl)
             for c in range(m):
                 cols[c] = col_map[c] if c < 6 else col_map[6 + anc_idx[anc_ptr[q] + c - 6]]
@@ -590,18 +560,14 @@ def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, ac
                 ia = cols[a]
                 if ia < 0:
                     continue
-                ga = 0.0
-                for i in range(row0, 3):
-                    ga += Jl[i, a] * (r0 if i == 0 else (r1 if i == 1 else r2))
-                g[ia] += wq * ga
+                j0, j1, j2 = Jl[0, a], Jl[1, a], Jl[2, a]
+                if floor_row:
+                    j0, j1 = 0.0, 0.0
+                g[ia] += wq * (j0 * r0 + j1 * r1 + j2 * r2)
                 for b in range(m):
                     ib = cols[b]
-                    if ib < ia:
-                        continue
-                    s = 0.0
-                    for i in range(row0, 3):
-                        s += Jl[i, a] * Jl[i, b]
-                    A[ia, ib] += wq * s
+                    if ib >= ia:
+                        A[ia, ib] += wq * (j0 * Jl[0, b] + j1 * Jl[1, b] + j2 * Jl[2, b])
         for a in range(nd):
             for b in range(a):
                 A[a, b] = A[b, a]
@@ -773,3 +739,29 @@ def _euler_batch(R, order, eps, signs, lower, upper, centre, sols, viol, dropped
                 d += abs((ang[m] + np.pi) % (2 * np.pi) - np.pi)
             viol[t, br] = v
             dropped[t, br] = d
+
+
+@_jit
+def viterbi2(unary, trans):
+    """Cheapest path through two states per frame.
+
+    Args:
+        unary: (T, 2) cost of each state. trans: (T - 1, 2, 2) cost of moving
+            from state ``prev`` at t to state ``cur`` at t + 1, as [t, cur, prev].
+    Returns:
+        (T,) int64 states minimising sum unary + sum trans (ties: the lower state).
+    """
+    T = unary.shape[0]
+    back = np.zeros((T, 2), dtype=np.int64)
+    acc0, acc1 = unary[0, 0], unary[0, 1]
+    for t in range(1, T):
+        a0, a1 = acc0 + trans[t - 1, 0, 0], acc1 + trans[t - 1, 0, 1]
+        b0, b1 = acc0 + trans[t - 1, 1, 0], acc1 + trans[t - 1, 1, 1]
+        back[t, 0] = 0 if a0 <= a1 else 1
+        back[t, 1] = 0 if b0 <= b1 else 1
+        acc0, acc1 = min(a0, a1) + unary[t, 0], min(b0, b1) + unary[t, 1]
+    pick = np.empty(T, dtype=np.int64)
+    pick[T - 1] = 0 if acc0 <= acc1 else 1
+    for t in range(T - 1, 0, -1):
+        pick[t - 1] = back[t, pick[t]]
+    return pick

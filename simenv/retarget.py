@@ -54,7 +54,15 @@ from simenv.humanoid import (
     fit_humanoid,
     pelvis_frames,
 )
-from simenv.ik import HingeTree, PointFit, compose_hinges, euler_branches, swing, two_vector
+from simenv.ik import (
+    HingeTree,
+    PointFit,
+    compose_hinges,
+    euler_branches,
+    swing,
+    two_vector,
+    viterbi2,
+)
 from simenv.motion import Interaction, Motion
 
 #: Keypoints without which the root cannot be placed.
@@ -346,22 +354,7 @@ def _continuous_branch(sols: np.ndarray, viol: np.ndarray) -> np.ndarray:
     if T == 1 or np.abs(np.diff(path, axis=0)).sum(-1).max() < 0.5:
         return greedy
     trans = np.abs(sols[1:, :, None, :] - sols[:-1, None, :, :]).sum(-1)  # (T-1, cur, prev)
-    # Forward pass (pure Python floats over T: two states, no numpy overhead).
-    u, tr = unary.tolist(), trans.tolist()
-    back = [[0, 0] for _ in range(T)]
-    acc = u[0]
-    for t in range(1, T):
-        nxt = [0.0, 0.0]
-        for c in (0, 1):
-            a0, a1 = acc[0] + tr[t - 1][c][0], acc[1] + tr[t - 1][c][1]
-            back[t][c] = 0 if a0 <= a1 else 1
-            nxt[c] = min(a0, a1) + u[t][c]
-        acc = nxt
-    pick = np.empty(T, dtype=int)
-    pick[-1] = 0 if acc[0] <= acc[1] else 1
-    for t in range(T - 1, 0, -1):
-        pick[t - 1] = back[t][pick[t]]
-    return pick
+    return viterbi2(unary, trans)
 
 
 def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
