@@ -49,14 +49,15 @@ def arm_joints(side: str) -> tuple[str, ...]:
     return tuple(f"{side}_{p}" for p in ARM_PARTS)
 
 
-def reach_pose(humanoid: Humanoid, qpos: np.ndarray, site: str, target: Sequence[float],
+def reach_pose(model: mujoco.MjModel, qpos: np.ndarray, site: str, target: Sequence[float],
                joints: Sequence[str], *, iterations: int = 200, damping: float = 0.03,
                tol: float = 1e-3) -> tuple[np.ndarray, float]:
     """Hinge angles putting ``site`` at ``target`` (world, m), moving only ``joints``.
 
     Args:
-        humanoid: the body (its model has the same qpos layout as ``qpos``).
-        qpos: (nq,) the current configuration (root and other joints are kept).
+        model: a model holding the site and the joints: a humanoid's own model, or the
+            room's (then with the ``agent/`` prefix, e.g. for the room-only grip sites).
+        qpos: (model.nq,) the current configuration (everything else is kept).
         site: site name (e.g. ``"right_hand"``).
         joints: hinge names allowed to move.
         damping: lambda, m; larger is slower but robust near singular arm postures.
@@ -64,10 +65,10 @@ def reach_pose(humanoid: Humanoid, qpos: np.ndarray, site: str, target: Sequence
     Returns:
         The solved (nq,) configuration and the remaining site error, m.
     """
-    m = humanoid.model
+    m = model
     sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
     if sid < 0:
-        raise SimenvError(f"no site {site!r} on the humanoid", field="site")
+        raise SimenvError(f"no site {site!r} in the model", field="site")
     jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
     if min(jids) < 0:
         missing = [j for j, i in zip(joints, jids, strict=True) if i < 0]

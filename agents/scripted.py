@@ -57,7 +57,7 @@ def plan_cigarette_out(room: Room, data: mujoco.MjData, side: str = "right") -> 
     targets, pose = [], q
     for goal in (hand + [0, 0, LIFT_M], handle + [0, 0, APPROACH_M],
                  handle - [0, 0, PRESS_DEPTH_M]):
-        pose, err = reach_pose(h, pose, site, goal, arm)
+        pose, err = reach_pose(h.model, pose, site, goal, arm)
         if err > 0.02:
             raise SimenvError(f"the cigarette is out of the agent's {side}-hand reach "
                               f"({err:.3f} m short)", field="cigarette")

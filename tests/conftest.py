@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+import simenv  # noqa: F401  (chooses MUJOCO_GL before any test module imports mujoco)
+
 REPO = Path(__file__).resolve().parent.parent
 SHARED_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
 

@@ -7,7 +7,6 @@ import mujoco
 import numpy as np
 import pytest
 
-import simenv  # noqa: F401  (sets MUJOCO_GL before mujoco is used)
 from simenv.agents.reach import (
     PDPlan,
     PDTrajectory,
@@ -53,7 +52,7 @@ def test_reach_pose_moves_only_the_arm(room: Room):
     q = room.seated_pose()
     hand = h.keypoints(q)[h.keypoint_names.index("right_hand")]
     goal = hand + [0.1, -0.05, 0.15]
-    sol, err = reach_pose(h, q, "right_hand", goal, arm_joints("right"))
+    sol, err = reach_pose(h.model, q, "right_hand", goal, arm_joints("right"))
     assert err < 1e-3
     moved = np.flatnonzero(np.abs(sol - q) > 1e-12)
     arm = {int(h.model.joint(j).qposadr[0]) for j in arm_joints("right")}
@@ -72,7 +71,7 @@ def test_gravity_feed_forward_removes_the_sag(room: Room):
     q = data.qpos[room.agent_qpos].copy()
     hand_i = h.keypoint_names.index("right_hand")
     goal = room.agent_keypoints(data)[hand_i] + [0.0, 0.0, 0.12]
-    sol, _ = reach_pose(h, q, "right_hand", goal, arm_joints("right"))
+    sol, _ = reach_pose(h.model, q, "right_hand", goal, arm_joints("right"))
     errors = []
     for compensate in ((), upper_body_joints(h)):
         d = _settled(room)
@@ -112,3 +111,33 @@ def test_agent_presses_the_cigarette_out(room: Room):
     assert data.warning.number.sum() == 0
     with pytest.raises(SimenvError, match="no object"):
         object_success(room, before, after, "greet")
+
+
+def test_proximity_grasp_transmits_the_hand_force_to_the_object(room: Room):
+    """Grasp mechanics in isolation (gravity off, the agent moved bodily so its right palm
+    is at the door handle): far from the handle the grasp refuses to close; at the handle
+    it closes, and pulling the hand into the room swings the door open through the
+    constraint."""
+    m = room.model
+    data = room.make_data()
+    assert not room.set_grasp(data, "right_hand", "door", True)
+    grip = m.site("agent/right_hand_grip").id
+    handle = m.site("door/handle").id
+    data.qpos[room.agent_qpos.start:room.agent_qpos.start + 3] += (
+        data.site_xpos[handle] - data.site_xpos[grip])
+    mujoco.mj_forward(m, data)
+    assert np.linalg.norm(data.site_xpos[grip] - data.site_xpos[handle]) < 1e-6
+    assert room.set_grasp(data, "right_hand", "door", True)
+    gravity = m.opt.gravity.copy()
+    m.opt.gravity[:] = 0.0
+    try:
+        hand = m.body("agent/right_hand").id
+        inward = -data.xmat[m.body("wall_south").id].reshape(3, 3)[:, 1]  # wall y = outward
+        data.xfrc_applied[hand, :3] = 40.0 * inward
+        for _ in range(int(round(1.0 / m.opt.timestep))):
+            mujoco.mj_step(m, data)
+    finally:
+        m.opt.gravity[:] = gravity
+    assert room.object_labels(data)["door"] == "open"
+    assert np.linalg.norm(data.site_xpos[grip] - data.site_xpos[handle]) < 0.03
+    assert data.warning.number.sum() == 0

@@ -9,7 +9,6 @@ import mujoco
 import numpy as np
 import pytest
 
-import simenv  # noqa: F401  (sets MUJOCO_GL before mujoco is used)
 from simenv.errors import ScenarioError, SimenvError
 from simenv.room import GRASP_RADIUS, Room
 from simenv.scenario import REACTIONS, list_scenarios, load_scenario
