@@ -210,3 +210,34 @@ def test_recognition_condition_with_the_shipped_predictor(shared_data: Path) -> 
                               "gesture9").joint_names)
     with pytest.raises(MotionError, match="needs gesture15 windows"):
         extrapolate_with_predictor(nine, load("predictor-25-50"))
+
+
+def test_eval_classifier_writes_every_condition(tmp_path: Path, capsys,
+                                                shared_data: Path) -> None:
+    _require("gesture-classifier")
+    florence = shared_data / "gestures" / "florence3d"
+    if not (florence / "skeletal_data.mat").is_file():
+        pytest.skip(f"Florence 3D not found under {florence.parent}")
+    data = tmp_path / "gestures"
+    data.mkdir()
+    (data / "florence3d").symlink_to(florence)
+    out = tmp_path / "eval"
+    assert cli.main(["eval", "classifier", "--data", str(data), "--out", str(out)]) == 0
+    assert "real_3s: accuracy" in capsys.readouterr().out
+    metrics = json.loads((out / "metrics.json").read_text())
+    expected = {"real_3s", "real_1s", "real_1s_pred_2s_cv", "real_1s_pred_2s_zv"}
+    if "predictor-25-50" in available():
+        expected.add("real_1s_pred_2s_model")
+        assert metrics["predictor"] == "predictor-25-50"
+    assert set(metrics["test"]) == expected
+    for result in metrics["test"].values():
+        assert 0 <= result["accuracy"] <= 1
+        assert np.sum(result["confusion"]) == result["n"] > 0
+    assert (out / "confusion.png").stat().st_size > 1000
+
+
+def test_train_classifier_on_a_folder_without_recordings(tmp_path: Path, capsys) -> None:
+    assert cli.main(["train", "classifier", "--data", str(tmp_path), "--out",
+                     str(tmp_path / "o")]) == 2
+    assert "error:" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
