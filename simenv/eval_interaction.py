@@ -253,6 +253,13 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
         split = idata.split_by_recording(windows)
         train, test = windows.subset(split.train), windows.subset(split.test)
         test_names = list(split.test_clips)
+    closest = {}
+    for r, rec in enumerate(test.recording_names):
+        sel = test.recording == r
+        if sel.any():
+            d = im.joint_pair_distances(test.actor[sel], test.reactor[sel])
+            closest[rec] = {f"A:{a}-B:{b}": float(d[..., k].min())
+                            for k, (a, b) in enumerate(im.KEY_JOINT_PAIRS)}
     extractor, fallback = im.default_feature_extractor()
     reactions: dict[str, np.ndarray] = {REAL: test.reactor.astype(np.float64)}
     results: dict[str, Any] = {}
@@ -284,6 +291,7 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
             "test_labels": dict(Counter(test.window_labels.tolist())),
             "train_labels": dict(Counter(train.window_labels.tolist())),
             "key_joint_pairs": [list(p) for p in im.KEY_JOINT_PAIRS],
+            "closest_real_approach_m": closest,
         },
         "cpu_seconds": time.process_time() - t0,
     })
@@ -322,6 +330,16 @@ def render_markdown(res: Mapping[str, Any]) -> str:
         "metrics are over frames 1..T-1 (the generated ones).",
         f"* Features of FVD, diversity and multimodality: **{res['feature_extractor']}**"
         + (f" — {res['feature_fallback_reason']}." if res["feature_fallback_reason"] else "."),
+        "",
+        "",
+        "Closest approach of the key joint pairs in the real test windows (m; contact "
+        "= below 0.15 m):",
+        "",
+        "| test recording | " + " | ".join(
+            f"A {a} - B {b}" for a, b in d["key_joint_pairs"]) + " |",
+        "|---|" + "---:|" * len(d["key_joint_pairs"]),
+        *[f"| {rec} | " + " | ".join(f"{v:.3f}" for v in pairs.values()) + " |"
+          for rec, pairs in d["closest_real_approach_m"].items()],
         "",
         "## Metrics (papers' definitions, `simenv/interaction_metrics.py`)",
         "",
