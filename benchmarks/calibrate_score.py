@@ -36,7 +36,7 @@ DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" 
 def corpus_of(file: str, data: Path) -> str:
     """Corpus label of a scored file: the first two folders under the data root."""
     parts = Path(file).resolve().relative_to(data.resolve()).parts
-    return "/".join(parts[:2]) if len(parts) > 2 else parts[0]
+    return "/".join(parts[:2])
 
 
 def _value(m: dict) -> float | None:
@@ -127,7 +127,7 @@ def plot(records: list[dict], data: Path, path: Path) -> None:
 
     ok = [r for r in records if "error" not in r]
     corpora = sorted({corpus_of(r["file"], data) for r in ok})
-    fig, ax = plt.subplots(figsize=(11, 4.5))
+    fig, ax = plt.subplots(figsize=(13, 4.8))
     for ci, corpus in enumerate(corpora):
         for mi, name in enumerate(PERSON_METRICS):
             ratios = []
@@ -146,7 +146,7 @@ def plot(records: list[dict], data: Path, path: Path) -> None:
     ax.set_xticks(range(len(PERSON_METRICS)), PERSON_METRICS, rotation=30, ha="right")
     ax.set_ylabel("value / threshold (clipped at 10)")
     ax.set_title("Plausibility metrics on real motion capture (below the line = passes)")
-    ax.legend(fontsize=7, loc="upper left", ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
