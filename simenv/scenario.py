@@ -26,6 +26,8 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from simenv.errors import ScenarioError
 from simenv.gestures import VOCABULARY
 
@@ -43,9 +45,11 @@ WINDOW_TRAVEL = 0.9
 #: Door leaf size (width, height), m; the opening is 2 cm larger.
 DOOR_SIZE = (0.9, 2.05)
 #: Furniture footprints (x half-extent, y half-extent in their own frame), m, for the
-#: inside-the-room check. The desk's includes the agent's chair behind it.
-DESK_FOOTPRINT = (0.75, 0.7)
+#: inside-the-room check. The desk's reaches back over the agent's chair (0.9 m).
+DESK_FOOTPRINT = (0.9, 0.7)
 HIFI_FOOTPRINT = (0.2, 0.35)
+#: Clearance kept between the user's pelvis and the furniture, m (a body's half-width).
+USER_CLEARANCE = 0.3
 #: Clearance kept between a wall opening and a corner of the room, m.
 CORNER_CLEARANCE = 0.1
 
@@ -409,6 +413,17 @@ def _check_layout(s: Scenario) -> None:
             fail(field, f"({x}, {y}) is not inside the room "
                  f"(|x| <= {half[0] - margin:.2f}, |y| <= {half[1] - margin:.2f} m for this "
                  "object's size)")
+    for name, (cx, cy), yaw_deg, (hx, hy) in (
+        ("desk", s.desk.position, s.desk.yaw_deg, DESK_FOOTPRINT),
+        ("hifi", s.hifi.position, s.hifi.yaw_deg, HIFI_FOOTPRINT),
+    ):
+        yaw = np.deg2rad(yaw_deg)
+        dx, dy = s.user.position[0] - cx, s.user.position[1] - cy
+        u, v = np.cos(yaw) * dx + np.sin(yaw) * dy, -np.sin(yaw) * dx + np.cos(yaw) * dy
+        if abs(u) < hx + USER_CLEARANCE and abs(v) < hy + USER_CLEARANCE:
+            fail("user.position", f"{list(s.user.position)} puts the user inside the {name} "
+                 f"(keep {USER_CLEARANCE} m clear of its {2 * hx:.2f} x {2 * hy:.2f} m "
+                 "footprint)")
     openings: dict[str, list[tuple[float, float, str]]] = {w: [] for w in WALLS}
     for field, wall, offset, width in (
         ("window", s.window.wall, s.window.offset, s.window.width),

@@ -105,6 +105,7 @@ def _write(tmp_path: Path, edit: tuple[str, str]) -> Path:
     (("[door]\nwall = \"south\"\noffset = 1.5", "[door]\nwall = \"north\"\noffset = -0.6"),
      "door.offset"),
     (("[agent]\nheight = 1.75", "[agent]"), "agent.height"),
+    (("position = [-0.8, -0.6]", "position = [0.9, 0.6]"), "user.position"),
 ])
 def test_bad_scenario_field_names_file_and_field(tmp_path: Path, edit, field):
     path = _write(tmp_path, edit)
