@@ -6,6 +6,12 @@ bundled walk, seeded corruptions of it, its edge cases, and every real CMU
 clip of the shared corpus (see ``tests/kinematic_cases.py``). Values must be
 equal; float tolerances are at rounding level only, so that a different
 numpy SIMD path cannot fail the test while any change of formula does.
+
+The compiled kernels (``simenv/plausibility/kernels.py``) reproduce the
+numpy operations in order and are bit-identical on every pinned value but
+one: ``floating``'s ``worst_residual_m`` comes from a closed-form
+least-squares fit instead of LAPACK's, measured at most 5.3e-14 relative
+off (within the 1e-12 below).
 """
 
 from __future__ import annotations

@@ -1,35 +1,35 @@
-"""Clips prepared once for the vectorised joint-level metrics.
+"""Clips prepared once for the compiled joint-level metrics.
 
 A :class:`ClipBatch` holds B clips of equal length and frame rate on one
-canonical keypoint layout as keypoint-major coordinate planes (J, B, T), so
-every joint-level metric runs as a few numpy passes over all B clips at
-once -- gathering keypoints takes whole rows and reducing over keypoints is
-an elementwise pass over rows -- and the metrics share the canonical
-keypoints, float64 coordinates, frame differences and lowest keypoint
-heights instead of recomputing them per metric.
-:func:`batches` groups any list of motions into such batches (clips of other
-lengths or skeletons go to other batches), small enough to stay in the CPU
-cache. :func:`results` turns per-clip arrays back into one
-:class:`~simenv.plausibility.timeline.MetricResult` per clip.
+canonical keypoint layout as keypoint-major float64 coordinate planes
+(3, J, B, T) plus the lowest keypoint height per frame, built in one compiled
+pass (:func:`simenv.plausibility.kernels.planes`), so every joint-level
+metric is one kernel call over all B clips whose inner loops run along
+contiguous frames. :func:`batches` groups any list of motions into such
+batches (clips of other lengths or skeletons go to other batches), small
+enough to stay in the CPU cache. :func:`results` turns the kernels' per-clip
+arrays back into one :class:`~simenv.plausibility.timeline.MetricResult`
+per clip.
 
 Numerics are those of the per-clip formulas: each operation is the same
 IEEE operation on the same numbers (e.g. a Euclidean norm is
 ``sqrt((x*x + y*y) + z*z)``, the summation order of ``np.linalg.norm``), and
 every operation is independent per clip, so a clip scores exactly the same
-alone or in any batch. Only means over several keypoints may sum in another
-order than the straightforward per-clip code (last-bit differences;
+alone or in any batch (see :mod:`simenv.plausibility.kernels` for the one
+documented last-bits exception, and
 ``tests/test_plausibility_kinematic_golden.py``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import numpy as np
 
 from simenv.errors import MotionError
 from simenv.motion import MIN_PERSON_EXTENT_M, Motion, Skeleton
+from simenv.plausibility import kernels
 from simenv.plausibility.timeline import MetricResult
 from simenv.skeletons import canonical_skeleton
 
@@ -75,8 +75,9 @@ class ClipBatch:
         names: canonical keypoint names (J).
         reasons: per clip, why the canonical keypoints cannot be used (the
             message of :meth:`Motion.to_canonical`'s error), or None.
-        raw: (B, T, J, 3) float32 canonical keypoints, metres (Z-up).
-        x, y, z: (J, B, T) float64 coordinate planes, metres.
+        p: (3, J, B, T) float64 canonical keypoint coordinates, metres
+            (Z-up); x, y, z: its three (J, B, T) planes.
+        zmin: (B, T) height of the lowest keypoint, metres.
     """
 
     def __init__(self, motions: Sequence[Motion]) -> None:
@@ -92,20 +93,23 @@ class ClipBatch:
             return
         self.skeleton, idx = layout
         self.names = self.skeleton.joint_names
-        self.raw = np.stack([m.positions[:, idx] for m in motions])
-        planes = np.ascontiguousarray(self.raw.transpose(3, 2, 0, 1), dtype=np.float64)
-        self.x, self.y, self.z = planes
-        self._check_extent()
+        # One clip is passed as a view; several are stacked once (their
+        # source joints, the canonical gather happens in the kernel).
+        stack = (first.positions[None] if len(motions) == 1
+                 else np.stack([m.positions for m in motions]))
+        self.p, self.zmin, span = kernels.planes(stack, np.asarray(idx, dtype=np.int64))
+        self.x, self.y, self.z = self.p
+        self._check_extent(span)
 
-    def _check_extent(self) -> None:
+    def _check_extent(self, span: np.ndarray) -> None:
         """:meth:`Motion.to_canonical` rejects a canonical subset whose median
         extent is below ``MIN_PERSON_EXTENT_M`` (the full skeleton's upper
         bound holds for any subset); test the cheap sufficient condition
-        (every frame's height span is above it) and fall back to the exact
-        check for the rare clips that fail it."""
+        (every frame's height span, ``span`` (B,) metres at its smallest, is
+        above it) and fall back to the exact check for the rare clips that
+        fail it."""
         if len(self.names) < 2:
             return
-        span = (self.z.max(axis=0) - self.zmin).min(axis=1)
         for b in np.flatnonzero(~(span > MIN_PERSON_EXTENT_M * 1.1)):
             self.reasons[b] = _canonical_reason(self.motions[b])
 
@@ -116,16 +120,6 @@ class ClipBatch:
     def indices(self, names: Sequence[str]) -> list[int]:
         """Indices of those of ``names`` that the layout has, in order."""
         return [self.names.index(n) for n in names if n in self.names]
-
-    @cached_property
-    def zmin(self) -> np.ndarray:
-        """(B, T) height of the lowest keypoint, metres."""
-        return self.z.min(axis=0)
-
-    @cached_property
-    def diffs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(J, B, T-1) x, y, z displacement from each frame to the next, metres."""
-        return tuple(c[..., 1:] - c[..., :-1] for c in (self.x, self.y, self.z))
 
     def not_available(self, name: str, unit: str, threshold: float, reason: str,
                       **kwargs: object) -> list[MetricResult]:
@@ -183,14 +177,20 @@ def results(batch: ClipBatch, name: str, timeline: np.ndarray, value: np.ndarray
     tl = np.asarray(timeline, dtype=np.float32)
     with np.errstate(invalid="ignore"):
         over = tl > ft
-    any_over = over.any(axis=1)
-    columns = {k: np.broadcast_to(np.asarray(v, dtype=np.float64), (batch.size,)).tolist()
-               for k, v in (details or {}).items()}
+    any_over = over.any(axis=1).tolist()
+    keys = list(details or {})
+    # One (B, K) table converted to Python floats at once: per-detail and
+    # per-clip numpy calls would cost more than the kernels on short clips.
+    table = np.empty((batch.size, len(keys)))
+    for k, v in enumerate((details or {}).values()):
+        table[:, k] = v
+    rows = table.tolist()
     values = np.asarray(value, dtype=np.float64).tolist()
-    unit_tl, thr = timeline_unit or unit, float(threshold)
+    unit_tl, thr, ft = timeline_unit or unit, float(threshold), float(ft)
+    ok = [True] * batch.size if available is None else np.asarray(available).tolist()
     out = []
     for b in range(batch.size):
-        r = batch.reasons[b] or (None if available is None or available[b] else reason)
+        r = batch.reasons[b] or (None if ok[b] else reason)
         if r is not None:
             out.append(MetricResult.not_available(name, batch.num_frames, unit, threshold, r,
                                                   frame_threshold=frame_threshold,
@@ -205,7 +205,7 @@ def results(batch: ClipBatch, name: str, timeline: np.ndarray, value: np.ndarray
         v = values[b]
         out.append(MetricResult(
             name=name, value=v, unit=unit, threshold=thr, passed=v <= threshold,
-            timeline=tl[b], violations=violations, frame_threshold=float(ft),
-            timeline_unit=unit_tl, details={k: c[b] for k, c in columns.items()},
+            timeline=tl[b], violations=violations, frame_threshold=ft,
+            timeline_unit=unit_tl, details=dict(zip(keys, rows[b], strict=True)),
         ))
     return out

@@ -19,9 +19,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from simenv.motion import Motion
+from simenv.plausibility import kernels
 from simenv.plausibility.clips import ClipBatch, norm3, results
 from simenv.plausibility.kinematic import canonical_or_reason, keypoint_indices
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
@@ -156,23 +156,6 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     return foot_skate_batch(ClipBatch([motion]), thresholds)[0]
 
 
-def _long_runs(mask: np.ndarray, min_len: int) -> np.ndarray:
-    """``mask`` (..., N) with only its runs along the last axis of at least
-    ``min_len`` True values kept."""
-    if min_len <= 1 or not mask.any():
-        return mask.copy()
-    n = mask.shape[-1]
-    lanes = mask.reshape(-1, n)
-    edges = np.diff(lanes.astype(np.int8), axis=1, prepend=0, append=0)
-    rows, starts = np.nonzero(edges == 1)
-    stops = np.nonzero(edges == -1)[1]  # row-major order: pairs with starts
-    long = stops - starts >= min_len
-    marks = np.zeros((len(lanes), n + 1), dtype=np.int8)
-    marks[rows[long], starts[long]] = 1
-    marks[rows[long], stops[long]] = -1
-    return (np.cumsum(marks, axis=1)[:, :n] > 0).reshape(mask.shape)
-
-
 def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                      ) -> list[MetricResult]:
     """:func:`foot_skate` of every clip of ``batch``."""
@@ -193,53 +176,22 @@ def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOL
             name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}",
             **kwargs)
     fps = batch.fps
-    idx = batch.indices(feet)
-    # Heights above the feet's floors, as _foot_heights.
-    foot_z = batch.z[idx]  # (F, B, T)
-    floors = np.repeat(np.percentile(batch.zmin, 1, axis=1)[None], len(feet), axis=0)
     ankles = np.array([f.endswith("_ankle") for f in feet])
-    if ankles.any():
-        floors[ankles] = np.percentile(foot_z[ankles].min(axis=0), 1, axis=1)
-    rel = foot_z - floors[..., None]
-    low = rel < heights[:, None, None]
-    low_pair = low[..., 1:] & low[..., :-1]  # (F, B, T-1)
-    dx, dy, dz = (d[idx] for d in batch.diffs)
-    v_h = np.sqrt(dx * dx + dy * dy) * fps
-    raw_sliding = low_pair & (v_h > thresholds.skate_speed_mps)
-    sliding = raw_sliding
-    if len(feet) == 2:
-        # The other foot, planted and lower, carries the weight: this one is unloaded.
-        margin = thresholds.skate_support_margin_m
-        other = slice(None, None, -1)
-        supported = ((v_h[other] <= thresholds.skate_speed_mps)
-                     & (rel[other, :, 1:] + margin < rel[..., 1:])
-                     & (rel[other, :, :-1] + margin < rel[..., :-1]))
-        sliding = raw_sliding & ~supported
-    skating = _long_runs(sliding, max(1, round(thresholds.skate_min_duration_s * fps)))
-    slide = np.where(skating, v_h, 0.0).max(axis=0)
     to_mm = 1000.0 / ref
-    timeline = np.full((batch.size, frames), np.nan)
-    timeline[:, 1:] = slide * to_mm
-    ratio = skating.any(axis=0).mean(axis=1)
-
-    window = max(1, round(thresholds.skate_window_s * fps))
-    v_avg = uniform_filter1d(v_h, size=window, axis=2, mode="constant")
-    gmd = raw_sliding & (v_avg > thresholds.skate_speed_mps)
-    # Planted feet as foot_contacts: low and slow (the last frame reuses the
-    # last speed).
-    speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
-    planted = low & (np.concatenate([speed, speed[..., -1:]], axis=2)
-                     < thresholds.contact_speed_mps)
-    planted_pair = planted[..., 1:] & planted[..., :-1]
-    n_planted = planted_pair.sum(axis=0)
-    disp = np.where(planted_pair, v_h, 0.0).sum(axis=0) / np.maximum(n_planted, 1)
+    timeline, value, details = kernels.foot_skate(
+        batch.p, batch.zmin, np.array(batch.indices(feet), dtype=np.int64),
+        heights.astype(np.float64), ankles, float(fps), float(thresholds.skate_speed_mps),
+        float(thresholds.skate_support_margin_m),
+        max(1, round(thresholds.skate_min_duration_s * fps)),
+        max(1, round(thresholds.skate_window_s * fps)), float(thresholds.contact_speed_mps),
+        to_mm)
     return results(
-        batch, name, timeline, ratio, unit, thr, **kwargs,
+        batch, name, timeline, value, unit, thr, **kwargs,
         details={
-            "gmd_skating_ratio": gmd.any(axis=0).mean(axis=1),
-            "physdiff_skate_mm": disp.mean(axis=1) * to_mm,
-            "max_slide_mm": slide.max(axis=1) * to_mm,
-            "contact_fraction": planted.any(axis=0).mean(axis=1),
+            "gmd_skating_ratio": details[:, 0],
+            "physdiff_skate_mm": details[:, 1],
+            "max_slide_mm": details[:, 2],
+            "contact_fraction": details[:, 3],
             "ankle_fallback": float(ankles.any()),
         },
     )
@@ -265,17 +217,11 @@ def ground_penetration_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_
     name, unit, thr = "ground_penetration", "mm", thresholds.penetration_max_mm
     if batch.skeleton is None:
         return batch.not_available(name, unit, thr, "")
-    depth = np.maximum(-batch.zmin, 0.0) * 1000.0
+    depth, value, details = kernels.ground_penetration(batch.zmin)
     return results(
-        batch, name, depth, depth.max(axis=1), unit, thr,
-        details={"mean_mm": depth.mean(axis=1), "frames_below_floor": (depth > 0).mean(axis=1)},
+        batch, name, depth, value, unit, thr,
+        details={"mean_mm": details[:, 0], "frames_below_floor": details[:, 1]},
     )
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) of each run of True in a 1-D mask."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
 
 
 def ballistic_residual(height: np.ndarray, fps: float, gravity: float) -> float:
@@ -340,34 +286,17 @@ def floating_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
             name, unit, thr,
             f"needs at least 3 frames to tell a jump from floating; the motion has {frames}",
         )
-    lowest = batch.zmin
-    hands = batch.indices(HAND_KEYPOINTS)
-    if hands:
-        # The lowest support point: hands count float_hand_reach_m lower. As
-        # the reach is positive, min(all raw, hands lowered) is exactly the
-        # minimum over the non-hand keypoints and the lowered hands.
-        lowest = np.minimum(lowest, (batch.z[hands] - thresholds.float_hand_reach_m)
-                            .min(axis=0))
-    com_z = batch.z[com_idx].mean(axis=0)
-    airborne = lowest > thresholds.float_height_m
-    floating_mask = np.zeros((batch.size, frames), dtype=bool)
-    worst, jumps = np.zeros(batch.size), np.zeros(batch.size)
-    for b in np.flatnonzero(airborne.any(axis=1)):
-        for start, stop in _runs(airborne[b]):
-            residual = ballistic_residual(com_z[b, start:stop], batch.fps,
-                                          thresholds.gravity_mps2)
-            worst[b] = max(worst[b], residual)
-            if residual > thresholds.ballistic_tolerance_m:
-                floating_mask[b, start:stop] = True
-            else:
-                jumps[b] += 1
-    timeline = np.where(floating_mask, lowest * 1000.0, 0.0)
+    timeline, value, details = kernels.floating(
+        batch.p, batch.zmin, np.array(com_idx, dtype=np.int64),
+        np.array(batch.indices(HAND_KEYPOINTS), dtype=np.int64),
+        float(thresholds.float_hand_reach_m), float(thresholds.float_height_m), float(batch.fps),
+        float(thresholds.gravity_mps2), float(thresholds.ballistic_tolerance_m))
     return results(
-        batch, name, timeline, timeline.max(axis=1), unit, thr,
+        batch, name, timeline, value, unit, thr,
         details={
-            "airborne_fraction": airborne.mean(axis=1),
-            "floating_fraction": floating_mask.mean(axis=1),
-            "worst_residual_m": worst,
-            "jumps": jumps,
+            "airborne_fraction": details[:, 0],
+            "floating_fraction": details[:, 1],
+            "worst_residual_m": details[:, 2],
+            "jumps": details[:, 3],
         },
     )

@@ -21,6 +21,7 @@ import numpy as np
 
 from simenv.errors import MotionError
 from simenv.motion import Motion, resample_weights
+from simenv.plausibility import kernels
 from simenv.plausibility.clips import ClipBatch, norm3, results
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
@@ -116,22 +117,17 @@ def bone_length_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHO
     reason = "needs two canonical keypoints joined by a bone of non-zero length"
     if batch.skeleton is None or not batch.skeleton.bones:
         return batch.not_available(name, unit, thr, reason)
-    parent, child = np.array(batch.skeleton.bones).T
-    dx, dy, dz = (c[child] - c[parent] for c in (batch.x, batch.y, batch.z))
-    lengths = np.sqrt((dx * dx + dy * dy) + dz * dz)  # (bones, B, T)
-    median = np.median(lengths, axis=2)
-    keep = median >= thresholds.bone_min_length_m  # (bones, B)
+    parent, child = np.array(batch.skeleton.bones, dtype=np.int64).T
     tol = np.array([thresholds.bone_length_head_rel_max if batch.names[c] == "head"
-                    else thresholds.bone_length_rel_max for c in child])[:, None, None]
-    # Skipped bones divide by 1 and count 0, which leaves the maxima over the
-    # kept bones (all >= 0) unchanged.
-    dev = np.abs(lengths / np.where(keep, median, 1.0)[..., None] - 1.0) * keep[..., None]
-    timeline = (dev / tol).max(axis=0)
+                    else thresholds.bone_length_rel_max for c in child], dtype=np.float64)
+    timeline, value, details, available = kernels.bone_length(
+        batch.p, np.ascontiguousarray(parent), np.ascontiguousarray(child), tol,
+        float(thresholds.bone_min_length_m), 95 / 100)
     return results(
-        batch, name, timeline, np.percentile(timeline, 95, axis=1), unit, thr,
-        details={"max": timeline.max(axis=1), "max_rel_deviation": dev.max(axis=(0, 2)),
-                 "bones_checked": keep.sum(axis=0)},
-        available=keep.any(axis=0), reason=reason,
+        batch, name, timeline, value, unit, thr,
+        details={"max": details[:, 0], "max_rel_deviation": details[:, 1],
+                 "bones_checked": details[:, 2]},
+        available=available, reason=reason,
     )
 
 
@@ -195,8 +191,12 @@ def bone_length_error(
 # -- jitter --------------------------------------------------------------------
 
 
+#: Path-length floor (metres) of the normalized jerk (ProtoMotions' value).
+NJ_EPS = 0.1
+
+
 def windowed_normalized_jerk(
-    positions: np.ndarray, fps: float, window_frames: int, eps: float = 0.1
+    positions: np.ndarray, fps: float, window_frames: int, eps: float = NJ_EPS
 ) -> np.ndarray:
     """ProtoMotions' normalized jerk per sliding window and keypoint.
 
@@ -284,31 +284,25 @@ def jitter_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
         )
     # Down to the analysis rate (never up: interpolating up would add jerk
     # at every original sample), in float32 as Motion.resample.
-    raw = batch.raw
-    if fps > fa * (1 + 1e-9):
-        i, wt = resample_weights(frames, fps, fa)
-        wt = wt[:, None, None]
-        raw = (1 - wt) * raw[:, i] + wt * raw[:, i + 1]
-    pos = raw.astype(np.float64)
-    nj = windowed_normalized_jerk(pos, fa, w)  # (B, windows, J)
-    if nj.shape[1] == 0:
+    resample = fps > fa * (1 + 1e-9)
+    if resample:
+        src, weight = resample_weights(frames, fps, fa)
+    else:
+        src, weight = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32)
+    if (len(src) if resample else frames) < w:
         return batch.not_available(
             name, unit, thr, f"resampled clip is shorter than one {w}-frame window", **kwargs)
-    limit = thresholds.normalized_jerk_max
-    typical = np.median(nj, axis=2)
-    centres = (np.arange(typical.shape[1]) + (w - 1) / 2.0) / fa
-    times = batch.motions[0].times
-    timeline = np.stack([np.interp(times, centres, t, left=np.nan, right=np.nan)
-                         for t in typical])
-    jerk = norm3(np.diff(pos, 3, axis=1)) * fa**3
+    dt = 1.0 / fa
+    timeline, value, details = kernels.jitter(
+        batch.p, resample, src.astype(np.int64), weight.astype(np.float32), float(fps),
+        float(fa), int(w), NJ_EPS, float(thresholds.normalized_jerk_max), dt**3,
+        ((w - 1) * dt) ** 5, fa**3)
     return results(
-        batch, name, timeline, 100.0 * (typical > limit).mean(axis=1), unit, thr, **kwargs,
+        batch, name, timeline, value, unit, thr, **kwargs,
         details={
-            "protomotions_high_jerk_percent": 100.0 * (nj.max(axis=2) > limit).mean(axis=1),
-            # Per clip and C-ordered, whatever the batch's memory layout: a
-            # mean's summation order follows the layout (last-bit effects).
-            "mean_jerk_mps3": np.array([np.ascontiguousarray(j).mean() for j in jerk]),
-            "normalized_jerk_mean": np.array([np.ascontiguousarray(n).mean() for n in nj]),
+            "protomotions_high_jerk_percent": details[:, 0],
+            "mean_jerk_mps3": details[:, 1],
+            "normalized_jerk_mean": details[:, 2],
             "analysis_fps": fa,
         },
     )
@@ -362,26 +356,17 @@ def velocity_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
         return batch.not_available(
             name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}")
     fps = batch.fps
-    dx, dy, dz = batch.diffs
-    speed = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps  # (J, B, T-1)
-    speed_ratio = (speed / _speed_limits(batch.names, thresholds)[:, None, None]).max(axis=0)
-    timeline = np.full((batch.size, frames), np.nan)
-    timeline[:, 1:] = speed_ratio
     jump_limit = max(thresholds.teleport_distance_m, thresholds.teleport_accel_mps2 / fps**2)
-    max_jump, teleports = np.zeros(batch.size), np.zeros(batch.size)
-    if frames >= 3:
-        ddx, ddy, ddz = (np.diff(d, axis=2) for d in batch.diffs)  # frames 1..T-2
-        jump = np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz).max(axis=0)
-        jump_ratio = jump / jump_limit
-        timeline[:, 1:-1] = np.maximum(timeline[:, 1:-1], jump_ratio)
-        max_jump, teleports = jump.max(axis=1), (jump_ratio > 1).sum(axis=1)
+    timeline, value, details = kernels.velocity(
+        batch.p, _speed_limits(batch.names, thresholds).astype(np.float64), float(fps),
+        float(jump_limit))
     return results(
-        batch, name, timeline, timeline[:, 1:].max(axis=1), unit, thr,
+        batch, name, timeline, value, unit, thr,
         details={
-            "max_speed_mps": speed.max(axis=(0, 2)),
-            "max_speed_ratio": speed_ratio.max(axis=1),
-            "max_jump_m": max_jump,
+            "max_speed_mps": details[:, 0],
+            "max_speed_ratio": details[:, 1],
+            "max_jump_m": details[:, 2],
             "jump_limit_m": jump_limit,
-            "teleport_frames": teleports,
+            "teleport_frames": details[:, 3],
         },
     )

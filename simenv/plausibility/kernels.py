@@ -1,0 +1,735 @@
+"""Compiled (numba) kernels of the joint-level metrics.
+
+Each public kernel scores every clip of a batch in one call: it reads the
+keypoint-major coordinate planes ``P`` (3, J, B, T) float64 metres of a
+:class:`~simenv.plausibility.clips.ClipBatch` (x, y, z; keypoints; clips;
+frames), loops over clips, keypoints and frames with the frame axis
+innermost and contiguous (so LLVM vectorises the elementwise loops), and
+writes per-clip timelines (B, T), values (B,) and details (B, K) for
+:func:`~simenv.plausibility.clips.results`. One pass per clip replaces the
+dozens of numpy temporaries per metric that dominated the numpy version.
+
+Numerics: every kernel does the same IEEE operations, in the same order, as
+the numpy formulas in the metric docstrings of
+:mod:`simenv.plausibility.kinematic` and :mod:`simenv.plausibility.contact`
+(numba adds no fast-math or FMA contraction unless asked, and none is
+asked): norms are ``sqrt((x*x + y*y) + z*z)``; differences of differences
+are taken as ``np.diff`` does; medians and percentiles interpolate exactly
+as ``np.median`` / ``np.percentile`` (linear) on the selected order
+statistics; means over frames use numpy's pairwise summation
+(:func:`pairwise_sum`); the moving average is scipy's
+``uniform_filter1d(mode="constant")`` running sum; ``np.interp`` is
+reproduced branch for branch. Results are therefore bit-identical to the
+numpy code, with one exception: the ballistic fit of :func:`floating` is the
+closed-form least-squares line instead of LAPACK's SVD solver, which moves
+the residual by at most a few 1e-13 relative (measured on the golden cases).
+
+Compilation: ``cache=True`` stores the machine code next to this module
+(``__pycache__``), so only the first import on a machine compiles (a few
+seconds, see ``benchmarks/bench_score.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _select(a: np.ndarray, n: int, k: int) -> float:
+    """k-th smallest (0-based) of ``a[:n]`` by quickselect (median-of-three
+    pivot, Hoare partition); reorders ``a[:n]`` so that ``a[:k]`` holds
+    values <= the result."""
+    lo, hi = 0, n - 1
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < a[lo]:
+            a[mid], a[lo] = a[lo], a[mid]
+        if a[hi] < a[lo]:
+            a[hi], a[lo] = a[lo], a[hi]
+        if a[hi] < a[mid]:
+            a[hi], a[mid] = a[mid], a[hi]
+        pivot = a[mid]
+        i, j = lo, hi
+        while i <= j:
+            while a[i] < pivot:
+                i += 1
+            while a[j] > pivot:
+                j -= 1
+            if i <= j:
+                a[i], a[j] = a[j], a[i]
+                i += 1
+                j -= 1
+        # Now a[lo:j+1] <= pivot <= a[i:hi+1] and a[j+1:i] == pivot.
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            return a[k]
+    return a[k]
+
+
+@njit(cache=True)
+def _max_below(a: np.ndarray, k: int) -> float:
+    """Largest of ``a[:k]`` (k >= 1): after :func:`_select` of ``k``, the
+    (k-1)-th smallest."""
+    m = a[0]
+    for i in range(1, k):
+        if a[i] > m:
+            m = a[i]
+    return m
+
+
+@njit(cache=True)
+def median(a: np.ndarray, n: int) -> float:
+    """``np.median(a[:n])`` (reorders ``a``): the middle order statistic, or
+    the mean of the two middle ones as ``(lo + hi) / 2``."""
+    k = n // 2
+    hi = _select(a, n, k)
+    if n % 2 == 1:
+        return hi
+    return (_max_below(a, k) + hi) / 2.0
+
+
+@njit(cache=True)
+def percentile(a: np.ndarray, n: int, q: float) -> float:
+    """``np.percentile(a[:n], 100 * q)`` with numpy's default (linear)
+    method and its exact interpolation formula (reorders ``a``)."""
+    virtual = (n - 1) * q
+    if virtual >= n - 1:
+        m = a[0]
+        for i in range(1, n):
+            if a[i] > m:
+                m = a[i]
+        return m
+    prev = np.floor(virtual)
+    gamma = virtual - prev
+    k = int(prev) + 1
+    upper = _select(a, n, k)
+    lower = _max_below(a, k)
+    diff = upper - lower
+    if gamma >= 0.5:
+        return upper - diff * (1.0 - gamma)
+    return lower + diff * gamma
+
+
+@njit(cache=True)
+def _block_sum(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise-sum leaf (n <= 128): eight interleaved accumulators
+    for n >= 8, then the remainder sequentially."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True)
+def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:
+    """Sum of the contiguous ``a[lo:lo + n]`` in numpy's pairwise order, so
+    that a mean equals numpy's ``mean`` of the same C-ordered values bit for
+    bit: ranges above 128 values are split at ``n // 2`` rounded down to a
+    multiple of 8 and the halves' sums added; smaller ones are
+    :func:`_block_sum` leaves.
+
+    The recursion runs on an explicit stack: numba's cache does not reload
+    self-recursive functions reliably (crashes on the cached code).
+    """
+    if n <= 128:
+        return _block_sum(a, lo, n)
+    # Node d of the current path: range start, length, 1 while its left
+    # half is pending / 2 while its right half is, and its left half's sum.
+    starts = np.empty(64, dtype=np.int64)
+    sizes = np.empty(64, dtype=np.int64)
+    phase = np.empty(64, dtype=np.int64)
+    left = np.empty(64)
+    depth = 0
+    starts[0], sizes[0] = lo, n
+    while True:
+        m = sizes[depth]
+        if m > 128:
+            half = m // 2
+            half -= half % 8
+            phase[depth] = 1
+            starts[depth + 1], sizes[depth + 1] = starts[depth], half
+            depth += 1
+            continue
+        value = _block_sum(a, starts[depth], m)
+        depth -= 1
+        while depth >= 0:
+            if phase[depth] == 1:
+                left[depth] = value
+                phase[depth] = 2
+                half = sizes[depth] // 2
+                half -= half % 8
+                starts[depth + 1] = starts[depth] + half
+                sizes[depth + 1] = sizes[depth] - half
+                depth += 1
+                break
+            value = left[depth] + value
+            depth -= 1
+        if depth < 0:
+            return value
+
+
+@njit(cache=True)
+def _keep_long_runs(mask: np.ndarray, min_len: int) -> None:
+    """Clear, in place, the runs of True of the 1-D ``mask`` shorter than
+    ``min_len``."""
+    n = mask.shape[0]
+    t = 0
+    while t < n:
+        if not mask[t]:
+            t += 1
+            continue
+        start = t
+        while t < n and mask[t]:
+            t += 1
+        if t - start < min_len:
+            mask[start:t] = False
+
+
+@njit(cache=True)
+def planes(positions: np.ndarray, idx: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Keypoint-major float64 planes of a stack of clips.
+
+    Args:
+        positions: (B, T, S, 3) float32 source-skeleton joints, metres.
+        idx: (J,) source joint of each canonical keypoint.
+
+    Returns:
+        P: (3, J, B, T) float64 coordinates; zmin: (B, T) height of the
+        lowest keypoint; span: (B,) smallest height span (highest minus
+        lowest keypoint) over frames, metres.
+    """
+    b_count, t_count = positions.shape[0], positions.shape[1]
+    j_count = idx.shape[0]
+    p = np.empty((3, j_count, b_count, t_count))
+    zmin = np.empty((b_count, t_count))
+    span = np.empty(b_count)
+    for b in range(b_count):
+        for t in range(t_count):
+            lo = np.inf
+            hi = -np.inf
+            for j in range(j_count):
+                s = idx[j]
+                p[0, j, b, t] = positions[b, t, s, 0]
+                p[1, j, b, t] = positions[b, t, s, 1]
+                z = np.float64(positions[b, t, s, 2])
+                p[2, j, b, t] = z
+                lo = min(lo, z)
+                hi = max(hi, z)
+            zmin[b, t] = lo
+            if t == 0 or hi - lo < span[b]:
+                span[b] = hi - lo
+    return p, zmin, span
+
+
+# -- bone length ---------------------------------------------------------------
+
+
+@njit(cache=True)
+def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.ndarray,
+                min_length: float, q: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bone-length consistency of every clip (see
+    :func:`simenv.plausibility.kinematic.bone_length`).
+
+    Args:
+        p: (3, J, B, T) planes. parent, child: (K,) keypoints of each bone.
+        tol: (K,) relative tolerance per bone. min_length: metres, bones
+            with a shorter median are skipped. q: percentile of the value
+            as a fraction (0.95).
+
+    Returns:
+        timeline (B, T), value (B,), details (B, 3) = (max of the timeline,
+        max relative deviation, bones checked), available (B,).
+    """
+    b_count, t_count = p.shape[2], p.shape[3]
+    timeline = np.zeros((b_count, t_count))
+    value = np.empty(b_count)
+    details = np.empty((b_count, 3))
+    available = np.empty(b_count, dtype=np.bool_)
+    length = np.empty(t_count)
+    buf = np.empty(t_count)
+    dev_max = np.empty(t_count)
+    for b in range(b_count):
+        tl = timeline[b]
+        # Skipped bones count deviation 0, which leaves every maximum (of
+        # values >= 0) unchanged: start the maxima at 0.
+        dev_max[:] = 0.0
+        checked = 0
+        for k in range(parent.shape[0]):
+            xp, yp, zp = p[0, parent[k], b], p[1, parent[k], b], p[2, parent[k], b]
+            xc, yc, zc = p[0, child[k], b], p[1, child[k], b], p[2, child[k], b]
+            for t in range(t_count):
+                dx, dy, dz = xc[t] - xp[t], yc[t] - yp[t], zc[t] - zp[t]
+                length[t] = np.sqrt((dx * dx + dy * dy) + dz * dz)
+            buf[:] = length
+            m = median(buf, t_count)
+            if not m >= min_length:
+                continue
+            checked += 1
+            tk = tol[k]
+            for t in range(t_count):
+                dev = abs(length[t] / m - 1.0)
+                dev_max[t] = max(dev_max[t], dev)
+                tl[t] = max(tl[t], dev / tk)
+        buf[:] = tl
+        value[b] = percentile(buf, t_count, q)
+        details[b, 0] = tl.max()
+        details[b, 1] = dev_max.max()
+        details[b, 2] = checked
+        available[b] = checked > 0
+    return timeline, value, details, available
+
+
+# -- jitter --------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _interp(x_count: int, x_step: float, xp: np.ndarray, fp: np.ndarray, out: np.ndarray
+            ) -> None:
+    """``out[:] = np.interp(np.arange(x_count) / x_step, xp, fp, left=nan,
+    right=nan)`` for increasing ``xp``, with numpy's branches (exact hits and
+    the last sample return ``fp`` itself; otherwise ``slope * (x - xp[j]) +
+    fp[j]`` with the slope from the bracketing samples)."""
+    n = xp.shape[0]
+    j = 0
+    for i in range(x_count):
+        x = i / x_step
+        if x < xp[0] or x > xp[n - 1]:
+            out[i] = np.nan
+            continue
+        while j < n - 1 and xp[j + 1] <= x:
+            j += 1
+        if j == n - 1 or xp[j] == x:
+            out[i] = fp[j]
+        else:
+            slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+            out[i] = slope * (x - xp[j]) + fp[j]
+
+
+@njit(cache=True)
+def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, fps: float,
+           fa: float, w: int, eps: float, limit: float, dt3: float, duration5: float,
+           fa3: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Windowed normalized jerk of every clip (see
+    :func:`simenv.plausibility.kinematic.jitter` and
+    :func:`~simenv.plausibility.kinematic.windowed_normalized_jerk`).
+
+    Args:
+        p: (3, J, B, T) planes at ``fps``.
+        resample: bring the clips to ``fa`` first: analysis frame k is
+            ``(1 - weight[k]) * p[src[k]] + weight[k] * p[src[k] + 1]`` in
+            float32, as :meth:`Motion.resample`. src: (N,) int64, weight:
+            (N,) float32 (:func:`simenv.motion.resample_weights`); without
+            resampling N = T and they are unused.
+        fa: analysis frame rate. w: window, frames at ``fa`` (>= 4, <= N).
+        eps: path-length floor. limit: normalized-jerk limit.
+        dt3, duration5, fa3: ``(1 / fa) ** 3``, ``((w - 1) / fa) ** 5`` and
+            ``fa ** 3`` as Python computes them (``pow``; numba would
+            multiply, which rounds differently).
+
+    Returns:
+        timeline (B, T) (median keypoint's NJ at each frame's window
+        centre, NaN where none), value (B,) (percent of windows over the
+        limit), details (B, 3) = (ProtoMotions' percent, mean |jerk| m/s^3,
+        mean NJ).
+    """
+    j_count, b_count, t_count = p.shape[1], p.shape[2], p.shape[3]
+    n = src.shape[0] if resample else t_count
+    windows = n - w + 1
+    dt = 1.0 / fa
+    timeline = np.empty((b_count, t_count))
+    value = np.empty(b_count)
+    details = np.empty((b_count, 3))
+    series = np.empty((3, n))
+    cs_step = np.empty(n)
+    cs_jerk = np.empty(n - 2)
+    nj = np.empty((windows, j_count))
+    jerk_norm = np.empty((n - 3, j_count))
+    typical = np.empty(windows)
+    centres = np.empty(windows)
+    for i in range(windows):
+        centres[i] = (i + (w - 1) / 2.0) / fa
+    buf = np.empty(j_count)
+    one = np.float32(1.0)
+    for b in range(b_count):
+        for j in range(j_count):
+            for c in range(3):
+                row = p[c, j, b]
+                if resample:
+                    for k in range(n):
+                        wk = weight[k]
+                        series[c, k] = ((one - wk) * np.float32(row[src[k]])
+                                        + wk * np.float32(row[src[k] + 1]))
+                else:
+                    series[c, :] = row
+            x, y, z = series[0], series[1], series[2]
+            # Path length (cumulative |v| dt) and integrated squared jerk,
+            # with np.diff's differences and the same divisions by dt.
+            cs_step[0] = 0.0
+            for k in range(n - 1):
+                vx, vy, vz = (x[k + 1] - x[k]) / dt, (y[k + 1] - y[k]) / dt, (z[k + 1] - z[k]) / dt
+                cs_step[k + 1] = cs_step[k] + np.sqrt((vx * vx + vy * vy) + vz * vz) * dt
+            cs_jerk[0] = 0.0
+            for k in range(n - 3):
+                d3x = (((x[k + 3] - x[k + 2]) - (x[k + 2] - x[k + 1]))
+                       - ((x[k + 2] - x[k + 1]) - (x[k + 1] - x[k])))
+                d3y = (((y[k + 3] - y[k + 2]) - (y[k + 2] - y[k + 1]))
+                       - ((y[k + 2] - y[k + 1]) - (y[k + 1] - y[k])))
+                d3z = (((z[k + 3] - z[k + 2]) - (z[k + 2] - z[k + 1]))
+                       - ((z[k + 2] - z[k + 1]) - (z[k + 1] - z[k])))
+                jx, jy, jz = d3x / dt3, d3y / dt3, d3z / dt3
+                cs_jerk[k + 1] = cs_jerk[k] + ((jx * jx + jy * jy) + jz * jz) * dt
+                jerk_norm[k, j] = np.sqrt((d3x * d3x + d3y * d3y) + d3z * d3z) * fa3
+            for i in range(windows):
+                path = max(cs_step[w - 1 + i] - cs_step[i], eps)
+                nj[i, j] = duration5 * (cs_jerk[w - 3 + i] - cs_jerk[i]) / (path * path + eps)
+        high = 0
+        high_any = 0
+        for i in range(windows):
+            buf[:] = nj[i]
+            typical[i] = median(buf, j_count)
+            high += typical[i] > limit
+            high_any += nj[i].max() > limit
+        _interp(t_count, fps, centres, typical, timeline[b])
+        value[b] = 100.0 * (high / windows)
+        details[b, 0] = 100.0 * (high_any / windows)
+        details[b, 1] = pairwise_sum(jerk_norm.ravel(), 0, jerk_norm.size) / jerk_norm.size
+        details[b, 2] = pairwise_sum(nj.ravel(), 0, nj.size) / nj.size
+    return timeline, value, details
+
+
+# -- velocity ------------------------------------------------------------------
+
+
+@njit(cache=True)
+def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speeds against their limits and teleports of every clip (see
+    :func:`simenv.plausibility.kinematic.velocity`); T >= 2.
+
+    Args:
+        p: (3, J, B, T) planes. limits: (J,) m/s. jump_limit: metres.
+
+    Returns:
+        timeline (B, T) (NaN on frame 0), value (B,), details (B, 4) =
+        (max speed m/s, max speed ratio, max jump m, teleport frames).
+    """
+    j_count, b_count, t_count = p.shape[1], p.shape[2], p.shape[3]
+    timeline = np.empty((b_count, t_count))
+    value = np.empty(b_count)
+    details = np.zeros((b_count, 4))
+    ratio = np.empty(t_count - 1)
+    speed_max = np.empty(t_count - 1)
+    jump = np.empty(max(t_count - 2, 0))
+    for b in range(b_count):
+        # Speeds, ratios and jumps are >= 0: maxima start at 0.
+        ratio[:] = 0.0
+        speed_max[:] = 0.0
+        jump[:] = 0.0
+        for j in range(j_count):
+            x, y, z = p[0, j, b], p[1, j, b], p[2, j, b]
+            lim = limits[j]
+            for t in range(t_count - 1):
+                dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+                s = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
+                speed_max[t] = max(speed_max[t], s)
+                ratio[t] = max(ratio[t], s / lim)
+            for t in range(t_count - 2):
+                ddx = (x[t + 2] - x[t + 1]) - (x[t + 1] - x[t])
+                ddy = (y[t + 2] - y[t + 1]) - (y[t + 1] - y[t])
+                ddz = (z[t + 2] - z[t + 1]) - (z[t + 1] - z[t])
+                jump[t] = max(jump[t], np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz))
+        tl = timeline[b]
+        tl[0] = np.nan
+        tl[1:] = ratio
+        teleports = 0
+        for t in range(t_count - 2):
+            r = jump[t] / jump_limit
+            teleports += r > 1
+            tl[t + 1] = max(tl[t + 1], r)
+        value[b] = tl[1:].max()
+        details[b, 0] = speed_max.max()
+        details[b, 1] = ratio.max()
+        if t_count >= 3:
+            details[b, 2] = jump.max()
+        details[b, 3] = teleports
+    return timeline, value, details
+
+
+# -- ground --------------------------------------------------------------------
+
+
+@njit(cache=True)
+def ground_penetration(zmin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Depth below the floor of every clip (see
+    :func:`simenv.plausibility.contact.ground_penetration`).
+
+    Args:
+        zmin: (B, T) height of the lowest keypoint, metres.
+
+    Returns:
+        timeline (B, T) mm, value (B,), details (B, 2) = (mean mm,
+        fraction of frames below the floor).
+    """
+    b_count, t_count = zmin.shape
+    depth = np.empty((b_count, t_count))
+    value = np.empty(b_count)
+    details = np.empty((b_count, 2))
+    for b in range(b_count):
+        below = 0
+        for t in range(t_count):
+            d = max(-zmin[b, t], 0.0) * 1000.0
+            depth[b, t] = d
+            below += d > 0
+        value[b] = depth[b].max()
+        details[b, 0] = pairwise_sum(depth[b], 0, t_count) / t_count
+        details[b, 1] = below / t_count
+    return depth, value, details
+
+
+@njit(cache=True)
+def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.ndarray,
+               ankle: np.ndarray, fps: float, skate_speed: float, margin: float,
+               min_run: int, window: int, contact_speed: float, to_mm: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Foot skating of every clip (see
+    :func:`simenv.plausibility.contact.foot_skate`); T >= 2.
+
+    Args:
+        p: (3, J, B, T) planes. zmin: (B, T) lowest keypoint height.
+        feet: (F,) foot keypoints (F = 1 or 2). heights: (F,) contact
+            heights, metres. ankle: (F,) True for an ankle fallback.
+        skate_speed, contact_speed: m/s. margin: support margin, metres.
+        min_run: frames a slide must last. window: moving-average frames.
+        to_mm: m/s to the timeline's mm per reference frame.
+
+    Returns:
+        timeline (B, T) (NaN on frame 0), value (B,) (skating ratio),
+        details (B, 4) = (GMD ratio, PhysDiff skate mm, max slide mm,
+        contact fraction).
+    """
+    b_count, t_count = zmin.shape
+    f_count = feet.shape[0]
+    pairs = t_count - 1
+    timeline = np.empty((b_count, t_count))
+    value = np.empty(b_count)
+    details = np.empty((b_count, 4))
+    rel = np.empty((f_count, t_count))
+    low = np.empty((f_count, t_count), dtype=np.bool_)
+    v_h = np.empty((f_count, pairs))
+    planted = np.empty((f_count, t_count), dtype=np.bool_)
+    raw_sliding = np.empty((f_count, pairs), dtype=np.bool_)
+    sliding = np.empty((f_count, pairs), dtype=np.bool_)
+    buf = np.empty(t_count)
+    padded = np.zeros(pairs + window - 1)
+    v_avg = np.empty(pairs)
+    slide = np.empty(pairs)
+    disp = np.empty(pairs)
+    any_ankle = ankle.any()
+    for b in range(b_count):
+        # Floors: toes from the 1st percentile of the lowest keypoint, ankles
+        # from that of the lowest ankle.
+        buf[:] = zmin[b]
+        floor = percentile(buf, t_count, 0.01)
+        ankle_floor = floor
+        if any_ankle:
+            for t in range(t_count):
+                m = np.inf
+                for f in range(f_count):
+                    if ankle[f]:
+                        m = min(m, p[2, feet[f], b, t])
+                buf[t] = m
+            ankle_floor = percentile(buf, t_count, 0.01)
+        for f in range(f_count):
+            x, y, z = p[0, feet[f], b], p[1, feet[f], b], p[2, feet[f], b]
+            fl = ankle_floor if ankle[f] else floor
+            for t in range(t_count):
+                rel[f, t] = z[t] - fl
+                low[f, t] = rel[f, t] < heights[f]
+            for t in range(pairs):
+                dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+                v_h[f, t] = np.sqrt(dx * dx + dy * dy) * fps
+                # Planted (foot_contacts): low and slow; the last frame
+                # reuses the last speed.
+                slow = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps < contact_speed
+                planted[f, t] = low[f, t] and slow
+                if t == pairs - 1:
+                    planted[f, t + 1] = low[f, t + 1] and slow
+                raw_sliding[f, t] = low[f, t + 1] and low[f, t] and v_h[f, t] > skate_speed
+        for f in range(f_count):
+            o = f_count - 1 - f
+            for t in range(pairs):
+                # The other foot, planted and lower, carries the weight.
+                supported = (f_count == 2 and v_h[o, t] <= skate_speed
+                             and rel[o, t + 1] + margin < rel[f, t + 1]
+                             and rel[o, t] + margin < rel[f, t])
+                sliding[f, t] = raw_sliding[f, t] and not supported
+            if min_run > 1:
+                _keep_long_runs(sliding[f], min_run)
+        slide[:] = 0.0
+        skating_pairs = 0
+        gmd_pairs = 0
+        for t in range(pairs):
+            skating = False
+            for f in range(f_count):
+                if sliding[f, t]:
+                    skating = True
+                    slide[t] = max(slide[t], v_h[f, t])
+            skating_pairs += skating
+        for f in range(f_count):
+            # scipy's uniform_filter1d(mode="constant") running mean.
+            half = window // 2
+            padded[half:half + pairs] = v_h[f]
+            acc = 0.0
+            for k in range(window):
+                acc += padded[k]
+            v_avg[0] = acc / window
+            for k in range(1, pairs):
+                acc += padded[k + window - 1] - padded[k - 1]
+                v_avg[k] = acc / window
+            for t in range(pairs):
+                # Reused below as "a GMD-skating foot at this pair".
+                raw_sliding[f, t] = raw_sliding[f, t] and v_avg[t] > skate_speed
+        contact_frames = 0
+        for t in range(t_count):
+            contact = False
+            for f in range(f_count):
+                contact = contact or planted[f, t]
+            contact_frames += contact
+        for t in range(pairs):
+            gmd = False
+            total = 0.0
+            count = 0
+            for f in range(f_count):
+                gmd = gmd or raw_sliding[f, t]
+                if planted[f, t + 1] and planted[f, t]:
+                    total += v_h[f, t]
+                    count += 1
+            gmd_pairs += gmd
+            disp[t] = total / max(count, 1)
+        tl = timeline[b]
+        tl[0] = np.nan
+        for t in range(pairs):
+            tl[t + 1] = slide[t] * to_mm
+        value[b] = skating_pairs / pairs
+        details[b, 0] = gmd_pairs / pairs
+        details[b, 1] = pairwise_sum(disp, 0, pairs) / pairs * to_mm
+        details[b, 2] = slide.max() * to_mm
+        details[b, 3] = contact_frames / t_count
+    return timeline, value, details
+
+
+@njit(cache=True)
+def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray,
+             hand_reach: float, float_height: float, fps: float, gravity: float,
+             tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Floating (airborne, not ballistic) of every clip (see
+    :func:`simenv.plausibility.contact.floating`); T >= 3.
+
+    Args:
+        p: (3, J, B, T) planes. zmin: (B, T) lowest keypoint height.
+        com: (K,) keypoints of the centre-of-mass proxy (K >= 1).
+        hands: (H,) keypoints counted ``hand_reach`` metres lower.
+        float_height: metres. gravity: m/s^2. tolerance: RMS residual of a
+            ballistic flight, metres.
+
+    Returns:
+        timeline (B, T) mm, value (B,), details (B, 4) = (airborne
+        fraction, floating fraction, worst residual m, jumps).
+    """
+    b_count, t_count = zmin.shape
+    timeline = np.empty((b_count, t_count))
+    value = np.empty(b_count)
+    details = np.empty((b_count, 4))
+    lowest = np.empty(t_count)
+    com_z = np.empty(t_count)
+    half_g = 0.5 * gravity
+    for b in range(b_count):
+        lowest[:] = zmin[b]
+        for h in hands:
+            zh = p[2, h, b]
+            for t in range(t_count):
+                lowest[t] = min(lowest[t], zh[t] - hand_reach)
+        # np.mean over keypoints: a sequential sum, then one division.
+        com_z[:] = p[2, com[0], b]
+        for k in com[1:]:
+            com_z += p[2, k, b]
+        com_z /= com.shape[0]
+        tl = timeline[b]
+        tl[:] = 0.0
+        worst, jumps, airborne, floating_frames = 0.0, 0, 0, 0
+        t = 0
+        while t < t_count:
+            if not lowest[t] > float_height:
+                t += 1
+                continue
+            start = t
+            while t < t_count and lowest[t] > float_height:
+                t += 1
+            n = t - start
+            airborne += n
+            residual = 0.0
+            if n >= 3:
+                # Free fall z0 + v0 s - g s^2 / 2: least-squares line through
+                # the height plus g s^2 / 2, solved in closed form about the
+                # mean time (well conditioned).
+                s_mean = 0.0
+                y_mean = 0.0
+                for k in range(n):
+                    s = k / fps
+                    s_mean += s
+                    y_mean += com_z[start + k] + half_g * (s * s)
+                s_mean /= n
+                y_mean /= n
+                sxy = 0.0
+                sxx = 0.0
+                for k in range(n):
+                    s = k / fps
+                    ds = s - s_mean
+                    sxy += ds * (com_z[start + k] + half_g * (s * s) - y_mean)
+                    sxx += ds * ds
+                slope = sxy / sxx
+                sq = 0.0
+                for k in range(n):
+                    s = k / fps
+                    r = (com_z[start + k] + half_g * (s * s) - y_mean) - slope * (s - s_mean)
+                    sq += r * r
+                residual = np.sqrt(sq / n)
+            worst = max(worst, residual)
+            if residual > tolerance:
+                floating_frames += n
+                for k in range(start, t):
+                    tl[k] = lowest[k] * 1000.0
+            else:
+                jumps += 1
+        value[b] = tl.max()
+        details[b, 0] = airborne / t_count
+        details[b, 1] = floating_frames / t_count
+        details[b, 2] = worst
+        details[b, 3] = jumps
+    return timeline, value, details
