@@ -342,9 +342,20 @@ def cmd_eval(args: argparse.Namespace) -> int:
         from simenv.train_predictor import main as predictor_main
 
         return predictor_main(["--evaluate", name or "predictor-25-25", *options])
+    if args.kind == "interaction":
+        from simenv.eval_interaction import main as interaction_main
+
+        return interaction_main(list(args.options))
     from simenv.train_classifier import main as classifier_main
 
     return classifier_main(["eval", "--model", name or "gesture-classifier", *options])
+
+
+def cmd_rehearse(args: argparse.Namespace) -> int:
+    """Forward to the offline interaction rehearsal (:mod:`simenv.rehearsal`)."""
+    from simenv.rehearsal import main as rehearsal_main
+
+    return rehearsal_main(list(args.options))
 
 
 def _positive_int(text: str) -> int:
@@ -446,21 +457,38 @@ def build_parser() -> argparse.ArgumentParser:
          "train KIND --help`); --config FILE reads them from a TOML or JSON file."),
         ("eval", cmd_eval, "evaluate a shipped model [NAME] (default predictor-25-25 / "
          "gesture-classifier) on its held-out split, or for the predictor on --data PATH... "
-         "(--json prints one object); writes metrics.json and plots (--out DIR)."),
+         "(--json prints one object); writes metrics.json and plots (--out DIR). "
+         "`eval interaction` scores the two-person reaction baselines on the held-out "
+         "recordings with the papers' metrics and physics (docs/interaction.md)."),
     ):
+        kinds = ("predictor", "classifier") + (("interaction",) if verb == "eval" else ())
         cmd = sub.add_parser(verb, help=text.split(" (")[0].split(":")[0], description=text)
-        cmd.add_argument("kind", choices=("predictor", "classifier"), metavar="KIND",
-                         help="predictor or classifier")
+        cmd.add_argument("kind", choices=kinds, metavar="KIND", help=" or ".join(kinds))
         cmd.add_argument("options", nargs=argparse.REMAINDER, metavar="...",
                          help="options of the training/evaluation script")
         cmd.set_defaults(func=func)
+    reh = sub.add_parser("rehearse", help="offline interaction rehearsal in the room",
+                         add_help=False, description=(
+        "Replay a recorded session (any single-person motion file or bundled asset) in the "
+        "virtual room: perception every second, the agent's reactions simulated, outputs "
+        "rehearsal.mp4, log.jsonl, summary.json and report.html in --out. Usage: simenv "
+        "rehearse SESSION --out DIR [--agent AGENT] [--scenario NAME|FILE] "
+        "[--gesture LABEL:ONSET_S:END_S] [--templates DIR] [--no-render]."))
+    reh.add_argument("options", nargs=argparse.REMAINDER, metavar="SESSION --out DIR ...",
+                     help="options of the rehearsal (python -m simenv.rehearsal --help)")
+    reh.set_defaults(func=cmd_rehearse)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``simenv`` command; returns the exit status (2 on a user error)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    # `rehearse` forwards everything, its --help included, to the rehearsal's own parser.
+    args, extra = parser.parse_known_args(argv)
+    if args.command == "rehearse":
+        args.options = [*extra, *args.options]
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return args.func(args)
     except SimenvError as err:

@@ -197,3 +197,16 @@ def test_score_text_output_and_bad_path(capsys, tmp_path):
     assert status == 0 and "plausible" in text and "not available: joint_limits" in text
     status, _, err = run(capsys, "score", tmp_path / "nothing.bvh")
     assert status == 2 and "no such file" in err
+
+
+def test_rehearse_forwards_to_the_rehearsal(capsys, tmp_path):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["rehearse", "--help"])
+    assert exc.value.code == 0 and "--scenario" in capsys.readouterr().out
+    status, out, _ = run(capsys, "rehearse", WALK, "--out", tmp_path / "r", "--no-render")
+    assert status == 0 and "reaction(s) started" in out
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["reactions"] == []  # a walk holds no gesture: nothing is started
+    with pytest.raises(SystemExit) as exc:  # other commands still reject unknown options
+        cli.main(["info", str(asset_path(WALK)), "--bogus"])
+    assert exc.value.code == 2 and "unrecognized arguments: --bogus" in capsys.readouterr().err
