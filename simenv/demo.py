@@ -4,8 +4,9 @@ Reads the bundled CMU clips (a walk, 02_01, and the two-person "walk, shake hand
 18_01 + 19_01), retargets each person onto a humanoid fitted to their bone lengths, and writes
 per clip an MP4 (humanoid + source joints as a ghost) and an NPZ trajectory, scores each
 clip's physical plausibility (:func:`simenv.score`, physics on) into an HTML report
-(``report/index.html``), plus one ``summary.json`` with residuals, verdicts, timings and
-which frames were rendered. Offscreen rendering
+(``report/index.html``), rehearses the virtual room on person B of the handshake
+(:data:`REHEARSAL_GESTURE`, ``rehearsal/``), plus one ``summary.json`` with residuals,
+verdicts, the rehearsal's reactions, timings and which frames were rendered. Offscreen rendering
 on a CPU manages a few frames per second, so each video shows every ``stride``-th frame
 (playing at ``fps / stride``, i.e. real time); retargeting always covers every frame.
 """
@@ -33,6 +34,12 @@ CMU_ACKNOWLEDGEMENT = (
 )
 #: (output name, bundled asset) of each demo clip.
 DEMO_CLIPS = (("walk", WALK), ("handshake", HANDSHAKE_PAIR))
+#: The rehearsal's session: person B of the handshake pair, one real recording.
+REHEARSAL_SESSION = f"{HANDSHAKE_PAIR}/19_01.bvh"
+#: Its labelled gesture (label, onset s, end s). No public recording of the thesis's
+#: discomfort gestures exists, so the demo labels a stretch of the real session "smell" to
+#: show the mechanism: the agent must press the cigarette out with its own simulated hand.
+REHEARSAL_GESTURE = ("smell", 0.5, 1.5)
 
 
 def run_demo(
@@ -98,8 +105,10 @@ def run_demo(
             f"render {entry['render_seconds']:.1f} s ({entry['rendered_frames']} frames, "
             f"every {clip_stride})"
         )
+    rehearsal = _rehearsal(out_dir / "rehearsal", width=width, height=height)
     report = {
         "clips": clips,
+        "rehearsal": rehearsal,
         "total_seconds": round(time.perf_counter() - started, 3),
         "data_acknowledgement": CMU_ACKNOWLEDGEMENT,
     }
@@ -108,7 +117,29 @@ def run_demo(
     index = write_index(index_rows, out_dir / "report")
     print(f"wrote {summary_path}")
     print(f"wrote {index}")
+    for name in ("rehearsal.mp4", "report.html", "summary.json", "log.jsonl"):
+        print(f"wrote {out_dir / 'rehearsal' / name}")
     for entry in clips.values():
         print(f"wrote {entry['video']}")
         print(f"wrote {entry['npz']}")
     return report
+
+
+def _rehearsal(out_dir: Path, *, width: int, height: int) -> dict[str, Any]:
+    """Rehearse the discomfort scenario on :data:`REHEARSAL_SESSION`; returns its reactions."""
+    from simenv.rehearsal import rehearse
+    from simenv.session import GestureEvent, Session
+
+    label, onset, end = REHEARSAL_GESTURE
+    print(f"[rehearsal] room, discomfort scenario; session {REHEARSAL_SESSION} labelled "
+          f"{label!r} at {onset}-{end} s")
+    session = Session.load(asset_path(HANDSHAKE_PAIR) / "19_01.bvh",
+                           [GestureEvent(label, onset, end)])
+    summary = rehearse(session, out_dir, scenario="discomfort", agent="labels",
+                       width=width, height=height)
+    for r in summary["reactions"]:
+        print(f"[rehearsal] {r['gesture']} -> {r['reaction']}: "
+              f"{'done' if r['success'] else 'not done'} (decided at {r['t_decision']:.2f} s, "
+              f"object changed at {r['t_object_changed']} s)")
+    return {"session": REHEARSAL_SESSION, "gesture": list(REHEARSAL_GESTURE),
+            "reactions": summary["reactions"], "folder": str(out_dir)}

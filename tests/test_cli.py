@@ -171,6 +171,10 @@ def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
         assert plaus["verdict"] in ("plausible", "implausible")
         assert len(plaus["people"]) == people and Path(plaus["report"]).is_file()
     assert (tmp_path / "demo" / "report" / "index.html").is_file()
+    (reaction,) = report["rehearsal"]["reactions"]
+    assert reaction["object"] == "cigarette" and reaction["success"] is True
+    assert reaction["t_object_changed"] > reaction["t_decision"] >= reaction["t_onset"]
+    assert (tmp_path / "demo" / "rehearsal" / "rehearsal.mp4").stat().st_size > 0
 
 
 def test_score_json_prints_one_object_per_person(capsys, tmp_path):
