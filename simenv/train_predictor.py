@@ -23,8 +23,9 @@ shows a tqdm bar and writes a checkpoint. Evaluation (:func:`evaluate`) compares
 model (predicted and carried amplitude) with zero- and constant-velocity on the held-out
 windows: per-frame MPJPE and RMS-up-to-horizon MPJPE at 80/160/320/400/1000 ms (joints
 without the pelvis, whose root-relative error is 0 for every method), MPJS and
-bone-length drift, per action type and per clip, plus recursive prediction to 3 F
-frames. Training writes ``metrics.json``, ``error_curve.png`` and ``model.npz``;
+bone-length drift, per action type and per clip, the pass rates of the kinematic
+plausibility metrics (:func:`plausibility`), plus recursive prediction to 3 F frames.
+Training writes ``metrics.json``, ``error_curve.png`` and ``model.npz``;
 evaluation (:func:`run_evaluation`) writes ``metrics.json`` and ``error_curve.png``.
 """
 
@@ -45,7 +46,7 @@ import torch
 from simenv import prediction_data as pdata
 from simenv import prediction_metrics as pm
 from simenv.config import read_options
-from simenv.errors import MotionError, SimenvError, SkeletonError
+from simenv.errors import MotionError, SimenvError, SkeletonError, UnitsError
 from simenv.io import load
 from simenv.models.baselines import ConstantVelocity, ZeroVelocity
 from simenv.models.predictor import (
@@ -280,9 +281,53 @@ def predictions(model: PredictiveMAWGAN, windows: pdata.PredictionWindows
     }
 
 
+#: Every how many-th window the plausibility metrics are computed on (overlapping
+#: stride-1 windows are nearly identical).
+PLAUSIBILITY_STRIDE = 10
+
+
+def plausibility(preds: dict[str, np.ndarray], windows: pdata.PredictionWindows,
+                 stride: int = PLAUSIBILITY_STRIDE) -> dict:
+    """Pass rates of the kinematic plausibility metrics (:mod:`simenv.plausibility`,
+    default thresholds) of every method and of the ground truth.
+
+    Each scored clip is a window's lead-in and observed frames followed by the (F, 17, 3)
+    future of a method, put back on the window's *true* root trajectory (the predictors
+    do not predict the root, so a held pose slides its feet along with the root).
+
+    A clip so distorted that it is not a body in metres any more (a median extent beyond
+    3.5 m, :class:`~simenv.errors.UnitsError`; constant velocity over 2 s does this)
+    fails every metric and is counted in ``not_a_body``.
+
+    Returns:
+        ``{"windows": n, "stride": stride, "pass_rate": {method: {metric: fraction}},
+        "not_a_body": {method: fraction}}``.
+    """
+    from simenv.plausibility import KINEMATIC_METRICS, kinematic_metrics_batch
+
+    sel = np.arange(0, len(windows), stride)
+    skeleton = pdata.pred17_skeleton()
+    head = windows.frames[sel, : windows.past_len + 1]
+    rates, rejected = {}, {}
+    for name, future in {"ground_truth": windows.future, **preds}.items():
+        world = np.concatenate([head, future[sel]], axis=1) + windows.root[sel, :, None]
+        motions = []
+        for i, x in zip(sel, world, strict=True):
+            try:
+                motions.append(Motion(x, windows.fps, skeleton, f"window {i}"))
+            except UnitsError:
+                continue
+        results = kinematic_metrics_batch(motions)
+        rates[name] = {k: round(sum(r[k].passed for r in results) / len(sel), 4)
+                       for k in KINEMATIC_METRICS}
+        rejected[name] = round(1 - len(motions) / len(sel), 4)
+    return {"windows": len(sel), "stride": stride, "pass_rate": rates,
+            "not_a_body": rejected}
+
+
 def evaluate(model: PredictiveMAWGAN, windows: pdata.PredictionWindows) -> dict:
     """Metrics of the model and the baselines on ``windows``: overall, per action, per
-    clip (see the module docstring)."""
+    clip, plausibility (see the module docstring)."""
     preds = predictions(model, windows)
     gt = windows.future
     out: dict = {"windows": len(windows), "fps": windows.fps,
@@ -301,6 +346,7 @@ def evaluate(model: PredictiveMAWGAN, windows: pdata.PredictionWindows) -> dict:
                 k: pm.mpjpe_at_horizons_mm(v[sel], sub.future, sub.fps, joints=EVAL_JOINTS)
                 for k, v in preds.items()
             }
+    out["plausibility"] = plausibility(preds, windows)
     return out
 
 
@@ -428,6 +474,27 @@ def goal_lines(overall: dict) -> list[str]:
     return ["", "Goal check (per-frame MPJPE, held-out):", "", *lines]
 
 
+def plausibility_lines(metrics: dict) -> list[str]:
+    """Markdown table of the plausibility pass rates (when the metrics have them)."""
+    if "plausibility" not in metrics:
+        return []
+    pl = metrics["plausibility"]
+    rates = pl["pass_rate"]
+    names = list(next(iter(rates.values())))
+    lines = ["", f"Plausibility: share of clips passing each kinematic metric of "
+             f"`simenv.plausibility` (default thresholds; every {pl['stride']}th held-out "
+             f"window, {pl['windows']} clips of history + future on the true root "
+             "trajectory):", "",
+             "| method | " + " | ".join(names) + " |", "|" + "---|" * (len(names) + 1)]
+    for method, r in rates.items():
+        lines.append(f"| {method} | " + " | ".join(f"{r[k]:.2f}" for k in names) + " |")
+    lost = {k: v for k, v in pl.get("not_a_body", {}).items() if v}
+    if lost:
+        lines += ["", "Clips no longer a body in metres (extent > 3.5 m; they fail every "
+                  "metric): " + ", ".join(f"{k} {v:.2f}" for k, v in lost.items())]
+    return lines
+
+
 def recursive_lines(metrics: dict) -> list[str]:
     """Markdown table of recursive prediction (per-frame MPJPE at each multiple of F)."""
     rec = metrics.get("recursive", {})
@@ -494,6 +561,7 @@ def model_card(name: str, metrics: dict) -> str:
             f"{k} {v['bone_drift_mm']['mean']:.1f}" for k, v in ov.items()),
         "",
         *goal_lines(ov),
+        *plausibility_lines(metrics),
         "",
         "Per action type, per-frame MPJPE [mm] (model / zero-velocity / constant-velocity):",
         "",

@@ -154,6 +154,11 @@ def test_eval_predictor_json_on_given_clips(tmp_path: Path, capsys, shared_data:
     for key in ("mpjpe_mm", "rms_mpjpe_up_to_horizon_mm", "mpjs_m_s", "bone_drift_mm"):
         assert key in metrics["overall"]["model"]
     assert set(metrics["per_action"]) == {"walk"}
+    rates = metrics["plausibility"]["pass_rate"]
+    assert set(rates) == {"ground_truth", "model", "model_carried_amplitude", "zero_velocity",
+                          "constant_velocity"}
+    assert set(rates["model"]) >= {"bone_length", "foot_skate", "jitter", "velocity"}
+    assert rates["ground_truth"]["bone_length"] == rates["zero_velocity"]["bone_length"] == 1.0
     assert len(metrics["recursive"]["model"]) == 30
     assert (tmp_path / "error_curve.png").stat().st_size > 1000
 
