@@ -25,7 +25,9 @@ windows: per-frame MPJPE and RMS-up-to-horizon MPJPE at 80/160/320/400/1000 ms (
 without the pelvis, whose root-relative error is 0 for every method), MPJS and
 bone-length drift, per action type and per clip, the pass rates of the kinematic
 plausibility metrics (:func:`plausibility`), plus recursive prediction to 3 F frames.
-Training writes ``metrics.json``, ``error_curve.png`` and ``model.npz``;
+Training writes ``metrics.json``, ``error_curve.png``, ``model.npz`` (with the critic) and
+what ships in ``assets/models``: ``predictor-<P>-<F>.npz`` (no critic) and its card
+``predictor-<P>-<F>.md``;
 evaluation (:func:`run_evaluation`) writes ``metrics.json`` and ``error_curve.png``.
 """
 
@@ -439,6 +441,10 @@ def run(args: argparse.Namespace) -> dict:
                 "skipped_clips": list(windows.skipped), "notes": notes, "train_log": log}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
     plot_curves(metrics, out / "error_curve.png")
+    # What ships in assets/models: the networks without the critic, and the card.
+    name = f"predictor-{args.past}-{args.future}"
+    model.save(out / f"{name}.npz", with_critic=False)
+    (out / f"{name}.md").write_text(model_card(name, metrics))
     return metrics
 
 

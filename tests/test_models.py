@@ -246,3 +246,23 @@ def test_train_classifier_on_a_folder_without_recordings(tmp_path: Path, capsys)
                      str(tmp_path / "o")]) == 2
     assert "error:" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_train_predictor_writes_checkpoint_card_metrics_and_plot(tmp_path: Path, capsys,
+                                                                 shared_data: Path) -> None:
+    clips = [str(shared_data / "cmu" / "bvh" / f"{n}.bvh") for n in ("02_01", "49_02")]
+    out = tmp_path / "run"
+    assert cli.main(["train", "predictor", "--data", *clips, "--past", "10", "--future", "10",
+                     "--iterations", "3", "--speeds", "1.0", "--no-mirror", "--quiet",
+                     "--out", str(out)]) == 0
+    assert "zero_velocity" in capsys.readouterr().out
+    for name in ("model.npz", "predictor-10-10.npz", "predictor-10-10.md", "metrics.json",
+                 "error_curve.png"):
+        assert (out / name).is_file(), name
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["config"]["iterations"] == 3
+    assert not set(metrics["config"]["train_clips"]) & set(metrics["config"]["test_clips"])
+    card = (out / "predictor-10-10.md").read_text()
+    assert "Goal check" in card and "Plausibility" in card
+    shipped = tp.PredictiveMAWGAN.load(out / "predictor-10-10.npz")
+    assert shipped.predict(_history(11)).shape == (2, 10, 17, 3)
