@@ -5,7 +5,12 @@
    clips -- one call on the bundled walk (343 frames), one call per whole
    corpus clip, and :func:`simenv.plausibility.kinematic_metrics_batch` on a
    batch of equal-length windows cut from the corpus clips (the shape of a
-   generator's output). Goal: 2M frames/s.
+   generator's output). Goal: 2M frames/s. A "frame" is one frame of one
+   31-joint clip with all six kinematic metrics computed on it (21
+   canonical keypoints). The metrics are numba kernels
+   (:mod:`simenv.plausibility.kernels`); their one-off compile time is
+   reported apart from the warm rates: in a fresh process with an empty
+   numba cache (compiling), and with the on-disk cache (loading).
 2. Physics tracking: simulator steps per second of
    :func:`simenv.plausibility.tracking.track` on the retargeted walk
    (unassisted, and with the root assistance the scorer uses) against a raw
@@ -31,7 +36,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import copy  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -75,8 +82,43 @@ def windows(clips: list[Motion], frames: int) -> list[Motion]:
                                                                   frames)]
 
 
+#: Run in a fresh interpreter: seconds of the first and of a second
+#: kinematic_metrics call on the bundled walk.
+_FIRST_CALL = """
+import time
+from simenv.assets import WALK, asset_path
+from simenv.io import bvh
+from simenv.plausibility import kinematic_metrics
+walk = bvh.read(asset_path(WALK))
+t0 = time.perf_counter(); kinematic_metrics(walk); t1 = time.perf_counter()
+kinematic_metrics(walk); t2 = time.perf_counter()
+print(t1 - t0, t2 - t1)
+"""
+
+
+def first_call_seconds(cache_dir: str | None) -> tuple[float, float]:
+    """(first, second) call seconds of the kinematic metrics in a fresh
+    process, with numba's cache in ``cache_dir`` (None: its default, next to
+    the kernels module)."""
+    env = dict(os.environ)
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = cache_dir
+    out = subprocess.run([sys.executable, "-c", _FIRST_CALL], env=env, check=True,
+                         capture_output=True, text=True).stdout.split()
+    return float(out[-2]), float(out[-1])
+
+
+def bench_compile() -> None:
+    with tempfile.TemporaryDirectory() as empty:
+        cold, _ = first_call_seconds(empty)
+    cached, warm = first_call_seconds(None)
+    print(f"numba kernels: first call {cold:.1f} s compiling (empty cache), {cached:.2f} s "
+          f"loading the cache; warm call on the walk {warm * 1e3:.2f} ms")
+
+
 def bench_kinematic(clips: list[Motion], walk: Motion, window_s: float, repeats: int) -> None:
-    print(f"kinematic metrics (6 joint-level metrics, {walk.num_joints}-joint CMU BVH, one core)")
+    print(f"kinematic metrics (6 joint-level metrics, {walk.num_joints}-joint CMU BVH, one core;"
+          " frame = one frame of one clip with all six metrics)")
     t = best_seconds(lambda: kinematic_metrics(walk), repeats)
     rows = [("one call, bundled walk", walk.num_frames, 1, t)]
     total = sum(c.num_frames for c in clips)
@@ -144,6 +186,7 @@ def main() -> None:
     clips = [c for c in clips if c.num_joints == 31 and c.fps == walk.fps] or [walk]
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; "
           f"{len(clips)} real clip(s) from {args.data if len(clips) > 1 else 'the bundled walk'}")
+    bench_compile()
     bench_kinematic(clips, walk, args.window_s, args.repeats)
     bench_tracking(walk, args.repeats)
 
