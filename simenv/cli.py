@@ -300,11 +300,16 @@ def cmd_score(args: argparse.Namespace) -> int:
         report_dir.mkdir(parents=True, exist_ok=True)
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
                    else str(report_dir))
-    printer = (lambda _t, recs: [print(json.dumps(r), flush=True) for r in recs]) if args.json \
-        else (lambda _t, recs: [_print_score(r) for r in recs])
+    def show(_target: Path, records: list[dict[str, Any]]) -> None:
+        for rec in records:
+            if args.json:
+                print(json.dumps(rec), flush=True)
+            else:
+                _print_score(rec)
+
     records = score_batch(targets, job, jobs=args.jobs, backend=args.backend,
                           ray_address=args.ray_address, out=args.out,
-                          progress=sys.stderr.isatty() or args.progress, on_result=printer)
+                          progress=sys.stderr.isatty() or args.progress, on_result=show)
     if report_dir is not None:
         from simenv.plausibility.html_report import write_index
 
