@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -20,7 +18,6 @@ from simenv.perception import (
 from simenv.scenario import load_scenario
 from simenv.skeletons import CANONICAL_KEYPOINTS
 
-GESTURES = Path(__file__).resolve().parents[2] / "shared" / "data" / "gestures"
 K = len(CANONICAL_KEYPOINTS)
 
 
@@ -104,11 +101,9 @@ def test_loop_anticipates_with_the_prediction():
     assert blind.stage is None and blind.reaction is None
 
 
-@pytest.mark.skipif(not (GESTURES / "florence3d").is_dir(),
-                    reason="shared gesture recordings (../shared/data/gestures) absent")
-def test_templates_from_real_clips_cross_subject():
+def test_templates_from_real_clips_cross_subject(shared_data):
     """Florence 3D, odd subjects as templates, even subjects classified (3 s windows)."""
-    clips = load_gesture_clips(GESTURES, datasets=("florence3d",))
+    clips = load_gesture_clips(shared_data / "gestures", datasets=("florence3d",))
     train, test = split_cross_subject(clips)
     tc = TemplateClassifier.from_clips(train)
     hits = []
