@@ -318,7 +318,8 @@ def cmd_score(args: argparse.Namespace) -> int:
             print(f"wrote {index}")
     if args.out and not args.json:
         print(f"results in {args.out}")
-    return 0
+    # Every file was attempted and recorded; the status still says some input was bad.
+    return EXIT_USER_ERROR if any("error" in r for r in records) else 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:

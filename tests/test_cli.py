@@ -201,6 +201,12 @@ def test_score_text_output_and_bad_path(capsys, tmp_path):
     assert status == 0 and "plausible" in text and "not available: joint_limits" in text
     status, _, err = run(capsys, "score", tmp_path / "nothing.bvh")
     assert status == 2 and "no such file" in err
+    # A bad file among good ones: every file is scored, the bad one is named, status 2.
+    broken = tmp_path / "broken.bvh"
+    broken.write_text(Path(asset_path(WALK)).read_text()[:5000])
+    status, text, _ = run(capsys, "score", asset_path(WALK), broken, "--no-physics")
+    assert status == 2
+    assert "plausible" in text and f"{broken}: error:" in text and "line" in text
 
 
 def test_rehearse_forwards_to_the_rehearsal(capsys, tmp_path):
