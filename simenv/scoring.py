@@ -21,12 +21,15 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
 from simenv.errors import SimenvError
 from simenv.motion import Interaction
+
+if TYPE_CHECKING:  # the scorer pulls in MuJoCo; workers import it when they score
+    from simenv.plausibility.report import ScoreConfig
 
 BACKENDS = ("local", "ray")
 
@@ -93,7 +96,7 @@ class ScoreJob:
 
     physics: bool = True
     report_dir: str | None = None
-    config: Any = None
+    config: ScoreConfig | None = None
 
 
 def _report_name(target: Path) -> str:
