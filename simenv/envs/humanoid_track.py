@@ -35,7 +35,7 @@ Episode
     and velocity. *Terminated* when the mean keypoint error exceeds
     ``termination_distance`` (0.5 m, PHC's failure rule, as in
     :mod:`simenv.plausibility.tracking`). *Truncated* at the end of the reference, or when
-    the physics diverges or MuJoCo warns (:mod:`simenv.envs._physics`), with
+    the physics diverges or MuJoCo warns (:mod:`simenv.divergence`), with
     ``info["truncation_reason"]``. Stepping before ``reset``, after the episode ended, or
     with an action of the wrong shape raises :class:`~simenv.errors.SimenvError`.
 """
@@ -53,7 +53,7 @@ import numpy as np
 from gymnasium import spaces
 
 from simenv.assets import WALK, asset_path, list_assets
-from simenv.envs._physics import physics_problem, warning_counts
+from simenv.divergence import physics_problem, warning_counts
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
 from simenv.io.loader import load

@@ -62,7 +62,7 @@ from gymnasium import spaces
 
 from simenv.agents.scripted import PLANNERS, object_success
 from simenv.assets import WALK
-from simenv.envs._physics import physics_problem, warning_counts
+from simenv.divergence import physics_problem, warning_counts
 from simenv.errors import SimenvError
 from simenv.motion import Motion
 from simenv.scenario import REACTIONS, Scenario, load_scenario

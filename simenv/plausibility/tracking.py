@@ -27,7 +27,7 @@ compared with the reference body's keypoints:
   mm/frame^2.
 
 Blow-ups never raise: a non-finite state, an acceleration beyond
-:data:`MAX_QACC` or a MuJoCo warning (bad qacc, constraint arena overflow)
+:data:`simenv.divergence.MAX_QACC` or a MuJoCo warning (bad qacc, constraint arena overflow)
 stops the simulation, marks the result failed and records a
 :class:`~simenv.errors.PhysicsError` message naming the frame.
 """
@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from simenv.divergence import physics_problem, warning_counts
 from simenv.errors import PhysicsError
 from simenv.humanoid import Humanoid
 from simenv.plausibility.body import check_qpos
@@ -49,13 +50,6 @@ from simenv.plausibility.clips import norm3
 from simenv.plausibility.dynamics import finite_differences
 from simenv.plausibility.timeline import MetricResult
 from simenv.retarget import RetargetResult
-
-#: Largest generalized acceleration accepted from the simulator (rad/s^2 or
-#: m/s^2); beyond it the state is taken as diverged.
-MAX_QACC = 1e6
-
-_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_CNSTRFULL,
-             mujoco.mjtWarning.mjWARN_CONTACTFULL)
 
 
 @dataclass(frozen=True)
@@ -94,18 +88,6 @@ class TrackingResult:
     steps: int
     wall_s: float
     sim_keypoints: np.ndarray
-
-
-def _diverged(model: mujoco.MjModel, data: mujoco.MjData) -> str | None:
-    for w in _WARNINGS:
-        if data.warning[w].number > 0:
-            return f"MuJoCo warning {mujoco.mjtWarning(w).name}"
-    if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
-        return "non-finite state"
-    peak = float(np.abs(data.qacc).max()) if model.nv else 0.0
-    if not np.isfinite(peak) or peak > MAX_QACC:
-        return f"generalized acceleration {peak:.3g} beyond {MAX_QACC:.0e}"
-    return None
 
 
 def _assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
@@ -173,6 +155,7 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         mocap_steps = root[prev] + alpha * (root[step_frame] - root[prev])
 
     data = mujoco.MjData(model)
+    warnings_at_start = warning_counts(data)
     data.qpos[:] = ref[0]
     data.qvel[:] = qvel_ref[0]
     mujoco.mj_forward(model, data)
@@ -207,7 +190,7 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
                 force_sum += float(np.linalg.norm(data.efc_force[:3]))
                 n_sub += 1
         steps += last - first
-        reason = _diverged(model, data)
+        reason = physics_problem(model, data, warnings_at_start)
         if reason is not None:
             error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
                                      source=result.name))

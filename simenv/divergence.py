@@ -1,9 +1,12 @@
-"""Shared simulation guards of the environments: divergence and MuJoCo warnings.
+"""Simulation guards: divergence and MuJoCo warnings.
 
-A policy can drive a body into states the simulator cannot integrate (huge velocities,
-interpenetration it resolves with enormous forces). The environments check after every
-step and end the episode as *truncated* (the state is not a task outcome) with the reason
-in ``info["truncation_reason"]``, instead of returning NaN observations.
+A policy, or a motion no body can perform, can drive a simulation into states the
+integrator cannot handle (huge velocities, interpenetration resolved with enormous
+forces). Whoever steps MuJoCo checks after its step(s) with :func:`physics_problem`: the
+environments end the episode as *truncated* (the state is not a task outcome) with the
+reason in ``info["truncation_reason"]``; physics tracking
+(:mod:`simenv.plausibility.tracking`) stops and reports a failed result naming the frame.
+Neither returns NaN or crashes.
 """
 
 from __future__ import annotations
