@@ -40,11 +40,9 @@ def rate(fn: Callable[[], object], seconds: float) -> float:
     return calls / (time.process_time() - start)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=3.0, help="CPU seconds per measurement")
-    ap.add_argument("--json", help="also write the results to this JSON file")
-    args = ap.parse_args()
+def measure(seconds: float = 3.0, *, verbose: bool = False) -> dict[str, dict[str, float]]:
+    """Single-sample and batched rates of every shipped model on one thread, each over
+    about ``seconds`` CPU seconds; ``verbose`` prints each model's result."""
     torch.set_num_threads(1)
     walk = bvh.read(Path(str(resources.files("simenv.assets"))) / "cmu_02_01_walk.bvh")
     results: dict[str, dict[str, float]] = {}
@@ -67,11 +65,21 @@ def main() -> None:
             unit = "classifications"
             one, many = (lambda m=model, x=batch[0]: m.classify_world(x)), \
                 (lambda m=model, x=batch: m.classify_world(x))
-        results[name] = {f"single_{unit}_per_s": round(rate(one, args.seconds), 1),
-                         f"batched_{unit}_per_s": round(len(batch) * rate(many, args.seconds),
+        results[name] = {f"single_{unit}_per_s": round(rate(one, seconds), 1),
+                         f"batched_{unit}_per_s": round(len(batch) * rate(many, seconds),
                                                         1),
                          "batch": len(batch)}
-        print(name, results[name])
+        if verbose:
+            print(name, results[name])
+    return results
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=3.0, help="CPU seconds per measurement")
+    ap.add_argument("--json", help="also write the results to this JSON file")
+    args = ap.parse_args()
+    results = measure(args.seconds, verbose=True)
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
 

@@ -410,9 +410,11 @@ def split_summary(train_clips: Sequence[GestureClip], test_clips: Sequence[Gestu
     }
 
 
-def model_card(metrics: dict[str, Any]) -> str:
-    """Markdown model card of a trained classifier from its metrics."""
-    cfg, split, ev = metrics["config"], metrics["split"], metrics["test"]
+def results_markdown(metrics: dict[str, Any]) -> str:
+    """The test-results tables of a model card (per condition; per-class recall) from
+    the metrics of a training run or of :func:`run_evaluation`;
+    ``benchmarks/model_docs.py`` puts the same text into docs/recognition.md."""
+    ev = metrics["test"]
     per_ds = " / ".join(sorted(ev["real_3s"]["per_dataset_accuracy"]))
     rows = "\n".join(
         f"| {c} | {ev[c]['accuracy']:.3f} | {ev[c]['balanced_accuracy']:.3f} | "
@@ -423,6 +425,29 @@ def model_card(metrics: dict[str, Any]) -> str:
     recall = "\n".join(
         f"| {k} | {ev['real_3s']['support'][k]} | {ev['real_3s']['per_class_recall'].get(k, 0):.3f}"
         f" | {ev['real_1s']['per_class_recall'].get(k, 0):.3f} |" for k in GESTURE_LABELS)
+    head = ("| condition | accuracy | balanced acc. | room-reaction acc. | "
+            f"per dataset ({per_ds}) |")
+    return f"""{head}
+|---|---|---|---|---|
+{rows}
+
+`real_1s_pred_2s_model`: 1 s real + 2 s predicted by the shipped
+`{metrics.get('predictor') or 'predictor-25-50 (not shipped: condition skipped)'}`;
+`real_1s_pred_2s_cv` / `_zv`: 1 s real + 2 s from a constant-velocity / zero-velocity
+extrapolation. Thesis (its own 7-gesture data): 63.6 % (3 s),
+47.7 % (1 s), 60.2 % (1 s + 2 s predicted).
+
+Per-class recall (test):
+
+| label | test windows | 3 s real | 1 s real |
+|---|---|---|---|
+{recall}
+"""
+
+
+def model_card(metrics: dict[str, Any]) -> str:
+    """Markdown model card of a trained classifier from its metrics."""
+    cfg, split = metrics["config"], metrics["split"]
     return f"""# gesture-classifier
 
 Spatio-temporal transformer gesture classifier (skeleton-adjacency spatial mask
@@ -455,22 +480,7 @@ Parameters: {metrics['parameters']}.
 
 ## Test results (cross-subject)
 
-| condition | accuracy | balanced acc. | room-reaction acc. | per dataset ({per_ds}) |
-|---|---|---|---|---|
-{rows}
-
-`real_1s_pred_2s_model`: 1 s real + 2 s predicted by the shipped
-`{metrics.get('predictor') or 'predictor-25-50 (not shipped: condition skipped)'}`;
-`real_1s_pred_2s_cv` / `_zv`: 1 s real + 2 s from a constant-velocity / zero-velocity
-extrapolation. Thesis (its own 7-gesture data): 63.6 % (3 s),
-47.7 % (1 s), 60.2 % (1 s + 2 s predicted).
-
-Per-class recall (test):
-
-| label | test windows | 3 s real | 1 s real |
-|---|---|---|---|
-{recall}
-
+{results_markdown(metrics)}
 Confusion matrices: `confusion.png` next to the metrics of the training run.
 """
 
@@ -513,18 +523,25 @@ def run_training(config: TrainConfig, out: Path, *, progress: bool = True) -> di
 
 def run_evaluation(checkpoint: Path, data: Path, out: Path) -> dict[str, Any]:
     """Evaluate a saved classifier on the test subjects of ``data``; writes
-    ``metrics.json`` and ``confusion.png`` into ``out``."""
+    ``metrics.json`` and ``confusion.png`` into ``out``.
+
+    Besides the scores, the metrics record what the data section of the docs states
+    (clip count, skipped recordings, split, parameter count), so that
+    ``benchmarks/model_docs.py`` can write docs/recognition.md from them alone."""
     model = GestureClassifier.load(checkpoint)
     joints = model.config.extra.get("joint_set", "gesture15")
-    clips = load_gesture_clips(data, joints=joints)
-    _, test_clips = split_cross_subject(clips)
+    report = LoadReport()
+    clips = load_gesture_clips(data, joints=joints, report=report)
+    train_clips, test_clips = split_cross_subject(clips)
     predictor = shipped_predictor()
     results = evaluate(model, test_clips, predictor)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     metrics = {"checkpoint": str(checkpoint), "test": results,
                "predictor": PREDICTOR if predictor is not None else None,
-               "split": split_summary(*split_cross_subject(clips))}
+               "clips": len(clips), "skipped": report.skipped,
+               "parameters": sum(p.numel() for p in model.parameters()),
+               "split": split_summary(train_clips, test_clips)}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
     plot_confusions(results, out / "confusion.png")
     return metrics

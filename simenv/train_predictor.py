@@ -518,40 +518,12 @@ def recursive_lines(metrics: dict) -> list[str]:
     return lines
 
 
-def model_card(name: str, metrics: dict) -> str:
-    """Markdown model card of a trained predictor from its ``metrics.json`` content."""
-    cfg = metrics["config"]
+def results_lines(metrics: dict) -> list[str]:
+    """The held-out results of a model card (error tables, MPJS, bone drift, goal check,
+    plausibility, per action type, recursive prediction) from ``metrics.json`` content;
+    ``benchmarks/model_docs.py`` puts the same lines into docs/prediction.md."""
     ov = metrics["overall"]
     lines = [
-        f"# {name}: PredictiveMA-WGAN motion predictor "
-        f"({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
-        "",
-        "Predicts the next "
-        f"{cfg['future_len']} frames ({1000 * cfg['future_len'] / 25:.0f} ms) of a 17-joint "
-        "root-relative skeleton (simenv.prediction_data pred17 layout, metres, Z-up) from "
-        f"the last {cfg['past_len'] + 1} frames (lead-in + {cfg['past_len']} observed). "
-        "Method and every choice that differs from the papers: docstring of "
-        "`simenv.models.predictor`. Load with "
-        f"`simenv.models.load(\"{name}\")`, then `.predict(history)`.",
-        "",
-        "## Data and split",
-        "",
-        "Real CMU motion capture from the shared corpus (BVH, ASF/AMC and both people of "
-        "the two-person trials), resampled to 25 fps, sliding windows with stride 1. "
-        "Split by clip group with `prediction_data.split_by_clip` (test fraction 0.25, "
-        f"seed {cfg['seed']}; partners of one two-person trial are one group).",
-        "",
-        f"* train clips ({len(cfg['train_clips'])}): {', '.join(cfg['train_clips'])}",
-        f"* held-out clips ({len(cfg['test_clips'])}): {', '.join(cfg['test_clips'])}",
-        f"* training windows: {cfg['train_windows']} (with speed variants "
-        f"{cfg['speeds']} and left-right mirroring: {cfg['mirror']}); held-out windows: "
-        f"{cfg['test_windows']}",
-        f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} CPU s on one "
-        f"thread, batch 64, Adam lr {cfg['lr']}, {cfg['n_critic']} critic step(s) per "
-        f"generator step, adversarial weight {cfg['adv_weight']}, dropout {cfg['dropout']}",
-        "",
-        "## Held-out results",
-        "",
         "Per-frame MPJPE at the horizon [mm] (16 joints, pelvis excluded; root-relative):",
         "",
         *_table(ov, "mpjpe_mm"),
@@ -582,7 +554,43 @@ def model_card(name: str, metrics: dict) -> str:
             cells.append("-" if vals[0] is None else " / ".join(f"{v:.0f}" for v in vals))
         lines.append(f"| {action} | {m['windows']} | " + " | ".join(cells) + " |")
     lines += recursive_lines(metrics)
-    lines += [
+    return lines
+
+
+def model_card(name: str, metrics: dict) -> str:
+    """Markdown model card of a trained predictor from its ``metrics.json`` content."""
+    cfg = metrics["config"]
+    lines = [
+        f"# {name}: PredictiveMA-WGAN motion predictor "
+        f"({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
+        "",
+        "Predicts the next "
+        f"{cfg['future_len']} frames ({1000 * cfg['future_len'] / 25:.0f} ms) of a 17-joint "
+        "root-relative skeleton (simenv.prediction_data pred17 layout, metres, Z-up) from "
+        f"the last {cfg['past_len'] + 1} frames (lead-in + {cfg['past_len']} observed). "
+        "Method and every choice that differs from the papers: docstring of "
+        "`simenv.models.predictor`. Load with "
+        f"`simenv.models.load(\"{name}\")`, then `.predict(history)`.",
+        "",
+        "## Data and split",
+        "",
+        "Real CMU motion capture from the shared corpus (BVH, ASF/AMC and both people of "
+        "the two-person trials), resampled to 25 fps, sliding windows with stride 1. "
+        "Split by clip group with `prediction_data.split_by_clip` (test fraction 0.25, "
+        f"seed {cfg['seed']}; partners of one two-person trial are one group).",
+        "",
+        f"* train clips ({len(cfg['train_clips'])}): {', '.join(cfg['train_clips'])}",
+        f"* held-out clips ({len(cfg['test_clips'])}): {', '.join(cfg['test_clips'])}",
+        f"* training windows: {cfg['train_windows']} (with speed variants "
+        f"{cfg['speeds']} and left-right mirroring: {cfg['mirror']}); held-out windows: "
+        f"{cfg['test_windows']}",
+        f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} CPU s on one "
+        f"thread, batch 64, Adam lr {cfg['lr']}, {cfg['n_critic']} critic step(s) per "
+        f"generator step, adversarial weight {cfg['adv_weight']}, dropout {cfg['dropout']}",
+        "",
+        "## Held-out results",
+        "",
+        *results_lines(metrics),
         "",
         "Licence of the training data: CMU Graphics Lab Motion Capture Database. The data "
         "used in this project was obtained from mocap.cs.cmu.edu. The database was created "
