@@ -260,3 +260,128 @@ def test_absurd_scale(shared_data: Path, tmp_path: Path) -> None:
     _expect(tmp_path, huge, UnitsError, "not a plausible person")
     with pytest.raises(UnitsError):
         bvh.read(_write(tmp_path, text), units="parsec")
+
+
+# --- restore_collapsed_bones: the CMU converters' zero thorax and wrist offsets ---
+
+ARM_JOINTS = (
+    "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "LeftFingerBase", "LThumb",
+    "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase", "RThumb",
+)  # fmt: skip
+LEG_JOINTS = (
+    "Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase",
+    "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase", "LowerBack",
+    "Spine", "Spine1",
+)  # fmt: skip
+
+
+def _amc_error(motion, amc) -> dict[str, float]:
+    """Max over frames of the distance to the AMC joint of the same index (m)."""
+    d = np.linalg.norm(motion.positions - amc.positions, axis=-1).max(axis=0)
+    return dict(zip(motion.skeleton.joint_names, d.tolist(), strict=True))
+
+
+def test_restored_bones_match_the_asf_amc(shared_data: Path) -> None:
+    import simenv
+
+    amc = simenv.load(shared_data / "cmu/asf_amc/02_01.amc")
+    raw = bvh.read(shared_data / "cmu/bvh/02_01.bvh")
+    fixed = bvh.read(shared_data / "cmu/bvh/02_01.bvh", restore_collapsed_bones=True)
+    # The BVH's T-pose frame 0 is dropped: frame k of both is AMC frame k.
+    assert raw.metadata["frames_in_file"] == amc.num_frames + 1
+    assert raw.num_frames == fixed.num_frames == amc.num_frames
+    assert amc.num_joints == fixed.num_joints == 31
+    err_raw, err = _amc_error(raw, amc), _amc_error(fixed, amc)
+    for j in LEG_JOINTS:
+        assert err[j] < 1e-3 and err_raw[j] < 1e-3, j
+    for j in ARM_JOINTS:
+        assert err_raw[j] > 0.10, j  # as written: the missing thorax (and wrist)
+        assert err[j] < 0.02, j  # the thorax is approximated by the upper back
+    np.testing.assert_array_equal(raw.positions[:, :14], fixed.positions[:, :14])
+    repairs = fixed.metadata["repairs"]
+    assert len(repairs) == 3
+    assert "thorax" in repairs[0] and "Neck, LeftShoulder, RightShoulder" in repairs[0]
+    assert re.search(r"set from 0 to 1[12]\.\d cm from Spine1", repairs[0])
+    assert "lwrist" in repairs[1] and "LeftFingerBase" in repairs[1]
+    assert "half the forearm" in repairs[1] and "rwrist" in repairs[2]
+    # The restored skeleton no longer has coincident canonical keypoints.
+    assert not any("coincides" in q for q in fixed.metadata["quirks"])
+    assert fixed.skeleton.canonical["neck"] == "Neck"
+    assert fixed.metadata["scale_m_per_unit"] == raw.metadata["scale_m_per_unit"]
+
+
+def test_default_read_is_unchanged(shared_data: Path) -> None:
+    for rel in ("cmu/bvh/02_01.bvh", "cmu/bvh/131_01.bvh"):
+        raw = bvh.read(shared_data / rel)
+        off = bvh.read(shared_data / rel, restore_collapsed_bones=False)
+        np.testing.assert_array_equal(raw.positions, off.positions)
+        assert "repairs" not in raw.metadata and "repairs" not in off.metadata
+        assert raw.metadata == off.metadata
+        assert any("a bone the converter collapsed" in q for q in raw.metadata["quirks"])
+
+
+@pytest.mark.parametrize(
+    "rel, thorax_parent, wrist",
+    [
+        ("cmu/bvh/131_01.bvh", "Chest2", "lhand"),
+        ("cmu/two_person/18_19_walk_shake_hands/18_01.bvh", "thorax", "lhand"),
+    ],
+)
+def test_restore_other_cmu_namings(
+    shared_data: Path, rel: str, thorax_parent: str, wrist: str
+) -> None:
+    m = bvh.read(shared_data / rel, restore_collapsed_bones=True)
+    names = m.skeleton.joint_names
+    off = np.array(m.metadata["offsets_m"])
+    parent = m.skeleton.parents[names.index(wrist)]
+    np.testing.assert_allclose(off[names.index(wrist)], off[parent] / 2, atol=1e-6)
+    repairs = m.metadata["repairs"]
+    assert len(repairs) == 3 and f"from {thorax_parent}," in repairs[0]
+    # The neck/clavicles sit a thorax (~12 cm, the upper back's length) above its parent.
+    assert 0.09 < np.linalg.norm(off[names.index("lowerneck")]) < 0.15
+
+
+def test_restore_does_nothing_on_other_skeletons(shared_data: Path) -> None:
+    rel = "cmu/two_person/60_61_salsa_05/60_05_scaled.bvh"
+    raw = bvh.read(shared_data / rel)
+    m = bvh.read(shared_data / rel, restore_collapsed_bones=True)
+    assert m.metadata["repairs"] == []
+    assert any("nothing restored" in q and "poser" in q for q in m.metadata["quirks"])
+    np.testing.assert_array_equal(raw.positions, m.positions)
+
+
+def test_restore_skips_a_bone_that_is_not_collapsed(shared_data: Path, tmp_path: Path) -> None:
+    lines = _cmu_text(shared_data, frames=5).splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.strip() == "JOINT LeftFingerBase")
+    lines[k + 2] = lines[k + 2].replace("OFFSET 0 0 0", "OFFSET 1 0 0")
+    m = bvh.read(_write(tmp_path, "\n".join(lines) + "\n"), restore_collapsed_bones=True)
+    assert len(m.metadata["repairs"]) == 2
+    assert any(
+        "lwrist not restored" in q and "LeftFingerBase already has a non-zero offset" in q
+        for q in m.metadata["quirks"]
+    )
+
+
+def test_restored_handshake_hands_meet() -> None:
+    import simenv
+    from simenv.assets import HANDSHAKE_PAIR, asset_path
+
+    folder = asset_path(HANDSHAKE_PAIR)
+    if not folder.is_dir():
+        pytest.skip(f"bundled handshake pair not found at {folder}")
+
+    def closest(**kw) -> float:
+        pair = simenv.load(folder, **kw)
+        a, b = pair.people
+        # The hand bone's end (the knuckles) of 18_01 (ASF names) and 19_01 (cgspeed).
+        return float(
+            np.linalg.norm(a.joint("rfingers") - b.joint("RightHandIndex1"), axis=-1).min()
+        )
+
+    assert closest() > 0.25
+    assert closest(restore_collapsed_bones=True) < 0.12
+    pair = simenv.load(folder, restore_collapsed_bones=True)
+    for person in pair.people:
+        assert len(person.metadata["repairs"]) == 3
+    assert len(pair.metadata["repairs"]) == 6
+    assert "repairs" not in simenv.load(folder).metadata

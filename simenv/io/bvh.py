@@ -477,6 +477,102 @@ def _avoid_coincident(
     return out, notes
 
 
+#: The bones the CMU BVH converters collapse, per joint naming
+#: (:func:`skeleton_variant`): ``(bone, parent joint, zero-offset children)``.
+#: The thorax sits at the end of the upper back, its children (neck and both
+#: clavicles) at the end of the thorax; each wrist bone starts at the end of
+#: the forearm, the hand and the thumb start at its end.
+_COLLAPSED_BONES: dict[str, tuple[tuple[str, str, tuple[str, ...]], ...]] = {
+    "cmu_mb": (
+        ("thorax", "Spine1", ("Neck", "LeftShoulder", "RightShoulder")),
+        ("lwrist", "LeftHand", ("LeftFingerBase", "LThumb")),
+        ("rwrist", "RightHand", ("RightFingerBase", "RThumb")),
+    ),
+    "cmu_max": (
+        ("thorax", "Chest2", ("lowerneck", "LeftCollar", "RightCollar")),
+        ("lwrist", "LeftWrist", ("lhand", "LThumb")),
+        ("rwrist", "RightWrist", ("rhand", "RThumb")),
+    ),
+    "cmu_asf": (
+        ("thorax", "thorax", ("lowerneck", "lclavicle", "rclavicle")),
+        ("lwrist", "lwrist", ("lhand", "lthumb")),
+        ("rwrist", "rwrist", ("rhand", "rthumb")),
+    ),
+}
+
+
+def _restore_collapsed(bvh: BvhFile, s: float) -> tuple[np.ndarray, list[str], list[str]]:
+    """Offsets with the CMU converters' collapsed thorax and wrist bones
+    restored, the repair notes and the notes on what was left alone.
+
+    The thorax becomes a copy of the parent's own offset (the upper back:
+    the ASF thorax is 0.997-1.034 times the upper back over six CMU
+    skeletons, and nearly parallel to it); the wrist becomes half the
+    forearm offset, along the forearm (exact: every CMU ASF wrist is half
+    its radius).
+    """
+    offsets = bvh.offsets.copy()
+    variant = skeleton_variant(bvh.joints)
+    groups = _COLLAPSED_BONES.get(variant)
+    if groups is None:
+        return (
+            offsets,
+            [],
+            [
+                f"restore_collapsed_bones: nothing restored: the joint names ({variant} "
+                "layout) are not one of the CMU conversions whose thorax and wrist bones are "
+                "known to be collapsed"
+            ],
+        )
+    index = {n: i for i, n in enumerate(bvh.joints)}
+    extent = rest_extent(bvh.parents, bvh.offsets) or 1.0
+    tol = 1e-6 * extent
+    repairs: list[str] = []
+    skipped: list[str] = []
+    for bone, parent, kids in groups:
+        missing = [n for n in (parent, *kids) if n not in index]
+        if missing:
+            skipped.append(
+                f"restore_collapsed_bones: {bone} not restored: no joint {', '.join(missing)}"
+            )
+            continue
+        p = index[parent]
+        wrong = [n for n in kids if bvh.parents[index[n]] != p]
+        nonzero = [n for n in kids if np.linalg.norm(bvh.offsets[index[n]]) > tol]
+        length = float(np.linalg.norm(bvh.offsets[p]))
+        if wrong or nonzero or length <= tol:
+            why = (
+                f"{', '.join(wrong)} not a child of {parent}"
+                if wrong
+                else f"{', '.join(nonzero)} already has a non-zero offset"
+                if nonzero
+                else f"{parent} has a zero offset to copy from"
+            )
+            skipped.append(f"restore_collapsed_bones: {bone} not restored: {why}")
+            continue
+        if bone == "thorax":
+            new = bvh.offsets[p]
+            source = (
+                f"a copy of the upper-back offset ({parent}'s, {length * s * 100:.1f} cm; "
+                "the ASF thorax is 0.997-1.034 x the upper back in CMU skeletons, so "
+                "joints below it are placed to ~1 cm)"
+            )
+        else:
+            new = bvh.offsets[p] / 2.0
+            source = (
+                f"half the forearm offset ({parent}'s, {length * s * 100:.1f} cm), along "
+                "the forearm (every CMU ASF wrist is half its forearm)"
+            )
+        for n in kids:
+            offsets[index[n]] = new
+        repairs.append(
+            f"restored collapsed {bone} bone: {', '.join(kids)} offset set from 0 to "
+            f"{float(np.linalg.norm(new)) * s * 100:.1f} cm from {parent}, {source}; "
+            "every joint below it moved accordingly (restore_collapsed_bones=True)"
+        )
+    return offsets, repairs, skipped
+
+
 def read(
     path: Path,
     *,
@@ -487,6 +583,7 @@ def read(
     fps: float | None = None,
     end_sites: bool | None = None,
     name: str | None = None,
+    restore_collapsed_bones: bool = False,
 ) -> Motion:
     """Read a BVH file as a :class:`Motion` (metres, Z-up).
 
@@ -502,13 +599,31 @@ def read(
         end_sites: keep all (True), no (False) or only canonically needed
             (None) End Sites as joints ``<parent>_end``.
         name: clip name; default the file stem.
+        restore_collapsed_bones: opt-in repair of the CMU BVH conversions
+            (cgspeed Motionbuilder-friendly ``Spine1``/``LeftFingerBase``
+            names, 3dsMax-friendly ``Chest2``/``lhand``, ASF names
+            ``thorax``/``lhand``) that write a zero OFFSET where the ASF
+            skeleton has a bone, displacing every joint below it (upper body
+            ~12 cm low, forearms short). The wrist bone is set to half the
+            forearm offset, along the forearm (exact for CMU skeletons); the
+            thorax to a copy of the skeleton's own upper-back offset (the
+            ASF thorax is 0.997-1.034 times it, so shoulders, elbows and
+            wrists land within ~1-2 cm of the ASF/AMC; legs and root are
+            unchanged). Each restored bone, with its length, is listed in
+            ``metadata["repairs"]``; a hierarchy that is not such a
+            conversion (or a bone that is not collapsed) is left unchanged
+            and said so in ``metadata["quirks"]``. Units are detected from
+            the file's own offsets either way. Default False: the file as
+            written.
 
     Returns:
         Motion with positions (T, J, 3) float32 metres, rotations (T, J, 4)
         local quaternions (w, x, y, z), metadata ``source``, ``format``,
         ``subject``, ``units``, ``units_reason``, ``scale_m_per_unit``,
         ``up_axis_in_file``, ``header_fps``, ``frames_in_file``,
-        ``tpose_frame0``, ``offsets_m`` (J x 3 list) and ``quirks``.
+        ``tpose_frame0``, ``offsets_m`` (J x 3 list) and ``quirks``; with
+        ``restore_collapsed_bones=True`` also ``repairs`` (``offsets_m``
+        then holds the restored offsets).
     """
     path = Path(path)
     if up.lower() not in ("y", "z"):
@@ -525,6 +640,7 @@ def read(
             fps=fps,
             end_sites=end_sites,
             name=name,
+            restore_collapsed_bones=restore_collapsed_bones,
         )
 
 
@@ -539,6 +655,7 @@ def _to_motion(
     fps: float | None,
     end_sites: bool | None,
     name: str | None,
+    restore_collapsed_bones: bool = False,
 ) -> Motion:
     quirks: list[str] = []
     all_canon = canonical_map(bvh.joints)
@@ -553,7 +670,12 @@ def _to_motion(
 
     t, j = bvh.data.shape[0], len(bvh.joints)
     local = np.empty((t, j, 3, 3))
-    offsets = bvh.offsets.copy()
+    repairs: list[str] | None = None
+    file_offsets = bvh.offsets
+    if restore_collapsed_bones:
+        file_offsets, repairs, skipped = _restore_collapsed(bvh, s)
+        quirks += skipped
+    offsets = file_offsets.copy()
     translations: dict[int, np.ndarray] = {}
     col = 0
     for k, chans in enumerate(bvh.channels):
@@ -576,7 +698,7 @@ def _to_motion(
     conv = Y_UP_TO_Z_UP if up == "y" else np.eye(3)
     pos = (pos @ conv.T) * s
     local = conv @ local @ conv.T
-    offsets_m = (bvh.offsets @ conv.T) * s
+    offsets_m = (file_offsets @ conv.T) * s
 
     idx = [k for k in range(j) if keep[k]]
     remap = {old: new for new, old in enumerate(idx)}
@@ -634,6 +756,8 @@ def _to_motion(
         "offsets_m": offsets_m.round(6).tolist(),
         "quirks": quirks,
     }
+    if repairs is not None:
+        meta["repairs"] = repairs
     if unit_name == "cmu":
         meta["units_note"] = f"CMU skeleton units: 1 unit = 0.0254/0.45 m = {CMU_UNIT_M:.5f} m"
     skeleton = Skeleton(f"{variant}{len(names)}", tuple(names), tuple(parents), canon)

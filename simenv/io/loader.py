@@ -350,7 +350,9 @@ def pair(a: Motion, b: Motion, *, folder: Path | None = None) -> Interaction:
     (``subject A``/``lead`` acts); otherwise the order is by file name and
     ``roles_known`` is False. A frame-rate contradiction is repaired only with
     evidence (see :func:`_reconcile_fps`) and noted in the quirks of the
-    Interaction and of the re-timed Motion.
+    Interaction and of the re-timed Motion. Reader repairs of either person
+    (e.g. BVH ``restore_collapsed_bones=True``) are listed, prefixed by the
+    person's name, in the Interaction's ``metadata["repairs"]``.
 
     Raises:
         MotionError: different frame rates without evidence, or different
@@ -387,6 +389,9 @@ def pair(a: Motion, b: Motion, *, folder: Path | None = None) -> Interaction:
         "sources": [a.metadata.get("source"), b.metadata.get("source")],
         "quirks": notes,
     }
+    person_repairs = [f"{m.name}: {r}" for m in (a, b) for r in m.metadata.get("repairs", [])]
+    if person_repairs:
+        meta["repairs"] = person_repairs
     if any(desc):
         meta["descriptions"] = desc
         meta["label_source"] = "CMU trial descriptions"
