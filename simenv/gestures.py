@@ -208,17 +208,8 @@ def to_gesture_joints(motion: Motion, joints: JointSet = "gesture15") -> np.ndar
     Raises:
         SkeletonError: the skeleton lacks one of the keypoints (all missing ones named).
     """
-    names = gesture_skeleton(joints).joint_names
-    canon = motion.skeleton.canonical
-    missing = [k for k in names if k not in canon]
-    if missing:
-        raise SkeletonError(
-            f"skeleton {motion.skeleton.name!r} lacks canonical keypoint(s) "
-            f"{', '.join(missing)} needed by the {joints} gesture joints",
-            source=motion.metadata.get("source"),
-        )
-    idx = [motion.skeleton.index(canon[k]) for k in names]
-    return np.ascontiguousarray(motion.positions[:, idx], dtype=np.float32)
+    on = motion.on_layout(gesture_skeleton(joints), f"the {joints} gesture joint set")
+    return np.ascontiguousarray(on.positions, dtype=np.float32)
 
 
 # -- normalisation --------------------------------------------------------------------

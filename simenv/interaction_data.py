@@ -162,18 +162,7 @@ def to_layout(motion: Motion) -> Motion:
     Raises:
         SkeletonError: the skeleton lacks one of the 18 canonical keypoints.
     """
-    canonical = motion.skeleton.canonical
-    missing = [k for k in INTER18_JOINTS if k not in canonical]
-    if missing:
-        raise SkeletonError(
-            f"skeleton {motion.skeleton.name!r} of {motion.name!r} lacks canonical "
-            f"keypoint(s) {', '.join(missing)}; the two-person layout needs "
-            f"{', '.join(INTER18_JOINTS)}",
-            source=motion.metadata.get("source"),
-        )
-    idx = [motion.skeleton.index(canonical[k]) for k in INTER18_JOINTS]
-    return Motion(motion.positions[:, idx], motion.fps, inter18_skeleton(), motion.name,
-                  dict(motion.metadata))
+    return motion.on_layout(inter18_skeleton(), "the two-person layout")
 
 
 def interaction_label(label: str | None, *, source: str | None = None) -> str:

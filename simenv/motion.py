@@ -335,6 +335,29 @@ class Motion:
             name=name or first.name,
         )
 
+    def on_layout(self, layout: Skeleton, purpose: str) -> Motion:
+        """Motion on ``layout``, a skeleton whose joints are canonical keypoint names
+        (same frames, fps and metadata).
+
+        Args:
+            purpose: what needs the layout, for the error (e.g. "the 17-joint
+                prediction layout").
+
+        Raises:
+            SkeletonError: this skeleton lacks some of the keypoints (all named).
+        """
+        canonical = self.skeleton.canonical
+        missing = [k for k in layout.joint_names if k not in canonical]
+        if missing:
+            raise SkeletonError(
+                f"skeleton {self.skeleton.name!r} of motion {self.name!r} lacks canonical "
+                f"keypoint(s) {', '.join(missing)}; {purpose} needs "
+                f"{', '.join(layout.joint_names)}",
+                source=self.metadata.get("source"),
+            )
+        idx = [self.skeleton.index(canonical[k]) for k in layout.joint_names]
+        return Motion(self.positions[:, idx], self.fps, layout, self.name, dict(self.metadata))
+
     def to_canonical(self) -> Motion:
         """Motion on the canonical keypoint skeleton (only the keypoints this
         skeleton provides; see :func:`simenv.skeletons.canonical_skeleton`)."""

@@ -92,20 +92,7 @@ def to_pred17(motion: Motion) -> Motion:
     Raises:
         SkeletonError: the skeleton lacks one of the 17 canonical keypoints.
     """
-    canonical = motion.skeleton.canonical
-    missing = [k for k in PRED17_JOINTS if k not in canonical]
-    if missing:
-        raise SkeletonError(
-            f"skeleton {motion.skeleton.name!r} of motion {motion.name!r} lacks canonical "
-            f"keypoint(s) {', '.join(missing)}; the 17-joint prediction layout needs "
-            f"{', '.join(PRED17_JOINTS)}",
-            source=motion.metadata.get("source"),
-        )
-    idx = [motion.skeleton.index(canonical[k]) for k in PRED17_JOINTS]
-    return Motion(
-        motion.positions[:, idx], motion.fps, pred17_skeleton(), motion.name,
-        dict(motion.metadata),
-    )
+    return motion.on_layout(pred17_skeleton(), "the 17-joint prediction layout")
 
 
 def split_root(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
