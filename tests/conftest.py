@@ -22,3 +22,21 @@ def shared_data() -> Path:
             "(set SIMENV_SHARED_DATA to the shared/data folder)"
         )
     return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def walk_2s():
+    """The bundled real CMU walk 02_01, first 2 s (240 frames at 120 fps)."""
+    from simenv.assets import WALK, asset_path
+    from simenv.io import bvh
+
+    return bvh.read(asset_path(WALK)).slice(0, 240)
+
+
+@pytest.fixture(scope="session")
+def walk_2s_retargeted(walk_2s):
+    """:func:`walk_2s` retargeted onto its fitted humanoid, once per test session (the
+    body, dynamics and tracking tests share it; none of them modifies it)."""
+    from simenv.retarget import retarget
+
+    return retarget(walk_2s)

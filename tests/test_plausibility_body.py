@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 import simenv
-from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
+from simenv.assets import HANDSHAKE_PAIR, asset_path
 from simenv.errors import MotionError, PhysicsError
-from simenv.io import bvh
-from simenv.motion import Interaction, Motion
+from simenv.motion import Interaction
 from simenv.plausibility.body import (
     body_floating,
     body_penetration,
@@ -25,20 +24,9 @@ from simenv.plausibility.body import (
     self_contact_pairs,
     self_penetration,
 )
-from simenv.retarget import RetargetResult, retarget
+from simenv.retarget import retarget
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
-
-
-@pytest.fixture(scope="module")
-def walk() -> Motion:
-    """The bundled real CMU walk 02_01, first 2 s (240 frames at 120 fps)."""
-    return bvh.read(asset_path(WALK)).slice(0, 240)
-
-
-@pytest.fixture(scope="module")
-def fitted(walk) -> RetargetResult:
-    return retarget(walk)
 
 
 @pytest.fixture(scope="module")
@@ -48,19 +36,19 @@ def handshake() -> Interaction:
     return pair.slice(40, 280)
 
 
-def test_real_walk_passes_the_body_metrics(fitted) -> None:
+def test_real_walk_passes_the_body_metrics(walk_2s_retargeted) -> None:
     for metric in (body_penetration, body_floating, self_penetration):
-        r = metric(fitted)
+        r = metric(walk_2s_retargeted)
         assert r.available and r.passed, (r.name, r.value, r.threshold, r.violations[:3])
-        assert r.timeline.shape == (fitted.num_frames,)
+        assert r.timeline.shape == (walk_2s_retargeted.num_frames,)
     # The soles really touch the floor: not hovering, not sunk.
-    pen = body_penetration(fitted)
+    pen = body_penetration(walk_2s_retargeted)
     assert pen.value < 20.0
-    assert body_floating(fitted).details["airborne_fraction"] == 0.0
+    assert body_floating(walk_2s_retargeted).details["airborne_fraction"] == 0.0
 
 
-def test_walk_lowered_10cm_sinks_into_the_floor(walk) -> None:
-    low = retarget(walk.with_positions(walk.positions - 0.10 * UP))
+def test_walk_lowered_10cm_sinks_into_the_floor(walk_2s) -> None:
+    low = retarget(walk_2s.with_positions(walk_2s.positions - 0.10 * UP))
     r = body_penetration(low)
     assert r.passed is False
     assert 70.0 < r.value < 150.0  # ~10 cm minus the sole's own clearance
@@ -70,8 +58,8 @@ def test_walk_lowered_10cm_sinks_into_the_floor(walk) -> None:
     assert body_floating(low).passed
 
 
-def test_walk_raised_30cm_floats(walk) -> None:
-    high = retarget(walk.with_positions(walk.positions + 0.30 * UP))
+def test_walk_raised_30cm_floats(walk_2s) -> None:
+    high = retarget(walk_2s.with_positions(walk_2s.positions + 0.30 * UP))
     r = body_floating(high)
     assert r.passed is False
     assert r.details["floating_fraction"] == 1.0 and r.details["jumps"] == 0.0
@@ -79,31 +67,31 @@ def test_walk_raised_30cm_floats(walk) -> None:
     assert body_penetration(high).passed
 
 
-def test_self_penetration_flags_an_arm_inside_the_torso(fitted) -> None:
-    h = fitted.humanoid
-    q = fitted.qpos.copy()
+def test_self_penetration_flags_an_arm_inside_the_torso(walk_2s_retargeted) -> None:
+    h = walk_2s_retargeted.humanoid
+    q = walk_2s_retargeted.qpos.copy()
     # Adduct the right upper arm by 1.5 rad on frames 100-139: it passes
     # through the trunk.
     q[100:140, h.hinge_qpos[list(h.joint_names).index("right_upper_arm_abd")]] = -1.5
-    bad = replace(fitted, qpos=q)
+    bad = replace(walk_2s_retargeted, qpos=q)
     r = self_penetration(bad)
-    assert self_penetration(fitted).passed
+    assert self_penetration(walk_2s_retargeted).passed
     assert r.passed is False and r.value > 50.0
     assert [(s, e) for s, e, _ in r.violations] == [(100, 139)]
     frame, a, b, depth = next(c for c in self_contact_pairs(bad) if c[0] == 120)
     assert "right_upper_arm" in (a, b) and depth > 50.0
 
 
-def test_retargeted_motion_respects_joint_limits(fitted) -> None:
-    r = joint_limits(fitted)
+def test_retargeted_motion_respects_joint_limits(walk_2s_retargeted) -> None:
+    r = joint_limits(walk_2s_retargeted)
     assert r.passed and r.value <= 1.0
-    h = fitted.humanoid
-    q = fitted.qpos.copy()
+    h = walk_2s_retargeted.humanoid
+    q = walk_2s_retargeted.qpos.copy()
     knee = list(h.joint_names).index("left_shin_flex")
     q[50:60, h.hinge_qpos[knee]] = h.joint_limits[knee, 1] + np.deg2rad(40.0)
     over = joint_limit_excess(h, q)
     assert over[55, knee] == pytest.approx(40.0, abs=1e-6)
-    bad = joint_limits(replace(fitted, qpos=q))
+    bad = joint_limits(replace(walk_2s_retargeted, qpos=q))
     assert bad.passed is False and bad.value == pytest.approx(40.0, abs=1e-6)
     assert bad.violations[0][:2] == (50, 59)
 
@@ -142,9 +130,9 @@ def test_real_pair_does_not_interpenetrate(handshake) -> None:
     assert r.available and r.passed, (r.value, r.violations[:3])
 
 
-def test_two_people_on_top_of_each_other_interpenetrate(walk) -> None:
-    other = walk.with_positions(walk.positions + np.array([0.05, 0.0, 0.0], dtype=np.float32))
-    r = inter_penetration(retarget(Interaction(walk.slice(0, 60), other.slice(0, 60))))
+def test_two_people_on_top_of_each_other_interpenetrate(walk_2s) -> None:
+    other = walk_2s.with_positions(walk_2s.positions + np.array([0.05, 0.0, 0.0], dtype=np.float32))
+    r = inter_penetration(retarget(Interaction(walk_2s.slice(0, 60), other.slice(0, 60))))
     assert r.passed is False
     assert r.value > 100.0
     assert r.details["frames_over"] == 1.0
@@ -158,25 +146,26 @@ def test_contact_reference_of_another_length_is_an_error(handshake) -> None:
         pair_distances(result, pairs=(("right_hand", "tail"),))
 
 
-def test_bad_qpos_raises_physics_errors(fitted) -> None:
-    model = fitted.humanoid.model
-    q = fitted.qpos.copy()
+def test_bad_qpos_raises_physics_errors(walk_2s_retargeted) -> None:
+    model = walk_2s_retargeted.humanoid.model
+    q = walk_2s_retargeted.qpos.copy()
     q[17, 9] = np.nan
     with pytest.raises(PhysicsError, match="NaN") as err:
-        body_penetration(replace(fitted, qpos=q))
+        body_penetration(replace(walk_2s_retargeted, qpos=q))
     assert err.value.frame == 17
     with pytest.raises(PhysicsError, match="frame 17"):
-        self_penetration(replace(fitted, qpos=q))
+        self_penetration(replace(walk_2s_retargeted, qpos=q))
     with pytest.raises(PhysicsError, match=r"expected \(T >= 1"):
-        body_poses(model, fitted.qpos[:, :-1])
+        body_poses(model, walk_2s_retargeted.qpos[:, :-1])
     with pytest.raises(PhysicsError, match="shape"):
-        check_qpos(model, fitted.qpos[0])
+        check_qpos(model, walk_2s_retargeted.qpos[0])
     with pytest.raises(PhysicsError, match="shape"):
         check_qpos(model, np.zeros((0, model.nq)))
 
 
-def test_short_clips(fitted) -> None:
-    two = replace(fitted, qpos=fitted.qpos[:2])
+def test_short_clips(walk_2s_retargeted) -> None:
+    two = replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:2])
     r = body_floating(two)
     assert r.passed is None and "3 frames" in r.reason
-    assert body_penetration(replace(fitted, qpos=fitted.qpos[:1])).timeline.shape == (1,)
+    one = replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:1])
+    assert body_penetration(one).timeline.shape == (1,)

@@ -7,10 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from simenv.assets import WALK, asset_path
 from simenv.errors import PhysicsError
-from simenv.io import bvh
-from simenv.motion import Motion
 from simenv.plausibility.dynamics import (
     balance,
     distance_outside,
@@ -18,24 +15,13 @@ from simenv.plausibility.dynamics import (
     root_residual,
     root_residual_wrench,
 )
-from simenv.retarget import RetargetResult, retarget
+from simenv.retarget import retarget
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 
 
-@pytest.fixture(scope="module")
-def walk() -> Motion:
-    """The bundled real CMU walk 02_01, first 2 s (240 frames at 120 fps)."""
-    return bvh.read(asset_path(WALK)).slice(0, 240)
-
-
-@pytest.fixture(scope="module")
-def fitted(walk) -> RetargetResult:
-    return retarget(walk)
-
-
-def test_real_walk_needs_no_invisible_help(fitted) -> None:
-    r = root_residual(fitted)
+def test_real_walk_needs_no_invisible_help(walk_2s_retargeted) -> None:
+    r = root_residual(walk_2s_retargeted)
     assert r.available and r.passed, (r.value, r.details)
     assert r.value < 0.05
     # Walking needs about one body weight of ground reaction on average,
@@ -44,13 +30,13 @@ def test_real_walk_needs_no_invisible_help(fitted) -> None:
     assert r.details["unsupported_fraction"] == 0.0
 
 
-def test_real_walk_is_balanced(fitted) -> None:
-    r = balance(fitted)
+def test_real_walk_is_balanced(walk_2s_retargeted) -> None:
+    r = balance(walk_2s_retargeted)
     assert r.available and r.passed, (r.value, r.details)
 
 
-def test_walk_raised_30cm_needs_one_body_weight(walk) -> None:
-    high = retarget(walk.with_positions(walk.positions + 0.30 * UP))
+def test_walk_raised_30cm_needs_one_body_weight(walk_2s) -> None:
+    high = retarget(walk_2s.with_positions(walk_2s.positions + 0.30 * UP))
     r = root_residual(high)
     assert r.passed is False
     assert r.value == pytest.approx(1.0, abs=0.1)
@@ -58,24 +44,25 @@ def test_walk_raised_30cm_needs_one_body_weight(walk) -> None:
     assert r.violations == [(0, high.num_frames - 1, pytest.approx(r.details["max"], rel=1e-6))]
 
 
-def test_residual_grows_with_unsupported_time(fitted) -> None:
+def test_residual_grows_with_unsupported_time(walk_2s_retargeted) -> None:
     # Lift only the middle second: the residual is there and nowhere else.
-    q = fitted.qpos.copy()
+    q = walk_2s_retargeted.qpos.copy()
     q[60:180, 2] += 0.3
-    rr = root_residual_wrench(replace(fitted, qpos=q))
+    rr = root_residual_wrench(replace(walk_2s_retargeted, qpos=q))
     assert (rr.support_points[70:170] == 0).all()
     assert np.median(rr.force[70:170]) > 0.8
     assert np.median(rr.force[:50]) < 0.1
 
 
-def test_balance_flags_a_lean_past_the_feet(fitted) -> None:
+def test_balance_flags_a_lean_past_the_feet(walk_2s_retargeted) -> None:
     # A frozen pose is quasi-static on every frame. Standing frozen in the
     # walk's first pose is balanced; the same pose tipped forward by 0.4 rad
     # about the root puts the centre of mass beyond the toes.
-    still = np.repeat(fitted.qpos[:1], 60, axis=0)
+    still = np.repeat(walk_2s_retargeted.qpos[:1], 60, axis=0)
     lean = still.copy()
     lean[:, 3:7] = [np.cos(0.2), 0.0, np.sin(0.2), 0.0]
-    ok, bad = balance(replace(fitted, qpos=still)), balance(replace(fitted, qpos=lean))
+    ok = balance(replace(walk_2s_retargeted, qpos=still))
+    bad = balance(replace(walk_2s_retargeted, qpos=lean))
     assert ok.passed and ok.details["judged_fraction"] == 1.0
     assert bad.passed is False
     assert bad.details["outside_fraction"] == 1.0 and bad.value > 50.0
@@ -93,9 +80,9 @@ def test_distance_outside_polygon() -> None:
     assert distance_outside(np.array([3.0, 0.0]), seg) == pytest.approx(1.0)
 
 
-def test_finite_differences_of_a_constant_velocity_root(fitted) -> None:
-    model = fitted.humanoid.model
-    q = np.repeat(fitted.qpos[:1], 50, axis=0)
+def test_finite_differences_of_a_constant_velocity_root(walk_2s_retargeted) -> None:
+    model = walk_2s_retargeted.humanoid.model
+    q = np.repeat(walk_2s_retargeted.qpos[:1], 50, axis=0)
     q[:, 0] += 1.5 * np.arange(50) / 120.0  # 1.5 m/s along x
     qvel, qacc = finite_differences(model, q, 120.0)
     assert qvel.shape == qacc.shape == (50, model.nv)
@@ -103,17 +90,17 @@ def test_finite_differences_of_a_constant_velocity_root(fitted) -> None:
     np.testing.assert_allclose(qacc[5:-5], 0.0, atol=1e-6)
 
 
-def test_short_and_bad_input(fitted) -> None:
-    two = replace(fitted, qpos=fitted.qpos[:2])
+def test_short_and_bad_input(walk_2s_retargeted) -> None:
+    two = replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:2])
     for metric in (root_residual, balance):
         r = metric(two)
         assert r.passed is None and "3 frames" in r.reason
     with pytest.raises(PhysicsError, match="at least 2 frames"):
-        finite_differences(fitted.humanoid.model, fitted.qpos[:1], 120.0)
-    q = fitted.qpos.copy()
+        finite_differences(walk_2s_retargeted.humanoid.model, walk_2s_retargeted.qpos[:1], 120.0)
+    q = walk_2s_retargeted.qpos.copy()
     q[33, 0] = np.inf
     with pytest.raises(PhysicsError, match="NaN/inf") as err:
-        root_residual(replace(fitted, qpos=q))
+        root_residual(replace(walk_2s_retargeted, qpos=q))
     assert err.value.frame == 33
     with pytest.raises(PhysicsError, match="shape"):
-        balance(replace(fitted, qpos=fitted.qpos[:, :5]))
+        balance(replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:, :5]))
