@@ -295,10 +295,6 @@ def _unavailable_body(names: Sequence[str], frames: int, body: BodyThresholds,
             for n in names}
 
 
-def _renamed(result: MetricResult, name: str) -> MetricResult:
-    return replace(result, name=name)
-
-
 def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason: str | None,
                   config: ScoreConfig, person: int) -> PersonReport:
     th, body = config.thresholds, config.body
@@ -308,9 +304,10 @@ def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason:
     for name, fn in (("bone_length", bone_length), ("foot_skate", foot_skate)):
         metrics[name], basis[name] = fn(motion, th), "keypoints"
     if fitted is not None:
-        metrics["ground_penetration"] = _renamed(body_penetration(fitted, body),
-                                                 "ground_penetration")
-        metrics["floating"] = _renamed(body_floating(fitted, body), "floating")
+        # The geom versions keep their module names; the report uses the stable ones.
+        metrics["ground_penetration"] = replace(body_penetration(fitted, body),
+                                                name="ground_penetration")
+        metrics["floating"] = replace(body_floating(fitted, body), name="floating")
         basis["ground_penetration"] = basis["floating"] = "geoms"
     else:
         metrics["ground_penetration"] = ground_penetration(motion, th)
