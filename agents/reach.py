@@ -49,47 +49,58 @@ def arm_joints(side: str) -> tuple[str, ...]:
     return tuple(f"{side}_{p}" for p in ARM_PARTS)
 
 
-def reach_pose(model: mujoco.MjModel, qpos: np.ndarray, site: str, target: Sequence[float],
-               joints: Sequence[str], *, iterations: int = 200, damping: float = 0.03,
-               tol: float = 1e-3) -> tuple[np.ndarray, float]:
+def reach_pose(model: mujoco.MjModel, qpos: np.ndarray, site: str | Sequence[str],
+               target: Sequence[float] | np.ndarray, joints: Sequence[str], *,
+               iterations: int = 200, damping: float = 0.03, tol: float = 1e-3
+               ) -> tuple[np.ndarray, float]:
     """Hinge angles putting ``site`` at ``target`` (world, m), moving only ``joints``.
 
     Args:
         model: a model holding the site and the joints: a humanoid's own model, or the
             room's (then with the ``agent/`` prefix, e.g. for the room-only grip sites).
         qpos: (model.nq,) the current configuration (everything else is kept).
-        site: site name (e.g. ``"right_hand"``).
+        site: site name (e.g. ``"right_hand"``), or S names solved together (their
+            Jacobians stacked, e.g. a foot's ankle and toe to keep it planted).
+        target: (3,) world position, m, or (S, 3) with several sites.
         joints: hinge names allowed to move.
         damping: lambda, m; larger is slower but robust near singular arm postures.
 
     Returns:
-        The solved (nq,) configuration and the remaining site error, m.
+        The solved (nq,) configuration and the remaining site error, m (the largest over
+        the sites).
     """
     m = model
-    sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, site)
-    if sid < 0:
-        raise SimenvError(f"no site {site!r} in the model", field="site")
+    sites = [site] if isinstance(site, str) else list(site)
+    goal = np.asarray(target, dtype=float).reshape(-1, 3)
+    if goal.shape[0] != len(sites):
+        raise SimenvError(f"target must be (3,) or ({len(sites)}, 3) for {len(sites)} "
+                          f"site(s); got {np.shape(target)}", field="target")
+    sids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, s) for s in sites]
+    if min(sids) < 0:
+        raise SimenvError(f"no site {sites[sids.index(min(sids))]!r} in the model",
+                          field="site")
     jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
     if min(jids) < 0:
         missing = [j for j, i in zip(joints, jids, strict=True) if i < 0]
         raise SimenvError(f"unknown joint(s) {missing}", field="joints")
     qadr, dadr = m.jnt_qposadr[jids], m.jnt_dofadr[jids]
     lo, hi = m.jnt_range[jids, 0], m.jnt_range[jids, 1]
-    goal = np.asarray(target, dtype=float)
     data = mujoco.MjData(m)
     data.qpos[:] = qpos
     jacp = np.zeros((3, m.nv))
+    J = np.zeros((3 * len(sids), len(jids)))
     err = np.inf
     for _ in range(iterations):
         mujoco.mj_kinematics(m, data)
         mujoco.mj_comPos(m, data)
-        e = goal - data.site_xpos[sid]
-        err = float(np.linalg.norm(e))
+        e = (goal - data.site_xpos[sids]).ravel()
+        err = float(np.linalg.norm(e.reshape(-1, 3), axis=1).max())
         if err < tol:
             break
-        mujoco.mj_jacSite(m, data, jacp, None, sid)
-        J = jacp[:, dadr]
-        dq = J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(3), e)
+        for k, sid in enumerate(sids):
+            mujoco.mj_jacSite(m, data, jacp, None, sid)
+            J[3 * k:3 * k + 3] = jacp[:, dadr]
+        dq = J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(len(e)), e)
         data.qpos[qadr] = np.clip(data.qpos[qadr] + dq, lo, hi)
     return data.qpos.copy(), err
 

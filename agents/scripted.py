@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import mujoco
+import numpy as np
 
 from simenv.agents.reach import (
     PDPlan,
@@ -29,6 +30,7 @@ from simenv.agents.reach import (
     upper_body_joints,
 )
 from simenv.errors import SimenvError
+from simenv.humanoid import Humanoid
 from simenv.room import Room
 from simenv.scenario import REACTIONS
 
@@ -69,9 +71,126 @@ def plan_cigarette_out(room: Room, data: mujoco.MjData, side: str = "right") -> 
                    PDTrajectory(press, above, 0.5), PDTrajectory(above, rest, 1.1)])
 
 
+#: Spine hinges turning the chest about the body's long axis (their ranges add up: 95 deg
+#: either way), and the share of that range a greeting uses (the limits stay soft).
+SPINE_ROT = ("lumbar_rot", "thorax_rot", "chest_rot")
+SPINE_SHARE = 0.85
+#: Largest turn of the chair the greeting asks of the feet, rad (beyond it the planted feet
+#: slip on the floor instead of turning the seat, measured).
+MAX_SWIVEL = np.deg2rad(40.0)
+#: How far below the floor the planted feet aim, m: the knees then press them down (from
+#: ~7 N resting to ~100 N a foot), so floor friction holds them while the hips turn the
+#: seat; deeper (5 cm) lifts the thighs off the seat and the agent slips.
+PLANT_DEPTH_M = 0.03
+#: The waving arm: shoulder flexion, abduction and elbow flexion of the raised arm, rad;
+#: the wave swings the abduction by +-WAVE_SWING, WAVE_CYCLES times of WAVE_PERIOD_S.
+WAVE_POSE = {"upper_arm_flex": np.deg2rad(150.0), "upper_arm_abd": np.deg2rad(20.0),
+             "forearm_flex": np.deg2rad(60.0)}
+WAVE_SWING = np.deg2rad(15.0)
+WAVE_CYCLES = 3
+WAVE_PERIOD_S = 0.5
+#: Feet keypoints kept planted on the floor while the seated agent turns.
+FEET = ("left_ankle", "left_toe", "right_ankle", "right_toe")
+
+
+def user_bearing(room: Room, data: mujoco.MjData) -> float:
+    """Signed angle (rad, counter-clockwise positive) on the floor from the agent's chest
+    forward axis to the direction from its chest to the user's chest."""
+    names = room.agent.keypoint_names
+    agent, user = room.agent_keypoints(data), room.user_keypoints(data)
+    forward = data.xmat[room.model.body("agent/chest").id].reshape(3, 3)[:2, 0]
+    to_user = user[room.user.keypoint_names.index("chest"), :2] - agent[names.index("chest"), :2]
+    return float(np.arctan2(forward[0] * to_user[1] - forward[1] * to_user[0],
+                            forward @ to_user))
+
+
+def plan_greet(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for turning to face the user and waving, seated, from the current state.
+
+    The chest turns by the user's bearing ``phi`` (:func:`user_bearing`): the spine's axial
+    rotations take up to :data:`SPINE_SHARE` of their range and the rest, up to
+    :data:`MAX_SWIVEL`, is the chair's swivel, turned by the legs: the feet are pressed
+    onto the floor (:data:`PLANT_DEPTH_M`) and the leg hinges are solved (IK on the four
+    feet keypoints) for the pelvis turned about the swivel axis with the feet where they
+    are, so the servos twist the seat round over the planted feet. The arm on the user's
+    side rises above the shoulder (:data:`WAVE_POSE`) and waves, then everything returns
+    to the seated pose (the legs untwist and turn the seat back). Whether the agent
+    faced the user is measured (:meth:`simenv.room.Room.greeting`), not assumed.
+
+    Returns:
+        the plan of the agent's targets, 7.8 s long.
+    """
+    h = room.agent
+    q = data.qpos[room.agent_qpos].copy()
+    phi = user_bearing(room, data)
+    side = "right" if phi < 0 else "left"
+    sign = np.sign(phi) or 1.0
+    limits = {n: h.joint_limits[h.joint_names.index(n)] for n in SPINE_ROT}
+    reach = SPINE_SHARE * sum(abs(lim[1 if sign > 0 else 0]) for lim in limits.values())
+    spine = min(1.0, abs(phi) / reach)
+    delta = float(np.clip(phi - sign * spine * reach, -MAX_SWIVEL, MAX_SWIVEL))
+    legs = tuple(n for n in h.joint_names if n.split("_")[1] in ("thigh", "shin", "foot"))
+    sites = [h.keypoint_names.index(f) for f in FEET]
+    pressed = h.keypoints(q)[sites] - [0.0, 0.0, PLANT_DEPTH_M]
+    plant, err0 = reach_pose(h.model, q, FEET, pressed, legs, iterations=400)
+    axis = data.xpos[room.model.body("chair_seat").id][:2]
+    turned, err1 = reach_pose(h.model, _swivelled(q, axis, delta), FEET, pressed, legs,
+                              iterations=400)
+    if max(err0, err1) > 0.01:
+        raise SimenvError(f"the seated agent cannot turn {np.degrees(delta):.0f} deg with "
+                          f"its feet planted ({max(err0, err1):.3f} m short)", field="greet")
+    turned[:7] = q[:7]  # the legs' targets only: the root turns if the physics turns it
+    # The spine turns after the seat: turning both at once, the spine's reaction torque on
+    # the pelvis works against the feet and the seat turns less.
+    twisted = turned.copy()
+    for name in SPINE_ROT:
+        turned[_adr(h, name)] = spine * SPINE_SHARE * limits[name][1 if sign > 0 else 0]
+    raised = turned.copy()
+    for part, angle in WAVE_POSE.items():
+        raised[_adr(h, f"{side}_{part}")] = angle
+    upper = upper_body_joints(h)
+
+    def targets(pose: np.ndarray) -> np.ndarray:
+        return pd_targets(h, pose, upper)
+
+    abd = _adr(h, f"{side}_upper_arm_abd")
+    swings = []
+    for k in range(2 * WAVE_CYCLES):
+        pose = raised.copy()
+        pose[abd] += WAVE_SWING * (1 if k % 2 == 0 else -1)
+        swings.append(targets(pose))
+    now, t_plant, t_twist, t_raise = (data.ctrl[room.agent_ctrl].copy(), targets(plant),
+                                      targets(twisted), targets(raised))
+    rest = pd_targets(h, room.seated_pose(), upper)
+    waves = [PDTrajectory(a, b, WAVE_PERIOD_S / 2)
+             for a, b in zip([t_raise, *swings], [*swings, t_raise], strict=True)]
+    return PDPlan([PDTrajectory(now, t_plant, 0.5), PDTrajectory(t_plant, t_twist, 1.5),
+                   PDTrajectory(t_twist, t_raise, 1.0), *waves,
+                   PDTrajectory(t_raise, t_twist, 1.0), PDTrajectory(t_twist, t_plant, 1.5),
+                   PDTrajectory(t_plant, rest, 0.5)])
+
+
+def _adr(h: Humanoid, joint: str) -> int:
+    return int(h.hinge_qpos[h.joint_names.index(joint)])
+
+
+def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """A copy of the agent's configuration with its root turned by ``angle`` (rad) about
+    the vertical through ``axis`` (x, y, m)."""
+    out = q.copy()
+    c, s = np.cos(angle), np.sin(angle)
+    v = q[:2] - axis
+    out[:2] = axis + [c * v[0] - s * v[1], s * v[0] + c * v[1]]
+    w1, z1 = np.cos(angle / 2), np.sin(angle / 2)
+    w2, x2, y2, z2 = q[3:7]
+    out[3:7] = [w1 * w2 - z1 * z2, w1 * x2 - z1 * y2, w1 * y2 + z1 * x2, w1 * z2 + z1 * w2]
+    return out
+
+
 #: Reaction name -> planner (room, data) -> PDPlan.
 PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan]] = {
     "cigarette_out": plan_cigarette_out,
+    "greet": plan_greet,
 }
 
 
@@ -85,4 +204,4 @@ def object_success(room: Room, before: dict[str, str], after: dict[str, str],
     return before[r.object] != r.target and after[r.object] == r.target
 
 
-__all__ = ["PLANNERS", "object_success", "plan_cigarette_out"]
+__all__ = ["PLANNERS", "object_success", "plan_cigarette_out", "plan_greet", "user_bearing"]

@@ -96,6 +96,10 @@ DOOR_TRAVEL = np.deg2rad(100.0)
 DESK_HEIGHT = 0.74
 #: Chair centre in the desk's frame (the agent sits on the -x side, facing +x), m.
 CHAIR_OFFSET = (-0.65, 0.0)
+#: The chair's swivel: range either way, rad; Coulomb friction, N m (holds the seated
+#: agent's reaching reactions, gives way to its feet).
+SWIVEL_RANGE = np.pi
+SWIVEL_FRICTION = 4.0
 #: Hands of the agent (keypoint site suffixes) that can grasp.
 HANDS = ("left_hand", "right_hand")
 #: A greeting needs the agent's chest to face the user within this angle, degrees.
@@ -376,14 +380,20 @@ class Room:
         _geom(cig, "cigarette/tip", mujoco.mjtGeom.mjGEOM_SPHERE, (0.0045,), (0.037, 0, 0),
               _EMBER, _OBJECT, mass=0.001)
         _handle(cig, "cigarette/handle", (0.0, 0.0, 0.005))
-        # The agent's chair: seat top at the agent's seated thigh height.
+        # The agent's chair: seat top at the agent's seated thigh height. An office chair:
+        # seat and back swivel on the base (a hinge with friction), so the seated agent turns
+        # by pushing with its feet, and the back turns with it.
         chair = _body(desk, "chair", (*CHAIR_OFFSET, 0.0))
         seat = self.seat_height
-        _box(chair, "chair/seat", (0.22, 0.22, 0.025), (0, 0, seat - 0.025), _DARK)
         for i, (x, y) in enumerate(((0.19, 0.19), (0.19, -0.19), (-0.19, 0.19), (-0.19, -0.19))):
             _box(chair, f"chair/leg{i}", (0.02, 0.02, (seat - 0.05) / 2),
                  (x, y, (seat - 0.05) / 2), _METAL)
-        _box(chair, "chair/back", (0.02, 0.2, 0.25), (-0.21, 0, seat + 0.3), _DARK)
+        swivel = _body(chair, "chair_seat", (0.0, 0.0, 0.0))
+        _joint(swivel, "chair/swivel", mujoco.mjtJoint.mjJNT_HINGE, (0, 0, 1),
+               (-SWIVEL_RANGE, SWIVEL_RANGE), friction=SWIVEL_FRICTION, damping=5.0,
+               armature=0.1)
+        _box(swivel, "chair/seat", (0.22, 0.22, 0.025), (0, 0, seat - 0.025), _DARK, mass=4.0)
+        _box(swivel, "chair/back", (0.02, 0.2, 0.25), (-0.21, 0, seat + 0.3), _DARK, mass=2.0)
 
     def _build_hifi(self, spec: mujoco.MjSpec) -> None:
         h = self.scenario.hifi
