@@ -1,10 +1,10 @@
-"""simenv.models: the seed networks (motion predictor, baselines, gesture classifier) and
-their checkpoints.
+"""simenv.models: the seed networks (motion predictor, baselines, gesture classifier, the
+two-person generators) and their checkpoints.
 
 Shipped checkpoints live in ``simenv.assets`` under ``models/<name>.npz`` (arrays only,
 no pickle) with a model card ``models/<name>.md``; :func:`load` reads them by name, e.g.
-``simenv.models.load("predictor-25-25")`` or ``simenv.models.load("gesture-classifier")``.
-PyTorch is imported only when a model is loaded.
+``simenv.models.load("predictor-25-25")``, ``simenv.models.load("gesture-classifier")`` or
+``simenv.models.load("interformer")``. PyTorch is imported only when a model is loaded.
 """
 
 from __future__ import annotations
@@ -15,10 +15,25 @@ from typing import Any
 
 from simenv.errors import SimenvError
 
-__all__ = ["available", "checkpoint_path", "load"]
+__all__ = ["INTERACTION_MODELS", "available", "checkpoint_path",
+           "interaction_model_class", "load"]
+
+#: The two-person models of issue 6: registry name -> (module, class, kind). ``kind`` is
+#: ``reaction`` (``generate(actor_window, reactor_first_frame)``, the protocol of
+#: :mod:`simenv.models.reaction_baselines`), ``interaction`` (``sample(labels)``: both
+#: people from a class label) or ``augmentation`` (``augment(actor, reactor, scales)``).
+#: Each module also has ``train(windows, config, seed=, progress=) -> (model, history)``
+#: and a ``<Class>Config`` dataclass (:mod:`simenv.train_interaction` drives them).
+INTERACTION_MODELS: dict[str, tuple[str, str, str]] = {
+    "interformer": ("simenv.models.interformer", "InterFormer", "reaction"),
+    "reactive-gan": ("simenv.models.reactive_gan", "ReactiveGAN", "reaction"),
+    "bigraphdiff": ("simenv.models.bigraphdiff", "BiGraphDiff", "interaction"),
+    "interaction-augment": ("simenv.models.interaction_augment", "InteractionAugmenter",
+                            "augmentation"),
+}
 
 #: Name prefixes of shipped checkpoints and what they hold.
-KINDS: tuple[str, ...] = ("predictor-", "gesture-classifier")
+KINDS: tuple[str, ...] = ("predictor-", "gesture-classifier", *INTERACTION_MODELS)
 
 
 def _folder() -> Path:
@@ -26,7 +41,8 @@ def _folder() -> Path:
 
 
 def available() -> list[str]:
-    """Names of the shipped checkpoints (``predictor-<P>-<F>``, ``gesture-classifier``)."""
+    """Names of the shipped checkpoints (``predictor-<P>-<F>``, ``gesture-classifier`` and
+    the :data:`INTERACTION_MODELS` that are shipped)."""
     folder = _folder()
     return sorted(p.stem for p in folder.glob("*.npz")) if folder.is_dir() else []
 
@@ -56,7 +72,8 @@ def load(name: str) -> Any:
     at 25 fps, ``predict(history)``); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
     give the baselines; ``gesture-classifier`` gives a
     :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
-    ``predict_proba``, ``features``).
+    ``predict_proba``, ``features``); an :data:`INTERACTION_MODELS` name gives that
+    two-person model.
 
     Raises:
         SimenvError: unknown name (the message lists the available ones).
@@ -68,6 +85,8 @@ def load(name: str) -> Any:
         if name.startswith(prefix) and name[len(prefix):].isdigit():
             return cls(int(name[len(prefix):]))
     path = checkpoint_path(name)
+    if name in INTERACTION_MODELS:
+        return interaction_model_class(name).load(path)
     if name.startswith("gesture-classifier"):
         from simenv.models.gesture_classifier import GestureClassifier
 
@@ -75,3 +94,18 @@ def load(name: str) -> Any:
     from simenv.models.predictor import PredictiveMAWGAN
 
     return PredictiveMAWGAN.load(path)
+
+
+def interaction_model_class(name: str) -> Any:
+    """The class of an :data:`INTERACTION_MODELS` entry (its module imported on demand).
+
+    Raises:
+        SimenvError: not a two-person model name.
+    """
+    import importlib
+
+    if name not in INTERACTION_MODELS:
+        raise SimenvError(f"unknown two-person model {name!r}; known: "
+                          f"{', '.join(INTERACTION_MODELS)}", field="model")
+    module, cls, _ = INTERACTION_MODELS[name]
+    return getattr(importlib.import_module(module), cls)

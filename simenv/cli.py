@@ -330,11 +330,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    """Forward the options after KIND to the training script of the predictor/classifier."""
+    """Forward the options after KIND to the training script of the predictor, the
+    classifier or the two-person models."""
     if args.kind == "predictor":
         from simenv.train_predictor import main as predictor_main
 
         return predictor_main(args.options)
+    if args.kind == "interaction":
+        from simenv.train_interaction import main as interaction_main
+
+        return interaction_main(args.options)
     from simenv.train_classifier import main as classifier_main
 
     return classifier_main(["train", *args.options])
@@ -457,17 +462,18 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo)
 
     for verb, func, text in (
-        ("train", cmd_train, "train the motion predictor or the gesture classifier on the "
-         "real mocap of the shared corpus (CPU, seeded, progress bar): checkpoint, model card, "
-         "metrics.json and plots. Options after KIND go to its training script (see `simenv "
-         "train KIND --help`); --config FILE reads them from a TOML or JSON file."),
+        ("train", cmd_train, "train the motion predictor, the gesture classifier or a "
+         "two-person model (`train interaction --model NAME`) on the real mocap of the shared "
+         "corpus (CPU, seeded, progress bar): checkpoint, model card, metrics and plots. "
+         "Options after KIND go to its training script (see `simenv train KIND --help`); "
+         "--config FILE reads them from a TOML or JSON file."),
         ("eval", cmd_eval, "evaluate a shipped model [NAME] (default predictor-25-25 / "
          "gesture-classifier) on its held-out split, or for the predictor on --data PATH... "
          "(--json prints one object); writes metrics.json and plots (--out DIR). "
          "`eval interaction` scores the two-person reaction baselines on the held-out "
          "recordings with the papers' metrics and physics (docs/interaction.md)."),
     ):
-        kinds = ("predictor", "classifier") + (("interaction",) if verb == "eval" else ())
+        kinds = ("predictor", "classifier", "interaction")
         cmd = sub.add_parser(verb, help=text.split(" (")[0].split(":")[0], description=text)
         cmd.add_argument("kind", choices=kinds, metavar="KIND", help=" or ".join(kinds))
         cmd.add_argument("options", nargs=argparse.REMAINDER, metavar="...",

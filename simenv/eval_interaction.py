@@ -1,9 +1,12 @@
-"""Evaluate reaction generators on held-out real two-person windows, the papers' way and
-with physics (issue 6).
+"""Evaluate two-person generators on held-out real two-person windows, the papers' way
+and with physics (issue 6).
 
-``python -m simenv.eval_interaction [--shared PATH] [--data PATH ...] [--json]`` writes
-``docs/interaction.md`` (the table, generated here, never edited by hand),
-``docs/interaction.json`` and ``docs/interaction.png``.
+``python -m simenv.eval_interaction [--model NAME ...] [--shared PATH] [--data PATH ...]
+[--json]`` (``simenv eval interaction``) writes ``docs/interaction.md`` (the table,
+generated here, never edited by hand), ``docs/interaction.json`` and
+``docs/interaction.png``. Every shipped reaction generator (InterFormer, reactive GAN) is
+a row next to the baselines, in the same run; interaction generators (BiGraphDiff) get
+their own table.
 
 Protocol
 --------
@@ -21,7 +24,12 @@ Protocol
   :data:`~simenv.interaction_metrics.KEY_JOINT_PAIRS`, FVD (window features of the
   reactor) and FID (single-pose features) against the real test reactions, diversity and
   multimodality of the generated reactions' features, and the reaction-lag error
-  ``|lag(A, B̂) - lag(A, B)|`` (windows where both lags are defined).
+  ``|lag(A, B̂) - lag(A, B)|`` (windows where both lags are defined), and recognition
+  accuracy of (real actor, generated reactor) by a classifier trained on the real
+  training windows (:mod:`simenv.interaction_recognition`).
+* **Interaction generators** sample both people for the class of every test window they
+  know; FVD, FID, diversity, multimodality and E_b per person against the real windows,
+  and recognition accuracy of the generated pair.
 * **Physics**: :func:`simenv.score` (physics on: retargeting, body metrics, inverse
   dynamics, assisted PD tracking) of one window per test recording (the one where the
   real right hands come closest, i.e. the contact moment), placed back in the world with
@@ -70,6 +78,8 @@ COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("diversity", "diversity", "{:.3f}"),
     ("multimodality", "multimod.", "{:.3f}"),
     ("lag_error_s", "lag err (s)", "{:.3f}"),
+    ("recognition_acc", "recog. acc", "{:.2f}"),
+    ("recognition_reactor_acc", "recog. B only", "{:.2f}"),
 )
 
 
@@ -156,7 +166,8 @@ def physics_windows(windows: idata.InteractionWindows) -> list[int]:
 
 
 def physics_of(windows: idata.InteractionWindows, index: Sequence[int],
-               reactions: Mapping[str, np.ndarray], progress: bool = True
+               reactions: Mapping[str, np.ndarray], progress: bool = True,
+               actors: Mapping[str, np.ndarray] | None = None
                ) -> dict[str, dict[str, Any]]:
     """:func:`simenv.score` (physics on) of the given windows for each method.
 
@@ -165,6 +176,8 @@ def physics_of(windows: idata.InteractionWindows, index: Sequence[int],
         index: which windows to score.
         reactions: method name -> (N, T, J, 3) reactions of all ``windows`` (actor frame);
             :data:`REAL` for the real ones.
+        actors: method name -> (N, T, J, 3) generated actors, for methods that generate
+            both people (the real actor otherwise).
 
     Returns:
         method -> summary (``windows``, ``reactor_plausible``, ``actor_plausible``,
@@ -182,7 +195,10 @@ def physics_of(windows: idata.InteractionWindows, index: Sequence[int],
     bar = tqdm(jobs, desc="physics", unit="window", disable=not progress)
     per: dict[str, list[dict[str, Any]]] = {name: [] for name in reactions}
     for name, n in bar:
-        inter = windows.interaction(n, reactor=reactions[name][n], name=f"{name}:"
+        actor = (actors or {}).get(name)
+        inter = windows.interaction(n, reactor=reactions[name][n],
+                                    actor=None if actor is None else actor[n],
+                                    name=f"{name}:"
                                     f"{windows.recording_names[windows.recording[n]]}")
         report = simenv.score(inter, physics=True)
         pen, con = report.interaction["inter_penetration"], report.interaction["contact"]
@@ -224,13 +240,69 @@ def _within(path: Path, given: Path) -> bool:
     return path == given or given in path.parents
 
 
+def shipped_models() -> list[str]:
+    """The shipped two-person generators that this evaluation runs by default (reaction
+    and interaction kinds of :data:`simenv.models.INTERACTION_MODELS`)."""
+    from simenv.models import INTERACTION_MODELS, available
+
+    shipped = set(available())
+    return [n for n, (_, _, kind) in INTERACTION_MODELS.items()
+            if kind in ("reaction", "interaction") and n in shipped]
+
+
+def _model_kind(name: str) -> str:
+    from simenv.models import INTERACTION_MODELS
+
+    if name not in INTERACTION_MODELS or INTERACTION_MODELS[name][2] == "augmentation":
+        known = [n for n, v in INTERACTION_MODELS.items() if v[2] != "augmentation"]
+        raise SimenvError(f"--model {name!r} is not a reaction or interaction generator; "
+                          f"known: {', '.join(known)}", field="model")
+    return INTERACTION_MODELS[name][2]
+
+
+def generation_metrics(windows: idata.InteractionWindows, actor: np.ndarray,
+                       reactor: np.ndarray, extractor: im.FeatureExtractor,
+                       recognizer: Any, seed: int = 0) -> dict[str, Any]:
+    """Metrics of an interaction generator's samples (both people generated from the
+    class labels of ``windows``) against the real windows: per person FVD, FID,
+    diversity, multimodality and E_b (vs each real window's first-frame bones, the
+    body the sample should have), and recognition accuracy of the generated pair."""
+    out: dict[str, Any] = {"windows": len(windows)}
+    for person, gen, real in (("actor", actor, windows.actor),
+                              ("reactor", reactor, windows.reactor)):
+        gen, real = np.asarray(gen, np.float64), np.asarray(real, np.float64)
+        fg, fr = extractor(gen), extractor(real)
+        out[person] = {
+            "FVD": im.frechet_feature_distance(fg, fr),
+            "FID": im.frechet_feature_distance(im.pose_features(gen),
+                                               im.pose_features(real)),
+            "diversity": im.diversity(fg, seed=seed),
+            "multimodality": im.multimodality(fg, windows.label, seed=seed),
+            "E_b_mm": im.bone_length_error_mm(gen, real[:, 0], windows.skeleton.parents),
+        }
+    out["recognition_acc"], out["recognition_windows"] = recognizer.accuracy(
+        actor, reactor, windows.label)
+    return out
+
+
 def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
              label: str | None = None, physics: bool = True, seed: int = 0,
-             progress: bool = True) -> dict[str, Any]:
-    """Run the whole evaluation (module docstring) and return the JSON-ready results."""
+             progress: bool = True, models: Sequence[str] | None = None) -> dict[str, Any]:
+    """Run the whole evaluation (module docstring) and return the JSON-ready results.
+
+    Args:
+        models: two-person generators to evaluate next to the baselines (registry names
+            of :data:`simenv.models.INTERACTION_MODELS`; None: every shipped one,
+            :func:`shipped_models`).
+    """
     from tqdm import tqdm
 
+    from simenv.interaction_recognition import InteractionRecognizer
+    from simenv.models import load
     from simenv.models.reaction_baselines import BASELINE_NAMES, make_baseline
+
+    models = shipped_models() if models is None else list(models)
+    kinds = {name: _model_kind(name) for name in models}
 
     t0 = time.process_time()
     recordings = idata.load_recordings(shared)
@@ -261,10 +333,17 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
             closest[rec] = {f"A:{a}-B:{b}": float(d[..., k].min())
                             for k, (a, b) in enumerate(im.KEY_JOINT_PAIRS)}
     extractor, fallback = im.default_feature_extractor()
+    recognizer = InteractionRecognizer(extractor).fit(train.actor, train.reactor,
+                                                      train.label)
+    reactor_recognizer = InteractionRecognizer(extractor, use_actor=False).fit(
+        train.actor, train.reactor, train.label)
     reactions: dict[str, np.ndarray] = {REAL: test.reactor.astype(np.float64)}
     results: dict[str, Any] = {}
-    for name in tqdm(BASELINE_NAMES, desc="baselines", unit="model", disable=not progress):
-        gen = make_baseline(name, train.actor, train.reactor)
+    generators = [(name, load(name)) for name in models if kinds[name] == "reaction"]
+    generators += [(name, make_baseline(name, train.actor, train.reactor))
+                   for name in BASELINE_NAMES]
+    for name, gen in tqdm(generators, desc="reaction generators", unit="model",
+                          disable=not progress):
         reactions[name] = _generated(test, gen)
         results[name] = reaction_metrics(test, reactions[name], extractor, seed)
     # The real reactions through the same code: 0 errors by construction, and the
@@ -272,13 +351,42 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
     results[REAL] = reaction_metrics(test, reactions[REAL], extractor, seed)
     results[REAL]["FVD_train_vs_test"] = im.frechet_feature_distance(
         extractor(train.reactor), extractor(test.reactor))
+    for name, r in results.items():
+        r["recognition_acc"], r["recognition_windows"] = recognizer.accuracy(
+            test.actor, reactions[name], test.label)
+        r["recognition_reactor_acc"], _ = reactor_recognizer.accuracy(
+            test.actor, reactions[name], test.label)
+    generation, samples = {}, {}
+    for name in (n for n in models if kinds[n] == "interaction"):
+        model = load(name)
+        # Samples of the classes the model knows, one per test window of those classes.
+        keep = np.flatnonzero(np.isin(test.window_labels.astype(str), list(model.labels)))
+        if not len(keep):
+            generation[name] = {"windows": 0, "reason": "no test window of a class the "
+                                f"model knows ({', '.join(model.labels)})"}
+            continue
+        sub = test.subset(keep)
+        actor, reactor = model.sample(list(sub.window_labels.astype(str)), seed=seed)
+        samples[name] = (keep, np.asarray(actor, np.float64), np.asarray(reactor, np.float64))
+        generation[name] = generation_metrics(sub, actor, reactor, extractor, recognizer,
+                                              seed)
+    generation_real = generation_metrics(test, test.actor, test.reactor, extractor,
+                                         recognizer, seed) if samples else {}
     phys = {}
     if physics:
         phys_index = physics_windows(test)
         phys = physics_of(test, phys_index, reactions, progress)
+        for name, (keep, actor, reactor) in samples.items():
+            # A sample of a window's class is placed where that window was in the world.
+            full_a, full_b = test.actor.astype(np.float64), test.reactor.astype(np.float64)
+            full_a[keep], full_b[keep] = actor, reactor
+            phys |= physics_of(test, [n for n in phys_index if n in keep], {name: full_b},
+                               progress, actors={name: full_a})
     return _jsonable({
         "pairs": len(test),
         "results": results,
+        "generation": generation,
+        "generation_real": generation_real,
         "physics": phys,
         "feature_extractor": extractor.name,
         "feature_fallback_reason": fallback,
@@ -306,7 +414,7 @@ def render_markdown(res: Mapping[str, Any]) -> str:
     d, results, phys = res["data"], res["results"], res["physics"]
     methods = list(results)
     lines = [
-        "# Two-person reaction generation: evaluation",
+        "# Two-person generation: evaluation",
         "",
         "Generated by `python -m simenv.eval_interaction` "
         "(simenv/eval_interaction.py); do not edit by hand. Raw numbers: "
@@ -355,6 +463,12 @@ def render_markdown(res: Mapping[str, Any]) -> str:
         "mean feature distance of random distinct pairs (all / within a class).",
         "* Lag err: mean |lag(A, B̂) - lag(A, B)| of the speed-profile cross-correlation "
         "lag, seconds, over windows where both are defined (a frozen reactor has none).",
+        "* Recog. acc: accuracy of a classifier trained on the real training windows (both "
+        "people; logistic regression on the FVD features, `simenv/interaction_recognition.py`) "
+        "on (real actor, generated reactor) test windows of the classes it was trained on "
+        f"({_fmt(results[REAL].get('recognition_windows'), '{:d}')} windows). The actor "
+        "alone gives the class away when few classes are trained, so `recog. B only` is "
+        "the same with a classifier of the reactor's features alone.",
         "",
         "## Results (held-out windows)",
         "",
@@ -384,6 +498,30 @@ def render_markdown(res: Mapping[str, Any]) -> str:
         pl = results[m]["per_label"]
         lines.append(f"| {m} | " + " | ".join(
             _fmt(pl.get(lab, {}).get("E_r_mm"), "{:.0f}") for lab in d["labels"]) + " |")
+    gen, gen_real = res.get("generation") or {}, res.get("generation_real") or {}
+    if gen:
+        keys = (("FVD", "{:.3f}"), ("FID", "{:.3f}"), ("diversity", "{:.3f}"),
+                ("multimodality", "{:.3f}"), ("E_b_mm", "{:.1f}"))
+        lines += [
+            "",
+            "## Interaction generation (both people from the class label)",
+            "",
+            "One sample per test window of a class the model was trained on, against the "
+            "real test windows (the `real` row: all real test windows through the same "
+            "code). E_b: bone-length error against the real window's first frame. Recog. "
+            "acc: the classifier above on the generated pair.",
+            "",
+            "| model | windows | " + " | ".join(f"{p} {k}" for p in ("actor", "reactor")
+                                              for k, _ in keys) + " | recog. acc |",
+            "|---|---:|" + "---:|" * (2 * len(keys) + 1),
+        ]
+        for m, g in [*gen.items(), *([(REAL, gen_real)] if gen_real else [])]:
+            if not g.get("windows"):
+                lines.append(f"| {m} | 0 | {g.get('reason', '')} |")
+                continue
+            lines.append(f"| {m} | {g['windows']} | " + " | ".join(
+                _fmt(g[p].get(k), f) for p in ("actor", "reactor") for k, f in keys)
+                + f" | {_fmt(g.get('recognition_acc'), '{:.2f}')} |")
     if phys:
         n = next(iter(phys.values()))["windows"]
         lines += [
@@ -392,7 +530,8 @@ def render_markdown(res: Mapping[str, Any]) -> str:
             "",
             f"{n} windows, one per test recording (the window where the real right hands "
             "come closest), placed back in the world with the inverse normalisation; the "
-            "actor is the real one in every row.",
+            "actor is the real one in every row but those of interaction generators (both "
+            "people generated, for the windows of classes they know).",
             "",
             "| method | reactor plausible | interaction plausible | reactor score | "
             "inter-pen. max (mm) | inter-pen. pass | scorer contact JPD (mm) | "
@@ -465,6 +604,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--data", nargs="*", help="two-person files/folders to evaluate on "
                     "instead of the held-out split")
     ap.add_argument("--label", help="class label of --data files that carry none")
+    ap.add_argument("--model", nargs="*", metavar="NAME", help="two-person generators to "
+                    "evaluate next to the baselines (default: every shipped one)")
     ap.add_argument("--no-physics", action="store_true", help="skip simenv.score")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(DOCS), help="folder of interaction.md/.json/.png")
@@ -476,7 +617,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     torch.set_num_threads(1)
     try:
         res = evaluate(Path(args.shared), args.data, args.label, not args.no_physics,
-                       args.seed, progress=not args.quiet)
+                       args.seed, progress=not args.quiet, models=args.model)
     except SimenvError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -486,7 +627,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     (out / "interaction.md").write_text(render_markdown(res))
     plot(res, out / "interaction.png")
     if args.json:
-        print(json.dumps({"pairs": res["pairs"], "results": res["results"]}, indent=1))
+        print(json.dumps({"pairs": res["pairs"], "results": res["results"],
+                          "generation": res["generation"]}, indent=1))
     else:
         print(render_markdown(res))
     return 0

@@ -507,15 +507,20 @@ class InteractionWindows:
         return denormalise(p, self.origin, self.yaw)
 
     def interaction(self, n: int, reactor: np.ndarray | None = None,
-                    name: str | None = None) -> Interaction:
+                    name: str | None = None, actor: np.ndarray | None = None
+                    ) -> Interaction:
         """Window ``n`` back in the world as an :class:`Interaction` (layout skeleton, at
-        ``fps``), with ``reactor`` ((T, J, 3), actor frame) in place of the real one if
-        given, e.g. to score a generated reaction's physics."""
-        b = self.reactor[n] if reactor is None else np.asarray(reactor, dtype=np.float32)
-        if b.shape != self.reactor.shape[1:]:
-            raise MotionError(f"reactor must have shape {self.reactor.shape[1:]}; got "
-                              f"{b.shape}", field="reactor")
-        world = denormalise(np.stack([self.actor[n], b])[:, None], self.origin[[n, n]],
+        ``fps``), with ``reactor`` (and ``actor``), (T, J, 3) in the actor frame, in place
+        of the real ones if given, e.g. to score a generated reaction's physics."""
+        people = []
+        for key, given, real in (("actor", actor, self.actor[n]),
+                                 ("reactor", reactor, self.reactor[n])):
+            x = real if given is None else np.asarray(given, dtype=np.float32)
+            if x.shape != real.shape:
+                raise MotionError(f"{key} must have shape {real.shape}; got {x.shape}",
+                                  field=key)
+            people.append(x)
+        world = denormalise(np.stack(people)[:, None], self.origin[[n, n]],
                             self.yaw[[n, n]])[:, 0]
         rec = str(self.recording_names[self.recording[n]])
         name = name or f"{rec}@{int(self.start[n])}"

@@ -11,11 +11,12 @@ import pytest
 from simenv import eval_interaction as ev
 from simenv import interaction_data as idata
 from simenv import interaction_metrics as im
+from simenv.errors import SimenvError
 
 
 @pytest.fixture(scope="module")
 def results(shared_data: Path) -> dict:
-    return ev.evaluate(shared_data, physics=False, progress=False)
+    return ev.evaluate(shared_data, physics=False, progress=False, models=[])
 
 
 def test_json_contract_and_reference_row(results):
@@ -31,6 +32,11 @@ def test_json_contract_and_reference_row(results):
     for name in ("nearest_neighbour", "mirror", "copy"):
         r = results["results"][name]
         assert r["AFD"] > 0 and r["E_r_mm"] > 0 and r["lag_defined_windows"] > 0
+    # Recognition: the real test pairs are recognised far above chance (two trained
+    # classes); a frozen reactor is much harder to recognise from the reactor alone.
+    assert real["recognition_windows"] > 0 and real["recognition_acc"] > 0.8
+    assert zero["recognition_reactor_acc"] < real["recognition_reactor_acc"]
+    assert results["generation"] == {}
     assert set(results["data"]["test_recordings"]) == set(idata.DEFAULT_TEST_RECORDINGS)
     assert not set(results["data"]["train_recordings"]) & \
         set(results["data"]["test_recordings"])
@@ -59,3 +65,28 @@ def test_physics_summary_of_one_window(shared_data):
     assert row["windows"] == 1 and 0.0 <= row["reactor_plausible"] <= 1.0
     assert row["inter_penetration_max_mm"] is not None
     assert row["records"][0]["start_frame"] == int(test.start[index[1]])
+
+
+def test_unknown_or_augmentation_models_are_refused(shared_data):
+    for name in ("mirror", "interaction-augment"):
+        with pytest.raises(SimenvError, match="not a reaction or interaction generator"):
+            ev.evaluate(shared_data, physics=False, progress=False, models=[name])
+
+
+@pytest.mark.parametrize("name", ["interformer", "reactive-gan", "bigraphdiff"])
+def test_shipped_generators_are_rows_of_the_same_run(shared_data, name):
+    if name not in ev.shipped_models():
+        pytest.skip(f"{name} is not shipped in assets/models")
+    res = ev.evaluate(shared_data, physics=False, progress=False, models=[name])
+    if name == "bigraphdiff":
+        gen = res["generation"][name]
+        assert gen["windows"] > 0
+        for person in ("actor", "reactor"):
+            assert gen[person]["FVD"] > 0 and gen[person]["diversity"] > 0
+        assert res["generation_real"]["actor"]["FVD"] == pytest.approx(0.0, abs=1e-9)
+        assert f"| {name} | {gen['windows']} |" in ev.render_markdown(res)
+    else:
+        row = res["results"][name]
+        assert row["AFD"] > 0 and 0.0 <= row["recognition_acc"] <= 1.0
+        assert {"zero_velocity", "mirror", ev.REAL} <= set(res["results"])
+        assert f"| {name} | {row['AFD']:.3f} |" in ev.render_markdown(res)
