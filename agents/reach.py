@@ -129,14 +129,29 @@ def pd_targets(humanoid: Humanoid, qpos: np.ndarray, compensate: Sequence[str] =
     return targets
 
 
-class PDPlan:
-    """Consecutive :class:`PDTrajectory` segments played one after the other."""
+@dataclass(frozen=True)
+class GraspEvent:
+    """At ``t`` s into a plan, ask for the proximity grasp of ``hand`` on object ``name``
+    to close (``close``) or open (:meth:`simenv.room.Room.set_grasp`: it closes only when
+    the hand is at the handle then)."""
 
-    def __init__(self, segments: Sequence[PDTrajectory]) -> None:
+    t: float
+    hand: str
+    name: str
+    close: bool
+
+
+class PDPlan:
+    """Consecutive :class:`PDTrajectory` segments played one after the other, with the
+    grasp requests (:class:`GraspEvent`) to make on the way, in time order."""
+
+    def __init__(self, segments: Sequence[PDTrajectory],
+                 grasps: Sequence[GraspEvent] = ()) -> None:
         if not segments:
             raise SimenvError("a PD plan needs at least one segment", field="segments")
         self.segments = tuple(segments)
         self.ends = np.cumsum([seg.duration for seg in self.segments])
+        self.grasps = tuple(sorted(grasps, key=lambda g: g.t))
 
     @property
     def duration(self) -> float:
@@ -170,5 +185,5 @@ class PDTrajectory:
         return self.start + s * (self.goal - self.start)
 
 
-__all__ = ["ARM_PARTS", "PDPlan", "PDTrajectory", "arm_joints", "min_jerk", "pd_targets",
-           "reach_pose", "upper_body_joints"]
+__all__ = ["ARM_PARTS", "GraspEvent", "PDPlan", "PDTrajectory", "arm_joints", "min_jerk",
+           "pd_targets", "reach_pose", "upper_body_joints"]

@@ -8,10 +8,18 @@ legs rest on the chair and are not compensated). Playing the plan is the only th
 reaction does: whether the object changes state is up to the simulated contact between the
 hand and the object, and is measured, never assumed (:func:`object_success`).
 
-Implemented: ``cigarette_out`` (seated: lift the hand off the desk, move above the
-cigarette, press it into the ashtray, lift, return to the seated pose). Reactions that need
-the agent to stand and walk (window, curtain, hi-fi, door, greeting the user) are planned
-by later layers from reference motions of real clips.
+Implemented, all seated (:data:`PLANNERS`):
+
+* ``cigarette_out``: lift the hand off the desk, move above the cigarette, press it into
+  the ashtray, lift, return to the seated pose;
+* ``hifi_down``: when the scenario puts the hi-fi within seated reach (its knob beside
+  the chair), take the knob's handle in the fingertips with a proximity grasp and turn it
+  down (:func:`plan_hifi_down`); otherwise the planner refuses (out of reach);
+* ``greet``: turn to the user (the chair's swivel turned by the planted feet, then the
+  spine) and wave the user-side arm above the shoulder (:func:`plan_greet`).
+
+Reactions that need the agent to stand and walk (window, curtain, door, a hi-fi across the
+room) are left to later layers (reference motions of real clips, balance control).
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ import mujoco
 import numpy as np
 
 from simenv.agents.reach import (
+    GraspEvent,
     PDPlan,
     PDTrajectory,
     arm_joints,
@@ -31,7 +40,7 @@ from simenv.agents.reach import (
 )
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
-from simenv.room import Room
+from simenv.room import HANDS, Room
 from simenv.scenario import REACTIONS
 
 #: Hand clearance above the desk / the cigarette on the way, m.
@@ -69,6 +78,102 @@ def plan_cigarette_out(room: Room, data: mujoco.MjData, side: str = "right") -> 
     return PDPlan([PDTrajectory(now, lift, 0.6), PDTrajectory(lift, above, 0.8),
                    PDTrajectory(above, press, 0.6), PDTrajectory(press, press, 0.3),
                    PDTrajectory(press, above, 0.5), PDTrajectory(above, rest, 1.1)])
+
+
+#: Knob level the hi-fi reaction aims at, as a fraction of the knob's travel (the
+#: ``quiet`` threshold is 0.5; the hand lags its targets and the knob stops near 0.43 from
+#: 0.8); and the number of via-points on the knob's arc.
+HIFI_QUIET_LEVEL = 0.1
+KNOB_VIA = 8
+#: Distance in front of the knob's face from which the hand comes in and leaves, m.
+KNOB_APPROACH_M = 0.05
+#: Spine hinges that lean the seated trunk sideways when the arm alone falls short.
+SPINE_LEAN = ("lumbar_lat", "thorax_lat", "chest_lat")
+#: How far into the knob's face the fingertips aim, m, so that they rest on the face (the
+#: servos stop short of their target) with the tip site at the handle.
+KNOB_PRESS_M = 0.004
+
+
+def plan_hifi_down(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for turning the hi-fi's volume down, seated, from the current state.
+
+    The nearer hand lifts off the desk, comes to a point :data:`KNOB_APPROACH_M` in front
+    of the knob, puts its fingertips (the ``tip`` grasp site) on the knob's handle near the
+    rim, pointing into the face with the wrist straight out along the knob's axis, and asks
+    for the proximity grasp there (:class:`~simenv.agents.reach.GraspEvent`); the hand
+    then moves round the handle's circle about the hinge axis, aiming at
+    :data:`HIFI_QUIET_LEVEL` of the travel, in :data:`KNOB_VIA` IK via-points, lets go and
+    returns to the seated pose. The IK may lean the trunk sideways (:data:`SPINE_LEAN`).
+    The knob turns only if the grasp closed and the hand dragged it round; the servos lag
+    on so small a circle, so the knob stops short of the aimed level (measured).
+
+    Raises:
+        SimenvError: the knob is already below the ``quiet`` threshold, or out of the
+            seated agent's reach (the IK falls more than 2 cm short).
+
+    Returns:
+        the plan of the agent's targets, ``3.9 + 0.25 KNOB_VIA`` s long.
+    """
+    m, h, knob = room.model, room.agent, room.objects["hifi"]
+    angle = float(data.qpos[knob.qpos_adr])
+    if angle <= knob.threshold:
+        raise SimenvError(f"the hi-fi is already quiet (level {knob.level(angle):.2f})",
+                          field="hifi")
+    handle = data.site_xpos[m.site(knob.handle).id].copy()
+    grips = {hand: data.site_xpos[m.site(f"agent/{hand}_grip").id] for hand in HANDS}
+    hand = min(grips, key=lambda k: float(np.linalg.norm(grips[k] - handle)))
+    side = hand.split("_")[0]
+    jnt = m.joint(knob.joint).id
+    axis, anchor = data.xaxis[jnt].copy(), data.xanchor[jnt].copy()
+    turn = angle - (knob.lower + HIFI_QUIET_LEVEL * (knob.upper - knob.lower))
+    arc = [anchor + _rotate(handle - anchor, axis, -turn * k / KNOB_VIA)
+           for k in range(1, KNOB_VIA + 1)]
+    front = axis * KNOB_APPROACH_M
+    # The trunk may lean sideways to extend the arm's reach (the knob is low and to the
+    # side); the wrist turns the hand so that its fingertips point into the knob's face.
+    joints = [f"agent/{j}" for j in (*arm_joints(side), f"{side}_hand_flex",
+                                       f"{side}_hand_dev", *SPINE_LEAN)]
+    # Fingertips (the hifi's grasp site) on the handle with the wrist straight out along
+    # the knob's axis: the hand points into the face and the forearm stays clear of it.
+    sites = [f"agent/{hand}_tip", f"agent/{side}_wrist"]
+    reach = float(-room.model.site(sites[0]).pos[2])
+    hand_line = np.array([[0.0, 0.0, 0.0], reach * axis])
+    upper = upper_body_joints(h)
+    pose = data.qpos.copy()
+    targets = []
+    # Out in front of the knob first: the knob sits on the amplifier's face. While it turns
+    # the knob the hand moves round the handle's circle without rotating (the grasp is a
+    # ball joint at the handle).
+    press = -KNOB_PRESS_M * axis
+    for k, goal in enumerate((grips[hand] + [0.0, 0.0, LIFT_M], handle + front,
+                              handle + press, *(p + press for p in arc), arc[-1] + front)):
+        if k == 0:
+            pose, err = reach_pose(m, pose, f"agent/{hand}_grip", goal, joints)
+        else:
+            pose, err = reach_pose(m, pose, sites, goal + hand_line, joints, iterations=400)
+        if err > 0.02:
+            raise SimenvError(f"the hi-fi's knob is out of the seated agent's {side}-hand "
+                              f"reach ({err:.3f} m short)", field="hifi")
+        targets.append(pd_targets(h, pose[room.agent_qpos], upper))
+    lift, before, on, *turning, after = targets
+    rest = pd_targets(h, room.seated_pose(), upper)
+    now = data.ctrl[room.agent_ctrl].copy()
+    segments = [PDTrajectory(now, lift, 0.6), PDTrajectory(lift, before, 1.0),
+                PDTrajectory(before, on, 0.5), PDTrajectory(on, on, 0.3)]
+    t_close = sum(seg.duration for seg in segments)
+    for a, b in zip([on, *turning], turning, strict=False):
+        segments.append(PDTrajectory(a, b, 0.25))
+    segments.append(PDTrajectory(turning[-1], turning[-1], 0.2))
+    t_open = sum(seg.duration for seg in segments) - 0.05
+    segments += [PDTrajectory(turning[-1], after, 0.4), PDTrajectory(after, rest, 0.9)]
+    return PDPlan(segments, [GraspEvent(t_close, hand, "hifi", True),
+                             GraspEvent(t_open, hand, "hifi", False)])
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """``v`` rotated by ``angle`` (rad) about the unit ``axis`` (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + np.cross(axis, v) * s + axis * (axis @ v) * (1.0 - c)
 
 
 #: Spine hinges turning the chest about the body's long axis (their ranges add up: 95 deg
@@ -191,6 +296,7 @@ def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
 PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan]] = {
     "cigarette_out": plan_cigarette_out,
     "greet": plan_greet,
+    "hifi_down": plan_hifi_down,
 }
 
 
@@ -204,4 +310,5 @@ def object_success(room: Room, before: dict[str, str], after: dict[str, str],
     return before[r.object] != r.target and after[r.object] == r.target
 
 
-__all__ = ["PLANNERS", "object_success", "plan_cigarette_out", "plan_greet", "user_bearing"]
+__all__ = ["PLANNERS", "object_success", "plan_cigarette_out", "plan_greet",
+           "plan_hifi_down", "user_bearing"]

@@ -84,10 +84,17 @@ _AFFINITY = {
     _OBJECT: _AGENT | _USER,
 }
 
-#: Distance (m) within which a hand's keypoint may grasp an object's handle.
+#: Distance (m) within which a hand's grasp site may grasp an object's handle.
 GRASP_RADIUS = 0.06
+#: Hand site each object is grasped with: the palm (``grip``) holds handles and panels,
+#: the fingertips (``tip``) hold the hi-fi's small knob (a palm laid on it would press the
+#: hand's box into the knob).
+GRASP_SITE = {"window": "grip", "curtain": "grip", "hifi": "tip", "cigarette": "grip",
+              "door": "grip"}
 #: Knob travel of the hi-fi, rad (the volume level is angle / this).
 KNOB_TRAVEL = 1.5 * np.pi
+#: Distance of the knob's handle from its hinge axis, m.
+KNOB_GRIP_RADIUS = 0.027
 #: Press depth of the cigarette's slide, m.
 CIGARETTE_TRAVEL = 0.012
 #: Maximum door opening, rad.
@@ -410,9 +417,12 @@ class Room:
         _geom(knob, "hifi/knob", mujoco.mjtGeom.mjGEOM_CYLINDER, (0.03, 0.012), (0.012, 0, 0),
               _METAL, _OBJECT, quat=[np.sqrt(0.5), 0.0, np.sqrt(0.5), 0.0], mass=0.05)
         _box(hifi, "hifi/scale", (0.002, 0.045, 0.002), (0.0, 0.12, 0.712), (0.9, 0.9, 0.9, 1))
-        _box(knob, "hifi/pointer", (0.003, 0.003, 0.012), (0.025, 0, 0.016), (1, 1, 1, 1),
-             _OBJECT, mass=0.001)
-        _handle(knob, "hifi/handle", (0.03, 0.0, 0.0))
+        pointer = _box(knob, "hifi/pointer", (0.003, 0.003, 0.012), (0.025, 0, 0.016),
+                       (1, 1, 1, 1), _OBJECT, mass=0.001)
+        pointer.contype = pointer.conaffinity = 0  # a painted mark: a palm lies flat over it
+        # The handle is on the knob's face near its rim, off the hinge axis, so that a hand
+        # holding it there turns the knob (a grasp on the axis could transmit no torque).
+        _handle(knob, "hifi/handle", (0.026, 0.0, KNOB_GRIP_RADIUS))
 
     def _build_cameras(self, spec: mujoco.MjSpec) -> None:
         hx, hy = self.scenario.room.size[0] / 2, self.scenario.room.size[1] / 2
@@ -462,9 +472,10 @@ class Room:
                     st.group = 4
 
     def _add_grips(self, spec: mujoco.MjSpec) -> None:
-        """A grip site on each of the agent's palms: the centre of the hand box's medial
-        face (the palm faces the thigh in the rest pose). Grasps anchor there, so a held
-        handle sits on the palm's surface instead of inside the hand's collision box."""
+        """Two grasp sites on each of the agent's hands: the *grip*, the centre of the hand
+        box's medial face (the palm faces the thigh in the rest pose), and the *tip*, just
+        beyond the box's fingertip end. Grasps anchor there (see :data:`GRASP_SITE`), so a
+        held handle sits on the hand's surface instead of inside its collision box."""
         m = self.agent.model
         for hand in HANDS:
             g = m.geom(hand)
@@ -472,6 +483,7 @@ class Room:
             body = spec.body(f"agent/{hand}")
             _handle(body, f"agent/{hand}_grip",
                     g.pos + [0.0, medial * (g.size[1] + 0.002), 0.0])
+            _handle(body, f"agent/{hand}_tip", g.pos - [0.0, 0.0, g.size[2] + 0.002])
 
     def _build_grasps(self, spec: mujoco.MjSpec) -> None:
         for obj in ("window", "curtain", "hifi", "cigarette", "door"):
@@ -480,7 +492,7 @@ class Room:
                 eq.name = f"grasp/{hand}/{obj}"
                 eq.type = mujoco.mjtEq.mjEQ_CONNECT
                 eq.objtype = mujoco.mjtObj.mjOBJ_SITE
-                eq.name1, eq.name2 = f"agent/{hand}_grip", f"{obj}/handle"
+                eq.name1, eq.name2 = f"agent/{hand}_{GRASP_SITE[obj]}", f"{obj}/handle"
                 eq.active = False
                 eq.solref = [0.02, 1.0]  # a firm hand (~1.5 cm give pulling a door at 40 N)
 
@@ -602,8 +614,9 @@ class Room:
     def set_grasp(self, data: mujoco.MjData, hand: str, name: str, on: bool) -> bool:
         """Close (``on``) or open the proximity grasp of ``hand`` on object ``name``.
 
-        A grasp closes only when the hand's grip site (palm centre) is within
-        :data:`GRASP_RADIUS` of the object's handle; returns whether the grasp is now closed.
+        A grasp closes only when the hand's grasp site (:data:`GRASP_SITE`: palm centre or
+        fingertips) is within :data:`GRASP_RADIUS` of the object's handle; returns whether
+        the grasp is now closed.
         """
         key = f"grasp/{hand}/{name}"
         if key not in self._grasp_eq:
@@ -612,7 +625,7 @@ class Room:
         eq = self._grasp_eq[key]
         if on:
             hand_pos = data.site_xpos[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE,
-                                                         f"agent/{hand}_grip")]
+                                                         f"agent/{hand}_{GRASP_SITE[name]}")]
             handle = data.site_xpos[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE,
                                                       self.objects[name].handle)]
             on = float(np.linalg.norm(hand_pos - handle)) <= GRASP_RADIUS
@@ -760,5 +773,5 @@ def _look_at(parent: mujoco.MjsBody, name: str, eye: Sequence[float],
     cam.fovy = 60.0
 
 
-__all__ = ["GRASP_RADIUS", "GREET_FACING_DEG", "KNOB_TRAVEL", "Room", "RoomObject",
-           "place_on_floor"]
+__all__ = ["GRASP_RADIUS", "GRASP_SITE", "GREET_FACING_DEG", "HANDS", "KNOB_GRIP_RADIUS",
+           "KNOB_TRAVEL", "Room", "RoomObject", "place_on_floor"]

@@ -48,6 +48,10 @@ DOOR_SIZE = (0.9, 2.05)
 #: inside-the-room check. The desk's reaches back over the agent's chair (0.9 m).
 DESK_FOOTPRINT = (0.9, 0.7)
 HIFI_FOOTPRINT = (0.2, 0.35)
+#: The desk top's and the chair's own footprints (half-extents, m) and centres in the
+#: desk's frame: the hi-fi may stand beside them, not in them.
+DESK_TOP = ((0.0, 0.0), (0.35, 0.7))
+CHAIR = ((-0.65, 0.0), (0.22, 0.22))
 #: Clearance kept between the user's pelvis and the furniture, m (a body's half-width).
 USER_CLEARANCE = 0.3
 #: Clearance kept between a wall opening and a corner of the room, m.
@@ -424,6 +428,12 @@ def _check_layout(s: Scenario) -> None:
             fail("user.position", f"{list(s.user.position)} puts the user inside the {name} "
                  f"(keep {USER_CLEARANCE} m clear of its {2 * hx:.2f} x {2 * hy:.2f} m "
                  "footprint)")
+    hifi = _rectangle(s.hifi.position, s.hifi.yaw_deg, (0.0, 0.0), HIFI_FOOTPRINT)
+    for name, (centre, half) in (("desk", DESK_TOP), ("chair", CHAIR)):
+        if _overlap(hifi, _rectangle(s.desk.position, s.desk.yaw_deg, centre, half)):
+            fail("hifi.position", f"{list(s.hifi.position)} (yaw {s.hifi.yaw_deg} deg) puts "
+                 f"the hi-fi's {2 * HIFI_FOOTPRINT[0]:.2f} x {2 * HIFI_FOOTPRINT[1]:.2f} m "
+                 f"footprint into the {name}")
     openings: dict[str, list[tuple[float, float, str]]] = {w: [] for w in WALLS}
     for field, wall, offset, width in (
         ("window", s.window.wall, s.window.offset, s.window.width),
@@ -445,6 +455,29 @@ def _check_layout(s: Scenario) -> None:
         for (_, a1, fa), (b0, _, fb) in zip(spans, spans[1:], strict=False):
             if b0 < a1 + 0.1:
                 fail(f"{fb}.offset", f"the {fb} overlaps the {fa} on the {wall} wall")
+
+
+def _rectangle(origin: tuple[float, float], yaw_deg: float, centre: tuple[float, float],
+               half: tuple[float, float]) -> np.ndarray:
+    """(4, 2) corners on the floor of a rectangle of half-extents ``half`` centred at
+    ``centre`` in the frame at ``origin`` turned by ``yaw_deg``, m."""
+    yaw = np.deg2rad(yaw_deg)
+    rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+    local = np.array(centre) + np.array([[1, 1], [1, -1], [-1, -1], [-1, 1]]) * half
+    return local @ rot.T + origin
+
+
+def _overlap(a: np.ndarray, b: np.ndarray, tol: float = 1e-6) -> bool:
+    """Whether two convex polygons (N, 2) overlap by more than ``tol`` (separating axis
+    test on their edge normals; touching edges do not overlap)."""
+    for poly in (a, b):
+        for i in range(len(poly)):
+            edge = poly[(i + 1) % len(poly)] - poly[i]
+            normal = np.array([-edge[1], edge[0]]) / np.linalg.norm(edge)
+            pa, pb = a @ normal, b @ normal
+            if pa.max() <= pb.min() + tol or pb.max() <= pa.min() + tol:
+                return False
+    return True
 
 
 def wall_length(room: RoomLayout, wall: str) -> float:

@@ -26,8 +26,10 @@ Reward (per step, documented constants below)
       ``-FALSE_ALARM``;
     * a gesture whose reaction is not ``keep`` left unanswered :data:`GRACE_S` after its
       end: ``-MISS``;
-    * a started reaction whose object reached its target state in simulation by the end of
-      its plan (:func:`simenv.agents.scripted.object_success`): ``+SUCCESS``;
+    * a started reaction that succeeded in simulation by the end of its plan: its object
+      reached its target state (:func:`simenv.agents.scripted.object_success`), or, for
+      ``greet``, the agent faced the user within 30 degrees with a hand above its shoulder
+      at some step (:meth:`simenv.room.Room.greeting`): ``+SUCCESS``;
     * implausible agent motion: ``-PLAUSIBILITY_WEIGHT`` per centimetre by which the agent's
       deepest contact with the floor, the furniture, the objects or itself penetrates beyond
       :data:`PENETRATION_TOLERANCE_M` (contacts with the kinematic user, who pushes with
@@ -41,12 +43,17 @@ Episode
 
 Execution
     A decision whose reaction has a planner in :data:`simenv.agents.scripted.PLANNERS`
-    (now: ``cigarette_out``) starts it when the agent is idle: the plan's PD targets are
-    applied at every physics step until it ends, and the object changes state only if the
-    agent's hand makes it so. Other decisions are logged and rewarded as decisions but not
-    carried out yet (``started`` False); a decision while a plan runs is not started either.
-    :attr:`log` lists every decision with ``t_decision``, ``reaction``, ``gesture``,
-    ``started``, ``t_object_changed`` and ``success``.
+    (``cigarette_out``, ``hifi_down``, ``greet``) starts it when the agent is idle and the
+    planner finds it feasible from the current state: the plan's PD targets are applied at
+    every physics step until it ends, and the object changes state only if the agent's
+    hand makes it so. Other decisions are logged and rewarded as decisions but not carried
+    out (``started`` False, ``not_started`` says why: not implemented, busy with another
+    reaction, or the planner's reason, e.g. the hi-fi out of seated reach). :attr:`log`
+    lists every decision with ``t_decision``, ``reaction``, ``gesture``, ``started``,
+    ``not_started``, ``t_object_changed``, ``t_success`` (when success was first measured)
+    and ``success``, plus ``facing_deg_min`` for a greeting (the closest the chest came to
+    facing the user) and ``grasped`` for a reaction that grasps (whether the proximity
+    grasp closed: the hand was at the handle).
 """
 
 from __future__ import annotations
@@ -246,13 +253,27 @@ class InteractionRoomEnv(gym.Env[dict, int]):
 
     def _start(self, t: float, reaction: str) -> None:
         entry = {"t_decision": t, "reaction": reaction, "gesture": self._active(t),
-                 "started": False, "t_object_changed": None, "success": None}
+                 "started": False, "t_object_changed": None, "t_success": None,
+                 "success": None, "not_started": None}
         self.log.append(entry)
-        if self._running is None and reaction in PLANNERS:
-            entry["started"] = True
-            self._running = {"entry": entry, "t0": t,
-                             "plan": PLANNERS[reaction](self.room, self.data),
-                             "before": self.room.object_labels(self.data)}
+        if self._running is not None:
+            entry["not_started"] = f"busy with {self._running['entry']['reaction']}"
+            return
+        if reaction not in PLANNERS:
+            entry["not_started"] = "not implemented"
+            return
+        try:
+            plan = PLANNERS[reaction](self.room, self.data)
+        except SimenvError as exc:  # e.g. the object is out of the seated agent's reach
+            entry["not_started"] = str(exc)
+            return
+        entry["started"] = True
+        if REACTIONS[reaction].object is None:
+            entry["facing_deg_min"] = None
+        if plan.grasps:
+            entry["grasped"] = False
+        self._running = {"entry": entry, "t0": t, "plan": plan, "grasps": list(plan.grasps),
+                         "before": self.room.object_labels(self.data)}
 
     def _simulate(self, t: float) -> None:
         """One env step of physics; a running plan sets the agent's targets every substep."""
@@ -260,9 +281,16 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if self._running is None:
             mujoco.mj_step(m, d, nstep=self.frame_skip)
             return
-        plan, t0, dt = self._running["plan"], self._running["t0"], m.opt.timestep
+        run = self._running
+        plan, t0, dt = run["plan"], run["t0"], m.opt.timestep
         for i in range(self.frame_skip):
-            d.ctrl[self.room.agent_ctrl] = plan.at(t - t0 + i * dt)
+            tau = t - t0 + i * dt
+            while run["grasps"] and run["grasps"][0].t <= tau:
+                g = run["grasps"].pop(0)
+                closed = self.room.set_grasp(d, g.hand, g.name, g.close)
+                if g.close:
+                    run["entry"]["grasped"] = closed
+            d.ctrl[self.room.agent_ctrl] = plan.at(tau)
             mujoco.mj_step(m, d)
 
     def _follow_up(self, t: float) -> float:
@@ -271,14 +299,27 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if run is None:
             return 0.0
         entry = run["entry"]
-        labels = self.room.object_labels(self.data)
-        if entry["t_object_changed"] is None and object_success(
-                self.room, run["before"], labels, entry["reaction"]):
-            entry["t_object_changed"] = t
+        if REACTIONS[entry["reaction"]].object is None:
+            # A greeting succeeds when, at some step, the agent faces the user and a hand is
+            # raised (Room.greeting); it is over when its plan ends.
+            g = self.room.greeting(self.data)
+            best = entry["facing_deg_min"]
+            entry["facing_deg_min"] = g["facing_deg"] if best is None else min(
+                best, g["facing_deg"])
+            if entry["t_success"] is None and g["success"]:
+                entry["t_success"] = t
+            done = entry["t_success"] is not None
+        else:
+            labels = self.room.object_labels(self.data)
+            done = object_success(self.room, run["before"], labels, entry["reaction"])
+            if entry["t_object_changed"] is None and done:
+                entry["t_object_changed"] = entry["t_success"] = t
         if t - run["t0"] < run["plan"].duration:
             return 0.0
+        for g in run["plan"].grasps:  # a finished reaction holds nothing
+            self.room.set_grasp(self.data, g.hand, g.name, False)
         self._running = None
-        entry["success"] = object_success(self.room, run["before"], labels, entry["reaction"])
+        entry["success"] = bool(done)
         return SUCCESS if entry["success"] else 0.0
 
     # -- reward ----------------------------------------------------------------
