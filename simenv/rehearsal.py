@@ -9,7 +9,10 @@ with one of the agents below, and writes to ``out``:
   ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
   (fractions of each joint's range) and ``labels``;
 * ``summary.json``: ``reactions`` (only those the agent started: ``gesture``, ``t_onset``,
-  ``t_decision``, ``t_object_changed``, ``object``, ``success``), ``decision_latency_s``
+  ``t_decision``, ``t_object_changed``, ``object``, ``reaction``, ``success``,
+  ``t_success``; ``facing_deg_min`` for a greeting, ``grasped`` for a grasping reaction),
+  ``decisions`` (every decision, with ``not_started``: why it was not carried out),
+  ``decision_latency_s``
   (statistics of decision time - gesture onset over labelled gestures),
   ``agent_plausibility`` (joint-level metrics of the agent's keypoints,
   :func:`simenv.plausibility.kinematic_metrics`), ``perception_compute_s``, ``timing_s``
@@ -154,11 +157,16 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                      None)
         if onset is not None:
             latencies.append(entry["t_decision"] - onset)
-        reactions.append({"gesture": entry["gesture"], "t_onset": onset,
-                          "t_decision": entry["t_decision"],
-                          "t_object_changed": entry["t_object_changed"],
-                          "object": REACTIONS[entry["reaction"]].object,
-                          "reaction": entry["reaction"], "success": entry["success"]})
+        reaction = {"gesture": entry["gesture"], "t_onset": onset,
+                    "t_decision": entry["t_decision"],
+                    "t_object_changed": entry["t_object_changed"],
+                    "object": REACTIONS[entry["reaction"]].object,
+                    "reaction": entry["reaction"], "success": entry["success"],
+                    "t_success": entry["t_success"]}
+        for key in ("facing_deg_min", "grasped"):  # greeting / grasping reactions
+            if key in entry:
+                reaction[key] = entry[key]
+        reactions.append(reaction)
     lat = np.array(latencies)
     motion = Motion(agent_kp.astype(np.float32), PERCEPTION_FPS, canonical_skeleton(),
                     name="agent")
@@ -169,7 +177,8 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
         "duration_s": len(agent_kp) / PERCEPTION_FPS,
         "reactions": reactions,
         "decisions": [{"t_decision": e["t_decision"], "reaction": e["reaction"],
-                       "started": e["started"]} for e in env.log],
+                       "started": e["started"], "not_started": e["not_started"]}
+                      for e in env.log],
         "decision_latency_s": {"n": int(lat.size),
                                **({"mean": float(lat.mean()), "median": float(np.median(lat)),
                                    "max": float(lat.max())} if lat.size else {})},
@@ -219,14 +228,14 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
     reactions = "".join(
         "<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in (
             "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
-            "success")) + "</tr>" for r in summary["reactions"])
+            "t_success", "success")) + "</tr>" for r in summary["reactions"])
     (out / "report.html").write_text(f"""<!doctype html><meta charset="utf-8">
 <title>simenv rehearsal: {html.escape(summary['session'])}</title>
 <h1>Rehearsal of {html.escape(summary['session'])} ({html.escape(summary['scenario'])})</h1>
 <img src="data:image/png;base64,{image}" alt="timeline">
 <h2>Reactions started</h2><table border=1><tr><th>gesture</th><th>onset (s)</th>
 <th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
-<th>success</th></tr>{reactions}</table>
+<th>success measured (s)</th><th>success</th></tr>{reactions}</table>
 <h2>Agent plausibility</h2><table border=1><tr><th>metric</th><th>value</th><th>passed</th>
 </tr>{table}</table>
 """, encoding="utf-8")

@@ -1,7 +1,10 @@
 """Agent reactions carried out in simulation: reach IK, gravity feed-forward, PD plans, and
-the seated agent pressing the cigarette out with its own hand."""
+the seated agent pressing the cigarette out, turning the hi-fi down and greeting the user
+with its own body."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -16,9 +19,16 @@ from simenv.agents.reach import (
     reach_pose,
     upper_body_joints,
 )
-from simenv.agents.scripted import object_success, plan_cigarette_out
+from simenv.agents.scripted import (
+    object_success,
+    plan_cigarette_out,
+    plan_greet,
+    plan_hifi_down,
+    user_bearing,
+)
 from simenv.errors import SimenvError
 from simenv.room import Room
+from simenv.scenario import load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -141,3 +151,105 @@ def test_proximity_grasp_transmits_the_hand_force_to_the_object(room: Room):
     assert room.object_labels(data)["door"] == "open"
     assert np.linalg.norm(data.site_xpos[grip] - data.site_xpos[handle]) < 0.03
     assert data.warning.number.sum() == 0
+
+
+def _play(room: Room, data: mujoco.MjData, plan, every: int = 25, extra_s: float = 0.5):
+    """Play a plan (targets and grasp requests) in the room; yields (t, data) every
+    ``every`` physics steps and returns the grasp results."""
+    dt = room.model.opt.timestep
+    pending, grasps = list(plan.grasps), []
+    for i in range(int(round((plan.duration + extra_s) / dt))):
+        while pending and pending[0].t <= i * dt:
+            g = pending.pop(0)
+            grasps.append((g, room.set_grasp(data, g.hand, g.name, g.close)))
+        data.ctrl[room.agent_ctrl] = plan.at(i * dt)
+        mujoco.mj_step(room.model, data)
+        if i % every == 0:
+            yield i * dt, grasps
+
+
+def test_reach_pose_solves_several_sites_together(room: Room):
+    """Both feet planted (ankle and toe targets fixed) while the pelvis turns: one solve
+    over the leg hinges puts the four sites back where they were."""
+    h = room.agent
+    q = room.seated_pose()
+    feet = ["left_ankle", "left_toe", "right_ankle", "right_toe"]
+    idx = [h.keypoint_names.index(f) for f in feet]
+    goal = h.keypoints(q)[idx]
+    turned = q.copy()
+    turned[3:7] = [np.cos(-0.2), 0.0, 0.0, np.sin(-0.2)]  # pelvis yawed -23 deg
+    assert np.abs(h.keypoints(turned)[idx] - goal).max() > 0.05
+    legs = [n for n in h.joint_names if n.split("_")[1] in ("thigh", "shin", "foot")]
+    sol, err = reach_pose(h.model, turned, feet, goal, legs, iterations=400)
+    assert err < 2e-3
+    np.testing.assert_allclose(h.keypoints(sol)[idx], goal, atol=2e-3)
+    with pytest.raises(SimenvError, match="target"):
+        reach_pose(h.model, q, feet, goal[:2], legs)
+
+
+def test_agent_greets_the_user_seated(room: Room):
+    """The user stands behind the agent's right (139 deg off its chest's heading): the
+    planted feet turn the chair's swivel, the spine turns the rest, and the right hand
+    waves above the shoulder; Room.greeting measures the success. No force but the
+    agent's own servos acts (no assistance)."""
+    data = _settled(room)
+    assert np.degrees(abs(user_bearing(room, data))) > 130.0
+    plan = plan_greet(room, data)
+    swivel = room.model.joint("chair/swivel").qposadr[0]
+    feet = [room.agent.keypoint_names.index(f) for f in ("left_ankle", "right_ankle")]
+    feet0 = room.agent_keypoints(data)[feet]
+    facing, success_at, turned = [], None, 0.0
+    for t, _ in _play(room, data, plan):
+        g = room.greeting(data)
+        facing.append(g["facing_deg"])
+        turned = min(turned, float(data.qpos[swivel]))
+        if g["success"] and success_at is None:
+            success_at = t
+    assert min(facing) < 30.0, min(facing)
+    assert success_at is not None and success_at < plan.duration
+    assert np.degrees(turned) < -20.0  # the seat turned toward the user (clockwise)
+    assert np.abs(data.xfrc_applied).max() == 0.0
+    assert data.warning.number.sum() == 0
+    # Back at the desk afterwards: the agent no longer faces the user.
+    assert not room.greeting(data)["success"]
+    assert np.linalg.norm(room.agent_keypoints(data)[feet] - feet0, axis=1).max() < 0.15
+
+
+def test_agent_turns_the_hifi_down_with_a_fingertip_grasp(room: Room):
+    """The hi-fi stands by the desk (the default scenario): the fingertips reach the knob's
+    handle, the proximity grasp closes there, and the knob crosses its threshold only
+    after that, dragged round by the hand; the grasp is let go before the hand returns."""
+    data = _settled(room)
+    knob = room.objects["hifi"]
+    before = room.object_labels(data)
+    assert before["hifi"] == "loud"
+    plan = plan_hifi_down(room, data)
+    close, release = plan.grasps
+    assert close.close and not release.close and close.t < release.t
+    eq = room.model.equality("grasp/right_hand/hifi").id
+    levels = []
+    for t, grasps in _play(room, data, plan):
+        levels.append((t, knob.level(room.object_states(data)["hifi"]), len(grasps)))
+        if len(grasps) == 1:
+            assert grasps[0][1], "the fingertips were not at the knob's handle"
+    assert [ok for _, ok in grasps] == [True, False] and not data.eq_active[eq]
+    ungrasped = [lv for _, lv, n in levels if n == 0]
+    assert max(ungrasped) - min(ungrasped) < 0.02  # nothing turns it before the grasp
+    after = room.object_labels(data)
+    assert object_success(room, before, after, "hifi_down"), levels[-1]
+    crossed = next(t for t, lv, _ in levels if lv < 0.5)
+    assert close.t < crossed < release.t
+    assert data.warning.number.sum() == 0
+    with pytest.raises(SimenvError, match="already quiet"):
+        plan_hifi_down(room, data)
+
+
+def test_hifi_across_the_room_is_out_of_seated_reach(tmp_path):
+    text = Path(load_scenario("default").source).read_text()
+    far = text.replace("position = [0.75, -0.3]", "position = [-1.8, 1.6]").replace(
+        "yaw_deg = 90.0 ", "yaw_deg = -90.0 ")
+    assert far != text
+    (tmp_path / "far.toml").write_text(far)
+    room = Room(load_scenario(tmp_path / "far.toml"))
+    with pytest.raises(SimenvError, match="out of the seated agent's"):
+        plan_hifi_down(room, _settled(room))

@@ -79,7 +79,8 @@ def test_timely_correct_reaction_is_rewarded(env: InteractionRoomEnv):
     assert all(i["reward_terms"]["miss"] == 0 for i in infos)
     assert infos[-1]["truncation_reason"] == "end of the session"
     assert [(e["t_decision"], e["reaction"], e["gesture"], e["started"]) for e in env.log] == [
-        (step / PERCEPTION_FPS, "greet", "wave", False)]  # greeting is not carried out yet
+        (step / PERCEPTION_FPS, "greet", "wave", True)]
+    assert isinstance(env.log[0]["success"], bool)  # measured when its plan ended
 
 
 def test_wrong_late_and_missing_reactions_are_penalised(env: InteractionRoomEnv):
@@ -169,3 +170,18 @@ def test_reaction_carried_out_in_simulation_changes_the_object():
     assert infos[-1]["object_labels"]["cigarette"] == "out"
     assert env._obs["objects"][OBJECTS.index("cigarette")] > 0.5
     assert all(i["reward_terms"]["plausibility"] == 0 for i in infos)
+
+
+def test_greeting_carried_out_in_simulation_is_measured_and_rewarded():
+    """Default scenario, "wave" on the first half second of the walk: the greet plan runs
+    past the recording, the greeting is measured every step (Room.greeting) and its
+    success rewarded once."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    env = InteractionRoomEnv(short, gestures=[GestureEvent("wave", 0.2, 0.5)])
+    decide = int(round(0.3 * PERCEPTION_FPS))
+    infos = _run(env, {decide: env.reactions.index("greet")})
+    (entry,) = env.log
+    assert entry["started"] and entry["success"] is True
+    assert entry["facing_deg_min"] < 30.0 and entry["t_decision"] < entry["t_success"]
+    assert sum(i["reward_terms"]["success"] for i in infos) == SUCCESS
+    assert infos[-1]["executing"] is None

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import simenv
+import simenv.scenario
 from simenv.assets import WALK, asset_path
 from simenv.errors import SimenvError
 from simenv.gestures import GESTURE15_JOINTS
@@ -88,3 +89,53 @@ def test_module_command(tmp_path: Path, capsys):
     assert reaction["success"] is False and reaction["t_object_changed"] is None
     with pytest.raises(SimenvError, match="LABEL:ONSET_S:END_S"):
         main([WALK, "--out", str(tmp_path), "--gesture", "smell"])
+
+
+def test_real_wave_is_greeted_back(tmp_path: Path, shared_data):
+    """A real MSR Action3D "high arm wave" recording as the session, labelled wave: the
+    agent turns to face the user (measured within 30 deg) with its hand above its
+    shoulder, seated, and the summary says when and how close it came."""
+    from simenv.io import msr_action3d
+
+    wave = msr_action3d.read(shared_data / "gestures" / "msr_action3d" /
+                             "a01_s01_e01_skeleton3D.txt")
+    session = Session(wave, (GestureEvent("wave", 0.0, wave.num_frames / wave.fps),))
+    summary = rehearse(session, tmp_path, agent="labels", render=False)
+    (reaction,) = summary["reactions"]
+    assert reaction["reaction"] == "greet" and reaction["object"] is None
+    assert reaction["success"] is True and reaction["facing_deg_min"] < 30.0
+    assert reaction["t_decision"] < reaction["t_success"] < summary["duration_s"]
+    assert reaction["t_object_changed"] is None
+
+
+def test_loud_turns_the_hifi_down(tmp_path: Path, short):
+    """Discomfort scenario, a labelled "loud": the agent's fingertips grasp the knob and
+    turn it; the hi-fi's level in the log falls below the threshold only after the
+    decision."""
+    summary = rehearse(Session(short, (GestureEvent("loud", 0.2, 0.5),)), tmp_path,
+                       scenario="discomfort", agent="labels", render=False)
+    (reaction,) = summary["reactions"]
+    assert reaction["reaction"] == "hifi_down" and reaction["grasped"] is True
+    assert reaction["success"] is True
+    assert reaction["t_decision"] < reaction["t_object_changed"] == reaction["t_success"]
+    rows = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
+    quiet = [r["t"] for r in rows if r["labels"]["hifi"] == "quiet"]
+    assert quiet and min(quiet) > reaction["t_decision"]
+    assert rows[-1]["levels"]["hifi"] < 0.5
+
+
+def test_reactions_not_started_are_not_reported(tmp_path: Path, short):
+    """The hi-fi across the room (out of seated reach) and a bow (no planner): both
+    decisions are logged with the reason, and the summary's reactions list stays empty."""
+    text = Path(simenv.scenario.load_scenario("default").source).read_text()
+    far = tmp_path / "far.toml"
+    far.write_text(text.replace("position = [0.75, -0.3]", "position = [-1.8, 1.6]")
+                   .replace("yaw_deg = 90.0 ", "yaw_deg = -90.0 "))
+    session = Session(short, (GestureEvent("answer_phone", 0.1, 0.2),
+                              GestureEvent("bow", 0.3, 0.45)))
+    summary = rehearse(session, tmp_path / "out", scenario=str(far), agent="labels",
+                       render=False)
+    assert summary["reactions"] == []
+    reasons = {d["reaction"]: d["not_started"] for d in summary["decisions"]}
+    assert "out of the seated agent's" in reasons["hifi_down"]
+    assert reasons["bow_back"] == "not implemented"

@@ -106,6 +106,8 @@ def _write(tmp_path: Path, edit: tuple[str, str]) -> Path:
      "door.offset"),
     (("[agent]\nheight = 1.75", "[agent]"), "agent.height"),
     (("position = [-0.8, -0.6]", "position = [0.9, 0.6]"), "user.position"),
+    (("position = [0.75, -0.3]", "position = [1.2, 0.3]"), "hifi.position"),  # in the desk
+    (("position = [0.75, -0.3]", "position = [0.3, 0.6]"), "hifi.position"),  # in the chair
 ])
 def test_bad_scenario_field_names_file_and_field(tmp_path: Path, edit, field):
     path = _write(tmp_path, edit)
