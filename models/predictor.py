@@ -602,16 +602,26 @@ def critic_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
 
 
 def generator_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
-                   weights: dict[str, float] | None = None
+                   weights: dict[str, float] | None = None, *, joint_amplitude: bool = False
                    ) -> tuple[torch.Tensor, dict[str, float], torch.Tensor]:
     """``1 L_adv + 1 L_rec + 10 L_gram + 10 L_bone`` (positions in decimetres).
+
+    Args:
+        joint_amplitude: integrate the predicted future with the amplitude head's output
+            instead of the true amplitude, so that the position losses train direction
+            and amplitude together (the gradient reaches the head too). With the true
+            amplitude the generator must find the direction of a full-size future; with
+            the predicted one it can learn the direction of the MPJPE-optimal, shorter
+            motion.
 
     Returns:
         ``(loss, terms, u)`` with ``u`` the (B, F, 51) generator output.
     """
     w = LOSS_WEIGHTS if weights is None else weights
     u = model.generator(batch.cond, z)
-    frames, _ = model.decode(u, batch.log_amp_future, batch.last)
+    log_amp = (model.log_amplitude(batch.cond, batch.log_amp_past) if joint_amplitude
+               else batch.log_amp_future)
+    frames, _ = model.decode(u, log_amp, batch.last)
     pred, true = LOSS_UNIT * frames, LOSS_UNIT * batch.future
     last = LOSS_UNIT * batch.last.view(-1, NUM_JOINTS, 3)
     terms = {

@@ -63,6 +63,14 @@ from simenv.models.predictor import (
     mirror,
     rollout,
 )
+from simenv.models.predictor_regression import (
+    DCTRegressionPredictor,
+    RegressionConfig,
+    check_lengths,
+    cosine_lr,
+    regression_loss,
+    targets,
+)
 from simenv.motion import Interaction, Motion
 
 #: Default root of the shared corpus (``SIMENV_SHARED_DATA`` overrides).
@@ -186,13 +194,22 @@ def train(
     n_critic: int = 2,
     lr: float = 1e-4,
     adv_weight: float = 1.0,
+    joint_amplitude: bool = False,
+    validation: pdata.PredictionWindows | None = None,
+    validate_every: int = 100,
     seed: int = 0,
     progress: bool = True,
 ) -> list[dict[str, float]]:
     """Adversarial training of ``model`` on ``windows`` (WGAN-GP, Adam lr 1e-4, batch 64).
 
     Each iteration takes ``n_critic`` critic steps, one generator step and one
-    amplitude-head step, each on a fresh random batch. ``minutes`` budgets the
+    amplitude-head step, each on a fresh random batch. With ``joint_amplitude`` the
+    generator's position losses use the predicted amplitude and one optimiser step
+    updates generator and head together
+    (:func:`simenv.models.predictor.generator_loss`). With ``validation`` windows
+    (clips held out *inside* the training clips, never the test clips) the model is
+    scored every ``validate_every`` iterations (:func:`validation_score`) and the best
+    generator and head are kept. ``minutes`` budgets the
     process's CPU time (not wall time: the machine is shared, and CPU time makes the
     budget reproducible).
 
@@ -209,13 +226,17 @@ def train(
         raise MotionError(f"training needs at least 2 windows; got {len(data)}")
     noise = torch.Generator().manual_seed(seed + 1)
     betas = (0.5, 0.9)
-    opt_g = torch.optim.Adam(model.generator.parameters(), lr=lr, betas=betas)
+    gen_params = list(model.generator.parameters())
+    if joint_amplitude:
+        gen_params += list(model.amplitude.parameters())
+    opt_g = torch.optim.Adam(gen_params, lr=lr, betas=betas)
     opt_c = torch.optim.Adam(model.critic.parameters(), lr=lr, betas=betas)
     opt_a = torch.optim.Adam(model.amplitude.parameters(), lr=lr, betas=betas)
     for net in (model.generator, model.critic, model.amplitude):
         net.train()
     bs = min(batch_size, len(data))
     log: list[dict[str, float]] = []
+    best = _Best(validation, (model.generator, model.amplitude))
     t0 = time.process_time()
     bar = tqdm(range(iterations), disable=not progress, desc="train", unit="it")
 
@@ -235,23 +256,121 @@ def train(
             info_c = {}
         batch = sample()
         loss_g, info_g, u = generator_loss(model, batch, model.sample_noise(bs, noise),
-                                           weights)
+                                           weights, joint_amplitude=joint_amplitude)
         opt_g.zero_grad()
         loss_g.backward()
         opt_g.step()
-        loss_a = amplitude_loss(model, batch, u)
-        opt_a.zero_grad()
-        loss_a.backward()
-        opt_a.step()
+        if joint_amplitude:
+            loss_a = torch.as_tensor(info_g["rec"])
+        else:
+            loss_a = amplitude_loss(model, batch, u)
+            opt_a.zero_grad()
+            loss_a.backward()
+            opt_a.step()
         done = minutes is not None and time.process_time() - t0 > 60 * minutes
         if it % 50 == 0 or it == iterations - 1 or done:
             entry = {"iteration": it, **info_c, **info_g, "amplitude": loss_a.item(),
                      "seconds": time.process_time() - t0}
+            if it % validate_every == 0 or it == iterations - 1 or done:
+                entry |= best.check(model, it)
+                for net in (model.generator, model.amplitude):
+                    net.train()
             log.append(entry)
             bar.set_postfix(rec=f"{info_g['rec']:.3f}", W=f"{info_c.get('wasserstein', 0):.2f}")
         if done:
             break
     bar.close()
+    best.restore()
+    return log
+
+
+def validation_score(model: object, windows: pdata.PredictionWindows) -> float:
+    """Mean of the per-frame MPJPE (mm, pelvis excluded) at the horizons of
+    :data:`simenv.prediction_metrics.HORIZONS_MS` that ``model`` predicts, on
+    ``windows``: the model-selection criterion (lower is better)."""
+    pred = model.predict(windows.frames[:, : windows.past_len + 1])
+    errors = pm.mpjpe_at_horizons_mm(pred, windows.future, windows.fps, joints=EVAL_JOINTS)
+    return float(np.mean(list(errors.values())))
+
+
+class _Best:
+    """Keeps the state of ``nets`` with the lowest :func:`validation_score` so far."""
+
+    def __init__(self, windows: pdata.PredictionWindows | None,
+                 nets: Sequence[torch.nn.Module]) -> None:
+        self.windows, self.nets = windows, nets
+        self.score, self.iteration, self.state = float("inf"), -1, None
+
+    def check(self, model: object, iteration: int) -> dict[str, float]:
+        """Score ``model`` (eval mode) and remember it if best; the log entries."""
+        if self.windows is None:
+            return {}
+        score = validation_score(model, self.windows)
+        if score < self.score:
+            self.score, self.iteration = score, iteration
+            self.state = [{k: v.detach().clone() for k, v in n.state_dict().items()}
+                          for n in self.nets]
+        return {"val_mpjpe_mm": score}
+
+    def restore(self) -> None:
+        if self.state is not None:
+            for net, state in zip(self.nets, self.state, strict=True):
+                net.load_state_dict(state)
+
+
+def train_regression(
+    model: DCTRegressionPredictor,
+    windows: pdata.PredictionWindows,
+    *,
+    iterations: int = 20000,
+    minutes: float | None = None,
+    batch_size: int = 128,
+    lr: float = 3e-4,
+    weight_decay: float = 1e-4,
+    validation: pdata.PredictionWindows | None = None,
+    validate_every: int = 100,
+    seed: int = 0,
+    progress: bool = True,
+) -> list[dict[str, float]]:
+    """Supervised training of the DCT-residual MLP (AdamW, cosine decay over
+    ``iterations``; loss :func:`simenv.models.predictor_regression.regression_loss`).
+    Budget and model selection on ``validation`` as in :func:`train`.
+
+    Returns:
+        A log: one dict every 50 iterations (and the last).
+    """
+    from tqdm import tqdm
+
+    check_lengths(model, windows.past_len, windows.future_len)
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    residual, last, future = targets(model.history_len, windows.frames)
+    if len(residual) < 2:
+        raise MotionError(f"training needs at least 2 windows; got {len(residual)}")
+    opt = torch.optim.AdamW(model.net.parameters(), lr=lr, weight_decay=weight_decay)
+    bs = min(batch_size, len(residual))
+    log: list[dict[str, float]] = []
+    best = _Best(validation, (model.net,))
+    t0 = time.process_time()
+    for it in tqdm(range(iterations), disable=not progress, desc="train", unit="it"):
+        for group in opt.param_groups:
+            group["lr"] = cosine_lr(lr, it, iterations)
+        idx = torch.as_tensor(rng.choice(len(residual), bs, replace=False))
+        model.net.train()
+        loss = regression_loss(model.forward(residual[idx], last[idx]), future[idx])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        done = minutes is not None and time.process_time() - t0 > 60 * minutes
+        if it % 50 == 0 or it == iterations - 1 or done:
+            entry = {"iteration": it, "loss": loss.item(),
+                     "seconds": time.process_time() - t0}
+            if it % validate_every == 0 or it == iterations - 1 or done:
+                entry |= best.check(model, it)
+            log.append(entry)
+        if done:
+            break
+    best.restore()
     return log
 
 
@@ -275,12 +394,11 @@ def predictions(model: PredictiveMAWGAN, windows: pdata.PredictionWindows
     """Predicted futures of every method for ``windows`` (histories = lead-in + past)."""
     history = windows.frames[:, : windows.past_len + 1]
     f = windows.future_len
-    return {
-        "model": model.predict(history),
-        "model_carried_amplitude": model.predict(history, amplitude="carried"),
-        "zero_velocity": ZeroVelocity(f).predict(history),
-        "constant_velocity": ConstantVelocity(f).predict(history),
-    }
+    out = {"model": model.predict(history)}
+    if isinstance(model, PredictiveMAWGAN):
+        out["model_carried_amplitude"] = model.predict(history, amplitude="carried")
+    return out | {"zero_velocity": ZeroVelocity(f).predict(history),
+                  "constant_velocity": ConstantVelocity(f).predict(history)}
 
 
 #: Every how many-th window the plausibility metrics are computed on (overlapping
@@ -403,32 +521,63 @@ def plot_curves(metrics: dict, path: Path) -> None:
 
 
 def run(args: argparse.Namespace) -> dict:
-    """Load data, split, fit geometry, train, evaluate, write outputs; returns metrics."""
+    """Load data, split, fit geometry, train, evaluate, write outputs; returns metrics.
+
+    With ``args.validation > 0`` that share of the *training* windows, by clip group
+    (:func:`make_split` with the same seed), is held out as a validation set for model
+    selection; the test clips are never seen before the final evaluation.
+    """
     torch.set_num_threads(args.threads)
     paths = args.data or default_data(Path(args.shared))
     motions, notes = collect_motions(paths)
     windows = pdata.windows_from_motions(motions, args.past, args.future, stride=1)
     split = make_split(windows, args.test_fraction, args.seed)
     test_w = windows.subset(split.test)
-    train_motions = [m for m in motions if group_of(m.name) in set(split.train_clips)]
+    fit_clips, val_w, val_clips = set(split.train_clips), None, []
+    if args.validation:
+        base = windows.subset(split.train)
+        vsplit = make_split(base, args.validation, args.seed)
+        val_w, val_clips = base.subset(vsplit.test), list(vsplit.test_clips)
+        fit_clips = set(vsplit.train_clips)
+    train_motions = [m for m in motions if group_of(m.name) in fit_clips]
     train_w = pdata.windows_from_motions(speed_variants(train_motions, args.speeds),
                                          args.past, args.future, stride=1)
     if args.mirror:
         train_w = mirrored(train_w)
-    config = PredictorConfig(args.past, args.future, dropout=args.dropout)
-    model = fit_geometry(train_w, config)
-    log = train(model, train_w, iterations=args.iterations, minutes=args.minutes,
-                n_critic=args.n_critic, lr=args.lr, adv_weight=args.adv_weight,
-                seed=args.seed, progress=not args.quiet)
+    budget = {"iterations": args.iterations, "minutes": args.minutes,
+              "validation": val_w, "seed": args.seed, "progress": not args.quiet}
+    if args.model == "regression":
+        lr = args.lr or 3e-4
+        config = RegressionConfig(args.past, args.future, blocks=args.blocks,
+                                  dropout=args.dropout)
+        model = DCTRegressionPredictor(config)
+        log = train_regression(model, train_w, lr=lr, weight_decay=args.weight_decay,
+                               **budget)
+        recipe = {"model": "dct-mlp", "blocks": args.blocks,
+                  "weight_decay": args.weight_decay}
+    else:
+        lr = args.lr or 1e-4
+        config = PredictorConfig(args.past, args.future, dropout=args.dropout)
+        model = fit_geometry(train_w, config)
+        log = train(model, train_w, n_critic=args.n_critic, lr=lr,
+                    adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
+                    **budget)
+        recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
+                  "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude}
+    selected = [e for e in log if "val_mpjpe_mm" in e]
     config.info.update({"train_clips": list(split.train_clips),
                         "test_clips": list(split.test_clips),
+                        "validation_clips": val_clips,
                         "train_windows": len(train_w), "test_windows": len(test_w),
                         "speeds": list(args.speeds), "mirror": args.mirror,
                         "dropout": args.dropout,
                         "iterations": log[-1]["iteration"] + 1,
                         "train_seconds": round(log[-1]["seconds"], 1), "seed": args.seed,
-                        "n_critic": args.n_critic, "lr": args.lr,
-                        "adv_weight": args.adv_weight})
+                        "lr": lr, **recipe})
+    if selected:
+        pick = min(selected, key=lambda e: e["val_mpjpe_mm"])
+        config.info.update({"selected_iteration": pick["iteration"],
+                            "val_mpjpe_mm": round(pick["val_mpjpe_mm"], 2)})
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model.save(out / "model.npz")
@@ -441,10 +590,11 @@ def run(args: argparse.Namespace) -> dict:
                 "skipped_clips": list(windows.skipped), "notes": notes, "train_log": log}
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
     plot_curves(metrics, out / "error_curve.png")
-    # What ships in assets/models: the networks without the critic, and the card.
-    name = f"predictor-{args.past}-{args.future}"
-    model.save(out / f"{name}.npz", with_critic=False)
-    (out / f"{name}.md").write_text(model_card(name, metrics))
+    if args.model == "gan":
+        # What ships in assets/models: the networks without the critic, and the card.
+        name = f"predictor-{args.past}-{args.future}"
+        model.save(out / f"{name}.npz", with_critic=False)
+        (out / f"{name}.md").write_text(model_card(name, metrics))
     return metrics
 
 
@@ -669,10 +819,23 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                     help="with --evaluate: print the summary as one JSON object")
     ap.add_argument("--iterations", type=int, default=20000)
     ap.add_argument("--minutes", type=float, default=6.0, help="training CPU-time budget")
+    ap.add_argument("--model", choices=("gan", "regression"), default="gan",
+                    help="PredictiveMA-WGAN (default) or the DCT-residual MLP baseline "
+                    "(simenv.models.predictor_regression; not shipped)")
+    ap.add_argument("--validation", type=float, default=0.0,
+                    help="share of the training windows held out by clip group for "
+                    "model selection (0: none, the last iterate is kept)")
+    ap.add_argument("--blocks", type=int, default=4, help="regression: temporal blocks")
+    ap.add_argument("--weight-decay", type=float, default=1e-4,
+                    help="regression: AdamW weight decay")
     ap.add_argument("--n-critic", type=int, default=2, help="critic steps per G step")
-    ap.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate")
+    ap.add_argument("--lr", type=float, default=None,
+                    help="learning rate (default 1e-4 for the GAN, 3e-4 for regression)")
     ap.add_argument("--adv-weight", type=float, default=1.0,
                     help="weight of the adversarial term (0: no critic, regression only)")
+    ap.add_argument("--joint-amplitude", action=argparse.BooleanOptionalAction,
+                    default=False, help="train generator and amplitude head together "
+                    "on the position losses at the predicted amplitude")
     ap.add_argument("--speeds", type=float, nargs="+", default=[0.8, 1.0, 1.25],
                     help="speed augmentation factors of the training clips")
     ap.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,

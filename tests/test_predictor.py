@@ -239,3 +239,21 @@ def test_shipped_checkpoints_load_and_predict(name, windows):
     out = model.predict(history)
     assert out.shape == (2, f, 17, 3) and np.isfinite(out).all()
     assert math.isfinite(float(np.abs(out).max()))
+
+
+def test_joint_amplitude_trains_the_head_through_the_position_losses(fitted, windows):
+    batch = _batch(fitted, windows, 16)
+    z = torch.zeros(len(batch), 16)
+    for joint in (False, True):
+        for net in (fitted.generator, fitted.amplitude):
+            net.zero_grad()
+        loss, terms, _ = P.generator_loss(fitted, batch, z, P.LOSS_WEIGHTS | {"adv": 0.0},
+                                          joint_amplitude=joint)
+        loss.backward()
+        head = sum(p.grad.abs().sum().item() for p in fitted.amplitude.parameters()
+                   if p.grad is not None)
+        gen = sum(p.grad.abs().sum().item() for p in fitted.generator.parameters())
+        assert gen > 0
+        assert (head > 0) == joint
+    fitted.generator.zero_grad()
+    fitted.amplitude.zero_grad()

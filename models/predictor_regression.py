@@ -1,0 +1,246 @@
+"""DCT-residual MLP motion predictor (siMLPe-like): a learned regression baseline.
+
+A diagnostic of what the data allows, evaluated exactly like the PredictiveMA-WGAN
+predictor (:mod:`simenv.models.predictor`): same windows, same heading normalisation,
+same ``predict(history)`` interface. It follows siMLPe (Guo et al., "Back to MLP: a
+simple baseline for human motion prediction", WACV 2023) scaled to our data:
+
+Math (one window; H = 1 + P history frames, F future frames, D = 51)
+--------------------------------------------------------------------
+1. **Heading.** The window is rotated about Z so that the hip axis of the last observed
+   pose points along +X (as in the WGAN model), and rotated back at the end.
+2. **Residual to the last pose.** ``X = h - x_T`` (H, D): the history relative to the
+   last observed pose ``x_T``, in decimetres (``LOSS_UNIT``). The pose itself enters
+   as a second input ``x_T`` (D,) so the network can still use it (phase of a gait).
+3. **DCT.** ``C = D_H X`` with the orthonormal DCT-II matrix ``D_H`` (H x H): low
+   temporal frequencies first, which the temporal mixing below exploits.
+4. **MLP.** ``C -> FC_space (D -> D) -> n blocks [C + LN(FC_time(C))] -> FC_time_out
+   (H -> F) -> FC_space (D -> D)``: fully connected layers alternate along the
+   feature axis (shared over time) and along the time axis (shared over features), as
+   in siMLPe; LayerNorm over the feature axis. The pose ``x_T`` is added through a
+   linear embedding to every coefficient before the blocks.
+5. **Inverse DCT and residual.** ``x̂ = x_T + D_F^T C_out``: a zero output is the
+   zero-velocity prediction, so the network learns only the change from the last pose.
+
+Loss: mean per-joint Euclidean position error (decimetres) plus the same on the
+frame-to-frame velocities (siMLPe's two terms), Adam with cosine decay, weight decay.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from simenv.errors import MotionError
+from simenv.models.baselines import check_history
+from simenv.models.predictor import (
+    DIMS,
+    LOSS_UNIT,
+    NUM_JOINTS,
+    CheckpointError,
+    heading,
+    rotate_z,
+)
+
+#: Format tag of checkpoint files.
+CHECKPOINT_FORMAT = "simenv-dct-mlp-1"
+
+
+def dct_matrix(n: int) -> np.ndarray:
+    """Orthonormal DCT-II matrix (n, n): ``C = M x`` transforms n samples, ``x = Mᵀ C``."""
+    k = np.arange(n)[:, None]
+    i = np.arange(n)[None, :]
+    m = np.sqrt(2.0 / n) * np.cos(np.pi * (2 * i + 1) * k / (2 * n))
+    m[0] /= np.sqrt(2.0)
+    return m
+
+
+@dataclass
+class RegressionConfig:
+    """Hyper-parameters (saved in checkpoints)."""
+
+    past_len: int
+    future_len: int
+    fps: float = 25.0
+    blocks: int = 4
+    dropout: float = 0.0
+    info: dict = field(default_factory=dict)
+
+
+class TemporalBlock(nn.Module):
+    """``C + LN(FC_time(C))`` on (B, T, D) coefficients (FC over the time axis)."""
+
+    def __init__(self, length: int, dropout: float) -> None:
+        super().__init__()
+        self.fc = nn.Linear(length, length)
+        self.norm = nn.LayerNorm(DIMS)
+        self.drop = nn.Dropout(dropout)
+        nn.init.xavier_uniform_(self.fc.weight, gain=1e-3)
+        nn.init.zeros_(self.fc.bias)
+
+    def forward(self, c: torch.Tensor) -> torch.Tensor:
+        return c + self.drop(self.norm(self.fc(c.transpose(1, 2)).transpose(1, 2)))
+
+
+class DCTMLP(nn.Module):
+    """(B, H, D) residual history, (B, D) last pose -> (B, F, D) residual future."""
+
+    def __init__(self, history_len: int, future_len: int, blocks: int = 4,
+                 dropout: float = 0.0) -> None:
+        super().__init__()
+        self.register_buffer("dct_in", torch.as_tensor(dct_matrix(history_len),
+                                                       dtype=torch.float32))
+        self.register_buffer("idct_out", torch.as_tensor(dct_matrix(future_len).T,
+                                                         dtype=torch.float32))
+        self.fc_in = nn.Linear(DIMS, DIMS)
+        self.pose = nn.Linear(DIMS, DIMS)
+        self.blocks = nn.Sequential(*(TemporalBlock(history_len, dropout)
+                                      for _ in range(blocks)))
+        self.time_out = nn.Linear(history_len, future_len)
+        self.fc_out = nn.Linear(DIMS, DIMS)
+        # start at the zero-velocity prediction: a zero residual
+        nn.init.zeros_(self.fc_out.weight)
+        nn.init.zeros_(self.fc_out.bias)
+
+    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+        c = self.dct_in @ residual
+        c = self.fc_in(c) + self.pose(last)[:, None, :]
+        c = self.blocks(c)
+        c = self.time_out(c.transpose(1, 2)).transpose(1, 2)
+        return self.idct_out @ self.fc_out(c)
+
+
+class DCTRegressionPredictor:
+    """Trained DCT-residual MLP with the predictor interface of :mod:`simenv.models.baselines`.
+
+    ``predict(history)``: (N, 1 + P, 17, 3) (or longer) root-relative pred17 positions,
+    metres -> (N, F, 17, 3) float32 future.
+    """
+
+    def __init__(self, config: RegressionConfig) -> None:
+        self.config = config
+        self.past_len = config.past_len
+        self.future_len = config.future_len
+        self.fps = config.fps
+        self.net = DCTMLP(self.history_len, self.future_len, config.blocks, config.dropout)
+
+    @property
+    def history_len(self) -> int:
+        return self.past_len + 1
+
+    @staticmethod
+    def inputs(history: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
+        """(N, H, 17, 3) history, metres -> residual (N, H, 51) and last pose (N, 51) in
+        heading-normalised decimetres, and the heading angles (N,)."""
+        angle = heading(history[:, -1])
+        frames = rotate_z(np.asarray(history, dtype=np.float64), -angle) * LOSS_UNIT
+        n, h = frames.shape[:2]
+        flat = frames.reshape(n, h, DIMS)
+        last = flat[:, -1]
+        return (torch.as_tensor(flat - last[:, None], dtype=torch.float32),
+                torch.as_tensor(last, dtype=torch.float32), angle)
+
+    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+        """Differentiable prediction in normalised decimetres: (B, F, 51)."""
+        return last[:, None, :] + self.net(residual, last)
+
+    @torch.no_grad()
+    def predict(self, history: np.ndarray) -> np.ndarray:
+        """Predict the F frames after a history.
+
+        Args:
+            history: (N, H, 17, 3) or (H, 17, 3) root-relative positions, metres,
+                H >= 1 + P, ending at the last observed frame.
+
+        Returns:
+            (N, F, 17, 3) or (F, 17, 3) float32 future positions, metres.
+
+        Raises:
+            MotionError: too short a history, wrong joint count, NaN frames.
+        """
+        h, batched = check_history(history, self.history_len, joints=NUM_JOINTS)
+        residual, last, angle = self.inputs(h[:, -self.history_len:])
+        self.net.eval()
+        out = self.forward(residual, last).double().numpy() / LOSS_UNIT
+        out = rotate_z(out.reshape(len(h), self.future_len, NUM_JOINTS, 3), angle)
+        out = out.astype(np.float32)
+        return out if batched else out[0]
+
+    def save(self, path: str | Path) -> Path:
+        """Write an ``.npz`` checkpoint (arrays only): config JSON and the weights."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        arrays = {"format": np.array(CHECKPOINT_FORMAT),
+                  "config": np.array(json.dumps(asdict(self.config)))}
+        arrays |= {f"net.{k}": v.detach().cpu().numpy()
+                   for k, v in self.net.state_dict().items()}
+        with path.open("wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> DCTRegressionPredictor:
+        """Read a checkpoint written by :meth:`save`.
+
+        Raises:
+            CheckpointError: missing file, not such a checkpoint, or mismatched arrays.
+        """
+        path = Path(path)
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise CheckpointError(f"cannot read regression checkpoint: {exc}",
+                                  source=path) from None
+        with data:
+            if "format" not in data or str(data["format"]) != CHECKPOINT_FORMAT:
+                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
+            model = cls(RegressionConfig(**json.loads(str(data["config"]))))
+            state = {k[4:]: torch.as_tensor(data[k]) for k in data.files
+                     if k.startswith("net.")}
+            try:
+                model.net.load_state_dict(state)
+            except RuntimeError as exc:
+                raise CheckpointError(f"weights do not fit the config: {exc}",
+                                      source=path) from None
+        return model
+
+
+def regression_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean per-joint Euclidean error of positions plus that of frame-to-frame
+    velocities, of (B, T, 51) tensors in decimetres (siMLPe's two terms)."""
+    p = pred.view(*pred.shape[:2], NUM_JOINTS, 3)
+    t = target.view(*target.shape[:2], NUM_JOINTS, 3)
+    pos = (p - t).norm(dim=-1).mean()
+    vel = ((p[:, 1:] - p[:, :-1]) - (t[:, 1:] - t[:, :-1])).norm(dim=-1).mean()
+    return pos + vel
+
+
+def targets(history_len: int, frames: np.ndarray) -> tuple[torch.Tensor, ...]:
+    """Training tensors of (N, H + F, 17, 3) windows (metres): residual history, last
+    pose and heading-normalised future (N, F, 51), all in decimetres."""
+    n = len(frames)
+    angle = heading(frames[:, history_len - 1])
+    f = rotate_z(np.asarray(frames, dtype=np.float64), -angle) * LOSS_UNIT
+    f = f.reshape(n, f.shape[1], DIMS)
+    last = f[:, history_len - 1]
+    as_t = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
+    return as_t(f[:, :history_len] - last[:, None]), as_t(last), as_t(f[:, history_len:])
+
+
+def check_lengths(model: DCTRegressionPredictor, past_len: int, future_len: int) -> None:
+    """Raise a MotionError if windows of ``past_len -> future_len`` do not fit ``model``."""
+    if (past_len, future_len) != (model.past_len, model.future_len):
+        raise MotionError(f"windows are {past_len}->{future_len}; the model is "
+                          f"{model.past_len}->{model.future_len}", field="windows")
+
+
+def cosine_lr(base: float, step: int, total: int) -> float:
+    """Cosine decay from ``base`` to ``base / 100`` over ``total`` steps."""
+    t = min(step / max(total, 1), 1.0)
+    return base * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * t)))
