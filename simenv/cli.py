@@ -363,10 +363,22 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_rehearse(args: argparse.Namespace) -> int:
-    """Forward to the offline interaction rehearsal (:mod:`simenv.rehearsal`)."""
+    """Forward to the offline interaction rehearsal in the room (:mod:`simenv.rehearsal`),
+    or, when ``--agent`` names a two-person model, to the rehearsal of its generated
+    reaction on simulated bodies (:mod:`simenv.reaction_rehearsal`)."""
+    from simenv.models import INTERACTION_MODELS
+
+    options = list(args.options)
+    agent = next((options[i + 1] for i, o in enumerate(options[:-1]) if o == "--agent"),
+                 next((o.split("=", 1)[1] for o in options if o.startswith("--agent=")),
+                      None))
+    if agent in INTERACTION_MODELS:
+        from simenv.reaction_rehearsal import main as reaction_main
+
+        return reaction_main(options)
     from simenv.rehearsal import main as rehearsal_main
 
-    return rehearsal_main(list(args.options))
+    return rehearsal_main(options)
 
 
 def _positive_int(text: str) -> int:
@@ -485,7 +497,10 @@ def build_parser() -> argparse.ArgumentParser:
         "virtual room: perception every second, the agent's reactions simulated, outputs "
         "rehearsal.mp4, log.jsonl, summary.json and report.html in --out. Usage: simenv "
         "rehearse SESSION --out DIR [--agent AGENT] [--scenario NAME|FILE] "
-        "[--gesture LABEL:ONSET_S:END_S] [--templates DIR] [--no-render]."))
+        "[--gesture LABEL:ONSET_S:END_S] [--templates DIR] [--no-render]. With --agent "
+        "interformer or reactive-gan, a reaction generator answers the session instead: the "
+        "generated reaction is retargeted, tracked physically and scored "
+        "(python -m simenv.reaction_rehearsal --help)."))
     reh.add_argument("options", nargs=argparse.REMAINDER, metavar="SESSION --out DIR ...",
                      help="options of the rehearsal (python -m simenv.rehearsal --help)")
     reh.set_defaults(func=cmd_rehearse)

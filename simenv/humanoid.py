@@ -840,9 +840,11 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     offsets are medians in the pelvis frame (pelvis-hip-hip triangle, rotated
     about the hip axis so that the median spine direction is +z), so the rigid
     pelvis fits exactly. The clavicle pivot is the point of the chest->neck
-    segment whose distance to the shoulders varies least. Keypoints the motion
-    lacks fall back to the default adult scaled by the median ratio of the
-    measured bones to the default ones; each fallback is recorded in ``notes``.
+    segment whose distance to the shoulders varies least. Without a chest
+    keypoint, the spine->neck distance is split into thorax and upper chest in
+    the default proportion. Other keypoints the motion lacks fall back to the
+    default adult scaled by the median ratio of the measured bones to the
+    default ones; each fallback is recorded in ``notes``.
     """
     canon = motion.to_canonical()
     src = motion.metadata.get("source")
@@ -884,8 +886,30 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
         v = dist(a, b)
         if v is not None:
             measured[f_name] = v
+    if "chest" not in have and {"spine", "neck"} <= have:
+        # Layouts without a chest keypoint (H36M-like, Kinect, our 18-keypoint two-person
+        # layout): the measured spine->neck distance is split into thorax and upper chest
+        # in the default proportion. Scaling both from other bones instead gives a trunk
+        # that is too long or short, and the solver then bends the chest joints to their
+        # limits to reach the neck and shoulders (60 deg on the CMU walk 02_01).
+        total = dist("spine", "neck")
+        part = DEFAULT.thorax / (DEFAULT.thorax + DEFAULT.upper_chest)
+        measured["thorax"], measured["upper_chest"] = part * total, (1 - part) * total
+        kp["chest"] = kp["spine"] + part * (kp["neck"] - kp["spine"])
+        derived_chest = True
+    else:
+        derived_chest = False
     # Clavicle pivot: on the chest->neck segment, where shoulder distances vary least.
-    if {"chest", "neck", "left_shoulder", "right_shoulder"} <= have:
+    if derived_chest and {"left_shoulder", "right_shoulder"} <= have:
+        # No chest keypoint to search along: the default pivot fraction, and clavicles
+        # measured from it.
+        a = DEFAULT.clavicle_pivot / DEFAULT.upper_chest
+        piv = kp["chest"] + a * (kp["neck"] - kp["chest"])
+        measured["clavicle_pivot"] = a * measured["upper_chest"]
+        for s in _SIDES:
+            measured[f"{s}_clavicle"] = float(np.median(
+                np.linalg.norm(kp[f"{s}_shoulder"] - piv, axis=-1)))
+    elif {"chest", "neck", "left_shoulder", "right_shoulder"} <= have:
         seg = kp["neck"] - kp["chest"]
 
         def spread(a: float) -> float:
@@ -945,6 +969,10 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     for s in _SIDES:
         if measured.get(f"{s}_hand", 1.0) < 0.01:
             notes.append(f"{s}_hand coincides with {s}_wrist in the source skeleton")
+    if derived_chest:
+        notes.append("no chest keypoint: thorax and upper chest split from the spine->neck "
+                     "distance in the default proportion, clavicles measured from the "
+                     "default pivot")
     if measured.get("upper_chest", 1.0) < 0.01:
         notes.append("neck coincides with chest in the source skeleton")
     ch["notes"] = tuple(notes)

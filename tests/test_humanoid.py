@@ -184,6 +184,28 @@ def test_fit_with_missing_keypoints_falls_back_and_says_so(shared_data) -> None:
     assert 0.15 < d.left_forearm < 0.35
 
 
+def test_fit_without_a_chest_keypoint_keeps_the_trunk_length(shared_data) -> None:
+    from simenv import interaction_data as idata
+    from simenv.plausibility import body
+    from simenv.retarget import retarget
+
+    walk = idata.to_layout(bvh.read(shared_data / "cmu/bvh/02_01.bvh")).slice(0, 240)
+    assert "chest" not in walk.skeleton.joint_names
+    d = fit_dimensions(walk)
+    assert any("no chest keypoint" in n for n in d.notes)
+    canon = walk.to_canonical()
+    names = canon.skeleton.joint_names
+    spine_neck = np.median(np.linalg.norm(canon.positions[:, names.index("neck")]
+                                          - canon.positions[:, names.index("spine")], axis=1))
+    assert d.thorax + d.upper_chest == pytest.approx(spine_neck, rel=1e-6)
+    # The body then reaches the keypoints with a relaxed trunk: before, thorax and upper
+    # chest were scaled from other bones and the chest joints went to their limits (60
+    # deg past them in the relaxed fit) with a 20 mm mean residual.
+    fit = retarget(walk, fit_humanoid(walk))
+    assert float(fit.residuals.mean()) < 0.003
+    assert body.joint_limits(walk).value <= body.DEFAULT_BODY_THRESHOLDS.joint_limit_max_deg
+
+
 def test_fit_requires_pelvis_and_hips(shared_data) -> None:
     canon = bvh.read(shared_data / "cmu/bvh/02_01.bvh").to_canonical()
     keep = [k for k in canon.skeleton.joint_names if k != "left_hip"]
