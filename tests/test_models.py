@@ -266,3 +266,54 @@ def test_train_predictor_writes_checkpoint_card_metrics_and_plot(tmp_path: Path,
     assert "Goal check" in card and "Plausibility" in card
     shipped = tp.PredictiveMAWGAN.load(out / "predictor-10-10.npz")
     assert shipped.predict(_history(11)).shape == (2, 10, 17, 3)
+
+
+#: Budget of the shipped two-person models of issue 6 (checkpoints and cards), bytes.
+INTERACTION_BUDGET_BYTES = 40 * 1024 * 1024
+
+
+def test_shipped_two_person_models_have_cards_within_budget() -> None:
+    from simenv.models import INTERACTION_MODELS
+
+    shipped = [n for n in INTERACTION_MODELS if n in available()]
+    if not shipped:
+        pytest.skip("no two-person model is shipped in assets/models")
+    total = 0
+    for name in shipped:
+        path = checkpoint_path(name)
+        card = path.with_suffix(".md")
+        assert card.is_file(), f"{name} has no model card"
+        assert "split" in card.read_text().lower()
+        total += path.stat().st_size + card.stat().st_size
+    assert total <= INTERACTION_BUDGET_BYTES, f"two-person models take {total / 2**20:.1f} MB"
+
+
+@pytest.mark.parametrize("name", ["interformer", "reactive-gan", "bigraphdiff",
+                                  "interaction-augment"])
+def test_shipped_two_person_model_loads_by_name_and_generates(name: str,
+                                                              shared_data: Path) -> None:
+    from simenv import interaction_data as idata
+
+    _require(name)
+    model = load(name)
+    assert model.name == name
+    windows = idata.make_windows(idata.load_recordings(shared_data))
+    test = windows.subset(idata.split_by_recording(windows).test)
+    a, b = test.actor[:2], test.reactor[:2]
+    if name == "bigraphdiff":
+        label = model.labels[0]
+        actor, reactor = model.sample([label, label], seed=0)
+        assert actor.shape == reactor.shape == (2, test.window, 18, 3)
+        again, _ = model.sample([label, label], seed=0)
+        np.testing.assert_allclose(actor, again, atol=1e-5)
+        assert np.isfinite(actor).all() and np.isfinite(reactor).all()
+    elif name == "interaction-augment":
+        a2, b2, scales = model.augment(a, b, seed=0)
+        assert a2.shape == a.shape and b2.shape == b.shape and scales.shape[0] == 2
+        assert np.isfinite(a2).all() and np.isfinite(b2).all()
+    else:
+        out = model.generate(a, b[:, 0])
+        assert out.shape == a.shape and out.dtype == np.float32 and np.isfinite(out).all()
+        # Longer than the trained window: chunked generation.
+        long = np.concatenate([test.actor[0], test.actor[0][::-1]])
+        assert model.generate(long, test.reactor[0, 0]).shape == long.shape
