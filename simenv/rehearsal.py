@@ -15,9 +15,13 @@ with one of the agents below, and writes to ``out``:
   ``decision_latency_s``
   (statistics of decision time - gesture onset over labelled gestures),
   ``agent_plausibility`` (joint-level metrics of the agent's keypoints,
-  :func:`simenv.plausibility.kinematic_metrics`), ``perception_compute_s``, ``timing_s``
-  (wall time of the preparation -- retargeting, room --, the simulation loop -- rendering
-  included when on -- and the outputs, and the loop's real-time factor);
+  :func:`simenv.plausibility.kinematic_metrics`: foot skate, ground penetration, jitter,
+  ...), ``agent_physics`` (the agent's simulated contacts: deepest penetration into the
+  floor, the furniture, the objects, itself and the user, and the largest assistance
+  force on its bodies -- the residual force of a simulated agent, measured),
+  ``perception_compute_s``, ``timing_s`` (wall time of the preparation -- retargeting,
+  room --, the simulation loop -- rendering included when on -- and the outputs, and the
+  loop's real-time factor);
 * ``report.html``: a timeline of gestures, decisions and object states, and the agent's
   plausibility table.
 
@@ -43,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from simenv.envs.interaction_room import OBJECTS, InteractionRoomEnv
+from simenv.envs.interaction_room import OBJECTS, PENETRATION_TOLERANCE_M, InteractionRoomEnv
 from simenv.errors import SimenvError
 from simenv.motion import Motion
 from simenv.perception import GestureModel, Perception, PerceptionLoop
@@ -81,7 +85,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
     rng = np.random.default_rng(seed)
     obs, _ = env.reset(seed=seed)
     clock.append(time.perf_counter())
-    frames, agent_kp, perceptions = [], [], []
+    frames, agent_kp, perceptions, depths, assistance = [], [], [], [], 0.0
     last: Perception | None = None
     answered: set[int] = set()
     step, done = 0, False
@@ -105,6 +109,8 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             done = truncated
             step += 1
             agent_kp.append(env.room.agent_keypoints(env.data))
+            depths.append(list(env.agent_penetration().values()))
+            assistance = max(assistance, env.agent_assistance_n())
             if render:
                 frames.append(env.render())
             log.write(json.dumps({
@@ -125,6 +131,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
         write_video(frames, out / "rehearsal.mp4", PERCEPTION_FPS)
     env.close()
     summary = _summary(env, np.array(agent_kp), perceptions)
+    summary["agent_physics"] = _physics(np.array(depths), assistance)
     _report(out, summary)
     clock.append(time.perf_counter())
     prep, loop_s, outputs = np.diff(clock)
@@ -190,6 +197,25 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
     }
 
 
+def _physics(depths: np.ndarray, assistance: float) -> dict[str, Any]:
+    """The agent's simulated contacts over the session: per kind of contact (columns of
+    ``depths`` (T, 5), m, in :meth:`InteractionRoomEnv.agent_penetration` order) the
+    deepest penetration and the 95th percentile over steps, and the steps deeper than
+    :data:`PENETRATION_TOLERANCE_M`; and the largest assistance force, N (external force
+    on the agent's bodies: the residual force a simulated agent needs; none here)."""
+    kinds = ("floor", "furniture", "object", "self", "user")
+    d = depths.reshape(-1, len(kinds))
+    return {
+        "penetration_m": {k: {"max": float(d[:, i].max(initial=0.0)),
+                              "p95": float(np.percentile(d[:, i], 95)) if len(d) else 0.0,
+                              "steps_over_tolerance": int((d[:, i]
+                                                           > PENETRATION_TOLERANCE_M).sum())}
+                          for i, k in enumerate(kinds)},
+        "tolerance_m": PENETRATION_TOLERANCE_M,
+        "assistance_max_n": float(assistance),
+    }
+
+
 def _report(out: Path, summary: dict[str, Any]) -> None:
     """``report.html``: the timeline (from ``log.jsonl``) and the plausibility table."""
     import matplotlib
@@ -225,6 +251,15 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
     table = "".join(
         f"<tr><td>{html.escape(k)}</td><td>{v['value']:.4g} {html.escape(v['unit'])}</td>"
         f"<td>{v['passed']}</td></tr>" for k, v in summary["agent_plausibility"].items())
+    phys = summary.get("agent_physics")
+    if phys is not None:
+        table += "".join(
+            f"<tr><td>penetration into {html.escape(k)} (max / p95)</td>"
+            f"<td>{1000 * v['max']:.1f} / {1000 * v['p95']:.1f} mm</td>"
+            f"<td>{v['steps_over_tolerance'] == 0 if k != 'user' else 'n/a (user pushes)'}"
+            "</td></tr>" for k, v in phys["penetration_m"].items())
+        table += (f"<tr><td>assistance force (max)</td><td>{phys['assistance_max_n']:.3g} N"
+                  f"</td><td>{phys['assistance_max_n'] == 0}</td></tr>")
     reactions = "".join(
         "<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in (
             "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",

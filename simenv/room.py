@@ -26,11 +26,16 @@ detent or hinge does, plus viscous damping. MuJoCo's friction loss is a soft con
 lets a steady load creep, so no joint carries one at rest: the window, curtain and door move
 perpendicular to gravity, and the knob and the cigarette are gravity-compensated.
 
-Each object has a *handle* site where a hand acts on it, and for each hand an inactive
-``connect`` equality constraint between the hand's palm *grip* site and the handle:
-:meth:`Room.set_grasp` activates it only when the hand is within :data:`GRASP_RADIUS`
-of the handle (a proximity grasp), after which the hand drags the object through the
-constraint force.
+Each object has a *handle* site where a hand acts on it (the knob's is near its rim, off
+the hinge axis, so a held knob can be turned), and for each hand an inactive ``connect``
+equality constraint between a hand site and the handle: the palm's *grip* site, or the
+fingertips' *tip* site for the small knob (:data:`GRASP_SITE`). :meth:`Room.set_grasp`
+activates it only when that site is within :data:`GRASP_RADIUS` of the handle (a
+proximity grasp), after which the hand drags the object through the constraint force.
+
+The agent's chair is an office chair: its seat and back swivel on the base (hinge
+``chair/swivel``, Coulomb friction :data:`SWIVEL_FRICTION`), so the seated agent can turn
+by pushing with its planted feet; the chair is furniture, not one of the objects.
 
 People:
 

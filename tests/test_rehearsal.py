@@ -49,8 +49,18 @@ def test_labelled_rehearsal_writes_every_output(tmp_path: Path, short):
     assert rows[-1]["labels"]["cigarette"] == "out"
     assert summary["decision_latency_s"]["n"] == 1
     assert summary["agent_plausibility"]["ground_penetration"]["passed"]
+    assert "foot_skate" in summary["agent_plausibility"]
+    # The agent's own simulated contacts: pressing the cigarette touches it (an object)
+    # and the desk, within the soft-contact tolerance; no assistance force anywhere.
+    physics = summary["agent_physics"]
+    assert set(physics["penetration_m"]) == {"floor", "furniture", "object", "self", "user"}
+    assert physics["penetration_m"]["object"]["max"] > 0.0
+    for kind in ("floor", "furniture", "object"):
+        assert physics["penetration_m"][kind]["steps_over_tolerance"] == 0, kind
+    assert physics["assistance_max_n"] == 0.0
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
-    assert "cigarette" in (tmp_path / "report.html").read_text()
+    report = (tmp_path / "report.html").read_text()
+    assert "cigarette" in report and "assistance force" in report
 
 
 def test_scripted_agent_decides_through_the_perception_loop(tmp_path: Path, short):

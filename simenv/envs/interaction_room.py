@@ -163,6 +163,16 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         owner = [names[geom_body[g]].split("/")[0] for g in range(self.model.ngeom)]
         self._agent_geom = np.array([o == "agent" for o in owner])
         self._user_geom = np.array([o == "user" for o in owner])
+        objects = {self.model.body(self.model.jnt_bodyid[self.model.joint(o.joint).id]).name
+                   for o in self.room.objects.values()}
+        #: What each geom is, for :meth:`agent_penetration`: floor, furniture (every other
+        #: static geom), object, agent or user.
+        self._agent_bodies = np.array([b for b, n in enumerate(names)
+                                       if n.split("/")[0] == "agent"])
+        self._geom_kind = np.array([
+            "floor" if geom_body[g] == 0 else "agent" if o == "agent" else "user"
+            if o == "user" else "object" if names[geom_body[g]] in objects else "furniture"
+            for g, o in enumerate(owner)])
         self._step: int | None = None
         self._obs: dict[str, np.ndarray] | None = None
         self._renderer: mujoco.Renderer | None = None
@@ -345,6 +355,27 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 if self.scenario.behaviour.reaction_for(g.label).name != "keep":
                     penalty -= MISS
         return penalty
+
+    def agent_penetration(self) -> dict[str, float]:
+        """Deepest penetration (m, >= 0) of the agent's contacts now, by what it touches:
+        ``floor``, ``furniture``, ``object``, ``self`` (its own body) and ``user``."""
+        out = dict.fromkeys(("floor", "furniture", "object", "self", "user"), 0.0)
+        d = self.data
+        for k in range(d.ncon):
+            g1, g2 = d.contact.geom[k]
+            kinds = {self._geom_kind[g1], self._geom_kind[g2]}
+            if "agent" not in kinds:
+                continue
+            other = "self" if kinds == {"agent"} else (kinds - {"agent"}).pop()
+            out[other] = max(out[other], -float(d.contact.dist[k]))
+        return out
+
+    def agent_assistance_n(self) -> float:
+        """Largest external force (N) applied now to any of the agent's bodies from
+        outside the simulation (``xfrc_applied``): the assistance a controller gets; 0
+        for every reaction here."""
+        forces = self.data.xfrc_applied[self._agent_bodies, :3]
+        return float(np.linalg.norm(forces, axis=1).max())
 
     def _excess_penetration(self) -> float:
         d = self.data
