@@ -5,8 +5,11 @@ Reads the bundled CMU clips (a walk, 02_01, and the two-person "walk, shake hand
 per clip an MP4 (humanoid + source joints as a ghost) and an NPZ trajectory, scores each
 clip's physical plausibility (:func:`simenv.score`, physics on) into an HTML report
 (``report/index.html``), rehearses the virtual room on person B of the handshake
-(:data:`REHEARSAL_GESTURE`, ``rehearsal/``), plus one ``summary.json`` with residuals,
-verdicts, the rehearsal's reactions, timings and which frames were rendered. Offscreen rendering
+(:data:`REHEARSAL_GESTURE`, ``rehearsal/``), lets the shipped reaction generator
+(:data:`REACTION_MODEL`) answer person A of the handshake on simulated bodies
+(``reaction/``: generated, retargeted, PD-tracked and scored), plus one ``summary.json``
+with residuals, verdicts, the rehearsal's reactions, timings and which frames were
+rendered. Offscreen rendering
 on a CPU manages a few frames per second, so each video shows every ``stride``-th frame
 (playing at ``fps / stride``, i.e. real time); retargeting always covers every frame.
 """
@@ -40,6 +43,11 @@ REHEARSAL_SESSION = f"{HANDSHAKE_PAIR}/19_01.bvh"
 #: discomfort gestures exists, so the demo labels a stretch of the real session "smell" to
 #: show the mechanism: the agent must press the cigarette out with its own simulated hand.
 REHEARSAL_GESTURE = ("smell", 0.5, 1.5)
+#: The reaction generator of ``reaction/`` and the session it answers (person A, who
+#: walks up and offers a handshake), cut to its first seconds to keep the demo short.
+REACTION_MODEL = "interformer"
+REACTION_SESSION = f"{HANDSHAKE_PAIR}/18_01.bvh"
+REACTION_SECONDS = 4.0
 
 
 def run_demo(
@@ -106,9 +114,11 @@ def run_demo(
             f"every {clip_stride})"
         )
     rehearsal = _rehearsal(out_dir / "rehearsal", width=width, height=height)
+    reaction = _reaction(out_dir / "reaction")
     report = {
         "clips": clips,
         "rehearsal": rehearsal,
+        "reaction": reaction,
         "total_seconds": round(time.perf_counter() - started, 3),
         "data_acknowledgement": CMU_ACKNOWLEDGEMENT,
     }
@@ -119,6 +129,8 @@ def run_demo(
     print(f"wrote {index}")
     for name in ("rehearsal.mp4", "report.html", "summary.json", "log.jsonl"):
         print(f"wrote {out_dir / 'rehearsal' / name}")
+    if reaction.get("report"):
+        print(f"wrote {reaction['report']}")
     for entry in clips.values():
         print(f"wrote {entry['video']}")
         print(f"wrote {entry['npz']}")
@@ -143,3 +155,24 @@ def _rehearsal(out_dir: Path, *, width: int, height: int) -> dict[str, Any]:
               f"object changed at {r['t_object_changed']} s)")
     return {"session": REHEARSAL_SESSION, "gesture": list(REHEARSAL_GESTURE),
             "reactions": summary["reactions"], "folder": str(out_dir)}
+
+
+def _reaction(out_dir: Path) -> dict[str, Any]:
+    """:data:`REACTION_MODEL` answers :data:`REACTION_SESSION` (tracked and scored)."""
+    from simenv.models import available
+    from simenv.reaction_rehearsal import rehearse_reaction
+
+    if REACTION_MODEL not in available():
+        print(f"[reaction] {REACTION_MODEL} is not shipped in assets/models; skipped")
+        return {"skipped": f"{REACTION_MODEL} not shipped"}
+    print(f"[reaction] {REACTION_MODEL} answers {REACTION_SESSION} (first "
+          f"{REACTION_SECONDS:g} s): generate, retarget, track, score")
+    s = rehearse_reaction(asset_path(REACTION_SESSION), REACTION_MODEL, out_dir,
+                          seconds=REACTION_SECONDS, video=False)
+    agent = s["agent"]
+    print(f"[reaction] agent {agent['verdict']} (score {agent['score']:.0f}; failed: "
+          f"{', '.join(agent['failed']) or 'none'}); interaction {s['interaction']['verdict']}")
+    return {"model": s["model"], "session": REACTION_SESSION, "frames": s["frames"],
+            "agent": {k: agent[k] for k in ("verdict", "score", "failed")},
+            "interaction": s["interaction"]["verdict"], "start": s["start"],
+            "report": s.get("report"), "folder": str(out_dir)}

@@ -175,6 +175,11 @@ def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
     assert reaction["object"] == "cigarette" and reaction["success"] is True
     assert reaction["t_object_changed"] > reaction["t_decision"] >= reaction["t_onset"]
     assert (tmp_path / "demo" / "rehearsal" / "rehearsal.mp4").stat().st_size > 0
+    answer = report["reaction"]
+    if "skipped" not in answer:
+        assert answer["model"] == "interformer" and answer["frames"] > 50
+        assert answer["agent"]["verdict"] in ("plausible", "implausible")
+        assert Path(answer["report"]).is_file()
 
 
 def test_score_json_prints_one_object_per_person(capsys, tmp_path):
