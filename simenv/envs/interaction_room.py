@@ -75,6 +75,9 @@ from simenv.motion import Motion
 from simenv.scenario import REACTIONS, Scenario, load_scenario
 from simenv.session import PERCEPTION_FPS, GestureEvent, Session, user_track
 
+#: What an agent's contact is with, in :meth:`InteractionRoomEnv.agent_penetration`.
+_CONTACT_KINDS = ("floor", "furniture", "object", "self", "user")
+_SELF = _CONTACT_KINDS.index("self")
 #: Object order of the ``objects`` observation.
 OBJECTS = ("window", "curtain", "hifi", "cigarette", "door")
 #: Time constant of the timeliness reward, s.
@@ -165,14 +168,14 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._user_geom = np.array([o == "user" for o in owner])
         objects = {self.model.body(self.model.jnt_bodyid[self.model.joint(o.joint).id]).name
                    for o in self.room.objects.values()}
-        #: What each geom is, for :meth:`agent_penetration`: floor, furniture (every other
-        #: static geom), object, agent or user.
         self._agent_bodies = np.array([b for b, n in enumerate(names)
                                        if n.split("/")[0] == "agent"])
-        self._geom_kind = np.array([
-            "floor" if geom_body[g] == 0 else "agent" if o == "agent" else "user"
-            if o == "user" else "object" if names[geom_body[g]] in objects else "furniture"
-            for g, o in enumerate(owner)])
+        # What each geom is, for agent_penetration: an index into _CONTACT_KINDS, with
+        # the agent's own geoms at "self".
+        kind = ["floor" if geom_body[g] == 0 else "self" if o == "agent" else "user"
+                if o == "user" else "object" if names[geom_body[g]] in objects else "furniture"
+                for g, o in enumerate(owner)]
+        self._geom_kind = np.array([_CONTACT_KINDS.index(k) for k in kind])
         self._step: int | None = None
         self._obs: dict[str, np.ndarray] | None = None
         self._renderer: mujoco.Renderer | None = None
@@ -359,16 +362,14 @@ class InteractionRoomEnv(gym.Env[dict, int]):
     def agent_penetration(self) -> dict[str, float]:
         """Deepest penetration (m, >= 0) of the agent's contacts now, by what it touches:
         ``floor``, ``furniture``, ``object``, ``self`` (its own body) and ``user``."""
-        out = dict.fromkeys(("floor", "furniture", "object", "self", "user"), 0.0)
         d = self.data
-        for k in range(d.ncon):
-            g1, g2 = d.contact.geom[k]
-            kinds = {self._geom_kind[g1], self._geom_kind[g2]}
-            if "agent" not in kinds:
-                continue
-            other = "self" if kinds == {"agent"} else (kinds - {"agent"}).pop()
-            out[other] = max(out[other], -float(d.contact.dist[k]))
-        return out
+        out = np.zeros(len(_CONTACT_KINDS))
+        if d.ncon:
+            kinds = self._geom_kind[d.contact.geom[:d.ncon]]
+            mine = (kinds == _SELF).any(axis=1)
+            other = np.where(kinds[:, 0] == _SELF, kinds[:, 1], kinds[:, 0])[mine]
+            np.maximum.at(out, other, -d.contact.dist[:d.ncon][mine])
+        return dict(zip(_CONTACT_KINDS, out.tolist(), strict=True))
 
     def agent_assistance_n(self) -> float:
         """Largest external force (N) applied now to any of the agent's bodies from
