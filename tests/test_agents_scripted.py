@@ -253,3 +253,20 @@ def test_hifi_across_the_room_is_out_of_seated_reach(tmp_path):
     room = Room(load_scenario(tmp_path / "far.toml"))
     with pytest.raises(SimenvError, match="out of the seated agent's"):
         plan_hifi_down(room, _settled(room))
+
+
+def test_reactions_in_sequence_plan_from_the_state_they_find():
+    """A greeting leaves the chair turned by ~11 deg (measured: the untwisting feet slip);
+    the next reactions plan from the state they find and still succeed: cigarette out,
+    then hi-fi down."""
+    room = Room("discomfort")
+    data = _settled(room)
+    for _ in _play(room, data, plan_greet(room, data)):
+        pass
+    for planner, reaction in ((plan_cigarette_out, "cigarette_out"),
+                              (plan_hifi_down, "hifi_down")):
+        before = room.object_labels(data)
+        for _ in _play(room, data, planner(room, data)):
+            pass
+        assert object_success(room, before, room.object_labels(data), reaction), reaction
+    assert data.warning.number.sum() == 0
