@@ -19,7 +19,7 @@ the servos never see a step.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -141,17 +141,30 @@ class GraspEvent:
     close: bool
 
 
+#: Feedback on a plan's targets: (t s into the plan, the simulation state, the plan's (nu,)
+#: targets) -> the (nu,) targets to apply.
+Feedback = Callable[[float, mujoco.MjData, np.ndarray], np.ndarray]
+
+
 class PDPlan:
     """Consecutive :class:`PDTrajectory` segments played one after the other, with the
-    grasp requests (:class:`GraspEvent`) to make on the way, in time order."""
+    grasp requests (:class:`GraspEvent`) to make on the way, in time order, and an
+    optional state feedback on the targets (:meth:`control`; e.g. balance)."""
 
     def __init__(self, segments: Sequence[PDTrajectory],
-                 grasps: Sequence[GraspEvent] = ()) -> None:
+                 grasps: Sequence[GraspEvent] = (), feedback: Feedback | None = None) -> None:
         if not segments:
             raise SimenvError("a PD plan needs at least one segment", field="segments")
         self.segments = tuple(segments)
         self.ends = np.cumsum([seg.duration for seg in self.segments])
         self.grasps = tuple(sorted(grasps, key=lambda g: g.t))
+        self.feedback = feedback
+
+    def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """(nu,) targets to apply ``t`` s after the start: :meth:`at`, corrected by the
+        feedback from the current state when the plan has one."""
+        targets = self.at(t)
+        return targets if self.feedback is None else self.feedback(t, data, targets)
 
     @property
     def duration(self) -> float:
@@ -185,5 +198,5 @@ class PDTrajectory:
         return self.start + s * (self.goal - self.start)
 
 
-__all__ = ["ARM_PARTS", "GraspEvent", "PDPlan", "PDTrajectory", "arm_joints", "min_jerk",
-           "pd_targets", "reach_pose", "upper_body_joints"]
+__all__ = ["ARM_PARTS", "Feedback", "GraspEvent", "PDPlan", "PDTrajectory", "arm_joints",
+           "min_jerk", "pd_targets", "reach_pose", "upper_body_joints"]

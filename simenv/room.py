@@ -33,9 +33,11 @@ fingertips' *tip* site for the small knob (:data:`GRASP_SITE`). :meth:`Room.set_
 activates it only when that site is within :data:`GRASP_RADIUS` of the handle (a
 proximity grasp), after which the hand drags the object through the constraint force.
 
-The agent's chair is an office chair: its seat and back swivel on the base (hinge
-``chair/swivel``, Coulomb friction :data:`SWIVEL_FRICTION`), so the seated agent can turn
-by pushing with its planted feet; the chair is furniture, not one of the objects.
+The agent's chair is an office chair: it rolls back from the desk on its casters (slide
+``chair/roll`` along the desk's x axis, friction :data:`CHAIR_ROLL_FRICTION`) and its seat
+and back swivel on the base (hinge ``chair/swivel``, friction :data:`SWIVEL_FRICTION`), so
+the seated agent turns or pushes itself back with its planted feet; the chair is
+furniture, not one of the objects.
 
 People:
 
@@ -112,6 +114,10 @@ CHAIR_OFFSET = (-0.65, 0.0)
 #: agent's reaching reactions, gives way to its feet).
 SWIVEL_RANGE = np.pi
 SWIVEL_FRICTION = 4.0
+#: The chair rolls back from the desk on its casters (a slide along the desk's x axis): up
+#: to this far, m, against this Coulomb friction, N.
+CHAIR_ROLL = 0.8
+CHAIR_ROLL_FRICTION = 30.0
 #: Hands of the agent (keypoint site suffixes) that can grasp.
 HANDS = ("left_hand", "right_hand")
 #: A greeting needs the agent's chest to face the user within this angle, degrees.
@@ -396,6 +402,8 @@ class Room:
         # seat and back swivel on the base (a hinge with friction), so the seated agent turns
         # by pushing with its feet, and the back turns with it.
         chair = _body(desk, "chair", (*CHAIR_OFFSET, 0.0))
+        _joint(chair, "chair/roll", mujoco.mjtJoint.mjJNT_SLIDE, (1, 0, 0),
+               (-CHAIR_ROLL, 0.02), friction=CHAIR_ROLL_FRICTION, damping=20.0)
         seat = self.seat_height
         for i, (x, y) in enumerate(((0.19, 0.19), (0.19, -0.19), (-0.19, 0.19), (-0.19, -0.19))):
             _box(chair, f"chair/leg{i}", (0.02, 0.02, (seat - 0.05) / 2),

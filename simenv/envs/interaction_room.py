@@ -303,7 +303,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 closed = self.room.set_grasp(d, g.hand, g.name, g.close)
                 if g.close:
                     run["entry"]["grasped"] = closed
-            d.ctrl[self.room.agent_ctrl] = plan.at(tau)
+            d.ctrl[self.room.agent_ctrl] = plan.control(tau, d)
             mujoco.mj_step(m, d)
 
     def _follow_up(self, t: float) -> float:
