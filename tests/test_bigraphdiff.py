@@ -4,6 +4,7 @@ real windows, sampling and checkpoints."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -216,3 +217,15 @@ def test_bad_checkpoints_and_training_input(tmp_path, train_windows):
         bg.BiGraphDiff.load(tmp_path / "missing.npz")
     with pytest.raises(MotionError, match="at least 2"):
         bg.train(train_windows.subset([0]), TINY, progress=False)
+
+
+def test_shipped_checkpoint_loads_and_generates():
+    from importlib import resources
+
+    path = Path(str(resources.files("simenv.assets"))) / "models" / "bigraphdiff.npz"
+    model = bg.BiGraphDiff.load(path)
+    assert model.name == "bigraphdiff" and model.labels == ("salsa", "rocket_fist_bump")
+    assert path.stat().st_size < 8e6
+    a, r = model.sample(["rocket_fist_bump"], seed=0, steps=3)
+    assert a.shape == r.shape == (1, 40, 18, 3)
+    assert np.isfinite(a).all() and np.isfinite(r).all()
