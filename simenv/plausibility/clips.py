@@ -174,38 +174,39 @@ def results(batch: ClipBatch, name: str, timeline: np.ndarray, value: np.ndarray
             (default all); the others get ``reason``.
     """
     ft = threshold if frame_threshold is None else frame_threshold
-    tl = np.asarray(timeline, dtype=np.float32)
-    with np.errstate(invalid="ignore"):
-        over = tl > ft
-    any_over = over.any(axis=1).tolist()
+    # The comparison happens in float32 exactly when numpy's ``tl > ft`` on
+    # the float32 timeline would: a Python number is cast to float32.
+    in_float32 = (not isinstance(ft, np.generic)
+                  or bool(np.result_type(np.float32, ft) == np.float32))
+    tl, runs, offsets = kernels.violations(
+        np.asarray(timeline, dtype=np.float64), float(ft), in_float32)
+    size = batch.size
     keys = list(details or {})
-    # One (B, K) table converted to Python floats at once: per-detail and
-    # per-clip numpy calls would cost more than the kernels on short clips.
-    table = np.empty((batch.size, len(keys)))
-    for k, v in enumerate((details or {}).values()):
-        table[:, k] = v
-    rows = table.tolist()
+    # Python floats per detail at once (a scalar detail is the same for every
+    # clip), then one row per clip: per-clip numpy calls would cost more than
+    # the kernels on short clips.
+    columns = []
+    for v in (details or {}).values():
+        col = np.asarray(v, dtype=np.float64)
+        columns.append([float(col)] * size if col.ndim == 0 else col.tolist())
+    rows = list(zip(*columns, strict=True)) if columns else [()] * size
     values = np.asarray(value, dtype=np.float64).tolist()
+    spans = [(int(s), int(e), w) for s, e, w in runs.tolist()]
+    bounds = offsets.tolist()
     unit_tl, thr, ft = timeline_unit or unit, float(threshold), float(ft)
-    ok = [True] * batch.size if available is None else np.asarray(available).tolist()
+    ok = [True] * size if available is None else np.asarray(available).tolist()
     out = []
-    for b in range(batch.size):
+    for b in range(size):
         r = batch.reasons[b] or (None if ok[b] else reason)
         if r is not None:
             out.append(MetricResult.not_available(name, batch.num_frames, unit, threshold, r,
                                                   frame_threshold=frame_threshold,
                                                   timeline_unit=timeline_unit))
             continue
-        violations = []
-        if any_over[b]:
-            edges = np.diff(over[b].astype(np.int8), prepend=0, append=0)
-            for s, e in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1,
-                            strict=True):
-                violations.append((int(s), int(e), float(tl[b, s:e + 1].max())))
         v = values[b]
         out.append(MetricResult(
             name=name, value=v, unit=unit, threshold=thr, passed=v <= threshold,
-            timeline=tl[b], violations=violations, frame_threshold=ft,
+            timeline=tl[b], violations=spans[bounds[b]:bounds[b + 1]], frame_threshold=ft,
             timeline_unit=unit_tl, details=dict(zip(keys, rows[b], strict=True)),
         ))
     return out

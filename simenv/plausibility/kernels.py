@@ -322,6 +322,63 @@ def planes(positions: np.ndarray, idx: np.ndarray
     return p, zmin, span
 
 
+@njit(cache=True)
+def violations(timeline: np.ndarray, threshold: float, in_float32: bool
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Float32 timelines and their violation runs, in one pass.
+
+    Args:
+        timeline: (B, T) float64 per-frame values.
+        threshold: per-frame limit; a frame violates when its float32 value
+            is above it (NaN never does), compared in float32 when
+            ``in_float32`` (numpy's comparison of a float32 array with a
+            Python float) and in float64 otherwise.
+
+    Returns:
+        tl: (B, T) float32 timelines. runs: (R, 3) float64 rows (start
+        frame, inclusive end frame, largest float32 value of the run), clip
+        by clip in frame order. offsets: (B + 1,) int64, clip b's runs are
+        ``runs[offsets[b]:offsets[b + 1]]``.
+    """
+    b_count, t_count = timeline.shape
+    tl = np.empty((b_count, t_count), dtype=np.float32)
+    thr32 = np.float32(threshold)
+    over = np.empty(t_count, dtype=np.bool_)
+    runs = np.empty((0, 3))
+    offsets = np.zeros(b_count + 1, dtype=np.int64)
+    count = 0
+    for b in range(b_count):
+        row = tl[b]
+        hit = False
+        for t in range(t_count):
+            v = np.float32(timeline[b, t])
+            row[t] = v
+            o = v > thr32 if in_float32 else np.float64(v) > threshold
+            over[t] = o
+            hit |= o
+        if hit:
+            t = 0
+            while t < t_count:
+                if not over[t]:
+                    t += 1
+                    continue
+                start = t
+                worst = row[t]
+                while t < t_count and over[t]:
+                    worst = max(worst, row[t])
+                    t += 1
+                if count == runs.shape[0]:
+                    grown = np.empty((2 * count + 8, 3))
+                    grown[:count] = runs[:count]
+                    runs = grown
+                runs[count, 0] = start
+                runs[count, 1] = t - 1
+                runs[count, 2] = worst
+                count += 1
+        offsets[b + 1] = count
+    return tl, runs[:count], offsets
+
+
 # -- bone length ---------------------------------------------------------------
 
 
