@@ -468,6 +468,28 @@ def prediction_doc(metrics: dict[str, dict], extra: dict[str, Any], head: str) -
     cv_text = ("on every model's held-out set" if len(cv_best_80) == n_models
                else "on the held-out sets of " + ", ".join(f"`{n}`" for n in cv_best_80))
     mpjs = {k: v["mpjs_m_s"] for k, v in ov.items()}
+    reg = extra.get("regression")
+    runs = []
+    if reg:
+        runs.append(f"simenv train predictor --model regression --past 25 --future 25 "
+                    f"--validation 0.2 --iterations {reg['info']['iterations']} --lr "
+                    f"{reg['info']['lr']:g} --dropout {reg['info']['dropout']:g} --out "
+                    f"{Path(reg['path']).parent}")
+    for v in extra["variants"]:
+        flags = (" --joint-amplitude" if v["info"].get("joint_amplitude") else "") + (
+            " --validation 0.2" if v["info"].get("validation_clips") else "")
+        runs.append(f"simenv train predictor --past 25 --future 25 --minutes "
+                    f"{v['info']['train_seconds'] / 60:.1f}{flags} --out "
+                    f"{Path(v['path']).parent}")
+    extra_runs = "\n".join(runs)
+    short_regression = "" if reg is None else (
+        f"A learned regression baseline (a DCT-residual MLP, siMLPe-like, not shipped) is "
+        f"{_gain(reg['overall'], 400):.1f} % and {_gain(reg['overall'], 1000):.1f} % below "
+        f"zero-velocity at 400 and 1000 ms on the same held-out windows of {GOAL_MODEL}: "
+        "this data allows some gain over holding the pose, "
+        f"{'and' if min(_gain(reg['overall'], h) for h in (400, 1000)) >= 20 else 'but'} "
+        f"{'' if min(_gain(reg['overall'], h) for h in (400, 1000)) >= 20 else 'not '}"
+        "the goal's 20 % with what we tried.")
 
     return f"""# Motion prediction on the SRVF hypersphere (PredictiveMA-WGAN)
 
@@ -493,6 +515,7 @@ How the method works, and every way it differs from the papers, is in the docstr
 horizon, and the issue's goal (MPJPE at 400 ms and 1000 ms at least 20 % below
 zero-velocity on held-out clips) is {'met' if all(goal_met.values()) else 'not met'}.**
 The trained models are within {max(dist_overall):.1f} % of zero-velocity at every horizon.
+{short_regression}
 The sections below give the measurements and what we think causes this.
 
 ## Data and split
@@ -646,6 +669,7 @@ is and have not tuned anything on the held-out clips.
               f"{m['config']['future_len']} --minutes {minutes:.0f} --out out/p"
               f"{m['config']['past_len']}-{m['config']['future_len']}"
               for m in metrics.values())}
+{extra_runs}
 simenv eval predictor {GOAL_MODEL} --json      # {{"fps": {fps}, "horizons_ms": [...], ...}}
 simenv eval predictor {GOAL_MODEL} --data ../shared/data/cmu/bvh/02_01.bvh
 OMP_NUM_THREADS=1 .venv/bin/python benchmarks/model_docs.py   # this document

@@ -28,7 +28,10 @@ Pipeline (one window; P observed frames, F to predict, 17 joints, D = 51)
 5. **Amplitude.** A small head predicts ``log a_F - log a_P`` from the same condition
    (the colleague's measurement: carrying ``a_P`` correlates only 0.35 with ``a_F``).
    The alternative "carried" amplitude ``a_P sqrt(F / P)`` (same mean speed) is
-   available for comparison (``amplitude="carried"``).
+   available for comparison (``amplitude="carried"``). By default the head is trained
+   on its own (:func:`amplitude_loss`) and the generator at the true amplitude; with
+   ``joint_amplitude`` (:func:`generator_loss`) both are trained together on the
+   position losses at the predicted amplitude (measured in docs/prediction.md).
 6. **Integration without a seam.** ``q̂ = â p̂`` is integrated from the last observed
    pose ``x_T`` with the exact inverse SRVF, ``x̂_k = x_T + (1/F) Σ_{i<k} q̂_i |q̂_i|``,
    so the predicted motion starts exactly where the history ends.
