@@ -81,10 +81,12 @@ def plan_cigarette_out(room: Room, data: mujoco.MjData, side: str = "right") -> 
 
 
 #: Knob level the hi-fi reaction aims at, as a fraction of the knob's travel (the
-#: ``quiet`` threshold is 0.5; the hand lags its targets and the knob stops near 0.43 from
-#: 0.8); and the number of via-points on the knob's arc.
-HIFI_QUIET_LEVEL = 0.1
-KNOB_VIA = 8
+#: ``quiet`` threshold is 0.5), and the number of via-points on the knob's arc (0.25 s
+#: each). The hand lags its targets round so small a circle, the more the faster it goes:
+#: from 0.8, aiming at 0.0 stops the knob near 0.31 with 16 via-points, 0.39 with 12 and
+#: 0.51 (still loud) with 8 (measured).
+HIFI_QUIET_LEVEL = 0.0
+KNOB_VIA = 16
 #: Distance in front of the knob's face from which the hand comes in and leaves, m.
 KNOB_APPROACH_M = 0.05
 #: Spine hinges that lean the seated trunk sideways when the arm alone falls short.
