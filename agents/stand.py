@@ -1,5 +1,6 @@
 """Sit-to-stand for the seated agent: roll the chair back, draw the feet in, lean, rise,
-and balance on the feet with centre-of-mass feedback.
+and balance on the feet with centre-of-mass feedback; and sitting back down
+(:func:`plan_sit_down`).
 
 The phases are PD-target segments (minimum jerk, upper body gravity fed forward, as in
 :mod:`simenv.agents.scripted`):
@@ -156,6 +157,52 @@ def plan_stand_up(room: Room, data: mujoco.MjData, balance: bool = True) -> PDPl
     return PDPlan(segments, feedback=ComBalance(room, t_rise) if balance else None)
 
 
+#: Sitting down: the crouch (knee and hip flexion, rad) lowered to with balance, and the
+#: durations of the crouch, of the move to the seated pose and of the hold, s.
+KNEE_CROUCH = np.deg2rad(100.0)
+HIP_CROUCH = np.deg2rad(100.0)
+SIT_PHASES_S = (2.5, 1.5, 1.5)
+
+
+def plan_sit_down(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for sitting back down on the chair behind the standing agent (where standing
+    up left it), from the current state: crouch with the spine bent forward until the
+    seat takes the weight, move to the seated pose, hold. Open loop: the seat is behind
+    the feet, so the crouch ends on it (measured: peak descent 0.4 m/s, centre of mass at
+    most 14 cm behind the feet before the seat touches; :class:`ComBalance` during the
+    crouch changed neither). The chair stays where it rolled: pulling it back to the desk
+    with the feet does not work yet (measured: the pelvis slides on the seat instead).
+
+    Returns:
+        the plan (``sum(SIT_PHASES_S)`` = 5.5 s).
+    """
+    h = room.agent
+
+    def adr(name: str) -> int:
+        return int(h.hinge_qpos[h.joint_names.index(name)])
+
+    crouch = h.default_qpos()
+    for side in ("left", "right"):
+        crouch[adr(f"{side}_shin_flex")] = KNEE_CROUCH
+        crouch[adr(f"{side}_thigh_flex")] = HIP_CROUCH
+        crouch[adr(f"{side}_foot_flex")] = ANKLE_DRAWN
+    for name in ("lumbar_flex", "thorax_flex", "chest_flex"):
+        crouch[adr(name)] = SPINE_LEAN
+    upper = upper_body_joints(h)
+    low, seated = (pd_targets(h, p, upper) for p in (crouch, room.seated_pose()))
+    now = data.ctrl[room.agent_ctrl].copy()
+    down, sit, hold = SIT_PHASES_S
+    return PDPlan([PDTrajectory(now, low, down), PDTrajectory(low, seated, sit),
+                   PDTrajectory(seated, seated, hold)])
+
+
+def seated(room: Room, data: mujoco.MjData) -> bool:
+    """Whether the chair's seat carries the agent now (touches any of its geoms)."""
+    seat = room.model.geom("chair/seat").id
+    geoms = data.contact.geom[:data.ncon]
+    return bool(((geoms == seat).any(axis=1)).any())
+
+
 def standing(room: Room, data: mujoco.MjData, tolerance_m: float = 0.05) -> dict[str, float | bool]:
     """Whether the agent stands now: ``pelvis_height`` (m) at least 90 % of its standing
     rest height, the centre of mass within ``tolerance_m`` of the feet's centre along its
@@ -176,4 +223,4 @@ def standing(room: Room, data: mujoco.MjData, tolerance_m: float = 0.05) -> dict
             "success": bool(pelvis >= 0.9 * rest and abs(e) <= tolerance_m and others == 0)}
 
 
-__all__ = ["ComBalance", "plan_stand_up", "standing"]
+__all__ = ["ComBalance", "plan_sit_down", "plan_stand_up", "seated", "standing"]

@@ -1,5 +1,5 @@
 """Sit-to-stand in simulation: the legs roll the chair back, the agent leans and rises, and
-centre-of-mass feedback keeps it standing; open loop it falls."""
+centre-of-mass feedback keeps it standing (open loop it falls); then it sits back down."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from simenv.agents.stand import ComBalance, plan_stand_up, standing
+from simenv.agents.stand import ComBalance, plan_sit_down, plan_stand_up, seated, standing
 from simenv.room import Room
 
 
@@ -41,6 +41,18 @@ def test_agent_stands_up_with_centre_of_mass_feedback(room: Room):
     assert all(s["success"] for s in last), last[-1]  # standing for the last 1.5 s
     assert abs(last[-1]["com_error_m"]) < 0.02
     assert np.abs(data.xfrc_applied).max() == 0.0  # no assistance
+    assert data.warning.number.sum() == 0
+    # ... and sits back down on the chair where it rolled.
+    assert not seated(room, data)
+    plan = plan_sit_down(room, data)
+    dt = room.model.opt.timestep
+    for i in range(int(round(plan.duration / dt))):
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+    assert seated(room, data)
+    pelvis = data.qpos[room.agent_qpos][2]
+    assert pelvis == pytest.approx(room.seated_pose()[2], abs=0.03)
+    assert not standing(room, data)["success"]
     assert data.warning.number.sum() == 0
 
 
