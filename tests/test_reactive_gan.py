@@ -264,3 +264,17 @@ def test_short_real_training_lowers_the_loss(trained):
     assert history["l1"][-1] < history["l1"][0]
     assert history["loss"][-1] < history["loss"][0]
     assert history["cpu_seconds"] > 0
+
+
+def test_shipped_checkpoint_loads_and_generates(windows):
+    from importlib import resources
+
+    path = Path(str(resources.files("simenv.assets"))) / "models" / "reactive-gan.npz"
+    model = rg.ReactiveGAN.load(path)
+    assert model.name == "reactive-gan" and model.config.window == idata.WINDOW_FRAMES
+    assert model.metadata["train_windows"] > 0 and path.stat().st_size < 8_000_000
+    _, test = windows
+    out = model.generate(test.actor[:4], test.reactor[:4, 0])
+    assert out.shape == test.reactor[:4].shape and np.isfinite(out).all()
+    np.testing.assert_allclose(out[:, 0], test.reactor[:4, 0], atol=1e-6)
+    assert not np.allclose(out[:, 1:], out[:, :1])  # trained: it moves
