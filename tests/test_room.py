@@ -146,6 +146,9 @@ def test_seated_agent_is_stable_under_pd(room: Room):
     touching = {int(c.geom2) for c in data.contact[:data.ncon] if c.geom1 == seat} | {
         int(c.geom1) for c in data.contact[:data.ncon] if c.geom2 == seat}
     assert touching, "the agent does not sit on the chair"
+    # The office chair (rolling, swivelling) holds still under the resting agent.
+    for joint, tol in (("chair/roll", 1e-3), ("chair/swivel", np.deg2rad(0.5))):
+        assert abs(data.qpos[room.model.joint(joint).qposadr[0]]) < tol, joint
 
 
 def test_untouched_objects_hold_their_state():
