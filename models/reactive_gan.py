@@ -513,7 +513,9 @@ def _check_windows(windows: idata.InteractionWindows, window: int) -> None:
 
 
 def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = None, *,
-          seed: int = 0, progress: bool = True) -> tuple[ReactiveGAN, dict[str, Any]]:
+          seed: int = 0, progress: bool = True,
+          validation: idata.InteractionWindows | None = None
+          ) -> tuple[ReactiveGAN, dict[str, Any]]:
     """Train a reactive GAN on interaction windows (module docstring for the losses).
 
     Args:
@@ -522,12 +524,15 @@ def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = No
         config: hyper-parameters (defaults: the shipped CPU configuration).
         seed: seeds torch and numpy (batches, noise, initial weights).
         progress: show a tqdm bar.
+        validation: windows to score after every epoch (for choosing the epoch count on
+            recordings other than the test ones; never the test split).
 
     Returns:
         ``(model, history)``: per-epoch means ``"loss"`` (generator total), ``"d_loss"``,
         ``"l1"``, ``"bone"``, ``"continuity"``, ``"g_unsup"``, ``"g_sup"``, ``"d_unsup"``,
         ``"d_sup"`` (position terms in decimetres), ``"cpu_seconds"``, ``"epochs"``,
-        ``"windows"`` (after augmentation).
+        ``"windows"`` (after augmentation); with ``validation`` also
+        ``"val_joint_error_mm"``, the per-epoch mean joint error of frames 1..T-1 (z = 0).
     """
     from tqdm import tqdm
 
@@ -559,6 +564,8 @@ def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = No
     keys = ("loss", "d_loss", "l1", "bone", "continuity", "g_unsup", "g_sup", "d_unsup",
             "d_sup")
     history: dict[str, Any] = {k: [] for k in keys}
+    if validation is not None:
+        history["val_joint_error_mm"] = []
     start = time.process_time()
     bar = tqdm(range(config.epochs), desc="train reactive-gan", disable=not progress)
     for _ in bar:
@@ -600,6 +607,10 @@ def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = No
                 sums[key] += float(value.detach()) * len(idx)
         for key in keys:
             history[key].append(sums[key] / len(a_all))
+        if validation is not None:
+            pred = model.generate(validation.actor, validation.reactor[:, 0])
+            err = np.linalg.norm(pred[:, 1:] - validation.reactor[:, 1:], axis=-1).mean()
+            history["val_joint_error_mm"].append(float(1000.0 * err))
         bar.set_postfix(g=f"{history['loss'][-1]:.3f}", l1=f"{history['l1'][-1]:.3f}",
                         d=f"{history['d_loss'][-1]:.3f}")
         if config.max_minutes is not None and \
