@@ -16,6 +16,7 @@ metrics. Invalid *arguments* (a malformed reference skeleton) raise
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -117,18 +118,26 @@ def bone_length_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHO
     reason = "needs two canonical keypoints joined by a bone of non-zero length"
     if batch.skeleton is None or not batch.skeleton.bones:
         return batch.not_available(name, unit, thr, reason)
-    parent, child = np.array(batch.skeleton.bones, dtype=np.int64).T
-    tol = np.array([thresholds.bone_length_head_rel_max if batch.names[c] == "head"
-                    else thresholds.bone_length_rel_max for c in child], dtype=np.float64)
+    parent, child, tol = _bones(batch.names, tuple(batch.skeleton.bones), thresholds)
     timeline, value, details, available = kernels.bone_length(
-        batch.p, np.ascontiguousarray(parent), np.ascontiguousarray(child), tol,
-        float(thresholds.bone_min_length_m), 95 / 100)
+        batch.p, parent, child, tol, float(thresholds.bone_min_length_m), 95 / 100)
     return results(
         batch, name, timeline, value, unit, thr,
         details={"max": details[:, 0], "max_rel_deviation": details[:, 1],
                  "bones_checked": details[:, 2]},
         available=available, reason=reason,
     )
+
+
+@lru_cache(maxsize=64)
+def _bones(names: tuple[str, ...], bones: tuple[tuple[int, int], ...], thresholds: Thresholds
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K,) parent and child keypoints and relative tolerance of each bone of
+    a layout, computed once per layout and thresholds."""
+    parent, child = (np.ascontiguousarray(a) for a in np.array(bones, dtype=np.int64).T)
+    tol = np.array([thresholds.bone_length_head_rel_max if names[c] == "head"
+                    else thresholds.bone_length_rel_max for c in child], dtype=np.float64)
+    return parent, child, tol
 
 
 def bone_length_error(
@@ -271,30 +280,15 @@ def jitter_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
     if batch.skeleton is None:
         return batch.not_available(name, unit, thr, "", **kwargs)
     fps, frames = batch.fps, batch.num_frames
-    fa = min(fps, thresholds.jerk_fps)
-    w = max(4, round(thresholds.jerk_window_s * fa))
-    needed = max(int(np.ceil((w - 1) * fps / fa)) + 1, 4)
-    if frames < needed:
-        return batch.not_available(
-            name,
-            unit, thr,
-            f"needs at least {needed} frames ({thresholds.jerk_window_s:g} s window at "
-            f"{fa:g} fps); the motion has {frames}",
-            **kwargs,
-        )
-    # Down to the analysis rate (never up: interpolating up would add jerk
-    # at every original sample), in float32 as Motion.resample.
-    resample = fps > fa * (1 + 1e-9)
-    if resample:
-        src, weight = resample_weights(frames, fps, fa)
-    else:
-        src, weight = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32)
-    if (len(src) if resample else frames) < w:
-        return batch.not_available(
-            name, unit, thr, f"resampled clip is shorter than one {w}-frame window", **kwargs)
+    fa, w, src, weight, reason = _jitter_setup(fps, frames, thresholds)
+    if reason is not None:
+        return batch.not_available(name, unit, thr, reason, **kwargs)
+    resample = src is not None
+    if src is None:
+        src, weight = _NO_RESAMPLE
     dt = 1.0 / fa
     timeline, value, details = kernels.jitter(
-        batch.p, resample, src.astype(np.int64), weight.astype(np.float32), float(fps),
+        batch.p, resample, src, weight, float(fps),
         float(fa), int(w), NJ_EPS, float(thresholds.normalized_jerk_max), dt**3,
         ((w - 1) * dt) ** 5, fa**3)
     return results(
@@ -308,16 +302,47 @@ def jitter_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
     )
 
 
+#: Unused resampling arrays of a clip analysed at its own rate.
+_NO_RESAMPLE = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32))
+
+
+@lru_cache(maxsize=256)
+def _jitter_setup(fps: float, frames: int, thresholds: Thresholds
+                  ) -> tuple[float, int, np.ndarray | None, np.ndarray | None, str | None]:
+    """Analysis rate, window (frames), resampling indices (N,) int64 and
+    weights (N,) float32 (None without resampling), and why the metric is not
+    available (None when it is), once per frame rate, length and thresholds."""
+    fa = min(fps, thresholds.jerk_fps)
+    w = max(4, round(thresholds.jerk_window_s * fa))
+    needed = max(int(np.ceil((w - 1) * fps / fa)) + 1, 4)
+    if frames < needed:
+        return fa, w, None, None, (
+            f"needs at least {needed} frames ({thresholds.jerk_window_s:g} s window at "
+            f"{fa:g} fps); the motion has {frames}")
+    # Down to the analysis rate (never up: interpolating up would add jerk
+    # at every original sample), in float32 as Motion.resample.
+    if not fps > fa * (1 + 1e-9):
+        reason = None if frames >= w else f"resampled clip is shorter than one {w}-frame window"
+        return fa, w, None, None, reason
+    src, weight = resample_weights(frames, fps, fa)
+    if len(src) < w:
+        return fa, w, None, None, f"resampled clip is shorter than one {w}-frame window"
+    return fa, w, src.astype(np.int64), weight.astype(np.float32), None
+
+
 # -- velocity and teleports ----------------------------------------------------
 
 
 def speed_limits(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> np.ndarray:
     """(J,) speed limit in m/s of each keypoint of a canonical ``motion``
     (trunk, mid-limb or distal limit; unknown names get the distal limit)."""
-    return _speed_limits(motion.skeleton.joint_names, thresholds)
+    return _speed_limits(tuple(motion.skeleton.joint_names), thresholds).copy()
 
 
-def _speed_limits(names: Sequence[str], thresholds: Thresholds) -> np.ndarray:
+@lru_cache(maxsize=64)
+def _speed_limits(names: tuple[str, ...], thresholds: Thresholds) -> np.ndarray:
+    """(J,) float64 limits, m/s, once per layout and thresholds (shared:
+    never modified)."""
     group_limit = {
         **{n: thresholds.speed_limit_trunk_mps for n in TRUNK_KEYPOINTS},
         **{n: thresholds.speed_limit_limb_mps for n in LIMB_KEYPOINTS},
@@ -325,7 +350,7 @@ def _speed_limits(names: Sequence[str], thresholds: Thresholds) -> np.ndarray:
     }
     limits = [group_limit.get(n, thresholds.speed_limit_distal_mps)
               for n in names]
-    return np.array(limits)
+    return np.array(limits, dtype=np.float64)
 
 
 def velocity(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
@@ -358,7 +383,7 @@ def velocity_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
     fps = batch.fps
     jump_limit = max(thresholds.teleport_distance_m, thresholds.teleport_accel_mps2 / fps**2)
     timeline, value, details = kernels.velocity(
-        batch.p, _speed_limits(batch.names, thresholds).astype(np.float64), float(fps),
+        batch.p, _speed_limits(tuple(batch.names), thresholds), float(fps),
         float(jump_limit))
     return results(
         batch, name, timeline, value, unit, thr,
