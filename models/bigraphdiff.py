@@ -23,7 +23,7 @@ every visited step.
 
 We train with ``K = 100`` steps (the paper's 1000 do not fit a CPU budget) and scale the
 usual ``[1e-4, 0.02]`` (for 1000 steps) by ``1000 / K``: ``β ∈ [1e-3, 0.2]``, so
-``ᾱ_K ≈ 3e-5`` and ``x_K`` is pure noise as in the 1000-step schedule.
+``ᾱ_K ≈ 2e-5`` and ``x_K`` is pure noise as in the 1000-step schedule.
 
 Classifier-free guidance (Ho & Salimans 2022): during training the label is replaced by a
 learned "null" label with probability ``label_dropout``; at sampling
