@@ -178,6 +178,15 @@ class PDPlan:
         return self.segments[i].at(t - start)
 
 
+@dataclass(frozen=True)
+class PlanChain:
+    """A reaction in named stages (``(name, planner)`` pairs, a planner taking the room
+    and the simulation state and returning a :class:`PDPlan`), each planned when the one
+    before it ends, from the state it left (e.g. stand up, walk, act)."""
+
+    stages: tuple[tuple[str, Callable[..., PDPlan]], ...]
+
+
 def min_jerk(tau: float) -> float:
     """Minimum-jerk progress 0..1 at normalised time ``tau`` (clipped to [0, 1])."""
     t = min(max(tau, 0.0), 1.0)
@@ -198,5 +207,5 @@ class PDTrajectory:
         return self.start + s * (self.goal - self.start)
 
 
-__all__ = ["ARM_PARTS", "Feedback", "GraspEvent", "PDPlan", "PDTrajectory", "arm_joints",
+__all__ = ["ARM_PARTS", "Feedback", "GraspEvent", "PDPlan", "PlanChain", "PDTrajectory", "arm_joints",
            "min_jerk", "pd_targets", "reach_pose", "upper_body_joints"]

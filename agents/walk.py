@@ -1,0 +1,277 @@
+"""Walking the standing agent to a spot, by tracking a real walk retargeted onto its body,
+with a measured root assistance.
+
+Reference: a real walking clip (default the bundled CMU 02_01 walk) retargeted onto the
+agent's humanoid (:func:`simenv.retarget.retarget_motion`) at :data:`REF_FPS`. Its root
+path on the floor is mapped onto a planned path (:func:`plan_walk`): a cubic Bezier curve
+``B(u)`` from the agent's pelvis to the goal, leaving along the start heading and
+arriving along the goal heading. Reference frame ``k`` at arc length ``s_k`` of the clip's
+own root path (scaled by ``L_path / s_N``) with the root's lateral sway ``l_k`` (m, from
+the clip's straight mean line) and yaw ``psi_k`` relative to that line becomes::
+
+    root_xy = B(s_k) + l_k n(s_k),    yaw = atan2(B'(s_k)) + psi_k
+
+with ``n`` the path's left normal; height, tilt and hinge angles are the clip's. Time runs
+:data:`SLOWDOWN` times slower than the clip. The hinge angles are the PD servos' targets
+with the reference velocity fed through the servos' damping (``ctrl = q_ref + (kv/kp)
+qd_ref``, as :func:`simenv.plausibility.tracking.track` does). A blend-in turns the
+standing body onto the path's first pose and a blend-out brings it to the standing rest
+pose at the goal.
+
+Root assistance (:class:`RootAssist`): the PD servos alone do not keep the walking body up
+(tracking a walk without help falls within a second; measured in
+:mod:`simenv.plausibility.tracking`), so a spatial force and torque on the pelvis
+(``xfrc_applied``) pull it along the reference root::
+
+    F = M (w^2 (p_ref - p) + 2 w (v_ref - v)),    tau = I (w^2 r - 2 w omega)
+
+(``M`` body mass, ``I`` a scalar inertia, ``r`` the rotation vector from the pelvis's
+orientation to the reference's, ``omega`` its angular velocity). Every physics step's
+``|F|`` (N) and ``|tau|`` (N m) is recorded and reported
+(:meth:`RootAssist.summary`, also as a fraction of body weight); nothing is hidden.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import mujoco
+import numpy as np
+
+from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
+from simenv.assets import WALK, asset_path
+from simenv.errors import SimenvError
+from simenv.humanoid import Humanoid
+from simenv.room import Room
+
+#: Frame rate of the reference walk, Hz.
+REF_FPS = 25.0
+#: The reference plays this many times slower than recorded (the clip walks 1.18 m/s).
+SLOWDOWN = 1.4
+#: Blend from the standing pose onto the path's first pose, and from its last pose to
+#: standing at the goal, s.
+BLEND_IN_S = 1.2
+BLEND_OUT_S = 1.2
+#: Natural frequency of the root assistance, rad/s (critically damped).
+ASSIST_OMEGA = 10.0
+#: Scalar rotational inertia of the assisted root, kg m^2.
+ASSIST_INERTIA = 2.0
+#: Bezier handle length as a fraction of the start-goal distance.
+HANDLE_FRACTION = 0.45
+GRAVITY = 9.81
+
+
+@lru_cache(maxsize=4)
+def _reference(humanoid: Humanoid, clip: str) -> np.ndarray:
+    """(T, nq) the clip retargeted onto ``humanoid`` at :data:`REF_FPS`."""
+    from simenv.io import load
+    from simenv.retarget import retarget_motion
+
+    motion = load(asset_path(clip) if clip == WALK else clip)
+    return retarget_motion(motion.resample(REF_FPS), humanoid).qpos
+
+
+def _yaw(quat: np.ndarray) -> np.ndarray:
+    """Heading (rad) of (..., 4) wxyz quaternions: the body x axis on the floor."""
+    w, x, y, z = np.moveaxis(np.asarray(quat), -1, 0)
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _yaw_quat(yaw: np.ndarray) -> np.ndarray:
+    yaw = np.asarray(yaw)
+    return np.stack([np.cos(yaw / 2), 0 * yaw, 0 * yaw, np.sin(yaw / 2)], axis=-1)
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2],
+                    axis=-1)
+
+
+def _bezier(p: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points and tangents (len(u), 2) of the cubic Bezier with control points p (4, 2)."""
+    u = u[:, None]
+    pts = ((1 - u) ** 3 * p[0] + 3 * (1 - u) ** 2 * u * p[1] + 3 * (1 - u) * u**2 * p[2]
+           + u**3 * p[3])
+    tan = 3 * (1 - u) ** 2 * (p[1] - p[0]) + 6 * (1 - u) * u * (p[2] - p[1]) + 3 * u**2 * (
+        p[3] - p[2])
+    return pts, tan
+
+
+@dataclass
+class RootAssist:
+    """Measured force and torque on the agent's pelvis pulling it along a reference root
+    (module docstring); a :data:`~simenv.agents.reach.Feedback` that passes the plan's
+    targets through and writes ``data.xfrc_applied`` every physics step.
+
+    Attributes:
+        room: the room. times: (N,) s into the plan. pos: (N, 3) m. quat: (N, 4) wxyz.
+        t_off: from this time on (s) no assistance (the force is zeroed).
+        forces_n, torques_nm: per physics step ``|F|`` (N) and ``|tau|`` (N m).
+    """
+
+    room: Room
+    times: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    t_off: float = np.inf
+    forces_n: list[float] = field(default_factory=list)
+    torques_nm: list[float] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self._pelvis = self.room.model.body("agent/pelvis").id
+        self._vel = np.gradient(self.pos, self.times, axis=0)
+        self.mass = float(self.room.agent.total_mass)
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reference root position (3,), velocity (3,) and orientation (4,) at ``t`` s."""
+        i = int(np.clip(np.searchsorted(self.times, t) - 1, 0, len(self.times) - 2))
+        a = float(np.clip((t - self.times[i]) / (self.times[i + 1] - self.times[i]), 0, 1))
+        q = (1 - a) * self.quat[i] + a * self.quat[i + 1]
+        return ((1 - a) * self.pos[i] + a * self.pos[i + 1],
+                self._vel[i] if t < self.times[-1] else np.zeros(3), q / np.linalg.norm(q))
+
+    def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
+        b = self._pelvis
+        if t >= self.t_off:
+            data.xfrc_applied[b] = 0.0
+            return targets
+        p_ref, v_ref, q_ref = self.reference(t)
+        q_adr = self.room.agent_qpos.start
+        v_adr = self.room.agent_qvel.start
+        p, quat = data.qpos[q_adr:q_adr + 3], data.qpos[q_adr + 3:q_adr + 7]
+        v, w_body = data.qvel[v_adr:v_adr + 3], data.qvel[v_adr + 3:v_adr + 6]
+        w = ASSIST_OMEGA
+        force = self.mass * (w * w * (p_ref - p) + 2 * w * (v_ref - v))
+        err = np.zeros(3)
+        mujoco.mju_subQuat(err, q_ref, quat)  # body-frame rotation vector, quat -> q_ref
+        rot = data.xmat[b].reshape(3, 3)
+        torque = ASSIST_INERTIA * rot @ (w * w * err - 2 * w * w_body)
+        data.xfrc_applied[b, :3] = force
+        data.xfrc_applied[b, 3:] = torque
+        self.forces_n.append(float(np.linalg.norm(force)))
+        self.torques_nm.append(float(np.linalg.norm(torque)))
+        return targets
+
+    def summary(self) -> dict[str, float]:
+        """Assistance over the steps so far: ``mean_n``, ``p95_n``, ``max_n`` (N), the
+        same as fractions of body weight (``*_bw``), ``mean_torque_nm``,
+        ``max_torque_nm`` and ``steps``."""
+        f = np.asarray(self.forces_n) if self.forces_n else np.zeros(1)
+        tq = np.asarray(self.torques_nm) if self.torques_nm else np.zeros(1)
+        weight = self.mass * GRAVITY
+        out = {"mean_n": float(f.mean()), "p95_n": float(np.percentile(f, 95)),
+               "max_n": float(f.max()), "mean_torque_nm": float(tq.mean()),
+               "max_torque_nm": float(tq.max()), "steps": len(self.forces_n)}
+        for k in ("mean", "p95", "max"):
+            out[f"{k}_bw"] = out[f"{k}_n"] / weight
+        return out
+
+
+@dataclass(frozen=True)
+class KeyframeTrajectory:
+    """PD targets interpolated linearly between keyframes ``frames`` (N, nu) ``dt`` s
+    apart (a dense reference, where minimum-jerk segments would stop at every frame)."""
+
+    frames: np.ndarray
+    dt: float
+
+    @property
+    def duration(self) -> float:
+        return float((len(self.frames) - 1) * self.dt)
+
+    def at(self, t: float) -> np.ndarray:
+        x = min(max(t / self.dt, 0.0), len(self.frames) - 1.0)
+        i = min(int(x), len(self.frames) - 2)
+        a = x - i
+        return (1 - a) * self.frames[i] + a * self.frames[i + 1]
+
+
+def walk_path(start: np.ndarray, start_yaw: float, goal: np.ndarray, goal_yaw: float
+              ) -> np.ndarray:
+    """(4, 2) control points of the planned path (module docstring), m."""
+    start, goal = np.asarray(start, float)[:2], np.asarray(goal, float)[:2]
+    a = HANDLE_FRACTION * float(np.linalg.norm(goal - start))
+    h0 = np.array([np.cos(start_yaw), np.sin(start_yaw)])
+    h1 = np.array([np.cos(goal_yaw), np.sin(goal_yaw)])
+    return np.array([start, start + a * h0, goal - a * h1, goal])
+
+
+def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
+              start_yaw: float | None = None, clip: str = WALK) -> PDPlan:
+    """Plan for walking the standing agent from where it is to ``goal`` (x, y, m), facing
+    ``goal_yaw`` (rad) at the end, along the path leaving at ``start_yaw`` (default: the
+    pelvis's heading): the reference walk mapped onto the path, tracked by the PD servos
+    with :class:`RootAssist` (the plan's feedback; read its ``summary()`` afterwards).
+
+    Raises:
+        SimenvError: the goal is closer than 0.3 m, or farther than the clip walks.
+
+    Returns:
+        the plan: blend-in, the walk (the clip's frames up to the path's length, played
+        :data:`SLOWDOWN` x slower), blend-out to standing at the goal, 1 s standing.
+    """
+    h = room.agent
+    q_now = data.qpos[room.agent_qpos].copy()
+    yaw0 = float(_yaw(q_now[3:7])) if start_yaw is None else float(start_yaw)
+    ctrl_pts = walk_path(q_now[:2], yaw0, goal, goal_yaw)
+    dense = np.linspace(0.0, 1.0, 400)
+    pts, _ = _bezier(ctrl_pts, dense)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    length = float(arc[-1])
+    if length < 0.3:
+        raise SimenvError(f"the walk's goal is {length:.2f} m away; at least 0.3 m expected",
+                          field="goal")
+    ref = _reference(h, clip)
+    xy = ref[:, :2]
+    s_ref = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    if s_ref[-1] < length:
+        raise SimenvError(f"the reference walk covers {s_ref[-1]:.2f} m; the path is "
+                          f"{length:.2f} m", field="goal")
+    n = int(np.searchsorted(s_ref, length)) + 1
+    ref, s_ref = ref[:n], s_ref[:n] * (length / s_ref[n - 1])
+    # The clip's straight mean line: its lateral sway and yaw about it are kept.
+    line = xy[n - 1] - xy[0]
+    line_yaw = float(np.arctan2(line[1], line[0]))
+    d = np.array([np.cos(line_yaw), np.sin(line_yaw)])
+    lateral = (xy[:n] - xy[0]) @ np.array([-d[1], d[0]])
+    u = np.interp(s_ref, arc, dense)
+    p, tan = _bezier(ctrl_pts, u)
+    path_yaw = np.arctan2(tan[:, 1], tan[:, 0])
+    normal = np.stack([-np.sin(path_yaw), np.cos(path_yaw)], axis=1)
+    walked = ref.copy()
+    walked[:, :2] = p + lateral[:, None] * normal
+    turn = _yaw_quat(path_yaw - line_yaw)
+    walked[:, 3:7] = _quat_mul(turn, ref[:, 3:7])
+    dt = SLOWDOWN / REF_FPS
+    # Servo targets with the reference velocity passed through the servos' damping.
+    m = h.model
+    ratio = -m.actuator_biasprm[:, 2] / m.actuator_gainprm[:, 0]
+    qd = np.gradient(walked[:, h.hinge_qpos], dt, axis=0)
+    frames = walked[:, h.hinge_qpos] + ratio * qd
+    upper = upper_body_joints(h)
+    first = pd_targets(h, walked[0], upper) + ratio * qd[0]
+    stand = h.default_qpos()
+    stand[:2] = goal
+    stand[2] = q_now[2]
+    stand[3:7] = _yaw_quat(goal_yaw)
+    rest = pd_targets(h, stand, upper)
+    now = data.ctrl[room.agent_ctrl].copy()
+    segments = [PDTrajectory(now, first, BLEND_IN_S), KeyframeTrajectory(frames, dt),
+                PDTrajectory(frames[-1], rest, BLEND_OUT_S), PDTrajectory(rest, rest, 1.0)]
+    # Root reference: blend-in from the pelvis now (its yaw turned to the path's first),
+    # the walk, then standing at the goal.
+    t_walk = BLEND_IN_S + dt * np.arange(n)
+    t_end = t_walk[-1] + BLEND_OUT_S
+    times = np.concatenate([[0.0], t_walk, [t_end]])
+    pos = np.concatenate([q_now[None, :3], walked[:, :3], stand[None, :3]])
+    quat = np.concatenate([q_now[None, 3:7], walked[:, 3:7], stand[None, 3:7]])
+    for k in range(1, len(quat)):  # one hemisphere, so that interpolation takes the short way
+        quat[k] *= np.sign(quat[k] @ quat[k - 1]) or 1.0
+    return PDPlan(segments, feedback=RootAssist(room, times, pos, quat))
+
+
+__all__ = ["KeyframeTrajectory", "RootAssist", "plan_walk", "walk_path"]

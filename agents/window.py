@@ -1,0 +1,140 @@
+"""Closing the window: stand up, walk to it, slide the pane shut with a proximity grasp.
+
+``close_window`` (:func:`plan_close_window`) is a :class:`~simenv.agents.reach.PlanChain`
+of three stages, each planned from the state the previous one left:
+
+1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
+2. :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
+   wall, centred on the pane's travel, facing the wall (measured root assistance);
+3. :func:`plan_window_push`: the right palm (``grip`` site) to the pane's handle, the
+   proximity grasp closes there, the hand moves along the wall by the pane's opening plus
+   :data:`OVERSHOOT_M` in :data:`PUSH_VIA` IK via-points, lets go and comes back. The
+   pelvis is held where the walk left it by :class:`~simenv.agents.walk.RootAssist`
+   (measured). The pane closes only if the grasp closed and the hand dragged it.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from simenv.agents.reach import (
+    GraspEvent,
+    PDPlan,
+    PDTrajectory,
+    PlanChain,
+    arm_joints,
+    pd_targets,
+    reach_pose,
+    upper_body_joints,
+)
+from simenv.agents.stand import plan_stand_up
+from simenv.agents.walk import RootAssist, plan_walk
+from simenv.errors import SimenvError
+from simenv.room import Room
+
+#: Pelvis distance from the handle, across the wall, when the agent stands at the window, m.
+STAND_OFF_M = 0.45
+#: The hand slides the pane this far past its closed position (the servos lag), m.
+OVERSHOOT_M = 0.0
+#: Via-points of the push along the wall (0.4 s each).
+PUSH_VIA = 8
+#: The palm comes in from this far in front of the handle, m.
+APPROACH_M = 0.10
+#: Spine hinges the reaching IK may use besides the arm.
+SPINE = ("lumbar_rot", "thorax_rot", "chest_rot")
+HAND = "right_hand"
+
+
+def _window_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray,
+                                                            np.ndarray, float]:
+    """The handle (3,), the closing direction along the wall (3,), the wall's inward
+    normal (3,), all world frame, and the pane's opening (m)."""
+    m, w = room.model, room.objects["window"]
+    handle = data.site_xpos[m.site(w.handle).id].copy()
+    jnt = m.joint(w.joint).id
+    closing = -data.xaxis[jnt].copy()  # the slide opens along +axis
+    wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
+    inward = -wall[:, 1]  # the wall frame's +y points out of the room (window built at +t/2)
+    return handle, closing, inward, float(data.qpos[w.qpos_adr])
+
+
+def window_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
+    """Where to stand to close the window: pelvis (x, y), m, centred on the handle's travel
+    and :data:`STAND_OFF_M` into the room, and the heading facing the wall, rad."""
+    handle, closing, inward, opening = _window_frame(room, data)
+    middle = handle + closing * 0.5 * opening
+    spot = middle + inward * STAND_OFF_M
+    face = -inward
+    return spot[:2], float(np.arctan2(face[1], face[0]))
+
+
+def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for sliding the open pane shut from where the agent stands (module docstring).
+
+    Raises:
+        SimenvError: the window is not open, or the handle or the end of the push is out
+            of the standing agent's reach (IK more than 3 cm short).
+    """
+    m, h, w = room.model, room.agent, room.objects["window"]
+    handle, closing, inward, opening = _window_frame(room, data)
+    if opening <= w.threshold:
+        raise SimenvError("the window is already closed", field="window")
+    side = HAND.split("_")[0]
+    joints = [f"agent/{j}" for j in (*arm_joints(side), *SPINE)]
+    site = f"agent/{HAND}_grip"
+    travel = opening - w.lower + OVERSHOOT_M
+    goals = [handle + inward * APPROACH_M, handle + inward * 0.01]
+    goals += [handle + inward * 0.01 + closing * travel * k / PUSH_VIA
+              for k in range(1, PUSH_VIA + 1)]
+    goals.append(goals[-1] + inward * APPROACH_M)
+    upper = upper_body_joints(h)
+    pose = data.qpos.copy()
+    targets = []
+    for goal in goals:
+        pose, err = reach_pose(m, pose, site, goal, joints, iterations=300)
+        if err > 0.03:
+            raise SimenvError(f"the window's handle is out of the standing agent's reach "
+                              f"({err:.3f} m short)", field="window")
+        targets.append(pd_targets(h, pose[room.agent_qpos], upper))
+    before, on, *pushing, after = targets
+    rest = pd_targets(h, h.default_qpos(), upper)
+    now = data.ctrl[room.agent_ctrl].copy()
+    segments = [PDTrajectory(now, before, 1.2), PDTrajectory(before, on, 0.6),
+                PDTrajectory(on, on, 0.3)]
+    t_close = sum(s.duration for s in segments) - 0.05
+    for a, b in zip([on, *pushing], pushing, strict=False):
+        segments.append(PDTrajectory(a, b, 0.4))
+    segments.append(PDTrajectory(pushing[-1], pushing[-1], 0.3))
+    t_open = sum(s.duration for s in segments) - 0.05
+    segments += [PDTrajectory(pushing[-1], after, 0.6), PDTrajectory(after, rest, 1.0)]
+    total = sum(s.duration for s in segments)
+    q = data.qpos[room.agent_qpos]
+    hold = RootAssist(room, np.array([0.0, total]), np.repeat(q[None, :3], 2, axis=0),
+                      np.repeat(q[None, 3:7], 2, axis=0))
+    return PDPlan(segments, [GraspEvent(t_close, HAND, "window", True),
+                             GraspEvent(t_open, HAND, "window", False)], feedback=hold)
+
+
+def plan_walk_to_window(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for walking from where the agent stands to :func:`window_spot`, leaving
+    towards the wall (the blend-in turns the body onto that heading): sideways out from
+    between the desk and the rolled-back chair, then curving onto the spot."""
+    spot, face = window_spot(room, data)
+    return plan_walk(room, data, spot, face, start_yaw=face)
+
+
+def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:
+    """``close_window``: stand up, walk to the window, slide it shut (module docstring).
+
+    Raises:
+        SimenvError: the window is already closed.
+    """
+    w = room.objects["window"]
+    if float(data.qpos[w.qpos_adr]) <= w.threshold:
+        raise SimenvError("the window is already closed", field="window")
+    return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_window),
+                      ("push", plan_window_push)))
+
+
+__all__ = ["plan_close_window", "plan_walk_to_window", "plan_window_push", "window_spot"]
