@@ -207,5 +207,5 @@ class PDTrajectory:
         return self.start + s * (self.goal - self.start)
 
 
-__all__ = ["ARM_PARTS", "Feedback", "GraspEvent", "PDPlan", "PlanChain", "PDTrajectory", "arm_joints",
-           "min_jerk", "pd_targets", "reach_pose", "upper_body_joints"]
+__all__ = ["ARM_PARTS", "Feedback", "GraspEvent", "PDPlan", "PDTrajectory", "PlanChain",
+           "arm_joints", "min_jerk", "pd_targets", "reach_pose", "upper_body_joints"]

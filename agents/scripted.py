@@ -33,11 +33,13 @@ from simenv.agents.reach import (
     GraspEvent,
     PDPlan,
     PDTrajectory,
+    PlanChain,
     arm_joints,
     pd_targets,
     reach_pose,
     upper_body_joints,
 )
+from simenv.agents.window import plan_close_window
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
 from simenv.room import HANDS, Room
@@ -294,9 +296,11 @@ def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     return out
 
 
-#: Reaction name -> planner (room, data) -> PDPlan.
-PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan]] = {
+#: Reaction name -> planner (room, data) -> PDPlan, or a PlanChain of stages planned one
+#: after the other (``close_window``: stand up, walk, push; :mod:`simenv.agents.window`).
+PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
     "cigarette_out": plan_cigarette_out,
+    "close_window": plan_close_window,
     "greet": plan_greet,
     "hifi_down": plan_hifi_down,
 }

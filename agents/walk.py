@@ -20,14 +20,13 @@ pose at the goal.
 
 Root assistance (:class:`RootAssist`): the PD servos alone do not keep the walking body up
 (tracking a walk without help falls within a second; measured in
-:mod:`simenv.plausibility.tracking`), so a spatial force and torque on the pelvis
-(``xfrc_applied``) pull it along the reference root::
-
-    F = M (w^2 (p_ref - p) + 2 w (v_ref - v)),    tau = I (w^2 r - 2 w omega)
-
-(``M`` body mass, ``I`` a scalar inertia, ``r`` the rotation vector from the pelvis's
-orientation to the reference's, ``omega`` its angular velocity). Every physics step's
-``|F|`` (N) and ``|tau|`` (N m) is recorded and reported
+:mod:`simenv.plausibility.tracking`), so a force and a torque on the pelvis
+pull it along the reference root through a soft weld from a mocap target to the pelvis
+(:meth:`simenv.room.Room.set_assist`, time constant
+:data:`simenv.room.ASSIST_TIMECONST_S`, critically damped: MuJoCo's implicit "hand of
+god"; an explicit PD force on the light pelvis body went unstable at useful rotational
+gains, measured). Every physics step's weld force ``|F|`` (N) and torque ``|tau|`` (N m)
+is recorded and reported
 (:meth:`RootAssist.summary`, also as a fraction of body weight); nothing is hidden.
 """
 
@@ -48,15 +47,11 @@ from simenv.room import Room
 #: Frame rate of the reference walk, Hz.
 REF_FPS = 25.0
 #: The reference plays this many times slower than recorded (the clip walks 1.18 m/s).
-SLOWDOWN = 1.4
+SLOWDOWN = 2.0
 #: Blend from the standing pose onto the path's first pose, and from its last pose to
 #: standing at the goal, s.
 BLEND_IN_S = 1.2
 BLEND_OUT_S = 1.2
-#: Natural frequency of the root assistance, rad/s (critically damped).
-ASSIST_OMEGA = 10.0
-#: Scalar rotational inertia of the assisted root, kg m^2.
-ASSIST_INERTIA = 2.0
 #: Bezier handle length as a fraction of the start-goal distance.
 HANDLE_FRACTION = 0.45
 GRAVITY = 9.81
@@ -103,13 +98,13 @@ def _bezier(p: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class RootAssist:
-    """Measured force and torque on the agent's pelvis pulling it along a reference root
-    (module docstring); a :data:`~simenv.agents.reach.Feedback` that passes the plan's
-    targets through and writes ``data.xfrc_applied`` every physics step.
+    """Measured pull on the agent's pelvis along a reference root (module docstring); a
+    :data:`~simenv.agents.reach.Feedback` that passes the plan's targets through, moves
+    the room's assistance weld target (:meth:`simenv.room.Room.set_assist`) every physics
+    step and records the weld's force and torque.
 
     Attributes:
         room: the room. times: (N,) s into the plan. pos: (N, 3) m. quat: (N, 4) wxyz.
-        t_off: from this time on (s) no assistance (the force is zeroed).
         forces_n, torques_nm: per physics step ``|F|`` (N) and ``|tau|`` (N m).
     """
 
@@ -117,43 +112,25 @@ class RootAssist:
     times: np.ndarray
     pos: np.ndarray
     quat: np.ndarray
-    t_off: float = np.inf
     forces_n: list[float] = field(default_factory=list)
     torques_nm: list[float] = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        self._pelvis = self.room.model.body("agent/pelvis").id
-        self._vel = np.gradient(self.pos, self.times, axis=0)
         self.mass = float(self.room.agent.total_mass)
 
-    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Reference root position (3,), velocity (3,) and orientation (4,) at ``t`` s."""
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference root position (3,) and orientation (4,) at ``t`` s."""
         i = int(np.clip(np.searchsorted(self.times, t) - 1, 0, len(self.times) - 2))
         a = float(np.clip((t - self.times[i]) / (self.times[i + 1] - self.times[i]), 0, 1))
         q = (1 - a) * self.quat[i] + a * self.quat[i + 1]
-        return ((1 - a) * self.pos[i] + a * self.pos[i + 1],
-                self._vel[i] if t < self.times[-1] else np.zeros(3), q / np.linalg.norm(q))
+        return (1 - a) * self.pos[i] + a * self.pos[i + 1], q / np.linalg.norm(q)
 
     def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
-        b = self._pelvis
-        if t >= self.t_off:
-            data.xfrc_applied[b] = 0.0
-            return targets
-        p_ref, v_ref, q_ref = self.reference(t)
-        q_adr = self.room.agent_qpos.start
-        v_adr = self.room.agent_qvel.start
-        p, quat = data.qpos[q_adr:q_adr + 3], data.qpos[q_adr + 3:q_adr + 7]
-        v, w_body = data.qvel[v_adr:v_adr + 3], data.qvel[v_adr + 3:v_adr + 6]
-        w = ASSIST_OMEGA
-        force = self.mass * (w * w * (p_ref - p) + 2 * w * (v_ref - v))
-        err = np.zeros(3)
-        mujoco.mju_subQuat(err, q_ref, quat)  # body-frame rotation vector, quat -> q_ref
-        rot = data.xmat[b].reshape(3, 3)
-        torque = ASSIST_INERTIA * rot @ (w * w * err - 2 * w * w_body)
-        data.xfrc_applied[b, :3] = force
-        data.xfrc_applied[b, 3:] = torque
-        self.forces_n.append(float(np.linalg.norm(force)))
-        self.torques_nm.append(float(np.linalg.norm(torque)))
+        if self.forces_n or t > 0.0:  # the weld's force at the step just taken
+            f, tau = self.room.assist_wrench(data)
+            self.forces_n.append(f)
+            self.torques_nm.append(tau)
+        self.room.set_assist(data, *self.reference(t))
         return targets
 
     def summary(self) -> dict[str, float]:

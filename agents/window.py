@@ -5,9 +5,13 @@ of three stages, each planned from the state the previous one left:
 
 1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
 2. :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
-   wall, centred on the pane's travel, facing the wall (measured root assistance);
+   wall, :data:`ALONG_M` along the pane's travel, facing the wall (measured root
+   assistance);
 3. :func:`plan_window_push`: the right palm (``grip`` site) to the pane's handle, the
-   proximity grasp closes there, the hand moves along the wall by the pane's opening plus
+   proximity grasp is asked for there (it closes only if the palm is within the grasp
+   radius; measured: the hand's box meets the handle's first and the grip site stays
+   7-8 cm away, so the grasp does not close and the hand pushes the handle by contact
+   instead), the hand moves along the wall by the pane's opening plus
    :data:`OVERSHOOT_M` in :data:`PUSH_VIA` IK via-points, lets go and comes back. The
    pelvis is held where the walk left it by :class:`~simenv.agents.walk.RootAssist`
    (measured). The pane closes only if the grasp closed and the hand dragged it.
@@ -34,15 +38,22 @@ from simenv.errors import SimenvError
 from simenv.room import Room
 
 #: Pelvis distance from the handle, across the wall, when the agent stands at the window, m.
-STAND_OFF_M = 0.45
+STAND_OFF_M = 0.38
+#: Where along the pane's travel the agent stands, from the handle's open position, m
+#: (nearer the start than the middle: the closed end is by the hanging curtain, which the
+#: arm otherwise hits).
+ALONG_M = 0.15
 #: The hand slides the pane this far past its closed position (the servos lag), m.
 OVERSHOOT_M = 0.0
 #: Via-points of the push along the wall (0.4 s each).
 PUSH_VIA = 8
 #: The palm comes in from this far in front of the handle, m.
 APPROACH_M = 0.10
+#: Distance of the palm's grip site from the handle's centre, on its opening side, m (the
+#: handle box is 1.5 cm half-wide; within the grasp radius).
+HANDLE_FACE_M = 0.025
 #: Spine hinges the reaching IK may use besides the arm.
-SPINE = ("lumbar_rot", "thorax_rot", "chest_rot")
+SPINE = ("lumbar_rot", "thorax_rot", "chest_rot", "lumbar_lat", "thorax_lat", "chest_lat")
 HAND = "right_hand"
 
 
@@ -60,11 +71,11 @@ def _window_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarr
 
 
 def window_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
-    """Where to stand to close the window: pelvis (x, y), m, centred on the handle's travel
-    and :data:`STAND_OFF_M` into the room, and the heading facing the wall, rad."""
+    """Where to stand to close the window: pelvis (x, y), m, along the handle's travel
+    (:data:`ALONG_M`) and :data:`STAND_OFF_M` into the room, and the heading facing the
+    wall, rad."""
     handle, closing, inward, opening = _window_frame(room, data)
-    middle = handle + closing * 0.5 * opening
-    spot = middle + inward * STAND_OFF_M
+    spot = handle + closing * min(ALONG_M, opening) + inward * STAND_OFF_M
     face = -inward
     return spot[:2], float(np.arctan2(face[1], face[0]))
 
@@ -84,9 +95,11 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
     joints = [f"agent/{j}" for j in (*arm_joints(side), *SPINE)]
     site = f"agent/{HAND}_grip"
     travel = opening - w.lower + OVERSHOOT_M
-    goals = [handle + inward * APPROACH_M, handle + inward * 0.01]
-    goals += [handle + inward * 0.01 + closing * travel * k / PUSH_VIA
-              for k in range(1, PUSH_VIA + 1)]
+    # The palm onto the handle's face on the opening side (its centre is inside the
+    # handle's box), so that pushing it along the wall presses on that face.
+    on = handle - closing * HANDLE_FACE_M
+    goals = [on + inward * APPROACH_M, on]
+    goals += [on + closing * travel * k / PUSH_VIA for k in range(1, PUSH_VIA + 1)]
     goals.append(goals[-1] + inward * APPROACH_M)
     upper = upper_body_joints(h)
     pose = data.qpos.copy()

@@ -118,6 +118,8 @@ SWIVEL_FRICTION = 4.0
 #: to this far, m, against this Coulomb friction, N.
 CHAIR_ROLL = 0.8
 CHAIR_ROLL_FRICTION = 30.0
+#: Time constant of the root assistance weld, s (:meth:`Room.set_assist`).
+ASSIST_TIMECONST_S = 0.05
 #: Hands of the agent (keypoint site suffixes) that can grasp.
 HANDS = ("left_hand", "right_hand")
 #: A greeting needs the agent's chest to face the user within this angle, degrees.
@@ -290,6 +292,7 @@ class Room:
         self._add_grips(spec)
         self._build_user(spec)
         self._build_grasps(spec)
+        self._build_assist(spec)
         self.spec = spec
         try:
             self.model = spec.compile()
@@ -509,6 +512,23 @@ class Room:
                 eq.active = False
                 eq.solref = [0.02, 1.0]  # a firm hand (~1.5 cm give pulling a door at 40 N)
 
+    def _build_assist(self, spec: mujoco.MjSpec) -> None:
+        """The root assistance: a mocap body and an inactive soft weld from it to the
+        agent's pelvis (MuJoCo's implicit "hand of god", as in
+        :func:`simenv.plausibility.tracking.track`), time constant
+        :data:`ASSIST_TIMECONST_S`, critically damped; see :meth:`Room.set_assist`."""
+        target = spec.worldbody.add_body()
+        target.name = "agent_assist"
+        target.mocap = True
+        weld = spec.add_equality()
+        weld.name = "agent/assist"
+        weld.type = mujoco.mjtEq.mjEQ_WELD
+        weld.objtype = mujoco.mjtObj.mjOBJ_BODY
+        weld.name1, weld.name2 = "agent_assist", "agent/pelvis"
+        weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
+        weld.solref = [ASSIST_TIMECONST_S, 1.0]
+        weld.active = False
+
     def _index(self) -> None:
         m, s = self.model, self.scenario
         w = s.window.width
@@ -546,6 +566,8 @@ class Room:
             for b in range(1, um.nbody)])
         self._user_data = mujoco.MjData(um)
         self._cigarette_tip = m.geom("cigarette/tip").id
+        self._assist_eq = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, "agent/assist")
+        self._assist_mocap = int(m.body_mocapid[m.body("agent_assist").id])
         self._grasp_eq = {name: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, name)
                           for name in (f"grasp/{h}/{o}" for h in HANDS for o in self.objects)}
 
@@ -644,6 +666,29 @@ class Room:
             on = float(np.linalg.norm(hand_pos - handle)) <= GRASP_RADIUS
         data.eq_active[eq] = on
         return on
+
+    def set_assist(self, data: mujoco.MjData, pos: np.ndarray | None,
+                   quat: np.ndarray | None = None) -> None:
+        """Pull the agent's pelvis towards ``pos`` (3,), m, and ``quat`` (4,) wxyz through
+        the soft assistance weld, or release it (``pos`` None). Its force is measured by
+        :meth:`assist_wrench` and must be reported by whoever uses it."""
+        if pos is None:
+            data.eq_active[self._assist_eq] = 0
+            return
+        data.mocap_pos[self._assist_mocap] = pos
+        data.mocap_quat[self._assist_mocap] = quat
+        data.eq_active[self._assist_eq] = 1
+
+    def assist_wrench(self, data: mujoco.MjData) -> tuple[float, float]:
+        """The assistance weld's force (N) and torque (N m) magnitudes at the last step
+        (its constraint rows' ``efc_force``: translation first, then rotation); zeros
+        when released."""
+        rows = np.flatnonzero((data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+                              & (data.efc_id[:data.nefc] == self._assist_eq))
+        if len(rows) < 6:
+            return 0.0, 0.0
+        f = data.efc_force[rows]
+        return float(np.linalg.norm(f[:3])), float(np.linalg.norm(f[3:6]))
 
     # -- user ----------------------------------------------------------------
 

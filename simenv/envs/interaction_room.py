@@ -67,6 +67,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from simenv.agents.reach import PDPlan, PlanChain
 from simenv.agents.scripted import PLANNERS, object_success
 from simenv.assets import WALK
 from simenv.divergence import physics_problem, warning_counts
@@ -96,8 +97,21 @@ PLAUSIBILITY_WEIGHT = 0.1
 PENETRATION_TOLERANCE_M = 0.01
 #: The user holds the last pose this long after the recording ends, s ...
 TAIL_S = 2.0
-#: ... or longer while a reaction is still running, up to this bound, s.
-MAX_TAIL_S = 10.0
+#: ... or longer while a reaction is still running, up to this bound, s (a chained
+#: reaction such as close_window: stand up, walk, push, takes ~21 s).
+MAX_TAIL_S = 30.0
+
+
+def _assistance_total(stages: list[dict[str, Any]]) -> dict[str, float]:
+    """Root assistance over a chained reaction's stages: ``max_n`` (N), ``max_bw`` (body
+    weights), step-weighted ``mean_n`` / ``mean_bw`` and the assisted ``steps``."""
+    parts = [s["assistance"] for s in stages if "assistance" in s]
+    steps = sum(p["steps"] for p in parts)
+    if not steps:
+        return {"max_n": 0.0, "max_bw": 0.0, "mean_n": 0.0, "mean_bw": 0.0, "steps": 0}
+    return {"max_n": max(p["max_n"] for p in parts), "max_bw": max(p["max_bw"] for p in parts),
+            "mean_n": sum(p["mean_n"] * p["steps"] for p in parts) / steps,
+            "mean_bw": sum(p["mean_bw"] * p["steps"] for p in parts) / steps, "steps": steps}
 
 
 class InteractionRoomEnv(gym.Env[dict, int]):
@@ -277,16 +291,47 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             return
         try:
             plan = PLANNERS[reaction](self.room, self.data)
+            stages: list = []
+            if isinstance(plan, PlanChain):
+                stages = list(plan.stages)
+                entry["stages"] = []
+                plan = self._plan_stage(entry, stages)
         except SimenvError as exc:  # e.g. the object is out of the seated agent's reach
             entry["not_started"] = str(exc)
             return
         entry["started"] = True
         if REACTIONS[reaction].object is None:
             entry["facing_deg_min"] = None
-        if plan.grasps:
-            entry["grasped"] = False
-        self._running = {"entry": entry, "t0": t, "plan": plan, "grasps": list(plan.grasps),
+        self._running = {"entry": entry, "t0": t, "t_start": t, "plan": plan,
+                         "grasps": list(plan.grasps), "stages": stages,
                          "before": self.room.object_labels(self.data)}
+        self._note_grasps(entry, plan)
+
+    def _plan_stage(self, entry: dict[str, Any], stages: list) -> PDPlan:
+        """Plan the next stage of a chained reaction from the current state, logged in
+        ``entry["stages"]``."""
+        name, planner = stages.pop(0)
+        plan = planner(self.room, self.data)
+        entry["stages"].append({"stage": name, "duration_s": plan.duration})
+        return plan
+
+    @staticmethod
+    def _note_grasps(entry: dict[str, Any], plan: PDPlan) -> None:
+        if plan.grasps and "grasped" not in entry:
+            entry["grasped"] = False
+
+    def _end_plan(self, run: dict[str, Any]) -> None:
+        """A finished plan holds nothing and pushes nothing; its measured root assistance
+        (if it had one) goes into the log."""
+        for g in run["plan"].grasps:
+            self.room.set_grasp(self.data, g.hand, g.name, False)
+        self.room.set_assist(self.data, None)
+        if "stages" in run["entry"]:
+            stage = run["entry"]["stages"][-1]
+            stage["pelvis_end"] = self.data.qpos[self.room.agent_qpos][:3].tolist()
+            summary = getattr(run["plan"].feedback, "summary", None)
+            if summary is not None:
+                stage["assistance"] = summary()
 
     def _simulate(self, t: float) -> None:
         """One env step of physics; a running plan sets the agent's targets every substep."""
@@ -302,7 +347,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 g = run["grasps"].pop(0)
                 closed = self.room.set_grasp(d, g.hand, g.name, g.close)
                 if g.close:
-                    run["entry"]["grasped"] = closed
+                    run["entry"]["grasped"] = run["entry"]["grasped"] or closed
             d.ctrl[self.room.agent_ctrl] = plan.control(tau, d)
             mujoco.mj_step(m, d)
 
@@ -329,10 +374,20 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 entry["t_object_changed"] = entry["t_success"] = t
         if t - run["t0"] < run["plan"].duration:
             return 0.0
-        for g in run["plan"].grasps:  # a finished reaction holds nothing
-            self.room.set_grasp(self.data, g.hand, g.name, False)
+        self._end_plan(run)
+        if run["stages"] and not done:
+            try:
+                run["plan"] = self._plan_stage(entry, run["stages"])
+            except SimenvError as exc:  # a later stage is infeasible from where this one ended
+                entry["failed_stage"] = str(exc)
+            else:
+                run["t0"], run["grasps"] = t, list(run["plan"].grasps)
+                self._note_grasps(entry, run["plan"])
+                return 0.0
         self._running = None
         entry["success"] = bool(done)
+        if "stages" in entry:
+            entry["assistance"] = _assistance_total(entry["stages"])
         return SUCCESS if entry["success"] else 0.0
 
     # -- reward ----------------------------------------------------------------
@@ -372,11 +427,13 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         return dict(zip(_CONTACT_KINDS, out.tolist(), strict=True))
 
     def agent_assistance_n(self) -> float:
-        """Largest external force (N) applied now to any of the agent's bodies from
-        outside the simulation (``xfrc_applied``): the assistance a controller gets; 0
-        for every reaction here."""
+        """Largest external force (N) acting now on any of the agent's bodies from outside
+        its own body: ``xfrc_applied`` or the root assistance weld
+        (:meth:`simenv.room.Room.assist_wrench`, used by walking reactions; 0 for the
+        seated ones)."""
         forces = self.data.xfrc_applied[self._agent_bodies, :3]
-        return float(np.linalg.norm(forces, axis=1).max())
+        return max(float(np.linalg.norm(forces, axis=1).max()),
+                   self.room.assist_wrench(self.data)[0])
 
     def _excess_penetration(self) -> float:
         d = self.data

@@ -1,0 +1,42 @@
+"""The agent stands up, walks to the window along a retargeted real walk (measured root
+assistance) and tries to slide it shut, triggered by a ``cold`` label in the discomfort
+scenario (simenv.agents.walk, simenv.agents.window)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import simenv
+from simenv.assets import WALK, asset_path
+from simenv.envs.interaction_room import InteractionRoomEnv
+from simenv.session import PERCEPTION_FPS, GestureEvent
+
+
+def test_cold_label_stands_walks_to_the_window_with_measured_assistance():
+    # The real CMU walk's first half second, labelled "cold" (the user stays far away).
+    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    env = InteractionRoomEnv(short, gestures=[GestureEvent("cold", 0.2, 0.5)],
+                             scenario="discomfort")
+    from simenv.agents.window import window_spot
+
+    env.reset(seed=0)
+    spot, _ = window_spot(env.room, env.data)
+    decide, k, truncated = int(round(0.3 * PERCEPTION_FPS)), 0, False
+    act = env.reactions.index("close_window")
+    while not truncated:
+        *_, truncated, info = env.step(act if k == decide else 0)
+        k += 1
+    (entry,) = env.log
+    assert entry["started"] and entry["gesture"] == "cold"
+    stages = {s["stage"]: s for s in entry["stages"]}
+    assert list(stages)[:2] == ["stand_up", "walk"]
+    assert "assistance" not in stages["stand_up"]  # standing up is unassisted
+    walk = stages["walk"]
+    # The walk ends at the spot in front of the window, measured in simulation.
+    assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
+    a = walk["assistance"]
+    assert a["steps"] > 0 and 0.0 < a["mean_bw"] <= a["max_bw"]
+    assert entry["assistance"]["max_n"] >= a["max_n"]
+    # Success is what the window's joint says, whatever it is.
+    assert entry["success"] == (info["object_labels"]["window"] == "closed")
+    assert env.data.xfrc_applied.any() == False  # noqa: E712  (nothing left pushing)
