@@ -133,18 +133,22 @@ class RootAssist:
         self.room.set_assist(data, *self.reference(t))
         return targets
 
-    def summary(self) -> dict[str, float]:
-        """Assistance over the steps so far: ``mean_n``, ``p95_n``, ``max_n`` (N), the
-        same as fractions of body weight (``*_bw``), ``mean_torque_nm``,
-        ``max_torque_nm`` and ``steps``."""
+    def summary(self, steps_per_frame: int = 20) -> dict[str, float | int | list[float]]:
+        """Assistance over the physics steps so far: ``mean_n``, ``p95_n``, ``max_n`` (N),
+        the same as fractions of body weight (``*_bw``), ``mean_torque_nm``,
+        ``max_torque_nm``, ``steps``, and ``per_frame_n``: the mean force (N, 0.1 N
+        resolution) over each ``steps_per_frame`` physics steps (one 25 fps env step)."""
         f = np.asarray(self.forces_n) if self.forces_n else np.zeros(1)
         tq = np.asarray(self.torques_nm) if self.torques_nm else np.zeros(1)
         weight = self.mass * GRAVITY
-        out = {"mean_n": float(f.mean()), "p95_n": float(np.percentile(f, 95)),
-               "max_n": float(f.max()), "mean_torque_nm": float(tq.mean()),
-               "max_torque_nm": float(tq.max()), "steps": len(self.forces_n)}
+        out: dict[str, float | int | list[float]] = {
+            "mean_n": float(f.mean()), "p95_n": float(np.percentile(f, 95)),
+            "max_n": float(f.max()), "mean_torque_nm": float(tq.mean()),
+            "max_torque_nm": float(tq.max()), "steps": len(self.forces_n)}
         for k in ("mean", "p95", "max"):
-            out[f"{k}_bw"] = out[f"{k}_n"] / weight
+            out[f"{k}_bw"] = float(out[f"{k}_n"]) / weight
+        chunks = range(0, len(self.forces_n), steps_per_frame)
+        out["per_frame_n"] = [round(float(f[i:i + steps_per_frame].mean()), 1) for i in chunks]
         return out
 
 

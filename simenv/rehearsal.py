@@ -7,10 +7,13 @@ with one of the agents below, and writes to ``out``:
 * ``log.jsonl``: one JSON line per step, flushed as it goes: ``t``, the labelled ``gesture``,
   the last perception's ``probabilities``, ``stage`` and ``predicted_motion_m``, the
   ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
-  (fractions of each joint's range) and ``labels``;
+  (fractions of each joint's range), ``labels``, and the root assistance on the agent at
+  the step, ``assistance_n`` (N) and ``assistance_bw`` (body weights);
 * ``summary.json``: ``reactions`` (only those the agent started: ``gesture``, ``t_onset``,
   ``t_decision``, ``t_object_changed``, ``object``, ``reaction``, ``success``,
-  ``t_success``; ``facing_deg_min`` for a greeting, ``grasped`` for a grasping reaction),
+  ``t_success``; ``facing_deg_min`` for a greeting, ``grasped`` for a grasping reaction,
+  ``stages`` -- each with its ``assistance`` -- and the total ``assistance`` for a chained
+  reaction such as ``close_window``),
   ``decisions`` (every decision, with ``not_started``: why it was not carried out),
   ``decision_latency_s``
   (statistics of decision time - gesture onset over labelled gestures),
@@ -86,6 +89,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
     obs, _ = env.reset(seed=seed)
     clock.append(time.perf_counter())
     frames, agent_kp, perceptions, depths, assistance = [], [], [], [], 0.0
+    weight = env.room.agent.total_mass * 9.81  # N, for assistance as a fraction of it
     last: Perception | None = None
     answered: set[int] = set()
     step, done = 0, False
@@ -110,7 +114,8 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             step += 1
             agent_kp.append(env.room.agent_keypoints(env.data))
             depths.append(list(env.agent_penetration().values()))
-            assistance = max(assistance, env.agent_assistance_n())
+            help_n = env.agent_assistance_n()
+            assistance = max(assistance, help_n)
             if render:
                 frames.append(env.render())
             log.write(json.dumps({
@@ -122,6 +127,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
                 "objects": env.room.object_states(env.data),
                 "levels": dict(zip(OBJECTS, map(float, env.object_levels()), strict=True)),
                 "labels": info.get("object_labels"),
+                "assistance_n": help_n, "assistance_bw": help_n / weight,
             }) + "\n")
             log.flush()
     clock.append(time.perf_counter())
@@ -170,7 +176,8 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                     "object": REACTIONS[entry["reaction"]].object,
                     "reaction": entry["reaction"], "success": entry["success"],
                     "t_success": entry["t_success"]}
-        for key in ("facing_deg_min", "grasped"):  # greeting / grasping reactions
+        # greeting / grasping / chained (stand, walk, act; measured root assistance) reactions
+        for key in ("facing_deg_min", "grasped", "stages", "assistance", "failed_stage"):
             if key in entry:
                 reaction[key] = entry[key]
         reactions.append(reaction)

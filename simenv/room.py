@@ -683,6 +683,8 @@ class Room:
         """The assistance weld's force (N) and torque (N m) magnitudes at the last step
         (its constraint rows' ``efc_force``: translation first, then rotation); zeros
         when released."""
+        if not data.eq_active[self._assist_eq]:
+            return 0.0, 0.0
         rows = np.flatnonzero((data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
                               & (data.efc_id[:data.nefc] == self._assist_eq))
         if len(rows) < 6:

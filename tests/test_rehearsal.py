@@ -149,3 +149,30 @@ def test_reactions_not_started_are_not_reported(tmp_path: Path, short):
     reasons = {d["reaction"]: d["not_started"] for d in summary["decisions"]}
     assert "out of the seated agent's" in reasons["hifi_down"]
     assert reasons["bow_back"] == "not implemented"
+
+
+def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: Path,
+                                                                       shared_data):
+    """A real MSR Action3D recording labelled "cold" in the discomfort scenario (window
+    open): the agent stands up, walks to the window (root assistance measured, per step
+    in log.jsonl and per stage in the summary) and slides the pane shut with its hand."""
+    from simenv.io import msr_action3d
+
+    clip = msr_action3d.read(shared_data / "gestures" / "msr_action3d" /
+                             "a01_s01_e01_skeleton3D.txt")
+    session = Session(clip, (GestureEvent("cold", 0.0, clip.num_frames / clip.fps),))
+    summary = rehearse(session, tmp_path, scenario="discomfort", agent="labels",
+                       render=False)
+    (reaction,) = summary["reactions"]
+    assert reaction["reaction"] == "close_window" and reaction["object"] == "window"
+    assert [s["stage"] for s in reaction["stages"]] == ["stand_up", "walk", "push"]
+    walk = reaction["stages"][1]["assistance"]
+    assert walk["max_n"] > 0 and len(walk["per_frame_n"]) == -(-walk["steps"] // 20)
+    assert 0 < reaction["assistance"]["mean_bw"] <= reaction["assistance"]["max_bw"]
+    assert reaction["success"] is True
+    rows = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
+    closed = [r["t"] for r in rows if r["labels"]["window"] == "closed"]
+    t_push = reaction["t_decision"] + sum(s["duration_s"] for s in reaction["stages"][:2])
+    assert closed and min(closed) > t_push - 0.05  # closed by the push, not before
+    assert rows[0]["assistance_n"] == 0.0 and max(r["assistance_n"] for r in rows) > 0
+    assert rows[-1]["assistance_n"] == 0.0  # released once the reaction is over

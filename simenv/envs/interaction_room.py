@@ -331,7 +331,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             stage["pelvis_end"] = self.data.qpos[self.room.agent_qpos][:3].tolist()
             summary = getattr(run["plan"].feedback, "summary", None)
             if summary is not None:
-                stage["assistance"] = summary()
+                stage["assistance"] = summary(self.frame_skip)
 
     def _simulate(self, t: float) -> None:
         """One env step of physics; a running plan sets the agent's targets every substep."""
