@@ -46,7 +46,9 @@ DESIGN.md and the issue give the four weights without naming the terms; our assi
 * A-adaptation: ``0.75 · mean ||â' - a'|| + 0.1 · bone length to A's own + 0.05 · KL
   + 0.1 · JPD``, the last ``mean over real contact frames of |‖â'_i - b'_j‖ - d_real|``
   (the key joint-pair distances the augmentation must keep).
-* Skeleton prior: ``0.75 · mean |ŝ - s| + 0.05 · KL`` (the two terms that apply).
+* Skeleton prior: ``0.75 · Σ_k |ŝ_k - s_k| / 0.25 + 0.05 · KL`` (the two terms that
+  apply; summed over bones: with a per-bone mean the KL collapsed the posterior and the
+  prior sampled only scales within ±0.05 of 1), trained in its own loop.
 
 Paper vs ours
 -------------
@@ -259,8 +261,10 @@ class InteractionAugmenterConfig:
 
     Attributes:
         hidden: channels of the ST-GCN blocks and the graph-GRU state. latent: latent size
-            of both graph VAEs. prior_hidden / prior_latent: the skeleton-prior MLP.
-        epochs: passes over the training samples (the three VAEs train side by side).
+            of both graph VAEs. prior_hidden / prior_latent: the skeleton-prior MLP
+            (latent 10 = the number of symmetric scale groups). prior_steps: its Adam
+            steps (:func:`fit_prior`, after the graph VAEs).
+        epochs: passes over the training samples (the two graph VAEs train side by side).
         batch: samples per step. lr: Adam learning rate.
         scales_per_window: augmentation samples built per training window
             (:func:`simenv.augment_targets.build_targets`).
@@ -273,7 +277,8 @@ class InteractionAugmenterConfig:
     hidden: int = 24
     latent: int = 8
     prior_hidden: int = 64
-    prior_latent: int = 4
+    prior_latent: int = 10
+    prior_steps: int = 3000
     epochs: int = 8
     batch: int = 16
     lr: float = 1e-3
@@ -491,15 +496,45 @@ def losses(model: InteractionAugmenter, batch: dict[str, torch.Tensor]
                 "a_bone": (_bone_length(pa) - _bone_length(a)).abs().mean(),
                 "a_kl": _kl(mu, logvar),
                 "a_jpd": (m * (dist - batch["real_distance"]).abs()).sum() / m.sum().clamp_min(1)})
-    # skeleton prior
-    mu, logvar = model.prior.encode(s)
-    zs = mu + torch.randn_like(mu) * (0.5 * logvar).exp()
-    out.update({"s_rec": (model.prior.decode(zs) - s).abs().mean(), "s_kl": _kl(mu, logvar)})
-    out["loss"] = (c.w_rec * (out["b_rec"] + out["a_rec"] + out["s_rec"])
+    out["loss"] = (c.w_rec * (out["b_rec"] + out["a_rec"])
                    + c.w_bone * (out["b_bone"] + out["a_bone"])
-                   + c.w_kl * (out["b_kl"] + out["a_kl"] + out["s_kl"])
+                   + c.w_kl * (out["b_kl"] + out["a_kl"])
                    + c.w_rel * (out["b_vel"] + out["a_jpd"]))
     return out
+
+
+def prior_losses(model: InteractionAugmenter, scales: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Skeleton-prior terms of (B, 17) scales: ``s_rec`` = per-sample sum over bones of
+    ``|ŝ - s| / 0.25`` (a Laplace log-likelihood in units of the range's half-width; a
+    per-bone mean lets the KL collapse the posterior), ``s_kl``, and ``"loss"`` =
+    ``0.75 · s_rec + 0.05 · s_kl``."""
+    c = model.config
+    mu, logvar = model.prior.encode(scales)
+    z = mu + torch.randn_like(mu) * (0.5 * logvar).exp()
+    rec = ((model.prior.decode(z) - scales).abs().sum(dim=-1) / 0.25).mean()
+    kl = _kl(mu, logvar)
+    return {"s_rec": rec, "s_kl": kl, "loss": c.w_rec * rec + c.w_kl * kl}
+
+
+def fit_prior(model: InteractionAugmenter, scales: np.ndarray, *, seed: int = 0
+              ) -> dict[str, list[float]]:
+    """Train the skeleton prior on (M, 17) scale vectors for ``config.prior_steps`` Adam
+    steps of ``config.batch`` · 4 vectors; returns the ``prior_loss`` every 100 steps."""
+    c = model.config
+    rng = np.random.default_rng(seed)
+    data = torch.as_tensor(scales, dtype=torch.float32)
+    opt = torch.optim.Adam(model.prior.parameters(), lr=2 * c.lr)
+    model.prior.train()
+    curve = []
+    for step in range(c.prior_steps):
+        terms = prior_losses(model, data[torch.as_tensor(rng.integers(0, len(data),
+                                                                      4 * c.batch))])
+        opt.zero_grad()
+        terms["loss"].backward()
+        opt.step()
+        if step % 100 == 99:
+            curve.append(float(terms["loss"].detach()))
+    return {"prior_loss": curve}
 
 
 def _tensors(targets: at.AugmentTargets) -> dict[str, torch.Tensor]:
@@ -522,7 +557,7 @@ def fit(targets: at.AugmentTargets, config: InteractionAugmenterConfig | None = 
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     model = InteractionAugmenter(config)
-    params = [p for net in model.nets.values() for p in net.parameters()]
+    params = [p for net in (model.retarget, model.adapt) for p in net.parameters()]
     opt = torch.optim.Adam(params, lr=config.lr)
     data = _tensors(targets)
     positions = ("actor", "reactor", "actor_target", "reactor_target")
@@ -550,6 +585,7 @@ def fit(targets: at.AugmentTargets, config: InteractionAugmenterConfig | None = 
                 sums[key] = sums.get(key, 0.0) + float(v.detach()) * len(idx)
         for key, v in sums.items():
             history.setdefault(key, []).append(v / len(targets))
+    history.update(fit_prior(model, targets.scales, seed=seed))
     history["cpu_seconds"] = round(time.process_time() - start, 1)
     model.metadata = {"samples": len(targets), "target_info": targets.info}
     return model, history
@@ -558,8 +594,9 @@ def fit(targets: at.AugmentTargets, config: InteractionAugmenterConfig | None = 
 def train(train: idata.InteractionWindows, config: InteractionAugmenterConfig | None = None,
           *, seed: int = 0, progress: bool = True) -> tuple[InteractionAugmenter, dict]:
     """Build the augmentation targets of ``train`` (:func:`simenv.augment_targets.build_targets`,
-    ``config.scales_per_window`` seeded scale vectors per window) and train the three VAEs
-    side by side (Adam, one summed loss, :func:`losses`).
+    ``config.scales_per_window`` seeded scale vectors per window), train the two graph
+    VAEs side by side (Adam, one summed loss, :func:`losses`), then the skeleton prior on
+    the samples' scale vectors (:func:`fit_prior`).
 
     Returns:
         ``(model, history)``: per-epoch ``"loss"`` and every named term, ``"cpu_seconds"``

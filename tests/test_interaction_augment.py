@@ -14,9 +14,9 @@ from simenv.errors import MotionError
 from simenv.models import interaction_augment as ia
 from simenv.models.predictor import CheckpointError
 
-TINY = ia.InteractionAugmenterConfig(hidden=8, latent=4, prior_hidden=16, epochs=5,
-                                     batch=16, lr=1e-2, scales_per_window=1,
-                                     rotate_augment=False)
+TINY = ia.InteractionAugmenterConfig(hidden=8, latent=4, prior_hidden=16, epochs=6,
+                                     batch=4, lr=1e-3, scales_per_window=1,
+                                     rotate_augment=False, prior_steps=200)
 SHIPPED = Path(__file__).resolve().parent.parent / "assets" / "models" / \
     "interaction-augment.npz"
 
@@ -64,7 +64,8 @@ def test_training_lowers_loss(trained):
     model, history = trained
     assert len(history["loss"]) == TINY.epochs
     assert history["loss"][-1] < history["loss"][0]
-    assert {"b_rec", "a_rec", "a_jpd", "s_kl", "cpu_seconds"} <= set(history)
+    assert {"b_rec", "a_rec", "a_jpd", "prior_loss", "cpu_seconds"} <= set(history)
+    assert history["prior_loss"][-1] < history["prior_loss"][0]
 
 
 def test_augment_shapes_and_protocol(trained, small):
@@ -158,3 +159,9 @@ def test_shipped_checkpoint_loads_and_augments(small):
     na, nb, s = model.augment(small.actor[:2], small.reactor[:2], seed=0)
     assert np.isfinite(na).all() and np.isfinite(nb).all()
     assert SHIPPED.stat().st_size < 8 * 2 ** 20
+    # the prior spreads over the range (the uniform grid has std 0.158) and keeps the
+    # left/right symmetry of its training scales
+    s = model.sample_scales(1000, seed=0)
+    assert s.std(axis=0).mean() > 0.08 and s.min() >= 0.75 and s.max() <= 1.25
+    left, right = at.BONE_NAMES.index("left_knee"), at.BONE_NAMES.index("right_knee")
+    assert np.mean(s[:, left] == s[:, right]) > 0.8
