@@ -101,8 +101,9 @@ def held_out_metrics(name: str, model: Any, test: idata.InteractionWindows,
     """Held-out numbers of the card: for a reaction generator, the papers' metrics of the
     model and of zero-velocity on ``test`` (:func:`simenv.eval_interaction.reaction_metrics`);
     for an interaction generator, FID and diversity of samples of the test labels it
-    knows against the real test windows (both people); augmentation models: none here
-    (their module documents their own evaluation)."""
+    knows against the real test windows (both people); for an augmentation model, its
+    errors and the naive baseline's on targets built from the test windows
+    (:func:`simenv.models.interaction_augment.evaluate`, 4 scale vectors per window)."""
     from simenv.models.reaction_baselines import ZeroVelocity
 
     kind = _entry(name)[2]
@@ -133,7 +134,10 @@ def held_out_metrics(name: str, model: Any, test: idata.InteractionWindows,
             }
         out["windows"] = len(sub)
         return out
-    return {}
+    from simenv.augment_targets import build_targets
+    from simenv.models.interaction_augment import evaluate
+
+    return evaluate(model, build_targets(test, 4, seed=seed + 1), seed=seed)
 
 
 def render_card(name: str, config: Any, history: Mapping[str, Any],
