@@ -12,16 +12,15 @@ the clip's straight mean line) and yaw ``psi_k`` relative to that line becomes::
     root_xy = B(s_k) + l_k n(s_k),    yaw = atan2(B'(s_k)) + psi_k
 
 with ``n`` the path's left normal; height, tilt and hinge angles are the clip's. Time runs
-:data:`SLOWDOWN` times slower than the clip. The hinge angles are the PD servos' targets
-with the reference velocity fed through the servos' damping (``ctrl = q_ref + (kv/kp)
-qd_ref``, as :func:`simenv.plausibility.tracking.track` does). A blend-in turns the
-standing body onto the path's first pose and a blend-out brings it to the standing rest
-pose at the goal.
+:data:`SLOWDOWN` times slower than the clip, from its first frame. The hinge angles are
+the PD servos' targets with the reference velocity fed through the servos' damping
+(``ctrl = q_ref + (kv/kp) qd_ref``, as :func:`simenv.plausibility.tracking.track`
+does). A blend-in turns the standing body onto the path's first pose and a blend-out
+brings it to the standing rest pose at the goal.
 
 Root assistance (:class:`RootAssist`): the PD servos alone do not keep the walking body up
-(tracking a walk without help falls within a second; measured in
-:mod:`simenv.plausibility.tracking`), so a force and a torque on the pelvis
-pull it along the reference root through a soft weld from a mocap target to the pelvis
+(measured: see docs/room.md), so a force and a torque on the pelvis pull it along the
+reference root through a soft weld from a mocap target to the pelvis
 (:meth:`simenv.room.Room.set_assist`, time constant
 :data:`simenv.room.ASSIST_TIMECONST_S`, critically damped: MuJoCo's implicit "hand of
 god"; an explicit PD force on the light pelvis body went unstable at useful rotational

@@ -52,6 +52,8 @@ APPROACH_M = 0.10
 #: Distance of the palm's grip site from the handle's centre, on its opening side, m (the
 #: handle box is 1.5 cm half-wide; within the grasp radius).
 HANDLE_FACE_M = 0.025
+#: The palm comes onto the handle from this far to its opening side, m.
+SIDE_M = 0.06
 #: Spine hinges the reaching IK may use besides the arm.
 SPINE = ("lumbar_rot", "thorax_rot", "chest_rot", "lumbar_lat", "thorax_lat", "chest_lat")
 HAND = "right_hand"
@@ -97,8 +99,11 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
     travel = opening - w.lower + OVERSHOOT_M
     # The palm onto the handle's face on the opening side (its centre is inside the
     # handle's box), so that pushing it along the wall presses on that face.
+    # It comes in from in front and to that side (the hand lags its targets: approaching
+    # straight on, it overshot past the handle and pushed it the wrong way, measured).
     on = handle - closing * HANDLE_FACE_M
-    goals = [on + inward * APPROACH_M, on]
+    beside = on - closing * SIDE_M
+    goals = [beside + inward * APPROACH_M, beside, on]
     goals += [on + closing * travel * k / PUSH_VIA for k in range(1, PUSH_VIA + 1)]
     goals.append(goals[-1] + inward * APPROACH_M)
     upper = upper_body_joints(h)
@@ -110,11 +115,11 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
             raise SimenvError(f"the window's handle is out of the standing agent's reach "
                               f"({err:.3f} m short)", field="window")
         targets.append(pd_targets(h, pose[room.agent_qpos], upper))
-    before, on, *pushing, after = targets
+    before, side, on, *pushing, after = targets
     rest = pd_targets(h, h.default_qpos(), upper)
     now = data.ctrl[room.agent_ctrl].copy()
-    segments = [PDTrajectory(now, before, 1.2), PDTrajectory(before, on, 0.6),
-                PDTrajectory(on, on, 0.3)]
+    segments = [PDTrajectory(now, before, 1.2), PDTrajectory(before, side, 0.5),
+                PDTrajectory(side, on, 0.4), PDTrajectory(on, on, 0.3)]
     t_close = sum(s.duration for s in segments) - 0.05
     for a, b in zip([on, *pushing], pushing, strict=False):
         segments.append(PDTrajectory(a, b, 0.4))

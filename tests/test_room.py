@@ -31,7 +31,8 @@ def test_bundled_scenarios_compile():
         r = Room(name)
         data = r.make_data()
         assert set(r.objects) == set(OBJECTS)
-        assert r.model.nmocap == r.user.model.nbody - 1  # user: kinematic, no dofs
+        # the user (kinematic, no dofs) and the agent's root-assistance target
+        assert r.model.nmocap == r.user.model.nbody - 1 + 1
         assert r.model.nu == r.agent.model.nu  # only the agent is actuated
         assert np.isfinite(data.qpos).all()
 
