@@ -18,8 +18,10 @@ Implemented, all seated (:data:`PLANNERS`):
 * ``greet``: turn to the user (the chair's swivel turned by the planted feet, then the
   spine) and wave the user-side arm above the shoulder (:func:`plan_greet`).
 
-Reactions that need the agent to stand and walk (window, curtain, door, a hi-fi across the
-room) are left to later layers (reference motions of real clips, balance control).
+Standing ones (stand up, walk with a measured root assistance, act) are chained stages:
+``close_window`` (:mod:`simenv.agents.window`) and ``close_curtain``
+(:mod:`simenv.agents.curtain`). The door, ``open_window`` and a hi-fi across the room are
+not done.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from simenv.agents.curtain import plan_close_curtain
 from simenv.agents.reach import (
     GraspEvent,
     PDPlan,
@@ -297,9 +300,11 @@ def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 #: Reaction name -> planner (room, data) -> PDPlan, or a PlanChain of stages planned one
-#: after the other (``close_window``: stand up, walk, push; :mod:`simenv.agents.window`).
+#: after the other (``close_window`` / ``close_curtain``: stand up, walk, push / pull;
+#: :mod:`simenv.agents.window`, :mod:`simenv.agents.curtain`).
 PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
     "cigarette_out": plan_cigarette_out,
+    "close_curtain": plan_close_curtain,
     "close_window": plan_close_window,
     "greet": plan_greet,
     "hifi_down": plan_hifi_down,

@@ -41,3 +41,24 @@ def test_cold_label_stands_walks_to_the_window_with_measured_assistance():
     assert entry["success"] == (info["object_labels"]["window"] == "closed")
     assert entry["success"] is True and entry["t_object_changed"] > entry["t_decision"]
     assert env.room.assist_wrench(env.data) == (0.0, 0.0)  # released at the end
+
+
+def test_bright_label_draws_the_curtain_through_the_grasp():
+    """Discomfort scenario, "bright" on the real walk: stand up, walk to the curtain, the
+    palm's proximity grasp closes on its edge and the hand draws it past its threshold."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    env = InteractionRoomEnv(short, gestures=[GestureEvent("bright", 0.2, 0.5)],
+                             scenario="discomfort")
+    env.reset(seed=0)
+    decide, k, truncated = int(round(0.3 * PERCEPTION_FPS)), 0, False
+    act = env.reactions.index("close_curtain")
+    while not truncated:
+        *_, truncated, info = env.step(act if k == decide else 0)
+        k += 1
+    (entry,) = env.log
+    assert [s["stage"] for s in entry["stages"]] == ["stand_up", "walk", "pull"]
+    assert entry["grasped"] is True
+    assert entry["success"] is True and info["object_labels"]["curtain"] == "closed"
+    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
+    assert entry["t_object_changed"] > pull_start
+    assert entry["assistance"]["max_bw"] > 0

@@ -1,0 +1,155 @@
+"""Drawing the curtain: stand up, walk to it, grasp its edge and pull it across the window.
+
+``close_curtain`` (:func:`plan_close_curtain`) is a :class:`~simenv.agents.reach.PlanChain`
+like ``close_window`` (:mod:`simenv.agents.window`): stand up, walk (measured root
+assistance) to a spot :data:`STAND_OFF_M` in front of the curtain's handle (its leading
+edge) and :data:`ALONG_M` along its travel, then :func:`plan_curtain_pull`: the right palm
+(``grip`` site) onto the handle, the proximity grasp closes there if the palm is within the
+grasp radius, the hand draws the curtain along its rail towards :data:`TARGET_FRACTION` of
+its travel in :data:`PULL_VIA` IK via-points, lets go and comes back; the pelvis is held
+where the walk left it (:class:`~simenv.agents.walk.RootAssist`, measured). The curtain
+closes only if the hand drags it past its threshold.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from simenv.agents.reach import (
+    GraspEvent,
+    PDPlan,
+    PDTrajectory,
+    PlanChain,
+    arm_joints,
+    pd_targets,
+    reach_pose,
+    upper_body_joints,
+)
+from simenv.agents.stand import plan_stand_up
+from simenv.agents.walk import RootAssist, plan_walk
+from simenv.agents.window import SPINE
+from simenv.errors import SimenvError
+from simenv.room import Room
+
+#: Pelvis distance from the curtain's handle, across the wall, m.
+STAND_OFF_M = 0.38
+#: Where along the curtain's travel the agent stands, from the handle's position now, m.
+ALONG_M = 0.30
+#: The pull aims at this fraction of the curtain's travel (the ``closed`` threshold is
+#: 0.75), and as far as the standing arm reaches.
+TARGET_FRACTION = 0.95
+#: Via-points of the pull (0.4 s each).
+PULL_VIA = 10
+#: The palm comes in from this far in front of the handle, m.
+APPROACH_M = 0.10
+#: After letting go the hand backs off the panel this far, then lowers this far, m.
+BACK_OFF_M = 0.25
+LOWER_M = 0.3
+HAND = "right_hand"
+
+
+def _curtain_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray,
+                                                             np.ndarray, float]:
+    """The handle (3,), the closing direction along the rail (3,), the wall's inward
+    normal (3,), world frame, and the curtain's state (m)."""
+    m, c = room.model, room.objects["curtain"]
+    handle = data.site_xpos[m.site(c.handle).id].copy()
+    jnt = m.joint(c.joint).id
+    closing = data.xaxis[jnt].copy()  # the slide closes along +axis
+    wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
+    inward = -wall[:, 1]
+    return handle, closing, inward, float(data.qpos[c.qpos_adr])
+
+
+def curtain_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
+    """Where to stand to draw the curtain: pelvis (x, y), m, and the heading facing the
+    wall, rad."""
+    handle, closing, inward, _ = _curtain_frame(room, data)
+    spot = handle + closing * ALONG_M + inward * STAND_OFF_M
+    face = -inward
+    return spot[:2], float(np.arctan2(face[1], face[0]))
+
+
+def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for drawing the curtain from where the agent stands (module docstring).
+
+    Raises:
+        SimenvError: the curtain is already closed, or its handle is out of the standing
+            agent's reach (IK more than 3 cm short); the pull stops at the last via-point
+            within reach and fails if that is not past the ``closed`` threshold.
+    """
+    m, h, c = room.model, room.agent, room.objects["curtain"]
+    handle, closing, inward, state = _curtain_frame(room, data)
+    if state > c.threshold:
+        raise SimenvError("the curtain is already closed", field="curtain")
+    joints = [f"agent/{j}" for j in (*arm_joints(HAND.split("_")[0]), *SPINE)]
+    site = f"agent/{HAND}_grip"
+    travel = TARGET_FRACTION * c.upper - state
+    upper = upper_body_joints(h)
+    pose = data.qpos.copy()
+    targets = []
+    goals = [handle + inward * APPROACH_M, handle]
+    goals += [handle + closing * travel * k / PULL_VIA for k in range(1, PULL_VIA + 1)]
+    reached = 0.0
+    for k, goal in enumerate(goals):
+        solved, err = reach_pose(m, pose, site, goal, joints, iterations=300)
+        if err > 0.03:
+            if k < 2:
+                raise SimenvError(f"the curtain's handle is out of the standing agent's "
+                                  f"reach ({err:.3f} m short)", field="curtain")
+            break
+        pose = solved
+        reached = (k - 1) * travel / PULL_VIA
+        targets.append(pd_targets(h, pose[room.agent_qpos], upper))
+    if state + reached <= c.threshold:
+        raise SimenvError(f"the standing agent's hand reaches {reached:.2f} m along the "
+                          f"rail; the curtain needs {c.threshold - state:.2f} m",
+                          field="curtain")
+    before, on, *pulling = targets
+    # Back off the panel before lowering the arm: swinging down to rest straight from the
+    # rail, the hand brushed the curtain and dragged it back (0.93 -> 0.66 m, measured).
+    last = goals[len(targets) - 1]
+    back, _ = reach_pose(m, pose, site, last + inward * BACK_OFF_M, joints, iterations=300)
+    low, _ = reach_pose(m, back, site, last + inward * BACK_OFF_M - [0.0, 0.0, LOWER_M],
+                        joints, iterations=300)
+    away, down = (pd_targets(h, p[room.agent_qpos], upper) for p in (back, low))
+    rest = pd_targets(h, h.default_qpos(), upper)
+    now = data.ctrl[room.agent_ctrl].copy()
+    segments = [PDTrajectory(now, before, 1.2), PDTrajectory(before, on, 0.6),
+                PDTrajectory(on, on, 0.3)]
+    t_close = sum(s.duration for s in segments) - 0.05
+    for a, b in zip([on, *pulling], pulling, strict=False):
+        segments.append(PDTrajectory(a, b, 0.4))
+    segments.append(PDTrajectory(pulling[-1], pulling[-1], 0.3))
+    t_open = sum(s.duration for s in segments) - 0.05
+    segments += [PDTrajectory(pulling[-1], away, 0.6), PDTrajectory(away, down, 0.6),
+                 PDTrajectory(down, rest, 0.8)]
+    total = sum(s.duration for s in segments)
+    q = data.qpos[room.agent_qpos]
+    hold = RootAssist(room, np.array([0.0, total]), np.repeat(q[None, :3], 2, axis=0),
+                      np.repeat(q[None, 3:7], 2, axis=0))
+    return PDPlan(segments, [GraspEvent(t_close, HAND, "curtain", True),
+                             GraspEvent(t_open, HAND, "curtain", False)], feedback=hold)
+
+
+def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for walking to :func:`curtain_spot`, leaving towards the wall."""
+    spot, face = curtain_spot(room, data)
+    return plan_walk(room, data, spot, face, start_yaw=face)
+
+
+def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:
+    """``close_curtain``: stand up, walk to the curtain, draw it (module docstring).
+
+    Raises:
+        SimenvError: the curtain is already closed.
+    """
+    c = room.objects["curtain"]
+    if float(data.qpos[c.qpos_adr]) > c.threshold:
+        raise SimenvError("the curtain is already closed", field="curtain")
+    return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_curtain),
+                      ("pull", plan_curtain_pull)))
+
+
+__all__ = ["curtain_spot", "plan_close_curtain", "plan_curtain_pull", "plan_walk_to_curtain"]
