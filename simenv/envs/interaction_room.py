@@ -43,17 +43,24 @@ Episode
 
 Execution
     A decision whose reaction has a planner in :data:`simenv.agents.scripted.PLANNERS`
-    (``cigarette_out``, ``hifi_down``, ``greet``) starts it when the agent is idle and the
-    planner finds it feasible from the current state: the plan's PD targets are applied at
-    every physics step until it ends, and the object changes state only if the agent's
-    hand makes it so. Other decisions are logged and rewarded as decisions but not carried
-    out (``started`` False, ``not_started`` says why: not implemented, busy with another
-    reaction, or the planner's reason, e.g. the hi-fi out of seated reach). :attr:`log`
-    lists every decision with ``t_decision``, ``reaction``, ``gesture``, ``started``,
-    ``not_started``, ``t_object_changed``, ``t_success`` (when success was first measured)
-    and ``success``, plus ``facing_deg_min`` for a greeting (the closest the chest came to
-    facing the user) and ``grasped`` for a reaction that grasps (whether the proximity
-    grasp closed: the hand was at the handle).
+    (``cigarette_out``, ``hifi_down``, ``greet`` seated; ``close_window`` and
+    ``close_curtain`` as chained stages: stand up, walk, act) starts it when the agent is
+    idle and the planner finds it feasible from the current state: the plan's PD targets are
+    applied at every physics step until it ends, and the object changes state only if the
+    agent's hand makes it so. Other decisions are logged and rewarded as decisions but not
+    carried out (``started`` False, ``not_started`` says why: not implemented, busy with
+    another reaction, or the planner's reason, e.g. the hi-fi out of seated reach).
+    :attr:`log` lists every decision with ``t_decision``, ``reaction``, ``gesture``,
+    ``started``, ``not_started``, ``t_object_changed``, ``t_success`` (when success was
+    first measured) and ``success``, plus ``facing_deg_min`` for a greeting (the closest the
+    chest came to facing the user) and ``grasped`` for a reaction that grasps (whether the
+    proximity grasp closed: the hand was at the handle). A chained reaction
+    (:class:`~simenv.agents.reach.PlanChain`) plans each stage when the previous one ends,
+    from the state it left, until its object succeeds or the stages run out; its entry lists
+    ``stages`` (``stage``, ``duration_s``, ``pelvis_end`` and, for a stage with a root
+    assistance, ``assistance``: the weld's force per physics step summarised in N and body
+    weights, with ``per_frame_n`` per env step), the total ``assistance``, and
+    ``failed_stage`` when a later stage could not be planned.
 """
 
 from __future__ import annotations
