@@ -51,6 +51,8 @@ SLOWDOWN = 2.0
 #: standing at the goal, s.
 BLEND_IN_S = 1.2
 BLEND_OUT_S = 1.2
+#: The walk starts only with the pelvis at least this fraction of its standing height.
+STANDING_FRACTION = 0.9
 #: Bezier handle length as a fraction of the start-goal distance.
 HANDLE_FRACTION = 0.45
 GRAVITY = 9.81
@@ -188,7 +190,9 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     with :class:`RootAssist` (the plan's feedback; read its ``summary()`` afterwards).
 
     Raises:
-        SimenvError: the goal is closer than 0.3 m, or farther than the clip walks.
+        SimenvError: the agent is not standing (pelvis below :data:`STANDING_FRACTION` of
+            its standing height: it fell, it is seated), the goal is closer than 0.3 m, or
+            farther than the clip walks.
 
     Returns:
         the plan: blend-in, the walk (the clip's frames up to the path's length, played
@@ -196,6 +200,10 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     """
     h = room.agent
     q_now = data.qpos[room.agent_qpos].copy()
+    rest = float(h.default_qpos()[2])
+    if q_now[2] < STANDING_FRACTION * rest:
+        raise SimenvError(f"the agent is not standing (pelvis {q_now[2]:.2f} m, standing "
+                          f"{rest:.2f} m): it cannot walk", field="walk")
     yaw0 = float(_yaw(q_now[3:7])) if start_yaw is None else float(start_yaw)
     ctrl_pts = walk_path(q_now[:2], yaw0, goal, goal_yaw)
     dense = np.linspace(0.0, 1.0, 400)
