@@ -62,3 +62,17 @@ def test_bright_label_draws_the_curtain_through_the_grasp():
     pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
     assert entry["t_object_changed"] > pull_start
     assert entry["assistance"]["max_bw"] > 0
+
+
+def test_walk_refuses_a_body_that_is_not_standing():
+    """The seated agent (pelvis on the chair) is not walked anywhere by the weld."""
+    import pytest
+
+    from simenv.agents.walk import plan_walk
+    from simenv.errors import SimenvError
+    from simenv.room import Room
+
+    room = Room("discomfort")
+    data = room.make_data()
+    with pytest.raises(SimenvError, match="not standing"):
+        plan_walk(room, data, np.array([-1.0, 1.5]), np.pi / 2)
