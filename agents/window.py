@@ -10,7 +10,7 @@ of three stages, each planned from the state the previous one left:
 3. :func:`plan_window_push`: the right palm (``grip`` site) to the pane's handle, the
    proximity grasp is asked for there (it closes only if the palm is within the grasp
    radius; measured: the hand's box meets the handle's first and the grip site stays
-   7-8 cm away, so the grasp does not close and the hand pushes the handle by contact
+   7.7-8.4 cm away, so the grasp does not close and the hand pushes the handle by contact
    instead), the hand moves along the wall by the pane's opening plus
    :data:`OVERSHOOT_M` in :data:`PUSH_VIA` IK via-points, lets go and comes back. The
    pelvis is held where the walk left it by :class:`~simenv.agents.walk.RootAssist`
