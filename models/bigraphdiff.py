@@ -88,7 +88,7 @@ from tqdm import tqdm
 
 from simenv import interaction_data as idata
 from simenv.errors import MotionError, SimenvError
-from simenv.models.predictor import CheckpointError
+from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 
 CHECKPOINT_FORMAT = "simenv-bigraphdiff-1"
 
@@ -504,22 +504,14 @@ class BiGraphDiff:
     # -- checkpoints ------------------------------------------------------------------------
 
     def save(self, path: str | Path, metadata: dict | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (arrays only): format, config / labels / metadata
-        JSON, standardisation and the denoiser's state dict."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array(CHECKPOINT_FORMAT),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "labels": np.array(json.dumps(list(self.labels))),
-            "metadata": np.array(json.dumps(metadata or {})),
-            "window": np.array(self.window), "mean": self.mean, "std": self.std,
-        }
-        for key, value in self.denoiser.state_dict().items():
-            arrays[f"denoiser.{key}"] = value.detach().cpu().numpy()
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format, config
+        and metadata JSON, labels (JSON) and window, standardisation and the denoiser's
+        state dict."""
+        return save_checkpoint(
+            path, CHECKPOINT_FORMAT, asdict(self.config), {"denoiser": self.denoiser},
+            metadata=metadata, arrays={"labels": np.array(json.dumps(list(self.labels))),
+                                       "window": np.array(self.window),
+                                       "mean": self.mean, "std": self.std})
 
     @classmethod
     def load(cls, path: str | Path) -> BiGraphDiff:
@@ -529,26 +521,16 @@ class BiGraphDiff:
             CheckpointError: missing or unreadable file, another format, or weights that
                 do not fit the config.
         """
-        path = Path(path)
+        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
         try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"cannot read BiGraphDiff checkpoint: {exc}",
-                                  source=path) from None
-        with data:
-            if "format" not in data.files or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            try:
-                config = BiGraphDiffConfig(**json.loads(str(data["config"])))
-                model = cls(config, json.loads(str(data["labels"])), data["mean"],
-                            data["std"], int(data["window"]))
-                model.metadata = json.loads(str(data["metadata"]))
-                state = {k[len("denoiser."):]: torch.as_tensor(data[k]) for k in data.files
-                         if k.startswith("denoiser.")}
-                model.denoiser.load_state_dict(state)
-            except (KeyError, TypeError, ValueError, RuntimeError) as exc:
-                raise CheckpointError(f"BiGraphDiff checkpoint does not fit: {exc}",
-                                      source=path) from None
+            model = cls(BiGraphDiffConfig(**ck.config),
+                        json.loads(str(ck.arrays["labels"])), ck.arrays["mean"],
+                        ck.arrays["std"], int(ck.arrays["window"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointError(f"BiGraphDiff checkpoint does not fit: {exc}",
+                                  source=ck.path) from None
+        ck.load_into({"denoiser": model.denoiser})
+        model.metadata = ck.metadata
         model.denoiser.eval()
         return model
 

@@ -73,7 +73,6 @@ other classes *and* central scales on the train side; the rest is unused).
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -89,7 +88,7 @@ from simenv import augment_targets as at
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
 from simenv.interaction_metrics import KEY_JOINT_PAIRS
-from simenv.models.predictor import CheckpointError
+from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 
 CHECKPOINT_FORMAT = "simenv-interaction-augment-v1"
 J = len(at.PARENTS)
@@ -398,22 +397,10 @@ class InteractionAugmenter:
     # -- checkpoints ------------------------------------------------------------------------
 
     def save(self, path: str | Path, metadata: dict | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (arrays only): format, config JSON, metadata JSON
-        and the state dicts of the three networks."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array(CHECKPOINT_FORMAT),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "metadata": np.array(json.dumps({**self.metadata, **(metadata or {})},
-                                            default=float)),
-        }
-        for name, net in self.nets.items():
-            for key, value in net.state_dict().items():
-                arrays[f"{name}.{key}"] = value.detach().cpu().numpy()
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format, config
+        JSON, metadata JSON and the state dicts of the three networks."""
+        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config), self.nets,
+                               metadata={**self.metadata, **(metadata or {})})
 
     @classmethod
     def load(cls, path: str | Path) -> InteractionAugmenter:
@@ -423,32 +410,14 @@ class InteractionAugmenter:
             CheckpointError: missing or unreadable file, another format, or weights that
                 do not fit the config.
         """
-        path = Path(path)
+        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
         try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"cannot read interaction-augment checkpoint: {exc}",
-                                  source=path) from None
-        with data:
-            if "format" not in data.files or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            try:
-                config = InteractionAugmenterConfig(**json.loads(str(data["config"])))
-            except (KeyError, TypeError, ValueError) as exc:
-                raise CheckpointError(f"bad config in checkpoint: {exc}",
-                                      source=path) from None
-            model = cls(config)
-            model.metadata = json.loads(str(data["metadata"])) if "metadata" in data.files \
-                else {}
-            for name, net in model.nets.items():
-                prefix = name + "."
-                state = {k[len(prefix):]: torch.as_tensor(data[k]) for k in data.files
-                         if k.startswith(prefix)}
-                try:
-                    net.load_state_dict(state)
-                except RuntimeError as exc:
-                    raise CheckpointError(f"{name} weights do not fit the config: {exc}",
-                                          source=path) from None
+            config = InteractionAugmenterConfig(**ck.config)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointError(f"bad config in checkpoint: {exc}", source=ck.path) from None
+        model = cls(config)
+        model.metadata = ck.metadata
+        ck.load_into(model.nets)
         return model
 
 

@@ -105,7 +105,6 @@ Paper vs ours
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -118,8 +117,8 @@ from torch import nn
 
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
+from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from simenv.models.gesture_classifier import adjacency_mask
-from simenv.models.predictor import CheckpointError
 from simenv.models.reaction_baselines import _mirror_index, check_inputs
 
 CHECKPOINT_FORMAT = "simenv-interformer-1"
@@ -480,21 +479,11 @@ class InterFormer(nn.Module):
     # -- checkpoints --------------------------------------------------------------------
 
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (arrays only, no pickle): format tag, config and
-        ``metadata`` as JSON strings, and the weights."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array(CHECKPOINT_FORMAT),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "metadata": np.array(json.dumps(metadata if metadata is not None
-                                            else self.metadata)),
-        }
-        for key, value in self.state_dict().items():
-            arrays[f"weights.{key}"] = value.detach().cpu().numpy()
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format tag,
+        config and ``metadata`` as JSON strings, and the weights."""
+        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config),
+                               {"weights": self}, metadata=metadata if metadata is not None
+                               else self.metadata)
 
     @classmethod
     def load(cls, path: str | Path) -> InterFormer:
@@ -504,29 +493,14 @@ class InterFormer(nn.Module):
             CheckpointError: missing or unreadable file, another format, or weights that
                 do not fit the config.
         """
-        path = Path(path)
+        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
         try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"cannot read InterFormer checkpoint: {exc}",
-                                  source=path) from None
-        with data:
-            if "format" not in data.files or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            try:
-                config = InterFormerConfig(**json.loads(str(data["config"])))
-            except (TypeError, ValueError, MotionError) as exc:
-                raise CheckpointError(f"bad config in checkpoint: {exc}",
-                                      source=path) from None
-            model = cls(config)
-            state = {k.removeprefix("weights."): torch.as_tensor(data[k])
-                     for k in data.files if k.startswith("weights.")}
-            try:
-                model.load_state_dict(state)
-            except RuntimeError as exc:
-                raise CheckpointError(f"weights do not fit the config: {exc}",
-                                      source=path) from None
-            model.metadata = json.loads(str(data["metadata"]))
+            config = InterFormerConfig(**ck.config)
+        except (TypeError, ValueError, MotionError) as exc:
+            raise CheckpointError(f"bad config in checkpoint: {exc}", source=ck.path) from None
+        model = cls(config)
+        ck.load_into({"weights": model})
+        model.metadata = ck.metadata
         return model.eval()
 
 

@@ -90,8 +90,9 @@ import torch
 from torch import nn
 
 from simenv import srvf
-from simenv.errors import MotionError, SimenvError
+from simenv.errors import MotionError
 from simenv.models.baselines import check_history
+from simenv.models.checkpoint import CheckpointError
 from simenv.prediction_data import PRED17_JOINTS, PRED17_LAYOUT, PredictionWindows
 
 NUM_JOINTS = 17
@@ -108,10 +109,6 @@ LOSS_WEIGHTS = {"adv": 1.0, "rec": 1.0, "gram": 10.0, "bone": 10.0}
 GP_LAMBDA = 10.0
 #: Format tag of checkpoint files.
 CHECKPOINT_FORMAT = "simenv-predictive-ma-wgan-1"
-
-
-class CheckpointError(SimenvError):
-    """A predictor checkpoint is missing, unreadable or of another format."""
 
 
 # -- heading normalisation ------------------------------------------------------

@@ -100,7 +100,6 @@ Paper vs ours
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -114,7 +113,7 @@ from torch.nn import functional as F
 
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
-from simenv.models.predictor import CheckpointError
+from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
 from simenv.models.reaction_baselines import _mirror_index, check_inputs
 
 #: Checkpoint format tag.
@@ -432,22 +431,11 @@ class ReactiveGAN:
     # -- checkpoints -----------------------------------------------------------------------
 
     def save(self, path: str | Path, metadata: dict | None = None) -> Path:
-        """Write an ``.npz`` of arrays only (no pickle): format tag, config JSON, metadata
-        JSON and the generator and discriminator state dicts."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array(CHECKPOINT_FORMAT),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "metadata": np.array(json.dumps(metadata or {})),
-        }
-        for prefix, net in (("generator", self.generator),
-                            ("discriminator", self.discriminator)):
-            for key, value in net.state_dict().items():
-                arrays[f"{prefix}.{key}"] = value.detach().cpu().numpy()
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format tag,
+        config JSON, metadata JSON and the generator and discriminator state dicts."""
+        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config),
+                               {"generator": self.generator,
+                                "discriminator": self.discriminator}, metadata=metadata)
 
     @classmethod
     def load(cls, path: str | Path) -> ReactiveGAN:
@@ -457,33 +445,16 @@ class ReactiveGAN:
             CheckpointError: missing or unreadable file, another format, or weights that
                 do not fit the config.
         """
-        path = Path(path)
+        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
         try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"cannot read reactive-GAN checkpoint: {exc}",
-                                  source=path) from None
-        with data:
-            if "format" not in data.files or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            try:
-                raw = json.loads(str(data["config"]))
-                raw["labels"] = tuple(raw["labels"])
-                model = cls(ReactiveGANConfig(**raw))
-                metadata = json.loads(str(data["metadata"]))
-            except (KeyError, TypeError, ValueError, MotionError) as exc:
-                raise CheckpointError(f"bad config in the checkpoint: {exc}",
-                                      source=path) from None
-            for prefix, net in (("generator", model.generator),
-                                ("discriminator", model.discriminator)):
-                state = {k[len(prefix) + 1:]: torch.as_tensor(data[k]) for k in data.files
-                         if k.startswith(prefix + ".")}
-                try:
-                    net.load_state_dict(state)
-                except RuntimeError as exc:
-                    raise CheckpointError(f"{prefix} weights do not fit the config: {exc}",
-                                          source=path) from None
-        model.metadata = metadata
+            raw = dict(ck.config)
+            raw["labels"] = tuple(raw["labels"])
+            model = cls(ReactiveGANConfig(**raw))
+        except (KeyError, TypeError, ValueError, MotionError) as exc:
+            raise CheckpointError(f"bad config in the checkpoint: {exc}",
+                                  source=ck.path) from None
+        ck.load_into({"generator": model.generator, "discriminator": model.discriminator})
+        model.metadata = ck.metadata
         return model
 
 
