@@ -17,9 +17,7 @@ import mujoco
 import numpy as np
 
 from simenv.agents.reach import (
-    GraspEvent,
     PDPlan,
-    PDTrajectory,
     PlanChain,
     arm_joints,
     pd_targets,
@@ -27,7 +25,7 @@ from simenv.agents.reach import (
     upper_body_joints,
 )
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import RootAssist, plan_walk
+from simenv.agents.walk import held_grasp_stroke, plan_walk
 from simenv.agents.window import SPINE
 from simenv.errors import SimenvError
 from simenv.room import Room
@@ -118,22 +116,8 @@ def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
                         joints, iterations=300)
     away, down = (pd_targets(h, p[room.agent_qpos], upper) for p in (back, low))
     rest = pd_targets(h, h.default_qpos(), upper)
-    now = data.ctrl[room.agent_ctrl].copy()
-    segments = [PDTrajectory(now, before, 1.2), PDTrajectory(before, on, 0.6),
-                PDTrajectory(on, on, 0.3)]
-    t_close = sum(s.duration for s in segments) - 0.05
-    for a, b in zip([on, *pulling], pulling, strict=False):
-        segments.append(PDTrajectory(a, b, 0.4))
-    segments.append(PDTrajectory(pulling[-1], pulling[-1], 0.3))
-    t_open = sum(s.duration for s in segments) - 0.05
-    segments += [PDTrajectory(pulling[-1], away, 0.6), PDTrajectory(away, down, 0.6),
-                 PDTrajectory(down, rest, 0.8)]
-    total = sum(s.duration for s in segments)
-    q = data.qpos[room.agent_qpos]
-    hold = RootAssist(room, np.array([0.0, total]), np.repeat(q[None, :3], 2, axis=0),
-                      np.repeat(q[None, 3:7], 2, axis=0))
-    return PDPlan(segments, [GraspEvent(t_close, HAND, "curtain", True),
-                             GraspEvent(t_open, HAND, "curtain", False)], feedback=hold)
+    return held_grasp_stroke(room, data, [(before, 1.2), (on, 0.6)], pulling,
+                             [(away, 0.6), (down, 0.6), (rest, 0.8)], HAND, "curtain")
 
 
 def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> PDPlan:

@@ -31,13 +31,20 @@ is recorded and reported
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import mujoco
 import numpy as np
 
-from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
+from simenv.agents.reach import (
+    GraspEvent,
+    PDPlan,
+    PDTrajectory,
+    pd_targets,
+    upper_body_joints,
+)
 from simenv.assets import WALK, asset_path
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
@@ -262,4 +269,41 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     return PDPlan(segments, feedback=RootAssist(room, times, pos, quat))
 
 
-__all__ = ["KeyframeTrajectory", "RootAssist", "plan_walk", "walk_path"]
+#: Seconds per via-point of a grasped stroke, and the holds before and after it.
+STROKE_STEP_S = 0.4
+STROKE_HOLD_S = 0.3
+
+
+def held_grasp_stroke(room: Room, data: mujoco.MjData, approach: Sequence[tuple[np.ndarray,
+                      float]], strokes: Sequence[np.ndarray], leave: Sequence[tuple[
+                      np.ndarray, float]], hand: str, obj: str) -> PDPlan:
+    """A standing manipulation with the pelvis held where it is (measured
+    :class:`RootAssist`): PD targets through ``approach`` ((targets, seconds) pairs, the
+    last one on the object), held :data:`STROKE_HOLD_S`, the proximity grasp of ``obj`` by
+    ``hand`` asked for, the ``strokes`` via-points (:data:`STROKE_STEP_S` each), a hold,
+    the grasp released, then ``leave`` ((targets, seconds) pairs). Grasp events fire 50 ms
+    before the end of each hold (so the hand is still and on its mark)."""
+    now = data.ctrl[room.agent_ctrl].copy()
+    segments, prev = [], now
+    for target, seconds in approach:
+        segments.append(PDTrajectory(prev, target, seconds))
+        prev = target
+    segments.append(PDTrajectory(prev, prev, STROKE_HOLD_S))
+    t_close = sum(s.duration for s in segments) - 0.05
+    for target in strokes:
+        segments.append(PDTrajectory(prev, target, STROKE_STEP_S))
+        prev = target
+    segments.append(PDTrajectory(prev, prev, STROKE_HOLD_S))
+    t_open = sum(s.duration for s in segments) - 0.05
+    for target, seconds in leave:
+        segments.append(PDTrajectory(prev, target, seconds))
+        prev = target
+    total = sum(s.duration for s in segments)
+    q = data.qpos[room.agent_qpos]
+    hold = RootAssist(room, np.array([0.0, total]), np.repeat(q[None, :3], 2, axis=0),
+                      np.repeat(q[None, 3:7], 2, axis=0))
+    return PDPlan(segments, [GraspEvent(t_close, hand, obj, True),
+                             GraspEvent(t_open, hand, obj, False)], feedback=hold)
+
+
+__all__ = ["KeyframeTrajectory", "RootAssist", "held_grasp_stroke", "plan_walk", "walk_path"]

@@ -23,9 +23,7 @@ import mujoco
 import numpy as np
 
 from simenv.agents.reach import (
-    GraspEvent,
     PDPlan,
-    PDTrajectory,
     PlanChain,
     arm_joints,
     pd_targets,
@@ -33,7 +31,7 @@ from simenv.agents.reach import (
     upper_body_joints,
 )
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import RootAssist, plan_walk
+from simenv.agents.walk import held_grasp_stroke, plan_walk
 from simenv.errors import SimenvError
 from simenv.room import Room
 
@@ -117,21 +115,8 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
         targets.append(pd_targets(h, pose[room.agent_qpos], upper))
     before, side, on, *pushing, after = targets
     rest = pd_targets(h, h.default_qpos(), upper)
-    now = data.ctrl[room.agent_ctrl].copy()
-    segments = [PDTrajectory(now, before, 1.2), PDTrajectory(before, side, 0.5),
-                PDTrajectory(side, on, 0.4), PDTrajectory(on, on, 0.3)]
-    t_close = sum(s.duration for s in segments) - 0.05
-    for a, b in zip([on, *pushing], pushing, strict=False):
-        segments.append(PDTrajectory(a, b, 0.4))
-    segments.append(PDTrajectory(pushing[-1], pushing[-1], 0.3))
-    t_open = sum(s.duration for s in segments) - 0.05
-    segments += [PDTrajectory(pushing[-1], after, 0.6), PDTrajectory(after, rest, 1.0)]
-    total = sum(s.duration for s in segments)
-    q = data.qpos[room.agent_qpos]
-    hold = RootAssist(room, np.array([0.0, total]), np.repeat(q[None, :3], 2, axis=0),
-                      np.repeat(q[None, 3:7], 2, axis=0))
-    return PDPlan(segments, [GraspEvent(t_close, HAND, "window", True),
-                             GraspEvent(t_open, HAND, "window", False)], feedback=hold)
+    return held_grasp_stroke(room, data, [(before, 1.2), (side, 0.5), (on, 0.4)], pushing,
+                             [(after, 0.6), (rest, 1.0)], HAND, "window")
 
 
 def plan_walk_to_window(room: Room, data: mujoco.MjData) -> PDPlan:
