@@ -43,10 +43,11 @@ REHEARSAL_SESSION = f"{HANDSHAKE_PAIR}/19_01.bvh"
 #: discomfort gestures exists, so the demo labels a stretch of the real session "smell" to
 #: show the mechanism: the agent must press the cigarette out with its own simulated hand.
 REHEARSAL_GESTURE = ("smell", 0.5, 1.5)
-#: The reaction generator of ``reaction/`` and the session it answers (person A, who
-#: walks up and offers a handshake), cut to its first seconds to keep the demo short.
+#: The reaction generator of ``reaction/`` and the session it answers (person A of the
+#: handshake pair, who walks up and offers a hand), cut to its first seconds to keep the
+#: demo short.
 REACTION_MODEL = "interformer"
-REACTION_SESSION = f"{HANDSHAKE_PAIR}/18_01.bvh"
+REACTION_FILE = "18_01.bvh"
 REACTION_SECONDS = 4.0
 
 
@@ -158,21 +159,23 @@ def _rehearsal(out_dir: Path, *, width: int, height: int) -> dict[str, Any]:
 
 
 def _reaction(out_dir: Path) -> dict[str, Any]:
-    """:data:`REACTION_MODEL` answers :data:`REACTION_SESSION` (tracked and scored)."""
+    """:data:`REACTION_MODEL` answers :data:`REACTION_FILE` of the handshake pair
+    (tracked and scored)."""
     from simenv.models import available
     from simenv.reaction_rehearsal import rehearse_reaction
 
     if REACTION_MODEL not in available():
         print(f"[reaction] {REACTION_MODEL} is not shipped in assets/models; skipped")
         return {"skipped": f"{REACTION_MODEL} not shipped"}
-    print(f"[reaction] {REACTION_MODEL} answers {REACTION_SESSION} (first "
+    session = f"{HANDSHAKE_PAIR}/{REACTION_FILE}"
+    print(f"[reaction] {REACTION_MODEL} answers {session} (first "
           f"{REACTION_SECONDS:g} s): generate, retarget, track, score")
-    s = rehearse_reaction(asset_path(REACTION_SESSION), REACTION_MODEL, out_dir,
+    s = rehearse_reaction(asset_path(HANDSHAKE_PAIR) / REACTION_FILE, REACTION_MODEL, out_dir,
                           seconds=REACTION_SECONDS, video=False)
     agent = s["agent"]
     print(f"[reaction] agent {agent['verdict']} (score {agent['score']:.0f}; failed: "
           f"{', '.join(agent['failed']) or 'none'}); interaction {s['interaction']['verdict']}")
-    return {"model": s["model"], "session": REACTION_SESSION, "frames": s["frames"],
+    return {"model": s["model"], "session": session, "frames": s["frames"],
             "agent": {k: agent[k] for k in ("verdict", "score", "failed")},
             "interaction": s["interaction"]["verdict"], "start": s["start"],
             "report": s.get("report"), "folder": str(out_dir)}
