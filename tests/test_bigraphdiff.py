@@ -148,6 +148,21 @@ def test_efficient_attention_of_constant_values_is_that_value():
     torch.testing.assert_close(module(h), ref)
 
 
+def test_bone_loss_measures_stretched_bones_in_metres_weighted_by_alpha_bar():
+    parents = [-1, 0, 1]  # a chain of three joints: two bones
+    x0 = torch.zeros(2, 2, 3, 3, 3)
+    x0[..., 1, 2] = 1.0
+    x0[..., 2, 2] = 2.0
+    scale = torch.full((2, 3, 3), 0.5)  # 1 standardised unit = 0.5 m: bones of 0.5 m
+    assert bg.bone_loss(x0, x0, torch.ones(2), scale, parents).item() == 0.0
+    stretched = x0.clone()
+    stretched[..., 2, 2] = 2.4  # the second bone 0.4 units = 0.2 m longer
+    ab = torch.tensor([1.0, 0.5])
+    # Per window: 0.2 m on one bone of two -> 0.1 m; weighted by alpha_bar and averaged.
+    expected = (1.0 * 0.1 + 0.5 * 0.1) / 2
+    assert bg.bone_loss(stretched, x0, ab, scale, parents).item() == pytest.approx(expected)
+
+
 def test_mirror_is_an_involution_that_keeps_the_actor_frame(train_windows):
     a = train_windows.actor[:8]
     np.testing.assert_allclose(bg._mirror(bg._mirror(a)), a)
@@ -168,6 +183,17 @@ def test_short_training_run_lowers_the_loss(train_windows, trained):
     assert before == pytest.approx(1.0, abs=0.05)  # zero-initialised output: ε̂ = 0
     assert after < before - 0.1, (before, after, history["loss"])
     assert history["loss"][-1] < history["loss"][0]
+
+
+def test_bone_term_adds_to_the_eps_loss_in_training(train_windows, trained):
+    from dataclasses import replace
+
+    _, plain = trained
+    assert plain["loss"] == plain["eps_mse"]  # bone_weight 0: the eps MSE alone
+    _, boned = bg.train(train_windows, replace(TINY, epochs=1, bone_weight=1.0), seed=0,
+                        progress=False)
+    # Same seed, same first epoch: the total is the eps MSE plus a positive bone term.
+    assert boned["loss"][0] > boned["eps_mse"][0] > 0
 
 
 def test_sampling_shapes_determinism_and_labels(trained):
