@@ -560,9 +560,11 @@ def bone_loss(x0_hat: torch.Tensor, x0: torch.Tensor, alpha_bar: torch.Tensor,
     child = [j for j, par in enumerate(parents) if par >= 0]
     parent = [parents[j] for j in child]
     s = scale[:, None]
-    a, b = x0_hat * s, x0 * s
-    length = lambda x: (x[..., child, :] - x[..., parent, :]).norm(dim=-1)  # noqa: E731
-    per_window = (length(a) - length(b)).abs().mean(dim=(1, 2, 3))
+
+    def lengths(x: torch.Tensor) -> torch.Tensor:
+        return (x[..., child, :] - x[..., parent, :]).norm(dim=-1)
+
+    per_window = (lengths(x0_hat * s) - lengths(x0 * s)).abs().mean(dim=(1, 2, 3))
     return (alpha_bar * per_window).mean()
 
 
