@@ -15,8 +15,8 @@ from typing import Any
 
 from simenv.errors import SimenvError
 
-__all__ = ["INTERACTION_MODELS", "available", "checkpoint_path",
-           "interaction_model_class", "load"]
+__all__ = ["INTERACTION_MODELS", "available", "checkpoint_path", "interaction_model_class",
+           "interaction_model_entry", "interaction_model_names", "load"]
 
 #: The two-person models of issue 6: registry name -> (module, class, kind). ``kind`` is
 #: ``reaction`` (``generate(actor_window, reactor_first_frame)``, the protocol of
@@ -102,6 +102,27 @@ def load(name: str) -> Any:
     return PredictiveMAWGAN.load(path)
 
 
+def interaction_model_names(*kinds: str) -> list[str]:
+    """Registry names of the :data:`INTERACTION_MODELS` of the given kinds (all without)."""
+    return [n for n, (_, _, kind) in INTERACTION_MODELS.items() if not kinds or kind in kinds]
+
+
+def interaction_model_entry(name: str, kinds: tuple[str, ...] = (), field: str = "model"
+                            ) -> tuple[str, str, str]:
+    """``(module, class, kind)`` of a two-person model, one of ``kinds`` if given.
+
+    Raises:
+        SimenvError: not a registered name, or not of those kinds (the message lists the
+            names that are).
+    """
+    known = interaction_model_names(*kinds)
+    if name not in known:
+        what = (f"{name!r} is not a {' or '.join(kinds)} generator" if kinds else
+                f"unknown two-person model {name!r}")
+        raise SimenvError(f"{what}; known: {', '.join(known)}", field=field)
+    return INTERACTION_MODELS[name]
+
+
 def interaction_model_class(name: str) -> Any:
     """The class of an :data:`INTERACTION_MODELS` entry (its module imported on demand).
 
@@ -110,8 +131,5 @@ def interaction_model_class(name: str) -> Any:
     """
     import importlib
 
-    if name not in INTERACTION_MODELS:
-        raise SimenvError(f"unknown two-person model {name!r}; known: "
-                          f"{', '.join(INTERACTION_MODELS)}", field="model")
-    module, cls, _ = INTERACTION_MODELS[name]
+    module, cls, _ = interaction_model_entry(name)
     return getattr(importlib.import_module(module), cls)

@@ -65,6 +65,8 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 #: Row name of the real reactions (reference) in the results.
 REAL = "real"
+#: Kinds of two-person models this evaluation runs (:data:`simenv.models.INTERACTION_MODELS`).
+GENERATOR_KINDS = ("reaction", "interaction")
 
 #: Headline columns of the table: (key in the results, header, format).
 COLUMNS: tuple[tuple[str, str, str], ...] = (
@@ -243,21 +245,10 @@ def _within(path: Path, given: Path) -> bool:
 def shipped_models() -> list[str]:
     """The shipped two-person generators that this evaluation runs by default (reaction
     and interaction kinds of :data:`simenv.models.INTERACTION_MODELS`)."""
-    from simenv.models import INTERACTION_MODELS, available
+    from simenv.models import available, interaction_model_names
 
     shipped = set(available())
-    return [n for n, (_, _, kind) in INTERACTION_MODELS.items()
-            if kind in ("reaction", "interaction") and n in shipped]
-
-
-def _model_kind(name: str) -> str:
-    from simenv.models import INTERACTION_MODELS
-
-    if name not in INTERACTION_MODELS or INTERACTION_MODELS[name][2] == "augmentation":
-        known = [n for n, v in INTERACTION_MODELS.items() if v[2] != "augmentation"]
-        raise SimenvError(f"--model {name!r} is not a reaction or interaction generator; "
-                          f"known: {', '.join(known)}", field="model")
-    return INTERACTION_MODELS[name][2]
+    return [n for n in interaction_model_names(*GENERATOR_KINDS) if n in shipped]
 
 
 def generation_metrics(windows: idata.InteractionWindows, actor: np.ndarray,
@@ -298,11 +289,11 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
     from tqdm import tqdm
 
     from simenv.interaction_recognition import InteractionRecognizer
-    from simenv.models import load
+    from simenv.models import interaction_model_entry, load
     from simenv.models.reaction_baselines import BASELINE_NAMES, make_baseline
 
     models = shipped_models() if models is None else list(models)
-    kinds = {name: _model_kind(name) for name in models}
+    kinds = {name: interaction_model_entry(name, GENERATOR_KINDS)[2] for name in models}
 
     t0 = time.process_time()
     recordings = idata.load_recordings(shared)

@@ -152,14 +152,11 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
     """
     import simenv
     from simenv.eval_interaction import SHARED
-    from simenv.models import INTERACTION_MODELS, load
+    from simenv.models import interaction_model_entry, load
 
     t0 = time.perf_counter()
     if isinstance(model, str):
-        if INTERACTION_MODELS.get(model, ("", "", ""))[2] != "reaction":
-            known = [n for n, v in INTERACTION_MODELS.items() if v[2] == "reaction"]
-            raise SimenvError(f"{model!r} is not a reaction generator; known: "
-                              f"{', '.join(known)}", field="agent")
+        interaction_model_entry(model, ("reaction",), field="agent")
         model = load(model)
     user = user_motion(session)
     if seconds is not None:

@@ -39,7 +39,7 @@ from simenv import interaction_metrics as im
 from simenv.config import read_options
 from simenv.errors import SimenvError
 from simenv.eval_interaction import SHARED, reaction_metrics
-from simenv.models import INTERACTION_MODELS
+from simenv.models import INTERACTION_MODELS, interaction_model_entry
 
 #: Held-out metrics reported on the card of a reaction generator: (key, label, format).
 CARD_METRICS: tuple[tuple[str, str, str], ...] = (
@@ -51,15 +51,8 @@ CARD_METRICS: tuple[tuple[str, str, str], ...] = (
 
 def config_class(name: str) -> type:
     """The ``<Class>Config`` dataclass of a two-person model."""
-    module, cls, _ = _entry(name)
+    module, cls, _ = interaction_model_entry(name)
     return getattr(importlib.import_module(module), f"{cls}Config")
-
-
-def _entry(name: str) -> tuple[str, str, str]:
-    if name not in INTERACTION_MODELS:
-        raise SimenvError(f"unknown two-person model {name!r}; known: "
-                          f"{', '.join(INTERACTION_MODELS)}", field="model")
-    return INTERACTION_MODELS[name]
 
 
 def make_config(name: str, options: Mapping[str, Any] | None = None,
@@ -106,7 +99,7 @@ def held_out_metrics(name: str, model: Any, test: idata.InteractionWindows,
     (:func:`simenv.models.interaction_augment.evaluate`, 4 scale vectors per window)."""
     from simenv.models.reaction_baselines import ZeroVelocity
 
-    kind = _entry(name)[2]
+    kind = interaction_model_entry(name)[2]
     extractor, _ = im.default_feature_extractor()
     if kind == "reaction":
         out = {}
@@ -144,7 +137,7 @@ def render_card(name: str, config: Any, history: Mapping[str, Any],
                 train: idata.InteractionWindows, test: idata.InteractionWindows,
                 metrics: Mapping[str, Any], checkpoint: Path) -> str:
     """The model card (Markdown) of a trained two-person model."""
-    module, cls, kind = _entry(name)
+    module, cls, kind = interaction_model_entry(name)
     loss = [float(v) for v in history.get("loss", [])]
     lines = [
         f"# {name}", "",
@@ -212,7 +205,7 @@ def run(name: str, *, config: Any = None, shared: str | Path = SHARED,
     Returns:
         ``{"checkpoint", "card", "history", "metrics", "cpu_seconds"}`` (paths as str).
     """
-    module, _, _ = _entry(name)
+    module, _, _ = interaction_model_entry(name)
     config = config if config is not None else make_config(name)
     out = Path(out) if out is not None else Path("out") / "train-interaction" / name
     out.mkdir(parents=True, exist_ok=True)
