@@ -299,7 +299,7 @@ def cmd_score(args: argparse.Namespace) -> int:
         report_dir = Path(args.report)
         report_dir.mkdir(parents=True, exist_ok=True)
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
-                   else str(report_dir))
+                   else str(report_dir), restore_collapsed_bones=args.restore_collapsed_bones)
     def show(_target: Path, records: list[dict[str, Any]]) -> None:
         for rec in records:
             if args.json:
@@ -463,6 +463,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write an HTML report (timelines, violation video) per file")
     sco.add_argument("--progress", action="store_true",
                      help="show the progress bar even when stderr is not a terminal")
+    sco.add_argument("--restore-collapsed-bones", action="store_true", help=(
+        "read BVH files with the thorax and wrist bones that the CMU conversions collapse "
+        "put back (reader's repair; listed in each record's repairs); default: as written"))
     sco.set_defaults(func=cmd_score)
 
     demo = sub.add_parser("demo", help="the main job on bundled real CMU data", description=(

@@ -92,11 +92,26 @@ class ScoreJob:
         report_dir: write an HTML report per target under this folder, or None.
         config: a :class:`~simenv.plausibility.report.ScoreConfig`, or None for
             the defaults.
+        restore_collapsed_bones: read BVH targets (files, and folders of BVH
+            pairs) with the reader's repair of the CMU conversions' collapsed
+            thorax and wrist bones (:func:`simenv.io.bvh.read`); other
+            formats are read as they are, since only BVH conversions drop them.
     """
 
     physics: bool = True
     report_dir: str | None = None
     config: ScoreConfig | None = None
+    restore_collapsed_bones: bool = False
+
+
+def _read_options(target: Path, job: ScoreJob) -> dict[str, Any]:
+    """Reader options of ``job`` that apply to ``target`` (BVH-only ones to BVH only)."""
+    if not job.restore_collapsed_bones:
+        return {}
+    files = sorted(target.iterdir()) if target.is_dir() else [target]
+    files = [f for f in files if f.is_file() and not f.name.startswith(".")]
+    bvh_only = bool(files) and all(f.suffix.lower() == ".bvh" for f in files)
+    return {"restore_collapsed_bones": True} if bvh_only else {}
 
 
 def _report_name(target: Path) -> str:
@@ -111,7 +126,8 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
     Returns:
         One record per person (``file``, ``person``, ``verdict``, ``score``,
         ``metrics``, ``violations``, ... see
-        :meth:`PlausibilityReport.to_records`), plus ``seconds``, and ``clip``
+        :meth:`PlausibilityReport.to_records`), plus ``seconds``, ``repairs``
+        (the reader's repairs, when it made any), and ``clip``
         (0, 1, ...) when the file holds several clips (e.g. an SBU file with
         two segments, a gesture session); or, when the
         input is bad (a :class:`SimenvError`), a single record
@@ -123,15 +139,16 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
 
     target = Path(target)
     try:
-        loaded = load(target)
+        loaded = load(target, **_read_options(target, job))
         clips = loaded if isinstance(loaded, list) else [loaded]
         reports = [score(clip, physics=job.physics, config=job.config) for clip in clips]
     except SimenvError as exc:
         return [{"file": str(target), "error": str(exc),
                  "error_type": type(exc).__name__}]
     records = []
-    for i, report in enumerate(reports):
+    for i, (clip, report) in enumerate(zip(clips, reports, strict=True)):
         recs = report.to_records()
+        repairs = clip.metadata.get("repairs")
         if job.report_dir is not None:
             from simenv.plausibility.html_report import write_report
 
@@ -142,6 +159,8 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
         for rec in recs:
             rec["file"] = str(target)
             rec["seconds"] = round(report.seconds, 3)
+            if repairs:
+                rec["repairs"] = list(repairs)
             if len(reports) > 1:
                 rec["clip"] = i
         records.extend(recs)

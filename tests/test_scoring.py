@@ -10,6 +10,8 @@ import pytest
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.errors import SimenvError
+from simenv.io.loader import load
+from simenv.io.npz import write_npz
 from simenv.scoring import (
     ScoreJob,
     done_files,
@@ -113,3 +115,18 @@ def test_file_with_several_clips_scores_each(shared_data):
     records = score_target(shared_data / "other/sbu_kinect_sample/skeleton_pos_2.txt", FAST)
     assert [(r["clip"], r["person"]) for r in records] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     assert records[0]["frames"] != records[2]["frames"]
+
+
+def test_restore_collapsed_bones_repairs_bvh_targets_only(corpus, tmp_path):
+    """The option reaches the BVH reader for files and BVH pair folders, lists the
+    repairs in the records and moves the upper body; a non-BVH file is read as written."""
+    job = ScoreJob(physics=False, restore_collapsed_bones=True)
+    walk = corpus / "walk.bvh"
+    plain, repaired = score_target(walk, FAST), score_target(walk, job)
+    assert "repairs" not in plain[0]
+    assert any("thorax" in r for r in repaired[0]["repairs"])
+    assert repaired[0]["metrics"] != plain[0]["metrics"]
+    pair = score_target(corpus / "nested" / "pair", job)
+    assert len(pair) == 2 and all(r["repairs"] for r in pair)
+    npz = write_npz(load(walk), tmp_path / "walk.npz")
+    assert "error" not in score_target(npz, job)[0]
