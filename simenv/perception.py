@@ -14,15 +14,21 @@ takes the user's last frames of canonical keypoints and
 
 Each stage is an interface: any object with ``predict(history) -> future``, ``history_len``
 and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
-:mod:`simenv.models.baselines` directly; the PredictiveMA-WGAN, which works on its
-root-relative pred17 layout, through :class:`CanonicalPredictor`); any
+:mod:`simenv.models.baselines` directly; the PredictiveMA-WGAN and the DCT-MLP, which work
+on the root-relative pred17 layout, through :class:`CanonicalPredictor`); any
 :class:`GestureModel` classifies.
-:class:`TemplateClassifier` is the nearest-neighbour classifier built from labelled real
-clips, used until a trained classifier is supplied.
+
+Defaults (:func:`load_predictor`, :func:`default_classifier`): the shipped models when they
+are present -- the PredictiveMA-WGAN ``predictor-25-50`` (:data:`DEFAULT_PREDICTOR`; any
+other shipped ``predictor-*`` can be named) and the trained transformer
+``gesture-classifier`` through :class:`TrainedClassifier` -- and otherwise the
+constant-velocity baseline and the nearest-neighbour :class:`TemplateClassifier` built from
+the labelled real clips of the gesture corpus.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -101,16 +107,23 @@ class TemplateClassifier:
                                     for t, v in zip(normed, valid, strict=True)])
         self._class = np.array([self.labels.index(label) for label in labels])
 
+    #: What the rehearsal summary calls it.
+    name = "templates"
+
     @classmethod
-    def from_clips(cls, clips: Sequence[GestureClip], **kwargs: Any) -> TemplateClassifier:
+    def from_clips(cls, clips: Sequence[GestureClip], label_map: dict[str, str] | None = None,
+                   **kwargs: Any) -> TemplateClassifier:
         """Templates from the centre 3 s of each labelled clip (at most; shorter clips
-        whole), on the gesture joint set."""
+        whole), on the gesture joint set; ``label_map`` renames the clips' labels (e.g.
+        :func:`vocabulary_map` onto a scenario's vocabulary)."""
         if not clips:
             raise SimenvError("no clips to build templates from", field="clips")
+        label_map = label_map or {}
         cuts = [cut_window(c.positions, offset=max(c.num_frames - WINDOW_FRAMES, 0) // 2)
                 for c in clips]
         return cls(np.stack([w for w, _ in cuts]), np.stack([v for _, v in cuts]),
-                   [c.label for c in clips], GESTURE15_JOINTS, **kwargs)
+                   [label_map.get(c.label, c.label) for c in clips], GESTURE15_JOINTS,
+                   **kwargs)
 
     def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
         valid = np.asarray(valid, dtype=bool)
@@ -127,6 +140,91 @@ class TemplateClassifier:
         return p / p.sum()
 
 
+def vocabulary_map(labels: Sequence[str], vocabulary: Sequence[str]) -> dict[str, str]:
+    """How a classifier's labels read in a scenario's vocabulary.
+
+    A label of the vocabulary keeps its name; ``wave`` becomes ``hello`` when the
+    vocabulary has ``hello`` but no ``wave`` (the discomfort scenario: waving hello); any
+    other label becomes ``idle`` when the vocabulary has it (nothing to react to), and is
+    kept otherwise (a label outside the vocabulary never triggers).
+    """
+    vocab = set(vocabulary)
+    out = {}
+    for label in labels:
+        if label in vocab:
+            out[label] = label
+        elif label == "wave" and "hello" in vocab:
+            out[label] = "hello"
+        else:
+            out[label] = "idle" if "idle" in vocab else label
+    return out
+
+
+class TrainedClassifier:
+    """A trained :class:`~simenv.models.gesture_classifier.GestureClassifier` as a
+    :class:`GestureModel`.
+
+    The network classifies fixed windows of ``W`` frames (75 = 3 s at 25 fps). A shorter
+    window (the loop's 1 s of real motion, or 1 s real + F predicted frames) is padded to
+    ``W`` by holding its last frame, the padded frames marked invalid (the network masks
+    them out of attention and pooling: the thesis's "1 s real" condition); a longer one
+    keeps its last ``W`` frames. The network's class probabilities ``p_c`` are summed onto
+    the room's labels through ``label_map`` (``P_l = sum_{c -> l} p_c``).
+
+    Args:
+        model: the trained classifier (e.g. ``simenv.models.load("gesture-classifier")``).
+        label_map: network label -> room label (default: identity). Unmapped labels keep
+            their name.
+        name: what the rehearsal summary calls it.
+    """
+
+    def __init__(self, model: Any, label_map: dict[str, str] | None = None,
+                 name: str = "gesture-classifier") -> None:
+        config = model.config
+        source = tuple(config.labels)
+        label_map = dict(label_map or {})
+        unknown = sorted(set(label_map) - set(source))
+        if unknown:
+            raise SimenvError(f"label_map names labels {unknown} that the classifier does "
+                              f"not have; its labels: {list(source)}", field="label_map")
+        mapped = [label_map.get(label, label) for label in source]
+        self.model, self.name = model, name
+        self.joint_names = tuple(config.joint_names)
+        self.window = int(config.window)
+        self.labels: tuple[str, ...] = tuple(dict.fromkeys(mapped))
+        self._to = np.array([self.labels.index(m) for m in mapped])
+
+    @classmethod
+    def shipped(cls, name: str = "gesture-classifier",
+                vocabulary: Sequence[str] | None = None) -> TrainedClassifier:
+        """The shipped checkpoint ``name``, its labels mapped onto ``vocabulary``
+        (:func:`vocabulary_map`; None: the network's own labels)."""
+        import simenv.models
+
+        model = simenv.models.load(name)
+        mapping = None if vocabulary is None else vocabulary_map(model.config.labels,
+                                                                 vocabulary)
+        return cls(model, mapping, name)
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """(T, J, 3) world-frame window on :attr:`joint_names` (m, Z up, 25 fps), (T,)
+        valid mask -> (len(labels),) probabilities."""
+        x = np.asarray(window, dtype=np.float32)
+        v = np.asarray(valid, dtype=bool)
+        if x.ndim != 3 or x.shape[1:] != (len(self.joint_names), 3) or v.shape != x.shape[:1]:
+            raise SimenvError(f"window must be (T, {len(self.joint_names)}, 3) with a (T,) "
+                              f"valid mask; got {x.shape} and {v.shape}", field="window")
+        if not v.any():
+            raise SimenvError("window has no valid frame", field="valid")
+        x, v = x[-self.window:], v[-self.window:]
+        pad = self.window - len(x)
+        if pad:
+            x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
+            v = np.concatenate([v, np.zeros(pad, bool)])
+        p = self.model.classify_world(x, v)
+        return np.bincount(self._to, weights=p, minlength=len(self.labels))
+
+
 class CanonicalPredictor:
     """A predictor of a canonical-keypoint subset, run on all 21 canonical keypoints.
 
@@ -141,15 +239,17 @@ class CanonicalPredictor:
             ``future_len``.
         joints: the predictor's J joints, canonical keypoint names.
         root_relative: whether the predictor takes pelvis-relative positions.
+        name: what the rehearsal summary calls it (default: the predictor's class).
     """
 
     def __init__(self, predictor: Any, joints: Sequence[str] = PRED17_JOINTS,
-                 root_relative: bool = True) -> None:
+                 root_relative: bool = True, name: str | None = None) -> None:
         missing = [j for j in joints if j not in CANONICAL_KEYPOINTS]
         if missing:
             raise SimenvError(f"predictor joints {missing} are not canonical keypoints",
                               field="joints")
         self.predictor, self.root_relative = predictor, bool(root_relative)
+        self.name = name or type(predictor).__name__
         self.history_len = int(predictor.history_len)
         self.future_len = int(predictor.future_len)
         self._idx = [CANONICAL_KEYPOINTS.index(j) for j in joints]
@@ -174,6 +274,68 @@ class CanonicalPredictor:
         for k, parent in self._carried:
             out[:, k] = out[:, parent] + (h[-1, k] - h[-1, parent])
         return out
+
+
+#: The shipped predictor the room uses by default (1 s observed -> 2 s ahead).
+DEFAULT_PREDICTOR = "predictor-25-50"
+#: The fallback when no learned predictor is shipped: the 2-s constant-velocity baseline.
+FALLBACK_PREDICTOR = "constant-velocity-50"
+#: The shipped classifier the room uses by default.
+DEFAULT_CLASSIFIER = "gesture-classifier"
+
+
+def load_predictor(spec: Any = None) -> Any:
+    """A predictor on the 21 canonical keypoints.
+
+    Args:
+        spec: None or ``"auto"`` (:data:`DEFAULT_PREDICTOR` when shipped, otherwise
+            :data:`FALLBACK_PREDICTOR`); a ``simenv.models.load`` name -- a shipped
+            ``predictor-*`` (PredictiveMA-WGAN, ``predictor-dctmlp-*``: run through
+            :class:`CanonicalPredictor`) or a baseline ``zero-velocity-<F>`` /
+            ``constant-velocity-<F>`` (directly); or a predictor object (returned as is).
+
+    Returns:
+        an object with ``predict``, ``history_len`` and ``future_len`` (and ``name``
+        when built from a name).
+    """
+    import simenv.models
+
+    if spec is None or spec == "auto":
+        spec = (DEFAULT_PREDICTOR if DEFAULT_PREDICTOR in simenv.models.available()
+                else FALLBACK_PREDICTOR)
+    if not isinstance(spec, str):
+        return spec
+    model = simenv.models.load(spec)
+    if spec.startswith("predictor-"):
+        return CanonicalPredictor(model, name=spec)
+    model.name = spec  # a baseline: on any joints, the canonical keypoints included
+    return model
+
+
+def default_classifier(vocabulary: Sequence[str], data: str | os.PathLike[str] | None = None
+                       ) -> GestureModel:
+    """The room's classifier for a scenario's ``vocabulary``: the shipped
+    :data:`DEFAULT_CLASSIFIER` (:class:`TrainedClassifier`) when present, otherwise a
+    :class:`TemplateClassifier` from every labelled clip of the gesture corpus
+    (``data``/gestures; ``data`` default :func:`simenv.session.shared_data_root`), labels
+    mapped by :func:`vocabulary_map`.
+
+    Raises:
+        SimenvError: no shipped classifier and no gesture corpus.
+    """
+    import simenv.models
+    from simenv.gestures import load_gesture_clips
+    from simenv.session import shared_data_root
+
+    if DEFAULT_CLASSIFIER in simenv.models.available():
+        return TrainedClassifier.shipped(DEFAULT_CLASSIFIER, vocabulary)
+    root = shared_data_root(data) / "gestures"
+    if not root.is_dir():
+        raise SimenvError(f"no shipped {DEFAULT_CLASSIFIER!r} checkpoint and no gesture "
+                          f"corpus at {root} for the template classifier (set "
+                          "SIMENV_SHARED_DATA or pass --data)", field="classifier")
+    clips = load_gesture_clips(root)
+    return TemplateClassifier.from_clips(clips, vocabulary_map(GESTURE_LABELS, vocabulary))
 
 
 @dataclass(frozen=True)
@@ -271,5 +433,7 @@ class PerceptionLoop:
                           time.perf_counter() - start)
 
 
-__all__ = ["CanonicalPredictor", "GestureModel", "Perception", "PerceptionLoop",
-           "TemplateClassifier"]
+__all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR",
+           "CanonicalPredictor", "GestureModel", "Perception", "PerceptionLoop",
+           "TemplateClassifier", "TrainedClassifier", "default_classifier", "load_predictor",
+           "vocabulary_map"]
