@@ -131,6 +131,90 @@ def _pyramid(friction: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class RootWrench:
+    """The external wrench a trajectory needs at its root, and where the floor may act.
+
+    Per frame ``t`` the target is ``w_t = [F_t; N_t / L]`` (newtons): the free
+    joint's inverse-dynamics force ``F`` (world frame) and torque ``N`` about
+    the root (rotated to the world frame), the torque divided by the lever
+    ``L`` (hip height) so torque and force rows weigh alike. An external force
+    ``f`` applied at a world point ``p`` contributes the column
+    ``[f; (p - x_root) x f / L]``.
+
+    Attributes:
+        wrench: (T, 6) ``w_t``, N.
+        root: (T, 3) root (pelvis frame origin) positions, metres.
+        support: per frame, (P_t, 3) geom points lower than ``support_height_m``
+            (floor contact candidates), metres.
+        weight: body weight ``m g``, N.
+        lever: ``L``, metres.
+        friction: Coulomb coefficient of the floor's friction pyramids.
+        poses: the forward kinematics used.
+        com_accel: (T, 3) centre-of-mass acceleration, m/s^2 (filtered).
+    """
+
+    wrench: np.ndarray
+    root: np.ndarray
+    support: list[np.ndarray]
+    weight: float
+    lever: float
+    friction: float
+    poses: BodyPoses
+    com_accel: np.ndarray
+
+    def point_columns(self, t: int, points: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(6, P * D) wrench columns of unit forces along ``directions`` (D, 3)
+        applied at each of ``points`` (P, 3) on frame ``t`` (point-major order)."""
+        cols_f = np.tile(directions, (len(points), 1))
+        arm = np.repeat(points - self.root[t], len(directions), axis=0)
+        return np.concatenate([cols_f, np.cross(arm, cols_f) / self.lever], axis=1).T
+
+    def floor_columns(self, t: int) -> np.ndarray:
+        """(6, 4 P_t) columns of the floor's friction-pyramid edges at the support points."""
+        return self.point_columns(t, self.support[t], _pyramid(self.friction))
+
+    def residual_norms(self, r: np.ndarray) -> tuple[float, float]:
+        """Force (body weights) and torque (metres: N m / m g) of a residual wrench (6,)."""
+        return (float(np.linalg.norm(r[:3]) / self.weight),
+                float(np.linalg.norm(r[3:]) * self.lever / self.weight))
+
+
+def root_wrench(result: RetargetResult,
+                thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> RootWrench:
+    """Inverse dynamics of ``result`` as a :class:`RootWrench` (module docstring)."""
+    h = result.humanoid
+    model = h.model
+    q = check_qpos(model, result.qpos)
+    qvel, qacc = finite_differences(model, q, result.fps, thresholds.filter_cutoff_hz)
+    tau = inverse_dynamics(model, q, qvel, qacc)
+    poses = body_poses(model, q)
+    lever = h.dims.hip_height
+    rot = np.empty((len(q), 9))
+    for t in range(len(q)):
+        mujoco.mju_quat2Mat(rot[t], q[t, 3:7])
+    torque = np.einsum("tij,tj->ti", rot.reshape(-1, 3, 3), tau[:, 3:6])
+    points = geom_support_points(model, poses, body_geoms(model))
+    support = [p[p[:, 2] < thresholds.support_height_m] for p in points]
+    com_acc = np.gradient(np.gradient(lowpass(poses.com, result.fps,
+                                              thresholds.filter_cutoff_hz),
+                                      1 / result.fps, axis=0), 1 / result.fps, axis=0)
+    return RootWrench(np.concatenate([tau[:, 0:3], torque / lever], axis=1),
+                      q[:, 0:3].copy(), support, h.total_mass * thresholds.gravity_mps2,
+                      lever, thresholds.friction, poses, com_acc)
+
+
+def floor_residual(rw: RootWrench, t: int) -> np.ndarray:
+    """Residual wrench (6,) of frame ``t`` after the best floor forces:
+    ``w_t - A lambda`` with ``lambda = argmin_{lambda >= 0} ||A lambda - w_t||``
+    (non-negative least squares over the friction-pyramid edges)."""
+    if len(rw.support[t]) == 0:
+        return rw.wrench[t].copy()
+    A = rw.floor_columns(t)
+    lam, _ = nnls(A, rw.wrench[t], maxiter=200)
+    return rw.wrench[t] - A @ lam
+
+
+@dataclass(frozen=True)
 class RootResidual:
     """Per-frame residual root wrench after the best floor contact forces.
 
@@ -144,6 +228,7 @@ class RootResidual:
             to carry load.
         com_accel: (T, 3) centre-of-mass acceleration, m/s^2 (filtered).
         poses: the forward kinematics used.
+        residual: (T, 6) residual wrench ``[F; N / L]``, N (see :class:`RootWrench`).
     """
 
     force: np.ndarray
@@ -152,52 +237,24 @@ class RootResidual:
     support_points: np.ndarray
     com_accel: np.ndarray
     poses: BodyPoses
+    residual: np.ndarray
 
 
 def root_residual_wrench(result: RetargetResult,
                          thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> RootResidual:
     """The root's residual wrench per frame (see the module docstring)."""
-    h = result.humanoid
-    model = h.model
-    q = check_qpos(model, result.qpos)
-    qvel, qacc = finite_differences(model, q, result.fps, thresholds.filter_cutoff_hz)
-    tau = inverse_dynamics(model, q, qvel, qacc)
-    poses = body_poses(model, q)
-    weight = h.total_mass * thresholds.gravity_mps2
-    lever = h.dims.hip_height
-    quat = q[:, 3:7]
-    rot = np.empty((len(q), 9))
-    for t in range(len(q)):
-        mujoco.mju_quat2Mat(rot[t], quat[t])
-    rot = rot.reshape(-1, 3, 3)
-    force = tau[:, 0:3]
-    torque = np.einsum("tij,tj->ti", rot, tau[:, 3:6])
-    wrench = np.concatenate([force, torque / lever], axis=1)
-    points = geom_support_points(model, poses, body_geoms(model))
-    root = q[:, 0:3]  # free-joint origin = pelvis frame origin, about which tau acts
-    edges = _pyramid(thresholds.friction)
-    res_f = np.empty(len(q))
-    res_t = np.empty(len(q))
-    count = np.empty(len(q), dtype=int)
-    for t in range(len(q)):
-        p = points[t][points[t, :, 2] < thresholds.support_height_m]
-        count[t] = len(p)
-        if len(p) == 0:
-            r = wrench[t]
-        else:
-            arm = p - root[t]
-            cols_f = np.tile(edges, (len(p), 1))
-            cols_t = np.cross(np.repeat(arm, len(edges), axis=0), cols_f) / lever
-            A = np.concatenate([cols_f, cols_t], axis=1).T
-            lam, _ = nnls(A, wrench[t], maxiter=200)
-            r = wrench[t] - A @ lam
-        res_f[t] = np.linalg.norm(r[:3]) / weight
-        res_t[t] = np.linalg.norm(r[3:]) * lever / weight
-    com_acc = np.gradient(np.gradient(lowpass(poses.com, result.fps,
-                                              thresholds.filter_cutoff_hz),
-                                      1 / result.fps, axis=0), 1 / result.fps, axis=0)
-    return RootResidual(res_f, res_t, np.linalg.norm(force, axis=1) / weight, count,
-                        com_acc, poses)
+    return residual_of(root_wrench(result, thresholds))
+
+
+def residual_of(rw: RootWrench) -> RootResidual:
+    """:class:`RootResidual` of a :class:`RootWrench` (floor forces only)."""
+    T = len(rw.wrench)
+    res = np.stack([floor_residual(rw, t) for t in range(T)]) if T else np.zeros((0, 6))
+    norms = np.array([rw.residual_norms(r) for r in res]).reshape(T, 2)
+    return RootResidual(norms[:, 0], norms[:, 1],
+                        np.linalg.norm(rw.wrench[:, :3], axis=1) / rw.weight,
+                        np.array([len(p) for p in rw.support], dtype=int),
+                        rw.com_accel, rw.poses, res)
 
 
 def root_residual(result: RetargetResult,
