@@ -152,6 +152,16 @@ class BodyThresholds:
         root_force_frame_max: 0.5. Per-frame limit (fraction of body weight)
             for the residual's violation runs (landings of real jumps peak
             briefly as the 6 Hz filter spreads the impact).
+        pair_contact_gap_m: 0.05. Two-person files
+            (:mod:`simenv.plausibility.pair_dynamics`): a hand is in contact
+            with the partner when its geom (a box from the wrist to the
+            knuckles, no fingers) is within 5 cm of a partner geom -- the
+            fingers reach past the box.
+        grip_force_max_bw: 0.25. Largest force one hand contact may carry
+            between partners, as a fraction of the lighter partner's body
+            weight (an adult's one-hand push or pull standing is of the order
+            of 150-250 N, a quarter to a third of body weight; a partner must
+            not be able to hold the other up with one hand).
         balance_accel_mps2: 0.5. A frame is quasi-static when the centre of
             mass accelerates less than this (about 5 % of g) ...
         balance_speed_mps: 0.1. ... and moves horizontally slower than this.
@@ -201,6 +211,8 @@ class BodyThresholds:
     support_height_m: float = 0.05
     root_force_mean_max: float = 0.15
     root_force_frame_max: float = 0.5
+    pair_contact_gap_m: float = 0.05
+    grip_force_max_bw: float = 0.25
     balance_accel_mps2: float = 0.5
     balance_speed_mps: float = 0.1
     balance_support_band_m: float = 0.03
