@@ -1,4 +1,5 @@
-"""Drawing the curtain: stand up, walk to it, grasp its edge and pull it across the window.
+"""Drawing the curtain: stand up, walk to it, grasp its edge and pull it across the window,
+then back to the chair (:data:`simenv.agents.seat.RETURN_STAGES`).
 
 ``close_curtain`` (:func:`plan_close_curtain`) is a :class:`~simenv.agents.reach.PlanChain`
 like ``close_window`` (:mod:`simenv.agents.window`): stand up, walk (measured root
@@ -24,6 +25,7 @@ from simenv.agents.reach import (
     reach_pose,
     upper_body_joints,
 )
+from simenv.agents.seat import RETURN_STAGES
 from simenv.agents.stand import plan_stand_up
 from simenv.agents.walk import held_grasp_stroke, plan_walk
 from simenv.agents.window import SPINE
@@ -127,7 +129,8 @@ def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> PDPlan:
 
 
 def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:
-    """``close_curtain``: stand up, walk to the curtain, draw it (module docstring).
+    """``close_curtain``: stand up, walk to the curtain, draw it, go back to the chair and
+    sit down (module docstring).
 
     Raises:
         SimenvError: the curtain is already closed.
@@ -136,7 +139,7 @@ def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:
     if float(data.qpos[c.qpos_adr]) > c.threshold:
         raise SimenvError("the curtain is already closed", field="curtain")
     return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_curtain),
-                      ("pull", plan_curtain_pull)))
+                      ("pull", plan_curtain_pull), *RETURN_STAGES))
 
 
 __all__ = ["curtain_spot", "plan_close_curtain", "plan_curtain_pull", "plan_walk_to_curtain"]

@@ -1,7 +1,9 @@
-"""Closing the window: stand up, walk to it, slide the pane shut with a proximity grasp.
+"""Closing the window: stand up, walk to it, slide the pane shut with a proximity grasp,
+walk back to the chair and sit down.
 
 ``close_window`` (:func:`plan_close_window`) is a :class:`~simenv.agents.reach.PlanChain`
-of three stages, each planned from the state the previous one left:
+of three stages and the return (:data:`simenv.agents.seat.RETURN_STAGES`: turn, walk back,
+turn to the desk, sit down, settle), each planned from the state the previous one left:
 
 1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
 2. :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
@@ -30,6 +32,7 @@ from simenv.agents.reach import (
     reach_pose,
     upper_body_joints,
 )
+from simenv.agents.seat import RETURN_STAGES
 from simenv.agents.stand import plan_stand_up
 from simenv.agents.walk import held_grasp_stroke, plan_walk
 from simenv.errors import SimenvError
@@ -128,7 +131,8 @@ def plan_walk_to_window(room: Room, data: mujoco.MjData) -> PDPlan:
 
 
 def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:
-    """``close_window``: stand up, walk to the window, slide it shut (module docstring).
+    """``close_window``: stand up, walk to the window, slide it shut, go back to the chair
+    and sit down (module docstring).
 
     Raises:
         SimenvError: the window is already closed.
@@ -137,7 +141,7 @@ def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:
     if float(data.qpos[w.qpos_adr]) <= w.threshold:
         raise SimenvError("the window is already closed", field="window")
     return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_window),
-                      ("push", plan_window_push)))
+                      ("push", plan_window_push), *RETURN_STAGES))
 
 
 __all__ = ["plan_close_window", "plan_walk_to_window", "plan_window_push", "window_spot"]
