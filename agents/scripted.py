@@ -16,7 +16,9 @@ Implemented, all seated (:data:`PLANNERS`):
   the chair), take the knob's handle in the fingertips with a proximity grasp and turn it
   down (:func:`plan_hifi_down`); otherwise the planner refuses (out of reach);
 * ``greet``: turn to the user (the chair's swivel turned by the planted feet, then the
-  spine) and wave the user-side arm above the shoulder (:func:`plan_greet`).
+  spine) and wave the user-side arm above the shoulder (:func:`plan_greet`);
+* ``bow_back``: the same turn, then a nod (:func:`plan_bow_back`; measured by
+  :class:`simenv.room.BowMeter`).
 
 Standing ones (stand up, walk with a measured root assistance, act) are chained stages:
 ``close_window`` (:mod:`simenv.agents.window`) and ``close_curtain``
@@ -216,6 +218,56 @@ def user_bearing(room: Room, data: mujoco.MjData) -> float:
                             forward @ to_user))
 
 
+def _turn_to_user(room: Room, data: mujoco.MjData, short: float | None = None
+                  ) -> tuple[str, np.ndarray, np.ndarray, np.ndarray]:
+    """The seated turn towards the user shared by the greeting and the bow, as agent qpos
+    (nq,): the feet pressed onto the floor (``plant``), the leg hinges solved for the
+    pelvis turned about the swivel axis with the feet where they are (``twisted``), then
+    the spine's axial rotations added (``turned``); and the user's side (``left`` /
+    ``right``). See :func:`plan_greet`.
+
+    With ``short`` None (the greeting) the spine takes the turn first and the swivel the
+    rest; with ``short`` (rad) the turn stops that much short of the user's bearing and
+    the swivel takes it first, the spine the rest (the bow: a spine turned to its limit
+    and held there, without the raised arm's counterweight, tipped the agent off the seat
+    towards a user on its left, measured).
+
+    Raises:
+        SimenvError: the leg IK cannot keep the feet planted for the turn (1 cm).
+    """
+    h = room.agent
+    q = data.qpos[room.agent_qpos].copy()
+    phi = user_bearing(room, data)
+    side = "right" if phi < 0 else "left"
+    sign = np.sign(phi) or 1.0
+    limits = {n: h.joint_limits[h.joint_names.index(n)] for n in SPINE_ROT}
+    reach = SPINE_SHARE * sum(abs(lim[1 if sign > 0 else 0]) for lim in limits.values())
+    if short is None:
+        spine = min(1.0, abs(phi) / reach)
+        delta = float(np.clip(phi - sign * spine * reach, -MAX_SWIVEL, MAX_SWIVEL))
+    else:
+        aim = max(abs(phi) - short, 0.0)
+        delta = float(sign * min(aim, MAX_SWIVEL))
+        spine = min(1.0, (aim - abs(delta)) / reach)
+    legs = tuple(n for n in h.joint_names if n.split("_")[1] in ("thigh", "shin", "foot"))
+    sites = [h.keypoint_names.index(f) for f in FEET]
+    pressed = h.keypoints(q)[sites] - [0.0, 0.0, PLANT_DEPTH_M]
+    plant, err0 = reach_pose(h.model, q, FEET, pressed, legs, iterations=400)
+    axis = data.xpos[room.model.body("chair_seat").id][:2]
+    turned, err1 = reach_pose(h.model, _swivelled(q, axis, delta), FEET, pressed, legs,
+                              iterations=400)
+    if max(err0, err1) > 0.01:
+        raise SimenvError(f"the seated agent cannot turn {np.degrees(delta):.0f} deg with "
+                          f"its feet planted ({max(err0, err1):.3f} m short)", field="greet")
+    turned[:7] = q[:7]  # the legs' targets only: the root turns if the physics turns it
+    # The spine turns after the seat: turning both at once, the spine's reaction torque on
+    # the pelvis works against the feet and the seat turns less.
+    twisted = turned.copy()
+    for name in SPINE_ROT:
+        turned[_adr(h, name)] = spine * SPINE_SHARE * limits[name][1 if sign > 0 else 0]
+    return side, plant, twisted, turned
+
+
 def plan_greet(room: Room, data: mujoco.MjData) -> PDPlan:
     """Plan for turning to face the user and waving, seated, from the current state.
 
@@ -233,30 +285,7 @@ def plan_greet(room: Room, data: mujoco.MjData) -> PDPlan:
         the plan of the agent's targets, 7.8 s long.
     """
     h = room.agent
-    q = data.qpos[room.agent_qpos].copy()
-    phi = user_bearing(room, data)
-    side = "right" if phi < 0 else "left"
-    sign = np.sign(phi) or 1.0
-    limits = {n: h.joint_limits[h.joint_names.index(n)] for n in SPINE_ROT}
-    reach = SPINE_SHARE * sum(abs(lim[1 if sign > 0 else 0]) for lim in limits.values())
-    spine = min(1.0, abs(phi) / reach)
-    delta = float(np.clip(phi - sign * spine * reach, -MAX_SWIVEL, MAX_SWIVEL))
-    legs = tuple(n for n in h.joint_names if n.split("_")[1] in ("thigh", "shin", "foot"))
-    sites = [h.keypoint_names.index(f) for f in FEET]
-    pressed = h.keypoints(q)[sites] - [0.0, 0.0, PLANT_DEPTH_M]
-    plant, err0 = reach_pose(h.model, q, FEET, pressed, legs, iterations=400)
-    axis = data.xpos[room.model.body("chair_seat").id][:2]
-    turned, err1 = reach_pose(h.model, _swivelled(q, axis, delta), FEET, pressed, legs,
-                              iterations=400)
-    if max(err0, err1) > 0.01:
-        raise SimenvError(f"the seated agent cannot turn {np.degrees(delta):.0f} deg with "
-                          f"its feet planted ({max(err0, err1):.3f} m short)", field="greet")
-    turned[:7] = q[:7]  # the legs' targets only: the root turns if the physics turns it
-    # The spine turns after the seat: turning both at once, the spine's reaction torque on
-    # the pelvis works against the feet and the seat turns less.
-    twisted = turned.copy()
-    for name in SPINE_ROT:
-        turned[_adr(h, name)] = spine * SPINE_SHARE * limits[name][1 if sign > 0 else 0]
+    side, plant, twisted, turned = _turn_to_user(room, data)
     raised = turned.copy()
     for part, angle in WAVE_POSE.items():
         raised[_adr(h, f"{side}_{part}")] = angle
@@ -282,6 +311,57 @@ def plan_greet(room: Room, data: mujoco.MjData) -> PDPlan:
                    PDTrajectory(t_plant, rest, 0.5)])
 
 
+#: The seated bow, a nod: flexion of the neck, rad (added to the turned posture), reached
+#: in BOW_DOWN_S, held BOW_HOLD_S, undone in BOW_UP_S. Flexing the spine too (5-10 deg a
+#: segment) tipped the turned agent off the seat, measured.
+BOW_POSE = {"neck_flex": np.deg2rad(30.0)}
+#: Lateral lean of the lumbar spine away from the user's side during the nod, rad: the
+#: turned trunk's weight sits over the seat's edge on the user's side (without it the agent
+#: slid off the seat nodding to a user behind its right, measured).
+BOW_COUNTER_LEAN = np.deg2rad(20.0)
+#: The bow's turn stops this far short of the user's bearing, rad (within the 30 deg a
+#: bow is measured at; see :func:`_turn_to_user`).
+BOW_SHORT = np.deg2rad(15.0)
+BOW_DOWN_S = 0.8
+BOW_HOLD_S = 0.6
+BOW_UP_S = 0.8
+
+
+def plan_bow_back(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for bowing back to the user, seated, from the current state.
+
+    The same turn as :func:`plan_greet` (planted feet twist the chair's swivel, then the
+    spine's axial hinges turn the chest towards the user; the turn stops
+    :data:`BOW_SHORT` short of the user and the swivel takes it first), then the neck
+    flexes forward (:data:`BOW_POSE`) with the trunk leaning away from the user's side
+    (:data:`BOW_COUNTER_LEAN`), holds, comes back up, and the agent turns back to the
+    seated pose. Whether it bowed to the user is measured (:class:`simenv.room.BowMeter`:
+    the head pitched at least 15 deg below its start while the chest faced the user within
+    30 deg, then came back up), not assumed.
+
+    Returns:
+        the plan of the agent's targets, ``6 + BOW_DOWN_S + BOW_HOLD_S + BOW_UP_S`` s
+        long (8.2 s).
+    """
+    h = room.agent
+    side, plant, twisted, turned = _turn_to_user(room, data, BOW_SHORT)
+    bowed = turned.copy()
+    for name, angle in BOW_POSE.items():
+        bowed[_adr(h, name)] += angle
+    # Positive lateral flexion leans to the right: lean away from the user's side.
+    bowed[_adr(h, "lumbar_lat")] += BOW_COUNTER_LEAN * (1.0 if side == "left" else -1.0)
+    upper = upper_body_joints(h)
+    now = data.ctrl[room.agent_ctrl].copy()
+    t_plant, t_twist, t_turn, t_bow = (pd_targets(h, pose, upper)
+                                       for pose in (plant, twisted, turned, bowed))
+    rest = pd_targets(h, room.seated_pose(), upper)
+    return PDPlan([PDTrajectory(now, t_plant, 0.5), PDTrajectory(t_plant, t_twist, 1.5),
+                   PDTrajectory(t_twist, t_turn, 1.0), PDTrajectory(t_turn, t_bow, BOW_DOWN_S),
+                   PDTrajectory(t_bow, t_bow, BOW_HOLD_S), PDTrajectory(t_bow, t_turn, BOW_UP_S),
+                   PDTrajectory(t_turn, t_twist, 1.0), PDTrajectory(t_twist, t_plant, 1.5),
+                   PDTrajectory(t_plant, rest, 0.5)])
+
+
 def _adr(h: Humanoid, joint: str) -> int:
     return int(h.hinge_qpos[h.joint_names.index(joint)])
 
@@ -303,6 +383,7 @@ def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
 #: after the other (``close_window`` / ``close_curtain``: stand up, walk, push / pull;
 #: :mod:`simenv.agents.window`, :mod:`simenv.agents.curtain`).
 PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
+    "bow_back": plan_bow_back,
     "cigarette_out": plan_cigarette_out,
     "close_curtain": plan_close_curtain,
     "close_window": plan_close_window,
@@ -321,5 +402,5 @@ def object_success(room: Room, before: dict[str, str], after: dict[str, str],
     return before[r.object] != r.target and after[r.object] == r.target
 
 
-__all__ = ["PLANNERS", "object_success", "plan_cigarette_out", "plan_greet",
-           "plan_hifi_down", "user_bearing"]
+__all__ = ["PLANNERS", "object_success", "plan_bow_back", "plan_cigarette_out",
+           "plan_greet", "plan_hifi_down", "user_bearing"]

@@ -124,6 +124,11 @@ ASSIST_TIMECONST_S = 0.05
 HANDS = ("left_hand", "right_hand")
 #: A greeting needs the agent's chest to face the user within this angle, degrees.
 GREET_FACING_DEG = 30.0
+#: A bow needs the head to pitch this far down, degrees, from where it was when the agent
+#: came to face the user, and then to come back up within BOW_RETURN_DEG of it
+#: (:class:`BowMeter`).
+BOW_DIP_DEG = 15.0
+BOW_RETURN_DEG = 5.0
 
 _WOOD = (0.55, 0.38, 0.22, 1.0)
 _WALL = (0.85, 0.84, 0.8, 1.0)
@@ -720,31 +725,84 @@ class Room:
 
     # -- measurements --------------------------------------------------------
 
-    def greeting(self, data: mujoco.MjData) -> dict[str, float | bool]:
-        """Whether the agent greets the user now (the issue's success rule).
-
-        ``facing_deg``: angle on the floor between the agent's chest forward axis and the
-        direction from its chest to the user's chest; ``hand_above_shoulder``: a hand
-        keypoint higher than the same side's shoulder; ``success``: facing within
-        :data:`GREET_FACING_DEG` and a hand raised.
-        """
+    def facing_deg(self, data: mujoco.MjData) -> float:
+        """Angle on the floor between the agent's chest forward axis and the direction from
+        its chest to the user's chest, degrees (0 = facing the user)."""
         names = self.agent.keypoint_names
         agent, user = self.agent_keypoints(data), self.user_keypoints(data)
         chest = self.model.body("agent/chest").id
         forward = data.xmat[chest].reshape(3, 3)[:2, 0]
         to_user = user[names.index("chest"), :2] - agent[names.index("chest"), :2]
         cos = forward @ to_user / max(np.linalg.norm(forward) * np.linalg.norm(to_user), 1e-9)
-        facing = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+        return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+    def head_pitch_deg(self, data: mujoco.MjData) -> float:
+        """How far the agent's head looks down, degrees: the angle of its forward (x) axis
+        below the horizontal, ``asin(-x_z)`` (0 level, positive looking down)."""
+        x_z = data.xmat[self.model.body("agent/head").id][6]  # row z, column x
+        return float(np.degrees(np.arcsin(np.clip(-x_z, -1.0, 1.0))))
+
+    def greeting(self, data: mujoco.MjData) -> dict[str, float | bool]:
+        """Whether the agent greets the user now (the issue's success rule).
+
+        ``facing_deg``: :meth:`facing_deg`; ``hand_above_shoulder``: a hand keypoint
+        higher than the same side's shoulder; ``success``: facing within
+        :data:`GREET_FACING_DEG` and a hand raised.
+        """
+        names = self.agent.keypoint_names
+        agent = self.agent_keypoints(data)
+        facing = self.facing_deg(data)
         raised = any(agent[names.index(f"{s}_hand"), 2] > agent[names.index(f"{s}_shoulder"), 2]
                      for s in ("left", "right"))
         return {"facing_deg": facing, "hand_above_shoulder": bool(raised),
                 "success": bool(facing <= GREET_FACING_DEG and raised)}
+
+    def bow_meter(self) -> BowMeter:
+        """A new :class:`BowMeter` (start it with the bow, then call it every step)."""
+        return BowMeter(self)
 
     def sync_visuals(self, data: mujoco.MjData) -> None:
         """Colour state that is not geometry: the cigarette's tip glows while it is lit.
         (Writes ``model.geom_rgba``; call before rendering.)"""
         lit = self.object_labels(data)["cigarette"] == "lit"
         self.model.geom_rgba[self._cigarette_tip] = _EMBER if lit else _ASH
+
+
+class BowMeter:
+    """Whether the agent has bowed (or nodded) to the user, measured step by step.
+
+    The reference is the head pitch ``p_ref`` (:meth:`Room.head_pitch_deg`) at the first
+    step the chest faces the user within :data:`GREET_FACING_DEG` (:meth:`Room.facing_deg`),
+    so that the forward lean a seated turn brings (measured: ~20 deg of head pitch in a
+    greeting) is not counted as a bow. With ``dip = p - p_ref``, the agent *bowed* once
+    ``dip >=`` :data:`BOW_DIP_DEG` at a step where it faces the user; the bow *succeeds* at
+    the first later step where the head has come back up, ``dip <=`` :data:`BOW_RETURN_DEG`.
+    Calling the meter with the simulation state returns ``facing_deg``, ``dip_deg`` (None
+    before the agent faced the user), ``bowed`` and ``success`` (both latched);
+    ``dip_max_deg`` keeps the deepest dip.
+    """
+
+    def __init__(self, room: Room) -> None:
+        self.room = room
+        self.ref_pitch_deg: float | None = None
+        self.bowed = self.success = False
+        self.dip_max_deg = 0.0
+
+    def __call__(self, data: mujoco.MjData) -> dict[str, float | bool | None]:
+        facing = self.room.facing_deg(data)
+        pitch = self.room.head_pitch_deg(data)
+        facing_user = facing <= GREET_FACING_DEG
+        if self.ref_pitch_deg is None and facing_user:
+            self.ref_pitch_deg = pitch
+        dip = None if self.ref_pitch_deg is None else pitch - self.ref_pitch_deg
+        if dip is not None:
+            self.dip_max_deg = max(self.dip_max_deg, dip)
+            if dip >= BOW_DIP_DEG and facing_user:
+                self.bowed = True
+            elif self.bowed and dip <= BOW_RETURN_DEG:
+                self.success = True
+        return {"facing_deg": facing, "dip_deg": dip, "bowed": self.bowed,
+                "success": self.success}
 
 
 # ---------------------------------------------------------------------------
@@ -833,5 +891,6 @@ def _look_at(parent: mujoco.MjsBody, name: str, eye: Sequence[float],
     cam.fovy = 60.0
 
 
-__all__ = ["GRASP_RADIUS", "GRASP_SITE", "GREET_FACING_DEG", "HANDS", "KNOB_GRIP_RADIUS",
-           "KNOB_TRAVEL", "Room", "RoomObject", "place_on_floor"]
+__all__ = ["BOW_DIP_DEG", "BOW_RETURN_DEG", "GRASP_RADIUS", "GRASP_SITE", "GREET_FACING_DEG",
+           "HANDS", "KNOB_GRIP_RADIUS", "KNOB_TRAVEL", "BowMeter", "Room", "RoomObject",
+           "place_on_floor"]

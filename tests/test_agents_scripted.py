@@ -20,7 +20,9 @@ from simenv.agents.reach import (
     upper_body_joints,
 )
 from simenv.agents.scripted import (
+    PLANNERS,
     object_success,
+    plan_bow_back,
     plan_cigarette_out,
     plan_greet,
     plan_hifi_down,
@@ -270,3 +272,65 @@ def test_reactions_in_sequence_plan_from_the_state_they_find():
             pass
         assert object_success(room, before, room.object_labels(data), reaction), reaction
     assert data.warning.number.sum() == 0
+
+
+def test_agent_bows_back_seated(room: Room):
+    """The user behind the agent's right: the seated agent turns to it (planted feet turn
+    the swivel, the spine the rest), nods (neck flexion, trunk leaning away from the
+    user's side to stay on the seat) and comes back up; Room.bow_meter measures it. A
+    greeting, which turns the same way without nodding, is not a bow."""
+    assert PLANNERS["bow_back"] is plan_bow_back
+    data = _settled(room)
+    plan = plan_bow_back(room, data)
+    meter = room.bow_meter()
+    pelvis_z, success_at = [], None
+    for t, _ in _play(room, data, plan):
+        if meter(data)["success"] and success_at is None:
+            success_at = t
+        pelvis_z.append(float(data.qpos[room.agent_qpos][2]))
+    assert meter.bowed and meter.dip_max_deg >= 15.0, meter.dip_max_deg
+    assert success_at is not None and success_at < plan.duration
+    assert min(pelvis_z) > 0.95 * pelvis_z[0]  # still seated: it did not tip off the chair
+    assert room.facing_deg(data) > 90.0  # turned back to the desk
+    assert np.abs(data.xfrc_applied).max() == 0.0 and data.warning.number.sum() == 0
+    data = _settled(room)
+    greeting = room.bow_meter()
+    for _ in _play(room, data, plan_greet(room, data)):
+        greeting(data)
+    assert not greeting.bowed and greeting.dip_max_deg < 15.0
+
+
+def test_real_bow_is_bowed_back(shared_data):
+    """A real Florence 3D "bow" recording (subject 1, its hips' midpoint as the pelvis) as
+    the session, labelled bow, in the default scenario: the decision starts bow_back and
+    the agent, measured step by step with Room.bow_meter, turns to the user, nods and
+    comes back up, seated."""
+    import simenv.io.florence3d as florence3d
+    from simenv.envs.interaction_room import InteractionRoomEnv
+    from simenv.motion import Motion, Skeleton
+    from simenv.session import PERCEPTION_FPS, GestureEvent
+
+    clips = florence3d.read(shared_data / "gestures" / "florence3d" / "skeletal_data.mat")
+    raw = clips[25]  # video id 26: subject 1's first bow (index.csv)
+    # Florence has no pelvis joint; retargeting needs one: the hips' midpoint.
+    sk = raw.skeleton
+    hips = [sk.joint_names.index(n) for n in ("LeftHip", "RightHip")]
+    skeleton = Skeleton("florence15+pelvis", (*sk.joint_names, "Pelvis"), (*sk.parents, 2),
+                        {**sk.canonical, "pelvis": "Pelvis"})
+    pelvis = raw.positions[:, hips].mean(axis=1, keepdims=True)
+    bow = Motion(np.concatenate([raw.positions, pelvis], axis=1), raw.fps, skeleton,
+                 name=raw.name)
+    env = InteractionRoomEnv(bow, gestures=[GestureEvent("bow", 0.0, bow.duration)])
+    env.reset(seed=0)
+    act, decide = env.reactions.index("bow_back"), int(round(0.2 * PERCEPTION_FPS))
+    meter, k, truncated, z0 = env.room.bow_meter(), 0, False, None
+    while not truncated:
+        *_, truncated, info = env.step(act if k == decide else 0)
+        k += 1
+        if k > decide:
+            z0 = z0 or float(env.data.qpos[env.room.agent_qpos][2])
+            meter(env.data)
+    (entry,) = env.log
+    assert entry["started"] and entry["gesture"] == "bow"
+    assert meter.success and meter.dip_max_deg >= 15.0, meter.dip_max_deg
+    assert float(env.data.qpos[env.room.agent_qpos][2]) > 0.95 * z0
