@@ -183,7 +183,7 @@ def plan_turn_away(room: Room, data: mujoco.MjData) -> PDPlan:
     q = data.qpos[room.agent_qpos]
     yaw = _yaw(q[3:7])
     to = chair_spot(room, data) - q[:2]
-    side = np.sign(np.cross([np.cos(yaw), np.sin(yaw)], to)) or 1.0
+    side = np.sign(np.cos(yaw) * to[1] - np.sin(yaw) * to[0]) or 1.0  # left or right of it
     return plan_step(room, data, q[:2], _wrap(yaw + side * np.pi / 2))
 
 

@@ -1,0 +1,122 @@
+"""Back to the chair (simenv.agents.seat): after closing the window or drawing the curtain
+the agent turns on its feet, walks back between the chair and the desk, steps onto the
+spot in front of the seat facing the desk, and sits down; measured in simulation."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import mujoco
+import numpy as np
+import pytest
+
+import simenv
+from simenv.agents.seat import RETURN_STAGES, plan_step, seated_on_chair
+from simenv.agents.stand import plan_stand_up, standing
+from simenv.assets import WALK, asset_path
+from simenv.envs.interaction_room import InteractionRoomEnv
+from simenv.room import Room
+from simenv.session import PERCEPTION_FPS, GestureEvent
+
+
+def _run(room: Room, data: mujoco.MjData, plan) -> dict[str, Any]:
+    """Play a plan on the agent as the environment does (targets every physics step, the
+    weld released at the end); its measured assistance, if any, and the pelvis's path."""
+    dt = room.model.opt.timestep
+    lowest = np.inf
+    for i in range(int(round(plan.duration / dt))):
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+        lowest = min(lowest, float(data.qpos[room.agent_qpos][2]))
+    room.set_assist(data, None)
+    summary = getattr(plan.feedback, "summary", None)
+    return {"assistance": summary() if summary else None, "lowest_pelvis_m": lowest}
+
+
+@pytest.mark.parametrize(("label", "reaction", "act"), [("cold", "close_window", "push"),
+                                                        ("bright", "close_curtain", "pull")])
+def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act: str):
+    """The real CMU walk's first half second labelled ``label`` (discomfort scenario): the
+    reaction's chain stands, walks, acts (its object changes), then returns and sits."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    env = InteractionRoomEnv(short, gestures=[GestureEvent(label, 0.2, 0.5)],
+                             scenario="discomfort", predictor="constant-velocity-50")
+    env.reset(seed=0)
+    decide, k = int(round(0.3 * PERCEPTION_FPS)), 0
+    action = env.reactions.index(reaction)
+    while True:
+        *_, truncated, info = env.step(action if k == decide else 0)
+        k += 1
+        if truncated or (env.log and env.log[0]["success"] is not None):
+            break
+    (entry,) = env.log
+    assert entry["success"] is True  # the object changed because of the hand
+    names = [s["stage"] for s in entry["stages"]]
+    assert names[:3] == ["stand_up", "walk", act]
+    room, data = env.room, env.data
+    # The environment ends a chain when its object succeeds; the return stages it has not
+    # run are played here from the state it left (the user holding its last pose).
+    stages = {s["stage"]: s for s in entry["stages"]}
+    for name, planner in RETURN_STAGES:
+        if name not in stages:
+            stages[name] = {"stage": name, **_run(room, data, planner(room, data))}
+    seat = seated_on_chair(room, data)
+    assert seat["success"], seat
+    assert seat["seat_contact"] and not seat["fallen"]
+    assert abs(seat["pelvis_height_error_m"]) < 0.05 and seat["seat_distance_m"] < 0.15
+    assert data.warning.number.sum() == 0
+    # Root assistance per stage, measured: the stepping turns need less than the walk's
+    # blend-in turn (3 body weights), the sitting none.
+    for turn in ("turn_away", "turn_to_desk"):
+        a = stages[turn]["assistance"]
+        assert 0.0 < a["mean_bw"] < 1.5, (turn, a)
+    assert stages["walk_back"]["assistance"]["steps"] > 0
+    assert stages["sit_down"]["assistance"] is None and stages["settle"]["assistance"] is None
+    assert all(s["lowest_pelvis_m"] > 0.85 for n, s in stages.items()
+               if n in ("turn_away", "walk_back", "turn_to_desk"))  # standing throughout
+
+
+def test_stepping_turn_re_places_the_feet():
+    """A quarter turn on the spot after standing up: the heading turns, each foot leaves
+    the floor and lands turned with the body; the weld's force is measured."""
+    room = Room("default")
+    data = room.make_data()
+    for _ in range(250):
+        mujoco.mj_step(room.model, data)
+    _run(room, data, plan_stand_up(room, data))
+    assert standing(room, data)["success"]
+    h = room.agent
+    ankles = [room.agent_sites[h.keypoint_names.index(f"{s}_ankle")] for s in ("left", "right")]
+    start_z = data.site_xpos[ankles, 2].copy()
+    q = data.qpos[room.agent_qpos]
+    plan = plan_step(room, data, q[:2].copy(), np.pi / 2)
+    dt, lift = room.model.opt.timestep, np.zeros(2)
+    for i in range(int(round(plan.duration / dt))):
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+        lift = np.maximum(lift, data.site_xpos[ankles, 2] - start_z)
+    room.set_assist(data, None)
+    assert (lift > 0.03).all(), lift  # both feet stepped
+    pelvis = data.xmat[room.model.body("agent/pelvis").id].reshape(3, 3)[:2, 0]
+    assert np.rad2deg(np.arctan2(pelvis[1], pelvis[0])) == pytest.approx(90.0, abs=12.0)
+    feet = data.xmat[[room.model.body(f"agent/{s}_foot").id for s in ("left", "right")]]
+    for m in feet:  # each foot's long axis turned with the body
+        fwd = m.reshape(3, 3)[:2, 0]
+        assert abs(np.rad2deg(np.arctan2(fwd[1], fwd[0])) - 90.0) < 25.0
+    a = plan.feedback.summary()
+    assert a["steps"] > 0 and 0.0 < a["mean_bw"] < 1.5
+
+
+def test_seated_measure():
+    """Settled in the initial seated pose the measure holds; standing it does not."""
+    room = Room("discomfort")
+    data = room.make_data()
+    for _ in range(250):
+        mujoco.mj_step(room.model, data)
+    s = seated_on_chair(room, data)
+    assert s["success"] and s["seat_contact"] and not s["fallen"]
+    q = room.agent.default_qpos()
+    q[:2] = [-1.0, -0.5]
+    data.qpos[room.agent_qpos] = q
+    mujoco.mj_forward(room.model, data)
+    assert not seated_on_chair(room, data)["success"]
