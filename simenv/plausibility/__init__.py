@@ -25,26 +25,26 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from simenv.motion import Motion
-from simenv.plausibility.clips import batches
+from simenv.plausibility.clips import batches, score
 from simenv.plausibility.contact import (
     floating,
-    floating_batch,
+    floating_spec,
     foot_contacts,
     foot_skate,
-    foot_skate_batch,
+    foot_skate_spec,
     ground_penetration,
-    ground_penetration_batch,
+    ground_penetration_spec,
 )
 from simenv.plausibility.kinematic import (
     bone_length,
-    bone_length_batch,
     bone_length_error,
+    bone_length_spec,
     bone_lengths,
     jitter,
-    jitter_batch,
+    jitter_spec,
     reference_lengths,
     velocity,
-    velocity_batch,
+    velocity_spec,
 )
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult, find_violations
@@ -60,15 +60,9 @@ KINEMATIC_METRICS = {
 }
 
 
-#: The same metrics on a :class:`~simenv.plausibility.clips.ClipBatch`.
-_BATCH_METRICS = {
-    "bone_length": bone_length_batch,
-    "foot_skate": foot_skate_batch,
-    "ground_penetration": ground_penetration_batch,
-    "floating": floating_batch,
-    "jitter": jitter_batch,
-    "velocity": velocity_batch,
-}
+#: The same metrics as :func:`~simenv.plausibility.clips.score` runs them.
+_SPECS = (bone_length_spec, foot_skate_spec, ground_penetration_spec, floating_spec,
+          jitter_spec, velocity_spec)
 
 
 def kinematic_metrics(
@@ -86,14 +80,17 @@ def kinematic_metrics_batch(
     Results equal :func:`kinematic_metrics` of each motion. Clips of equal
     skeleton, frame rate and length (e.g. a batch of generated motions) are
     scored together, vectorised over clips
-    (:func:`simenv.plausibility.clips.batches`), which removes the per-call
-    overhead that dominates short clips; any mix of clips is accepted.
+    (:func:`simenv.plausibility.clips.batches`), all six metrics in one
+    compiled call per batch (:func:`simenv.plausibility.clips.score`), which
+    removes the per-call overhead that dominates short clips; any mix of
+    clips is accepted.
     """
     out: list[dict[str, MetricResult]] = [{} for _ in motions]
+    names = list(KINEMATIC_METRICS)
     for members, batch in batches(motions):
-        per_metric = {name: fn(batch, thresholds) for name, fn in _BATCH_METRICS.items()}
+        per_metric = score(batch, [spec(batch, thresholds) for spec in _SPECS])
         for k, i in enumerate(members):
-            out[i] = {name: rs[k] for name, rs in per_metric.items()}
+            out[i] = {name: rs[k] for name, rs in zip(names, per_metric, strict=True)}
     return out
 
 

@@ -1,15 +1,14 @@
 """Clips prepared once for the compiled joint-level metrics.
 
 A :class:`ClipBatch` holds B clips of equal length and frame rate on one
-canonical keypoint layout as keypoint-major float64 coordinate planes
-(3, J, B, T) plus the lowest keypoint height per frame, built in one compiled
-pass (:func:`simenv.plausibility.kernels.planes`), so every joint-level
-metric is one kernel call over all B clips whose inner loops run along
-contiguous frames. :func:`batches` groups any list of motions into such
-batches (clips of other lengths or skeletons go to other batches), small
-enough to stay in the CPU cache. :func:`results` turns the kernels' per-clip
-arrays back into one :class:`~simenv.plausibility.timeline.MetricResult`
-per clip.
+canonical keypoint layout: their source joint positions (B, T, S, 3) and the
+source joint of each canonical keypoint. :func:`score` runs any set of
+joint-level metrics, each described by a :class:`MetricSpec`, on all B clips
+in one compiled call (:func:`simenv.plausibility.kernels.score`), which reads
+each clip's keypoints once for all metrics, and turns its per-clip arrays
+into one :class:`~simenv.plausibility.timeline.MetricResult` per metric and
+clip. :func:`batches` groups any list of motions into such batches (clips of
+other lengths or skeletons go to other batches).
 
 Numerics are those of the per-clip formulas: each operation is the same
 IEEE operation on the same numbers (e.g. a Euclidean norm is
@@ -22,7 +21,8 @@ documented last-bits exception, and
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -33,22 +33,24 @@ from simenv.plausibility import kernels
 from simenv.plausibility.timeline import MetricResult
 from simenv.skeletons import canonical_skeleton
 
-#: Frames per batch (clips x frames): keeps the (3, J, B, T) float64 planes
-#: and their temporaries within a few MB of cache.
+#: Frames per batch (clips x frames): bounds the stacked copy of the source
+#: positions (about 3 MB at 31 joints) and the result arrays.
 BATCH_FRAMES = 8192
 
 
 @lru_cache(maxsize=256)
-def _layout(key: tuple) -> tuple[Skeleton, tuple[int, ...]] | None:
-    """Canonical skeleton and source joint indices of a skeleton, by
-    :func:`_layout_key`; None when it maps no canonical keypoint."""
+def _layout(key: tuple) -> tuple[Skeleton, np.ndarray] | None:
+    """Canonical skeleton and (J,) int64 source joint of each canonical
+    keypoint (shared: never modified) of a skeleton, by :func:`_layout_key`;
+    None when it maps no canonical keypoint."""
     _, joint_names, _, canonical = key
     mapping = dict(canonical)
     keys = [k for k in canonical_skeleton().joint_names if k in mapping]
     if not keys:
         return None
     skel = canonical_skeleton().subset(keys, name="canonical")
-    return skel, tuple(joint_names.index(mapping[k]) for k in skel.joint_names)
+    idx = np.array([joint_names.index(mapping[k]) for k in skel.joint_names], dtype=np.int64)
+    return skel, idx
 
 
 def _layout_key(skeleton: Skeleton) -> tuple:
@@ -74,10 +76,11 @@ class ClipBatch:
             source skeleton maps no canonical keypoint.
         names: canonical keypoint names (J).
         reasons: per clip, why the canonical keypoints cannot be used (the
-            message of :meth:`Motion.to_canonical`'s error), or None.
-        p: (3, J, B, T) float64 canonical keypoint coordinates, metres
-            (Z-up); x, y, z: its three (J, B, T) planes.
-        zmin: (B, T) height of the lowest keypoint, metres.
+            message of :meth:`Motion.to_canonical`'s error), or None; set
+            for the extent check by :func:`score`.
+        positions: (B, T, S, 3) float32 read-only source joints, metres
+            (None without a canonical layout).
+        idx: (J,) int64 source joint of each canonical keypoint.
     """
 
     def __init__(self, motions: Sequence[Motion]) -> None:
@@ -87,19 +90,21 @@ class ClipBatch:
         self.fps = first.fps
         layout = _layout(_layout_key(first.skeleton))
         self.reasons: list[str | None] = [None] * len(motions)
+        self.positions: np.ndarray | None = None
         if layout is None:
-            self.skeleton, self.names = None, ()
+            self.skeleton, self.names, self.idx = None, (), np.zeros(0, dtype=np.int64)
             self.reasons = [_canonical_reason(m) for m in motions]
             return
-        self.skeleton, idx = layout
+        self.skeleton, self.idx = layout
         self.names = self.skeleton.joint_names
         # One clip is passed as a view; several are stacked once (their
         # source joints, the canonical gather happens in the kernel).
-        stack = (first.positions[None] if len(motions) == 1
-                 else np.stack([m.positions for m in motions]))
-        self.p, self.zmin, span = kernels.planes(stack, np.asarray(idx, dtype=np.int64))
-        self.x, self.y, self.z = self.p
-        self._check_extent(span)
+        # Read-only either way, so that both share one compiled kernel.
+        if len(motions) == 1:
+            self.positions = first.positions[None]
+        else:
+            self.positions = np.stack([m.positions for m in motions])
+            self.positions.setflags(write=False)
 
     def _check_extent(self, span: np.ndarray) -> None:
         """:meth:`Motion.to_canonical` rejects a canonical subset whose median
@@ -120,13 +125,6 @@ class ClipBatch:
     def indices(self, names: Sequence[str]) -> list[int]:
         """Indices of those of ``names`` that the layout has, in order."""
         return [self.names.index(n) for n in names if n in self.names]
-
-    def not_available(self, name: str, unit: str, threshold: float, reason: str,
-                      **kwargs: object) -> list[MetricResult]:
-        """One not-available result per clip (a clip's own canonical-keypoint
-        reason takes precedence)."""
-        return [MetricResult.not_available(name, self.num_frames, unit, threshold, r or reason,
-                                           **kwargs) for r in self.reasons]
 
 
 def _canonical_reason(motion: Motion) -> str | None:
@@ -159,54 +157,125 @@ def batches(motions: Sequence[Motion], max_frames: int | None = None
             yield chunk, ClipBatch([motions[i] for i in chunk])
 
 
-def results(batch: ClipBatch, name: str, timeline: np.ndarray, value: np.ndarray, unit: str,
-            threshold: float, *, frame_threshold: float | None = None,
-            timeline_unit: str | None = None,
-            details: Mapping[str, np.ndarray | float] | None = None,
-            available: np.ndarray | None = None, reason: str = "") -> list[MetricResult]:
-    """Per-clip results, as :meth:`MetricResult.from_timeline` builds them.
+@dataclass(frozen=True)
+class MetricSpec:
+    """One joint-level metric as :func:`score` runs it on a batch.
 
-    Args:
-        batch: the clips.
-        timeline: (B, T) per-frame values. value: (B,) clip values.
-        details: name -> (B,) per-clip or scalar values.
-        available: (B,) bool, clips the metric could be computed on
-            (default all); the others get ``reason``.
+    Attributes:
+        slot: the metric's kernel (:data:`simenv.plausibility.kernels.BONE`
+            ... ``VELOCITY``).
+        name, unit, threshold: as in the results.
+        args: the kernel's arguments after its planes (see
+            :func:`simenv.plausibility.kernels.score`), or None when the
+            metric cannot be computed on the batch (then every clip gets
+            ``reason``).
+        details: the result's details in order: a name takes the kernel's
+            next detail column (per clip), a (name, value) pair is the same
+            for every clip.
+        frame_threshold, timeline_unit: as in the results (default: the
+            threshold and the unit).
+        reason: why the metric is not available, for the whole batch
+            (``args`` None) or for the clips the kernel marks unavailable.
     """
-    ft = threshold if frame_threshold is None else frame_threshold
-    # The comparison happens in float32 exactly when numpy's ``tl > ft`` on
-    # the float32 timeline would: a Python number is cast to float32.
-    in_float32 = (not isinstance(ft, np.generic)
-                  or bool(np.result_type(np.float32, ft) == np.float32))
-    tl, runs, offsets = kernels.violations(
-        np.asarray(timeline, dtype=np.float64), float(ft), in_float32)
-    size = batch.size
-    keys = list(details or {})
-    # Python floats per detail at once (a scalar detail is the same for every
-    # clip), then one row per clip: per-clip numpy calls would cost more than
-    # the kernels on short clips.
-    columns = []
-    for v in (details or {}).values():
-        col = np.asarray(v, dtype=np.float64)
-        columns.append([float(col)] * size if col.ndim == 0 else col.tolist())
-    rows = list(zip(*columns, strict=True)) if columns else [()] * size
-    values = np.asarray(value, dtype=np.float64).tolist()
+
+    slot: int
+    name: str
+    unit: str
+    threshold: float
+    args: tuple | None
+    details: tuple[str | tuple[str, float], ...] = ()
+    frame_threshold: float | None = None
+    timeline_unit: str | None = None
+    reason: str = ""
+
+    def not_available(self, batch: ClipBatch) -> list[MetricResult]:
+        """One not-available result per clip (a clip's own canonical-keypoint
+        reason takes precedence)."""
+        return [MetricResult.not_available(self.name, batch.num_frames, self.unit,
+                                           self.threshold, r or self.reason,
+                                           frame_threshold=self.frame_threshold,
+                                           timeline_unit=self.timeline_unit)
+                for r in batch.reasons]
+
+
+def score(batch: ClipBatch, specs: Sequence[MetricSpec]) -> list[list[MetricResult]]:
+    """Every metric of ``specs`` on every clip of ``batch``, in one compiled
+    call.
+
+    Returns:
+        Per spec, one result per clip, as :meth:`MetricResult.from_timeline`
+        builds them.
+    """
+    if batch.positions is None:
+        return [s.not_available(batch) for s in specs]
+    enabled = np.zeros(kernels.N_METRICS, dtype=np.bool_)
+    frame_thresholds = np.zeros(kernels.N_METRICS)
+    in_float32 = np.zeros(kernels.N_METRICS, dtype=np.bool_)
+    args = dict(kernels.IDLE_ARGS)
+    for s in specs:
+        if s.args is None:
+            continue
+        enabled[s.slot] = True
+        args[s.slot] = s.args
+        ft = s.threshold if s.frame_threshold is None else s.frame_threshold
+        frame_thresholds[s.slot] = ft
+        # The comparison happens in float32 exactly when numpy's ``tl > ft``
+        # on the float32 timeline would: a Python number is cast to float32.
+        in_float32[s.slot] = (not isinstance(ft, np.generic)
+                              or bool(np.result_type(np.float32, ft) == np.float32))
+    tl, value, details, available, span, runs, offsets = kernels.score(
+        batch.positions, batch.idx, enabled, args[kernels.BONE], args[kernels.FOOT],
+        args[kernels.FLOAT], args[kernels.JITTER], args[kernels.VELOCITY], frame_thresholds,
+        in_float32)
+    batch._check_extent(span)
+    # Python numbers at once: per-clip numpy calls would cost more than the
+    # kernels on short clips.
     spans = [(int(s), int(e), w) for s, e, w in runs.tolist()]
     bounds = offsets.tolist()
-    unit_tl, thr, ft = timeline_unit or unit, float(threshold), float(ft)
-    ok = [True] * size if available is None else np.asarray(available).tolist()
+    ok = available.tolist()
     out = []
-    for b in range(size):
-        r = batch.reasons[b] or (None if ok[b] else reason)
-        if r is not None:
-            out.append(MetricResult.not_available(name, batch.num_frames, unit, threshold, r,
-                                                  frame_threshold=frame_threshold,
-                                                  timeline_unit=timeline_unit))
+    for s in specs:
+        if s.args is None:
+            out.append(s.not_available(batch))
             continue
+        out.append(_results(batch, s, tl[s.slot], value[s.slot].tolist(),
+                            details[s.slot].tolist(), spans, bounds,
+                            ok if s.slot == kernels.BONE else None))
+    return out
+
+
+def _results(batch: ClipBatch, spec: MetricSpec, tl: np.ndarray, values: list[float],
+             columns: list[list[float]], spans: list[tuple[int, int, float]],
+             bounds: list[int], ok: list[bool] | None) -> list[MetricResult]:
+    """The results of one metric: ``tl`` (B, T) float32 timelines,
+    ``values`` (B,), ``columns`` (B, 4) detail columns, the violation runs
+    and their bounds (see :func:`simenv.plausibility.kernels.score`), ``ok``
+    (B,) clips the metric could be computed on (None: all)."""
+    thr = float(spec.threshold)
+    ft = thr if spec.frame_threshold is None else float(spec.frame_threshold)
+    unit_tl = spec.timeline_unit or spec.unit
+    out = []
+    for b in range(batch.size):
+        r = batch.reasons[b] or (None if ok is None or ok[b] else spec.reason)
+        if r is not None:
+            out.append(MetricResult.not_available(
+                spec.name, batch.num_frames, spec.unit, spec.threshold, r,
+                frame_threshold=spec.frame_threshold, timeline_unit=spec.timeline_unit))
+            continue
+        row = columns[b]
+        details = {}
+        col = 0
+        for d in spec.details:
+            if isinstance(d, str):
+                details[d] = row[col]
+                col += 1
+            else:
+                details[d[0]] = float(d[1])
         v = values[b]
+        k = b * kernels.N_METRICS + spec.slot
         out.append(MetricResult(
-            name=name, value=v, unit=unit, threshold=thr, passed=v <= threshold,
-            timeline=tl[b], violations=spans[bounds[b]:bounds[b + 1]], frame_threshold=ft,
-            timeline_unit=unit_tl, details=dict(zip(keys, rows[b], strict=True)),
+            name=spec.name, value=v, unit=spec.unit, threshold=thr, passed=v <= spec.threshold,
+            timeline=tl[b], violations=spans[bounds[k]:bounds[k + 1]], frame_threshold=ft,
+            timeline_unit=unit_tl, details=details,
         ))
     return out

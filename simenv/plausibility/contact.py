@@ -22,7 +22,7 @@ import numpy as np
 
 from simenv.motion import Motion
 from simenv.plausibility import kernels
-from simenv.plausibility.clips import ClipBatch, norm3, results
+from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score
 from simenv.plausibility.kinematic import canonical_or_reason, keypoint_indices
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
@@ -159,42 +159,36 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
 def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                      ) -> list[MetricResult]:
     """:func:`foot_skate` of every clip of ``batch``."""
+    return score(batch, [foot_skate_spec(batch, thresholds)])[0]
+
+
+def foot_skate_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                    ) -> MetricSpec:
+    """:func:`foot_skate` as :func:`~simenv.plausibility.clips.score` runs it."""
     ref = thresholds.skate_reference_fps
-    name, unit, thr = "foot_skate", "fraction", thresholds.skate_ratio_max
-    kwargs = {"frame_threshold": thresholds.skate_speed_mps * 1000.0 / ref,
-              "timeline_unit": f"mm/frame at {ref:g} fps"}
-    if batch.skeleton is None:
-        return batch.not_available(name, unit, thr, "", **kwargs)
+    frames, fps = batch.num_frames, batch.fps
     feet, heights = _foot_keypoints(batch.names, thresholds)
-    if not feet:
-        return batch.not_available(
-            name, unit, thr, "needs a toe or ankle keypoint (the skeleton has neither)",
-            **kwargs)
-    frames = batch.num_frames
-    if frames < 2:
-        return batch.not_available(
-            name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}",
-            **kwargs)
-    fps = batch.fps
-    ankles = np.array([f.endswith("_ankle") for f in feet])
-    to_mm = 1000.0 / ref
-    timeline, value, details = kernels.foot_skate(
-        batch.p, batch.zmin, np.array(batch.indices(feet), dtype=np.int64),
-        heights.astype(np.float64), ankles, float(fps), float(thresholds.skate_speed_mps),
-        float(thresholds.skate_support_margin_m),
-        max(1, round(thresholds.skate_min_duration_s * fps)),
-        max(1, round(thresholds.skate_window_s * fps)), float(thresholds.contact_speed_mps),
-        to_mm)
-    return results(
-        batch, name, timeline, value, unit, thr, **kwargs,
-        details={
-            "gmd_skating_ratio": details[:, 0],
-            "physdiff_skate_mm": details[:, 1],
-            "max_slide_mm": details[:, 2],
-            "contact_fraction": details[:, 3],
-            "ankle_fallback": float(ankles.any()),
-        },
-    )
+    ankles = np.array([f.endswith("_ankle") for f in feet], dtype=np.bool_)
+    args, reason = None, ""
+    if batch.skeleton is None:
+        pass
+    elif not feet:
+        reason = "needs a toe or ankle keypoint (the skeleton has neither)"
+    elif frames < 2:
+        reason = f"needs at least 2 frames for a speed; the motion has {frames}"
+    else:
+        args = (np.array(batch.indices(feet), dtype=np.int64), heights.astype(np.float64),
+                ankles, float(fps), float(thresholds.skate_speed_mps),
+                float(thresholds.skate_support_margin_m),
+                max(1, round(thresholds.skate_min_duration_s * fps)),
+                max(1, round(thresholds.skate_window_s * fps)),
+                float(thresholds.contact_speed_mps), 1000.0 / ref)
+    return MetricSpec(
+        kernels.FOOT, "foot_skate", "fraction", thresholds.skate_ratio_max, args,
+        ("gmd_skating_ratio", "physdiff_skate_mm", "max_slide_mm", "contact_fraction",
+         ("ankle_fallback", float(ankles.any()))),
+        frame_threshold=thresholds.skate_speed_mps * 1000.0 / ref,
+        timeline_unit=f"mm/frame at {ref:g} fps", reason=reason)
 
 
 def ground_penetration(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -214,14 +208,17 @@ def ground_penetration(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOL
 def ground_penetration_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                              ) -> list[MetricResult]:
     """:func:`ground_penetration` of every clip of ``batch``."""
-    name, unit, thr = "ground_penetration", "mm", thresholds.penetration_max_mm
-    if batch.skeleton is None:
-        return batch.not_available(name, unit, thr, "")
-    depth, value, details = kernels.ground_penetration(batch.zmin)
-    return results(
-        batch, name, depth, value, unit, thr,
-        details={"mean_mm": details[:, 0], "frames_below_floor": details[:, 1]},
-    )
+    return score(batch, [ground_penetration_spec(batch, thresholds)])[0]
+
+
+def ground_penetration_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                            ) -> MetricSpec:
+    """:func:`ground_penetration` as :func:`~simenv.plausibility.clips.score`
+    runs it."""
+    return MetricSpec(kernels.GROUND, "ground_penetration", "mm",
+                      thresholds.penetration_max_mm,
+                      None if batch.skeleton is None else (),
+                      ("mean_mm", "frames_below_floor"))
 
 
 def ballistic_residual(height: np.ndarray, fps: float, gravity: float) -> float:
@@ -270,33 +267,29 @@ def floating(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
 def floating_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                    ) -> list[MetricResult]:
     """:func:`floating` of every clip of ``batch``."""
-    name, unit, thr = "floating", "mm", thresholds.float_height_m * 1000.0
-    if batch.skeleton is None:
-        return batch.not_available(name, unit, thr, "")
+    return score(batch, [floating_spec(batch, thresholds)])[0]
+
+
+def floating_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricSpec:
+    """:func:`floating` as :func:`~simenv.plausibility.clips.score` runs it."""
     com_idx = batch.indices(COM_KEYPOINTS)
-    if not com_idx:
-        return batch.not_available(
-            name, unit, thr,
-            "needs a trunk keypoint (pelvis, hips, spine, chest, neck or shoulders) for the "
-            "centre-of-mass proxy",
-        )
     frames = batch.num_frames
-    if frames < 3:
-        return batch.not_available(
-            name, unit, thr,
-            f"needs at least 3 frames to tell a jump from floating; the motion has {frames}",
-        )
-    timeline, value, details = kernels.floating(
-        batch.p, batch.zmin, np.array(com_idx, dtype=np.int64),
-        np.array(batch.indices(HAND_KEYPOINTS), dtype=np.int64),
-        float(thresholds.float_hand_reach_m), float(thresholds.float_height_m), float(batch.fps),
-        float(thresholds.gravity_mps2), float(thresholds.ballistic_tolerance_m))
-    return results(
-        batch, name, timeline, value, unit, thr,
-        details={
-            "airborne_fraction": details[:, 0],
-            "floating_fraction": details[:, 1],
-            "worst_residual_m": details[:, 2],
-            "jumps": details[:, 3],
-        },
-    )
+    args, reason = None, ""
+    if batch.skeleton is None:
+        pass
+    elif not com_idx:
+        reason = ("needs a trunk keypoint (pelvis, hips, spine, chest, neck or shoulders) for "
+                  "the centre-of-mass proxy")
+    elif frames < 3:
+        reason = (f"needs at least 3 frames to tell a jump from floating; the motion has "
+                  f"{frames}")
+    else:
+        args = (np.array(com_idx, dtype=np.int64),
+                np.array(batch.indices(HAND_KEYPOINTS), dtype=np.int64),
+                float(thresholds.float_hand_reach_m), float(thresholds.float_height_m),
+                float(batch.fps), float(thresholds.gravity_mps2),
+                float(thresholds.ballistic_tolerance_m))
+    return MetricSpec(
+        kernels.FLOAT, "floating", "mm", thresholds.float_height_m * 1000.0, args,
+        ("airborne_fraction", "floating_fraction", "worst_residual_m", "jumps"),
+        reason=reason)

@@ -1,13 +1,14 @@
 """Compiled (numba) kernels of the joint-level metrics.
 
-Each public kernel scores every clip of a batch in one call: it reads the
-keypoint-major coordinate planes ``P`` (3, J, B, T) float64 metres of a
-:class:`~simenv.plausibility.clips.ClipBatch` (x, y, z; keypoints; clips;
-frames), loops over clips, keypoints and frames with the frame axis
-innermost and contiguous (so LLVM vectorises the elementwise loops), and
-writes per-clip timelines (B, T), values (B,) and details (B, K) for
-:func:`~simenv.plausibility.clips.results`. One pass per clip replaces the
-dozens of numpy temporaries per metric that dominated the numpy version.
+:func:`score` is the one compiled entry: for each clip of a batch it gathers
+the canonical keypoints once into float64 coordinate planes ``p`` (3, J, T)
+(x, y, z; keypoints; frames) that stay in cache, runs every enabled metric
+on them (:func:`bone_length`, :func:`foot_skate`,
+:func:`ground_penetration`, :func:`floating`, :func:`jitter`,
+:func:`velocity`: one function per metric and clip, frame axis innermost
+and contiguous so LLVM vectorises the elementwise loops) and turns each
+float64 timeline into the float32 result timeline and its violation runs.
+:func:`simenv.plausibility.clips.score` turns the outputs into results.
 
 Numerics: every kernel does the same IEEE operations, in the same order, as
 the numpy formulas in the metric docstrings of
@@ -316,102 +317,167 @@ def _keep_long_runs(mask: np.ndarray, min_len: int) -> None:
             mask[start:t] = False
 
 
+# -- the fused entry -----------------------------------------------------------
+
+#: Metric slots of :func:`score`, in report order.
+BONE, FOOT, GROUND, FLOAT, JITTER, VELOCITY = range(6)
+#: Number of metric slots and of detail columns per metric.
+N_METRICS, N_DETAILS = 6, 4
+
+
 @njit(cache=True)
-def planes(positions: np.ndarray, idx: np.ndarray
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Keypoint-major float64 planes of a stack of clips.
+def _gather(positions: np.ndarray, b: int, idx: np.ndarray, p: np.ndarray,
+            zmin: np.ndarray) -> float:
+    """Canonical keypoints of clip ``b`` as float64 planes, in place.
 
     Args:
         positions: (B, T, S, 3) float32 source-skeleton joints, metres.
         idx: (J,) source joint of each canonical keypoint.
+        p: (3, J, T) out: x, y, z planes. zmin: (T,) out: height of the
+            lowest keypoint.
 
     Returns:
-        P: (3, J, B, T) float64 coordinates; zmin: (B, T) height of the
-        lowest keypoint; span: (B,) smallest height span (highest minus
-        lowest keypoint) over frames, metres.
+        The smallest height span (highest minus lowest keypoint) over
+        frames, metres.
     """
-    b_count, t_count = positions.shape[0], positions.shape[1]
-    j_count = idx.shape[0]
-    p = np.empty((3, j_count, b_count, t_count))
-    zmin = np.empty((b_count, t_count))
-    span = np.empty(b_count)
-    zmax = np.empty(t_count)
-    for b in range(b_count):
+    t_count = positions.shape[1]
+    for j in range(idx.shape[0]):
+        s = idx[j]
         # Frames innermost: strided loads but contiguous stores, ~3x faster
         # than the transposed order.
-        for j in range(j_count):
-            s = idx[j]
-            for c in range(3):
-                row = p[c, j, b]
-                for t in range(t_count):
-                    row[t] = positions[b, t, s, c]
-        lo = zmin[b]
-        lo[:] = p[2, 0, b]
-        zmax[:] = lo
-        for j in range(1, j_count):
-            z = p[2, j, b]
+        for c in range(3):
+            row = p[c, j]
             for t in range(t_count):
-                lo[t] = min(lo[t], z[t])
-                zmax[t] = max(zmax[t], z[t])
-        span[b] = (zmax - lo).min()
-    return p, zmin, span
+                row[t] = positions[b, t, s, c]
+    zmax = p[2, 0].copy()
+    zmin[:] = zmax
+    for j in range(1, idx.shape[0]):
+        z = p[2, j]
+        for t in range(t_count):
+            zmin[t] = min(zmin[t], z[t])
+            zmax[t] = max(zmax[t], z[t])
+    return (zmax - zmin).min()
 
 
 @njit(cache=True)
-def violations(timeline: np.ndarray, threshold: float, in_float32: bool
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Float32 timelines and their violation runs, in one pass.
+def _violations(timeline: np.ndarray, threshold: float, in_float32: bool, out: np.ndarray,
+                runs: np.ndarray, count: int) -> tuple[np.ndarray, int]:
+    """Float32 timeline and its violation runs, in one pass.
 
     Args:
-        timeline: (B, T) float64 per-frame values.
+        timeline: (T,) float64 per-frame values.
         threshold: per-frame limit; a frame violates when its float32 value
             is above it (NaN never does), compared in float32 when
             ``in_float32`` (numpy's comparison of a float32 array with a
             Python float) and in float64 otherwise.
+        out: (T,) float32 out: the timeline.
+        runs: (R, 3) float64 rows (start frame, inclusive end frame, largest
+            float32 value of the run), of which ``count`` are used; runs
+            are appended in frame order (the array grows when full).
 
     Returns:
-        tl: (B, T) float32 timelines. runs: (R, 3) float64 rows (start
-        frame, inclusive end frame, largest float32 value of the run), clip
-        by clip in frame order. offsets: (B + 1,) int64, clip b's runs are
-        ``runs[offsets[b]:offsets[b + 1]]``.
+        The runs array (the same, or a grown copy) and the new count.
     """
-    b_count, t_count = timeline.shape
-    tl = np.empty((b_count, t_count), dtype=np.float32)
+    t_count = timeline.shape[0]
     thr32 = np.float32(threshold)
     over = np.empty(t_count, dtype=np.bool_)
-    runs = np.empty((0, 3))
-    offsets = np.zeros(b_count + 1, dtype=np.int64)
+    hit = False
+    for t in range(t_count):
+        v = np.float32(timeline[t])
+        out[t] = v
+        o = v > thr32 if in_float32 else np.float64(v) > threshold
+        over[t] = o
+        hit |= o
+    if not hit:
+        return runs, count
+    t = 0
+    while t < t_count:
+        if not over[t]:
+            t += 1
+            continue
+        start = t
+        worst = out[t]
+        while t < t_count and over[t]:
+            worst = max(worst, out[t])
+            t += 1
+        if count == runs.shape[0]:
+            grown = np.empty((2 * count + 8, 3))
+            grown[:count] = runs[:count]
+            runs = grown
+        runs[count, 0] = start
+        runs[count, 1] = t - 1
+        runs[count, 2] = worst
+        count += 1
+    return runs, count
+
+
+@njit(cache=True)
+def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tuple,
+          foot: tuple, flt: tuple, jit: tuple, vel: tuple, frame_thresholds: np.ndarray,
+          in_float32: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                     np.ndarray]:
+    """Every enabled joint-level metric of every clip, in one pass per clip.
+
+    Each clip's canonical keypoints are gathered once into float64 planes
+    that stay in cache while all metrics read them, then each metric writes
+    its float64 timeline, converted to the float32 result timeline together
+    with its violation runs.
+
+    Args:
+        positions: (B, T, S, 3) float32 source-skeleton joints, metres.
+        idx: (J,) int64 source joint of each canonical keypoint.
+        enabled: (6,) bool per metric slot (:data:`BONE` ... :data:`VELOCITY`).
+        bone, foot, flt, jit, vel: arguments of :func:`bone_length`,
+            :func:`foot_skate`, :func:`floating`, :func:`jitter` and
+            :func:`velocity` after their planes (unused when disabled, but
+            always of the same types).
+        frame_thresholds: (6,) per-frame limit of each metric's timeline;
+            in_float32: (6,) bool, compare in float32 (see
+            :func:`_violations`).
+
+    Returns:
+        tl: (6, B, T) float32 timelines (rows of disabled metrics are
+        unset). value: (6, B). details: (6, B, 4). available: (B,) bool,
+        clips with a bone checked. span: (B,) smallest height span over
+        frames, metres. runs: (R, 3) violation runs (see
+        :func:`_violations`). offsets: (B * 6 + 1,) int64, runs of clip b and
+        metric m are ``runs[offsets[6 b + m]:offsets[6 b + m + 1]]``.
+    """
+    b_count, t_count = positions.shape[0], positions.shape[1]
+    j_count = idx.shape[0]
+    tl = np.empty((N_METRICS, b_count, t_count), dtype=np.float32)
+    value = np.zeros((N_METRICS, b_count))
+    details = np.zeros((N_METRICS, b_count, N_DETAILS))
+    available = np.zeros(b_count, dtype=np.bool_)
+    span = np.empty(b_count)
+    runs = np.empty((16, 3))
     count = 0
+    offsets = np.zeros(b_count * N_METRICS + 1, dtype=np.int64)
+    p = np.empty((3, j_count, t_count))
+    zmin = np.empty(t_count)
+    line = np.empty(t_count)
     for b in range(b_count):
-        row = tl[b]
-        hit = False
-        for t in range(t_count):
-            v = np.float32(timeline[b, t])
-            row[t] = v
-            o = v > thr32 if in_float32 else np.float64(v) > threshold
-            over[t] = o
-            hit |= o
-        if hit:
-            t = 0
-            while t < t_count:
-                if not over[t]:
-                    t += 1
-                    continue
-                start = t
-                worst = row[t]
-                while t < t_count and over[t]:
-                    worst = max(worst, row[t])
-                    t += 1
-                if count == runs.shape[0]:
-                    grown = np.empty((2 * count + 8, 3))
-                    grown[:count] = runs[:count]
-                    runs = grown
-                runs[count, 0] = start
-                runs[count, 1] = t - 1
-                runs[count, 2] = worst
-                count += 1
-        offsets[b + 1] = count
-    return tl, runs[:count], offsets
+        span[b] = _gather(positions, b, idx, p, zmin)
+        for m in range(N_METRICS):
+            if enabled[m]:
+                det = details[m, b]
+                if m == BONE:
+                    value[m, b], available[b] = bone_length(p, *bone, line, det)
+                elif m == FOOT:
+                    value[m, b] = foot_skate(p, zmin, *foot, line, det)
+                elif m == GROUND:
+                    value[m, b] = ground_penetration(zmin, line, det)
+                elif m == FLOAT:
+                    value[m, b] = floating(p, zmin, *flt, line, det)
+                elif m == JITTER:
+                    value[m, b] = jitter(p, *jit, line, det)
+                else:
+                    value[m, b] = velocity(p, *vel, line, det)
+                runs, count = _violations(line, frame_thresholds[m], in_float32[m], tl[m, b],
+                                          runs, count)
+            offsets[b * N_METRICS + m + 1] = count
+    return tl, value, details, available, span, runs[:count], offsets
 
 
 # -- bone length ---------------------------------------------------------------
@@ -419,61 +485,52 @@ def violations(timeline: np.ndarray, threshold: float, in_float32: bool
 
 @njit(cache=True)
 def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.ndarray,
-                min_length: float, q: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Bone-length consistency of every clip (see
+                min_length: float, q: float, tl: np.ndarray, details: np.ndarray
+                ) -> tuple[float, bool]:
+    """Bone-length consistency of one clip (see
     :func:`simenv.plausibility.kinematic.bone_length`).
 
     Args:
-        p: (3, J, B, T) planes. parent, child: (K,) keypoints of each bone.
+        p: (3, J, T) planes. parent, child: (K,) keypoints of each bone.
         tol: (K,) relative tolerance per bone. min_length: metres, bones
             with a shorter median are skipped. q: percentile of the value
             as a fraction (0.95).
+        tl: (T,) out: timeline. details: out: (max of the timeline, max
+            relative deviation, bones checked).
 
     Returns:
-        timeline (B, T), value (B,), details (B, 3) = (max of the timeline,
-        max relative deviation, bones checked), available (B,).
+        The value, and whether a bone was checked.
     """
-    b_count, t_count = p.shape[2], p.shape[3]
-    timeline = np.zeros((b_count, t_count))
-    value = np.empty(b_count)
-    details = np.empty((b_count, 3))
-    available = np.empty(b_count, dtype=np.bool_)
+    t_count = p.shape[2]
     length = np.empty(t_count)
     buf = np.empty(t_count)
     tmp = np.empty(t_count)
-    dev_max = np.empty(t_count)
-    for b in range(b_count):
-        tl = timeline[b]
-        # Skipped bones count deviation 0, which leaves every maximum (of
-        # values >= 0) unchanged: start the maxima at 0.
-        dev_max[:] = 0.0
-        checked = 0
-        for k in range(parent.shape[0]):
-            xp, yp, zp = p[0, parent[k], b], p[1, parent[k], b], p[2, parent[k], b]
-            xc, yc, zc = p[0, child[k], b], p[1, child[k], b], p[2, child[k], b]
-            for t in range(t_count):
-                dx, dy, dz = xc[t] - xp[t], yc[t] - yp[t], zc[t] - zp[t]
-                length[t] = np.sqrt((dx * dx + dy * dy) + dz * dz)
-            buf[:] = length
-            m = median(buf, t_count, tmp)
-            if not m >= min_length:
-                continue
-            checked += 1
-            tk = tol[k]
-            for t in range(t_count):
-                dev = abs(length[t] / m - 1.0)
-                dev_max[t] = max(dev_max[t], dev)
-                tl[t] = max(tl[t], dev / tk)
-        buf[:] = tl
-        value[b] = percentile(buf, t_count, q, tmp)
-        details[b, 0] = tl.max()
-        details[b, 1] = dev_max.max()
-        details[b, 2] = checked
-        available[b] = checked > 0
-    return timeline, value, details, available
-
-
+    # Skipped bones count deviation 0, which leaves every maximum (of
+    # values >= 0) unchanged: start the maxima at 0.
+    dev_max = np.zeros(t_count)
+    tl[:] = 0.0
+    checked = 0
+    for k in range(parent.shape[0]):
+        xp, yp, zp = p[0, parent[k]], p[1, parent[k]], p[2, parent[k]]
+        xc, yc, zc = p[0, child[k]], p[1, child[k]], p[2, child[k]]
+        for t in range(t_count):
+            dx, dy, dz = xc[t] - xp[t], yc[t] - yp[t], zc[t] - zp[t]
+            length[t] = np.sqrt((dx * dx + dy * dy) + dz * dz)
+        buf[:] = length
+        m = median(buf, t_count, tmp)
+        if not m >= min_length:
+            continue
+        checked += 1
+        tk = tol[k]
+        for t in range(t_count):
+            dev = abs(length[t] / m - 1.0)
+            dev_max[t] = max(dev_max[t], dev)
+            tl[t] = max(tl[t], dev / tk)
+    buf[:] = tl
+    details[0] = tl.max()
+    details[1] = dev_max.max()
+    details[2] = checked
+    return percentile(buf, t_count, q, tmp), checked > 0
 # -- jitter --------------------------------------------------------------------
 
 
@@ -500,18 +557,19 @@ def _interp(x_count: int, x_step: float, xp: np.ndarray, fp: np.ndarray, out: np
             out[i] = slope * (x - xp[j]) + fp[j]
 
 
+
+
 @njit(cache=True)
 def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, fps: float,
            fa: float, w: int, eps: float, limit: float, dt3: float, duration5: float,
-           fa3: float
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Windowed normalized jerk of every clip (see
+           fa3: float, timeline: np.ndarray, details: np.ndarray) -> float:
+    """Windowed normalized jerk of one clip (see
     :func:`simenv.plausibility.kinematic.jitter` and
     :func:`~simenv.plausibility.kinematic.windowed_normalized_jerk`).
 
     Args:
-        p: (3, J, B, T) planes at ``fps``.
-        resample: bring the clips to ``fa`` first: analysis frame k is
+        p: (3, J, T) planes at ``fps``.
+        resample: bring the clip to ``fa`` first: analysis frame k is
             ``(1 - weight[k]) * p[src[k]] + weight[k] * p[src[k] + 1]`` in
             float32, as :meth:`Motion.resample`. src: (N,) int64, weight:
             (N,) float32 (:func:`simenv.motion.resample_weights`); without
@@ -521,20 +579,17 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
         dt3, duration5, fa3: ``(1 / fa) ** 3``, ``((w - 1) / fa) ** 5`` and
             ``fa ** 3`` as Python computes them (``pow``; numba would
             multiply, which rounds differently).
+        timeline: (T,) out: the median keypoint's NJ at each frame's window
+            centre, NaN where none. details: out: (ProtoMotions' percent,
+            mean |jerk| m/s^3, mean NJ).
 
     Returns:
-        timeline (B, T) (median keypoint's NJ at each frame's window
-        centre, NaN where none), value (B,) (percent of windows over the
-        limit), details (B, 3) = (ProtoMotions' percent, mean |jerk| m/s^3,
-        mean NJ).
+        The value: percent of windows over the limit.
     """
-    j_count, b_count, t_count = p.shape[1], p.shape[2], p.shape[3]
+    j_count, t_count = p.shape[1], p.shape[2]
     n = src.shape[0] if resample else t_count
     windows = n - w + 1
     dt = 1.0 / fa
-    timeline = np.empty((b_count, t_count))
-    value = np.empty(b_count)
-    details = np.empty((b_count, 3))
     series = np.empty((3, n))
     step = np.empty(n - 1)
     jerk_sq = np.empty(n - 3)
@@ -551,180 +606,162 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
     for i in range(windows):
         centres[i] = (i + (w - 1) / 2.0) / fa
     one = np.float32(1.0)
-    for b in range(b_count):
-        for j in range(j_count):
-            for c in range(3):
-                row = p[c, j, b]
-                if resample:
-                    for k in range(n):
-                        wk = weight[k]
-                        series[c, k] = ((one - wk) * np.float32(row[src[k]])
-                                        + wk * np.float32(row[src[k] + 1]))
-                else:
-                    series[c, :] = row
-            x, y, z = series[0], series[1], series[2]
-            # |v| dt and squared jerk dt per frame, with np.diff's differences
-            # and the same divisions by dt, in loops free of loop-carried
-            # dependencies (so the divisions and roots vectorise) ...
-            for k in range(n - 1):
-                vx, vy, vz = (x[k + 1] - x[k]) / dt, (y[k + 1] - y[k]) / dt, (z[k + 1] - z[k]) / dt
-                step[k] = np.sqrt((vx * vx + vy * vy) + vz * vz) * dt
-            for k in range(n - 3):
-                d3x = (((x[k + 3] - x[k + 2]) - (x[k + 2] - x[k + 1]))
-                       - ((x[k + 2] - x[k + 1]) - (x[k + 1] - x[k])))
-                d3y = (((y[k + 3] - y[k + 2]) - (y[k + 2] - y[k + 1]))
-                       - ((y[k + 2] - y[k + 1]) - (y[k + 1] - y[k])))
-                d3z = (((z[k + 3] - z[k + 2]) - (z[k + 2] - z[k + 1]))
-                       - ((z[k + 2] - z[k + 1]) - (z[k + 1] - z[k])))
-                jx, jy, jz = d3x / dt3, d3y / dt3, d3z / dt3
-                jerk_sq[k] = ((jx * jx + jy * jy) + jz * jz) * dt
-                jerk_row[k] = np.sqrt((d3x * d3x + d3y * d3y) + d3z * d3z) * fa3
-            # ... then the running sums (sequential, as np.cumsum) ...
-            cs_step[0] = 0.0
-            for k in range(n - 1):
-                cs_step[k + 1] = cs_step[k] + step[k]
-            cs_jerk[0] = 0.0
-            for k in range(n - 3):
-                cs_jerk[k + 1] = cs_jerk[k] + jerk_sq[k]
-            # ... and the window sums from them.
-            for i in range(windows):
-                path = max(cs_step[w - 1 + i] - cs_step[i], eps)
-                nj_row[i] = duration5 * (cs_jerk[w - 3 + i] - cs_jerk[i]) / (path * path + eps)
-            nj[:, j] = nj_row
-            jerk_norm[:, j] = jerk_row
-        high = 0
-        high_any = 0
+    for j in range(j_count):
+        for c in range(3):
+            row = p[c, j]
+            if resample:
+                for k in range(n):
+                    wk = weight[k]
+                    series[c, k] = ((one - wk) * np.float32(row[src[k]])
+                                    + wk * np.float32(row[src[k] + 1]))
+            else:
+                series[c, :] = row
+        x, y, z = series[0], series[1], series[2]
+        # |v| dt and squared jerk dt per frame, with np.diff's differences
+        # and the same divisions by dt, in loops free of loop-carried
+        # dependencies (so the divisions and roots vectorise) ...
+        for k in range(n - 1):
+            vx, vy, vz = (x[k + 1] - x[k]) / dt, (y[k + 1] - y[k]) / dt, (z[k + 1] - z[k]) / dt
+            step[k] = np.sqrt((vx * vx + vy * vy) + vz * vz) * dt
+        for k in range(n - 3):
+            d3x = (((x[k + 3] - x[k + 2]) - (x[k + 2] - x[k + 1]))
+                   - ((x[k + 2] - x[k + 1]) - (x[k + 1] - x[k])))
+            d3y = (((y[k + 3] - y[k + 2]) - (y[k + 2] - y[k + 1]))
+                   - ((y[k + 2] - y[k + 1]) - (y[k + 1] - y[k])))
+            d3z = (((z[k + 3] - z[k + 2]) - (z[k + 2] - z[k + 1]))
+                   - ((z[k + 2] - z[k + 1]) - (z[k + 1] - z[k])))
+            jx, jy, jz = d3x / dt3, d3y / dt3, d3z / dt3
+            jerk_sq[k] = ((jx * jx + jy * jy) + jz * jz) * dt
+            jerk_row[k] = np.sqrt((d3x * d3x + d3y * d3y) + d3z * d3z) * fa3
+        # ... then the running sums (sequential, as np.cumsum) ...
+        cs_step[0] = 0.0
+        for k in range(n - 1):
+            cs_step[k + 1] = cs_step[k] + step[k]
+        cs_jerk[0] = 0.0
+        for k in range(n - 3):
+            cs_jerk[k + 1] = cs_jerk[k] + jerk_sq[k]
+        # ... and the window sums from them.
         for i in range(windows):
-            buf[:] = nj[i]
-            typical[i] = median(buf, j_count, tmp)
-            high += typical[i] > limit
-            high_any += nj[i].max() > limit
-        _interp(t_count, fps, centres, typical, timeline[b])
-        value[b] = 100.0 * (high / windows)
-        details[b, 0] = 100.0 * (high_any / windows)
-        details[b, 1] = pairwise_sum(jerk_norm.ravel(), 0, jerk_norm.size) / jerk_norm.size
-        details[b, 2] = pairwise_sum(nj.ravel(), 0, nj.size) / nj.size
-    return timeline, value, details
+            path = max(cs_step[w - 1 + i] - cs_step[i], eps)
+            nj_row[i] = duration5 * (cs_jerk[w - 3 + i] - cs_jerk[i]) / (path * path + eps)
+        nj[:, j] = nj_row
+        jerk_norm[:, j] = jerk_row
+    high = 0
+    high_any = 0
+    for i in range(windows):
+        buf[:] = nj[i]
+        typical[i] = median(buf, j_count, tmp)
+        high += typical[i] > limit
+        high_any += nj[i].max() > limit
+    _interp(t_count, fps, centres, typical, timeline)
+    details[0] = 100.0 * (high_any / windows)
+    details[1] = pairwise_sum(jerk_norm.ravel(), 0, jerk_norm.size) / jerk_norm.size
+    details[2] = pairwise_sum(nj.ravel(), 0, nj.size) / nj.size
+    return 100.0 * (high / windows)
 
 
 # -- velocity ------------------------------------------------------------------
 
 
 @njit(cache=True)
-def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Speeds against their limits and teleports of every clip (see
+def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float,
+             tl: np.ndarray, details: np.ndarray) -> float:
+    """Speeds against their limits and teleports of one clip (see
     :func:`simenv.plausibility.kinematic.velocity`); T >= 2.
 
     Args:
-        p: (3, J, B, T) planes. limits: (J,) m/s. jump_limit: metres.
+        p: (3, J, T) planes. limits: (J,) m/s. jump_limit: metres.
+        tl: (T,) out: timeline (NaN on frame 0). details: out: (max speed
+            m/s, max speed ratio, max jump m, teleport frames).
 
     Returns:
-        timeline (B, T) (NaN on frame 0), value (B,), details (B, 4) =
-        (max speed m/s, max speed ratio, max jump m, teleport frames).
+        The value: the timeline's maximum.
     """
-    j_count, b_count, t_count = p.shape[1], p.shape[2], p.shape[3]
-    timeline = np.empty((b_count, t_count))
-    value = np.empty(b_count)
-    details = np.zeros((b_count, 4))
-    ratio = np.empty(t_count - 1)
-    speed_max = np.empty(t_count - 1)
-    jump = np.empty(max(t_count - 2, 0))
-    for b in range(b_count):
-        # Speeds, ratios and jumps are >= 0: maxima start at 0.
-        ratio[:] = 0.0
-        speed_max[:] = 0.0
-        jump[:] = 0.0
-        for j in range(j_count):
-            x, y, z = p[0, j, b], p[1, j, b], p[2, j, b]
-            lim = limits[j]
-            # One pass for speeds (frame pairs t, t+1) and jumps (second
-            # differences at t+1), the latter as np.diff of the former.
-            for t in range(t_count - 1):
-                dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
-                s = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
-                speed_max[t] = max(speed_max[t], s)
-                ratio[t] = max(ratio[t], s / lim)
-                if t < t_count - 2:
-                    ddx = (x[t + 2] - x[t + 1]) - dx
-                    ddy = (y[t + 2] - y[t + 1]) - dy
-                    ddz = (z[t + 2] - z[t + 1]) - dz
-                    jump[t] = max(jump[t], np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz))
-        tl = timeline[b]
-        tl[0] = np.nan
-        tl[1:] = ratio
-        teleports = 0
-        for t in range(t_count - 2):
-            r = jump[t] / jump_limit
-            teleports += r > 1
-            tl[t + 1] = max(tl[t + 1], r)
-        value[b] = tl[1:].max()
-        details[b, 0] = speed_max.max()
-        details[b, 1] = ratio.max()
-        if t_count >= 3:
-            details[b, 2] = jump.max()
-        details[b, 3] = teleports
-    return timeline, value, details
+    j_count, t_count = p.shape[1], p.shape[2]
+    # Speeds, ratios and jumps are >= 0: maxima start at 0.
+    ratio = np.zeros(t_count - 1)
+    speed_max = np.zeros(t_count - 1)
+    jump = np.zeros(max(t_count - 2, 0))
+    for j in range(j_count):
+        x, y, z = p[0, j], p[1, j], p[2, j]
+        lim = limits[j]
+        # One pass for speeds (frame pairs t, t+1) and jumps (second
+        # differences at t+1), the latter as np.diff of the former.
+        for t in range(t_count - 1):
+            dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+            s = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
+            speed_max[t] = max(speed_max[t], s)
+            ratio[t] = max(ratio[t], s / lim)
+            if t < t_count - 2:
+                ddx = (x[t + 2] - x[t + 1]) - dx
+                ddy = (y[t + 2] - y[t + 1]) - dy
+                ddz = (z[t + 2] - z[t + 1]) - dz
+                jump[t] = max(jump[t], np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz))
+    tl[0] = np.nan
+    tl[1:] = ratio
+    teleports = 0
+    for t in range(t_count - 2):
+        r = jump[t] / jump_limit
+        teleports += r > 1
+        tl[t + 1] = max(tl[t + 1], r)
+    details[0] = speed_max.max()
+    details[1] = ratio.max()
+    details[2] = jump.max() if t_count >= 3 else 0.0
+    details[3] = teleports
+    return tl[1:].max()
 
 
 # -- ground --------------------------------------------------------------------
 
 
 @njit(cache=True)
-def ground_penetration(zmin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Depth below the floor of every clip (see
+def ground_penetration(zmin: np.ndarray, depth: np.ndarray, details: np.ndarray) -> float:
+    """Depth below the floor of one clip (see
     :func:`simenv.plausibility.contact.ground_penetration`).
 
     Args:
-        zmin: (B, T) height of the lowest keypoint, metres.
+        zmin: (T,) height of the lowest keypoint, metres.
+        depth: (T,) out: timeline, mm. details: out: (mean mm, fraction of
+            frames below the floor).
 
     Returns:
-        timeline (B, T) mm, value (B,), details (B, 2) = (mean mm,
-        fraction of frames below the floor).
+        The value: the deepest frame, mm.
     """
-    b_count, t_count = zmin.shape
-    depth = np.empty((b_count, t_count))
-    value = np.empty(b_count)
-    details = np.empty((b_count, 2))
-    for b in range(b_count):
-        below = 0
-        for t in range(t_count):
-            d = max(-zmin[b, t], 0.0) * 1000.0
-            depth[b, t] = d
-            below += d > 0
-        value[b] = depth[b].max()
-        details[b, 0] = pairwise_sum(depth[b], 0, t_count) / t_count
-        details[b, 1] = below / t_count
-    return depth, value, details
+    t_count = zmin.shape[0]
+    below = 0
+    for t in range(t_count):
+        d = max(-zmin[t], 0.0) * 1000.0
+        depth[t] = d
+        below += d > 0
+    details[0] = pairwise_sum(depth, 0, t_count) / t_count
+    details[1] = below / t_count
+    return depth.max()
 
 
 @njit(cache=True)
 def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.ndarray,
                ankle: np.ndarray, fps: float, skate_speed: float, margin: float,
-               min_run: int, window: int, contact_speed: float, to_mm: float
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Foot skating of every clip (see
+               min_run: int, window: int, contact_speed: float, to_mm: float,
+               tl: np.ndarray, details: np.ndarray) -> float:
+    """Foot skating of one clip (see
     :func:`simenv.plausibility.contact.foot_skate`); T >= 2.
 
     Args:
-        p: (3, J, B, T) planes. zmin: (B, T) lowest keypoint height.
+        p: (3, J, T) planes. zmin: (T,) lowest keypoint height.
         feet: (F,) foot keypoints (F = 1 or 2). heights: (F,) contact
             heights, metres. ankle: (F,) True for an ankle fallback.
         skate_speed, contact_speed: m/s. margin: support margin, metres.
         min_run: frames a slide must last. window: moving-average frames.
         to_mm: m/s to the timeline's mm per reference frame.
+        tl: (T,) out: timeline (NaN on frame 0). details: out: (GMD ratio,
+            PhysDiff skate mm, max slide mm, contact fraction).
 
     Returns:
-        timeline (B, T) (NaN on frame 0), value (B,) (skating ratio),
-        details (B, 4) = (GMD ratio, PhysDiff skate mm, max slide mm,
-        contact fraction).
+        The value: the skating ratio.
     """
-    b_count, t_count = zmin.shape
+    t_count = zmin.shape[0]
     f_count = feet.shape[0]
     pairs = t_count - 1
-    timeline = np.empty((b_count, t_count))
-    value = np.empty(b_count)
-    details = np.empty((b_count, 4))
     rel = np.empty((f_count, t_count))
     low = np.empty((f_count, t_count), dtype=np.bool_)
     v_h = np.empty((f_count, pairs))
@@ -735,188 +772,189 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
     tmp = np.empty(t_count)
     padded = np.zeros(pairs + window - 1)
     v_avg = np.empty(pairs)
-    slide = np.empty(pairs)
+    slide = np.zeros(pairs)
     disp = np.empty(pairs)
-    any_ankle = ankle.any()
-    for b in range(b_count):
-        # Floors: toes from the 1st percentile of the lowest keypoint, ankles
-        # from that of the lowest ankle.
-        buf[:] = zmin[b]
-        floor = percentile(buf, t_count, 0.01, tmp)
-        ankle_floor = floor
-        if any_ankle:
-            for t in range(t_count):
-                m = np.inf
-                for f in range(f_count):
-                    if ankle[f]:
-                        m = min(m, p[2, feet[f], b, t])
-                buf[t] = m
-            ankle_floor = percentile(buf, t_count, 0.01, tmp)
-        for f in range(f_count):
-            x, y, z = p[0, feet[f], b], p[1, feet[f], b], p[2, feet[f], b]
-            fl = ankle_floor if ankle[f] else floor
-            for t in range(t_count):
-                rel[f, t] = z[t] - fl
-                low[f, t] = rel[f, t] < heights[f]
-            for t in range(pairs):
-                dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
-                v_h[f, t] = np.sqrt(dx * dx + dy * dy) * fps
-                # Planted (foot_contacts): low and slow; the last frame
-                # reuses the last speed.
-                slow = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps < contact_speed
-                planted[f, t] = low[f, t] and slow
-                if t == pairs - 1:
-                    planted[f, t + 1] = low[f, t + 1] and slow
-                raw_sliding[f, t] = low[f, t + 1] and low[f, t] and v_h[f, t] > skate_speed
-        for f in range(f_count):
-            o = f_count - 1 - f
-            for t in range(pairs):
-                # The other foot, planted and lower, carries the weight.
-                supported = (f_count == 2 and v_h[o, t] <= skate_speed
-                             and rel[o, t + 1] + margin < rel[f, t + 1]
-                             and rel[o, t] + margin < rel[f, t])
-                sliding[f, t] = raw_sliding[f, t] and not supported
-            if min_run > 1:
-                _keep_long_runs(sliding[f], min_run)
-        slide[:] = 0.0
-        skating_pairs = 0
-        gmd_pairs = 0
-        for t in range(pairs):
-            skating = False
-            for f in range(f_count):
-                if sliding[f, t]:
-                    skating = True
-                    slide[t] = max(slide[t], v_h[f, t])
-            skating_pairs += skating
-        for f in range(f_count):
-            # scipy's uniform_filter1d(mode="constant") running mean.
-            half = window // 2
-            padded[half:half + pairs] = v_h[f]
-            acc = 0.0
-            for k in range(window):
-                acc += padded[k]
-            v_avg[0] = acc / window
-            for k in range(1, pairs):
-                acc += padded[k + window - 1] - padded[k - 1]
-                v_avg[k] = acc / window
-            for t in range(pairs):
-                # Reused below as "a GMD-skating foot at this pair".
-                raw_sliding[f, t] = raw_sliding[f, t] and v_avg[t] > skate_speed
-        contact_frames = 0
+    # Floors: toes from the 1st percentile of the lowest keypoint, ankles
+    # from that of the lowest ankle.
+    buf[:] = zmin
+    floor = percentile(buf, t_count, 0.01, tmp)
+    ankle_floor = floor
+    if ankle.any():
         for t in range(t_count):
-            contact = False
+            m = np.inf
             for f in range(f_count):
-                contact = contact or planted[f, t]
-            contact_frames += contact
+                if ankle[f]:
+                    m = min(m, p[2, feet[f], t])
+            buf[t] = m
+        ankle_floor = percentile(buf, t_count, 0.01, tmp)
+    for f in range(f_count):
+        x, y, z = p[0, feet[f]], p[1, feet[f]], p[2, feet[f]]
+        fl = ankle_floor if ankle[f] else floor
+        for t in range(t_count):
+            rel[f, t] = z[t] - fl
+            low[f, t] = rel[f, t] < heights[f]
         for t in range(pairs):
-            gmd = False
-            total = 0.0
-            count = 0
-            for f in range(f_count):
-                gmd = gmd or raw_sliding[f, t]
-                if planted[f, t + 1] and planted[f, t]:
-                    total += v_h[f, t]
-                    count += 1
-            gmd_pairs += gmd
-            disp[t] = total / max(count, 1)
-        tl = timeline[b]
-        tl[0] = np.nan
+            dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+            v_h[f, t] = np.sqrt(dx * dx + dy * dy) * fps
+            # Planted (foot_contacts): low and slow; the last frame
+            # reuses the last speed.
+            slow = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps < contact_speed
+            planted[f, t] = low[f, t] and slow
+            if t == pairs - 1:
+                planted[f, t + 1] = low[f, t + 1] and slow
+            raw_sliding[f, t] = low[f, t + 1] and low[f, t] and v_h[f, t] > skate_speed
+    for f in range(f_count):
+        o = f_count - 1 - f
         for t in range(pairs):
-            tl[t + 1] = slide[t] * to_mm
-        value[b] = skating_pairs / pairs
-        details[b, 0] = gmd_pairs / pairs
-        details[b, 1] = pairwise_sum(disp, 0, pairs) / pairs * to_mm
-        details[b, 2] = slide.max() * to_mm
-        details[b, 3] = contact_frames / t_count
-    return timeline, value, details
+            # The other foot, planted and lower, carries the weight.
+            supported = (f_count == 2 and v_h[o, t] <= skate_speed
+                         and rel[o, t + 1] + margin < rel[f, t + 1]
+                         and rel[o, t] + margin < rel[f, t])
+            sliding[f, t] = raw_sliding[f, t] and not supported
+        if min_run > 1:
+            _keep_long_runs(sliding[f], min_run)
+    skating_pairs = 0
+    gmd_pairs = 0
+    for t in range(pairs):
+        skating = False
+        for f in range(f_count):
+            if sliding[f, t]:
+                skating = True
+                slide[t] = max(slide[t], v_h[f, t])
+        skating_pairs += skating
+    for f in range(f_count):
+        # scipy's uniform_filter1d(mode="constant") running mean.
+        half = window // 2
+        padded[half:half + pairs] = v_h[f]
+        acc = 0.0
+        for k in range(window):
+            acc += padded[k]
+        v_avg[0] = acc / window
+        for k in range(1, pairs):
+            acc += padded[k + window - 1] - padded[k - 1]
+            v_avg[k] = acc / window
+        for t in range(pairs):
+            # Reused below as "a GMD-skating foot at this pair".
+            raw_sliding[f, t] = raw_sliding[f, t] and v_avg[t] > skate_speed
+    contact_frames = 0
+    for t in range(t_count):
+        contact = False
+        for f in range(f_count):
+            contact = contact or planted[f, t]
+        contact_frames += contact
+    for t in range(pairs):
+        gmd = False
+        total = 0.0
+        count = 0
+        for f in range(f_count):
+            gmd = gmd or raw_sliding[f, t]
+            if planted[f, t + 1] and planted[f, t]:
+                total += v_h[f, t]
+                count += 1
+        gmd_pairs += gmd
+        disp[t] = total / max(count, 1)
+    tl[0] = np.nan
+    for t in range(pairs):
+        tl[t + 1] = slide[t] * to_mm
+    details[0] = gmd_pairs / pairs
+    details[1] = pairwise_sum(disp, 0, pairs) / pairs * to_mm
+    details[2] = slide.max() * to_mm
+    details[3] = contact_frames / t_count
+    return skating_pairs / pairs
 
 
 @njit(cache=True)
 def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray,
              hand_reach: float, float_height: float, fps: float, gravity: float,
-             tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Floating (airborne, not ballistic) of every clip (see
+             tolerance: float, tl: np.ndarray, details: np.ndarray) -> float:
+    """Floating (airborne, not ballistic) of one clip (see
     :func:`simenv.plausibility.contact.floating`); T >= 3.
 
     Args:
-        p: (3, J, B, T) planes. zmin: (B, T) lowest keypoint height.
+        p: (3, J, T) planes. zmin: (T,) lowest keypoint height.
         com: (K,) keypoints of the centre-of-mass proxy (K >= 1).
         hands: (H,) keypoints counted ``hand_reach`` metres lower.
         float_height: metres. gravity: m/s^2. tolerance: RMS residual of a
             ballistic flight, metres.
+        tl: (T,) out: timeline, mm. details: out: (airborne fraction,
+            floating fraction, worst residual m, jumps).
 
     Returns:
-        timeline (B, T) mm, value (B,), details (B, 4) = (airborne
-        fraction, floating fraction, worst residual m, jumps).
+        The value: the timeline's maximum.
     """
-    b_count, t_count = zmin.shape
-    timeline = np.empty((b_count, t_count))
-    value = np.empty(b_count)
-    details = np.empty((b_count, 4))
-    lowest = np.empty(t_count)
-    com_z = np.empty(t_count)
+    t_count = zmin.shape[0]
     half_g = 0.5 * gravity
-    for b in range(b_count):
-        lowest[:] = zmin[b]
-        for h in hands:
-            zh = p[2, h, b]
-            for t in range(t_count):
-                lowest[t] = min(lowest[t], zh[t] - hand_reach)
-        # np.mean over keypoints: a sequential sum, then one division.
-        com_z[:] = p[2, com[0], b]
-        for k in com[1:]:
-            com_z += p[2, k, b]
-        com_z /= com.shape[0]
-        tl = timeline[b]
-        tl[:] = 0.0
-        worst, jumps, airborne, floating_frames = 0.0, 0, 0, 0
-        t = 0
-        while t < t_count:
-            if not lowest[t] > float_height:
-                t += 1
-                continue
-            start = t
-            while t < t_count and lowest[t] > float_height:
-                t += 1
-            n = t - start
-            airborne += n
-            residual = 0.0
-            if n >= 3:
-                # Free fall z0 + v0 s - g s^2 / 2: least-squares line through
-                # the height plus g s^2 / 2, solved in closed form about the
-                # mean time (well conditioned).
-                s_mean = 0.0
-                y_mean = 0.0
-                for k in range(n):
-                    s = k / fps
-                    s_mean += s
-                    y_mean += com_z[start + k] + half_g * (s * s)
-                s_mean /= n
-                y_mean /= n
-                sxy = 0.0
-                sxx = 0.0
-                for k in range(n):
-                    s = k / fps
-                    ds = s - s_mean
-                    sxy += ds * (com_z[start + k] + half_g * (s * s) - y_mean)
-                    sxx += ds * ds
-                slope = sxy / sxx
-                sq = 0.0
-                for k in range(n):
-                    s = k / fps
-                    r = (com_z[start + k] + half_g * (s * s) - y_mean) - slope * (s - s_mean)
-                    sq += r * r
-                residual = np.sqrt(sq / n)
-            worst = max(worst, residual)
-            if residual > tolerance:
-                floating_frames += n
-                for k in range(start, t):
-                    tl[k] = lowest[k] * 1000.0
-            else:
-                jumps += 1
-        value[b] = tl.max()
-        details[b, 0] = airborne / t_count
-        details[b, 1] = floating_frames / t_count
-        details[b, 2] = worst
-        details[b, 3] = jumps
-    return timeline, value, details
+    lowest = zmin.copy()
+    for h in hands:
+        zh = p[2, h]
+        for t in range(t_count):
+            lowest[t] = min(lowest[t], zh[t] - hand_reach)
+    # np.mean over keypoints: a sequential sum, then one division.
+    com_z = p[2, com[0]].copy()
+    for k in com[1:]:
+        com_z += p[2, k]
+    com_z /= com.shape[0]
+    tl[:] = 0.0
+    worst, jumps, airborne, floating_frames = 0.0, 0, 0, 0
+    t = 0
+    while t < t_count:
+        if not lowest[t] > float_height:
+            t += 1
+            continue
+        start = t
+        while t < t_count and lowest[t] > float_height:
+            t += 1
+        n = t - start
+        airborne += n
+        residual = 0.0
+        if n >= 3:
+            # Free fall z0 + v0 s - g s^2 / 2: least-squares line through
+            # the height plus g s^2 / 2, solved in closed form about the
+            # mean time (well conditioned).
+            s_mean = 0.0
+            y_mean = 0.0
+            for k in range(n):
+                s = k / fps
+                s_mean += s
+                y_mean += com_z[start + k] + half_g * (s * s)
+            s_mean /= n
+            y_mean /= n
+            sxy = 0.0
+            sxx = 0.0
+            for k in range(n):
+                s = k / fps
+                ds = s - s_mean
+                sxy += ds * (com_z[start + k] + half_g * (s * s) - y_mean)
+                sxx += ds * ds
+            slope = sxy / sxx
+            sq = 0.0
+            for k in range(n):
+                s = k / fps
+                r = (com_z[start + k] + half_g * (s * s) - y_mean) - slope * (s - s_mean)
+                sq += r * r
+            residual = np.sqrt(sq / n)
+        worst = max(worst, residual)
+        if residual > tolerance:
+            floating_frames += n
+            for k in range(start, t):
+                tl[k] = lowest[k] * 1000.0
+        else:
+            jumps += 1
+    details[0] = airborne / t_count
+    details[1] = floating_frames / t_count
+    details[2] = worst
+    details[3] = jumps
+    return tl.max()
+
+
+#: Arguments of a disabled metric slot for :func:`score`: never read, but of
+#: the types of the real ones, so that one compiled version serves every mix.
+IDLE_ARGS: dict[int, tuple] = {
+    BONE: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), 0.0, 0.0),
+    FOOT: (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.bool_), 0.0, 0.0, 0.0,
+           0, 0, 0.0, 0.0),
+    FLOAT: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0.0, 0.0, 0.0, 0.0, 0.0),
+    JITTER: (False, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32), 0.0, 0.0, 0,
+             0.0, 0.0, 0.0, 0.0, 0.0),
+    VELOCITY: (np.zeros(0), 0.0, 0.0),
+}

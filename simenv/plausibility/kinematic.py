@@ -23,7 +23,7 @@ import numpy as np
 from simenv.errors import MotionError
 from simenv.motion import Motion, resample_weights
 from simenv.plausibility import kernels
-from simenv.plausibility.clips import ClipBatch, norm3, results
+from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 from simenv.skeletons import CANONICAL_TREE
@@ -114,19 +114,21 @@ def bone_length(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> 
 def bone_length_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                       ) -> list[MetricResult]:
     """:func:`bone_length` of every clip of ``batch``."""
-    name, unit, thr = "bone_length", "fraction of tolerance", 1.0
+    return score(batch, [bone_length_spec(batch, thresholds)])[0]
+
+
+def bone_length_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                     ) -> MetricSpec:
+    """:func:`bone_length` as :func:`~simenv.plausibility.clips.score` runs it."""
     reason = "needs two canonical keypoints joined by a bone of non-zero length"
-    if batch.skeleton is None or not batch.skeleton.bones:
-        return batch.not_available(name, unit, thr, reason)
-    parent, child, tol = _bones(batch.names, tuple(batch.skeleton.bones), thresholds)
-    timeline, value, details, available = kernels.bone_length(
-        batch.p, parent, child, tol, float(thresholds.bone_min_length_m), 95 / 100)
-    return results(
-        batch, name, timeline, value, unit, thr,
-        details={"max": details[:, 0], "max_rel_deviation": details[:, 1],
-                 "bones_checked": details[:, 2]},
-        available=available, reason=reason,
-    )
+    args = None
+    if batch.skeleton is not None and batch.skeleton.bones:
+        parent, child, tol = _bones(batch.names, tuple(batch.skeleton.bones), thresholds)
+        args = (parent, child, tol, float(thresholds.bone_min_length_m), 95 / 100)
+    elif batch.skeleton is None:
+        reason = ""
+    return MetricSpec(kernels.BONE, "bone_length", "fraction of tolerance", 1.0, args,
+                      ("max", "max_rel_deviation", "bones_checked"), reason=reason)
 
 
 @lru_cache(maxsize=64)
@@ -274,32 +276,29 @@ def jitter(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Metri
 def jitter_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                  ) -> list[MetricResult]:
     """:func:`jitter` of every clip of ``batch``."""
-    name, unit, thr = "jitter", "%", thresholds.high_jerk_percent_max
-    kwargs = {"frame_threshold": thresholds.normalized_jerk_max,
-              "timeline_unit": "normalized jerk"}
+    return score(batch, [jitter_spec(batch, thresholds)])[0]
+
+
+def jitter_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricSpec:
+    """:func:`jitter` as :func:`~simenv.plausibility.clips.score` runs it."""
+    fps = batch.fps
+    fa, w, src, weight, reason = _jitter_setup(fps, batch.num_frames, thresholds)
+    args = None
     if batch.skeleton is None:
-        return batch.not_available(name, unit, thr, "", **kwargs)
-    fps, frames = batch.fps, batch.num_frames
-    fa, w, src, weight, reason = _jitter_setup(fps, frames, thresholds)
-    if reason is not None:
-        return batch.not_available(name, unit, thr, reason, **kwargs)
-    resample = src is not None
-    if src is None:
-        src, weight = _NO_RESAMPLE
-    dt = 1.0 / fa
-    timeline, value, details = kernels.jitter(
-        batch.p, resample, src, weight, float(fps),
-        float(fa), int(w), NJ_EPS, float(thresholds.normalized_jerk_max), dt**3,
-        ((w - 1) * dt) ** 5, fa**3)
-    return results(
-        batch, name, timeline, value, unit, thr, **kwargs,
-        details={
-            "protomotions_high_jerk_percent": details[:, 0],
-            "mean_jerk_mps3": details[:, 1],
-            "normalized_jerk_mean": details[:, 2],
-            "analysis_fps": fa,
-        },
-    )
+        reason = ""
+    elif reason is None:
+        resample = src is not None
+        if src is None:
+            src, weight = _NO_RESAMPLE
+        dt = 1.0 / fa
+        args = (resample, src, weight, float(fps), float(fa), int(w), NJ_EPS,
+                float(thresholds.normalized_jerk_max), dt**3, ((w - 1) * dt) ** 5, fa**3)
+    return MetricSpec(
+        kernels.JITTER, "jitter", "%", thresholds.high_jerk_percent_max, args,
+        ("protomotions_high_jerk_percent", "mean_jerk_mps3", "normalized_jerk_mean",
+         ("analysis_fps", fa)),
+        frame_threshold=thresholds.normalized_jerk_max, timeline_unit="normalized jerk",
+        reason=reason or "")
 
 
 #: Unused resampling arrays of a clip analysed at its own rate.
@@ -373,25 +372,21 @@ def velocity(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
 def velocity_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                    ) -> list[MetricResult]:
     """:func:`velocity` of every clip of ``batch``."""
-    name, unit, thr = "velocity", "fraction of limit", 1.0
-    frames = batch.num_frames
-    if batch.skeleton is None:
-        return batch.not_available(name, unit, thr, "")
-    if frames < 2:
-        return batch.not_available(
-            name, unit, thr, f"needs at least 2 frames for a speed; the motion has {frames}")
-    fps = batch.fps
+    return score(batch, [velocity_spec(batch, thresholds)])[0]
+
+
+def velocity_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                  ) -> MetricSpec:
+    """:func:`velocity` as :func:`~simenv.plausibility.clips.score` runs it."""
+    frames, fps = batch.num_frames, batch.fps
     jump_limit = max(thresholds.teleport_distance_m, thresholds.teleport_accel_mps2 / fps**2)
-    timeline, value, details = kernels.velocity(
-        batch.p, _speed_limits(tuple(batch.names), thresholds), float(fps),
-        float(jump_limit))
-    return results(
-        batch, name, timeline, value, unit, thr,
-        details={
-            "max_speed_mps": details[:, 0],
-            "max_speed_ratio": details[:, 1],
-            "max_jump_m": details[:, 2],
-            "jump_limit_m": jump_limit,
-            "teleport_frames": details[:, 3],
-        },
-    )
+    args, reason = None, ""
+    if batch.skeleton is not None and frames < 2:
+        reason = f"needs at least 2 frames for a speed; the motion has {frames}"
+    elif batch.skeleton is not None:
+        args = (_speed_limits(tuple(batch.names), thresholds), float(fps), float(jump_limit))
+    return MetricSpec(
+        kernels.VELOCITY, "velocity", "fraction of limit", 1.0, args,
+        ("max_speed_mps", "max_speed_ratio", "max_jump_m", ("jump_limit_m", jump_limit),
+         "teleport_frames"),
+        reason=reason)
