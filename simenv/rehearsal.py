@@ -9,12 +9,14 @@ with one of the agents below, and writes to ``out``:
   ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
   (fractions of each joint's range), ``labels``, and the root assistance on the agent at
   the step, ``assistance_n`` (N) and ``assistance_bw`` (body weights);
-* ``summary.json``: ``reactions`` (only those the agent started: ``gesture``, ``t_onset``,
+* ``summary.json``: ``session``, ``gestures`` (the labelled ones), ``reactions`` (only those
+  the agent started: ``gesture``, ``t_onset``,
   ``t_decision``, ``t_object_changed``, ``object``, ``reaction``, ``success``,
   ``t_success``; ``facing_deg_min`` for a greeting, ``grasped`` for a grasping reaction,
   ``stages`` -- each with its ``assistance`` -- and the total ``assistance`` for a chained
   reaction such as ``close_window``),
-  ``decisions`` (every decision, with ``not_started``: why it was not carried out),
+  ``decisions`` (every decision, with ``not_started``: why it was not carried out, and for
+  the scripted agent the perception ``stage`` that took it: ``real`` or ``predicted``),
   ``decision_latency_s``
   (statistics of decision time - gesture onset over labelled gestures),
   ``agent_plausibility`` (joint-level metrics of the agent's keypoints,
@@ -29,7 +31,12 @@ with one of the agents below, and writes to ``out``:
   plausibility table.
 
 Agents: ``"scripted"`` decides with a :class:`~simenv.perception.PerceptionLoop` (predict,
-classify, decide every second; needs a classifier), ``"labels"`` decides the scenario's
+classify, decide every second; by default the shipped ``gesture-classifier`` and
+``predictor-25-50``, falling back to templates from the gesture corpus and constant
+velocity, :func:`simenv.perception.default_classifier` /
+:func:`~simenv.perception.load_predictor`; ``summary.json`` names them under
+``perception`` and gives each decision's ``stage``; it perceives while the recording plays,
+not on the pose the user holds after it), ``"labels"`` decides the scenario's
 reaction on the first frame of each labelled gesture (an oracle that rehearses execution
 without perception errors or latency), ``"random"`` decides a seeded random
 reaction at each perception tick.
@@ -53,20 +60,48 @@ import numpy as np
 from simenv.envs.interaction_room import OBJECTS, PENETRATION_TOLERANCE_M, InteractionRoomEnv
 from simenv.errors import SimenvError
 from simenv.motion import Motion
-from simenv.perception import GestureModel, Perception, PerceptionLoop
-from simenv.scenario import REACTIONS
-from simenv.session import PERCEPTION_FPS, GestureEvent, Session
+from simenv.perception import (
+    FALLBACK_PREDICTOR,
+    GestureModel,
+    Perception,
+    PerceptionLoop,
+    TemplateClassifier,
+    TrainedClassifier,
+    default_classifier,
+    load_predictor,
+    vocabulary_map,
+)
+from simenv.scenario import REACTIONS, Scenario, load_scenario
+from simenv.session import PERCEPTION_FPS, GestureEvent, Session, session_recipes
 from simenv.skeletons import canonical_skeleton
 
 AGENTS = ("scripted", "labels", "random")
 
 
 def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.PathLike[str],
-             *, scenario: str = "default", agent: str = "scripted",
-             classifier: GestureModel | None = None, predictor: Any = "constant-velocity-50",
+             *, scenario: Scenario | str = "default", agent: str = "scripted",
+             classifier: GestureModel | None = None, predictor: Any = "auto",
              render: bool = True, width: int = 480, height: int = 360,
-             seed: int = 0) -> dict[str, Any]:
+             seed: int = 0, data: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """Rehearse ``session`` and write the outputs (module docstring) to ``out``.
+
+    Args:
+        session: a Session, motion file, bundled asset or recipe name, or a Motion.
+        out: output folder.
+        scenario: bundled scenario name or TOML file.
+        agent: one of :data:`AGENTS`.
+        classifier: the scripted agent's :class:`~simenv.perception.GestureModel`
+            (default :func:`~simenv.perception.default_classifier` for the scenario's
+            vocabulary).
+        predictor: the perception loop's predictor,
+            :func:`~simenv.perception.load_predictor` (``"auto"``: the shipped
+            ``predictor-25-50`` when present, else constant velocity). It runs at the
+            perception ticks only: the environment's own ``user_future`` observation,
+            which none of these agents reads, is the constant-velocity baseline's (the
+            WGAN on every step would cost ~14 ms of each 40 ms frame).
+        render, width, height: the video and its size, pixels.
+        seed: seed of the environment and the random agent.
+        data: root of the shared corpus (session recipes, the template fallback).
 
     Returns:
         the summary (as written to ``summary.json``).
@@ -74,17 +109,19 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
     if agent not in AGENTS:
         raise SimenvError(f"unknown agent {agent!r}; expected one of {list(AGENTS)}",
                           field="agent")
-    if agent == "scripted" and classifier is None:
-        raise SimenvError("the scripted agent needs a gesture classifier (e.g. "
-                          "simenv.perception.TemplateClassifier.from_clips)", field="classifier")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     clock = [time.perf_counter()]
-    env = InteractionRoomEnv(session, scenario=scenario, predictor=predictor,
+    ahead = load_predictor(predictor) if agent == "scripted" else None
+    env = InteractionRoomEnv(session, scenario=scenario, predictor=FALLBACK_PREDICTOR,
+                             history_frames=max(25, 0 if ahead is None else ahead.history_len),
                              render_mode="rgb_array" if render else None,
-                             width=width, height=height)
-    loop = (PerceptionLoop(env.scenario.behaviour, classifier, env.predictor)
-            if agent == "scripted" else None)
+                             width=width, height=height, data=data)
+    loop = None
+    if agent == "scripted":
+        if classifier is None:
+            classifier = default_classifier(env.scenario.behaviour.vocabulary, data)
+        loop = PerceptionLoop(env.scenario.behaviour, classifier, ahead)
+    out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     obs, _ = env.reset(seed=seed)
     clock.append(time.perf_counter())
@@ -100,8 +137,9 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             t = step / PERCEPTION_FPS
             action = 0
             tick = (step + 1) % 25 == 0 and step + 1 >= 25
-            if loop is not None and tick:
-                last = loop.perceive(t, obs["user_history"])
+            # Perceive while the recording plays: the pose held after it is not the user's.
+            if loop is not None and tick and step < env.n_frames:
+                last = loop.perceive(t, env.user_keypoints())
                 perceptions.append(last)
                 if last.reaction in env.reactions:
                     action = env.reactions.index(last.reaction)
@@ -137,6 +175,12 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
         write_video(frames, out / "rehearsal.mp4", PERCEPTION_FPS)
     env.close()
     summary = _summary(env, np.array(agent_kp), perceptions)
+    if loop is not None:
+        summary["perception"] = {
+            "classifier": getattr(classifier, "name", type(classifier).__name__),
+            "predictor": getattr(ahead, "name", type(ahead).__name__),
+            "real_frames": loop.real_frames, "period": loop.period,
+            "threshold": loop.threshold, "cooldown_s": loop.cooldown_s}
     summary["agent_physics"] = _physics(np.array(depths), assistance)
     _report(out, summary)
     clock.append(time.perf_counter())
@@ -186,12 +230,18 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                     name="agent")
     metrics = kinematic_metrics(motion) if len(agent_kp) >= 3 else {}
     compute = np.array([p.compute_s for p in perceptions])
+    # The tick whose reaction became the decision (steps are 1/25 s: match to the step).
+    stage = {round(p.t_s * PERCEPTION_FPS): p.stage for p in perceptions if p.reaction}
     return {
         "session": env.session.motion.name, "scenario": env.scenario.name,
         "duration_s": len(agent_kp) / PERCEPTION_FPS,
+        "gestures": [{"label": g.label, "onset_s": g.onset_s, "end_s": g.end_s}
+                     for g in env.session.gestures],
         "reactions": reactions,
         "decisions": [{"t_decision": e["t_decision"], "reaction": e["reaction"],
-                       "started": e["started"], "not_started": e["not_started"]}
+                       "started": e["started"], "not_started": e["not_started"],
+                       **({"stage": stage.get(round(e["t_decision"] * PERCEPTION_FPS))}
+                          if perceptions else {})}
                       for e in env.log],
         "decision_latency_s": {"n": int(lat.size),
                                **({"mean": float(lat.mean()), "median": float(np.median(lat)),
@@ -296,25 +346,40 @@ def main(argv: Sequence[str] | None = None) -> int:
     """``python -m simenv.rehearsal SESSION --out DIR [...]`` (``--help`` lists options)."""
     parser = argparse.ArgumentParser(prog="python -m simenv.rehearsal",
                                      description=__doc__.splitlines()[0])
-    parser.add_argument("session", help="motion file or bundled asset name")
+    parser.add_argument("session", help="motion file, bundled asset name, or session recipe "
+                        "(.toml or a bundled recipe name: "
+                        f"{', '.join(session_recipes()) or 'none'})")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--agent", choices=AGENTS, default="labels")
     parser.add_argument("--scenario", default="default", help="bundled name or TOML file")
     parser.add_argument("--gesture", action="append", type=_gesture, default=[],
                         metavar="LABEL:ONSET_S:END_S", help="a labelled gesture (repeatable)")
+    parser.add_argument("--data", help="root of the shared corpus (session recipes, "
+                        "templates); default $SIMENV_SHARED_DATA or ../shared/data")
+    parser.add_argument("--predictor", default="auto", help="perception predictor: a shipped "
+                        "predictor-* name or constant-velocity-50 (default: predictor-25-50 "
+                        "when shipped)")
+    parser.add_argument("--classifier", help="shipped classifier name for the scripted agent "
+                        "(default: gesture-classifier when shipped, else templates)")
     parser.add_argument("--templates", help="gesture recordings folder (msr_action3d/, "
-                        "utkinect/, florence3d/) for the scripted agent's classifier")
+                        "utkinect/, florence3d/): the scripted agent classifies with "
+                        "nearest-neighbour templates from it instead")
     parser.add_argument("--no-render", action="store_true", help="skip the video")
     args = parser.parse_args(argv)
+    scenario = load_scenario(args.scenario)
+    vocabulary = scenario.behaviour.vocabulary
     classifier = None
     if args.templates:
-        from simenv.gestures import load_gesture_clips
-        from simenv.perception import TemplateClassifier
+        from simenv.gestures import GESTURE_LABELS, load_gesture_clips
 
-        classifier = TemplateClassifier.from_clips(load_gesture_clips(args.templates))
-    session = Session.load(args.session, args.gesture)
-    summary = rehearse(session, args.out, scenario=args.scenario, agent=args.agent,
-                       classifier=classifier, render=not args.no_render)
+        classifier = TemplateClassifier.from_clips(load_gesture_clips(args.templates),
+                                                   vocabulary_map(GESTURE_LABELS, vocabulary))
+    elif args.classifier:
+        classifier = TrainedClassifier.shipped(args.classifier, vocabulary)
+    session = Session.load(args.session, args.gesture, data=args.data)
+    summary = rehearse(session, args.out, scenario=scenario, agent=args.agent,
+                       classifier=classifier, predictor=args.predictor,
+                       render=not args.no_render, data=args.data)
     started = len(summary["reactions"])
     done = sum(bool(r["success"]) for r in summary["reactions"])
     print(f"{started} reaction(s) started, {done} succeeded; outputs in {args.out}")

@@ -145,3 +145,114 @@ def test_loop_with_the_shipped_predictor():
     out = loop.perceive(1.2, _waving(30))
     assert out.stage == "predicted" and out.reaction == "greet"
     assert np.isfinite(out.predicted_motion_m)
+
+
+# -- the shipped models as the loop's stages --------------------------------------------
+
+shipped = pytest.mark.skipif(
+    not {"gesture-classifier", "predictor-25-50"} <= set(simenv.models.available()),
+    reason="shipped gesture-classifier / predictor-25-50 absent")
+
+
+def test_vocabulary_map_reads_labels_in_a_scenario():
+    from simenv.gestures import GESTURE_LABELS
+    from simenv.perception import vocabulary_map
+
+    default = vocabulary_map(GESTURE_LABELS, load_scenario("default").behaviour.vocabulary)
+    assert all(k == v for k, v in default.items())
+    discomfort = vocabulary_map(GESTURE_LABELS, load_scenario("discomfort").behaviour.vocabulary)
+    assert discomfort["wave"] == "hello"
+    assert {v for k, v in discomfort.items() if k != "wave"} == {"idle"}
+
+
+@shipped
+def test_trained_classifier_adapter_pads_truncates_and_maps(shared_data):
+    """On a real MSR Action3D wave: the adapter's probabilities are the network's on the
+    window padded to 75 frames (padding invalid), or on the last 75 frames of a longer
+    one; mapped onto the discomfort vocabulary they sum onto hello / idle."""
+    from simenv.gestures import load_gesture_clips
+    from simenv.perception import TrainedClassifier
+
+    clips = load_gesture_clips(shared_data / "gestures", datasets=("msr_action3d",))
+    wave = next(c for c in clips if c.label == "wave" and c.num_frames >= 40)
+    adapter = TrainedClassifier.shipped()
+    assert isinstance(adapter, GestureModel) and adapter.joint_names == GESTURE15_JOINTS
+    assert adapter.labels == adapter.model.config.labels
+    short = wave.positions[:25]
+    padded = np.concatenate([short, np.repeat(short[-1:], 50, axis=0)])
+    valid = np.arange(75) < 25
+    p = adapter.classify(short, np.ones(25, bool))
+    np.testing.assert_allclose(p, adapter.model.classify_world(padded, valid), atol=1e-6)
+    assert p.sum() == pytest.approx(1.0, abs=1e-5)
+    long = np.concatenate([np.repeat(wave.positions[:1], 40, axis=0), padded])
+    long_valid = np.concatenate([np.ones(40, bool), valid])
+    np.testing.assert_allclose(adapter.classify(long, long_valid), p, atol=1e-6)
+    mapped = TrainedClassifier.shipped(vocabulary=load_scenario("discomfort").behaviour.vocabulary)
+    assert set(mapped.labels) == {"hello", "idle"}
+    q = dict(zip(mapped.labels, mapped.classify(short, np.ones(25, bool)), strict=True))
+    assert q["hello"] == pytest.approx(p[adapter.labels.index("wave")], abs=1e-6)
+    assert q["idle"] == pytest.approx(1.0 - q["hello"], abs=1e-5)
+    with pytest.raises(SimenvError, match="label_map"):
+        TrainedClassifier(adapter.model, {"cold": "hello"})
+    with pytest.raises(SimenvError, match="window"):
+        adapter.classify(short[:, :9], np.ones(25, bool))
+
+
+@shipped
+def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
+    from simenv.perception import (
+        TrainedClassifier,
+        default_classifier,
+        load_predictor,
+    )
+
+    predictor = load_predictor()
+    assert isinstance(predictor, CanonicalPredictor) and predictor.name == "predictor-25-50"
+    assert (predictor.history_len, predictor.future_len) == (26, 50)
+    future = predictor.predict(_waving(26))
+    assert future.shape == (50, K, 3) and np.isfinite(future).all()
+    assert isinstance(load_predictor("constant-velocity-50"), ConstantVelocity)
+    assert load_predictor("predictor-25-25").future_len == 25
+    vocab = load_scenario("default").behaviour.vocabulary
+    classifier = default_classifier(vocab, data=tmp_path)  # no corpus needed
+    assert isinstance(classifier, TrainedClassifier)
+    loop = PerceptionLoop(load_scenario("default").behaviour, classifier, predictor)
+    assert loop.threshold == TrainedClassifier.threshold
+    # Nothing shipped and no corpus: a clear error naming where to point.
+    monkeypatch.setattr(simenv.models, "available", lambda: [])
+    assert isinstance(load_predictor(), ConstantVelocity)
+    with pytest.raises(SimenvError, match="SIMENV_SHARED_DATA"):
+        default_classifier(vocab, data=tmp_path)
+
+
+def test_template_fallback_without_shipped_classifier(monkeypatch, shared_data):
+    from simenv.perception import default_classifier
+
+    monkeypatch.setattr(simenv.models, "available", lambda: [])
+    vocab = load_scenario("discomfort").behaviour.vocabulary
+    classifier = default_classifier(vocab, data=shared_data)
+    assert isinstance(classifier, TemplateClassifier)
+    assert set(classifier.labels) == {"hello", "idle"}
+
+
+@shipped
+def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
+    """A real UTKinect waveHands segment (test subject 2) through the loop with the shipped
+    classifier and predictor: the 1 s real + 2 s predicted stage reads it as a wave; the
+    1 s of real motion alone does not (the card's 1-s wave recall is 0)."""
+    from simenv.io import utkinect
+    from simenv.perception import TrainedClassifier, load_predictor
+    from simenv.session import Session, user_track
+
+    motion = utkinect.read(shared_data / "gestures" / "utkinect" / "joints" /
+                           "joints_s02_e01.txt")
+    seg = next(s for s in motion.metadata["segments"] if s["label"] == "waveHands")
+    kp = user_track(Session(motion.slice(seg["start"], seg["end"]))).keypoints
+    behaviour = load_scenario("default").behaviour
+    classifier = TrainedClassifier.shipped()
+    loop = PerceptionLoop(behaviour, classifier, load_predictor())
+    tick = loop.perceive(1.0, kp[:26].astype(np.float32))
+    assert tick.stage == "predicted" and (tick.label, tick.reaction) == ("wave", "greet")
+    real = PerceptionLoop(behaviour, classifier, None, threshold=1.01).perceive(
+        1.0, kp[:26].astype(np.float32))
+    assert real.stage is None and max(real.probabilities, key=real.probabilities.get) != "wave"

@@ -8,9 +8,13 @@ steps of 2 ms). The agent sits at the desk, its PD servos holding the seated pos
 Observation (``Dict``, float32)
     ``user_history`` (H, K, 3): the user's last H = 25 frames (1 s) of canonical keypoints
     in the room frame, m (frames before the session start repeat its first frame);
-    ``user_future`` (F, K, 3): the predictor's F frames ahead of them (default the
-    constant-velocity baseline ``constant-velocity-50``, 2 s, until a trained
-    PredictiveMA-WGAN on these keypoints exists); ``agent`` (nq_a - 2 + nv_a,): the agent's
+    ``user_future`` (F, K, 3): the predictor's F frames ahead of them (default
+    :func:`simenv.perception.load_predictor`: the shipped PredictiveMA-WGAN
+    ``predictor-25-50``, 2 s, run on the keypoints through
+    :class:`~simenv.perception.CanonicalPredictor`; the constant-velocity baseline
+    ``constant-velocity-50`` when it is not shipped; ~14 ms a step for the WGAN on one
+    core, so name ``constant-velocity-50`` when speed matters more); ``agent``
+    (nq_a - 2 + nv_a,): the agent's
     ``qpos[2:]`` and ``qvel``; ``objects`` (5,): each object's state as a fraction of its
     joint range (order :data:`OBJECTS`; see :mod:`simenv.room` for thresholds).
 
@@ -80,6 +84,7 @@ from simenv.assets import WALK
 from simenv.divergence import physics_problem, warning_counts
 from simenv.errors import SimenvError
 from simenv.motion import Motion
+from simenv.perception import load_predictor
 from simenv.scenario import REACTIONS, Scenario, load_scenario
 from simenv.session import PERCEPTION_FPS, GestureEvent, Session, user_track
 
@@ -125,13 +130,20 @@ class InteractionRoomEnv(gym.Env[dict, int]):
     """Choose the agent's reactions to a recorded user (see the module docstring).
 
     Args:
-        session: a :class:`~simenv.session.Session`, a motion file, a bundled asset name
-            or a Motion (default: the bundled CMU walk, which holds no gesture).
+        session: a :class:`~simenv.session.Session`, a motion file, a bundled asset name,
+            a session recipe (``.toml`` or a bundled recipe name) or a Motion (default: the
+            bundled CMU walk, which holds no gesture).
         gestures: labelled gestures of the session when ``session`` is not a Session.
         scenario: a :class:`~simenv.scenario.Scenario`, a bundled name or a TOML path.
         history_frames: H, frames of user history observed.
-        predictor: a ``simenv.models.load`` name or an object with ``predict(history)``
-            ((H, K, 3) -> (F, K, 3)), ``history_len`` and ``future_len``.
+        predictor: ``"auto"`` (the shipped ``predictor-25-50`` when present, else
+            ``constant-velocity-50``), a ``simenv.models.load`` name (shipped
+            ``predictor-*`` models are run on the keypoints through
+            :class:`~simenv.perception.CanonicalPredictor`) or an object with
+            ``predict(history)`` ((H, K, 3) -> (F, K, 3)), ``history_len`` and
+            ``future_len`` (:func:`simenv.perception.load_predictor`).
+        data: root of the shared corpus for a session recipe
+            (:func:`simenv.session.shared_data_root`).
         render_mode: None or ``"rgb_array"`` (the room camera). width, height: pixels.
     """
 
@@ -139,8 +151,9 @@ class InteractionRoomEnv(gym.Env[dict, int]):
 
     def __init__(self, session: Session | str | os.PathLike[str] | Motion = WALK, *,
                  gestures: Sequence[GestureEvent] = (), scenario: Scenario | str = "default",
-                 history_frames: int = 25, predictor: Any = "constant-velocity-50",
-                 render_mode: str | None = None, width: int = 480, height: int = 360) -> None:
+                 history_frames: int = 25, predictor: Any = "auto",
+                 render_mode: str | None = None, width: int = 480, height: int = 360,
+                 data: str | os.PathLike[str] | None = None) -> None:
         if render_mode not in (None, "rgb_array"):
             raise SimenvError(f"render_mode {render_mode!r} is not supported; expected None "
                               "or 'rgb_array'", field="render_mode")
@@ -148,22 +161,20 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._size = (int(width), int(height))
         self.scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         if not isinstance(session, Session):
-            session = Session.load(session, gestures)
+            session = Session.load(session, gestures, data=data)
         self.session = session
         self.track = user_track(session, self.scenario)
         self.room = self.track.room()
         self.model = self.room.model
         self.data = mujoco.MjData(self.model)
-        if isinstance(predictor, str):
-            import simenv.models
-
-            predictor = simenv.models.load(predictor)
+        predictor = load_predictor(predictor)
         self.predictor = predictor
         self.history_frames = int(history_frames)
-        if self.history_frames < max(2, int(predictor.history_len)):
-            raise SimenvError(f"history_frames {history_frames} is shorter than the "
-                              f"predictor's history ({predictor.history_len})",
+        if self.history_frames < 2:
+            raise SimenvError(f"history_frames must be at least 2; got {history_frames}",
                               field="history_frames")
+        # The predictor may need more frames than are observed (the WGAN: 1 + 25).
+        self._kept = max(self.history_frames, int(predictor.history_len))
         self.frame_skip = int(round(1.0 / PERCEPTION_FPS / self.model.opt.timestep))
         used = {self.scenario.behaviour.otherwise, *self.scenario.behaviour.reactions.values()}
         #: Reaction of each action index (index 0: no-op).
@@ -215,7 +226,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self.log: list[dict[str, Any]] = []
         self._running: dict[str, Any] | None = None
         now = self.data.site_xpos[self.room.user_sites].astype(np.float32)
-        self._history = np.repeat(now[None], self.history_frames, axis=0)
+        self._history = np.repeat(now[None], self._kept, axis=0)
         self._obs = self._observe()
         return self._obs, self._info(None, {})
 
@@ -457,14 +468,22 @@ class InteractionRoomEnv(gym.Env[dict, int]):
     # -- observation -----------------------------------------------------------
 
     def _observe(self) -> dict[str, np.ndarray]:
-        history = self._history.copy()
-        future = self.predictor.predict(history[-int(self.predictor.history_len):])
+        history = self._history[-self.history_frames:].copy()
+        future = self.predictor.predict(self._history[-int(self.predictor.history_len):])
         d, room = self.data, self.room
         agent = np.concatenate([d.qpos[room.agent_qpos][2:], d.qvel[room.agent_qvel]])
         return {"user_history": history,
                 "user_future": np.asarray(future, dtype=np.float32),
                 "agent": agent.astype(np.float32),
                 "objects": self.object_levels()}
+
+    def user_keypoints(self) -> np.ndarray:
+        """(max(H, predictor history), K, 3) float32 the user's latest canonical keypoints
+        in the room, m (the observed history and, before it, the frames the predictor
+        also needs), for a perception loop."""
+        if self._step is None and self._obs is None:
+            raise SimenvError("user_keypoints() called before reset(); call reset() first")
+        return self._history.copy()
 
     def object_levels(self) -> np.ndarray:
         """(5,) float32 each object's state as a fraction of its joint range, in
