@@ -21,9 +21,9 @@ Implemented, all seated (:data:`PLANNERS`):
   :class:`simenv.room.BowMeter`).
 
 Standing ones (stand up, walk with a measured root assistance, act) are chained stages:
-``close_window`` (:mod:`simenv.agents.window`) and ``close_curtain``
-(:mod:`simenv.agents.curtain`). The door, ``open_window`` and a hi-fi across the room are
-not done.
+``close_window`` (:mod:`simenv.agents.window`), ``open_window``
+(:mod:`simenv.agents.window_open`) and ``close_curtain`` (:mod:`simenv.agents.curtain`).
+The door and a hi-fi across the room are not done.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from simenv.agents.reach import (
     upper_body_joints,
 )
 from simenv.agents.window import plan_close_window
+from simenv.agents.window_open import plan_open_window
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
 from simenv.room import HANDS, Room
@@ -380,8 +381,9 @@ def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 #: Reaction name -> planner (room, data) -> PDPlan, or a PlanChain of stages planned one
-#: after the other (``close_window`` / ``close_curtain``: stand up, walk, push / pull;
-#: :mod:`simenv.agents.window`, :mod:`simenv.agents.curtain`).
+#: after the other (``close_window`` / ``open_window`` / ``close_curtain``: stand up, walk,
+#: push / pull; :mod:`simenv.agents.window`, :mod:`simenv.agents.window_open`,
+#: :mod:`simenv.agents.curtain`).
 PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
     "bow_back": plan_bow_back,
     "cigarette_out": plan_cigarette_out,
@@ -389,6 +391,7 @@ PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
     "close_window": plan_close_window,
     "greet": plan_greet,
     "hifi_down": plan_hifi_down,
+    "open_window": plan_open_window,
 }
 
 

@@ -1,0 +1,153 @@
+"""Opening the window: stand up, walk to it, take the pane's handle and slide it open.
+
+``open_window`` (:func:`plan_open_window`) is a :class:`~simenv.agents.reach.PlanChain`
+like ``close_window`` (:mod:`simenv.agents.window`), of three stages each planned from the
+state the previous one left:
+
+1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
+2. :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
+   wall and :data:`ALONG_M` along the pane's opening direction from its handle, facing the
+   wall (measured root assistance);
+3. :func:`plan_window_pull`: the right hand comes to the handle's side in the opening
+   direction, fingers pointing into the wall and palm facing the handle (a handshake
+   posture; IK on the palm's ``grip`` site together with the fingertip and wrist sites, so
+   the palm, not the hand's edge, meets the handle), the proximity grasp is asked for
+   there (it closes only if the grip site is within the grasp radius), the hand moves
+   along the wall in the opening direction by :data:`PULL_M` in :data:`PULL_VIA` IK
+   via-points, lets go, backs off and comes back to rest. Moving away from the handle's
+   face, the hand can drag the pane only through the grasp. The pelvis is held where the
+   walk left it by :class:`~simenv.agents.walk.RootAssist` (measured).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from simenv.agents.reach import (
+    PDPlan,
+    PlanChain,
+    arm_joints,
+    pd_targets,
+    reach_pose,
+    upper_body_joints,
+)
+from simenv.agents.stand import plan_stand_up
+from simenv.agents.walk import held_grasp_stroke, plan_walk
+from simenv.agents.window import SPINE
+from simenv.errors import SimenvError
+from simenv.room import Room
+
+#: Pelvis distance from the handle, across the wall, when the agent stands at the window, m.
+STAND_OFF_M = 0.40
+#: Where along the pane's opening direction the agent stands, from the handle, m.
+ALONG_M = 0.10
+#: How far the hand slides the handle in the opening direction, m (the ``open``
+#: threshold is 0.10 m; the servos lag their targets).
+PULL_M = 0.35
+#: Via-points of the pull along the wall (0.4 s each).
+PULL_VIA = 8
+#: The palm comes in from this far in front of the handle, and backs off as far, m.
+APPROACH_M = 0.10
+#: How far into the handle's side face the grip site aims, m: the servos stop short of a
+#: target they cannot reach, so aiming into the handle lays the palm on it.
+PRESS_M = 0.01
+HAND = "right_hand"
+
+
+def _pane_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray,
+                                                          np.ndarray, float]:
+    """The handle's centre (3,), the opening direction along the wall (3,), the wall's
+    inward normal (3,), world frame, m, and the pane's opening now, m."""
+    m, w = room.model, room.objects["window"]
+    handle = data.site_xpos[m.site(w.handle).id].copy()
+    jnt = m.joint(w.joint).id
+    opening = data.xaxis[jnt].copy()  # the slide opens along +axis
+    wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
+    inward = -wall[:, 1]  # the wall frame's +y points out of the room
+    return handle, opening, inward, float(data.qpos[w.qpos_adr])
+
+
+def open_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
+    """Where to stand to open the window: pelvis (x, y), m, :data:`ALONG_M` along the
+    opening direction from the handle and :data:`STAND_OFF_M` into the room, and the
+    heading facing the wall, rad."""
+    handle, opening, inward, _ = _pane_frame(room, data)
+    spot = handle + opening * ALONG_M + inward * STAND_OFF_M
+    face = -inward
+    return spot[:2], float(np.arctan2(face[1], face[0]))
+
+
+def _palm_sites(goal: np.ndarray, into: np.ndarray, fingers: np.ndarray) -> np.ndarray:
+    """(3, 3) targets of the grip, fingertip and wrist sites putting the palm's grip site
+    at ``goal`` with the palm facing ``into`` and the fingers pointing along ``fingers``
+    (unit vectors, world): the hand box's centre line lies 0.019 m behind the palm (half
+    its thickness plus the site's 2 mm), the fingertip site 5.1 cm beyond the grip's level
+    along it and the wrist 5 cm before (the hand's geometry, see
+    :meth:`simenv.room.Room._add_grips`)."""
+    centre = goal - into * 0.019
+    return np.array([goal, centre + fingers * 0.051, centre - fingers * 0.05])
+
+
+def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for sliding the closed pane open from where the agent stands (module
+    docstring).
+
+    Raises:
+        SimenvError: the window is already open, or the handle or the end of the pull is
+            out of the standing agent's reach (IK more than 3 cm short).
+    """
+    m, h, w = room.model, room.agent, room.objects["window"]
+    handle, opening, inward, now = _pane_frame(room, data)
+    if now > w.threshold:
+        raise SimenvError("the window is already open", field="window")
+    side = HAND.split("_")[0]
+    joints = [f"agent/{j}" for j in (*arm_joints(side), f"{side}_hand_flex",
+                                       f"{side}_hand_dev", *SPINE)]
+    sites = [f"agent/{HAND}_grip", f"agent/{HAND}_tip", f"agent/{side}_wrist"]
+    half_width = float(m.geom("window/handle").size[0])
+    # The palm on the handle's face that looks along the opening direction, at the handle's
+    # mid-depth: the fingertips end 2 cm short of the pane. (Aimed 2 cm further into the
+    # room, the grip site stopped 5.8 cm from the handle, at the grasp radius, measured.)
+    on = handle + opening * (half_width + 0.002 - PRESS_M)
+    travel = min(PULL_M, w.upper - now)
+    goals = [on + opening * APPROACH_M / 2 + inward * APPROACH_M, on]
+    goals += [on + opening * travel * k / PULL_VIA for k in range(1, PULL_VIA + 1)]
+    goals.append(goals[-1] + opening * APPROACH_M / 2 + inward * APPROACH_M)
+    upper = upper_body_joints(h)
+    pose = data.qpos.copy()
+    targets = []
+    for goal in goals:
+        pose, err = reach_pose(m, pose, sites, _palm_sites(goal, -opening, -inward), joints,
+                               iterations=400)
+        if err > 0.03:
+            raise SimenvError(f"the window's handle is out of the standing agent's reach "
+                              f"({err:.3f} m short)", field="window")
+        targets.append(pd_targets(h, pose[room.agent_qpos], upper))
+    before, on_t, *pulling, after = targets
+    rest = pd_targets(h, h.default_qpos(), upper)
+    return held_grasp_stroke(room, data, [(before, 1.2), (on_t, 0.6)], pulling,
+                             [(after, 0.6), (rest, 1.0)], HAND, "window")
+
+
+def plan_walk_to_open(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for walking from where the agent stands to :func:`open_spot`, leaving towards
+    the wall (as :func:`simenv.agents.window.plan_walk_to_window` does)."""
+    spot, face = open_spot(room, data)
+    return plan_walk(room, data, spot, face, start_yaw=face)
+
+
+def plan_open_window(room: Room, data: mujoco.MjData) -> PlanChain:
+    """``open_window``: stand up, walk to the window, slide it open (module docstring).
+
+    Raises:
+        SimenvError: the window is already open.
+    """
+    w = room.objects["window"]
+    if float(data.qpos[w.qpos_adr]) > w.threshold:
+        raise SimenvError("the window is already open", field="window")
+    return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_open),
+                      ("pull", plan_window_pull)))
+
+
+__all__ = ["open_spot", "plan_open_window", "plan_walk_to_open", "plan_window_pull"]
