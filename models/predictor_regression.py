@@ -21,6 +21,13 @@ Math (one window; H = 1 + P history frames, F future frames, D = 51)
    linear embedding to every coefficient before the blocks.
 5. **Inverse DCT and residual.** ``x̂ = x_T + D_F^T C_out``: a zero output is the
    zero-velocity prediction, so the network learns only the change from the last pose.
+6. **Ensemble and test-time mirroring** (not in siMLPe; both reduce the variance that
+   13 training clips leave). With ``members = K`` the prediction is the mean of K
+   networks, each trained with its own seed and selected on its own validation clips
+   (:func:`simenv.train_predictor.run`); with ``mirror_average`` each network's
+   prediction is ``½ (f(h) + M f(M h))``, ``M`` the left-right mirror
+   (:func:`simenv.models.predictor.mirror`), which makes the predictor exactly
+   mirror-equivariant, as the mirrored training data asks it to be.
 
 Loss: mean per-joint Euclidean position error (decimetres) plus the same on the
 frame-to-frame velocities (siMLPe's two terms), Adam with cosine decay, weight decay.
@@ -30,7 +37,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +52,7 @@ from simenv.models.predictor import (
     NUM_JOINTS,
     CheckpointError,
     heading,
+    mirror,
     rotate_z,
 )
 
@@ -70,6 +78,10 @@ class RegressionConfig:
     fps: float = 25.0
     blocks: int = 4
     dropout: float = 0.0
+    #: Networks averaged (an ensemble); 1 in checkpoints written before ensembles.
+    members: int = 1
+    #: Average each network with its mirrored prediction of the mirrored history.
+    mirror_average: bool = False
     info: dict = field(default_factory=dict)
 
 
@@ -124,15 +136,31 @@ class DCTRegressionPredictor:
     """
 
     def __init__(self, config: RegressionConfig) -> None:
+        if config.members < 1:
+            raise MotionError(f"members must be >= 1; got {config.members}", field="members")
         self.config = config
         self.past_len = config.past_len
         self.future_len = config.future_len
         self.fps = config.fps
-        self.net = DCTMLP(self.history_len, self.future_len, config.blocks, config.dropout)
+        self.nets = nn.ModuleList(
+            DCTMLP(self.history_len, self.future_len, config.blocks, config.dropout)
+            for _ in range(config.members))
 
     @property
     def history_len(self) -> int:
         return self.past_len + 1
+
+    @property
+    def net(self) -> DCTMLP:
+        """The first (for ``members = 1`` the only) network."""
+        return self.nets[0]
+
+    def member(self, index: int) -> DCTRegressionPredictor:
+        """A one-network predictor that *shares* network ``index`` (training it trains
+        this ensemble's member), with the same mirror averaging."""
+        single = DCTRegressionPredictor(replace(self.config, members=1))
+        single.nets[0] = self.nets[index]
+        return single
 
     @staticmethod
     def inputs(history: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
@@ -147,8 +175,16 @@ class DCTRegressionPredictor:
                 torch.as_tensor(last, dtype=torch.float32), angle)
 
     def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
-        """Differentiable prediction in normalised decimetres: (B, F, 51)."""
+        """Differentiable prediction of the first network in normalised decimetres:
+        (B, F, 51) (what training fits; no ensemble, no mirroring)."""
         return last[:, None, :] + self.net(residual, last)
+
+    def _predict_frames(self, history: np.ndarray) -> np.ndarray:
+        """(N, H, 17, 3) metres -> (N, F, 17, 3) float64 metres: mean of the networks."""
+        residual, last, angle = self.inputs(history)
+        out = torch.stack([last[:, None, :] + net(residual, last) for net in self.nets])
+        out = out.mean(dim=0).double().numpy() / LOSS_UNIT
+        return rotate_z(out.reshape(len(history), self.future_len, NUM_JOINTS, 3), angle)
 
     @torch.no_grad()
     def predict(self, history: np.ndarray) -> np.ndarray:
@@ -165,10 +201,11 @@ class DCTRegressionPredictor:
             MotionError: too short a history, wrong joint count, NaN frames.
         """
         h, batched = check_history(history, self.history_len, joints=NUM_JOINTS)
-        residual, last, angle = self.inputs(h[:, -self.history_len:])
-        self.net.eval()
-        out = self.forward(residual, last).double().numpy() / LOSS_UNIT
-        out = rotate_z(out.reshape(len(h), self.future_len, NUM_JOINTS, 3), angle)
+        h = h[:, -self.history_len:]
+        self.nets.eval()
+        out = self._predict_frames(h)
+        if self.config.mirror_average:
+            out = 0.5 * (out + mirror(self._predict_frames(mirror(h))))
         out = out.astype(np.float32)
         return out if batched else out[0]
 
@@ -178,8 +215,8 @@ class DCTRegressionPredictor:
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {"format": np.array(CHECKPOINT_FORMAT),
                   "config": np.array(json.dumps(asdict(self.config)))}
-        arrays |= {f"net.{k}": v.detach().cpu().numpy()
-                   for k, v in self.net.state_dict().items()}
+        arrays |= {f"nets.{k}": v.detach().cpu().numpy()
+                   for k, v in self.nets.state_dict().items()}
         with path.open("wb") as fh:
             np.savez_compressed(fh, **arrays)
         return path
@@ -201,10 +238,12 @@ class DCTRegressionPredictor:
             if "format" not in data or str(data["format"]) != CHECKPOINT_FORMAT:
                 raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
             model = cls(RegressionConfig(**json.loads(str(data["config"]))))
-            state = {k[4:]: torch.as_tensor(data[k]) for k in data.files
-                     if k.startswith("net.")}
+            # "net.<k>": the single network of checkpoints written before ensembles
+            state = {k.split(".", 1)[1] if k.startswith("nets.") else f"0.{k[4:]}":
+                     torch.as_tensor(data[k]) for k in data.files
+                     if k.startswith(("net.", "nets."))}
             try:
-                model.net.load_state_dict(state)
+                model.nets.load_state_dict(state)
             except RuntimeError as exc:
                 raise CheckpointError(f"weights do not fit the config: {exc}",
                                       source=path) from None

@@ -347,3 +347,44 @@ def split_by_clip(clip_names: Sequence[str], test_fraction: float, seed: int) ->
         train_clips=tuple(str(u) for u in unique[~is_test]),
         test_clips=tuple(str(u) for u in unique[is_test]),
     )
+
+
+def clip_folds(clip_names: Sequence[str], folds: int, seed: int) -> list[ClipSplit]:
+    """K-fold splits of windows by clip: every clip is on the test side of exactly one
+    fold, and no clip has windows on both sides of any fold.
+
+    Clips are dealt, largest first (ties in a seeded random order), each to the fold
+    with the fewest test windows so far, which balances the folds' window counts.
+
+    Args:
+        clip_names: (N,) clip name of each window.
+        folds: number of folds K, 2 <= K <= number of distinct clips.
+        seed: seed of the tie-break order.
+
+    Returns:
+        K :class:`ClipSplit`; fold ``k`` holds out the clips dealt to it.
+
+    Raises:
+        MotionError: fewer than ``folds`` distinct clips, or ``folds < 2``.
+    """
+    names = np.asarray(clip_names, dtype=object).astype(str)
+    unique, inverse, counts = np.unique(names, return_inverse=True, return_counts=True)
+    if not 2 <= folds <= len(unique):
+        raise MotionError(f"folds must be in [2, {len(unique)}] (the number of distinct "
+                          f"clips); got {folds}", field="folds")
+    shuffled = np.random.default_rng(seed).permutation(len(unique))
+    order = shuffled[np.argsort(-counts[shuffled], kind="stable")]
+    fold_of = np.empty(len(unique), dtype=np.int64)
+    load = np.zeros(folds, dtype=np.int64)
+    for rank, c in enumerate(order):
+        # the first K clips open one fold each, so that no fold is empty
+        k = rank if rank < folds else int(np.argmin(load))
+        fold_of[c] = k
+        load[k] += counts[c]
+    out = []
+    for k in range(folds):
+        test = fold_of[inverse] == k
+        out.append(ClipSplit(train=np.flatnonzero(~test), test=np.flatnonzero(test),
+                             train_clips=tuple(str(u) for u in unique[fold_of != k]),
+                             test_clips=tuple(str(u) for u in unique[fold_of == k])))
+    return out

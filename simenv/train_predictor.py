@@ -520,12 +520,43 @@ def plot_curves(metrics: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def training_windows(motions: Sequence[Motion], clips: set[str],
+                     args: argparse.Namespace) -> pdata.PredictionWindows:
+    """Training windows of the motions whose group is in ``clips``, with the speed
+    variants and (``args.mirror``) the mirror images of ``args``."""
+    train_motions = [m for m in motions if group_of(m.name) in clips]
+    windows = pdata.windows_from_motions(speed_variants(train_motions, args.speeds),
+                                         args.past, args.future, stride=1)
+    return mirrored(windows) if args.mirror else windows
+
+
+def _member_info(log: list[dict[str, float]], validation: pdata.PredictionWindows | None,
+                 windows: int) -> dict:
+    """What a model card records of one trained ensemble member."""
+    info = {"iterations": log[-1]["iteration"] + 1,
+            "train_seconds": round(log[-1]["seconds"], 1), "train_windows": windows}
+    scored = [e for e in log if "val_mpjpe_mm" in e]
+    if scored and validation is not None:
+        pick = min(scored, key=lambda e: e["val_mpjpe_mm"])
+        info |= {"validation_clips": sorted({group_of(c)
+                                             for c in validation.window_clip_names}),
+                 "selected_iteration": pick["iteration"],
+                 "val_mpjpe_mm": round(pick["val_mpjpe_mm"], 2)}
+    return info
+
+
 def run(args: argparse.Namespace) -> dict:
     """Load data, split, fit geometry, train, evaluate, write outputs; returns metrics.
 
     With ``args.validation > 0`` that share of the *training* windows, by clip group
     (:func:`make_split` with the same seed), is held out as a validation set for model
     selection; the test clips are never seen before the final evaluation.
+
+    A regression ensemble (``--members K > 1``) is cross-fitted instead: the training
+    clip groups are dealt into K folds (:func:`simenv.prediction_data.clip_folds`;
+    ``args.validation`` is not used), member ``i`` is trained with seed ``seed + i`` on
+    the other folds and its iteration selected on fold ``i``. Every member is validated
+    on clips it has not seen, and every training clip trains K - 1 members.
     """
     torch.set_num_threads(args.threads)
     paths = args.data or default_data(Path(args.shared))
@@ -534,27 +565,41 @@ def run(args: argparse.Namespace) -> dict:
     split = make_split(windows, args.test_fraction, args.seed)
     test_w = windows.subset(split.test)
     fit_clips, val_w, val_clips = set(split.train_clips), None, []
-    if args.validation:
-        base = windows.subset(split.train)
+    base = windows.subset(split.train)
+    ensemble = args.model == "regression" and args.members > 1
+    if ensemble:
+        groups = [group_of(c) for c in base.window_clip_names]
+        folds = pdata.clip_folds(groups, args.members, args.seed)
+        val_w, val_clips = base.subset(folds[0].test), list(folds[0].test_clips)
+        fit_clips = set(folds[0].train_clips)
+    elif args.validation:
         vsplit = make_split(base, args.validation, args.seed)
         val_w, val_clips = base.subset(vsplit.test), list(vsplit.test_clips)
         fit_clips = set(vsplit.train_clips)
-    train_motions = [m for m in motions if group_of(m.name) in fit_clips]
-    train_w = pdata.windows_from_motions(speed_variants(train_motions, args.speeds),
-                                         args.past, args.future, stride=1)
-    if args.mirror:
-        train_w = mirrored(train_w)
+    train_w = training_windows(motions, fit_clips, args)
     budget = {"iterations": args.iterations, "minutes": args.minutes,
               "validation": val_w, "seed": args.seed, "progress": not args.quiet}
     if args.model == "regression":
         lr = args.lr or 3e-4
         config = RegressionConfig(args.past, args.future, blocks=args.blocks,
-                                  dropout=args.dropout)
+                                  dropout=args.dropout, members=args.members,
+                                  mirror_average=args.mirror_average)
         model = DCTRegressionPredictor(config)
-        log = train_regression(model, train_w, lr=lr, weight_decay=args.weight_decay,
-                               **budget)
+        members, logs = [], []
+        for i in range(args.members):
+            if i:  # every further member: its own seed and its own validation fold
+                val_w = base.subset(folds[i].test)
+                train_w = training_windows(motions, set(folds[i].train_clips), args)
+            log = train_regression(model.member(i), train_w, lr=lr,
+                                   weight_decay=args.weight_decay,
+                                   **budget | {"validation": val_w, "seed": args.seed + i})
+            members.append(_member_info(log, val_w, len(train_w)))
+            logs += [e | {"member": i} for e in log]
+        log = logs
         recipe = {"model": "dct-mlp", "blocks": args.blocks,
-                  "weight_decay": args.weight_decay}
+                  "weight_decay": args.weight_decay, "members": members,
+                  "mirror_average": args.mirror_average,
+                  "train_seconds_total": round(sum(m["train_seconds"] for m in members), 1)}
     else:
         lr = args.lr or 1e-4
         config = PredictorConfig(args.past, args.future, dropout=args.dropout)
@@ -564,7 +609,8 @@ def run(args: argparse.Namespace) -> dict:
                     **budget)
         recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
                   "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude}
-    selected = [e for e in log if "val_mpjpe_mm" in e]
+    # an ensemble's selections are per member (recipe["members"])
+    selected = [] if ensemble else [e for e in log if "val_mpjpe_mm" in e]
     config.info.update({"train_clips": list(split.train_clips),
                         "test_clips": list(split.test_clips),
                         "validation_clips": val_clips,
@@ -717,9 +763,28 @@ def model_card(name: str, metrics: dict) -> str:
     title, module = (("DCT-residual MLP regression baseline (siMLPe-style, not the thesis "
                       "model)", "simenv.models.predictor_regression") if regression else
                      ("PredictiveMA-WGAN motion predictor", "simenv.models.predictor"))
-    if regression:
+    if regression and isinstance(cfg.get("members"), list):
+        training = "\n".join([
+            f"* training: an ensemble of {len(cfg['members'])} networks, cross-fitted: the "
+            f"training clip groups are dealt into {len(cfg['members'])} folds, member i is "
+            "trained on the other folds (seed + i) and its iteration selected on fold i "
+            "(training clips held out of that member's training, never the test clips). "
+            f"{cfg['members'][0]['iterations']} iterations per member, "
+            f"{cfg['train_seconds_total']} CPU s in all on one thread, batch 128, AdamW lr "
+            f"{cfg['lr']}, weight decay {cfg['weight_decay']}, {cfg['blocks']} blocks, "
+            f"dropout {cfg['dropout']}; prediction = mean of the members"
+            + (", each averaged with its mirrored prediction of the mirrored history"
+               if cfg.get("mirror_average") else ""),
+            "",
+            "| member | validation clips | selected iteration | validation MPJPE [mm] | "
+            "training windows |",
+            "|---|---|---|---|---|",
+            *(f"| {i} | {', '.join(m['validation_clips'])} | {m['selected_iteration']} | "
+              f"{m['val_mpjpe_mm']} | {m['train_windows']} |"
+              for i, m in enumerate(cfg["members"]))])
+    elif regression:
         training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
-                    f"CPU s on one thread, batch 64, AdamW lr {cfg['lr']}, weight decay "
+                    f"CPU s on one thread, batch 128, AdamW lr {cfg['lr']}, weight decay "
                     f"{cfg['weight_decay']}, {cfg['blocks']} blocks, dropout {cfg['dropout']};"
                     f" checkpoint of iteration {cfg['selected_iteration']} chosen on the "
                     f"validation clips {', '.join(cfg['validation_clips'])} (training clips "
@@ -845,6 +910,12 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--blocks", type=int, default=4, help="regression: temporal blocks")
     ap.add_argument("--weight-decay", type=float, default=1e-4,
                     help="regression: AdamW weight decay")
+    ap.add_argument("--members", type=int, default=1,
+                    help="regression: networks of the ensemble, cross-fitted on as many "
+                    "folds of the training clips (each member selected on its fold)")
+    ap.add_argument("--mirror-average", action=argparse.BooleanOptionalAction,
+                    default=True, help="regression: average each prediction with the "
+                    "mirrored prediction of the mirrored history")
     ap.add_argument("--n-critic", type=int, default=2, help="critic steps per G step")
     ap.add_argument("--lr", type=float, default=None,
                     help="learning rate (default 1e-4 for the GAN, 3e-4 for regression)")

@@ -163,3 +163,40 @@ def test_split_by_clip_rejects_bad_input():
         pdata.split_by_clip(["a", "a"], 0.5, 0)
     with pytest.raises(MotionError, match=r"\(0, 1\)"):
         pdata.split_by_clip(["a", "b"], 1.0, 0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.integers(1, 40), min_size=2, max_size=12),
+    st.integers(2, 6),
+    st.integers(0, 2**32 - 1),
+)
+def test_clip_folds_hold_out_every_clip_once_and_balance_the_windows(sizes, folds, seed):
+    folds = min(folds, len(sizes))
+    names = np.concatenate([np.full(n, f"clip{i}") for i, n in enumerate(sizes)])
+    names = names[np.random.default_rng(seed).permutation(len(names))]
+    splits = pdata.clip_folds(names, folds, seed)
+    assert len(splits) == folds
+    held = [c for s in splits for c in s.test_clips]
+    assert sorted(held) == sorted(set(names))  # each clip on the test side exactly once
+    for s in splits:
+        assert s.test.size and s.train.size + s.test.size == len(names)
+        assert not set(names[s.train]) & set(names[s.test])
+        assert set(names[s.test]) == set(s.test_clips)
+    loads = [s.test.size for s in splits]
+    # dealt largest first to the lightest fold: loads differ by at most the largest clip
+    assert max(loads) - min(loads) <= max(sizes)
+
+
+def test_clip_folds_on_real_windows_and_bad_input(shared_data):
+    clips = [_clip(shared_data, n) for n in ("02_01", "02_06", "12_01", "16_15", "49_06")]
+    windows = pdata.windows_from_motions(clips, 10, 10, stride=2)
+    splits = pdata.clip_folds(windows.window_clip_names, 3, seed=0)
+    assert sorted(c for s in splits for c in s.test_clips) == sorted(windows.clip_names)
+    again = pdata.clip_folds(windows.window_clip_names, 3, seed=0)
+    for a, b in zip(splits, again, strict=True):
+        np.testing.assert_array_equal(a.test, b.test)
+    with pytest.raises(MotionError, match=r"folds must be in \[2, 5\]"):
+        pdata.clip_folds(windows.window_clip_names, 6, 0)
+    with pytest.raises(MotionError, match="folds must be"):
+        pdata.clip_folds(windows.window_clip_names, 1, 0)

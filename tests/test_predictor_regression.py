@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import asdict, replace
+
 import numpy as np
 import pytest
 import torch
@@ -100,3 +103,74 @@ def test_evaluation_of_a_regression_model_has_no_carried_amplitude(windows):
     preds = tp.predictions(model, windows.subset(np.arange(8)))
     assert set(preds) == {"model", "zero_velocity", "constant_velocity"}
     np.testing.assert_allclose(preds["model"], preds["zero_velocity"], atol=1e-5)
+
+
+def _perturbed(config: R.RegressionConfig, seed: int) -> R.DCTRegressionPredictor:
+    """A model whose networks are not zero-velocity (random output layers)."""
+    model = R.DCTRegressionPredictor(config)
+    torch.manual_seed(seed)
+    for net in model.nets:
+        for p in net.fc_out.parameters():
+            torch.nn.init.normal_(p, std=0.1)
+    return model
+
+
+def test_ensemble_is_the_mean_of_its_members_and_mirror_averaging_is_equivariant(windows):
+    history = windows.frames[:6, :11]
+    model = _perturbed(R.RegressionConfig(10, 10, members=3), seed=2)
+    members = [model.member(i).predict(history) for i in range(3)]
+    np.testing.assert_allclose(model.predict(history), np.mean(members, axis=0), atol=1e-5)
+    assert np.abs(members[0] - members[1]).max() > 1e-3  # the members differ
+    # member() shares the network: changing the view changes the ensemble
+    with torch.no_grad():
+        model.member(1).net.fc_out.bias.add_(0.5)
+    assert np.abs(model.member(1).predict(history) - members[1]).max() > 1e-3
+    plain = model.predict(history)
+    averaged = R.DCTRegressionPredictor(replace(model.config, mirror_average=True))
+    averaged.nets = model.nets
+    pred = averaged.predict(history)
+    np.testing.assert_allclose(pred, 0.5 * (plain + P.mirror(model.predict(P.mirror(history)))),
+                               atol=1e-5)
+    # the mirror of the prediction is the prediction of the mirrored history
+    np.testing.assert_allclose(averaged.predict(P.mirror(history)), P.mirror(pred), atol=1e-5)
+    assert np.abs(P.mirror(plain) - model.predict(P.mirror(history))).max() > 1e-3
+    with pytest.raises(MotionError, match="members must be >= 1"):
+        R.DCTRegressionPredictor(R.RegressionConfig(10, 10, members=0))
+
+
+def test_ensemble_checkpoint_round_trip_and_single_network_files_still_load(windows, tmp_path):
+    history = windows.frames[:3, :11]
+    model = _perturbed(R.RegressionConfig(10, 10, blocks=2, members=2, mirror_average=True), 3)
+    again = R.DCTRegressionPredictor.load(model.save(tmp_path / "e.npz"))
+    assert again.config.members == 2 and again.config.mirror_average
+    np.testing.assert_array_equal(again.predict(history), model.predict(history))
+    # a checkpoint of the single-network format ("net.<k>" arrays, no members field)
+    single = _perturbed(R.RegressionConfig(10, 10, blocks=2), 4)
+    config = {k: v for k, v in asdict(single.config).items()
+              if k not in ("members", "mirror_average")}
+    arrays = {"format": np.array(R.CHECKPOINT_FORMAT), "config": np.array(json.dumps(config))}
+    arrays |= {f"net.{k}": v.numpy() for k, v in single.net.state_dict().items()}
+    np.savez(tmp_path / "old.npz", **arrays)
+    old = R.DCTRegressionPredictor.load(tmp_path / "old.npz")
+    assert old.config.members == 1 and not old.config.mirror_average
+    np.testing.assert_array_equal(old.predict(history), single.predict(history))
+
+
+def test_cross_fitted_ensemble_run_validates_each_member_on_its_own_fold(shared_data,
+                                                                        tmp_path):
+    files = [shared_data / "cmu" / "bvh" / f"{n}.bvh"
+             for n in ("02_01", "12_01", "16_15", "49_06", "02_06")]
+    args = tp.parse_args(["--model", "regression", "--past", "10", "--future", "10",
+                          "--members", "2", "--iterations", "20", "--speeds", "1.0",
+                          "--data", *map(str, files), "--out", str(tmp_path), "--quiet"])
+    metrics = tp.run(args)
+    info = metrics["config"]
+    members = info["members"]
+    held = [c for m in members for c in m["validation_clips"]]
+    assert sorted(held) == sorted(info["train_clips"])  # every training clip once
+    assert not set(info["test_clips"]) & set(held)
+    assert all(m["iterations"] == 20 for m in members)
+    model = R.DCTRegressionPredictor.load(tmp_path / "predictor-dctmlp-10-10.npz")
+    assert model.config.members == 2 and model.config.mirror_average
+    card = (tmp_path / "predictor-dctmlp-10-10.md").read_text()
+    assert "cross-fitted" in card and "| 1 | " in card
