@@ -36,7 +36,8 @@ classify, decide every second; by default the shipped ``gesture-classifier`` and
 velocity, :func:`simenv.perception.default_classifier` /
 :func:`~simenv.perception.load_predictor`; ``summary.json`` names them under
 ``perception`` and gives each decision's ``stage``; it perceives while the recording plays,
-not on the pose the user holds after it), ``"labels"`` decides the scenario's
+no tick whose 1-s window lies wholly in the pose the user holds after it), ``"labels"``
+decides the scenario's
 reaction on the first frame of each labelled gesture (an oracle that rehearses execution
 without perception errors or latency), ``"random"`` decides a seeded random
 reaction at each perception tick.
@@ -137,8 +138,9 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             t = step / PERCEPTION_FPS
             action = 0
             tick = (step + 1) % 25 == 0 and step + 1 >= 25
-            # Perceive while the recording plays: the pose held after it is not the user's.
-            if loop is not None and tick and step < env.n_frames:
+            # Perceive while the 1-s window holds recorded frames: the pose held after the
+            # recording is not the user's motion.
+            if loop is not None and tick and step - loop.real_frames < env.n_frames - 1:
                 last = loop.perceive(t, env.user_keypoints())
                 perceptions.append(last)
                 if last.reaction in env.reactions:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import simenv
+import simenv.models
 import simenv.scenario
 from simenv.assets import WALK, asset_path
 from simenv.errors import SimenvError
@@ -82,8 +83,36 @@ def test_random_agent_is_seeded_and_bad_agents_fail(tmp_path: Path, short):
     assert a["decisions"] == b["decisions"]
     with pytest.raises(SimenvError, match="unknown agent"):
         rehearse(short, tmp_path, agent="oracle")
-    with pytest.raises(SimenvError, match="classifier"):
-        rehearse(short, tmp_path, agent="scripted")
+
+
+def test_scripted_agent_without_models_or_corpus_fails_clearly(tmp_path: Path, short,
+                                                                monkeypatch):
+    import simenv.models
+
+    monkeypatch.setattr(simenv.models, "available", lambda: [])
+    with pytest.raises(SimenvError, match="SIMENV_SHARED_DATA"):
+        rehearse(short, tmp_path, agent="scripted", render=False, data=tmp_path / "none")
+
+
+@pytest.mark.skipif(not {"gesture-classifier", "predictor-25-50"}
+                    <= set(simenv.models.available()),
+                    reason="shipped gesture-classifier / predictor-25-50 absent")
+def test_scripted_agent_runs_on_shipped_models_without_the_corpus(tmp_path: Path,
+                                                                  monkeypatch):
+    """No ../shared at all: the scripted agent perceives the bundled walk (2 s) with the
+    shipped classifier and predictor, one tick a second, and names them."""
+    monkeypatch.setenv("SIMENV_SHARED_DATA", str(tmp_path / "no-corpus"))
+    walk = simenv.load(asset_path(WALK)).slice(0, 240)
+    summary = rehearse(walk, tmp_path / "out", agent="scripted", render=False)
+    assert summary["perception"]["classifier"] == "gesture-classifier"
+    assert summary["perception"]["predictor"] == "predictor-25-50"
+    # 0.96 and 1.96 s; no tick on the pose held after the 2-s recording
+    assert summary["perception_compute_s"]["n"] == 2
+    rows = [json.loads(line) for line in (tmp_path / "out" / "log.jsonl").read_text()
+            .splitlines()]
+    assert rows[24]["probabilities"] is not None
+    assert rows[24]["stage"] in ("real", "predicted", None)
+    assert all(d["stage"] in ("real", "predicted") for d in summary["decisions"])
 
 
 def test_module_command(tmp_path: Path, capsys):
@@ -176,3 +205,89 @@ def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: 
     assert closed and min(closed) > t_push - 0.05  # closed by the push, not before
     assert rows[0]["assistance_n"] == 0.0 and max(r["assistance_n"] for r in rows) > 0
     assert rows[-1]["assistance_n"] == 0.0  # released once the reaction is over
+
+
+# -- session recipes (assets/sessions) ---------------------------------------------------
+
+
+def test_recipe_without_the_corpus_names_the_file_and_the_option(tmp_path: Path, capsys):
+    from simenv.rehearsal import main
+    from simenv.session import session_recipes
+
+    names = session_recipes()
+    assert len(names) >= 3
+    with pytest.raises(SimenvError, match="joints_s02_e01.txt.*SIMENV_SHARED_DATA"):
+        Session.load("utkinect-s02-e01-wave", data=tmp_path)
+    with pytest.raises(SimenvError, match="--data"):
+        main(["utkinect-s02-e01-wave", "--out", str(tmp_path / "o"), "--data",
+              str(tmp_path)])
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[session]\nsource = "x.txt"\nfps = 15.0\nstart_frame = "a"\n')
+    with pytest.raises(SimenvError, match="start_frame") as err:
+        Session.load(bad, data=tmp_path)
+    assert err.value.field == "session.start_frame"
+
+
+def test_recipes_cut_labelled_waves_of_different_subjects(shared_data):
+    """Every bundled recipe: a real UTKinect session's frames (compared with the reader's
+    whole session), the wave where index.csv puts waveHands (to a frame), >= 1.9 s of
+    unlabelled lead-in and >= 0.7 s of lead-out."""
+    import csv
+
+    from simenv.io import utkinect
+    from simenv.session import session_recipes
+
+    index = {(r["file"], r["class_name"].strip()): r for r in
+             csv.DictReader((shared_data / "gestures" / "index.csv").open())}
+    subjects = set()
+    for name in session_recipes():
+        session = Session.load(name, data=shared_data)
+        m = session.motion
+        (wave,) = session.gestures
+        source = Path(m.metadata["source"])
+        full = utkinect.read(source)  # with its segments, from actionLabel.txt
+        i0 = int(np.argmin(np.abs(full.positions[:, 0] - m.positions[0, 0]).sum(axis=1)))
+        np.testing.assert_array_equal(m.positions, full.positions[i0:i0 + m.num_frames])
+        seg = next(s for s in full.metadata["segments"] if s["label"] == "waveHands")
+        row = index[(f"utkinect/joints/{source.name}", "waveHands")]
+        assert (seg["start_frame"], seg["end_frame"]) == (int(row["start_frame"]),
+                                                          int(row["end_frame"]))
+        assert wave.label == "wave"
+        frame = 1.0 / m.fps + 1e-9  # the reader rounds to its frames, the recipe does not
+        assert abs(wave.onset_s - (seg["start"] - i0) / m.fps) <= frame
+        assert abs(wave.end_s - (seg["end"] - i0) / m.fps) <= frame
+        assert wave.onset_s >= 1.9 and m.num_frames / m.fps - wave.end_s >= 0.7
+        subjects.add(m.metadata["subject"])
+    assert len(subjects) >= 3
+
+
+@pytest.fixture(scope="module")
+def wave_recipe_rehearsal(tmp_path_factory, shared_data):
+    """utkinect-s02-e01-wave (test subject 2 of the classifier) rehearsed with the
+    scripted agent on the shipped models."""
+    if not {"gesture-classifier", "predictor-25-50"} <= set(simenv.models.available()):
+        pytest.skip("shipped gesture-classifier / predictor-25-50 absent")
+    out = tmp_path_factory.mktemp("recipe")
+    return rehearse("utkinect-s02-e01-wave", out, agent="scripted", render=False,
+                    data=shared_data)
+
+
+def test_recipe_rehearsal_greets_through_the_loop(wave_recipe_rehearsal):
+    summary = wave_recipe_rehearsal
+    assert summary["gestures"][0]["label"] == "wave"
+    assert summary["perception"]["classifier"] == "gesture-classifier"
+    greetings = [r for r in summary["reactions"] if r["reaction"] == "greet"]
+    assert greetings and greetings[0]["success"] is True
+    assert greetings[0]["facing_deg_min"] < 30.0
+    assert {d["stage"] for d in summary["decisions"]} <= {"real", "predicted"}
+
+
+@pytest.mark.xfail(strict=True, reason="measured: the shipped classifier reads the idle "
+                   "lead-in as a wave (top 0.39 on 1 s real + 2 s predicted; it has no idle "
+                   "class) and the greeting starts at the first tick, 0.96 s, before the "
+                   "onset at 1.97 s (docs/room.md, 'Perception and sessions')")
+def test_recipe_rehearsal_greets_after_the_labelled_onset(wave_recipe_rehearsal):
+    summary = wave_recipe_rehearsal
+    onset = summary["gestures"][0]["onset_s"]
+    first = next(r for r in summary["reactions"] if r["reaction"] == "greet")
+    assert first["t_decision"] >= onset
