@@ -560,6 +560,60 @@ def _interp(x_count: int, x_step: float, xp: np.ndarray, fp: np.ndarray, out: np
 
 
 @njit(cache=True)
+def _column_medians(a: np.ndarray, med: np.ndarray, top: np.ndarray) -> None:
+    """Per column of ``a`` (n, W), the value of :func:`median` (out ``med``
+    (W,)) and of ``.max()`` (out ``top`` (W,)).
+
+    The order statistics come from the same ranking as :func:`_rank_pair`
+    (value i ranks ``#{j: a_j < a_i} + #{j < i: a_j == a_i}``), done for
+    all columns at once so that every comparison is a vector lane; a column
+    holding a NaN goes through :func:`median` itself.
+    """
+    n, w_count = a.shape
+    k = n // 2
+    rank = np.empty(w_count, dtype=np.int64)
+    lower = np.empty(w_count)
+    upper = np.empty(w_count)
+    bad = np.zeros(w_count, dtype=np.bool_)
+    top[:] = a[0]
+    for i in range(n):
+        ai = a[i]
+        for w in range(w_count):
+            bad[w] |= ai[w] != ai[w]
+            top[w] = ai[w] if ai[w] > top[w] else top[w]
+    for i in range(n):
+        ai = a[i]
+        rank[:] = 0
+        # Ties rank in index order: a_j <= a_i before i, a_j < a_i after.
+        for j in range(i):
+            aj = a[j]
+            for w in range(w_count):
+                rank[w] += aj[w] <= ai[w]
+        for j in range(i + 1, n):
+            aj = a[j]
+            for w in range(w_count):
+                rank[w] += aj[w] < ai[w]
+        for w in range(w_count):
+            r = rank[w]
+            upper[w] = ai[w] if r == k else upper[w]
+            lower[w] = ai[w] if r == k - 1 else lower[w]
+    for w in range(w_count):
+        if n == 1:
+            med[w] = a[0, w]
+        elif n % 2 == 1:
+            med[w] = upper[w]
+        else:
+            med[w] = (lower[w] + upper[w]) / 2.0
+    if bad.any():
+        buf = np.empty(n)
+        tmp = np.empty(n)
+        for w in np.flatnonzero(bad):
+            buf[:] = a[:, w]
+            med[w] = median(buf, n, tmp)
+            top[w] = a[:, w].max()
+
+
+@njit(cache=True)
 def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, fps: float,
            fa: float, w: int, eps: float, limit: float, dt3: float, duration5: float,
            fa3: float, timeline: np.ndarray, details: np.ndarray) -> float:
@@ -594,9 +648,8 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
     step = np.empty(n - 1)
     jerk_sq = np.empty(n - 3)
     jerk_row = np.empty(n - 3)
-    nj_row = np.empty(windows)
-    buf = np.empty(j_count)
-    tmp = np.empty(j_count)
+    # Keypoint-major copy of nj for the medians over keypoints.
+    njt = np.empty((j_count, windows))
     cs_step = np.empty(n)
     cs_jerk = np.empty(n - 2)
     nj = np.empty((windows, j_count))
@@ -607,6 +660,7 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
         centres[i] = (i + (w - 1) / 2.0) / fa
     one = np.float32(1.0)
     for j in range(j_count):
+        nj_row = njt[j]
         for c in range(3):
             row = p[c, j]
             if resample:
@@ -646,13 +700,13 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
             nj_row[i] = duration5 * (cs_jerk[w - 3 + i] - cs_jerk[i]) / (path * path + eps)
         nj[:, j] = nj_row
         jerk_norm[:, j] = jerk_row
+    top = np.empty(windows)
+    _column_medians(njt, typical, top)
     high = 0
     high_any = 0
     for i in range(windows):
-        buf[:] = nj[i]
-        typical[i] = median(buf, j_count, tmp)
         high += typical[i] > limit
-        high_any += nj[i].max() > limit
+        high_any += top[i] > limit
     _interp(t_count, fps, centres, typical, timeline)
     details[0] = 100.0 * (high_any / windows)
     details[1] = pairwise_sum(jerk_norm.ravel(), 0, jerk_norm.size) / jerk_norm.size
