@@ -27,7 +27,12 @@ to 1 before anything is imported.
 Usage::
 
     .venv/bin/python benchmarks/bench_score.py [--data DIR] [--window-s 2] [--repeats 5]
-        [--kinematic-only]
+        [--kinematic-only] [--baseline DIR [--rounds 3]]
+
+``--baseline DIR`` compares before and after in the same run: DIR holds an
+older ``simenv`` package (``git archive REV simenv | tar -x -C DIR``); the
+two trees' kinematic cases are timed in fresh processes that alternate for
+``--rounds`` rounds, best per case.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import copy  # noqa: E402
+import json  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -120,26 +126,76 @@ def bench_compile() -> None:
           f"loading the cache; warm call on the walk {warm * 1e3:.2f} ms")
 
 
-def bench_kinematic(clips: list[Motion], walk: Motion, window_s: float, repeats: int) -> None:
-    print(f"kinematic metrics (6 joint-level metrics, {walk.num_joints}-joint CMU BVH, one core;"
-          " frame = one frame of one clip with all six metrics; wall time, and CPU time of"
-          " this process, which other jobs on a shared machine inflate less)")
+def kinematic_cases(clips: list[Motion], walk: Motion, window_s: float
+                    ) -> list[tuple[str, int, int, Callable[[], object]]]:
+    """(label, frames, clips, call) of each kinematic case."""
     batch = windows(clips, round(window_s * clips[0].fps))
-    cases = [
+    return [
         ("one call, bundled walk", walk.num_frames, 1, lambda: kinematic_metrics(walk)),
         ("one call per whole clip", sum(c.num_frames for c in clips), len(clips),
          lambda: [kinematic_metrics(c) for c in clips]),
         (f"batch of {window_s:g} s windows", sum(b.num_frames for b in batch), len(batch),
          lambda: kinematic_metrics_batch(batch)),
     ]
-    for label, frames, n, fn in cases:
-        wall = best_seconds(fn, repeats)
-        cpu = best_seconds(fn, repeats, clock=time.process_time)
-        rate, cpu_rate = frames / wall, frames / cpu
-        print(f"  {label:28s} {n:4d} clip(s) {frames:7d} frames  {wall * 1e3:8.2f} ms"
-              f"  {rate:12,.0f} frames/s  ({rate / GOAL_FRAMES_PER_S:.2f} x goal) | CPU"
-              f" {cpu * 1e3:8.2f} ms  {cpu_rate:12,.0f} frames/s"
-              f"  ({cpu_rate / GOAL_FRAMES_PER_S:.2f} x goal)")
+
+
+def time_kinematic(clips: list[Motion], walk: Motion, window_s: float, repeats: int
+                   ) -> list[dict]:
+    """Best wall and CPU seconds of each case of :func:`kinematic_cases`."""
+    return [{"label": label, "frames": frames, "clips": n,
+             "wall": best_seconds(fn, repeats),
+             "cpu": best_seconds(fn, repeats, clock=time.process_time)}
+            for label, frames, n, fn in kinematic_cases(clips, walk, window_s)]
+
+
+def _rates(case: dict) -> str:
+    rate, cpu_rate = case["frames"] / case["wall"], case["frames"] / case["cpu"]
+    return (f"{case['wall'] * 1e3:8.2f} ms  {rate:12,.0f} frames/s"
+            f"  ({rate / GOAL_FRAMES_PER_S:.2f} x goal) | CPU {case['cpu'] * 1e3:8.2f} ms"
+            f"  {cpu_rate:12,.0f} frames/s  ({cpu_rate / GOAL_FRAMES_PER_S:.2f} x goal)")
+
+
+_HEADER = ("kinematic metrics (6 joint-level metrics, 31-joint CMU BVH, one core; frame = one"
+           " frame of one clip with all six metrics; wall time, and CPU time of this process,"
+           " which other jobs on a shared machine inflate less)")
+
+
+def bench_kinematic(clips: list[Motion], walk: Motion, window_s: float, repeats: int) -> None:
+    print(_HEADER)
+    for case in time_kinematic(clips, walk, window_s, repeats):
+        print(f"  {case['label']:28s} {case['clips']:4d} clip(s) {case['frames']:7d} frames"
+              f"  {_rates(case)}")
+
+
+def compare_kinematic(baseline: Path, args: argparse.Namespace) -> None:
+    """This tree's kinematic rates against those of the ``simenv`` package in
+    ``baseline`` (e.g. ``git archive REV simenv | tar -x -C DIR``), each
+    timed in a fresh process, the two alternating for ``args.rounds``
+    rounds (best per case), so that both see the same machine load."""
+    if not (baseline / "simenv" / "__init__.py").is_file():
+        raise SystemExit(f"--baseline {baseline}: expected a directory holding simenv/")
+    best: dict[str, list[dict]] = {}
+    for _ in range(args.rounds):
+        for name, root in (("baseline", baseline), ("current", REPO)):
+            env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+                [str(root), os.environ.get("PYTHONPATH", "")]))
+            out = subprocess.run(
+                [sys.executable, __file__, "--kinematic-json", "--data", str(args.data),
+                 "--window-s", str(args.window_s), "--repeats", str(args.repeats)],
+                env=env, check=True, capture_output=True, text=True).stdout
+            cases = json.loads(out.splitlines()[-1])
+            if name not in best:
+                best[name] = cases
+            for old, new in zip(best[name], cases, strict=True):
+                old["wall"], old["cpu"] = min(old["wall"], new["wall"]), min(old["cpu"], new["cpu"])
+    print(f"{_HEADER}; best of {args.rounds} alternating rounds, load average now "
+          f"{os.getloadavg()[0]:.1f}; baseline: {baseline}")
+    for base, cur in zip(best["baseline"], best["current"], strict=True):
+        print(f"  {cur['label']:28s} {cur['clips']:4d} clip(s) {cur['frames']:7d} frames")
+        print(f"    baseline {_rates(base)}")
+        print(f"    current  {_rates(cur)}")
+        print(f"    speed-up wall {base['wall'] / cur['wall']:.2f} x, CPU "
+              f"{base['cpu'] / cur['cpu']:.2f} x")
 
 
 def raw_steps_per_s(model: mujoco.MjModel, result: RetargetResult, steps: int,
@@ -186,6 +242,12 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--kinematic-only", action="store_true",
                         help="skip the compile-time and physics-tracking parts")
+    parser.add_argument("--baseline", type=Path,
+                        help="also time the kinematic metrics of the simenv package in this "
+                             "directory (an older revision), alternating with this tree's")
+    parser.add_argument("--rounds", type=int, default=3,
+                        help="alternating rounds of --baseline")
+    parser.add_argument("--kinematic-json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if "torch" in sys.modules:
         import torch
@@ -194,11 +256,17 @@ def main() -> None:
     walk = bvh.read(asset_path(WALK))
     clips = [bvh.read(p) for p in sorted((args.data / "cmu" / "bvh").glob("*.bvh"))]
     clips = [c for c in clips if c.num_joints == 31 and c.fps == walk.fps] or [walk]
+    if args.kinematic_json:
+        print(json.dumps(time_kinematic(clips, walk, args.window_s, args.repeats)))
+        return
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; "
           f"{len(clips)} real clip(s) from {args.data if len(clips) > 1 else 'the bundled walk'}")
     if not args.kinematic_only:
         bench_compile()
-    bench_kinematic(clips, walk, args.window_s, args.repeats)
+    if args.baseline is not None:
+        compare_kinematic(args.baseline, args)
+    else:
+        bench_kinematic(clips, walk, args.window_s, args.repeats)
     if not args.kinematic_only:
         bench_tracking(walk, args.repeats)
 
