@@ -203,15 +203,22 @@ def root_wrench(result: RetargetResult,
                       lever, thresholds.friction, poses, com_acc)
 
 
+def floor_forces(rw: RootWrench, t: int) -> np.ndarray:
+    """The best floor forces of frame ``t``: ``lambda = argmin_{lambda >= 0}
+    ||A lambda - w_t||`` (non-negative least squares over the friction-pyramid
+    edges of :meth:`RootWrench.floor_columns`), (4 P_t,) newtons."""
+    if len(rw.support[t]) == 0:
+        return np.zeros(0)
+    lam, _ = nnls(rw.floor_columns(t), rw.wrench[t], maxiter=200)
+    return lam
+
+
 def floor_residual(rw: RootWrench, t: int) -> np.ndarray:
-    """Residual wrench (6,) of frame ``t`` after the best floor forces:
-    ``w_t - A lambda`` with ``lambda = argmin_{lambda >= 0} ||A lambda - w_t||``
-    (non-negative least squares over the friction-pyramid edges)."""
+    """Residual wrench (6,) of frame ``t`` after the best floor forces,
+    ``w_t - A lambda`` (:func:`floor_forces`)."""
     if len(rw.support[t]) == 0:
         return rw.wrench[t].copy()
-    A = rw.floor_columns(t)
-    lam, _ = nnls(A, rw.wrench[t], maxiter=200)
-    return rw.wrench[t] - A @ lam
+    return rw.wrench[t] - rw.floor_columns(t) @ floor_forces(rw, t)
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,8 @@ Forces
     columns, ``G_c = [I; [p_c - x_root]_x / L]`` the wrench of a unit force at
     the contact, and ``F = grip_force_max_bw * min(m_A, m_B) g`` the most one
     hand can exert; the box inscribed in that ball keeps ``|f_c| <= F``
-    (scipy's bounded-variable least squares). Each body's residuals are in its
+    (bounded-variable least squares per frame, never worse than the floor-only
+    optimum). Each body's residuals are in its
     own body weights, so the two weigh alike. What remains, per person, is the
     *partner-explained* root residual: help the floor and the partner's hands
     together cannot give. A force one partner receives must come from the
@@ -45,7 +46,13 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
-from simenv.plausibility.dynamics import RootResidual, RootWrench, residual_of, root_wrench
+from simenv.plausibility.dynamics import (
+    RootResidual,
+    RootWrench,
+    floor_forces,
+    residual_of,
+    root_wrench,
+)
 from simenv.plausibility.timeline import MetricResult
 from simenv.retarget import InteractionRetargetResult
 
@@ -131,7 +138,14 @@ class PairResidual:
 
 def _pair_frame(rw: tuple[RootWrench, RootWrench], t: int, points: np.ndarray,
                 bound: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Residual wrenches (6,) of both people and the contact forces (C, 3) of frame t."""
+    """Residual wrenches (6,) of both people and the contact forces (C, 3), N, of frame t.
+
+    Bounded-variable least squares (scipy's BVLS) with the variables in units
+    of ``bound`` and the rows in each person's body weights, so the problem is
+    well scaled. The floor-only optimum with no contact force is feasible; it
+    is kept should the solver return anything worse, so the result never
+    explains less than the single-person residuals.
+    """
     floors = [r.floor_columns(t) for r in rw]
     grips = [r.point_columns(t, points, _AXES) for r in rw]  # (6, 3C), contact-major
     na, nb, nf = floors[0].shape[1], floors[1].shape[1], 3 * len(points)
@@ -140,11 +154,16 @@ def _pair_frame(rw: tuple[RootWrench, RootWrench], t: int, points: np.ndarray,
     M[6:, na:na + nb] = floors[1]
     M[:6, na + nb:] = grips[0]
     M[6:, na + nb:] = -grips[1]
-    scale = np.repeat([1.0 / rw[0].weight, 1.0 / rw[1].weight], 6)
     b = np.concatenate([rw[0].wrench[t], rw[1].wrench[t]])
-    lo = np.concatenate([np.zeros(na + nb), np.full(nf, -bound)])
-    hi = np.concatenate([np.full(na + nb, np.inf), np.full(nf, bound)])
-    x = lsq_linear(M * scale[:, None], b * scale, bounds=(lo, hi), method="bvls").x
+    scale = np.repeat([1.0 / rw[0].weight, 1.0 / rw[1].weight], 6)[:, None]
+    Ms, bs = M * scale * bound, b * scale[:, 0]
+    lo = np.concatenate([np.zeros(na + nb), -np.ones(nf)])
+    hi = np.concatenate([np.full(na + nb, np.inf), np.ones(nf)])
+    y = lsq_linear(Ms, bs, bounds=(lo, hi), method="bvls", tol=1e-12, max_iter=5000).x
+    y0 = np.concatenate([floor_forces(rw[0], t), floor_forces(rw[1], t), np.zeros(nf)]) / bound
+    if np.linalg.norm(Ms @ y - bs) > np.linalg.norm(Ms @ y0 - bs):
+        y = y0
+    x = y * bound
     r = b - M @ x
     return r[:6], r[6:], x[na + nb:].reshape(-1, 3)
 

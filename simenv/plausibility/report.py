@@ -19,11 +19,20 @@ Which computation stands behind each name
     joint_limits        relaxed refit vs fitted body   not available
     self_penetration    body geoms (``mj_collision``)  not available
     root_residual       ``mj_inverse`` + floor NNLS    not available
+                        (two people: + hand contacts)
     balance             COM vs support polygon         not available
     tracking            PD tracking in ``mj_step``     not available
     inter_penetration   geoms of the two bodies        not available
     contact             key joint pairs on the bodies  not available
+    pair_root_residual  both ``mj_inverse`` + floor    not available
+                        and hand-contact forces
     =================== ============================== ==========================
+
+    In a two-person file each person's ``root_residual`` is the
+    partner-explained residual of
+    :func:`simenv.plausibility.pair_dynamics.pair_root_residual` (help the
+    floor and the partner's hands together cannot give); the single-person
+    value is in its details (``single_person_value``).
 
     ``basis`` in each metric's record says which one ran (``keypoints``,
     ``geoms``, ``dynamics``, ``simulation``). A metric that cannot run
@@ -74,6 +83,7 @@ from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThr
 from simenv.plausibility.contact import floating, foot_skate, ground_penetration
 from simenv.plausibility.dynamics import balance, root_residual
 from simenv.plausibility.kinematic import bone_length, jitter, velocity
+from simenv.plausibility.pair_dynamics import pair_root_residual
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 from simenv.plausibility.tracking import tracking
@@ -85,7 +95,7 @@ PERSON_METRICS: tuple[str, ...] = (
     "joint_limits", "self_penetration", "root_residual", "balance", "tracking",
 )
 #: Pairwise metric names of a two-person motion.
-PAIR_METRICS: tuple[str, ...] = ("inter_penetration", "contact")
+PAIR_METRICS: tuple[str, ...] = ("inter_penetration", "contact", "pair_root_residual")
 
 VERDICT_PLAUSIBLE = "plausible"
 VERDICT_IMPLAUSIBLE = "implausible"
@@ -296,7 +306,8 @@ def _unavailable_body(names: Sequence[str], frames: int, body: BodyThresholds,
 
 
 def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason: str | None,
-                  config: ScoreConfig, person: int) -> PersonReport:
+                  config: ScoreConfig, person: int,
+                  root: MetricResult | None = None) -> PersonReport:
     th, body = config.thresholds, config.body
     T = motion.num_frames
     metrics: dict[str, MetricResult] = {}
@@ -326,7 +337,8 @@ def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason:
             metrics.update(_unavailable_body(["joint_limits"], T, body,
                                              "joint-limit probe disabled in the config"))
         metrics["self_penetration"] = self_penetration(fitted, body)
-        metrics["root_residual"] = root_residual(fitted, body)
+        # Two people: the partner-explained residual (computed for both at once).
+        metrics["root_residual"] = root if root is not None else root_residual(fitted, body)
         metrics["balance"] = balance(fitted, body)
         if config.tracking and T >= 2:
             metrics["tracking"] = _tracking(fitted, config)
@@ -413,9 +425,12 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
     fitted, reason = _fit(clip) if physics else (None, "physics=False")
     if isinstance(clip, Interaction):
         results = fitted.people if fitted is not None else (None, None)
-        people = [_score_person(m, r, reason, config, i)
+        pair_rr = pair_root_residual(fitted, config.body) if fitted is not None else None
+        people = [_score_person(m, r, reason, config, i,
+                                root=None if pair_rr is None else pair_rr[1][i])
                   for i, (m, r) in enumerate(zip(clip.people, results, strict=True))]
-        interaction, pair_basis = _pair_metrics(clip, fitted, reason, config)
+        interaction, pair_basis = _pair_metrics(clip, fitted, reason, config,
+                                                None if pair_rr is None else pair_rr[0])
     else:
         people = [_score_person(clip, fitted, reason, config, 0)]
         interaction, pair_basis = None, {}
@@ -425,18 +440,23 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
 
 
 def _pair_metrics(clip: Interaction, fitted: InteractionRetargetResult | None,
-                  reason: str | None, config: ScoreConfig
+                  reason: str | None, config: ScoreConfig,
+                  pair_rr: MetricResult | None = None
                   ) -> tuple[dict[str, MetricResult], dict[str, str]]:
     body, T = config.body, clip.num_frames
-    basis = {"inter_penetration": "geoms", "contact": "geoms"}
-    if fitted is None:
+    basis = {"inter_penetration": "geoms", "contact": "geoms", "pair_root_residual": "dynamics"}
+    if fitted is None or pair_rr is None:
         why = reason or "physics off"
         return {
             "inter_penetration": MetricResult.not_available(
                 "inter_penetration", T, "mm", body.inter_penetration_max_mm, why),
             "contact": MetricResult.not_available("contact", T, "mm", body.jpd_max_mm, why),
+            "pair_root_residual": MetricResult.not_available(
+                "pair_root_residual", T, "body weight", body.root_force_mean_max, why,
+                frame_threshold=body.root_force_frame_max),
         }, basis
     return {
         "inter_penetration": inter_penetration(fitted, body),
         "contact": contact(fitted, pairs=config.contact_pairs, thresholds=body),
+        "pair_root_residual": pair_rr,
     }, basis
