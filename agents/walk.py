@@ -43,8 +43,10 @@ from simenv.agents.reach import (
     PDPlan,
     PDTrajectory,
     pd_targets,
+    reach_pose,
     upper_body_joints,
 )
+from simenv.agents.stand import FEET
 from simenv.assets import WALK, asset_path
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
@@ -63,6 +65,8 @@ STANDING_FRACTION = 0.9
 #: Bezier handle length as a fraction of the start-goal distance.
 HANDLE_FRACTION = 0.45
 GRAVITY = 9.81
+#: The front foot's lift in the first step onto the clip's first pose, m.
+STEP_LIFT_M = 0.08
 
 
 @lru_cache(maxsize=4)
@@ -179,6 +183,42 @@ class KeyframeTrajectory:
         return (1 - a) * self.frames[i] + a * self.frames[i + 1]
 
 
+def _first_step(humanoid: Humanoid, first: np.ndarray) -> tuple[float, str]:
+    """How far ahead of a standing pelvis the clip's first root must be for its rear toe
+    to stay where the standing toe is (along the root's heading), m, and the side of its
+    front foot."""
+    names = humanoid.keypoint_names
+    yaw = float(_yaw(first[3:7]))
+    fwd = np.array([np.cos(yaw), np.sin(yaw)])
+    kp = humanoid.keypoints(first)
+    toe = {s: float((kp[names.index(f"{s}_toe"), :2] - first[:2]) @ fwd)
+           for s in ("left", "right")}
+    rear = min(toe, key=toe.get)
+    standing = humanoid.keypoints(humanoid.default_qpos())[names.index(f"{rear}_toe")]
+    front = "right" if rear == "left" else "left"
+    return max(float(standing[0]) - toe[rear], 0.0), front
+
+
+def _step_in(humanoid: Humanoid, q_now: np.ndarray, first: np.ndarray, front: str
+             ) -> np.ndarray:
+    """(nq,) the first step's middle: the pelvis half-way to the clip's first pose, the
+    rear foot where it stands, the ``front`` foot lifted :data:`STEP_LIFT_M` half-way to
+    its place in that pose (leg hinges by IK on the feet keypoints)."""
+    names = humanoid.keypoint_names
+    feet = [names.index(f) for f in FEET]
+    now, there = humanoid.keypoints(q_now)[feet], humanoid.keypoints(first)[feet]
+    goal = now.copy()
+    moving = [FEET.index(f"{front}_ankle"), FEET.index(f"{front}_toe")]
+    goal[moving] = 0.5 * (now[moving] + there[moving]) + [0.0, 0.0, STEP_LIFT_M]
+    start = first.copy()
+    start[:3] = 0.5 * (q_now[:3] + first[:3])
+    quat = q_now[3:7] + first[3:7] * np.sign(q_now[3:7] @ first[3:7])
+    start[3:7] = quat / np.linalg.norm(quat)
+    legs = [n for n in humanoid.joint_names if n.split("_")[1] in ("thigh", "shin", "foot")]
+    mid, _ = reach_pose(humanoid.model, start, FEET, goal, legs, iterations=400)
+    return mid
+
+
 def walk_path(start: np.ndarray, start_yaw: float, goal: np.ndarray, goal_yaw: float
               ) -> np.ndarray:
     """(4, 2) control points of the planned path (module docstring), m."""
@@ -212,7 +252,12 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
         raise SimenvError(f"the agent is not standing (pelvis {q_now[2]:.2f} m, standing "
                           f"{rest:.2f} m): it cannot walk", field="walk")
     yaw0 = float(_yaw(q_now[3:7])) if start_yaw is None else float(start_yaw)
-    ctrl_pts = walk_path(q_now[:2], yaw0, goal, goal_yaw)
+    ref = _reference(h, clip)
+    # The first step: the path starts where the clip's first pose keeps the rear toe
+    # where it stands, so that only the front foot moves to its place (lifted).
+    ahead, front = _first_step(h, ref[0])
+    h0 = np.array([np.cos(yaw0), np.sin(yaw0)])
+    ctrl_pts = walk_path(q_now[:2] + ahead * h0, yaw0, goal, goal_yaw)
     dense = np.linspace(0.0, 1.0, 400)
     pts, _ = _bezier(ctrl_pts, dense)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
@@ -220,7 +265,6 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     if length < 0.3:
         raise SimenvError(f"the walk's goal is {length:.2f} m away; at least 0.3 m expected",
                           field="goal")
-    ref = _reference(h, clip)
     xy = ref[:, :2]
     s_ref = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
     if s_ref[-1] < length:
@@ -255,15 +299,19 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     stand[3:7] = _yaw_quat(goal_yaw)
     rest = pd_targets(h, stand, upper)
     now = data.ctrl[room.agent_ctrl].copy()
-    segments = [PDTrajectory(now, first, BLEND_IN_S), KeyframeTrajectory(frames, dt),
+    mid = _step_in(h, q_now, walked[0], front)
+    lift = pd_targets(h, mid, upper)
+    half = BLEND_IN_S / 2
+    segments = [PDTrajectory(now, lift, half), PDTrajectory(lift, first, half),
+                KeyframeTrajectory(frames, dt),
                 PDTrajectory(frames[-1], rest, BLEND_OUT_S), PDTrajectory(rest, rest, 1.0)]
     # Root reference: blend-in from the pelvis now (its yaw turned to the path's first),
     # the walk, then standing at the goal.
     t_walk = BLEND_IN_S + dt * np.arange(n)
     t_end = t_walk[-1] + BLEND_OUT_S
-    times = np.concatenate([[0.0], t_walk, [t_end]])
-    pos = np.concatenate([q_now[None, :3], walked[:, :3], stand[None, :3]])
-    quat = np.concatenate([q_now[None, 3:7], walked[:, 3:7], stand[None, 3:7]])
+    times = np.concatenate([[0.0, half], t_walk, [t_end]])
+    pos = np.concatenate([q_now[None, :3], mid[None, :3], walked[:, :3], stand[None, :3]])
+    quat = np.concatenate([q_now[None, 3:7], mid[None, 3:7], walked[:, 3:7], stand[None, 3:7]])
     for k in range(1, len(quat)):  # one hemisphere, so that interpolation takes the short way
         quat[k] *= np.sign(quat[k] @ quat[k - 1]) or 1.0
     return PDPlan(segments, feedback=RootAssist(room, times, pos, quat))

@@ -16,14 +16,14 @@ def test_cold_label_stands_walks_to_the_window_with_measured_assistance():
     # The real CMU walk's first half second, labelled "cold" (the user stays far away).
     short = simenv.load(asset_path(WALK)).slice(0, 60)
     env = InteractionRoomEnv(short, gestures=[GestureEvent("cold", 0.2, 0.5)],
-                             scenario="discomfort")
+                             scenario="discomfort", predictor="constant-velocity-50")
     from simenv.agents.window import window_spot
 
     env.reset(seed=0)
     spot, _ = window_spot(env.room, env.data)
     decide, k, truncated = int(round(0.3 * PERCEPTION_FPS)), 0, False
     act = env.reactions.index("close_window")
-    while not truncated:
+    while not truncated and not (env.log and env.log[0]["success"] is not None):
         *_, truncated, info = env.step(act if k == decide else 0)
         k += 1
     (entry,) = env.log
@@ -35,8 +35,14 @@ def test_cold_label_stands_walks_to_the_window_with_measured_assistance():
     assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
     a = walk["assistance"]
     assert a["steps"] > 0 and 0.0 < a["mean_bw"] <= a["max_bw"]
+    # The first step lifts the front foot onto the clip's first pose instead of dragging
+    # both feet there (measured: 5.7 -> 1.7 body weights at the peak).
+    assert a["max_bw"] < 3.0
     assert entry["assistance"]["max_n"] >= a["max_n"]
-    assert [s["stage"] for s in entry["stages"]] == ["stand_up", "walk", "push"]
+    # The return to the chair follows (tests/test_agents_seat.py).
+    assert [s["stage"] for s in entry["stages"]][:4] == ["stand_up", "turn", "walk", "push"]
+    turn = stages["turn"]["assistance"]  # the stepping turn, measured
+    assert 0.0 < turn["mean_bw"] < 1.0
     # Success is what the window's joint says (measured: the hand pushes it shut).
     assert entry["success"] == (info["object_labels"]["window"] == "closed")
     assert entry["success"] is True and entry["t_object_changed"] > entry["t_decision"]
@@ -48,18 +54,18 @@ def test_bright_label_draws_the_curtain_through_the_grasp():
     palm's proximity grasp closes on its edge and the hand draws it past its threshold."""
     short = simenv.load(asset_path(WALK)).slice(0, 60)
     env = InteractionRoomEnv(short, gestures=[GestureEvent("bright", 0.2, 0.5)],
-                             scenario="discomfort")
+                             scenario="discomfort", predictor="constant-velocity-50")
     env.reset(seed=0)
     decide, k, truncated = int(round(0.3 * PERCEPTION_FPS)), 0, False
     act = env.reactions.index("close_curtain")
-    while not truncated:
+    while not truncated and not (env.log and env.log[0]["success"] is not None):
         *_, truncated, info = env.step(act if k == decide else 0)
         k += 1
     (entry,) = env.log
-    assert [s["stage"] for s in entry["stages"]] == ["stand_up", "walk", "pull"]
+    assert [s["stage"] for s in entry["stages"]][:4] == ["stand_up", "turn", "walk", "pull"]
     assert entry["grasped"] is True
     assert entry["success"] is True and info["object_labels"]["curtain"] == "closed"
-    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
+    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:3])
     assert entry["t_object_changed"] > pull_start
     assert entry["assistance"]["max_bw"] > 0
 
