@@ -25,9 +25,9 @@ from simenv.agents.reach import (
     reach_pose,
     upper_body_joints,
 )
-from simenv.agents.seat import RETURN_STAGES, plan_step
+from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import held_grasp_stroke, plan_walk
+from simenv.agents.walk import held_grasp_stroke
 from simenv.agents.window import SPINE
 from simenv.errors import SimenvError
 from simenv.room import Room
@@ -122,17 +122,12 @@ def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
                              [(away, 0.6), (down, 0.6), (rest, 0.8)], HAND, "curtain")
 
 
-def plan_turn_to_curtain(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for the stepping turn (:func:`simenv.agents.seat.plan_step`) on the spot
-    onto the heading facing the curtain's wall."""
-    _, face = curtain_spot(room, data)
-    return plan_step(room, data, data.qpos[room.agent_qpos][:2].copy(), face)
-
-
 def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for walking to :func:`curtain_spot`, leaving towards the wall."""
+    """Plan for walking to :func:`curtain_spot`: a stepping turn onto the heading towards
+    the wall, then the walk leaving along it
+    (:func:`simenv.agents.seat.plan_turn_then_walk`)."""
     spot, face = curtain_spot(room, data)
-    return plan_walk(room, data, spot, face, start_yaw=face)
+    return plan_turn_then_walk(room, data, spot, face, start_yaw=face)
 
 
 def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:
@@ -145,10 +140,8 @@ def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:
     c = room.objects["curtain"]
     if float(data.qpos[c.qpos_adr]) > c.threshold:
         raise SimenvError("the curtain is already closed", field="curtain")
-    return PlanChain((("stand_up", plan_stand_up), ("turn", plan_turn_to_curtain),
-                      ("walk", plan_walk_to_curtain),
+    return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_curtain),
                       ("pull", plan_curtain_pull), *RETURN_STAGES))
 
 
-__all__ = ["curtain_spot", "plan_close_curtain", "plan_curtain_pull", "plan_turn_to_curtain",
-           "plan_walk_to_curtain"]
+__all__ = ["curtain_spot", "plan_close_curtain", "plan_curtain_pull", "plan_walk_to_curtain"]

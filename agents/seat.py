@@ -222,6 +222,32 @@ def plan_step(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     return PDPlan(segments, feedback=RootAssist(room, times, pos, quat))
 
 
+def plan_turn_then_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
+                        start_yaw: float) -> PDPlan:
+    """One plan: a stepping turn on the spot (:func:`plan_step`) onto ``start_yaw`` (rad),
+    then :func:`~simenv.agents.walk.plan_walk` to ``goal`` (x, y, m) facing ``goal_yaw``,
+    planned from the state the turn is planned to end in (standing rest pose, turned);
+    one :class:`~simenv.agents.walk.RootAssist` over both (measured)."""
+    q = data.qpos[room.agent_qpos]
+    turn = plan_step(room, data, q[:2].copy(), start_yaw)
+    after = mujoco.MjData(room.model)
+    after.qpos[:] = data.qpos
+    end = room.agent.default_qpos()
+    end[:3] = q[:3]
+    end[3:7] = _yaw_quat(start_yaw)
+    after.qpos[room.agent_qpos] = end
+    after.ctrl[:] = data.ctrl
+    after.ctrl[room.agent_ctrl] = turn.segments[-1].goal
+    walk = plan_walk(room, after, goal, goal_yaw, start_yaw=start_yaw)
+    a, b = turn.feedback, walk.feedback
+    quat = np.concatenate([a.quat[:-1], b.quat])
+    for k in range(1, len(quat)):  # one hemisphere, as in plan_walk
+        quat[k] *= np.sign(quat[k] @ quat[k - 1]) or 1.0
+    assist = RootAssist(room, np.concatenate([a.times[:-1], b.times + turn.duration]),
+                        np.concatenate([a.pos[:-1], b.pos]), quat)
+    return PDPlan([*turn.segments, *walk.segments], feedback=assist)
+
+
 def plan_turn_away(room: Room, data: mujoco.MjData) -> PDPlan:
     """Plan for the stepping turn from facing the object onto the heading that leaves
     towards the chair: a quarter turn from the current heading, to the side of
@@ -313,5 +339,5 @@ RETURN_STAGES = (("turn_away", plan_turn_away), ("walk_back", plan_walk_back),
 
 
 __all__ = ["RETURN_STAGES", "SeatedCheck", "chair_spot", "desk_heading", "plan_settle",
-           "plan_step", "plan_turn_away", "plan_turn_to_desk", "plan_walk_back",
-           "seated_on_chair", "stance_targets"]
+           "plan_step", "plan_turn_away", "plan_turn_then_walk", "plan_turn_to_desk",
+           "plan_walk_back", "seated_on_chair", "stance_targets"]

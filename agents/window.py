@@ -32,9 +32,9 @@ from simenv.agents.reach import (
     reach_pose,
     upper_body_joints,
 )
-from simenv.agents.seat import RETURN_STAGES, plan_step
+from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import held_grasp_stroke, plan_walk
+from simenv.agents.walk import held_grasp_stroke
 from simenv.errors import SimenvError
 from simenv.room import Room
 
@@ -122,20 +122,13 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
                              [(after, 0.6), (rest, 1.0)], HAND, "window")
 
 
-def plan_turn_to_window(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for the stepping turn (:func:`simenv.agents.seat.plan_step`) on the spot
-    onto the heading facing the window's wall."""
-    _, face = window_spot(room, data)
-    return plan_step(room, data, data.qpos[room.agent_qpos][:2].copy(), face)
-
-
 def plan_walk_to_window(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for walking from where the agent stands to :func:`window_spot`, leaving
-    towards the wall (the turn before it faced the body that way; the walk's blend-in
-    turns what is left): sideways out from between the desk and the rolled-back chair,
-    then curving onto the spot."""
+    """Plan for walking from where the agent stands to :func:`window_spot`: a stepping
+    turn on the spot onto the heading towards the wall, then the walk leaving along it
+    (:func:`simenv.agents.seat.plan_turn_then_walk`): sideways out from between the desk
+    and the rolled-back chair, then curving onto the spot."""
     spot, face = window_spot(room, data)
-    return plan_walk(room, data, spot, face, start_yaw=face)
+    return plan_turn_then_walk(room, data, spot, face, start_yaw=face)
 
 
 def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:
@@ -148,10 +141,8 @@ def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:
     w = room.objects["window"]
     if float(data.qpos[w.qpos_adr]) <= w.threshold:
         raise SimenvError("the window is already closed", field="window")
-    return PlanChain((("stand_up", plan_stand_up), ("turn", plan_turn_to_window),
-                      ("walk", plan_walk_to_window),
+    return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_window),
                       ("push", plan_window_push), *RETURN_STAGES))
 
 
-__all__ = ["plan_close_window", "plan_turn_to_window", "plan_walk_to_window", "plan_window_push",
-           "window_spot"]
+__all__ = ["plan_close_window", "plan_walk_to_window", "plan_window_push", "window_spot"]

@@ -35,14 +35,13 @@ def test_cold_label_stands_walks_to_the_window_with_measured_assistance():
     assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
     a = walk["assistance"]
     assert a["steps"] > 0 and 0.0 < a["mean_bw"] <= a["max_bw"]
-    # The first step lifts the front foot onto the clip's first pose instead of dragging
-    # both feet there (measured: 5.7 -> 1.7 body weights at the peak).
-    assert a["max_bw"] < 3.0
+    # A stepping turn, then a first step lifting the front foot onto the clip's first
+    # pose, instead of blending the planted feet round and apart (measured: 5.8 -> 2.6
+    # body weights at the peak).
+    assert a["max_bw"] < 4.0
     assert entry["assistance"]["max_n"] >= a["max_n"]
     # The return to the chair follows (tests/test_agents_seat.py).
-    assert [s["stage"] for s in entry["stages"]][:4] == ["stand_up", "turn", "walk", "push"]
-    turn = stages["turn"]["assistance"]  # the stepping turn, measured
-    assert 0.0 < turn["mean_bw"] < 1.0
+    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "push"]
     # Success is what the window's joint says (measured: the hand pushes it shut).
     assert entry["success"] == (info["object_labels"]["window"] == "closed")
     assert entry["success"] is True and entry["t_object_changed"] > entry["t_decision"]
@@ -62,10 +61,10 @@ def test_bright_label_draws_the_curtain_through_the_grasp():
         *_, truncated, info = env.step(act if k == decide else 0)
         k += 1
     (entry,) = env.log
-    assert [s["stage"] for s in entry["stages"]][:4] == ["stand_up", "turn", "walk", "pull"]
+    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "pull"]
     assert entry["grasped"] is True
     assert entry["success"] is True and info["object_labels"]["curtain"] == "closed"
-    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:3])
+    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
     assert entry["t_object_changed"] > pull_start
     assert entry["assistance"]["max_bw"] > 0
 
