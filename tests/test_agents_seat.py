@@ -33,6 +33,47 @@ def _run(room: Room, data: mujoco.MjData, plan) -> dict[str, Any]:
     return {"assistance": summary() if summary else None, "lowest_pelvis_m": lowest}
 
 
+def _react_and_return(env: InteractionRoomEnv, reaction: str, act: str
+                      ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """Decide ``reaction`` 0.3 s in, step the environment until it is over, then play the
+    return stages it has not run (it ends a chain when its object succeeds) from the state
+    it left, the user holding its last pose; the log entry and every stage's record."""
+    env.reset(seed=0)
+    decide, k = int(round(0.3 * PERCEPTION_FPS)), 0
+    action = env.reactions.index(reaction)
+    while True:
+        *_, truncated, _ = env.step(action if k == decide else 0)
+        k += 1
+        if truncated or (env.log and env.log[0]["success"] is not None):
+            break
+    (entry,) = env.log
+    assert entry["success"] is True  # the object changed because of the hand
+    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", act]
+    room, data = env.room, env.data
+    stages = {s["stage"]: s for s in entry["stages"]}
+    for name, planner in RETURN_STAGES:
+        if name not in stages:
+            stages[name] = {"stage": name, **_run(room, data, planner(room, data))}
+    return entry, stages
+
+
+def _assert_seated(env: InteractionRoomEnv, stages: dict[str, dict[str, Any]]) -> None:
+    seat = seated_on_chair(env.room, env.data)
+    assert seat["success"], seat
+    assert seat["seat_contact"] and not seat["fallen"]
+    assert abs(seat["pelvis_height_error_m"]) < 0.05 and seat["seat_distance_m"] < 0.15
+    assert env.data.warning.number.sum() == 0
+    # Root assistance per stage, measured: the stepping turns need less than the walk's
+    # former blend-in turn (3 body weights), the sitting none.
+    for turn in ("turn_away", "turn_to_desk"):
+        a = stages[turn]["assistance"]
+        assert 0.0 < a["mean_bw"] < 1.5, (turn, a)
+    assert stages["walk_back"]["assistance"]["steps"] > 0
+    assert stages["sit_down"]["assistance"] is None and stages["settle"]["assistance"] is None
+    assert all(s["lowest_pelvis_m"] > 0.85 for n, s in stages.items()
+               if n in ("turn_away", "walk_back", "turn_to_desk"))  # standing throughout
+
+
 @pytest.mark.parametrize(("label", "reaction", "act"), [("cold", "close_window", "push"),
                                                         ("bright", "close_curtain", "pull")])
 def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act: str):
@@ -41,39 +82,23 @@ def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act:
     short = simenv.load(asset_path(WALK)).slice(0, 60)
     env = InteractionRoomEnv(short, gestures=[GestureEvent(label, 0.2, 0.5)],
                              scenario="discomfort", predictor="constant-velocity-50")
-    env.reset(seed=0)
-    decide, k = int(round(0.3 * PERCEPTION_FPS)), 0
-    action = env.reactions.index(reaction)
-    while True:
-        *_, truncated, info = env.step(action if k == decide else 0)
-        k += 1
-        if truncated or (env.log and env.log[0]["success"] is not None):
-            break
-    (entry,) = env.log
-    assert entry["success"] is True  # the object changed because of the hand
-    names = [s["stage"] for s in entry["stages"]]
-    assert names[:3] == ["stand_up", "walk", act]
-    room, data = env.room, env.data
-    # The environment ends a chain when its object succeeds; the return stages it has not
-    # run are played here from the state it left (the user holding its last pose).
-    stages = {s["stage"]: s for s in entry["stages"]}
-    for name, planner in RETURN_STAGES:
-        if name not in stages:
-            stages[name] = {"stage": name, **_run(room, data, planner(room, data))}
-    seat = seated_on_chair(room, data)
-    assert seat["success"], seat
-    assert seat["seat_contact"] and not seat["fallen"]
-    assert abs(seat["pelvis_height_error_m"]) < 0.05 and seat["seat_distance_m"] < 0.15
-    assert data.warning.number.sum() == 0
-    # Root assistance per stage, measured: the stepping turns need less than the walk's
-    # blend-in turn (3 body weights), the sitting none.
-    for turn in ("turn_away", "turn_to_desk"):
-        a = stages[turn]["assistance"]
-        assert 0.0 < a["mean_bw"] < 1.5, (turn, a)
-    assert stages["walk_back"]["assistance"]["steps"] > 0
-    assert stages["sit_down"]["assistance"] is None and stages["settle"]["assistance"] is None
-    assert all(s["lowest_pelvis_m"] > 0.85 for n, s in stages.items()
-               if n in ("turn_away", "walk_back", "turn_to_desk"))  # standing throughout
+    _, stages = _react_and_return(env, reaction, act)
+    _assert_seated(env, stages)
+
+
+def test_real_msr_session_labelled_cold_closes_the_window_and_sits_back(shared_data):
+    """The real MSR Action3D recording the rehearsal test labels ``cold``: close the
+    window, walk back, sit."""
+    from simenv.io import msr_action3d
+    from simenv.session import Session
+
+    clip = msr_action3d.read(shared_data / "gestures" / "msr_action3d" /
+                             "a01_s01_e01_skeleton3D.txt")
+    session = Session(clip, (GestureEvent("cold", 0.0, clip.num_frames / clip.fps),))
+    env = InteractionRoomEnv(session, scenario="discomfort",
+                             predictor="constant-velocity-50")
+    _, stages = _react_and_return(env, "close_window", "push")
+    _assert_seated(env, stages)
 
 
 def test_stepping_turn_re_places_the_feet():
