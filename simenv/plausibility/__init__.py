@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from simenv.motion import Motion
-from simenv.plausibility.clips import batches, score
+from simenv.plausibility.clips import ClipBatch, Plan, batches, score
 from simenv.plausibility.contact import (
     floating,
     floating_spec,
@@ -63,6 +63,21 @@ KINEMATIC_METRICS = {
 #: The same metrics as :func:`~simenv.plausibility.clips.score` runs them.
 _SPECS = (bone_length_spec, foot_skate_spec, ground_penetration_spec, floating_spec,
           jitter_spec, velocity_spec)
+#: Plans of the six metrics by batch shape (a plan depends on nothing else).
+_PLANS: dict[tuple, Plan] = {}
+
+
+def _plan(batch: ClipBatch, thresholds: Thresholds) -> Plan:
+    """The six metrics' plan for batches of this layout, rate, length and
+    thresholds, prepared once (the specs' lookups cost as much as the
+    kernels on a short clip)."""
+    key = (batch.skeleton, batch.fps, batch.num_frames, thresholds)
+    plan = _PLANS.get(key)
+    if plan is None:
+        if len(_PLANS) >= 256:
+            _PLANS.clear()
+        plan = _PLANS[key] = Plan([spec(batch, thresholds) for spec in _SPECS])
+    return plan
 
 
 def kinematic_metrics(
@@ -88,7 +103,7 @@ def kinematic_metrics_batch(
     out: list[dict[str, MetricResult]] = [{} for _ in motions]
     names = list(KINEMATIC_METRICS)
     for members, batch in batches(motions):
-        per_metric = score(batch, [spec(batch, thresholds) for spec in _SPECS])
+        per_metric = score(batch, _plan(batch, thresholds))
         for k, i in enumerate(members):
             out[i] = {name: rs[k] for name, rs in zip(names, per_metric, strict=True)}
     return out

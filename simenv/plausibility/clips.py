@@ -148,8 +148,13 @@ def batches(motions: Sequence[Motion], max_frames: int | None = None
     """
     max_frames = BATCH_FRAMES if max_frames is None else max_frames
     groups: dict[tuple, list[int]] = {}
+    # Clips cut from one motion share its skeleton object: one key each.
+    keys: dict[int, tuple] = {}
     for i, m in enumerate(motions):
-        groups.setdefault((_layout_key(m.skeleton), m.fps, m.num_frames), []).append(i)
+        key = keys.get(id(m.skeleton))
+        if key is None:
+            key = keys[id(m.skeleton)] = _layout_key(m.skeleton)
+        groups.setdefault((key, m.fps, m.num_frames), []).append(i)
     for (_, _, frames), members in groups.items():
         per = max(1, max_frames // frames)
         for start in range(0, len(members), per):
@@ -198,7 +203,49 @@ class MetricSpec:
                 for r in batch.reasons]
 
 
-def score(batch: ClipBatch, specs: Sequence[MetricSpec]) -> list[list[MetricResult]]:
+class Plan:
+    """Metric specs prepared once for :func:`score`: which kernel slots run,
+    their arguments, per-frame thresholds and comparison precision, and per
+    spec the order of its details.
+
+    A plan depends only on the layout, frame rate, length and thresholds of
+    a batch, so callers may keep one for every batch of that shape.
+    """
+
+    def __init__(self, specs: Sequence[MetricSpec]) -> None:
+        self.specs = tuple(specs)
+        self.enabled = np.zeros(kernels.N_METRICS, dtype=np.bool_)
+        self.frame_thresholds = np.zeros(kernels.N_METRICS)
+        self.in_float32 = np.zeros(kernels.N_METRICS, dtype=np.bool_)
+        args = dict(kernels.IDLE_ARGS)
+        self.details: list[tuple[tuple[str, ...], list[float], list[int]]] = []
+        for s in self.specs:
+            keys, constants, order = [], [], []
+            for d in s.details:
+                if isinstance(d, str):
+                    order.append(len(order) - len(constants))
+                    keys.append(d)
+                else:
+                    order.append(kernels.N_DETAILS + len(constants))
+                    constants.append(float(d[1]))
+                    keys.append(d[0])
+            self.details.append((tuple(keys), constants, order))
+            if s.args is None:
+                continue
+            self.enabled[s.slot] = True
+            args[s.slot] = s.args
+            ft = s.threshold if s.frame_threshold is None else s.frame_threshold
+            self.frame_thresholds[s.slot] = ft
+            # The comparison happens in float32 exactly when numpy's
+            # ``tl > ft`` on the float32 timeline would: a Python number is
+            # cast to float32.
+            self.in_float32[s.slot] = (not isinstance(ft, np.generic)
+                                       or bool(np.result_type(np.float32, ft) == np.float32))
+        self.args = (args[kernels.BONE], args[kernels.FOOT], args[kernels.FLOAT],
+                     args[kernels.JITTER], args[kernels.VELOCITY])
+
+
+def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[MetricResult]]:
     """Every metric of ``specs`` on every clip of ``batch``, in one compiled
     call.
 
@@ -206,27 +253,12 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec]) -> list[list[MetricResu
         Per spec, one result per clip, as :meth:`MetricResult.from_timeline`
         builds them.
     """
+    plan = specs if isinstance(specs, Plan) else Plan(specs)
     if batch.positions is None:
-        return [s.not_available(batch) for s in specs]
-    enabled = np.zeros(kernels.N_METRICS, dtype=np.bool_)
-    frame_thresholds = np.zeros(kernels.N_METRICS)
-    in_float32 = np.zeros(kernels.N_METRICS, dtype=np.bool_)
-    args = dict(kernels.IDLE_ARGS)
-    for s in specs:
-        if s.args is None:
-            continue
-        enabled[s.slot] = True
-        args[s.slot] = s.args
-        ft = s.threshold if s.frame_threshold is None else s.frame_threshold
-        frame_thresholds[s.slot] = ft
-        # The comparison happens in float32 exactly when numpy's ``tl > ft``
-        # on the float32 timeline would: a Python number is cast to float32.
-        in_float32[s.slot] = (not isinstance(ft, np.generic)
-                              or bool(np.result_type(np.float32, ft) == np.float32))
+        return [s.not_available(batch) for s in plan.specs]
     tl, value, details, available, span, runs, offsets = kernels.score(
-        batch.positions, batch.idx, enabled, args[kernels.BONE], args[kernels.FOOT],
-        args[kernels.FLOAT], args[kernels.JITTER], args[kernels.VELOCITY], frame_thresholds,
-        in_float32)
+        batch.positions, batch.idx, plan.enabled, *plan.args, plan.frame_thresholds,
+        plan.in_float32)
     batch._check_extent(span)
     # Python numbers at once: per-clip numpy calls would cost more than the
     # kernels on short clips.
@@ -234,26 +266,40 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec]) -> list[list[MetricResu
     bounds = offsets.tolist()
     ok = available.tolist()
     out = []
-    for s in specs:
+    for s, layout in zip(plan.specs, plan.details, strict=True):
         if s.args is None:
             out.append(s.not_available(batch))
             continue
-        out.append(_results(batch, s, tl[s.slot], value[s.slot].tolist(),
+        out.append(_results(batch, s, layout, tl[s.slot], value[s.slot].tolist(),
                             details[s.slot].tolist(), spans, bounds,
                             ok if s.slot == kernels.BONE else None))
     return out
 
 
-def _results(batch: ClipBatch, spec: MetricSpec, tl: np.ndarray, values: list[float],
-             columns: list[list[float]], spans: list[tuple[int, int, float]],
-             bounds: list[int], ok: list[bool] | None) -> list[MetricResult]:
-    """The results of one metric: ``tl`` (B, T) float32 timelines,
-    ``values`` (B,), ``columns`` (B, 4) detail columns, the violation runs
-    and their bounds (see :func:`simenv.plausibility.kernels.score`), ``ok``
-    (B,) clips the metric could be computed on (None: all)."""
+#: Whether results may be built from their field dicts (as ``copy`` and
+#: ``pickle`` do), which skips the frozen dataclass's per-field
+#: ``object.__setattr__`` (about 3 us per result: more than the kernels
+#: spend on a 2 s window); only while MetricResult has no ``__post_init__``
+#: or slots.
+_FROM_FIELDS = not hasattr(MetricResult, "__post_init__") and not hasattr(
+    MetricResult, "__slots__")
+
+
+def _results(batch: ClipBatch, spec: MetricSpec,
+             layout: tuple[tuple[str, ...], list[float], list[int]], tl: np.ndarray,
+             values: list[float], columns: list[list[float]],
+             spans: list[tuple[int, int, float]], bounds: list[int], ok: list[bool] | None
+             ) -> list[MetricResult]:
+    """The results of one metric: ``layout`` its detail keys, constant
+    details and the order of both in the (kernel columns + constants) row,
+    ``tl`` (B, T) float32 timelines, ``values`` (B,), ``columns`` (B, 4)
+    detail columns, the violation runs and their bounds (see
+    :func:`simenv.plausibility.kernels.score`), ``ok`` (B,) clips the metric
+    could be computed on (None: all)."""
     thr = float(spec.threshold)
     ft = thr if spec.frame_threshold is None else float(spec.frame_threshold)
     unit_tl = spec.timeline_unit or spec.unit
+    keys, constants, order = layout
     out = []
     for b in range(batch.size):
         r = batch.reasons[b] or (None if ok is None or ok[b] else spec.reason)
@@ -262,20 +308,21 @@ def _results(batch: ClipBatch, spec: MetricSpec, tl: np.ndarray, values: list[fl
                 spec.name, batch.num_frames, spec.unit, spec.threshold, r,
                 frame_threshold=spec.frame_threshold, timeline_unit=spec.timeline_unit))
             continue
-        row = columns[b]
-        details = {}
-        col = 0
-        for d in spec.details:
-            if isinstance(d, str):
-                details[d] = row[col]
-                col += 1
-            else:
-                details[d[0]] = float(d[1])
+        row = columns[b] + constants
         v = values[b]
         k = b * kernels.N_METRICS + spec.slot
-        out.append(MetricResult(
-            name=spec.name, value=v, unit=spec.unit, threshold=thr, passed=v <= spec.threshold,
-            timeline=tl[b], violations=spans[bounds[k]:bounds[k + 1]], frame_threshold=ft,
-            timeline_unit=unit_tl, details=details,
-        ))
+        details = dict(zip(keys, [row[i] for i in order], strict=True))
+        fields = {
+            "name": spec.name, "value": v, "unit": spec.unit, "threshold": thr,
+            "passed": v <= spec.threshold, "timeline": tl[b],
+            "violations": spans[bounds[k]:bounds[k + 1]], "frame_threshold": ft,
+            "timeline_unit": unit_tl, "details": details,
+            "reason": None,
+        }
+        if _FROM_FIELDS:
+            result = object.__new__(MetricResult)
+            object.__setattr__(result, "__dict__", fields)
+        else:
+            result = MetricResult(**fields)
+        out.append(result)
     return out
