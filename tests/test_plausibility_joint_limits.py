@@ -15,14 +15,18 @@ import numpy as np
 import pytest
 
 from simenv.humanoid import Humanoid
-from simenv.io import bvh
+from simenv.io import asf_amc, bvh
 from simenv.motion import Motion
 from simenv.plausibility.body import (
+    _lowest_box,
     hinge_keypoints,
     joint_limit_clamp_cost,
     joint_limit_demand,
+    joint_limit_excess,
+    joint_limit_least_excess,
     joint_limits,
     observed_hinges,
+    relaxed_humanoid,
 )
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.retarget import retarget
@@ -139,7 +143,10 @@ def test_elbow_hyperextended_is_caught(walk: Motion) -> None:
     broken = _bend_backwards(walk, "left_shoulder", "left_elbow", ("left_wrist", "left_hand"),
                              frames, 30.0)
     r = joint_limits(broken)
-    assert not r.passed and r.value >= 20.0, r.to_dict()
+    # 30 degrees of hyperextension; the least excess (joint_limit_least_excess)
+    # lets the hand sit 1 cm plus its median fit error off, and the upper
+    # arm's twist absorbs part of it: 18 degrees measured.
+    assert not r.passed and r.value >= 15.0, r.to_dict()
     # Caught on the left arm (the relaxed solver may twist the upper arm instead).
     assert _worst(r).split("_")[:2] in (["left", "forearm"], ["left", "upper"])
 
@@ -152,3 +159,41 @@ def test_retarget_result_counts_every_frame(walk: Motion) -> None:
     fit.qpos[10:20, h.hinge_qpos[knee]] = np.deg2rad(-25.0)
     r = joint_limits(fit)
     assert r.value == pytest.approx(25.0) and _worst(r) == "right_shin_flex"
+
+
+def test_least_excess_resplits_a_foot_but_not_a_knee(shared_data: Path, walk: Motion) -> None:
+    """The relaxed fit of the real kata 135_06 rolls the right foot 44 degrees
+    past its inversion range, a split the ankle and toe keypoints cannot tell
+    from an in-range one; a knee bent backwards cannot be re-split."""
+    kata = asf_amc.read(shared_data / "cmu" / "asf_amc" / "135_06.amc").to_canonical()
+    kata = kata.slice(1950, 2060)
+    fit = retarget(kata)
+    body = fit.humanoid
+    rel = retarget(kata, humanoid=relaxed_humanoid(body, 60.0))
+    names = rel.keypoint_names
+    foot = [body.joint_names.index(f"right_foot_{k}") for k in ("flex", "inv", "abd")]
+    ex = joint_limit_excess(body, rel.qpos)
+    frames = np.flatnonzero(ex[:, foot].max(axis=1) > 10.0)
+    assert len(frames) >= 3 and ex[frames][:, foot].max() > 40.0
+    flagged = np.zeros((len(frames), len(body.joint_names)), dtype=bool)
+    flagged[:, foot] = True
+    tol = rel.residuals.astype(np.float64) + 0.01
+    floor = np.minimum(_lowest_box(body.model, rel.qpos), _lowest_box(body.model, fit.qpos))
+    least = joint_limit_least_excess(body, rel.qpos, rel.targets.astype(np.float64), names,
+                                     frames, flagged, tol, alternative=fit.qpos, floor=floor)
+    worst, before = least[:, foot].max(axis=1), ex[frames][:, foot].max(axis=1)
+    # Some frames re-split into the range, the others keep a smaller excess
+    # (the floor: the data's toe sits where a foot in range would sink).
+    assert (worst < 1.0).sum() >= 3 and worst.mean() <= before.mean() - 10.0, (worst, before)
+
+    knee = body.joint_names.index("left_shin_flex")
+    wfit = retarget(walk.slice(0, 60))
+    q = wfit.qpos.copy()
+    q[10:20, wfit.humanoid.hinge_qpos[knee]] = np.deg2rad(-40.0)
+    targets = wfit.humanoid.keypoints(q)
+    flagged = np.zeros((10, len(body.joint_names)), dtype=bool)
+    flagged[:, knee] = True
+    least = joint_limit_least_excess(wfit.humanoid, q, targets, wfit.humanoid.keypoint_names,
+                                     np.arange(10, 20), flagged, np.full(targets.shape[:2], 0.01))
+    # Only 1 cm of slack at the ankle (2.3 deg of a 0.4 m shin) to give back.
+    assert least[:, knee].min() >= 35.0, least[:, knee]

@@ -352,6 +352,147 @@ def joint_limit_clamp_cost(humanoid: Humanoid, qpos: np.ndarray, targets: np.nda
     return cost
 
 
+def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.ndarray,
+                             keypoints: Sequence[str], frames: np.ndarray,
+                             flagged: np.ndarray, tolerance: np.ndarray,
+                             alternative: np.ndarray | None = None,
+                             floor: np.ndarray | None = None,
+                             iterations: int = 30) -> np.ndarray:
+    """The least excess with which the flagged bodies still reach the keypoints.
+
+    A fit's hinge angles on one body are one decomposition of that body's
+    orientation relative to its parent among several the keypoints cannot
+    tell apart: a foot whose ankle and toe are seen, but not its roll about
+    their line, is reached with abduction, inversion and flexion in many
+    proportions, and a solver with widened ranges has no reason to pick the
+    split closest to the anatomical ranges. Per frame ``t`` only the hinges
+    of the bodies that carry a flagged hinge move (everything else stays at
+    ``qpos[t]``, so the split is re-chosen within each body and nothing is
+    moved to another joint: an elbow bent backwards stays an elbow bent
+    backwards, it does not become an upper arm twisted half a turn) and
+
+        min  sum_h e_h^2 + sum_k (W max(0, |site_k - x_tk| - tol_k))^2
+                         + sum_c (W max(0, f_t - z_c))^2
+
+    with ``e_h`` the excess of hinge ``h`` beyond its range (degrees),
+    ``tol_k`` the allowed distance of keypoint ``k`` (metres), ``z_c`` the
+    heights of the corners of the moving box geoms (soles, hands), ``f_t``
+    the floor level of the frame (``floor``; the fits keep the soles above
+    the floor too, and a re-split must not buy its accuracy by pushing a
+    foot through it) and ``W = 10^4`` per metre (1 mm beyond a tolerance
+    weighs like 10 degrees, so the tolerances are nearly hard).
+    Levenberg-Marquardt with analytic Jacobians (``mj_jacSite``, ``mj_jac``),
+    started from ``qpos[t]`` and, when given,
+    from ``qpos[t]`` with the moving hinges set to ``alternative[t]``'s (the
+    limited fit: an in-range split); the lower final cost wins.
+
+    Args:
+        humanoid: gives the ranges (:attr:`Humanoid.joint_limits`) and model.
+        qpos: (T, nq) configurations (a relaxed fit).
+        targets: (T, K, 3) target keypoints, metres, in ``keypoints`` order.
+        keypoints: the K keypoint names of ``targets``.
+        frames: (N,) int frames to solve.
+        flagged: (N, H) bool, the hinges whose bodies may move per frame.
+        tolerance: (T, K) metres.
+        alternative: optional (T, nq) second start.
+        floor: optional (T,) lowest allowed corner height, metres (default:
+            no floor term).
+        iterations: Levenberg-Marquardt iterations per start.
+
+    Returns:
+        (N, H) degrees, the excess of each hinge in the solution (0 on the
+        hinges no keypoint observes), :attr:`Humanoid.joint_names` order.
+    """
+    m, d = humanoid.model, mujoco.MjData(humanoid.model)
+    index = dict(zip(humanoid.keypoint_names, humanoid.site_ids, strict=True))
+    sites = np.array([index[k] for k in keypoints])
+    lo, hi = humanoid.joint_limits[:, 0], humanoid.joint_limits[:, 1]
+    hq = humanoid.hinge_qpos
+    hinge_ids = np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
+    hv, hbody = m.jnt_dofadr[hinge_ids], m.jnt_bodyid[hinge_ids]
+    observed = observed_hinges(humanoid, keypoints)
+    weight, deg = 1e4, float(np.rad2deg(1.0))
+    jac = np.zeros((3, m.nv))
+    boxes = np.flatnonzero((m.geom_type == _BOX) & (m.geom_bodyid > 0))
+    signs = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], dtype=float)
+
+    def subtree(bodies: np.ndarray) -> np.ndarray:
+        inside = np.isin(np.arange(m.nbody), bodies)
+        for b in range(1, m.nbody):  # parents precede children
+            inside[b] |= inside[m.body_parentid[b]]
+        return inside
+
+    def excess(q: np.ndarray) -> np.ndarray:
+        return np.where(observed, np.maximum(lo - q[hq], 0.0) + np.maximum(q[hq] - hi, 0.0),
+                        0.0)
+
+    def residual(q: np.ndarray, t: int, free: np.ndarray,
+                 soles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)  # mj_jacSite / mj_jac read the com-based frames
+        diff = d.site_xpos[sites] - targets[t]
+        dist = np.linalg.norm(diff, axis=1)
+        over = dist - tolerance[t]
+        ex = excess(q)[free]
+        corners = (d.geom_xpos[soles, None] + np.einsum(
+            "gij,gpj->gpi", d.geom_xmat[soles].reshape(-1, 3, 3),
+            signs * m.geom_size[soles, None])).reshape(-1, 3)
+        sink = (floor[t] - corners[:, 2]) if floor is not None else np.zeros(0)
+        r = np.concatenate([weight * np.maximum(over, 0.0), weight * np.maximum(sink, 0.0),
+                            deg * ex])
+        J = np.zeros((len(r), len(free)))
+        for k in np.flatnonzero(over > 0):
+            mujoco.mj_jacSite(m, d, jac, None, int(sites[k]))
+            J[k] = weight * (diff[k] / max(dist[k], 1e-9)) @ jac[:, hv[free]]
+        for c in np.flatnonzero(sink > 0):
+            mujoco.mj_jac(m, d, jac, None, corners[c], int(m.geom_bodyid[soles[c // 8]]))
+            J[len(sites) + c] = -weight * jac[2, hv[free]]
+        h = np.flatnonzero(ex > 0)
+        J[len(sites) + len(sink) + h, h] = np.where(q[hq[free[h]]] > hi[free[h]], deg, -deg)
+        return r, J
+
+    out = np.zeros((len(frames), len(hq)))
+    for n, t in enumerate(np.asarray(frames, dtype=int)):
+        free = np.flatnonzero(np.isin(hbody, hbody[flagged[n]]))
+        soles = boxes[subtree(hbody[free])[m.geom_bodyid[boxes]]]
+        starts = [np.array(qpos[t], dtype=np.float64)]
+        if alternative is not None:
+            starts.append(starts[0].copy())
+            starts[1][hq[free]] = alternative[t, hq[free]]
+        best_cost, best_q = np.inf, starts[0]
+        for q in starts:
+            r, J = residual(q, t, free, soles)
+            cost, lam = float(r @ r), 1e-3
+            for _ in range(iterations):
+                H = J.T @ J
+                step = -np.linalg.solve(H + lam * (np.diag(np.diag(H)) + 1e-6 * np.eye(len(free))),
+                                        J.T @ r)
+                trial = q.copy()
+                trial[hq[free]] += step
+                rt, Jt = residual(trial, t, free, soles)
+                ct = float(rt @ rt)
+                if ct < cost:
+                    done = cost - ct < 1e-6 * cost + 1e-9
+                    q, r, J, cost, lam = trial, rt, Jt, ct, lam * 0.3
+                    if done:
+                        break
+                else:
+                    lam *= 10.0
+                    if lam > 1e8:
+                        break
+            if cost < best_cost:
+                best_cost, best_q = cost, q
+        out[n] = deg * excess(best_q)
+    return out
+
+
+def _lowest_box(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """(T,) metres: the lowest point of the body's box geoms (soles, hands)."""
+    boxes = np.flatnonzero((model.geom_type == _BOX) & (model.geom_bodyid > 0))
+    return geom_lowest_z(model, body_poses(model, qpos), boxes).min(axis=1)
+
+
 def joint_limit_demand(motion: Motion, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
                        *, fitted: RetargetResult | None = None
                        ) -> tuple[np.ndarray, RetargetResult, RetargetResult]:
@@ -377,6 +518,18 @@ def joint_limit_demand(motion: Motion, thresholds: BodyThresholds = DEFAULT_BODY
       axis, which the ankle and toe keypoints barely see) costs nothing to
       clamp, so it is not blamed for a cost another hinge causes.
 
+    On the frames where some hinge passes both tests the excess is then re-
+    measured as the *least* the flagged bodies need, each re-splitting its own
+    orientation (:func:`joint_limit_least_excess`): every keypoint within
+    ``joint_limit_cost_m`` of where the relaxed fit put it (the tests' own
+    notion of accuracy the limits may cost), and no sole or hand box lower
+    than either fit put it on that frame. A frame keeps the relaxed fit's
+    excess when that is not larger. Measured on real CMU clips
+    (``benchmarks/calibrate_joint_limits.py``): the relaxed fit's foot angles
+    are one split of a foot orientation the ankle and toe keypoints see only
+    in part, and the widened ranges let it pick one far outside them (see the
+    table in :mod:`simenv.plausibility.body_thresholds`).
+
     Returns:
         ``(demand, limited, relaxed)``: (T, H) degrees in
         :attr:`Humanoid.joint_names` order (0 where not demanded, and on the
@@ -400,6 +553,17 @@ def joint_limit_demand(motion: Motion, thresholds: BodyThresholds = DEFAULT_BODY
             body, relaxed.qpos, relaxed.targets.astype(np.float64), names, cand[local]
         ) > thresholds.joint_limit_cost_m
         excess[t[~clamp], h[~clamp]] = 0.0
+    frames = np.flatnonzero(excess.max(axis=1) > 0.0)
+    if len(frames):
+        tolerance = relaxed.residuals.astype(np.float64) + thresholds.joint_limit_cost_m
+        floor = np.full(len(relaxed.qpos), np.inf)
+        floor[frames] = np.minimum(_lowest_box(body.model, relaxed.qpos[frames]),
+                                   _lowest_box(body.model, fitted.qpos[frames]))
+        least = joint_limit_least_excess(body, relaxed.qpos, relaxed.targets.astype(np.float64),
+                                         names, frames, excess[frames] > 0.0, tolerance,
+                                         alternative=fitted.qpos, floor=floor)
+        lower = least.max(axis=1) < excess[frames].max(axis=1)
+        excess[frames[lower]] = least[lower]
     return excess, fitted, relaxed
 
 
