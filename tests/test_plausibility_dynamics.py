@@ -104,3 +104,16 @@ def test_short_and_bad_input(walk_2s_retargeted) -> None:
     assert err.value.frame == 33
     with pytest.raises(PhysicsError, match="shape"):
         balance(replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:, :5]))
+
+
+def test_clip_end_cut_mid_stride_needs_no_help_but_a_dead_stop_does(walk_2s_retargeted) -> None:
+    # The finite differences are one-sided at a clip's ends: cutting the real walk
+    # mid-stride must not make its last frames need help (measured: <= 0.03 body
+    # weight). Holding the last pose for 6 frames, as the final frames of CMU 49_04 do,
+    # stops the 1.3 m/s walker dead, which the floor's friction cannot do (0.5-0.6).
+    w = walk_2s_retargeted
+    for cut in (120, 160, 200):
+        cut_end = root_residual_wrench(replace(w, qpos=w.qpos[:cut])).force[-8:]
+        assert cut_end.max() < 0.1, (cut, cut_end)
+        frozen = np.concatenate([w.qpos[:cut], np.repeat(w.qpos[cut - 1:cut], 6, axis=0)])
+        assert root_residual_wrench(replace(w, qpos=frozen)).force[-12:].max() > 0.3

@@ -148,7 +148,12 @@ class BodyThresholds:
             residual root force, as a fraction of body weight m g: the
             "invisible help" the motion needs after the best feasible ground
             reaction forces. Real walking needs (near) zero; a walk lifted
-            30 cm needs ~1. Calibrated on real CMU clips.
+            30 cm needs ~1. Calibrated on real CMU clips: single-person clips
+            0.00-0.12, except 49_04 at 0.161, whose last 6 frames are frozen
+            copies (the body stops dead rising at 0.9 m/s; 0.070 without
+            them). In two-person files each person is judged on the residual
+            left after the partner's hand forces (``pair_root_residual``):
+            salsa followers 0.164 -> 0.136 and 0.176 -> 0.156.
         root_force_frame_max: 0.5. Per-frame limit (fraction of body weight)
             for the residual's violation runs (landings of real jumps peak
             briefly as the 6 Hz filter spreads the impact).

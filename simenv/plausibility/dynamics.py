@@ -20,7 +20,14 @@ Root residual ("invisible help")
     needs almost none; a walk lifted 30 cm needs about one body weight all the
     time (nothing touches the floor), which is the "residual force" of
     residual-force control (Yuan & Kitani 2020) that a simulated character
-    would need to perform the motion.
+    would need to perform the motion. :class:`RootWrench` holds the per-frame
+    problem (wrench and floor columns), so that
+    :mod:`simenv.plausibility.pair_dynamics` can add a partner's hand forces.
+
+    The derivatives are one-sided at a clip's ends; a trajectory cut mid-stride
+    needs no help on its last frames (the real walk cut at 1, 1.3 or 1.7 s:
+    at most 0.03 body weight), while a motion that stops dead -- CMU 49_04,
+    whose last 6 frames are frozen copies -- does (up to 2.5 body weights).
 
 Balance
     On quasi-static frames (centre-of-mass acceleration below
