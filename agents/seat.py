@@ -4,14 +4,14 @@ The return stages (:data:`RETURN_STAGES`) follow a standing act (``close_window`
 ``close_curtain``, ``open_window``) in its :class:`~simenv.agents.reach.PlanChain`, each
 planned from the state the previous one left:
 
-1. ``turn_away`` (:func:`plan_turn_away`): a stepping turn (:func:`plan_turn`) from
+1. ``turn_away`` (:func:`plan_turn_away`): a stepping turn (:func:`plan_step`) from
    facing the object onto the heading that leaves towards the chair;
 2. ``walk_back`` (:func:`plan_walk_back`): :func:`simenv.agents.walk.plan_walk` from there
-   to :func:`chair_spot` (in front of the seat, wherever it rolled), arriving across the
+   to :data:`ARRIVE_OFF_M` in front of the seat (wherever it rolled), arriving across the
    desk's heading from the side the agent comes from, so that the path passes between the
    chair's front and the desk instead of over the chair;
-3. ``turn_to_desk`` (:func:`plan_turn_to_desk`): a stepping turn onto the desk's heading,
-   the seat now behind the agent;
+3. ``turn_to_desk`` (:func:`plan_turn_to_desk`): steps onto :func:`chair_spot`, turning
+   onto the desk's heading, the seat now behind the agent;
 4. ``sit_down`` (:func:`simenv.agents.stand.plan_sit_down`) and ``settle``
    (:func:`plan_settle`): crouch onto the seat, then hold the seated pose; the settle's
    plan measures the result (:func:`seated_on_chair`) when it ends.
@@ -23,9 +23,14 @@ pelvis at ``psi`` (leg hinges solved by damped least squares on the four feet ke
 :func:`~simenv.agents.reach.reach_pose`): lift the leading foot (the one on the side of
 the turn) :data:`LIFT_M`; yaw the pelvis to ``psi_k`` and set that foot down at
 ``f(psi_k)``, the other still planted (its hip twists); lift the trailing foot; set it
-down at ``f(psi_k)``. The feet are re-placed, not dragged round on the floor as by a
-blend of the pelvis's yaw. The pelvis is held at its place and yaw by
-:class:`~simenv.agents.walk.RootAssist` (measured, reported).
+down at ``f(psi_k)``. A short shift of the pelvis (up to :data:`STEP_M` a step) is
+interpolated with the yaw the same way. The feet are re-placed, not dragged round on the
+floor as by a blend of the pelvis's yaw. While stepping the pelvis is
+:data:`TURN_CROUCH_M` lower, moves :data:`WEIGHT_SHIFT_M` over the standing foot while the
+other is lifted, and the stance legs' static torques are fed forward
+(:func:`stance_targets`); it is held on that reference by
+:class:`~simenv.agents.walk.RootAssist` (measured, reported). :func:`plan_turn_then_walk`
+puts such a turn before a walk in one plan (the walks to the window and the curtain).
 """
 
 from __future__ import annotations

@@ -166,8 +166,9 @@ SIT_PHASES_S = (2.5, 1.5, 1.5)
 
 def plan_sit_down(room: Room, data: mujoco.MjData) -> PDPlan:
     """Plan for sitting back down on the chair behind the standing agent (where standing
-    up left it), from the current state: crouch with the spine bent forward until the
-    seat takes the weight, move to the seated pose, hold. Open loop: the seat is behind
+    up left it, or where :mod:`simenv.agents.seat`'s steps put it), from the current
+    state: crouch with the spine bent forward until the seat takes the weight, move to the
+    seated pose, hold. Open loop: the seat is behind
     the feet, so the crouch ends on it (measured: peak descent 0.4 m/s, centre of mass at
     most 14 cm behind the feet before the seat touches; :class:`ComBalance` during the
     crouch changed neither). The chair stays where it rolled: pulling it back to the desk

@@ -15,8 +15,12 @@ with ``n`` the path's left normal; height, tilt and hinge angles are the clip's.
 :data:`SLOWDOWN` times slower than the clip, from its first frame. The hinge angles are
 the PD servos' targets with the reference velocity fed through the servos' damping
 (``ctrl = q_ref + (kv/kp) qd_ref``, as :func:`simenv.plausibility.tracking.track`
-does). A blend-in turns the standing body onto the path's first pose and a blend-out
-brings it to the standing rest pose at the goal.
+does). The path starts :func:`_first_step` ahead of the pelvis, where the clip's first
+pose keeps its rear toe on the standing toe; the first step into that pose lifts the
+front foot :data:`STEP_LIFT_M` half-way to its place and sets it there (two halves of
+:data:`BLEND_IN_S`; blending the targets straight to that pose dragged both planted feet
+0.56 m apart, measured 3.3 body weights of assistance), and a blend-out brings the body
+to the standing rest pose at the goal.
 
 Root assistance (:class:`RootAssist`): the PD servos alone do not keep the walking body up
 (measured: see docs/room.md), so a force and a torque on the pelvis pull it along the
@@ -56,8 +60,8 @@ from simenv.room import Room
 REF_FPS = 25.0
 #: The reference plays this many times slower than recorded (the clip walks 1.18 m/s).
 SLOWDOWN = 2.0
-#: Blend from the standing pose onto the path's first pose, and from its last pose to
-#: standing at the goal, s.
+#: The first step from the standing pose onto the path's first pose, and the blend from
+#: its last pose to standing at the goal, s.
 BLEND_IN_S = 1.2
 BLEND_OUT_S = 1.2
 #: The walk starts only with the pelvis at least this fraction of its standing height.
@@ -242,8 +246,9 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
             farther than the clip walks.
 
     Returns:
-        the plan: blend-in, the walk (the clip's frames up to the path's length, played
-        :data:`SLOWDOWN` x slower), blend-out to standing at the goal, 1 s standing.
+        the plan: the first step (:data:`BLEND_IN_S`), the walk (the clip's frames up to
+        the path's length, played :data:`SLOWDOWN` x slower), blend-out to standing at
+        the goal, 1 s standing.
     """
     h = room.agent
     q_now = data.qpos[room.agent_qpos].copy()

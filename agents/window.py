@@ -6,7 +6,8 @@ of three stages and the return (:data:`simenv.agents.seat.RETURN_STAGES`: turn, 
 turn to the desk, sit down, settle), each planned from the state the previous one left:
 
 1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
-2. :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
+2. :func:`plan_walk_to_window`: a stepping turn onto the heading towards the wall, then
+   :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
    wall, :data:`ALONG_M` along the pane's travel, facing the wall (measured root
    assistance);
 3. :func:`plan_window_push`: the right palm (``grip`` site) to the pane's handle, the
