@@ -18,13 +18,13 @@ from simenv.humanoid import Humanoid
 from simenv.io import asf_amc, bvh
 from simenv.motion import Motion
 from simenv.plausibility.body import (
-    _lowest_box,
     hinge_keypoints,
     joint_limit_clamp_cost,
     joint_limit_demand,
     joint_limit_excess,
     joint_limit_least_excess,
     joint_limits,
+    lowest_box_z,
     observed_hinges,
     relaxed_humanoid,
 )
@@ -178,7 +178,7 @@ def test_least_excess_resplits_a_foot_but_not_a_knee(shared_data: Path, walk: Mo
     flagged = np.zeros((len(frames), len(body.joint_names)), dtype=bool)
     flagged[:, foot] = True
     tol = rel.residuals.astype(np.float64) + 0.01
-    floor = np.minimum(_lowest_box(body.model, rel.qpos), _lowest_box(body.model, fit.qpos))
+    floor = np.minimum(lowest_box_z(body.model, rel.qpos), lowest_box_z(body.model, fit.qpos))
     least = joint_limit_least_excess(body, rel.qpos, rel.targets.astype(np.float64), names,
                                      frames, flagged, tol, alternative=fit.qpos, floor=floor)
     worst, before = least[:, foot].max(axis=1), ex[frames][:, foot].max(axis=1)

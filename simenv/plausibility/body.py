@@ -487,8 +487,9 @@ def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.n
     return out
 
 
-def _lowest_box(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """(T,) metres: the lowest point of the body's box geoms (soles, hands)."""
+def lowest_box_z(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """Height of the lowest point of the body's box geoms (soles, toes, hands)
+    on each frame of ``qpos`` (T, nq): (T,) metres."""
     boxes = np.flatnonzero((model.geom_type == _BOX) & (model.geom_bodyid > 0))
     return geom_lowest_z(model, body_poses(model, qpos), boxes).min(axis=1)
 
@@ -557,8 +558,8 @@ def joint_limit_demand(motion: Motion, thresholds: BodyThresholds = DEFAULT_BODY
     if len(frames):
         tolerance = relaxed.residuals.astype(np.float64) + thresholds.joint_limit_cost_m
         floor = np.full(len(relaxed.qpos), np.inf)
-        floor[frames] = np.minimum(_lowest_box(body.model, relaxed.qpos[frames]),
-                                   _lowest_box(body.model, fitted.qpos[frames]))
+        floor[frames] = np.minimum(lowest_box_z(body.model, relaxed.qpos[frames]),
+                                   lowest_box_z(body.model, fitted.qpos[frames]))
         least = joint_limit_least_excess(body, relaxed.qpos, relaxed.targets.astype(np.float64),
                                          names, frames, excess[frames] > 0.0, tolerance,
                                          alternative=fitted.qpos, floor=floor)
@@ -591,13 +592,14 @@ def joint_limits(source: Motion | RetargetResult,
 
     Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`) over
     the hinges the motion's keypoints observe (:func:`observed_hinges`), 0
-    where not demanded. Value: its maximum over frames; passes when at most
-    ``joint_limit_max_deg``. Details: ``frames_over`` (fraction of frames
-    above 1 degree), ``joints_over`` (hinges above the threshold anywhere),
-    ``mean_deg``, ``worst_hinge`` (index into :attr:`Humanoid.joint_names`
-    of the hinge with the largest excess, -1 when none), and for a Motion
-    ``limit_cost_p95_mm`` (95th percentile over frames of the worst
-    residual the limits add).
+    where not demanded; on the frames a hinge is demanded, the least excess
+    the flagged bodies need (:func:`joint_limit_least_excess`). Value: its
+    maximum over frames; passes when at most ``joint_limit_max_deg``. Details:
+    ``frames_over`` (fraction of frames above 1 degree), ``joints_over``
+    (hinges above the threshold anywhere), ``mean_deg``, ``worst_hinge``
+    (index into :attr:`Humanoid.joint_names` of the hinge with the largest
+    excess, -1 when none), and for a Motion ``limit_cost_p95_mm`` (95th
+    percentile over frames of the worst residual the limits add).
     """
     details: dict[str, float] = {}
     if isinstance(source, Motion):
