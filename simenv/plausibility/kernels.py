@@ -732,25 +732,51 @@ def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float,
         The value: the timeline's maximum.
     """
     j_count, t_count = p.shape[1], p.shape[2]
-    # Speeds, ratios and jumps are >= 0: maxima start at 0.
-    ratio = np.zeros(t_count - 1)
-    speed_max = np.zeros(t_count - 1)
-    jump = np.zeros(max(t_count - 2, 0))
+    pairs = t_count - 1
+    # Square roots, and products or quotients with a positive constant, are
+    # monotone (correct rounding keeps order), so the largest speed among
+    # keypoints of one limit is the root of their largest squared step and
+    # the largest jump the root of the largest squared second difference:
+    # one root per frame and limit instead of one per keypoint, same values.
+    group = np.empty(j_count, dtype=np.int64)
+    group_limit = np.empty(j_count)
+    g_count = 0
+    for j in range(j_count):
+        g = 0
+        while g < g_count and group_limit[g] != limits[j]:
+            g += 1
+        if g == g_count:
+            group_limit[g] = limits[j]
+            g_count += 1
+        group[j] = g
+    # Squares, speeds, ratios and jumps are >= 0: maxima start at 0.
+    step_sq = np.zeros((g_count, pairs))
+    jump_sq = np.zeros(max(t_count - 2, 0))
     for j in range(j_count):
         x, y, z = p[0, j], p[1, j], p[2, j]
-        lim = limits[j]
-        # One pass for speeds (frame pairs t, t+1) and jumps (second
-        # differences at t+1), the latter as np.diff of the former.
-        for t in range(t_count - 1):
+        q = step_sq[group[j]]
+        # One pass for steps (frame pairs t, t+1) and jumps (second
+        # differences at t+1, np.diff of the steps), the last step apart.
+        for t in range(pairs - 1):
             dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
-            s = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps
+            q[t] = max(q[t], (dx * dx + dy * dy) + dz * dz)
+            ddx = (x[t + 2] - x[t + 1]) - dx
+            ddy = (y[t + 2] - y[t + 1]) - dy
+            ddz = (z[t + 2] - z[t + 1]) - dz
+            jump_sq[t] = max(jump_sq[t], (ddx * ddx + ddy * ddy) + ddz * ddz)
+        t = pairs - 1
+        dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+        q[t] = max(q[t], (dx * dx + dy * dy) + dz * dz)
+    ratio = np.zeros(pairs)
+    speed_max = np.zeros(pairs)
+    for g in range(g_count):
+        q = step_sq[g]
+        lim = group_limit[g]
+        for t in range(pairs):
+            s = np.sqrt(q[t]) * fps
             speed_max[t] = max(speed_max[t], s)
             ratio[t] = max(ratio[t], s / lim)
-            if t < t_count - 2:
-                ddx = (x[t + 2] - x[t + 1]) - dx
-                ddy = (y[t + 2] - y[t + 1]) - dy
-                ddz = (z[t + 2] - z[t + 1]) - dz
-                jump[t] = max(jump[t], np.sqrt((ddx * ddx + ddy * ddy) + ddz * ddz))
+    jump = np.sqrt(jump_sq)
     tl[0] = np.nan
     tl[1:] = ratio
     teleports = 0
