@@ -1,11 +1,13 @@
 """Opening the window: stand up, walk to it, take the pane's handle and slide it open.
 
 ``open_window`` (:func:`plan_open_window`) is a :class:`~simenv.agents.reach.PlanChain`
-like ``close_window`` (:mod:`simenv.agents.window`), of three stages each planned from the
-state the previous one left:
+like ``close_window`` (:mod:`simenv.agents.window`), each stage planned from the state the
+previous one left: three stages, then the return to the chair
+(:data:`simenv.agents.seat.RETURN_STAGES`):
 
 1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
-2. :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
+2. :func:`plan_walk_to_open`: a stepping turn onto the heading towards the wall, then
+   :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
    wall and :data:`ALONG_M` along the pane's opening direction from its handle, facing the
    wall (measured root assistance);
 3. :func:`plan_window_pull`: the right hand comes to the handle's side in the opening
@@ -32,8 +34,9 @@ from simenv.agents.reach import (
     reach_pose,
     upper_body_joints,
 )
+from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import held_grasp_stroke, plan_walk
+from simenv.agents.walk import held_grasp_stroke
 from simenv.agents.window import SPINE
 from simenv.errors import SimenvError
 from simenv.room import Room
@@ -50,8 +53,15 @@ PULL_VIA = 8
 #: The palm comes in from this far in front of the handle, and backs off as far, m.
 APPROACH_M = 0.10
 #: How far into the handle's side face the grip site aims, m: the servos stop short of a
-#: target they cannot reach, so aiming into the handle lays the palm on it.
+#: target they cannot reach, so aiming into the handle lays the palm on it (aiming 2 cm
+#: in, the palm pushed the handle away and the grasp failed at 8.4 cm, measured).
 PRESS_M = 0.01
+#: How far behind the handle's centre (towards the wall) the grip site aims, m: the hand
+#: stops 3-5 cm short of its target across the wall. Measured grip-site distance from the
+#: handle when the grasp is asked for, over four walk endings: 2.1-2.3 cm aiming 2 cm
+#: behind, 1.9-3.3 cm aiming 1 cm behind, 2.6-5.5 cm aiming at the centre (at the 6 cm
+#: grasp radius), 5.8 cm aiming 2 cm in front of it.
+DEPTH_M = 0.02
 HAND = "right_hand"
 
 
@@ -106,10 +116,8 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
                                        f"{side}_hand_dev", *SPINE)]
     sites = [f"agent/{HAND}_grip", f"agent/{HAND}_tip", f"agent/{side}_wrist"]
     half_width = float(m.geom("window/handle").size[0])
-    # The palm on the handle's face that looks along the opening direction, at the handle's
-    # mid-depth: the fingertips end 2 cm short of the pane. (Aimed 2 cm further into the
-    # room, the grip site stopped 5.8 cm from the handle, at the grasp radius, measured.)
-    on = handle + opening * (half_width + 0.002 - PRESS_M)
+    # The palm on the handle's face that looks along the opening direction.
+    on = handle + opening * (half_width + 0.002 - PRESS_M) - inward * DEPTH_M
     travel = min(PULL_M, w.upper - now)
     goals = [on + opening * APPROACH_M / 2 + inward * APPROACH_M, on]
     goals += [on + opening * travel * k / PULL_VIA for k in range(1, PULL_VIA + 1)]
@@ -131,14 +139,17 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
 
 
 def plan_walk_to_open(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for walking from where the agent stands to :func:`open_spot`, leaving towards
-    the wall (as :func:`simenv.agents.window.plan_walk_to_window` does)."""
+    """Plan for walking from where the agent stands to :func:`open_spot`: a stepping turn
+    onto the heading towards the wall, then the walk leaving along it, as
+    :func:`simenv.agents.window.plan_walk_to_window` does
+    (:func:`simenv.agents.seat.plan_turn_then_walk`)."""
     spot, face = open_spot(room, data)
-    return plan_walk(room, data, spot, face, start_yaw=face)
+    return plan_turn_then_walk(room, data, spot, face, start_yaw=face)
 
 
 def plan_open_window(room: Room, data: mujoco.MjData) -> PlanChain:
-    """``open_window``: stand up, walk to the window, slide it open (module docstring).
+    """``open_window``: stand up, walk to the window, slide it open, then go back to the
+    chair and sit down (:data:`simenv.agents.seat.RETURN_STAGES`, as ``close_window``).
 
     Raises:
         SimenvError: the window is already open.
@@ -147,7 +158,7 @@ def plan_open_window(room: Room, data: mujoco.MjData) -> PlanChain:
     if float(data.qpos[w.qpos_adr]) > w.threshold:
         raise SimenvError("the window is already open", field="window")
     return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_open),
-                      ("pull", plan_window_pull)))
+                      ("pull", plan_window_pull), *RETURN_STAGES))
 
 
 __all__ = ["open_spot", "plan_open_window", "plan_walk_to_open", "plan_window_pull"]

@@ -49,12 +49,14 @@ def real_clip(shared_data):
 
 
 def test_real_session_labelled_hot_opens_the_window_through_the_grasp(real_clip):
-    """A real MSR Action3D recording labelled hot: stand up (unassisted), walk to the
-    window (assistance measured), the palm's grasp closes on the handle and the hand
+    """A real MSR Action3D recording labelled hot: stand up (unassisted), turn on the feet
+    and walk to the window (assistance measured), the palm's grasp closes on the handle and the hand
     drags the pane past the open threshold while it holds it."""
     env, entry, rows = _rehearse_hot(real_clip)
     assert entry["started"] and entry["gesture"] == "hot"
-    assert [s["stage"] for s in entry["stages"]] == ["stand_up", "walk", "pull"]
+    # (The return to the chair follows in the chain; the environment ends a chain once its
+    # object succeeded.)
+    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "pull"]
     stages = {s["stage"]: s for s in entry["stages"]}
     assert "assistance" not in stages["stand_up"]
     assert np.linalg.norm(np.asarray(stages["walk"]["pelvis_end"][:2]) - env.spot) < 0.15
@@ -79,7 +81,10 @@ def test_without_the_grasp_the_hand_does_not_open_it(real_clip):
     face cannot drag the pane, which stays closed (so it is the grasp that opens it)."""
     env, entry, rows = _rehearse_hot(real_clip, room_grasps=False)
     assert entry["started"] and entry["grasped"] is False
-    assert entry["success"] is False
+    assert "pull" in [s["stage"] for s in entry["stages"]]
+    # Not a success (None while the return stages that follow a failed act still run when
+    # the episode reaches its bound).
+    assert not entry["success"] and entry["t_object_changed"] is None
     assert max(w for _, w, _ in rows) < env.room.objects["window"].threshold
 
 
