@@ -17,6 +17,11 @@ group is one clip, except that the two people of one CMU two-person trial (18_01
 a trial read from BVH and from AMC (02_01) is one clip by name. No group has windows on
 both sides. The Karcher means and scales are fitted on the training windows only.
 
+The DCT-residual MLP (``--model regression``, :func:`train_regression`) is trained on
+the same windows; ``--members K`` makes it an ensemble cross-fitted on K folds of the
+training clip groups (:func:`run`), ``--mirror-average`` (default) averages each
+prediction with the mirrored prediction of the mirrored history.
+
 Training (:func:`train`) is seeded (torch, numpy, batch order, noise), single-threaded
 by default, runs for a number of iterations or a time budget (whichever ends first),
 shows a tqdm bar and writes a checkpoint. Evaluation (:func:`evaluate`) compares the
@@ -552,11 +557,12 @@ def run(args: argparse.Namespace) -> dict:
     (:func:`make_split` with the same seed), is held out as a validation set for model
     selection; the test clips are never seen before the final evaluation.
 
-    A regression ensemble (``--members K > 1``) is cross-fitted instead: the training
-    clip groups are dealt into K folds (:func:`simenv.prediction_data.clip_folds`;
-    ``args.validation`` is not used), member ``i`` is trained with seed ``seed + i`` on
-    the other folds and its iteration selected on fold ``i``. Every member is validated
-    on clips it has not seen, and every training clip trains K - 1 members.
+    A regression ensemble (``--members K > 1``) trains member ``i`` with seed
+    ``seed + i``, on the same training and validation clips; with ``--cross-fit`` it is
+    cross-fitted instead: the training clip groups are dealt into K folds
+    (:func:`simenv.prediction_data.clip_folds`; ``args.validation`` is not used), member
+    ``i`` is trained on the other folds and its iteration selected on fold ``i``, so that
+    every training clip trains K - 1 members.
     """
     torch.set_num_threads(args.threads)
     paths = args.data or default_data(Path(args.shared))
@@ -567,7 +573,7 @@ def run(args: argparse.Namespace) -> dict:
     fit_clips, val_w, val_clips = set(split.train_clips), None, []
     base = windows.subset(split.train)
     ensemble = args.model == "regression" and args.members > 1
-    if ensemble:
+    if ensemble and args.cross_fit:
         groups = [group_of(c) for c in base.window_clip_names]
         folds = pdata.clip_folds(groups, args.members, args.seed)
         val_w, val_clips = base.subset(folds[0].test), list(folds[0].test_clips)
@@ -587,7 +593,7 @@ def run(args: argparse.Namespace) -> dict:
         model = DCTRegressionPredictor(config)
         members, logs = [], []
         for i in range(args.members):
-            if i:  # every further member: its own seed and its own validation fold
+            if i and args.cross_fit:  # every further member: its own validation fold
                 val_w = base.subset(folds[i].test)
                 train_w = training_windows(motions, set(folds[i].train_clips), args)
             log = train_regression(model.member(i), train_w, lr=lr,
@@ -599,6 +605,7 @@ def run(args: argparse.Namespace) -> dict:
         recipe = {"model": "dct-mlp", "blocks": args.blocks,
                   "weight_decay": args.weight_decay, "members": members,
                   "mirror_average": args.mirror_average,
+                  "cross_fit": ensemble and args.cross_fit,
                   "train_seconds_total": round(sum(m["train_seconds"] for m in members), 1)}
     else:
         lr = args.lr or 1e-4
@@ -764,10 +771,13 @@ def model_card(name: str, metrics: dict) -> str:
                       "model)", "simenv.models.predictor_regression") if regression else
                      ("PredictiveMA-WGAN motion predictor", "simenv.models.predictor"))
     if regression and isinstance(cfg.get("members"), list):
+        how = (f"cross-fitted: the training clip groups are dealt into "
+               f"{len(cfg['members'])} folds, member i is trained on the other folds (seed "
+               "+ i) and its iteration selected on fold i" if cfg.get("cross_fit", True)
+               else "member i trained with seed + i on the same clips, its iteration "
+               "selected on the validation clips")
         training = "\n".join([
-            f"* training: an ensemble of {len(cfg['members'])} networks, cross-fitted: the "
-            f"training clip groups are dealt into {len(cfg['members'])} folds, member i is "
-            "trained on the other folds (seed + i) and its iteration selected on fold i "
+            f"* training: an ensemble of {len(cfg['members'])} networks, {how} "
             "(training clips held out of that member's training, never the test clips). "
             f"{cfg['members'][0]['iterations']} iterations per member, "
             f"{cfg['train_seconds_total']} CPU s in all on one thread, batch 128, AdamW lr "
@@ -902,8 +912,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--iterations", type=int, default=20000)
     ap.add_argument("--minutes", type=float, default=6.0, help="training CPU-time budget")
     ap.add_argument("--model", choices=("gan", "regression"), default="gan",
-                    help="PredictiveMA-WGAN (default) or the DCT-residual MLP baseline "
-                    "(simenv.models.predictor_regression; not shipped)")
+                    help="PredictiveMA-WGAN (default) or the DCT-residual MLP regression "
+                    "predictor (simenv.models.predictor_regression)")
     ap.add_argument("--validation", type=float, default=0.0,
                     help="share of the training windows held out by clip group for "
                     "model selection (0: none, the last iterate is kept)")
@@ -911,8 +921,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--weight-decay", type=float, default=1e-4,
                     help="regression: AdamW weight decay")
     ap.add_argument("--members", type=int, default=1,
-                    help="regression: networks of the ensemble, cross-fitted on as many "
-                    "folds of the training clips (each member selected on its fold)")
+                    help="regression: networks of the ensemble (seeds seed, seed + 1, ...)")
+    ap.add_argument("--cross-fit", action=argparse.BooleanOptionalAction, default=False,
+                    help="regression ensemble: cross-fit the members on as many folds of "
+                    "the training clips (each member selected on its fold)")
     ap.add_argument("--mirror-average", action=argparse.BooleanOptionalAction,
                     default=True, help="regression: average each prediction with the "
                     "mirrored prediction of the mirrored history")

@@ -84,3 +84,46 @@ def test_variant_and_regression_text_come_from_the_metrics() -> None:
     assert ("| `--joint-amplitude`, `--validation` (selected iteration 7); "
             "`out/x/model.npz` | 20 | 90.0 (+10.0 %) | 180.0 (+10.0 %) |") in table
     assert "not evaluated" in model_docs.regression_text({}, "predictor-25-25")
+
+
+def test_ensemble_ablation_scores_each_member_and_the_ensemble(shared_data) -> None:
+    import torch
+
+    from simenv import prediction_data as pdata
+    from simenv import prediction_metrics as pm
+    from simenv.io import bvh
+    from simenv.models import predictor_regression as R
+
+    clip = bvh.read(shared_data / "cmu" / "bvh" / "49_06.bvh")
+    windows = pdata.windows_from_motions([clip], 10, 25, stride=5)
+    model = R.DCTRegressionPredictor(R.RegressionConfig(10, 25, members=2))
+    torch.manual_seed(0)
+    for net in model.nets:
+        for p in net.fc_out.parameters():
+            torch.nn.init.normal_(p, std=0.05)
+    rows = model_docs.ensemble_ablation(model, windows)
+    assert [r["label"] for r in rows] == [
+        "member 0", "member 0, mirror-averaged", "member 1", "member 1, mirror-averaged",
+        "ensemble of 2", "ensemble of 2, mirror-averaged"]
+    expected = pm.mpjpe_at_horizons_mm(model.predict(windows.frames[:, :11]), windows.future,
+                                       windows.fps, joints=range(1, 17))
+    assert rows[4]["mpjpe_mm"][1000] == np.float64(expected[1000])
+    assert rows[0]["mpjpe_mm"][400] != rows[2]["mpjpe_mm"][400]
+    assert not model.config.mirror_average  # the views leave the model as it was
+
+
+def test_regression_training_text_describes_the_recorded_recipe() -> None:
+    member = {"validation_clips": ["05_02", "49_04"], "selected_iteration": 700,
+              "iterations": 1500}
+    info = {"members": [member, member | {"selected_iteration": 900}],
+            "train_seconds_total": 250.0, "lr": 3e-4, "blocks": 4, "dropout": 0.1,
+            "mirror_average": True, "cross_fit": False}
+    text = model_docs._regression_training(info, "predictor-25-25")
+    assert text.startswith("an ensemble of 2 networks trained with seeds")
+    assert "05_02, 49_04 -> iteration 700; 05_02, 49_04 -> iteration 900" in text
+    assert "1500 iterations per member, 250 CPU s" in text and "mirrored" in text
+    crossed = model_docs._regression_training(info | {"cross_fit": True}, "p")
+    assert "cross-fitted on 2 folds" in crossed
+    single = {"validation_clips": ["a"], "selected_iteration": 3, "iterations": 9,
+              "train_seconds": 12.0, "lr": 1e-3, "blocks": 2, "dropout": 0.0}
+    assert "iteration 3 of 9, 12 CPU s" in model_docs._regression_training(single, "p")

@@ -161,7 +161,7 @@ def test_cross_fitted_ensemble_run_validates_each_member_on_its_own_fold(shared_
     files = [shared_data / "cmu" / "bvh" / f"{n}.bvh"
              for n in ("02_01", "12_01", "16_15", "49_06", "02_06")]
     args = tp.parse_args(["--model", "regression", "--past", "10", "--future", "10",
-                          "--members", "2", "--iterations", "20", "--speeds", "1.0",
+                          "--members", "2", "--cross-fit", "--iterations", "20", "--speeds", "1.0",
                           "--data", *map(str, files), "--out", str(tmp_path), "--quiet"])
     metrics = tp.run(args)
     info = metrics["config"]
