@@ -20,7 +20,8 @@ from simenv.plausibility import (
     reference_lengths,
     velocity,
 )
-from simenv.plausibility.kinematic import windowed_normalized_jerk
+from simenv.plausibility.clips import norm3
+from simenv.plausibility.kinematic import speed_limits, windowed_normalized_jerk
 
 
 @pytest.fixture(scope="module")
@@ -187,3 +188,27 @@ def test_real_walk_passes_at_other_frame_rates(walk, fps) -> None:
         assert r.timeline.shape == (low.num_frames,)
     assert kinematic_metrics(low)["velocity"].details["max_speed_mps"] == pytest.approx(
         base["velocity"].details["max_speed_mps"], rel=0.25)
+
+
+@pytest.mark.parametrize("limb_mps", [None, 12.0])
+def test_velocity_is_the_numpy_formula(walk, limb_mps) -> None:
+    # The kernel takes one square root per frame and speed limit (the root of
+    # the largest squared step); the per-keypoint numpy formula must give the
+    # same bits, also when two keypoint groups share a limit.
+    th = Thresholds() if limb_mps is None else replace(
+        Thresholds(), speed_limit_limb_mps=limb_mps, speed_limit_trunk_mps=limb_mps)
+    c = _canon(walk)
+    pos = c.positions.astype(np.float64)
+    speed = norm3(np.diff(pos, axis=0)) * c.fps
+    ratio = speed / speed_limits(c, th)
+    jump = norm3(np.diff(pos, 2, axis=0))
+    limit = max(th.teleport_distance_m, th.teleport_accel_mps2 / c.fps**2)
+    timeline = np.full(c.num_frames, np.nan)
+    timeline[1:] = ratio.max(axis=1)
+    timeline[1:-1] = np.maximum(timeline[1:-1], jump.max(axis=1) / limit)
+    r = velocity(walk, th)
+    np.testing.assert_array_equal(r.timeline, timeline.astype(np.float32))
+    assert r.value == np.nanmax(timeline)
+    assert r.details["max_speed_mps"] == speed.max()
+    assert r.details["max_speed_ratio"] == ratio.max()
+    assert r.details["max_jump_m"] == jump.max()

@@ -17,6 +17,7 @@ off (within the 1e-12 below).
 from __future__ import annotations
 
 import json
+from dataclasses import FrozenInstanceError, fields, replace
 
 import numpy as np
 import pytest
@@ -116,3 +117,16 @@ def test_batch_equals_one_clip_at_a_time(source, request) -> None:
 
 def test_batch_of_nothing_is_empty() -> None:
     assert kinematic_metrics_batch([]) == []
+
+
+def test_results_are_ordinary_metric_results(bundled) -> None:
+    # The compiled path builds results from their field dicts: they must be
+    # indistinguishable from results built by the dataclass constructor.
+    names = {f.name for f in fields(MetricResult)}
+    for _, motion in bundled[:4]:
+        for r in kinematic_metrics(motion).values():
+            assert type(r) is MetricResult and set(vars(r)) == names
+            built = replace(r)
+            assert summary(built) == summary(r) and repr(built) == repr(r)
+            with pytest.raises(FrozenInstanceError):
+                r.value = 0.0  # type: ignore[misc]
