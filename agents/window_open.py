@@ -58,7 +58,7 @@ APPROACH_M = 0.10
 PRESS_M = 0.01
 #: How far behind the handle's centre (towards the wall) the grip site aims, m: the hand
 #: stops 3-5 cm short of its target across the wall. Measured grip-site distance from the
-#: handle when the grasp is asked for, over four walk endings: 2.1-2.3 cm aiming 2 cm
+#: handle when the grasp is asked for, over 4-5 walk endings: 2.0-2.3 cm aiming 2 cm
 #: behind, 1.9-3.3 cm aiming 1 cm behind, 2.6-5.5 cm aiming at the centre (at the 6 cm
 #: grasp radius), 5.8 cm aiming 2 cm in front of it.
 DEPTH_M = 0.02
