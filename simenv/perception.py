@@ -29,6 +29,7 @@ the labelled real clips of the gesture corpus.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -60,6 +61,17 @@ class GestureModel(Protocol):
     def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(T, J, 3) window on :attr:`joint_names`, (T,) valid mask -> (C,) probabilities."""
         ...
+
+
+def _one_torch_thread() -> None:
+    """In a process forked after torch ran multi-threaded (gymnasium's AsyncVectorEnv
+    forks its workers), the inherited OpenMP pool deadlocks the first parallel operation
+    (measured: a matmul hangs in the child); one intra-op thread there avoids it."""
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
+
+
+os.register_at_fork(after_in_child=_one_torch_thread)
 
 
 def _resample(x: np.ndarray, n: int) -> np.ndarray:

@@ -223,7 +223,8 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                     "reaction": entry["reaction"], "success": entry["success"],
                     "t_success": entry["t_success"]}
         # greeting / grasping / chained (stand, walk, act; measured root assistance) reactions
-        for key in ("facing_deg_min", "grasped", "stages", "assistance", "failed_stage"):
+        for key in ("facing_deg_min", "dip_max_deg", "grasped", "stages", "assistance",
+                    "failed_stage"):
             if key in entry:
                 reaction[key] = entry[key]
         reactions.append(reaction)

@@ -9,6 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import simenv
 import simenv.envs  # noqa: F401  (registers the ids)
+import simenv.models
 from simenv.assets import WALK, asset_path
 from simenv.envs.interaction_room import (
     FALSE_ALARM,
@@ -185,3 +186,55 @@ def test_greeting_carried_out_in_simulation_is_measured_and_rewarded():
     assert entry["facing_deg_min"] < 30.0 and entry["t_decision"] < entry["t_success"]
     assert sum(i["reward_terms"]["success"] for i in infos) == SUCCESS
     assert infos[-1]["executing"] is None
+
+
+@pytest.mark.skipif("predictor-25-50" not in simenv.models.available(),
+                    reason="shipped predictor-25-50 absent")
+def test_default_predictor_is_the_shipped_wgan(env: InteractionRoomEnv):
+    """The observation's future comes from the shipped PredictiveMA-WGAN (26-frame
+    history, 2 s ahead) and starts where the observed motion ends (no seam)."""
+    assert env.predictor.name == "predictor-25-50"
+    obs, _ = env.reset(seed=0)
+    for _ in range(30):
+        obs, *_ = env.step(0)
+    K = obs["user_history"].shape[1]
+    assert obs["user_history"].shape == (25, K, 3) and obs["user_future"].shape == (50, K, 3)
+    kept = env.user_keypoints()
+    assert kept.shape == (26, K, 3)
+    np.testing.assert_array_equal(kept[-25:], obs["user_history"])
+    step = np.linalg.norm(np.diff(obs["user_history"], axis=0), axis=-1).mean()
+    seam = np.linalg.norm(obs["user_future"][0] - obs["user_history"][-1], axis=-1).mean()
+    assert np.isfinite(obs["user_future"]).all() and seam < 3 * step + 0.01
+    with pytest.raises(SimenvError, match="reset"):
+        InteractionRoomEnv(gestures=[WAVE], predictor="constant-velocity-50").user_keypoints()
+
+
+def test_session_recipe_as_the_user(shared_data):
+    """A bundled recipe (real UTKinect idle + wave + idle) is an env session: the wave is
+    labelled from its onset in index.csv."""
+    env = InteractionRoomEnv("utkinect-s02-e01-wave", predictor="constant-velocity-50",
+                             data=shared_data)
+    (wave,) = env.session.gestures
+    env.reset(seed=0)
+    seen = []
+    for _ in range(int(wave.end_s * PERCEPTION_FPS) + 2):
+        *_, info = env.step(0)
+        seen.append(info["gesture"])
+    first = seen.index("wave")
+    assert abs((first + 1) / PERCEPTION_FPS - wave.onset_s) <= 1 / PERCEPTION_FPS + 1e-9
+    assert seen[-1] is None
+
+
+def test_bow_back_is_scored_by_the_bow_meter():
+    """A labelled bow (the user standing still, 0.5 s of the bundled walk): the agent bows
+    back seated, and the environment measures it with Room.bow_meter (head dipped >= 15
+    deg while facing the user, then back up), not with the greeting's raised hand."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    env = InteractionRoomEnv(short, gestures=[GestureEvent("bow", 0.0, 0.4)],
+                             predictor="constant-velocity-50")
+    infos = _run(env, {2: env.reactions.index("bow_back")})
+    (entry,) = env.log
+    assert entry["reaction"] == "bow_back" and entry["started"] is True
+    assert entry["success"] is True and entry["dip_max_deg"] >= 15.0
+    assert entry["facing_deg_min"] < 30.0
+    assert sum(i["reward_terms"].get("success", 0.0) for i in infos) == SUCCESS

@@ -33,7 +33,8 @@ Reward (per step, documented constants below)
     * a started reaction that succeeded in simulation by the end of its plan: its object
       reached its target state (:func:`simenv.agents.scripted.object_success`), or, for
       ``greet``, the agent faced the user within 30 degrees with a hand above its shoulder
-      at some step (:meth:`simenv.room.Room.greeting`): ``+SUCCESS``;
+      at some step (:meth:`simenv.room.Room.greeting`), for ``bow_back``, facing the user
+      its head dipped and came back up (:meth:`simenv.room.Room.bow_meter`): ``+SUCCESS``;
     * implausible agent motion: ``-PLAUSIBILITY_WEIGHT`` per centimetre by which the agent's
       deepest contact with the floor, the furniture, the objects or itself penetrates beyond
       :data:`PENETRATION_TOLERANCE_M` (contacts with the kinematic user, who pushes with
@@ -56,8 +57,10 @@ Execution
     another reaction, or the planner's reason, e.g. the hi-fi out of seated reach).
     :attr:`log` lists every decision with ``t_decision``, ``reaction``, ``gesture``,
     ``started``, ``not_started``, ``t_object_changed``, ``t_success`` (when success was
-    first measured) and ``success``, plus ``facing_deg_min`` for a greeting (the closest the
-    chest came to facing the user) and ``grasped`` for a reaction that grasps (whether the
+    first measured) and ``success``, plus ``facing_deg_min`` for a greeting or a bow (the
+    closest the chest came to facing the user), ``dip_max_deg`` for a bow (the head's
+    deepest dip below its pitch on facing the user) and ``grasped`` for a reaction that
+    grasps (whether the
     proximity grasp closed: the hand was at the handle). A chained reaction
     (:class:`~simenv.agents.reach.PlanChain`) plans each stage when the previous one ends,
     from the state it left, until its object succeeds or the stages run out; its entry lists
@@ -323,6 +326,9 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._running = {"entry": entry, "t0": t, "t_start": t, "plan": plan,
                          "grasps": list(plan.grasps), "stages": stages,
                          "before": self.room.object_labels(self.data)}
+        if reaction == "bow_back":
+            self._running["bow"] = self.room.bow_meter()
+            entry["dip_max_deg"] = 0.0
         self._note_grasps(entry, plan)
 
     def _plan_stage(self, entry: dict[str, Any], stages: list) -> PDPlan:
@@ -377,8 +383,13 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         entry = run["entry"]
         if REACTIONS[entry["reaction"]].object is None:
             # A greeting succeeds when, at some step, the agent faces the user and a hand is
-            # raised (Room.greeting); it is over when its plan ends.
-            g = self.room.greeting(self.data)
+            # raised (Room.greeting); a bow when, facing the user, the head dipped and came
+            # back up (Room.bow_meter); either is over when its plan ends.
+            if "bow" in run:
+                g = run["bow"](self.data)
+                entry["dip_max_deg"] = run["bow"].dip_max_deg
+            else:
+                g = self.room.greeting(self.data)
             best = entry["facing_deg_min"]
             entry["facing_deg_min"] = g["facing_deg"] if best is None else min(
                 best, g["facing_deg"])
