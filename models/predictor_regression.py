@@ -203,9 +203,11 @@ class DCTRegressionPredictor:
         h, batched = check_history(history, self.history_len, joints=NUM_JOINTS)
         h = h[:, -self.history_len:]
         self.nets.eval()
-        out = self._predict_frames(h)
-        if self.config.mirror_average:
-            out = 0.5 * (out + mirror(self._predict_frames(mirror(h))))
+        if self.config.mirror_average:  # one pass over the histories and their mirrors
+            both = self._predict_frames(np.concatenate([h, mirror(h)]))
+            out = 0.5 * (both[: len(h)] + mirror(both[len(h):]))
+        else:
+            out = self._predict_frames(h)
         out = out.astype(np.float32)
         return out if batched else out[0]
 
