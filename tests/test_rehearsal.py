@@ -164,12 +164,14 @@ def test_loud_turns_the_hifi_down(tmp_path: Path, short):
 
 
 def test_reactions_not_started_are_not_reported(tmp_path: Path, short):
-    """The hi-fi across the room (out of seated reach) and a bow (no planner): both
-    decisions are logged with the reason, and the summary's reactions list stays empty."""
+    """The hi-fi across the room (out of seated reach) and a bow answered by opening the
+    door (no planner): both decisions are logged with the reason, and the summary's
+    reactions list stays empty."""
     text = Path(simenv.scenario.load_scenario("default").source).read_text()
     far = tmp_path / "far.toml"
     far.write_text(text.replace("position = [0.75, -0.3]", "position = [-1.8, 1.6]")
-                   .replace("yaw_deg = 90.0 ", "yaw_deg = -90.0 "))
+                   .replace("yaw_deg = 90.0 ", "yaw_deg = -90.0 ")
+                   .replace('bow = "bow_back"', 'bow = "open_door"'))
     session = Session(short, (GestureEvent("answer_phone", 0.1, 0.2),
                               GestureEvent("bow", 0.3, 0.45)))
     summary = rehearse(session, tmp_path / "out", scenario=str(far), agent="labels",
@@ -177,7 +179,7 @@ def test_reactions_not_started_are_not_reported(tmp_path: Path, short):
     assert summary["reactions"] == []
     reasons = {d["reaction"]: d["not_started"] for d in summary["decisions"]}
     assert "out of the seated agent's" in reasons["hifi_down"]
-    assert reasons["bow_back"] == "not implemented"
+    assert reasons["open_door"] == "not implemented"
 
 
 def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: Path,
