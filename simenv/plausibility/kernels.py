@@ -326,12 +326,11 @@ N_METRICS, N_DETAILS = 6, 4
 
 
 @njit(cache=True)
-def _gather(positions: np.ndarray, b: int, idx: np.ndarray, p: np.ndarray,
-            zmin: np.ndarray) -> float:
-    """Canonical keypoints of clip ``b`` as float64 planes, in place.
+def _gather(clip: np.ndarray, idx: np.ndarray, p: np.ndarray, zmin: np.ndarray) -> float:
+    """Canonical keypoints of one clip as float64 planes, in place.
 
     Args:
-        positions: (B, T, S, 3) float32 source-skeleton joints, metres.
+        clip: (T, S, 3) float32 source-skeleton joints, metres.
         idx: (J,) source joint of each canonical keypoint.
         p: (3, J, T) out: x, y, z planes. zmin: (T,) out: height of the
             lowest keypoint.
@@ -340,7 +339,7 @@ def _gather(positions: np.ndarray, b: int, idx: np.ndarray, p: np.ndarray,
         The smallest height span (highest minus lowest keypoint) over
         frames, metres.
     """
-    t_count = positions.shape[1]
+    t_count = clip.shape[0]
     for j in range(idx.shape[0]):
         s = idx[j]
         # Frames innermost: strided loads but contiguous stores, ~3x faster
@@ -348,7 +347,7 @@ def _gather(positions: np.ndarray, b: int, idx: np.ndarray, p: np.ndarray,
         for c in range(3):
             row = p[c, j]
             for t in range(t_count):
-                row[t] = positions[b, t, s, c]
+                row[t] = clip[t, s, c]
     zmax = p[2, 0].copy()
     zmin[:] = zmax
     for j in range(1, idx.shape[0]):
@@ -425,7 +424,8 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
     with its violation runs.
 
     Args:
-        positions: (B, T, S, 3) float32 source-skeleton joints, metres.
+        positions: B clips of (T, S, 3) float32 source-skeleton joints,
+            metres: a (B, T, S, 3) array or a typed list of (T, S, 3) arrays.
         idx: (J,) int64 source joint of each canonical keypoint.
         enabled: (6,) bool per metric slot (:data:`BONE` ... :data:`VELOCITY`).
         bone, foot, flt, jit, vel: arguments of :func:`bone_length`,
@@ -444,7 +444,7 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
         :func:`_violations`). offsets: (B * 6 + 1,) int64, runs of clip b and
         metric m are ``runs[offsets[6 b + m]:offsets[6 b + m + 1]]``.
     """
-    b_count, t_count = positions.shape[0], positions.shape[1]
+    b_count, t_count = len(positions), positions[0].shape[0]
     j_count = idx.shape[0]
     tl = np.empty((N_METRICS, b_count, t_count), dtype=np.float32)
     value = np.zeros((N_METRICS, b_count))
@@ -458,7 +458,7 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
     zmin = np.empty(t_count)
     line = np.empty(t_count)
     for b in range(b_count):
-        span[b] = _gather(positions, b, idx, p, zmin)
+        span[b] = _gather(positions[b], idx, p, zmin)
         for m in range(N_METRICS):
             if enabled[m]:
                 det = details[m, b]
