@@ -101,6 +101,9 @@ def test_wheel_holds_one_namespace_and_the_assets(installed: dict):
         "simenv/assets/cmu_02_01_walk.bvh",
         "simenv/assets/cmu-18-19-walk-shake-hands/18_01.bvh",
         "simenv/assets/cmu-18-19-walk-shake-hands/19_01.bvh",
+        "simenv/assets/scenarios/default.toml",
+        "simenv/assets/sessions/utkinect-s02-e01-wave.toml",
+        "simenv/assets/models/predictor-25-50.npz",
     ):
         assert required in names
 
