@@ -224,7 +224,7 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                     "t_success": entry["t_success"]}
         # greeting / grasping / chained (stand, walk, act; measured root assistance) reactions
         for key in ("facing_deg_min", "dip_max_deg", "grasped", "stages", "assistance",
-                    "failed_stage"):
+                    "returned", "failed_stage"):
             if key in entry:
                 reaction[key] = entry[key]
         reactions.append(reaction)

@@ -35,26 +35,30 @@ def _run(room: Room, data: mujoco.MjData, plan) -> dict[str, Any]:
 
 def _react_and_return(env: InteractionRoomEnv, reaction: str, act: str
                       ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
-    """Decide ``reaction`` 0.3 s in, step the environment until it is over, then play the
-    return stages it has not run (it ends a chain when its object succeeds) from the state
-    it left, the user holding its last pose; the log entry and every stage's record."""
+    """Decide ``reaction`` 0.3 s in and step the environment until the reaction is over
+    (its chain: stand, walk, act, then the return stages, the user holding its last pose);
+    the log entry and every stage's record by name, with the lowest pelvis height seen
+    while the stage ran."""
     env.reset(seed=0)
     decide, k = int(round(0.3 * PERCEPTION_FPS)), 0
     action = env.reactions.index(reaction)
+    lowest: dict[str, float] = {}
     while True:
         *_, truncated, _ = env.step(action if k == decide else 0)
         k += 1
+        if env.log and env.log[0].get("stages"):
+            name = env.log[0]["stages"][-1]["stage"]
+            z = float(env.data.qpos[env.room.agent_qpos][2])
+            lowest[name] = min(lowest.get(name, np.inf), z)
         if truncated or (env.log and env.log[0]["success"] is not None):
             break
     (entry,) = env.log
     assert entry["success"] is True  # the object changed because of the hand
-    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", act]
-    room, data = env.room, env.data
-    stages = {s["stage"]: s for s in entry["stages"]}
-    for name, planner in RETURN_STAGES:
-        if name not in stages:
-            stages[name] = {"stage": name, **_run(room, data, planner(room, data))}
-    return entry, stages
+    assert [s["stage"] for s in entry["stages"]] == ["stand_up", "walk", act,
+                                                     *(n for n, _ in RETURN_STAGES)]
+    assert entry["returned"] is True and entry["stages"][-1]["outcome"]["success"]
+    return entry, {s["stage"]: {**s, "lowest_pelvis_m": lowest[s["stage"]]}
+                   for s in entry["stages"]}
 
 
 def _assert_seated(env: InteractionRoomEnv, stages: dict[str, dict[str, Any]]) -> None:
@@ -69,7 +73,7 @@ def _assert_seated(env: InteractionRoomEnv, stages: dict[str, dict[str, Any]]) -
         a = stages[turn]["assistance"]
         assert 0.0 < a["mean_bw"] < 1.5, (turn, a)
     assert stages["walk_back"]["assistance"]["steps"] > 0
-    assert stages["sit_down"]["assistance"] is None and stages["settle"]["assistance"] is None
+    assert "assistance" not in stages["sit_down"] and "assistance" not in stages["settle"]
     assert all(s["lowest_pelvis_m"] > 0.85 for n, s in stages.items()
                if n in ("turn_away", "walk_back", "turn_to_desk"))  # standing throughout
 

@@ -192,10 +192,11 @@ def test_greeting_carried_out_in_simulation_is_measured_and_rewarded():
                     reason="shipped predictor-25-50 absent")
 def test_default_predictor_is_the_shipped_wgan(env: InteractionRoomEnv):
     """The observation's future comes from the shipped PredictiveMA-WGAN (26-frame
-    history, 2 s ahead) and starts where the observed motion ends (no seam)."""
+    history, 2 s ahead) and, made at a perception tick, starts where the observed motion
+    ends (no seam)."""
     assert env.predictor.name == "predictor-25-50"
     obs, _ = env.reset(seed=0)
-    for _ in range(30):
+    for _ in range(env.predict_every):
         obs, *_ = env.step(0)
     K = obs["user_history"].shape[1]
     assert obs["user_history"].shape == (25, K, 3) and obs["user_future"].shape == (50, K, 3)
@@ -207,6 +208,42 @@ def test_default_predictor_is_the_shipped_wgan(env: InteractionRoomEnv):
     assert np.isfinite(obs["user_future"]).all() and seam < 3 * step + 0.01
     with pytest.raises(SimenvError, match="reset"):
         InteractionRoomEnv(gestures=[WAVE], predictor="constant-velocity-50").user_keypoints()
+
+
+class _Counting:
+    """A predictor that counts its calls (and forwards them to a real one)."""
+
+    def __init__(self, inner) -> None:
+        self.inner, self.calls = inner, 0
+        self.history_len, self.future_len = inner.history_len, inner.future_len
+
+    def predict(self, history: np.ndarray) -> np.ndarray:
+        self.calls += 1
+        return self.inner.predict(history)
+
+
+@pytest.mark.parametrize("every", [1, 25])
+def test_forecast_is_made_every_predict_every_steps_and_held_between(every: int):
+    """The forecast is refreshed at reset and every ``predict_every`` steps; between
+    ticks the observation holds the latest one while the history moves on."""
+    from simenv.perception import load_predictor
+
+    counting = _Counting(load_predictor("constant-velocity-50"))
+    env = InteractionRoomEnv(gestures=[WAVE], predictor=counting, predict_every=every)
+    first, _ = env.reset(seed=0)
+    futures, histories = [first["user_future"]], [first["user_history"]]
+    for _ in range(30):
+        obs, *_ = env.step(0)
+        futures.append(obs["user_future"])
+        histories.append(obs["user_history"])
+    assert counting.calls == 1 + 30 // every
+    changed = [k for k in range(1, 31) if not np.array_equal(futures[k], futures[k - 1])]
+    moved = [k for k in range(1, 31) if not np.array_equal(histories[k], histories[k - 1])]
+    assert moved and set(changed) <= {k for k in moved if k % every == 0}
+    if every > 1:
+        assert changed == [k for k in (25,) if k in moved]
+    with pytest.raises(SimenvError, match="predict_every"):
+        InteractionRoomEnv(gestures=[WAVE], predictor=counting, predict_every=0)
 
 
 def test_session_recipe_as_the_user(shared_data):

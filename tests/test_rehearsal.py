@@ -186,7 +186,8 @@ def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: 
                                                                        shared_data):
     """A real MSR Action3D recording labelled "cold" in the discomfort scenario (window
     open): the agent stands up, walks to the window (root assistance measured, per step
-    in log.jsonl and per stage in the summary) and slides the pane shut with its hand."""
+    in log.jsonl and per stage in the summary), slides the pane shut with its hand, walks
+    back and sits down on its chair."""
     from simenv.io import msr_action3d
 
     clip = msr_action3d.read(shared_data / "gestures" / "msr_action3d" /
@@ -196,7 +197,10 @@ def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: 
                        render=False)
     (reaction,) = summary["reactions"]
     assert reaction["reaction"] == "close_window" and reaction["object"] == "window"
-    assert [s["stage"] for s in reaction["stages"]] == ["stand_up", "walk", "push"]
+    assert [s["stage"] for s in reaction["stages"]] == [
+        "stand_up", "walk", "push", "turn_away", "walk_back", "turn_to_desk", "sit_down",
+        "settle"]  # closed the window, then back to the chair
+    assert reaction["returned"] is True
     walk = reaction["stages"][1]["assistance"]
     assert walk["max_n"] > 0 and len(walk["per_frame_n"]) == -(-walk["steps"] // 20)
     assert 0 < reaction["assistance"]["mean_bw"] <= reaction["assistance"]["max_bw"]

@@ -8,12 +8,14 @@ steps of 2 ms). The agent sits at the desk, its PD servos holding the seated pos
 Observation (``Dict``, float32)
     ``user_history`` (H, K, 3): the user's last H = 25 frames (1 s) of canonical keypoints
     in the room frame, m (frames before the session start repeat its first frame);
-    ``user_future`` (F, K, 3): the predictor's F frames ahead of them (default
-    :func:`simenv.perception.load_predictor`: the shipped PredictiveMA-WGAN
-    ``predictor-25-50``, 2 s, run on the keypoints through
+    ``user_future`` (F, K, 3): the predictor's F frames ahead of the history as it was at
+    the latest prediction (default :func:`simenv.perception.load_predictor`: the shipped
+    PredictiveMA-WGAN ``predictor-25-50``, 2 s, run on the keypoints through
     :class:`~simenv.perception.CanonicalPredictor`; the constant-velocity baseline
-    ``constant-velocity-50`` when it is not shipped; ~14 ms a step for the WGAN on one
-    core, so name ``constant-velocity-50`` when speed matters more); ``agent``
+    ``constant-velocity-50`` when it is not shipped). It predicts at the perception loop's
+    rate, every ``predict_every`` = 25 steps (1 s) and at reset, and holds the forecast in
+    between: the WGAN takes ~14 ms a call on one core, more than the 25 steps' physics;
+    ``predict_every=1`` forecasts at every step); ``agent``
     (nq_a - 2 + nv_a,): the agent's
     ``qpos[2:]`` and ``qvel``; ``objects`` (5,): each object's state as a fraction of its
     joint range (order :data:`OBJECTS`; see :mod:`simenv.room` for thresholds).
@@ -113,8 +115,9 @@ PENETRATION_TOLERANCE_M = 0.01
 #: The user holds the last pose this long after the recording ends, s ...
 TAIL_S = 2.0
 #: ... or longer while a reaction is still running, up to this bound, s (a chained
-#: reaction such as close_window: stand up, walk, push, takes ~21 s).
-MAX_TAIL_S = 30.0
+#: reaction such as close_window: stand up, walk, push, then back to the chair and sit,
+#: takes ~51 s).
+MAX_TAIL_S = 60.0
 
 
 def _assistance_total(stages: list[dict[str, Any]]) -> dict[str, float]:
@@ -145,6 +148,8 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             :class:`~simenv.perception.CanonicalPredictor`) or an object with
             ``predict(history)`` ((H, K, 3) -> (F, K, 3)), ``history_len`` and
             ``future_len`` (:func:`simenv.perception.load_predictor`).
+        predict_every: steps between forecasts of ``user_future`` (25: the perception
+            loop's 1 s; 1: every step).
         data: root of the shared corpus for a session recipe
             (:func:`simenv.session.shared_data_root`).
         render_mode: None or ``"rgb_array"`` (the room camera). width, height: pixels.
@@ -154,7 +159,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
 
     def __init__(self, session: Session | str | os.PathLike[str] | Motion = WALK, *,
                  gestures: Sequence[GestureEvent] = (), scenario: Scenario | str = "default",
-                 history_frames: int = 25, predictor: Any = "auto",
+                 history_frames: int = 25, predictor: Any = "auto", predict_every: int = 25,
                  render_mode: str | None = None, width: int = 480, height: int = 360,
                  data: str | os.PathLike[str] | None = None) -> None:
         if render_mode not in (None, "rgb_array"):
@@ -176,6 +181,11 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if self.history_frames < 2:
             raise SimenvError(f"history_frames must be at least 2; got {history_frames}",
                               field="history_frames")
+        if int(predict_every) < 1:
+            raise SimenvError(f"predict_every must be at least 1 step; got {predict_every}",
+                              field="predict_every")
+        self.predict_every = int(predict_every)
+        self._future: np.ndarray | None = None
         # The predictor may need more frames than are observed (the WGAN: 1 + 25).
         self._kept = max(self.history_frames, int(predictor.history_len))
         self.frame_skip = int(round(1.0 / PERCEPTION_FPS / self.model.opt.timestep))
@@ -346,7 +356,8 @@ class InteractionRoomEnv(gym.Env[dict, int]):
 
     def _end_plan(self, run: dict[str, Any]) -> None:
         """A finished plan holds nothing and pushes nothing; its measured root assistance
-        (if it had one) goes into the log."""
+        (if it had one) and its measured outcome (if its feedback measures one, e.g. the
+        seated check that ends the return to the chair) go into the log."""
         for g in run["plan"].grasps:
             self.room.set_grasp(self.data, g.hand, g.name, False)
         self.room.set_assist(self.data, None)
@@ -356,6 +367,9 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             summary = getattr(run["plan"].feedback, "summary", None)
             if summary is not None:
                 stage["assistance"] = summary(self.frame_skip)
+            outcome = getattr(run["plan"].feedback, "outcome", None)
+            if outcome is not None:
+                stage["outcome"] = outcome(self.data)
 
     def _simulate(self, t: float) -> None:
         """One env step of physics; a running plan sets the agent's targets every substep."""
@@ -404,7 +418,9 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if t - run["t0"] < run["plan"].duration:
             return 0.0
         self._end_plan(run)
-        if run["stages"] and not done:
+        # The chain goes on after its object succeeded: the return stages bring the agent
+        # back to its chair. The reaction's success stays the object's.
+        if run["stages"]:
             try:
                 run["plan"] = self._plan_stage(entry, run["stages"])
             except SimenvError as exc:  # a later stage is infeasible from where this one ended
@@ -417,6 +433,9 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         entry["success"] = bool(done)
         if "stages" in entry:
             entry["assistance"] = _assistance_total(entry["stages"])
+            last = entry["stages"][-1]
+            if "outcome" in last:
+                entry["returned"] = bool(last["outcome"]["success"])
         return SUCCESS if entry["success"] else 0.0
 
     # -- reward ----------------------------------------------------------------
@@ -480,11 +499,13 @@ class InteractionRoomEnv(gym.Env[dict, int]):
 
     def _observe(self) -> dict[str, np.ndarray]:
         history = self._history[-self.history_frames:].copy()
-        future = self.predictor.predict(self._history[-int(self.predictor.history_len):])
+        if self._future is None or self._step % self.predict_every == 0:
+            future = self.predictor.predict(self._history[-int(self.predictor.history_len):])
+            self._future = np.asarray(future, dtype=np.float32)
         d, room = self.data, self.room
         agent = np.concatenate([d.qpos[room.agent_qpos][2:], d.qvel[room.agent_qvel]])
         return {"user_history": history,
-                "user_future": np.asarray(future, dtype=np.float32),
+                "user_future": self._future.copy(),
                 "agent": agent.astype(np.float32),
                 "objects": self.object_levels()}
 
