@@ -507,10 +507,24 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
     length = np.empty(t_count)
     buf = np.empty(t_count)
     tmp = np.empty(t_count)
+    # Division by a positive tolerance is monotone (correct rounding keeps
+    # order): the largest dev / tol among bones of one tolerance is their
+    # largest dev over tol, one division per frame and tolerance instead of
+    # one per bone, same values.
+    group = np.empty(tol.shape[0], dtype=np.int64)
+    group_tol = np.empty(tol.shape[0])
+    g_count = 0
+    for k in range(tol.shape[0]):
+        g = 0
+        while g < g_count and group_tol[g] != tol[k]:
+            g += 1
+        if g == g_count:
+            group_tol[g] = tol[k]
+            g_count += 1
+        group[k] = g
     # Skipped bones count deviation 0, which leaves every maximum (of
     # values >= 0) unchanged: start the maxima at 0.
-    dev_max = np.zeros(t_count)
-    tl[:] = 0.0
+    dev_group = np.zeros((g_count, t_count))
     checked = 0
     for k in range(parent.shape[0]):
         xp, yp, zp = p[0, parent[k]], p[1, parent[k]], p[2, parent[k]]
@@ -523,11 +537,17 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
         if not m >= min_length:
             continue
         checked += 1
-        tk = tol[k]
+        dev = dev_group[group[k]]
         for t in range(t_count):
-            dev = abs(length[t] / m - 1.0)
-            dev_max[t] = max(dev_max[t], dev)
-            tl[t] = max(tl[t], dev / tk)
+            dev[t] = max(dev[t], abs(length[t] / m - 1.0))
+    dev_max = np.zeros(t_count)
+    tl[:] = 0.0
+    for g in range(g_count):
+        dev = dev_group[g]
+        tk = group_tol[g]
+        for t in range(t_count):
+            dev_max[t] = max(dev_max[t], dev[t])
+            tl[t] = max(tl[t], dev[t] / tk)
     buf[:] = tl
     details[0] = tl.max()
     details[1] = dev_max.max()
