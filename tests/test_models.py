@@ -22,7 +22,8 @@ from simenv.motion import Motion
 
 torch.set_num_threads(1)
 
-PREDICTORS = ("predictor-10-10", "predictor-25-25", "predictor-25-50", "predictor-dctmlp-25-25")
+PREDICTORS = ("predictor-10-10", "predictor-25-25", "predictor-25-50", "predictor-dctmlp-25-25",
+              "predictor-dctmlp-25-50")
 SHIPPED = (*PREDICTORS, "gesture-classifier")
 #: Budget of every checkpoint and card of the prediction/recognition models, bytes.
 BUDGET_BYTES = 20 * 1024 * 1024
