@@ -50,9 +50,11 @@ Episode
 
 Execution
     A decision whose reaction has a planner in :data:`simenv.agents.scripted.PLANNERS`
-    (``cigarette_out``, ``hifi_down``, ``greet`` seated; ``close_window`` and
-    ``close_curtain`` as chained stages: stand up, walk, act) starts it when the agent is
-    idle and the planner finds it feasible from the current state: the plan's PD targets are
+    (``cigarette_out``, ``hifi_down``, ``greet``, ``bow_back`` seated; ``close_window``,
+    ``close_curtain`` and ``open_window`` as chained stages: stand up, walk, act, walk back,
+    sit) starts it when the agent is idle and the planner finds it feasible from the current
+    state. Idle, the agent types and glances at the notebook
+    (:func:`simenv.agents.idle.plan_idle`, cycle after cycle). The plan's PD targets are
     applied at every physics step until it ends, and the object changes state only if the
     agent's hand makes it so. Other decisions are logged and rewarded as decisions but not
     carried out (``started`` False, ``not_started`` says why: not implemented, busy with
@@ -83,6 +85,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from simenv.agents.idle import plan_idle
 from simenv.agents.reach import PDPlan, PlanChain
 from simenv.agents.scripted import PLANNERS, object_success
 from simenv.assets import WALK
@@ -238,6 +241,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._missed: set[int] = set()
         self.log: list[dict[str, Any]] = []
         self._running: dict[str, Any] | None = None
+        self._idle: tuple[PDPlan, float] | None = None
         now = self.data.site_xpos[self.room.user_sites].astype(np.float32)
         self._history = np.repeat(now[None], self._kept, axis=0)
         self._obs = self._observe()
@@ -375,8 +379,9 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         """One env step of physics; a running plan sets the agent's targets every substep."""
         m, d = self.model, self.data
         if self._running is None:
-            mujoco.mj_step(m, d, nstep=self.frame_skip)
+            self._simulate_idle(t)
             return
+        self._idle = None  # after the reaction, a new idle cycle starts from where it ended
         run = self._running
         plan, t0, dt = run["plan"], run["t0"], m.opt.timestep
         for i in range(self.frame_skip):
@@ -387,6 +392,17 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 if g.close:
                     run["entry"]["grasped"] = run["entry"]["grasped"] or closed
             d.ctrl[self.room.agent_ctrl] = plan.control(tau, d)
+            mujoco.mj_step(m, d)
+
+    def _simulate_idle(self, t: float) -> None:
+        """One env step of idling: the current idle cycle's targets every substep, a new
+        cycle planned from the current state when the last one ended."""
+        m, d = self.model, self.data
+        if self._idle is None or t - self._idle[1] >= self._idle[0].duration:
+            self._idle = (plan_idle(self.room, d), t)
+        plan, t0 = self._idle
+        for i in range(self.frame_skip):
+            d.ctrl[self.room.agent_ctrl] = plan.control(t - t0 + i * m.opt.timestep, d)
             mujoco.mj_step(m, d)
 
     def _follow_up(self, t: float) -> float:
