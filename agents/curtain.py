@@ -53,23 +53,10 @@ LOWER_M = 0.3
 HAND = "right_hand"
 
 
-def _curtain_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray,
-                                                             np.ndarray, float]:
-    """The handle (3,), the closing direction along the rail (3,), the wall's inward
-    normal (3,), world frame, and the curtain's state (m)."""
-    m, c = room.model, room.objects["curtain"]
-    handle = data.site_xpos[m.site(c.handle).id].copy()
-    jnt = m.joint(c.joint).id
-    closing = data.xaxis[jnt].copy()  # the slide closes along +axis
-    wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
-    inward = -wall[:, 1]
-    return handle, closing, inward, float(data.qpos[c.qpos_adr])
-
-
 def curtain_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
     """Where to stand to draw the curtain: pelvis (x, y), m, and the heading facing the
     wall, rad."""
-    handle, closing, inward, _ = _curtain_frame(room, data)
+    handle, closing, inward, _ = room.wall_slide_frame(data, "curtain")  # closes along +axis
     spot = handle + closing * ALONG_M + inward * STAND_OFF_M
     face = -inward
     return spot[:2], float(np.arctan2(face[1], face[0]))
@@ -84,7 +71,7 @@ def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
             within reach and fails if that is not past the ``closed`` threshold.
     """
     m, h, c = room.model, room.agent, room.objects["curtain"]
-    handle, closing, inward, state = _curtain_frame(room, data)
+    handle, closing, inward, state = room.wall_slide_frame(data, "curtain")
     if state > c.threshold:
         raise SimenvError("the curtain is already closed", field="curtain")
     joints = [f"agent/{j}" for j in (*arm_joints(HAND.split("_")[0]), *SPINE)]

@@ -65,13 +65,8 @@ def _window_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarr
                                                             np.ndarray, float]:
     """The handle (3,), the closing direction along the wall (3,), the wall's inward
     normal (3,), all world frame, and the pane's opening (m)."""
-    m, w = room.model, room.objects["window"]
-    handle = data.site_xpos[m.site(w.handle).id].copy()
-    jnt = m.joint(w.joint).id
-    closing = -data.xaxis[jnt].copy()  # the slide opens along +axis
-    wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
-    inward = -wall[:, 1]  # the wall frame's +y points out of the room (window built at +t/2)
-    return handle, closing, inward, float(data.qpos[w.qpos_adr])
+    handle, opens, inward, opening = room.wall_slide_frame(data, "window")
+    return handle, -opens, inward, opening  # the slide opens along +axis
 
 
 def window_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:

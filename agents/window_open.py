@@ -65,24 +65,11 @@ DEPTH_M = 0.02
 HAND = "right_hand"
 
 
-def _pane_frame(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray,
-                                                          np.ndarray, float]:
-    """The handle's centre (3,), the opening direction along the wall (3,), the wall's
-    inward normal (3,), world frame, m, and the pane's opening now, m."""
-    m, w = room.model, room.objects["window"]
-    handle = data.site_xpos[m.site(w.handle).id].copy()
-    jnt = m.joint(w.joint).id
-    opening = data.xaxis[jnt].copy()  # the slide opens along +axis
-    wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
-    inward = -wall[:, 1]  # the wall frame's +y points out of the room
-    return handle, opening, inward, float(data.qpos[w.qpos_adr])
-
-
 def open_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
     """Where to stand to open the window: pelvis (x, y), m, :data:`ALONG_M` along the
     opening direction from the handle and :data:`STAND_OFF_M` into the room, and the
     heading facing the wall, rad."""
-    handle, opening, inward, _ = _pane_frame(room, data)
+    handle, opening, inward, _ = room.wall_slide_frame(data, "window")  # opens along +axis
     spot = handle + opening * ALONG_M + inward * STAND_OFF_M
     face = -inward
     return spot[:2], float(np.arctan2(face[1], face[0]))
@@ -108,7 +95,7 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
             out of the standing agent's reach (IK more than 3 cm short).
     """
     m, h, w = room.model, room.agent, room.objects["window"]
-    handle, opening, inward, now = _pane_frame(room, data)
+    handle, opening, inward, now = room.wall_slide_frame(data, "window")
     if now > w.threshold:
         raise SimenvError("the window is already open", field="window")
     side = HAND.split("_")[0]

@@ -605,6 +605,18 @@ class Room:
         """Object name -> joint value (m or rad, see the module table)."""
         return {n: float(data.qpos[o.qpos_adr]) for n, o in self.objects.items()}
 
+    def wall_slide_frame(self, data: mujoco.MjData, name: str
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Geometry of a slide object on a wall (the window pane, the curtain) in the state
+        ``data``: its handle (3,), the slide's +axis along the wall (3,), the wall's inward
+        normal (3,), all world frame, and the slide's position now, m."""
+        m, o = self.model, self.objects[name]
+        jnt = m.joint(o.joint).id
+        wall = data.xmat[m.body_parentid[m.jnt_bodyid[jnt]]].reshape(3, 3)
+        inward = -wall[:, 1]  # the wall frames' +y points out of the room
+        return (data.site_xpos[m.site(o.handle).id].copy(), data.xaxis[jnt].copy(), inward,
+                float(data.qpos[o.qpos_adr]))
+
     def object_labels(self, data: mujoco.MjData) -> dict[str, str]:
         """Object name -> state label (``open``/``closed``, ``loud``/``quiet``, ...)."""
         return {n: o.label(float(data.qpos[o.qpos_adr])) for n, o in self.objects.items()}

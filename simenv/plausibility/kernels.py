@@ -328,6 +328,25 @@ N_METRICS, N_DETAILS = 6, 4
 
 
 @njit(cache=True)
+def _value_groups(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Group equal entries of ``values`` (N,): the (N,) group of each entry, the groups'
+    values (first ``count`` entries, in order of first appearance) and ``count``. A
+    linear scan: the per-bone tolerances and per-keypoint limits take a few values."""
+    group = np.empty(values.shape[0], dtype=np.int64)
+    group_values = np.empty(values.shape[0])
+    count = 0
+    for k in range(values.shape[0]):
+        g = 0
+        while g < count and group_values[g] != values[k]:
+            g += 1
+        if g == count:
+            group_values[g] = values[k]
+            count += 1
+        group[k] = g
+    return group, group_values, count
+
+
+@njit(cache=True)
 def _gather(clip: np.ndarray, idx: np.ndarray, p: np.ndarray, zmin: np.ndarray) -> float:
     """Canonical keypoints of one clip as float64 planes, in place.
 
@@ -511,17 +530,7 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
     # order): the largest dev / tol among bones of one tolerance is their
     # largest dev over tol, one division per frame and tolerance instead of
     # one per bone, same values.
-    group = np.empty(tol.shape[0], dtype=np.int64)
-    group_tol = np.empty(tol.shape[0])
-    g_count = 0
-    for k in range(tol.shape[0]):
-        g = 0
-        while g < g_count and group_tol[g] != tol[k]:
-            g += 1
-        if g == g_count:
-            group_tol[g] = tol[k]
-            g_count += 1
-        group[k] = g
+    group, group_tol, g_count = _value_groups(tol)
     # Skipped bones count deviation 0, which leaves every maximum (of
     # values >= 0) unchanged: start the maxima at 0.
     dev_group = np.zeros((g_count, t_count))
@@ -760,17 +769,7 @@ def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float,
     # keypoints of one limit is the root of their largest squared step and
     # the largest jump the root of the largest squared second difference:
     # one root per frame and limit instead of one per keypoint, same values.
-    group = np.empty(j_count, dtype=np.int64)
-    group_limit = np.empty(j_count)
-    g_count = 0
-    for j in range(j_count):
-        g = 0
-        while g < g_count and group_limit[g] != limits[j]:
-            g += 1
-        if g == g_count:
-            group_limit[g] = limits[j]
-            g_count += 1
-        group[j] = g
+    group, group_limit, g_count = _value_groups(limits)
     # Squares, speeds, ratios and jumps are >= 0: maxima start at 0.
     step_sq = np.zeros((g_count, pairs))
     jump_sq = np.zeros(max(t_count - 2, 0))
