@@ -30,7 +30,9 @@ Indices 8-10 sit one keypoint lower on the trunk than H36M's (which has no chest
 and ends at the head top, a point no canonical skeleton measures); everything else is
 the same joint. :func:`simenv.skeletons.h36m_skeleton` is the *file* layout of H36M data;
 this layout needs all 17 keypoints above, which every CMU skeleton has (Kinect and
-H36M skeletons lack ``chest`` and are rejected with a message naming it).
+H36M skeletons lack ``chest`` and are rejected with a message naming it, unless
+``to_pred17(motion, derive=True)`` stands in for the chest and, on OpenNI skeletons, the
+pelvis by midpoints: :data:`DERIVED_KEYPOINTS`).
 
 Windows
 -------
@@ -86,13 +88,53 @@ def pred17_skeleton() -> Skeleton:
     return Skeleton("pred17", PRED17_JOINTS, parents, {k: k for k in PRED17_JOINTS})
 
 
-def to_pred17(motion: Motion) -> Motion:
+#: Keypoints :func:`to_pred17` can derive (``derive=True``) when a skeleton lacks them:
+#: keypoint -> the two keypoints whose midpoint stands in for it.
+DERIVED_KEYPOINTS: dict[str, tuple[str, str]] = {
+    "chest": ("spine", "neck"),
+    "pelvis": ("left_hip", "right_hip"),
+}
+
+
+def to_pred17(motion: Motion, *, derive: bool = False) -> Motion:
     """``motion`` on the 17-joint prediction layout (same frames, fps and metadata).
 
+    Args:
+        derive: stand in for a keypoint the skeleton lacks by the midpoint of two it has
+            (:data:`DERIVED_KEYPOINTS`): the chest between spine and neck (Kinect v1/v2,
+            OpenNI and Nuitrack skeletons have no chest joint), the pelvis between the
+            hips (OpenNI skeletons have none). The same rule as the gesture15 -> pred17
+            mapping of :func:`simenv.train_classifier.extrapolate_with_predictor`.
+
     Raises:
-        SkeletonError: the skeleton lacks one of the 17 canonical keypoints.
+        SkeletonError: the skeleton lacks one of the 17 canonical keypoints (and, with
+            ``derive``, one of the two it would be derived from).
     """
-    return motion.on_layout(pred17_skeleton(), "the 17-joint prediction layout")
+    purpose = "the 17-joint prediction layout"
+    canonical = motion.skeleton.canonical
+    missing = [k for k in PRED17_JOINTS if k not in canonical]
+    if not derive or not missing:
+        return motion.on_layout(pred17_skeleton(), purpose)
+    unknown = [k for k in missing if k not in DERIVED_KEYPOINTS
+               or any(p not in canonical for p in DERIVED_KEYPOINTS[k])]
+    if unknown:
+        raise SkeletonError(
+            f"skeleton {motion.skeleton.name!r} of motion {motion.name!r} lacks canonical "
+            f"keypoint(s) {', '.join(unknown)} (not derivable from "
+            f"{', '.join(canonical)}); {purpose} needs {', '.join(PRED17_JOINTS)}",
+            source=motion.metadata.get("source"),
+        )
+    columns = []
+    for k in PRED17_JOINTS:
+        if k in canonical:
+            columns.append(motion.joint(canonical[k]))
+        else:
+            a, b = DERIVED_KEYPOINTS[k]
+            columns.append(0.5 * (motion.joint(canonical[a]) + motion.joint(canonical[b])))
+    metadata = dict(motion.metadata) | {"derived_keypoints": {
+        k: list(DERIVED_KEYPOINTS[k]) for k in missing}}
+    return Motion(np.stack(columns, axis=1).astype(np.float32), motion.fps,
+                  pred17_skeleton(), motion.name, metadata)
 
 
 def split_root(motion: Motion) -> tuple[np.ndarray, np.ndarray]:

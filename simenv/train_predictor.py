@@ -155,6 +155,97 @@ def collect_motions(paths: Iterable[str | Path]) -> tuple[list[Motion], list[str
     return motions, notes
 
 
+#: Real sources that can be added to the *training* pool (``--extra-data``); the
+#: held-out CMU clips stay the only test set (see :func:`extra_motions`).
+EXTRA_SOURCES: tuple[str, ...] = ("msr", "utkinect", "nuisi")
+
+
+def extra_motions(shared: Path, sources: Sequence[str]) -> tuple[list[Motion], list[str]]:
+    """Kinect-era training clips on the pred17 layout, none of them ever evaluated on.
+
+    * ``msr``: MSR Action3D files of the odd subjects (the gesture classifier's training
+      subjects, :func:`simenv.gestures.split_cross_subject`; the recognition evaluation
+      feeds the even subjects' clips through the predictor), 15 fps.
+    * ``utkinect``: the UTKinect continuous sessions of the odd subjects, whole (the
+      labelled segments and the moves between them), 15 fps after the reader's re-timing.
+    * ``nuisi``: both people of the NuiSI "Rocket" repetitions on the training side of
+      :data:`simenv.interaction_data.DEFAULT_TEST_RECORDINGS`, 25 fps.
+
+    Florence 3D is not offered: its longest video is 35 frames at 20 fps (1.75 s), shorter
+    than any ``25 -> 25`` window (51 frames at 25 fps, 2.04 s). The chest (and, where
+    absent, the pelvis) is a midpoint (``prediction_data.to_pred17(derive=True)``). Clip
+    names are prefixed with the source (``msr/``, ``utkinect/``, ``nuisi/``), so every
+    clip is its own group, none on the test side.
+
+    Returns:
+        ``(motions, notes)``: pred17 motions in metres, world frame (Z up), and one note
+        per recording left out.
+
+    Raises:
+        SimenvError: an unknown source name.
+    """
+    from simenv import interaction_data as idata
+    from simenv.io import msr_action3d, utkinect
+
+    unknown = sorted(set(sources) - set(EXTRA_SOURCES))
+    if unknown:
+        raise SimenvError(f"unknown extra data source(s) {', '.join(unknown)}; expected "
+                          f"some of {', '.join(EXTRA_SOURCES)}", field="extra_data")
+    gestures = shared / "gestures"
+    motions: list[Motion] = []
+    notes: list[str] = []
+
+    def add(m: Motion, name: str) -> None:
+        motions.append(replace(pdata.to_pred17(m, derive=True), name=name))
+
+    if "msr" in sources:
+        for path in sorted((gestures / "msr_action3d").glob("a*_s*_e*_skeleton3D.txt")):
+            try:
+                m = msr_action3d.read(path)
+            except SimenvError as exc:
+                notes.append(f"msr/{path.name}: {exc.detail}")
+                continue
+            if int(m.metadata["subject"]) % 2 == 1:
+                add(m, f"msr/{m.name}")
+    if "utkinect" in sources:
+        for path in sorted((gestures / "utkinect" / "joints").glob("joints_s*_e*.txt")):
+            m = utkinect.read(path)
+            if int(m.metadata["subject"]) % 2 == 1:
+                add(m, f"utkinect/{m.name}")
+    if "nuisi" in sources:
+        nuisi = shared / "other" / "nuisi"
+        for rep in idata.nuisi_repetitions(nuisi / "Rocket_p1.txt", nuisi / "Rocket_p2.txt"):
+            if rep.name in idata.DEFAULT_TEST_RECORDINGS:
+                continue
+            for tag, person in (("p1", rep.actor), ("p2", rep.reactor)):
+                add(person, f"{rep.name}/{tag}")
+    return motions, notes
+
+
+def is_extra(clip: str) -> bool:
+    """Whether a clip name is one of :func:`extra_motions` (a source prefix)."""
+    return clip.split("/", 1)[0] in EXTRA_SOURCES
+
+
+def source_weights(windows: pdata.PredictionWindows, extra_share: float) -> np.ndarray:
+    """(N,) sampling weights that give the :func:`extra_motions` windows ``extra_share``
+    of every batch in expectation, and the CMU windows the rest (each side uniform).
+
+    Raises:
+        MotionError: ``extra_share`` outside [0, 1), or extra windows asked for but none.
+    """
+    if not 0 <= extra_share < 1:
+        raise MotionError(f"extra_share must be in [0, 1); got {extra_share!r}",
+                          field="extra_share")
+    extra = np.array([is_extra(c) for c in windows.clip_names], dtype=bool)[windows.clip]
+    if extra_share and not extra.any():
+        raise MotionError("extra_share > 0 but the windows hold no extra-source clip",
+                          field="extra_share")
+    w = np.where(extra, extra_share / max(extra.sum(), 1),
+                 (1 - extra_share) / max((~extra).sum(), 1))
+    return w
+
+
 def speed_variants(motions: Sequence[Motion], speeds: Sequence[float],
                    fps: float = pdata.TARGET_FPS) -> list[Motion]:
     """Each clip played at each speed factor (1.25 = 25 % faster): resampled to
@@ -336,10 +427,15 @@ def train_regression(
     validate_every: int = 100,
     seed: int = 0,
     progress: bool = True,
+    sample_weights: np.ndarray | None = None,
 ) -> list[dict[str, float]]:
     """Supervised training of the DCT-residual MLP (AdamW, cosine decay over
     ``iterations``; loss :func:`simenv.models.predictor_regression.regression_loss`).
     Budget and model selection on ``validation`` as in :func:`train`.
+
+    ``sample_weights`` (N,) >= 0: batches draw window i with probability proportional to
+    its weight (with replacement; e.g. :func:`source_weights`); None: uniformly without
+    replacement.
 
     Returns:
         A log: one dict every 50 iterations (and the last).
@@ -354,13 +450,21 @@ def train_regression(
         raise MotionError(f"training needs at least 2 windows; got {len(residual)}")
     opt = torch.optim.AdamW(model.net.parameters(), lr=lr, weight_decay=weight_decay)
     bs = min(batch_size, len(residual))
+    p = None
+    if sample_weights is not None:
+        w = np.asarray(sample_weights, dtype=np.float64)
+        if w.shape != (len(residual),) or not np.all(w >= 0) or w.sum() <= 0:
+            raise MotionError(f"sample_weights must be ({len(residual)},) non-negative "
+                              f"with a positive sum; got shape {w.shape}",
+                              field="sample_weights")
+        p = w / w.sum()
     log: list[dict[str, float]] = []
     best = _Best(validation, (model.net,))
     t0 = time.process_time()
     for it in tqdm(range(iterations), disable=not progress, desc="train", unit="it"):
         for group in opt.param_groups:
             group["lr"] = cosine_lr(lr, it, iterations)
-        idx = torch.as_tensor(rng.choice(len(residual), bs, replace=False))
+        idx = torch.as_tensor(rng.choice(len(residual), bs, replace=p is not None, p=p))
         model.net.train()
         loss = regression_loss(model.forward(residual[idx], last[idx]), future[idx])
         opt.zero_grad()

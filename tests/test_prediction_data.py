@@ -200,3 +200,36 @@ def test_clip_folds_on_real_windows_and_bad_input(shared_data):
         pdata.clip_folds(windows.window_clip_names, 6, 0)
     with pytest.raises(MotionError, match="folds must be"):
         pdata.clip_folds(windows.window_clip_names, 1, 0)
+
+
+def test_to_pred17_derives_the_chest_and_pelvis_of_kinect_skeletons_when_asked(shared_data):
+    from simenv.io import florence3d, utkinect
+
+    session = utkinect.read(shared_data / "gestures" / "utkinect" / "joints"
+                            / "joints_s01_e01.txt")
+    with pytest.raises(SkeletonError, match="chest"):
+        pdata.to_pred17(session)
+    m17 = pdata.to_pred17(session, derive=True)
+    assert m17.skeleton.name == "pred17" and m17.num_frames == session.num_frames
+    np.testing.assert_allclose(
+        m17.joint("chest"), 0.5 * (session.joint("Spine") + session.joint("ShoulderCenter")),
+        atol=1e-6)
+    np.testing.assert_array_equal(m17.joint("pelvis"), session.joint("HipCenter"))
+    assert m17.metadata["derived_keypoints"] == {"chest": ["spine", "neck"]}
+    video = florence3d.read(shared_data / "gestures" / "florence3d" / "skeletal_data.mat")[0]
+    f17 = pdata.to_pred17(video, derive=True)  # OpenNI: no pelvis either
+    np.testing.assert_allclose(
+        f17.joint("pelvis"), 0.5 * (video.joint("LeftHip") + video.joint("RightHip")), atol=1e-6)
+    # a real body: the derived chest lies between the pelvis and the head
+    z = f17.positions[..., 2]
+    assert np.all((z[:, 0] < z[:, 8]) & (z[:, 8] < z[:, 10]))
+
+
+def test_to_pred17_derive_still_names_what_cannot_be_derived(shared_data):
+    canon = _clip(shared_data, "02_01").to_canonical()
+    keep = [j for j in canon.skeleton.joint_names if j not in ("chest", "neck")]
+    no_neck = canon.with_positions(
+        canon.positions[:, [canon.skeleton.index(j) for j in keep]],
+        skeleton=canon.skeleton.subset(keep, name="no_neck"))
+    with pytest.raises(SkeletonError, match=r"no_neck.*chest, neck"):
+        pdata.to_pred17(no_neck, derive=True)
