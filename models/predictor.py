@@ -109,6 +109,10 @@ LOSS_WEIGHTS = {"adv": 1.0, "rec": 1.0, "gram": 10.0, "bone": 10.0}
 GP_LAMBDA = 10.0
 #: Format tag of checkpoint files.
 CHECKPOINT_FORMAT = "simenv-predictive-ma-wgan-1"
+#: Prior futures the networks can correct (:func:`fit_prior`).
+PRIORS = ("none", "damped_velocity", "linear")
+#: How the future amplitude is restored (:meth:`PredictiveMAWGAN.log_amplitude`).
+AMPLITUDES = ("predicted", "carried")
 
 
 # -- heading normalisation ------------------------------------------------------
@@ -305,11 +309,20 @@ class PredictorConfig:
     dropout: float = 0.0
     scale_past: float = 1.0
     scale_future: float = 1.0
+    #: Prior future the generator and head correct: "none" (the paper's model),
+    #: "damped_velocity" or "linear" (see :func:`fit_prior`).
+    prior: str = "none"
+    #: Add the last observed velocity (x_T - x_{T-1}, times ``scale_velocity``) to the
+    #: condition.
+    velocity_condition: bool = False
+    scale_velocity: float = 1.0
+    #: Average each prediction with the mirrored prediction of the mirrored history.
+    mirror_average: bool = False
     info: dict = field(default_factory=dict)
 
     @property
     def cond_dim(self) -> int:
-        return self.past_len * DIMS + 1 + DIMS
+        return self.past_len * DIMS + 1 + DIMS + (DIMS if self.velocity_condition else 0)
 
 
 @dataclass
@@ -319,7 +332,10 @@ class Batch:
     Attributes:
         cond: (N, cond_dim) condition; u_future: (N, F, 51) scaled future tangent
             coordinates; log_amp_past/log_amp_future: (N,); last: (N, 51) last observed
-            pose, metres; future: (N, F, 17, 3) true future frames, metres.
+            pose, metres; future: (N, F, 17, 3) true future frames, metres;
+        u_base, log_amp_base: (N, F, 51) scaled tangent coordinates and (N,) log
+            amplitude the generator and the head add to: the prior future's (zero and
+            ``log a_P`` without a prior).
     """
 
     cond: torch.Tensor
@@ -328,6 +344,8 @@ class Batch:
     log_amp_future: torch.Tensor
     last: torch.Tensor
     future: torch.Tensor
+    u_base: torch.Tensor
+    log_amp_base: torch.Tensor
 
     def __len__(self) -> int:
         return int(self.cond.shape[0])
@@ -335,7 +353,7 @@ class Batch:
     def take(self, idx: torch.Tensor) -> Batch:
         return Batch(*(getattr(self, f)[idx] for f in
                        ("cond", "u_future", "log_amp_past", "log_amp_future", "last",
-                        "future")))
+                        "future", "u_base", "log_amp_base")))
 
 
 def _sphere(curve: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -359,7 +377,10 @@ class PredictiveMAWGAN:
     """
 
     def __init__(self, config: PredictorConfig, mu_past: np.ndarray,
-                 mu_future: np.ndarray) -> None:
+                 mu_future: np.ndarray, prior_filter: np.ndarray | None = None) -> None:
+        if config.prior not in PRIORS:
+            raise MotionError(f"prior must be one of {', '.join(PRIORS)}; got "
+                              f"{config.prior!r}", field="prior")
         self.config = config
         self.past_len = config.past_len
         self.future_len = config.future_len
@@ -379,6 +400,18 @@ class PredictiveMAWGAN:
         self.critic = Critic(config.cond_dim, config.future_len,
                              channels=config.critic_channels)
         self.amplitude = AmplitudeHead(config.cond_dim, dropout=config.dropout)
+        self.prior_filter = None
+        if config.prior != "none":
+            shape = (self.history_len, config.future_len)
+            if prior_filter is None or np.shape(prior_filter) != shape:
+                raise CheckpointError(
+                    f"prior {config.prior!r} needs a prior filter of shape {shape}; got "
+                    f"{None if prior_filter is None else np.shape(prior_filter)}")
+            self.prior_filter = np.asarray(prior_filter, dtype=np.float64)
+            # a fresh model predicts the prior exactly: zero correction, zero log-ratio
+            for layer in (self.generator.convs[-1], self.amplitude.net[-1]):
+                nn.init.zeros_(layer.weight)
+                nn.init.zeros_(layer.bias)
 
     @property
     def history_len(self) -> int:
@@ -386,16 +419,37 @@ class PredictiveMAWGAN:
 
     # -- data ------------------------------------------------------------------------
 
-    def _condition(self, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(N, 1+P, 17, 3) heading-normalised history -> condition, log a_P, last pose."""
+    def prior_future(self, frames: np.ndarray) -> np.ndarray:
+        """The prior future of (N, 1+P, 17, 3) heading-normalised histories (metres):
+        ``x_T + Σ_t W[t, k] (x_t - x_T)``, (N, F, 51); ``x_T`` repeated without a prior."""
+        flat = frames.reshape(len(frames), self.history_len, DIMS)
+        last = flat[:, -1]
+        if self.prior_filter is None:
+            return np.repeat(last[:, None], self.future_len, axis=1)
+        return last[:, None] + np.einsum("nhd,hf->nfd", flat - last[:, None],
+                                         self.prior_filter)
+
+    def _condition(self, frames: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(N, 1+P, 17, 3) heading-normalised history -> condition, log a_P, last pose,
+        base tangent coordinates and base log amplitude (:class:`Batch`)."""
         n = len(frames)
-        p_past, a_past = _sphere(frames.reshape(n, self.past_len + 1, DIMS), self.mu_past)
+        flat = frames.reshape(n, self.history_len, DIMS)
+        p_past, a_past = _sphere(flat, self.mu_past)
         v_past = srvf.log_map(self.mu_past, p_past) / math.sqrt(self.past_len)
         log_a = np.log(np.maximum(a_past, 1e-6))
-        last = frames[:, -1].reshape(n, DIMS)
-        cond = np.concatenate([v_past.reshape(n, -1) * self.config.scale_past,
-                               log_a[:, None], LOSS_UNIT * last], axis=1)
-        return cond, log_a, last
+        last = flat[:, -1]
+        parts = [v_past.reshape(n, -1) * self.config.scale_past, log_a[:, None],
+                 LOSS_UNIT * last]
+        if self.config.velocity_condition:
+            parts.append((last - flat[:, -2]) * self.config.scale_velocity)
+        cond = np.concatenate(parts, axis=1)
+        if self.prior_filter is None:
+            return cond, log_a, last, np.zeros((n, self.future_len, DIMS)), log_a
+        curve = np.concatenate([last[:, None], self.prior_future(frames)], axis=1)
+        p_prior, a_prior = _sphere(curve, self.mu_future)
+        u_base = (srvf.log_map(self.mu_future, p_prior) / math.sqrt(self.future_len)
+                  * self.config.scale_future)
+        return cond, log_a, last, u_base, np.log(np.maximum(a_prior, 1e-6))
 
     def prepare(self, windows: PredictionWindows) -> Batch:
         """Training/evaluation tensors of windows with this model's P and F."""
@@ -407,7 +461,7 @@ class PredictiveMAWGAN:
         frames = windows.frames.astype(np.float64)
         frames = rotate_z(frames, -heading(frames[:, self.past_len]))
         n = len(frames)
-        cond, log_a, last = self._condition(frames[:, : self.past_len + 1])
+        cond, log_a, last, u_base, log_base = self._condition(frames[:, : self.past_len + 1])
         future_curve = frames[:, self.past_len:].reshape(n, self.future_len + 1, DIMS)
         p_f, a_f = _sphere(future_curve, self.mu_future)
         v_f = srvf.log_map(self.mu_future, p_f) / math.sqrt(self.future_len)
@@ -419,6 +473,8 @@ class PredictiveMAWGAN:
             torch.as_tensor(np.log(np.maximum(a_f, 1e-6)), dtype=f32),
             torch.as_tensor(last, dtype=f32),
             torch.as_tensor(frames[:, self.past_len + 1:], dtype=f32),
+            torch.as_tensor(u_base, dtype=f32),
+            torch.as_tensor(log_base, dtype=f32),
         )
 
     # -- differentiable decoding -------------------------------------------------------
@@ -440,16 +496,24 @@ class PredictiveMAWGAN:
     def sample_noise(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
         return torch.randn(n, self.config.noise_dim, generator=generator)
 
+    def direction(self, cond: torch.Tensor, u_base: torch.Tensor, z: torch.Tensor
+                  ) -> torch.Tensor:
+        """Scaled future tangent coordinates (B, F, 51): the base (the prior future's,
+        or zero) plus the generator's output."""
+        return u_base + self.generator(cond, z)
+
     def log_amplitude(self, cond: torch.Tensor, log_amp_past: torch.Tensor,
-                      amplitude: str = "predicted") -> torch.Tensor:
-        """log of the future amplitude: ``"predicted"`` by the head or ``"carried"``
-        from the past, ``a_P sqrt(F / P)`` (the same mean speed)."""
+                      amplitude: str = "predicted", base: torch.Tensor | None = None
+                      ) -> torch.Tensor:
+        """log of the future amplitude: ``"predicted"``, the head's output added to
+        ``base`` (the prior future's log amplitude; ``log_amp_past`` when None), or
+        ``"carried"`` from the past, ``a_P sqrt(F / P)`` (the same mean speed)."""
         if amplitude == "predicted":
-            return log_amp_past + self.amplitude(cond)
+            return (log_amp_past if base is None else base) + self.amplitude(cond)
         if amplitude == "carried":
             return log_amp_past + 0.5 * math.log(self.future_len / self.past_len)
-        raise MotionError(f"amplitude must be 'predicted' or 'carried'; got {amplitude!r}",
-                          field="amplitude")
+        raise MotionError(f"amplitude must be one of {', '.join(AMPLITUDES)}; got "
+                          f"{amplitude!r}", field="amplitude")
 
     # -- prediction ---------------------------------------------------------------------
 
@@ -472,9 +536,22 @@ class PredictiveMAWGAN:
         """
         h, batched = check_history(history, self.history_len, joints=NUM_JOINTS)
         h = h[:, -self.history_len:]
+        if amplitude not in AMPLITUDES:
+            raise MotionError(f"amplitude must be one of {', '.join(AMPLITUDES)}; got "
+                              f"{amplitude!r}", field="amplitude")
+        if self.config.mirror_average:  # one pass over the histories and their mirrors
+            both = self._predict(np.concatenate([h, mirror(h)]), amplitude, seed)
+            out = 0.5 * (both[: len(h)] + mirror(both[len(h):]))
+        else:
+            out = self._predict(h, amplitude, seed)
+        out = out.astype(np.float32)
+        return out if batched else out[0]
+
+    def _predict(self, h: np.ndarray, amplitude: str, seed: int | None) -> np.ndarray:
+        """(N, 1+P, 17, 3) checked histories -> (N, F, 17, 3) float64 futures, metres."""
         angle = heading(h[:, -1])
         frames = rotate_z(h, -angle)
-        cond, log_a, last = self._condition(frames)
+        cond, log_a, last, u_base, log_base = self._condition(frames)
         cond_t = torch.as_tensor(cond, dtype=torch.float32)
         if seed is None:
             z = torch.zeros(len(h), self.config.noise_dim)
@@ -482,15 +559,14 @@ class PredictiveMAWGAN:
             z = self.sample_noise(len(h), torch.Generator().manual_seed(seed))
         self.generator.eval()
         self.amplitude.eval()
-        u = self.generator(cond_t, z)
+        u = self.direction(cond_t, torch.as_tensor(u_base, dtype=torch.float32), z)
         log_amp = self.log_amplitude(cond_t, torch.as_tensor(log_a, dtype=torch.float32),
-                                     amplitude)
+                                     amplitude, torch.as_tensor(log_base, dtype=torch.float32))
         _, p = self.decode(u, log_amp, torch.as_tensor(last, dtype=torch.float32))
         # integrate in float64 from the exact last observed pose: no seam
         q = p.double().numpy() * np.exp(log_amp.double().numpy())[:, None, None]
         out = srvf.inverse_srvf(q, last)[:, 1:].reshape(len(h), self.future_len, NUM_JOINTS, 3)
-        out = rotate_z(out, angle).astype(np.float32)
-        return out if batched else out[0]
+        return rotate_z(out, angle)
 
     # -- checkpoints ------------------------------------------------------------------------
 
@@ -504,6 +580,8 @@ class PredictiveMAWGAN:
             "config": np.array(json.dumps(asdict(self.config))),
             "mu_past": self.mu_past, "mu_future": self.mu_future,
         }
+        if self.prior_filter is not None:
+            arrays["prior_filter"] = self.prior_filter
         nets = {"generator": self.generator, "amplitude": self.amplitude}
         if with_critic:
             nets["critic"] = self.critic
@@ -533,7 +611,12 @@ class PredictiveMAWGAN:
             raw = json.loads(str(data["config"]))
             for key in ("gen_channels", "critic_channels"):
                 raw[key] = tuple(raw[key])
-            model = cls(PredictorConfig(**raw), data["mu_past"], data["mu_future"])
+            prior = data["prior_filter"] if "prior_filter" in data.files else None
+            try:
+                model = cls(PredictorConfig(**raw), data["mu_past"], data["mu_future"],
+                            prior)
+            except MotionError as exc:
+                raise CheckpointError(exc.detail, source=path) from None
             nets = {"generator": model.generator, "amplitude": model.amplitude,
                     "critic": model.critic}
             for name, net in nets.items():
@@ -579,20 +662,82 @@ def fit_geometry(windows: PredictionWindows, config: PredictorConfig,
     v_f = srvf.log_map(km_f.mean, p_f) / math.sqrt(windows.future_len)
     config.scale_past = float(1.0 / np.sqrt(np.mean(v_p**2)))
     config.scale_future = float(1.0 / np.sqrt(np.mean(v_f**2)))
+    velocity = past[:, -1] - past[:, -2]
+    config.scale_velocity = float(1.0 / max(np.sqrt(np.mean(velocity**2)), 1e-9))
+    prior_filter = None
+    if config.prior != "none":
+        prior_filter, fit = fit_prior(frames, windows.past_len, config.prior)
+        config.info["prior_fit"] = fit
     config.info.update({
         "karcher_past": {"iterations": km_p.iterations, "converged": km_p.converged,
                          "variance_rad2": km_p.variance},
         "karcher_future": {"iterations": km_f.iterations, "converged": km_f.converged,
                            "variance_rad2": km_f.variance},
     })
-    return PredictiveMAWGAN(config, km_p.mean, km_f.mean)
+    return PredictiveMAWGAN(config, km_p.mean, km_f.mean, prior_filter)
+
+
+#: Damping factors :func:`fit_prior` chooses from for the damped-velocity prior.
+DAMPING_GRID = tuple(np.round(np.arange(0.0, 0.96, 0.05), 2))
+
+
+def fit_prior(frames: np.ndarray, past_len: int, kind: str) -> tuple[np.ndarray, dict]:
+    """The temporal filter ``W`` (1+P, F) of a prior future, fitted to training windows.
+
+    The prior of a history ``x_0 .. x_T`` (T = P) is ``x̃_k = x_T + Σ_t W[t, k] (x_t - x_T)``,
+    one filter shared by every joint coordinate (it is then left-right and heading
+    equivariant). ``"damped_velocity"``: the last velocity ``v = x_T - x_{T-1}``
+    continued and damped, ``x̃_k = x_T + v Σ_{i<=k} d^i``, with ``d`` of
+    :data:`DAMPING_GRID` that minimises the mean per-joint error over the future frames
+    (``d = 0`` is zero-velocity). ``"linear"``: ``W`` by ridge least squares of the
+    future residuals on the history residuals (the history's DCT continued, in the
+    limit of all coefficients; ridge λ = 1e-4 of the mean diagonal of the normal
+    matrix).
+
+    Args:
+        frames: (N, 1+P+F, 17, 3) heading-normalised training windows, metres.
+
+    Returns:
+        ``(W, info)``, info stating the fitted damping or ridge and the training error.
+    """
+    n, length = frames.shape[:2]
+    h, f = past_len + 1, length - past_len - 1
+    flat = frames.reshape(n, length, DIMS)
+    last = flat[:, past_len]
+    hist, fut = flat[:, :h] - last[:, None], flat[:, h:] - last[:, None]
+
+    def error(w: np.ndarray) -> float:
+        pred = np.einsum("nhd,hf->nfd", hist, w).reshape(n, f, NUM_JOINTS, 3)
+        return float(np.linalg.norm(pred - fut.reshape(n, f, NUM_JOINTS, 3), axis=-1).mean())
+
+    if kind == "damped_velocity":
+        def damped(d: float) -> np.ndarray:
+            w = np.zeros((h, f))
+            w[h - 2] = -np.cumsum(d ** np.arange(1, f + 1))
+            return w
+
+        errors = {float(d): error(damped(d)) for d in DAMPING_GRID}
+        best = min(errors, key=errors.get)
+        return damped(best), {"kind": kind, "damping": best,
+                              "train_error_mm": round(1000 * errors[best], 2),
+                              "zero_velocity_train_error_mm": round(1000 * errors[0.0], 2)}
+    if kind == "linear":
+        a = hist.transpose(0, 2, 1).reshape(-1, h)
+        b = fut.transpose(0, 2, 1).reshape(-1, f)
+        gram = a.T @ a
+        ridge = 1e-4 * float(np.mean(np.diag(gram)))
+        w = np.linalg.solve(gram + ridge * np.eye(h), a.T @ b)
+        return w, {"kind": kind, "ridge": ridge, "train_error_mm": round(1000 * error(w), 2),
+                   "zero_velocity_train_error_mm": round(1000 * error(np.zeros((h, f))), 2)}
+    raise MotionError(f"prior must be one of {', '.join(PRIORS[1:])}; got {kind!r}",
+                      field="prior")
 
 
 def critic_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
                 eps: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
     """WGAN-GP critic objective ``E[C(fake)] - E[C(real)] + λ GP``."""
     with torch.no_grad():
-        fake = model.generator(batch.cond, z)
+        fake = model.direction(batch.cond, batch.u_base, z)
     real_score = model.critic(batch.u_future, batch.cond).mean()
     fake_score = model.critic(fake, batch.cond).mean()
     gp = gradient_penalty(model.critic, batch.u_future, fake, batch.cond, eps)
@@ -618,9 +763,9 @@ def generator_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
         ``(loss, terms, u)`` with ``u`` the (B, F, 51) generator output.
     """
     w = LOSS_WEIGHTS if weights is None else weights
-    u = model.generator(batch.cond, z)
-    log_amp = (model.log_amplitude(batch.cond, batch.log_amp_past) if joint_amplitude
-               else batch.log_amp_future)
+    u = model.direction(batch.cond, batch.u_base, z)
+    log_amp = (model.log_amplitude(batch.cond, batch.log_amp_past, base=batch.log_amp_base)
+               if joint_amplitude else batch.log_amp_future)
     frames, _ = model.decode(u, log_amp, batch.last)
     pred, true = LOSS_UNIT * frames, LOSS_UNIT * batch.future
     last = LOSS_UNIT * batch.last.view(-1, NUM_JOINTS, 3)
@@ -643,7 +788,7 @@ def amplitude_loss(model: PredictiveMAWGAN, batch: Batch, u: torch.Tensor) -> to
     the MPJPE-optimal length for the direction the generator actually predicts: where
     the direction is uncertain, a shorter curve errs less.
     """
-    log_amp = model.log_amplitude(batch.cond, batch.log_amp_past)
+    log_amp = model.log_amplitude(batch.cond, batch.log_amp_past, base=batch.log_amp_base)
     frames, _ = model.decode(u.detach(), log_amp, batch.last)
     return LOSS_UNIT * (frames - batch.future).abs().mean()
 

@@ -74,6 +74,7 @@ from simenv.models.predictor_regression import (
     check_lengths,
     cosine_lr,
     regression_loss,
+    root_targets,
     targets,
 )
 from simenv.motion import Interaction, Motion
@@ -384,7 +385,11 @@ def validation_score(model: object, windows: pdata.PredictionWindows) -> float:
     """Mean of the per-frame MPJPE (mm, pelvis excluded) at the horizons of
     :data:`simenv.prediction_metrics.HORIZONS_MS` that ``model`` predicts, on
     ``windows``: the model-selection criterion (lower is better)."""
-    pred = model.predict(windows.frames[:, : windows.past_len + 1])
+    history = windows.frames[:, : windows.past_len + 1]
+    if getattr(model.config, "root_input", False):  # a DCT-MLP that sees the root
+        pred = model.predict(history, root=windows.root[:, : windows.past_len + 1])
+    else:
+        pred = model.predict(history)
     errors = pm.mpjpe_at_horizons_mm(pred, windows.future, windows.fps, joints=EVAL_JOINTS)
     return float(np.mean(list(errors.values())))
 
@@ -446,6 +451,8 @@ def train_regression(
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     residual, last, future = targets(model.history_len, windows.frames)
+    velocity = (root_targets(model.history_len, windows.frames, windows.root, windows.fps)
+                if model.config.root_input else None)
     if len(residual) < 2:
         raise MotionError(f"training needs at least 2 windows; got {len(residual)}")
     opt = torch.optim.AdamW(model.net.parameters(), lr=lr, weight_decay=weight_decay)
@@ -466,7 +473,8 @@ def train_regression(
             group["lr"] = cosine_lr(lr, it, iterations)
         idx = torch.as_tensor(rng.choice(len(residual), bs, replace=p is not None, p=p))
         model.net.train()
-        loss = regression_loss(model.forward(residual[idx], last[idx]), future[idx])
+        v = None if velocity is None else velocity[idx]
+        loss = regression_loss(model.forward(residual[idx], last[idx], v), future[idx])
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -713,13 +721,18 @@ def run(args: argparse.Namespace) -> dict:
                   "train_seconds_total": round(sum(m["train_seconds"] for m in members), 1)}
     else:
         lr = args.lr or 1e-4
-        config = PredictorConfig(args.past, args.future, dropout=args.dropout)
+        config = PredictorConfig(args.past, args.future, dropout=args.dropout,
+                                 prior=args.prior,
+                                 velocity_condition=args.velocity_condition,
+                                 mirror_average=args.mirror_average)
         model = fit_geometry(train_w, config)
         log = train(model, train_w, n_critic=args.n_critic, lr=lr,
                     adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
                     **budget)
         recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
-                  "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude}
+                  "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude,
+                  "prior": args.prior, "velocity_condition": args.velocity_condition,
+                  "mirror_average": args.mirror_average}
     # an ensemble's selections are per member (recipe["members"])
     selected = [] if ensemble else [e for e in log if "val_mpjpe_mm" in e]
     config.info.update({"train_clips": list(split.train_clips),
@@ -1040,6 +1053,13 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--joint-amplitude", action=argparse.BooleanOptionalAction,
                     default=False, help="train generator and amplitude head together "
                     "on the position losses at the predicted amplitude")
+    ap.add_argument("--prior", choices=("none", "damped_velocity", "linear"),
+                    default="none", help="GAN: prior future whose tangent vector and "
+                    "amplitude the generator and head correct (simenv.models.predictor."
+                    "fit_prior; none: the paper's model)")
+    ap.add_argument("--velocity-condition", action=argparse.BooleanOptionalAction,
+                    default=False, help="GAN: add the last observed velocity to the "
+                    "generator's condition")
     ap.add_argument("--speeds", type=float, nargs="+", default=[0.8, 1.0, 1.25],
                     help="speed augmentation factors of the training clips")
     ap.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,

@@ -257,3 +257,97 @@ def test_joint_amplitude_trains_the_head_through_the_position_losses(fitted, win
         assert (head > 0) == joint
     fitted.generator.zero_grad()
     fitted.amplitude.zero_grad()
+
+
+@pytest.fixture(scope="module")
+def with_prior(windows):
+    config = P.PredictorConfig(10, 10, prior="damped_velocity", velocity_condition=True)
+    return P.fit_geometry(windows, config, tol=1e-5)
+
+
+def _normalised(windows):
+    frames = windows.frames.astype(np.float64)
+    return P.rotate_z(frames, -P.heading(frames[:, windows.past_len]))
+
+
+def test_fitted_priors_err_less_than_zero_velocity_on_their_windows(windows):
+    frames = _normalised(windows)
+    w_damped, fit = P.fit_prior(frames, 10, "damped_velocity")
+    # the grid holds d = 0 (zero-velocity), so the chosen damping errs no more
+    assert fit["damping"] in P.DAMPING_GRID
+    assert fit["train_error_mm"] <= fit["zero_velocity_train_error_mm"]
+    assert np.count_nonzero(w_damped.any(axis=1)) <= 1  # only the last velocity is used
+    w_lin, fit_lin = P.fit_prior(frames, 10, "linear")
+    assert w_lin.shape == (11, 10)
+    # ridge least squares: its squared residual is below that of W = 0
+    flat = frames.reshape(len(frames), 21, 51)
+    hist, fut = flat[:, :11] - flat[:, 10:11], flat[:, 11:] - flat[:, 10:11]
+    resid = np.einsum("nhd,hf->nfd", hist, w_lin) - fut
+    assert (resid**2).sum() < (fut**2).sum()
+    with pytest.raises(MotionError, match="prior"):
+        P.fit_prior(frames, 10, "quadratic")
+
+
+def test_a_fresh_model_with_a_prior_predicts_the_prior(with_prior, windows):
+    model = with_prior
+    assert model.config.cond_dim == 10 * 51 + 1 + 51 + 51
+    history = windows.frames[:8, :11]
+    pred = model.predict(history)
+    angle = P.heading(history[:, -1])
+    prior = model.prior_future(P.rotate_z(history.astype(np.float64), -angle))
+    expected = P.rotate_z(prior.reshape(8, 10, 17, 3), angle)
+    np.testing.assert_allclose(pred, expected, atol=1e-5)
+    # the damped-velocity prior continues the last velocity, shrinking every step
+    step = np.linalg.norm(np.diff(np.concatenate([history[:, -1:], pred], 1), axis=1),
+                          axis=-1).mean(axis=(0, 2))
+    assert np.all(np.diff(step) <= 1e-7)
+    batch = _batch(model, windows, 8)
+    assert batch.u_base.abs().max() > 0 and batch.u_base.shape == (8, 10, 51)
+
+
+def test_training_with_a_prior_moves_away_from_it(with_prior, windows):
+    model = P.PredictiveMAWGAN(with_prior.config, with_prior.mu_past, with_prior.mu_future,
+                               with_prior.prior_filter)
+    torch.manual_seed(0)
+    batch = _batch(model, windows)
+    z = torch.zeros(len(batch), 16)
+    params = list(model.generator.parameters()) + list(model.amplitude.parameters())
+    opt = torch.optim.Adam(params, lr=1e-3)
+    recs = []
+    for _ in range(20):
+        loss, info, _ = P.generator_loss(model, batch, z, P.LOSS_WEIGHTS | {"adv": 0.0},
+                                         joint_amplitude=True)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        recs.append(info["rec"])
+    assert recs[-1] < recs[0]  # the correction lowers the error of the prior
+
+
+def test_mirror_average_makes_the_predictor_mirror_equivariant(with_prior, windows):
+    model = P.PredictiveMAWGAN(with_prior.config, with_prior.mu_past, with_prior.mu_future,
+                               with_prior.prior_filter)
+    torch.manual_seed(3)
+    for layer in (model.generator.convs[-1], model.amplitude.net[-1]):
+        torch.nn.init.normal_(layer.weight, std=0.05)  # a correction that is not mirrored
+    history = windows.frames[:5, :11]
+    plain = model.predict(history)
+    assert not np.allclose(model.predict(P.mirror(history)), P.mirror(plain), atol=1e-3)
+    model.config = P.PredictorConfig(**{**vars(with_prior.config), "mirror_average": True})
+    averaged = model.predict(history)
+    np.testing.assert_allclose(model.predict(P.mirror(history)), P.mirror(averaged),
+                               atol=1e-5)
+
+
+def test_checkpoint_with_a_prior_round_trips(with_prior, windows, tmp_path):
+    path = with_prior.save(tmp_path / "prior.npz", with_critic=False)
+    again = P.PredictiveMAWGAN.load(path)
+    assert again.config == with_prior.config
+    np.testing.assert_array_equal(again.prior_filter, with_prior.prior_filter)
+    history = windows.frames[:3, :11]
+    np.testing.assert_array_equal(again.predict(history), with_prior.predict(history))
+    with pytest.raises(P.CheckpointError, match="prior filter"):
+        P.PredictiveMAWGAN(with_prior.config, with_prior.mu_past, with_prior.mu_future)
+    with pytest.raises(MotionError, match="prior must be one of"):
+        P.PredictiveMAWGAN(P.PredictorConfig(10, 10, prior="spline"),
+                           with_prior.mu_past, with_prior.mu_future)
