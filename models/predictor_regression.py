@@ -21,7 +21,13 @@ Math (one window; H = 1 + P history frames, F future frames, D = 51)
    linear embedding to every coefficient before the blocks.
 5. **Inverse DCT and residual.** ``x̂ = x_T + D_F^T C_out``: a zero output is the
    zero-velocity prediction, so the network learns only the change from the last pose.
-6. **Ensemble and test-time mirroring** (not in siMLPe; both reduce the variance that
+6. **Root motion** (optional, ``root_input``; not in siMLPe, which predicts the root
+   with the body). The pelvis velocity over the history in the heading frame,
+   ``v_t = R_z(-θ)(r_t - r_{t-1}) · fps`` (H, 3) m/s (``v_0 = v_1``), enters as its DCT
+   through a linear embedding added to the coefficients like the pose: walking or
+   turning tells the network where the limbs are going. ``predict`` then needs the
+   history's world pelvis positions (``root=``).
+7. **Ensemble and test-time mirroring** (not in siMLPe; both reduce the variance that
    13 training clips leave). With ``members = K`` the prediction is the mean of K
    networks, each trained with its own seed and selected on its own validation clips
    (:func:`simenv.train_predictor.run`); with ``mirror_average`` each network's
@@ -82,6 +88,8 @@ class RegressionConfig:
     members: int = 1
     #: Average each network with its mirrored prediction of the mirrored history.
     mirror_average: bool = False
+    #: The history's root (pelvis) velocity is an input (``predict(history, root=...)``).
+    root_input: bool = False
     info: dict = field(default_factory=dict)
 
 
@@ -104,7 +112,7 @@ class DCTMLP(nn.Module):
     """(B, H, D) residual history, (B, D) last pose -> (B, F, D) residual future."""
 
     def __init__(self, history_len: int, future_len: int, blocks: int = 4,
-                 dropout: float = 0.0) -> None:
+                 dropout: float = 0.0, root_input: bool = False) -> None:
         super().__init__()
         self.register_buffer("dct_in", torch.as_tensor(dct_matrix(history_len),
                                                        dtype=torch.float32))
@@ -112,6 +120,7 @@ class DCTMLP(nn.Module):
                                                          dtype=torch.float32))
         self.fc_in = nn.Linear(DIMS, DIMS)
         self.pose = nn.Linear(DIMS, DIMS)
+        self.root = nn.Linear(3, DIMS) if root_input else None
         self.blocks = nn.Sequential(*(TemporalBlock(history_len, dropout)
                                       for _ in range(blocks)))
         self.time_out = nn.Linear(history_len, future_len)
@@ -120,9 +129,12 @@ class DCTMLP(nn.Module):
         nn.init.zeros_(self.fc_out.weight)
         nn.init.zeros_(self.fc_out.bias)
 
-    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+    def forward(self, residual: torch.Tensor, last: torch.Tensor,
+                root_velocity: torch.Tensor | None = None) -> torch.Tensor:
         c = self.dct_in @ residual
         c = self.fc_in(c) + self.pose(last)[:, None, :]
+        if self.root is not None:
+            c = c + self.root(self.dct_in @ root_velocity)
         c = self.blocks(c)
         c = self.time_out(c.transpose(1, 2)).transpose(1, 2)
         return self.idct_out @ self.fc_out(c)
@@ -143,7 +155,8 @@ class DCTRegressionPredictor:
         self.future_len = config.future_len
         self.fps = config.fps
         self.nets = nn.ModuleList(
-            DCTMLP(self.history_len, self.future_len, config.blocks, config.dropout)
+            DCTMLP(self.history_len, self.future_len, config.blocks, config.dropout,
+                   config.root_input)
             for _ in range(config.members))
 
     @property
@@ -163,51 +176,78 @@ class DCTRegressionPredictor:
         return single
 
     @staticmethod
-    def inputs(history: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
+    def inputs(history: np.ndarray, root: np.ndarray | None = None, fps: float = 25.0
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, np.ndarray]:
         """(N, H, 17, 3) history, metres -> residual (N, H, 51) and last pose (N, 51) in
-        heading-normalised decimetres, and the heading angles (N,)."""
+        heading-normalised decimetres, the root velocity (N, H, 3) in the heading frame,
+        m/s (None without ``root`` (N, H, 3) world pelvis positions), and the heading
+        angles (N,)."""
         angle = heading(history[:, -1])
         frames = rotate_z(np.asarray(history, dtype=np.float64), -angle) * LOSS_UNIT
         n, h = frames.shape[:2]
         flat = frames.reshape(n, h, DIMS)
         last = flat[:, -1]
+        velocity = None
+        if root is not None:
+            step = np.diff(np.asarray(root, dtype=np.float64), axis=1) * fps
+            step = np.concatenate([step[:, :1], step], axis=1)
+            velocity = torch.as_tensor(rotate_z(step, -angle), dtype=torch.float32)
         return (torch.as_tensor(flat - last[:, None], dtype=torch.float32),
-                torch.as_tensor(last, dtype=torch.float32), angle)
+                torch.as_tensor(last, dtype=torch.float32), velocity, angle)
 
-    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+    def forward(self, residual: torch.Tensor, last: torch.Tensor,
+                root_velocity: torch.Tensor | None = None) -> torch.Tensor:
         """Differentiable prediction of the first network in normalised decimetres:
         (B, F, 51) (what training fits; no ensemble, no mirroring)."""
-        return last[:, None, :] + self.net(residual, last)
+        return last[:, None, :] + self.net(residual, last, root_velocity)
 
-    def _predict_frames(self, history: np.ndarray) -> np.ndarray:
+    def _predict_frames(self, history: np.ndarray, root: np.ndarray | None) -> np.ndarray:
         """(N, H, 17, 3) metres -> (N, F, 17, 3) float64 metres: mean of the networks."""
-        residual, last, angle = self.inputs(history)
-        out = torch.stack([last[:, None, :] + net(residual, last) for net in self.nets])
+        residual, last, velocity, angle = self.inputs(history, root, self.fps)
+        out = torch.stack([last[:, None, :] + net(residual, last, velocity)
+                           for net in self.nets])
         out = out.mean(dim=0).double().numpy() / LOSS_UNIT
         return rotate_z(out.reshape(len(history), self.future_len, NUM_JOINTS, 3), angle)
 
     @torch.no_grad()
-    def predict(self, history: np.ndarray) -> np.ndarray:
+    def predict(self, history: np.ndarray, root: np.ndarray | None = None) -> np.ndarray:
         """Predict the F frames after a history.
 
         Args:
             history: (N, H, 17, 3) or (H, 17, 3) root-relative positions, metres,
                 H >= 1 + P, ending at the last observed frame.
+            root: (N, H, 3) or (H, 3) world pelvis positions of the same frames, metres
+                (Z up); needed by (only) a model with ``config.root_input``.
 
         Returns:
             (N, F, 17, 3) or (F, 17, 3) float32 future positions, metres.
 
         Raises:
-            MotionError: too short a history, wrong joint count, NaN frames.
+            MotionError: too short a history, wrong joint count, NaN frames, a missing
+                or mis-shaped ``root``.
         """
         h, batched = check_history(history, self.history_len, joints=NUM_JOINTS)
         h = h[:, -self.history_len:]
+        r = None
+        if self.config.root_input:
+            if root is None:
+                raise MotionError("this model takes the root trajectory too: pass root "
+                                  f"(N, >= {self.history_len}, 3) world pelvis positions",
+                                  field="root")
+            r = np.asarray(root, dtype=np.float64)
+            r = r[None] if r.ndim == 2 else r
+            if r.shape[0] != len(h) or r.shape[1] < self.history_len or r.shape[2:] != (3,) \
+                    or not np.isfinite(r).all():
+                raise MotionError(f"root must be finite (N, >= {self.history_len}, 3) with "
+                                  f"N = {len(h)}; got shape {r.shape}", field="root")
+            r = r[:, -self.history_len:]
         self.nets.eval()
         if self.config.mirror_average:  # one pass over the histories and their mirrors
-            both = self._predict_frames(np.concatenate([h, mirror(h)]))
+            rr = None if r is None else np.concatenate([r, r * np.array([-1.0, 1.0, 1.0])])
+            both = self._predict_frames(np.concatenate([h, mirror(h)]), rr)
             out = 0.5 * (both[: len(h)] + mirror(both[len(h):]))
         else:
-            out = self._predict_frames(h)
+            out = self._predict_frames(h, r)
         out = out.astype(np.float32)
         return out if batched else out[0]
 
@@ -272,6 +312,14 @@ def targets(history_len: int, frames: np.ndarray) -> tuple[torch.Tensor, ...]:
     last = f[:, history_len - 1]
     as_t = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
     return as_t(f[:, :history_len] - last[:, None]), as_t(last), as_t(f[:, history_len:])
+
+
+def root_targets(history_len: int, frames: np.ndarray, root: np.ndarray, fps: float
+                 ) -> torch.Tensor:
+    """(N, H, 3) root-velocity input (m/s, heading frame; see
+    :meth:`DCTRegressionPredictor.inputs`) of (N, H + F, ...) windows."""
+    return DCTRegressionPredictor.inputs(frames[:, :history_len], root[:, :history_len],
+                                         fps)[2]
 
 
 def check_lengths(model: DCTRegressionPredictor, past_len: int, future_len: int) -> None:

@@ -11,7 +11,8 @@ import torch
 
 from simenv import prediction_data as pdata
 from simenv import train_predictor as tp
-from simenv.errors import MotionError
+from simenv.errors import MotionError, SimenvError
+from simenv.interaction_data import DEFAULT_TEST_RECORDINGS
 from simenv.io import bvh
 from simenv.models import predictor as P
 from simenv.models import predictor_regression as R
@@ -174,3 +175,68 @@ def test_cross_fitted_ensemble_run_validates_each_member_on_its_own_fold(shared_
     assert model.config.members == 2 and model.config.mirror_average
     card = (tmp_path / "predictor-dctmlp-10-10.md").read_text()
     assert "cross-fitted" in card and "| 1 | " in card
+
+
+def test_root_input_model_uses_the_root_velocity_in_the_heading_frame(windows, tmp_path):
+    history, root = windows.frames[:4, :11], windows.root[:4, :11]
+    model = _perturbed(R.RegressionConfig(10, 10, root_input=True, mirror_average=True), 5)
+    torch.manual_seed(6)
+    for net in model.nets:
+        torch.nn.init.normal_(net.root.weight, std=0.5)
+    pred = model.predict(history, root=root)
+    # a translated root is the same motion; a faster root is not
+    np.testing.assert_allclose(model.predict(history, root=root + np.float32([3, -2, 0])),
+                               pred, atol=1e-5)
+    faster = root[:, :1] + 2.0 * (root - root[:, :1])
+    assert np.abs(model.predict(history, root=faster) - pred).max() > 1e-3
+    # turning the whole window (body and root path) turns the prediction
+    turned = P.rotate_z(history.astype(np.float64), np.full(4, 0.7))
+    turned_root = P.rotate_z(root.astype(np.float64), np.full(4, 0.7))
+    np.testing.assert_allclose(model.predict(turned, root=turned_root),
+                               P.rotate_z(pred.astype(np.float64), np.full(4, 0.7)), atol=1e-4)
+    again = R.DCTRegressionPredictor.load(model.save(tmp_path / "root.npz"))
+    np.testing.assert_array_equal(again.predict(history, root=root), pred)
+    with pytest.raises(MotionError, match="root trajectory") as err:
+        model.predict(history)
+    assert err.value.field == "root"
+    with pytest.raises(MotionError, match="root must be"):
+        model.predict(history, root=root[:2])
+
+
+def test_root_input_training_lowers_the_loss(clips):
+    train_w = pdata.windows_from_motions(clips[:1], 10, 10, stride=2)
+    model = R.DCTRegressionPredictor(R.RegressionConfig(10, 10, root_input=True))
+    residual, last, future = R.targets(model.history_len, train_w.frames)
+    velocity = R.root_targets(model.history_len, train_w.frames, train_w.root, train_w.fps)
+
+    def loss() -> float:
+        with torch.no_grad():
+            return R.regression_loss(model.forward(residual, last, velocity), future).item()
+
+    before = loss()
+    tp.train_regression(model, train_w, iterations=150, lr=1e-3, progress=False)
+    assert loss() < 0.8 * before
+
+
+def test_weighted_sampling_gives_the_extra_sources_their_share(shared_data, clips):
+    extra, notes = tp.extra_motions(shared_data, ["nuisi"])
+    names = [m.name for m in extra]
+    assert len(extra) == 18 and not notes  # 9 training repetitions x 2 people
+    assert not {n.rsplit("/", 1)[0] for n in names} & set(DEFAULT_TEST_RECORDINGS)
+    cmu = pdata.windows_from_motions(clips[:1], 10, 10, stride=4)
+    kin = pdata.windows_from_motions(extra[:2], 10, 10, stride=4)
+    both = pdata.PredictionWindows(
+        np.concatenate([cmu.frames, kin.frames]), np.concatenate([cmu.root, kin.root]),
+        np.concatenate([cmu.clip, kin.clip + len(cmu.clip_names)]),
+        np.concatenate([cmu.start, kin.start]), cmu.clip_names + kin.clip_names, 10, 10, 25.0)
+    w = tp.source_weights(both, 0.25)
+    extra_side = np.arange(len(both)) >= len(cmu)
+    assert w[extra_side].sum() / w.sum() == pytest.approx(0.25)
+    assert np.ptp(w[extra_side]) == 0 and np.ptp(w[~extra_side]) == 0
+    with pytest.raises(MotionError, match="extra_share"):
+        tp.source_weights(both, 1.0)
+    with pytest.raises(MotionError, match="sample_weights"):
+        tp.train_regression(R.DCTRegressionPredictor(R.RegressionConfig(10, 10)), both,
+                            iterations=1, sample_weights=w[:3], progress=False)
+    with pytest.raises(SimenvError, match="unknown extra data source"):
+        tp.extra_motions(shared_data, ["florence"])
