@@ -26,11 +26,35 @@ other         MSR hammer, hand catch, forward punch, high throw, draw x, draw   
               tick, draw circle, side-boxing, forward kick, side kick, jogging,
               tennis swing, tennis serve, golf swing, pick up & throw;
               UTKinect throw, push, pull
+idle          no dataset class: near-still real frames (see *Idle* below)        keep
 ============= ================================================================== =========
 
 The room column is :data:`ROOM_REACTIONS` (issue 4): ``greet`` = stop idling, face the
 user and wave back; ``hifi_down`` = turn the hi-fi down; ``bow_back`` = nod/bow back;
-``keep`` = keep working.
+``keep`` = keep working (no reaction; ``idle`` is one of them).
+
+Idle
+----
+``idle`` is "no gesture": standing or sitting still, small fidgets. No dataset labels it,
+so it is cut from real frames that carry no label and where the person is near-still
+(:func:`still_mask`): the speed of the head, elbows and wrists relative to the spine,
+averaged over :data:`IDLE_SMOOTH_S` (0.4 s), stays below :data:`IDLE_LIMB_SPEED_MPS`
+(0.35 m/s; a UTKinect or MSR wave moves the wrist at ~1 m/s, Kinect jitter of a still
+person reads ~0.1-0.2 m/s), and the horizontal spine speed below
+:data:`IDLE_ROOT_SPEED_MPS` (0.2 m/s; walking is ~0.65 m/s). Sources
+(:func:`idle_ranges`):
+
+* **UTKinect sessions** outside every labelled segment (a session's missing segment,
+  ``s10_e02 carry``, excludes the whole gap where it was done): runs of still frames of
+  at least :data:`IDLE_SESSION_MIN_S` (1 s), cut into equal pieces of at most 3 s;
+* **MSR Action3D and Florence clips**: the still lead-in (frames before the action
+  starts) and lead-out of each clip, when at least :data:`IDLE_EDGE_MIN_S` (0.5 s) long.
+  (The clip itself stays a sample of its class, lead-in included.) Florence clips are
+  0.4-1.8 s long and almost never start or end still.
+
+They come from every subject, and :func:`split_cross_subject` puts them on the side of
+their subject, so the classifier trains on idle stretches of training subjects only.
+``load_gesture_clips(idle=True)`` adds them (default: the labelled clips only).
 
 Dataset builder
 ---------------
@@ -90,6 +114,7 @@ VOCABULARY: dict[str, str] = {
     "bend_down": "folding the trunk toward the floor (pick up, tie a lace)",
     "walk": "walking (possibly carrying something)",
     "other": "any other action (sports moves, drawing in the air, pushing, throwing)",
+    "idle": "no gesture: standing or sitting still, small fidgets",
 }
 
 #: Class order of the classifier (index = class id).
@@ -155,6 +180,26 @@ _GESTURE15_PARENTS = (-1, 0, 1, 1, 3, 4, 1, 6, 7, 0, 9, 10, 0, 12, 13)
 
 JointSet = Literal["gesture15", "gesture9"]
 Crop = Literal["centre", "start", "random"]
+
+#: The "no gesture" label (no dataset class maps to it; see the module docstring, *Idle*).
+IDLE_LABEL = "idle"
+#: Speed of the head, elbows and wrists relative to the spine below which a frame is
+#: still, m/s (after :data:`IDLE_SMOOTH_S` of moving average).
+IDLE_LIMB_SPEED_MPS = 0.35
+#: Horizontal speed of the spine below which a frame is still, m/s (same average).
+IDLE_ROOT_SPEED_MPS = 0.2
+#: Moving-average span of the still test, s.
+IDLE_SMOOTH_S = 0.4
+#: Shortest idle stretch cut from an unlabelled part of a UTKinect session, s.
+IDLE_SESSION_MIN_S = 1.0
+#: Shortest still lead-in / lead-out of a clip taken as idle, s.
+IDLE_EDGE_MIN_S = 0.5
+#: Longest idle clip, s (longer stretches are cut into equal pieces).
+IDLE_MAX_S = 3.0
+_IDLE_LIMBS = ("head", "left_elbow", "left_wrist", "right_elbow", "right_wrist")
+#: UTKinect's actions in the order each session does them (for a missing segment).
+_UTK_ORDER = ("walk", "sitDown", "standUp", "pickUp", "carry", "throw", "push", "pull",
+              "waveHands", "clapHands")
 
 #: Left/right joint pairs by name, for mirroring.
 _MIRROR = {"left_shoulder": "right_shoulder", "left_elbow": "right_elbow",
@@ -334,6 +379,9 @@ class GestureClip:
         dataset: dataset key (:data:`DATASETS`).
         subject: the dataset's subject id.
         name: clip name (file stem, session + segment, or Florence video).
+        source: the recording's frames of this clip as the reader gave them (own
+            skeleton and frame rate), e.g. to retarget it into the room; None when the
+            clip was built from positions alone.
     """
 
     positions: np.ndarray
@@ -342,6 +390,7 @@ class GestureClip:
     dataset: str
     subject: int
     name: str
+    source: Motion | None = field(default=None, repr=False)
 
     @property
     def subject_key(self) -> str:
@@ -361,13 +410,111 @@ class LoadReport:
 
 
 def _clip(motion: Motion, dataset: str, source_label: str, subject: int, name: str,
-          joints: JointSet) -> GestureClip:
+          joints: JointSet, label: str | None = None) -> GestureClip:
     sub = motion.with_positions(to_gesture_joints(motion, joints),
                                 skeleton=gesture_skeleton(joints))
     if sub.num_frames >= 2:
         sub = sub.resample(GESTURE_FPS)
-    return GestureClip(sub.positions, gesture_label(dataset, source_label), source_label,
-                       dataset, int(subject), name)
+    return GestureClip(sub.positions, label or gesture_label(dataset, source_label),
+                       source_label, dataset, int(subject), name, motion)
+
+
+# -- idle -----------------------------------------------------------------------------
+
+
+def _moving_average(a: np.ndarray, n: int) -> np.ndarray:
+    """(T, ...) centred moving average over ``n`` frames (shorter at the ends)."""
+    c = np.cumsum(np.concatenate([np.zeros((1, *a.shape[1:])), a]), axis=0)
+    t = np.arange(len(a))
+    lo, hi = np.maximum(t - n // 2, 0), np.minimum(t - n // 2 + n, len(a))
+    return (c[hi] - c[lo]) / (hi - lo).reshape(-1, *([1] * (a.ndim - 1)))
+
+
+def still_mask(positions: np.ndarray, fps: float,
+               joints: Sequence[str] = GESTURE15_JOINTS) -> np.ndarray:
+    """(T,) bool: frames where the person is near-still (module docstring, *Idle*).
+
+    Args:
+        positions: (T, J, 3) positions, metres, Z up, on ``joints`` (spine, head, elbows
+            and wrists needed).
+        fps: frame rate of ``positions``, frames/s.
+
+    Raises:
+        MotionError: fewer than 2 frames, or a non-finite position.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    if x.ndim != 3 or x.shape[1:] != (len(joints), 3) or len(x) < 2:
+        raise MotionError(f"positions must be (T >= 2, {len(joints)}, 3); got {x.shape}",
+                          field="positions")
+    if not np.isfinite(x).all():
+        raise MotionError("positions hold a non-finite value", field="positions")
+    names = list(joints)
+    spine = names.index("spine")
+    limbs = x[:, [names.index(j) for j in _IDLE_LIMBS]] - x[:, spine:spine + 1]
+    n = max(int(round(IDLE_SMOOTH_S * fps)), 1)
+    limb = _moving_average(np.linalg.norm(np.gradient(limbs, axis=0), axis=-1) * fps, n)
+    root = _moving_average(np.linalg.norm(np.gradient(x[:, spine, :2], axis=0), axis=-1)
+                           * fps, n)
+    return (limb.max(axis=1) < IDLE_LIMB_SPEED_MPS) & (root < IDLE_ROOT_SPEED_MPS)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of each run of True in a (T,) bool array."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
+def _pieces(start: int, stop: int, longest: int) -> list[tuple[int, int]]:
+    """[start, stop) cut into the fewest equal pieces of at most ``longest`` frames."""
+    n = -(-(stop - start) // longest)
+    cuts = np.linspace(start, stop, n + 1).round().astype(int)
+    return list(zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True))
+
+
+def idle_ranges(motion: Motion, *, labelled: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """Idle stretches of a recording as frame ranges ``[start, stop)`` of ``motion``.
+
+    With ``labelled`` (a continuous session): every run of still frames outside the
+    labelled ones of at least :data:`IDLE_SESSION_MIN_S`. Without (a clip of one action):
+    its still lead-in and lead-out, each when at least :data:`IDLE_EDGE_MIN_S`. Runs
+    longer than :data:`IDLE_MAX_S` are cut into equal pieces.
+
+    Args:
+        motion: the reader's motion (any skeleton with the gesture keypoints, any fps).
+        labelled: (T,) bool, True on frames inside a labelled action.
+    """
+    if motion.num_frames < 2:
+        return []
+    still = still_mask(to_gesture_joints(motion), motion.fps)
+    longest = max(int(IDLE_MAX_S * motion.fps), 1)
+    if labelled is not None:
+        shortest = IDLE_SESSION_MIN_S * motion.fps
+        runs = [r for r in _runs(still & ~np.asarray(labelled, bool))
+                if r[1] - r[0] >= shortest]
+    else:
+        shortest = IDLE_EDGE_MIN_S * motion.fps
+        runs = [r for r in _runs(still) if (r[0] == 0 or r[1] == len(still))
+                and r[1] - r[0] >= shortest]
+    return [p for r in runs for p in _pieces(*r, longest)]
+
+
+def _session_labelled(session: Motion) -> np.ndarray:
+    """(T,) bool: frames inside a labelled segment of a UTKinect session, or inside the
+    gap where a segment missing from the label file (NaN bounds) was done."""
+    segs = sorted(session.metadata["segments"], key=lambda g: int(g["start"]))
+    labelled = np.zeros(session.num_frames, bool)
+    for g in segs:
+        labelled[int(g["start"]):int(g["end"])] = True
+    present = [str(g["label"]).strip() for g in segs]
+    for k, action in enumerate(_UTK_ORDER):
+        if action in present:
+            continue
+        before = [g for g in segs if str(g["label"]).strip() in _UTK_ORDER[:k]]
+        after = [g for g in segs if str(g["label"]).strip() in _UTK_ORDER[k + 1:]]
+        lo = int(before[-1]["end"]) if before else 0
+        hi = int(after[0]["start"]) if after else session.num_frames
+        labelled[lo:hi] = True
+    return labelled
 
 
 def load_gesture_clips(
@@ -376,6 +523,7 @@ def load_gesture_clips(
     datasets: Iterable[str] = DATASETS,
     joints: JointSet = "gesture15",
     report: LoadReport | None = None,
+    idle: bool = False,
 ) -> list[GestureClip]:
     """Load the labelled gesture recordings under ``root`` (the ``gestures`` folder).
 
@@ -384,6 +532,8 @@ def load_gesture_clips(
         datasets: which of :data:`DATASETS` to load.
         joints: gesture joint set.
         report: if given, filled with the recordings that were skipped and why.
+        idle: also cut the ``idle`` clips (:func:`idle_ranges`, every subject), each
+            right after the recording it comes from; their names end in ``_idle<k>``.
 
     Returns:
         Clips in a deterministic order (dataset, then file order).
@@ -409,6 +559,8 @@ def load_gesture_clips(
                     continue
                 clips.append(_clip(m, ds, str(m.metadata["label"]), int(m.metadata["subject"]),
                                    m.name, joints))
+                if idle:
+                    clips += _idle_clips(m, ds, int(m.metadata["subject"]), joints)
         elif ds == "utkinect":
             for path in sorted((root / "utkinect" / "joints").glob("joints_s*_e*.txt")):
                 session = utkinect.read(path)
@@ -421,6 +573,9 @@ def load_gesture_clips(
                     clips.append(_clip(session.slice(start, end), ds, str(seg["label"]),
                                        int(session.metadata["subject"]),
                                        f"{session.name}_{seg['label']}", joints))
+                if idle:
+                    clips += _idle_clips(session, ds, int(session.metadata["subject"]),
+                                         joints, _session_labelled(session))
         else:
             mat = root / "florence3d" / "skeletal_data.mat"
             if not mat.is_file():
@@ -428,6 +583,8 @@ def load_gesture_clips(
             for m in florence3d.read(mat):
                 clips.append(_clip(m, ds, str(m.metadata["label"]), int(m.metadata["subject"]),
                                    m.name, joints))
+                if idle:
+                    clips += _idle_clips(m, ds, int(m.metadata["subject"]), joints)
     if not clips:
         raise SimenvError(
             f"no gesture recording found under {root} (expected msr_action3d/, "
@@ -435,6 +592,15 @@ def load_gesture_clips(
             source=root,
         )
     return clips
+
+
+def _idle_clips(motion: Motion, dataset: str, subject: int, joints: JointSet,
+                labelled: np.ndarray | None = None) -> list[GestureClip]:
+    """The ``idle`` clips of one recording (:func:`idle_ranges`)."""
+    kind = "unlabelled still" if labelled is not None else "still lead-in/out"
+    return [_clip(motion.slice(a, b), dataset, kind, subject, f"{motion.name}_idle{k}",
+                  joints, label=IDLE_LABEL)
+            for k, (a, b) in enumerate(idle_ranges(motion, labelled=labelled))]
 
 
 def split_cross_subject(clips: Sequence[GestureClip]

@@ -38,7 +38,8 @@ def test_vocabulary_covers_every_indexed_class(gesture_root: Path) -> None:
     classes = {(r["dataset"], r["class_name"]) for r in rows}
     assert len(classes) == 20 + 10 + 9
     labels = {key: g.gesture_label(*key) for key in classes}
-    assert set(labels.values()) == set(g.GESTURE_LABELS)  # every label has real data
+    # Every label but idle (no dataset class; cut from unlabelled frames) has a class.
+    assert set(labels.values()) == set(g.GESTURE_LABELS) - {g.IDLE_LABEL}
     waves = {k for k, v in labels.items() if v == "wave"}
     assert waves == {("msr_action3d", "high arm wave"), ("msr_action3d", "horizontal arm wave"),
                      ("msr_action3d", "two hand wave"), ("utkinect", "waveHands"),
@@ -48,6 +49,7 @@ def test_vocabulary_covers_every_indexed_class(gesture_root: Path) -> None:
     assert {g.room_reaction(lab) for lab in g.GESTURE_LABELS} == {
         "greet", "hifi_down", "bow_back", "keep"}
     assert g.room_reaction("wave") == "greet" and g.room_reaction("clap") == "keep"
+    assert g.room_reaction(g.IDLE_LABEL) == "keep"  # no reaction to standing still
 
 
 def test_unknown_class_and_label_are_clear_errors() -> None:
@@ -113,8 +115,9 @@ def test_cross_subject_split_has_no_leak(clips) -> None:
     assert {c.dataset for c in train} == {c.dataset for c in test} == set(g.DATASETS)
     assert {s for s in test_subjects if s.startswith("msr")} == {
         "msr_action3d/s02", "msr_action3d/s04", "msr_action3d/s06", "msr_action3d/s08"}
-    # Every label except the Florence-only ones is in both sides, all in test.
-    assert {c.label for c in test} == set(g.GESTURE_LABELS) == {c.label for c in train}
+    # Every labelled class is on both sides (idle comes with idle=True).
+    labelled = set(g.GESTURE_LABELS) - {g.IDLE_LABEL}
+    assert {c.label for c in test} == labelled == {c.label for c in train}
 
 
 def test_normalisation_is_invariant_to_pose_placement(clips) -> None:
@@ -177,3 +180,90 @@ def test_bad_input_is_a_clear_error(tmp_path: Path, clips) -> None:
     motion = Motion(raw[:, :9], 25.0, partial)
     with pytest.raises(SkeletonError, match="left_elbow, right_elbow"):
         g.to_gesture_joints(motion, "gesture9")
+
+
+# -- idle --------------------------------------------------------------------------------
+
+
+def _still_pose(T: int, fps: float, jitter_m: float, seed: int = 0) -> np.ndarray:
+    """(T, 15, 3) a standing gesture15 pose plus Gaussian jitter (Kinect-like noise)."""
+    base = {"spine": (0, 0, 1.1), "neck": (0, 0, 1.45), "head": (0, 0, 1.6),
+            "left_shoulder": (0, 0.18, 1.42), "left_elbow": (0, 0.2, 1.15),
+            "left_wrist": (0, 0.2, 0.9), "right_shoulder": (0, -0.18, 1.42),
+            "right_elbow": (0, -0.2, 1.15), "right_wrist": (0, -0.2, 0.9),
+            "left_hip": (0, 0.1, 0.95), "left_knee": (0, 0.1, 0.5), "left_ankle": (0, 0.1, 0.08),
+            "right_hip": (0, -0.1, 0.95), "right_knee": (0, -0.1, 0.5),
+            "right_ankle": (0, -0.1, 0.08)}
+    pose = np.array([base[j] for j in g.GESTURE15_JOINTS])
+    rng = np.random.default_rng(seed)
+    return np.repeat(pose[None], T, axis=0) + rng.normal(0, jitter_m, (T, 15, 3))
+
+
+def test_still_mask_on_known_speeds() -> None:
+    """Analytic cases: a pose with 3 mm jitter is still; a wrist sweeping side to side, or
+    the whole body gliding at 0.5 m/s, is not; the threshold is in m/s (any fps)."""
+    fps = 15.0
+    still = _still_pose(60, fps, 0.003)
+    assert g.still_mask(still, fps).all()
+    wrist = g.GESTURE15_JOINTS.index("right_wrist")
+    sweep = still.copy()
+    t = np.arange(60) / fps
+    sweep[:, wrist, 1] += 0.45 * np.sin(t / 0.3)  # 1.5 m/s peak, 0.48 m/s at the turns
+    assert not g.still_mask(sweep, fps)[10:50].any()
+    glide = still + (0.5 * t)[:, None, None] * np.array([1.0, 0.0, 0.0])
+    assert not g.still_mask(glide, fps).any()
+    slow = still + (0.1 * t)[:, None, None] * np.array([1.0, 0.0, 0.0])  # 0.1 m/s drift
+    assert g.still_mask(slow, fps).all()
+    # The same motion sampled at 25 fps gives the same verdicts.
+    t25 = np.arange(100) / 25.0
+    glide25 = _still_pose(100, 25.0, 0.003) + (0.5 * t25)[:, None, None] * np.array(
+        [1.0, 0.0, 0.0])
+    assert not g.still_mask(glide25, 25.0).any()
+    with pytest.raises(MotionError, match="positions"):
+        g.still_mask(still[:1], fps)
+
+
+@pytest.fixture(scope="module")
+def idle_clips(gesture_root: Path) -> list[g.GestureClip]:
+    clips = g.load_gesture_clips(gesture_root, idle=True)
+    return [c for c in clips if c.label == g.IDLE_LABEL]
+
+
+def test_idle_clips_come_from_unlabelled_still_frames(gesture_root: Path, idle_clips) -> None:
+    """Every UTKinect idle range of a training session lies outside its labelled segments
+    and is still throughout; MSR idle clips are a clip's lead-in or lead-out; lengths are
+    within the documented bounds; both datasets give idle clips on both sides of the
+    split, and Florence (clips of 0.4-1.8 s, moving from the first frame) almost none."""
+    from simenv.io import utkinect
+
+    session = utkinect.read(gesture_root / "utkinect" / "joints" / "joints_s03_e01.txt")
+    labelled = g._session_labelled(session)
+    ranges = g.idle_ranges(session, labelled=labelled)
+    assert ranges
+    still = g.still_mask(g.to_gesture_joints(session), session.fps)
+    for a, b in ranges:
+        assert not labelled[a:b].any() and still[a:b].all()
+        assert g.IDLE_SESSION_MIN_S * session.fps <= b - a <= g.IDLE_MAX_S * session.fps
+    kinds = Counter((c.dataset, c.source_label) for c in idle_clips)
+    assert kinds[("utkinect", "unlabelled still")] > 0
+    assert kinds[("msr_action3d", "still lead-in/out")] > 0
+    assert kinds[("florence3d", "still lead-in/out")] <= 2
+    train, test = g.split_cross_subject(idle_clips)
+    assert train and test and all(c.subject % 2 == 1 for c in train)
+    for c in idle_clips:
+        assert c.source is not None and c.name.rsplit("_idle", 1)[0] == c.source.name
+        assert c.num_frames <= g.IDLE_MAX_S * g.GESTURE_FPS + 1
+    msr = next(c for c in idle_clips if c.dataset == "msr_action3d")
+    from simenv.io import msr_action3d
+
+    whole = msr_action3d.read(gesture_root / "msr_action3d" / f"{msr.source.name}.txt")
+    n = msr.source.num_frames
+    at_start = np.array_equal(msr.source.positions, whole.positions[:n])
+    at_end = np.array_equal(msr.source.positions, whole.positions[-n:])
+    assert at_start or at_end
+    # The UTKinect session with a missing (NaN) segment: its gap is excluded too.
+    s10 = utkinect.read(gesture_root / "utkinect" / "joints" / "joints_s10_e02.txt")
+    segs = sorted(s10.metadata["segments"], key=lambda d: int(d["start"]))
+    pick = next(d for d in segs if d["label"].strip() == "pickUp")
+    throw = next(d for d in segs if d["label"].strip() == "throw")
+    assert g._session_labelled(s10)[int(pick["end"]):int(throw["start"])].all()
