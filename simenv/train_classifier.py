@@ -1,17 +1,25 @@
 """Train and evaluate the gesture classifier on the real gesture recordings.
 
 Data: every recording of ``shared/data/gestures`` (MSR Action3D, UTKinect, Florence 3D),
-built by :mod:`simenv.gestures` (vocabulary, joint set, 25 fps, 3 s windows, normalisation)
-and split cross-subject (:func:`simenv.gestures.split_cross_subject`: odd subject ids
+built by :mod:`simenv.gestures` (vocabulary, joint set, 25 fps, 3 s windows, normalisation),
+plus the ``idle`` clips cut from their near-still unlabelled frames
+(``load_gesture_clips(idle=True)``, module docstring of :mod:`simenv.gestures`), and split
+cross-subject (:func:`simenv.gestures.split_cross_subject`: odd subject ids
 train, even ids test; no subject on both sides). No validation split is carved out: the
 schedule is fixed in advance and the test split is only read after training.
 
 Training (seeded; CPU, one thread): AdamW, cosine learning rate with a linear warm-up,
 cross-entropy with label smoothing and class weights ``(N / (C n_c))^(1/2)`` (the pooled
 ``other`` class is ~half the data); batches group windows of similar length
-(:func:`length_buckets`). Each epoch draws a fresh random 3-s crop of every
-clip and augments it: mirror image (p = 0.5; a left-handed wave is still a wave), a yaw
-of up to ±15° and a scale of ±10 % (noise of the facing and size normalisation).
+(:func:`length_buckets`). Each epoch draws a fresh window of every clip
+(:func:`training_windows`): a random 3-s crop, or (with ``short_prob``) a random 1 s of
+the clip with the rest masked -- the ``real_1s`` condition and the perception loop's real
+stage --, or (with ``hold_prob``) a random 1 s followed by its last pose held *as valid
+frames* -- the zero-velocity ``1 s + 2 s`` condition, and the loop's predicted stage when
+the forecast hardly moves (the shipped WGAN's does not: without these windows the network
+read "1 s of anything, then a held pose" as a wave). Then it augments them: mirror image
+(p = 0.5; a left-handed wave is still a wave), a yaw of up to ±15° and a scale of ±10 %
+(noise of the facing and size normalisation).
 
 Evaluation, the thesis's way, on the test subjects (windows centre-cropped):
 
@@ -30,7 +38,9 @@ Evaluation, the thesis's way, on the test subjects (windows centre-cropped):
   similarity transform fixed by the first 10 (real) frames, so this equals extrapolating
   in the world frame and normalising afterwards.
 
-Per condition: accuracy, balanced accuracy (mean per-class recall), per-class recall,
+The test windows include the test subjects' ``idle`` clips. Per condition: accuracy,
+the accuracy on the labelled clips alone (``accuracy_labelled``: the test set of a model
+without the idle class), balanced accuracy (mean per-class recall), per-class recall,
 confusion matrix (rows = true, columns = predicted), accuracy per dataset, and the room's
 reaction accuracy (true and predicted labels mapped through
 :func:`simenv.gestures.room_reaction`). Outputs: ``metrics.json``, ``confusion.png``,
@@ -62,16 +72,20 @@ from simenv.config import read_options
 from simenv.errors import MotionError, SimenvError
 from simenv.gestures import (
     GESTURE15_JOINTS,
+    GESTURE_FPS,
     GESTURE_LABELS,
+    IDLE_LABEL,
     SHORT_FRAMES,
     WINDOW_FRAMES,
     GestureClip,
     GestureWindows,
     LoadReport,
+    cut_window,
     gesture_skeleton,
     load_gesture_clips,
     make_windows,
     mirror_windows,
+    normalise_windows,
     room_reaction,
     split_cross_subject,
 )
@@ -102,6 +116,9 @@ class TrainConfig:
         label_smoothing: cross-entropy label smoothing.
         dim, heads, layers, ffn, feature_dim, dropout: architecture.
         mirror, max_yaw_deg, max_scale: augmentation (see the module docstring).
+        short_prob, hold_prob: probability of a 1-s window with the rest masked / held
+            as valid frames (:func:`training_windows`).
+        idle: train with the ``idle`` clips (and test on the test subjects' ones).
         max_minutes: CPU-time budget of this process (reproducible on a shared machine,
             unlike wall time); training stops after the epoch that exceeds it
             (recorded in the metrics as ``stopped_early``).
@@ -125,6 +142,9 @@ class TrainConfig:
     mirror: bool = True
     max_yaw_deg: float = 15.0
     max_scale: float = 0.1
+    short_prob: float = 0.25
+    hold_prob: float = 0.25
+    idle: bool = True
     max_minutes: float = 8.0
 
     @classmethod
@@ -159,6 +179,34 @@ def augment(x: np.ndarray, rng: np.random.Generator, config: TrainConfig,
     x[..., 0], x[..., 1] = c * x0 - s * x1, s * x0 + c * x1
     scale = rng.uniform(1 - config.max_scale, 1 + config.max_scale, len(x))
     return (x * scale[:, None, None, None]).astype(np.float32)
+
+
+def training_windows(clips: Sequence[GestureClip], rng: np.random.Generator,
+                     config: TrainConfig, joints: Sequence[str]) -> GestureWindows:
+    """One fresh, normalised training window per clip (see the module docstring).
+
+    Each window is, independently: with probability ``config.short_prob`` a random
+    :data:`~simenv.gestures.SHORT_FRAMES` (1 s) of the clip, padded to 75 frames by holding
+    its last pose and the padding masked; with ``config.hold_prob`` the same 1 s with the
+    held frames *valid*; otherwise a random 75-frame (3 s) crop (a shorter clip whole,
+    padding masked). Clips shorter than 1 s are taken whole in every case.
+    """
+    kinds = rng.choice(3, size=len(clips), p=[1.0 - config.short_prob - config.hold_prob,
+                                              config.short_prob, config.hold_prob])
+    xs, vs = [], []
+    for clip, kind in zip(clips, kinds, strict=True):
+        span = WINDOW_FRAMES if kind == 0 else SHORT_FRAMES
+        offset = int(rng.integers(0, max(clip.num_frames - span, 0) + 1))
+        w, v = cut_window(clip.positions, offset=offset,
+                          real_frames=None if kind == 0 else SHORT_FRAMES)
+        xs.append(w)
+        vs.append(np.ones_like(v) if kind == 2 else v)
+    valid = np.stack(vs)
+    x = normalise_windows(np.stack(xs), valid, joints=joints)
+    y = np.array([GESTURE_LABELS.index(c.label) for c in clips], dtype=np.int64)
+    return GestureWindows(x, valid, y, tuple(c.subject_key for c in clips),
+                          tuple(c.dataset for c in clips), tuple(c.name for c in clips),
+                          tuple(joints))
 
 
 def length_buckets(lengths: np.ndarray, batch_size: int, rng: np.random.Generator,
@@ -230,7 +278,7 @@ def train(config: TrainConfig, train_clips: Sequence[GestureClip], *, progress: 
     start = time.process_time()
     bar = tqdm(range(config.epochs), desc="train gesture classifier", disable=not progress)
     for _ in bar:
-        windows = make_windows(train_clips, crop="random", rng=rng, joints=joints)
+        windows = training_windows(train_clips, rng, config, joints)
         x = augment(windows.x, rng, config, joints)
         batches = length_buckets(windows.valid.sum(1), config.batch_size, rng)
         losses, correct = [], 0
@@ -342,9 +390,11 @@ def score(y_true: np.ndarray, y_pred: np.ndarray, datasets: Sequence[str]) -> di
               for k in range(c) if support[k]}
     ds = np.asarray(datasets)
     react = np.array([room_reaction(GESTURE_LABELS[k]) for k in range(c)])
+    labelled = y_true != GESTURE_LABELS.index(IDLE_LABEL)
     return {
         "n": int(len(y_true)),
         "accuracy": round(float((y_true == y_pred).mean()), 4),
+        "accuracy_labelled": round(float((y_true == y_pred)[labelled].mean()), 4),
         "balanced_accuracy": round(float(np.mean(list(recall.values()))), 4),
         "per_class_recall": recall,
         "support": {GESTURE_LABELS[k]: int(support[k]) for k in range(c)},
@@ -400,13 +450,25 @@ def plot_confusions(results: dict[str, Any], path: Path) -> Path:
 
 def split_summary(train_clips: Sequence[GestureClip], test_clips: Sequence[GestureClip]
                   ) -> dict[str, Any]:
-    """Subjects and clip counts of each side of the split."""
+    """Subjects and clip counts of each side of the split (``*_idle``: of them, the
+    ``idle`` clips per dataset and source, with their seconds of motion)."""
+    def idle(clips: Sequence[GestureClip]) -> dict[str, Any]:
+        rows: dict[str, Any] = {}
+        for c in clips:
+            if c.label == IDLE_LABEL:
+                row = rows.setdefault(f"{c.dataset}: {c.source_label}", {"clips": 0, "s": 0.0})
+                row["clips"] += 1
+                row["s"] = round(row["s"] + c.num_frames / GESTURE_FPS, 2)
+        return rows
+
     return {
         "rule": "odd subject ids train, even ids test, per dataset (subject = dataset/sNN)",
         "train_subjects": sorted({c.subject_key for c in train_clips}),
         "test_subjects": sorted({c.subject_key for c in test_clips}),
         "train_clips": len(train_clips),
         "test_clips": len(test_clips),
+        "train_idle": idle(train_clips),
+        "test_idle": idle(test_clips),
     }
 
 
@@ -417,19 +479,22 @@ def results_markdown(metrics: dict[str, Any]) -> str:
     ev = metrics["test"]
     per_ds = " / ".join(sorted(ev["real_3s"]["per_dataset_accuracy"]))
     rows = "\n".join(
-        f"| {c} | {ev[c]['accuracy']:.3f} | {ev[c]['balanced_accuracy']:.3f} | "
-        f"{ev[c]['room_reaction_accuracy']:.3f} | "
+        f"| {c} | {ev[c]['accuracy']:.3f} | {ev[c].get('accuracy_labelled', ev[c]['accuracy']):.3f}"
+        f" | {ev[c]['balanced_accuracy']:.3f} | {ev[c]['room_reaction_accuracy']:.3f} | "
         + " / ".join(f"{ev[c]['per_dataset_accuracy'][d]:.3f}"
                      for d in sorted(ev[c]['per_dataset_accuracy'])) + " |"
         for c in ev)
     recall = "\n".join(
         f"| {k} | {ev['real_3s']['support'][k]} | {ev['real_3s']['per_class_recall'].get(k, 0):.3f}"
         f" | {ev['real_1s']['per_class_recall'].get(k, 0):.3f} |" for k in GESTURE_LABELS)
-    head = ("| condition | accuracy | balanced acc. | room-reaction acc. | "
-            f"per dataset ({per_ds}) |")
+    head = ("| condition | accuracy | labelled clips only | balanced acc. | "
+            f"room-reaction acc. | per dataset ({per_ds}) |")
     return f"""{head}
-|---|---|---|---|---|
+|---|---|---|---|---|---|
 {rows}
+
+"labelled clips only": the accuracy without the `idle` test windows (the test set of the
+classifier before it had an idle class).
 
 `real_1s_pred_2s_model`: 1 s real + 2 s predicted by the shipped
 `{metrics.get('predictor') or 'predictor-25-50 (not shipped: condition skipped)'}`;
@@ -443,6 +508,13 @@ Per-class recall (test):
 |---|---|---|---|
 {recall}
 """
+
+
+def _idle_text(rows: dict[str, Any] | None) -> str:
+    """``split_summary``'s idle counts as a phrase."""
+    if not rows:
+        return "none"
+    return ", ".join(f"{k} {v['clips']} clips ({v['s']:.1f} s)" for k, v in rows.items())
 
 
 def model_card(metrics: dict[str, Any]) -> str:
@@ -465,6 +537,9 @@ world-frame windows: `model.classify_world(x)`.
 Real Kinect-era recordings in `shared/data/gestures` (research use; see its SOURCES.md):
 MSR Action3D (s01-s09), UTKinect-Action3D (segments of the 20 sessions), Florence 3D.
 {metrics['clips']} clips; skipped: {'; '.join(metrics['skipped']) or 'none'}.
+`idle` (no gesture) clips, cut from real near-still frames that carry no label (criterion
+and sources: `simenv.gestures`, section *Idle*): train {_idle_text(split.get('train_idle'))};
+test {_idle_text(split.get('test_idle'))}.
 
 ## Split (cross-subject)
 {split['rule']}. Train: {split['train_clips']} clips, {len(split['train_subjects'])} subjects;
@@ -475,7 +550,9 @@ sides. No model selection on the test split (fixed schedule).
 Seed {cfg['seed']}, {metrics['history']['epochs_run']} epochs in
 {metrics['history']['train_seconds']:.0f} CPU s on one thread; AdamW lr {cfg['lr']}, batch
 {cfg['batch_size']}, dim {cfg['dim']}, {cfg['layers']} blocks, {cfg['heads']} heads;
-augmentation: random 3-s crop, mirror, yaw ±{cfg['max_yaw_deg']}°, scale ±{cfg['max_scale']}.
+windows: random 3-s crop, or a random 1 s with the rest masked (p {cfg.get('short_prob', 0)})
+or held as valid frames (p {cfg.get('hold_prob', 0)}); augmentation: mirror, yaw
+±{cfg['max_yaw_deg']}°, scale ±{cfg['max_scale']}.
 Parameters: {metrics['parameters']}.
 
 ## Test results (cross-subject)
@@ -491,7 +568,7 @@ def run_training(config: TrainConfig, out: Path, *, progress: bool = True) -> di
     out = Path(out)
     report = LoadReport()
     clips = load_gesture_clips(config.data, joints=config.joints,  # type: ignore[arg-type]
-                               report=report)
+                               report=report, idle=config.idle)
     train_clips, test_clips = split_cross_subject(clips)
     if not test_clips:
         raise SimenvError("the cross-subject split left no test clip (no even subject id)",
@@ -531,7 +608,8 @@ def run_evaluation(checkpoint: Path, data: Path, out: Path) -> dict[str, Any]:
     model = GestureClassifier.load(checkpoint)
     joints = model.config.extra.get("joint_set", "gesture15")
     report = LoadReport()
-    clips = load_gesture_clips(data, joints=joints, report=report)
+    clips = load_gesture_clips(data, joints=joints, report=report,
+                               idle=IDLE_LABEL in model.config.labels)
     train_clips, test_clips = split_cross_subject(clips)
     predictor = shipped_predictor()
     results = evaluate(model, test_clips, predictor)

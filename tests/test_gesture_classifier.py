@@ -24,6 +24,7 @@ from simenv.train_classifier import (
     extrapolate,
     score,
     train_step,
+    training_windows,
 )
 
 SHIPPED = Path(__file__).resolve().parent.parent / "assets" / "models" / "gesture-classifier.npz"
@@ -171,10 +172,41 @@ def test_extrapolation_and_scores(florence) -> None:
     y_pred = np.array([0, 1, 1, 2, 0])
     s = score(y_true, y_pred, ["a", "a", "b", "b", "b"])
     assert s["accuracy"] == 0.6
-    assert s["confusion"][0] == [1, 1] + [0] * 9 and s["confusion"][10][0] == 1
+    c = len(g.GESTURE_LABELS)
+    assert s["confusion"][0] == [1, 1] + [0] * (c - 2) and s["confusion"][10][0] == 1
     assert s["per_dataset_accuracy"] == {"a": 0.5, "b": round(2 / 3, 4)}
     # wave (0) -> answer_phone (1) is a wrong reaction; other (10) -> wave too.
     assert s["room_reaction_accuracy"] == 0.6
+    # An idle window read as idle counts in the accuracy, not in accuracy_labelled.
+    idle = g.GESTURE_LABELS.index(g.IDLE_LABEL)
+    s = score(np.append(y_true, idle), np.append(y_pred, idle), ["a", "a", "b", "b", "b", "b"])
+    assert s["accuracy"] == round(4 / 6, 4) and s["accuracy_labelled"] == 0.6
+
+
+def test_training_windows_short_held_and_full(florence) -> None:
+    """The three kinds of training window: 1 s with the rest masked, 1 s with the last
+    pose held as valid frames, a 3-s crop; each a contiguous stretch of its clip."""
+    long_clips = [c for c in florence if c.num_frames > 30][:8]
+    joints = g.GESTURE15_JOINTS
+    masked = training_windows(long_clips, np.random.default_rng(0),
+                              TrainConfig(short_prob=1.0, hold_prob=0.0), joints)
+    assert (masked.valid.sum(1) == g.SHORT_FRAMES).all()
+    held = training_windows(long_clips, np.random.default_rng(0),
+                            TrainConfig(short_prob=0.0, hold_prob=1.0), joints)
+    assert held.valid.all()
+    assert np.allclose(held.x[:, g.SHORT_FRAMES:], held.x[:, g.SHORT_FRAMES - 1:g.SHORT_FRAMES])
+    assert np.allclose(held.x[:, :g.SHORT_FRAMES], masked.x[:, :g.SHORT_FRAMES])  # same draw
+    full = training_windows(long_clips, np.random.default_rng(0),
+                            TrainConfig(short_prob=0.0, hold_prob=0.0), joints)
+    assert (full.valid.sum(1) == [min(c.num_frames, 75) for c in long_clips]).all()
+    # The 1 s is a stretch of the clip: it equals the clip's frames at some offset once
+    # both are normalised the same way.
+    clip = long_clips[0]
+    offsets = [o for o in range(clip.num_frames - g.SHORT_FRAMES + 1) if np.allclose(
+        g.normalise_windows(*g.cut_window(clip.positions, offset=o,
+                                          real_frames=g.SHORT_FRAMES)), masked.x[0],
+        atol=1e-5)]
+    assert len(offsets) == 1
 
 
 @pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped gesture classifier checkpoint")
