@@ -21,9 +21,11 @@ documented last-bits exception, and
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from operator import itemgetter
+from typing import NamedTuple
 
 import numpy as np
 from numba import types
@@ -121,8 +123,10 @@ class ClipBatch:
         fail it."""
         if len(self.names) < 2:
             return
-        for b in np.flatnonzero(~(span > MIN_PERSON_EXTENT_M * 1.1)):
-            self.reasons[b] = _canonical_reason(self.motions[b])
+        limit = MIN_PERSON_EXTENT_M * 1.1
+        for b, s in enumerate(span.tolist()):
+            if not s > limit:
+                self.reasons[b] = _canonical_reason(self.motions[b])
 
     @property
     def size(self) -> int:
@@ -154,13 +158,18 @@ def batches(motions: Sequence[Motion], max_frames: int | None = None
     """
     max_frames = BATCH_FRAMES if max_frames is None else max_frames
     groups: dict[tuple, list[int]] = {}
-    # Clips cut from one motion share its skeleton object: one key each.
-    keys: dict[int, tuple] = {}
+    # Clips cut from one motion share its skeleton object: one layout key
+    # each, numbered, so that grouping hashes a small tuple per clip instead
+    # of the key's names and parents (3 us a clip, as much as its kernels on
+    # a 2 s window).
+    layouts: dict[tuple, int] = {}
+    numbers: dict[int, int] = {}
     for i, m in enumerate(motions):
-        key = keys.get(id(m.skeleton))
-        if key is None:
-            key = keys[id(m.skeleton)] = _layout_key(m.skeleton)
-        groups.setdefault((key, m.fps, m.num_frames), []).append(i)
+        number = numbers.get(id(m.skeleton))
+        if number is None:
+            number = numbers[id(m.skeleton)] = layouts.setdefault(
+                _layout_key(m.skeleton), len(layouts))
+        groups.setdefault((number, m.fps, m.num_frames), []).append(i)
     for (_, _, frames), members in groups.items():
         per = max(1, max_frames // frames)
         for start in range(0, len(members), per):
@@ -209,10 +218,28 @@ class MetricSpec:
                 for r in batch.reasons]
 
 
+class _Layout(NamedTuple):
+    """How a spec's details are read: their ``keys`` in order, the
+    ``constants`` appended to the kernel's detail columns, and ``pick``,
+    which takes the keys' values from that (columns + constants) row."""
+
+    keys: tuple[str, ...]
+    constants: list[float]
+    pick: Callable[[list[float]], tuple[float, ...]]
+
+
+def _picker(order: list[int]) -> Callable[[list[float]], tuple[float, ...]]:
+    """``row -> tuple(row[i] for i in order)``, in C for two or more
+    indices (``itemgetter`` returns a bare item for one)."""
+    if len(order) > 1:
+        return itemgetter(*order)
+    return lambda row: tuple(row[i] for i in order)
+
+
 class Plan:
     """Metric specs prepared once for :func:`score`: which kernel slots run,
     their arguments, per-frame thresholds and comparison precision, and per
-    spec the order of its details.
+    spec the layout of its details (:class:`_Layout`).
 
     A plan depends only on the layout, frame rate, length and thresholds of
     a batch, so callers may keep one for every batch of that shape.
@@ -224,8 +251,10 @@ class Plan:
         self.frame_thresholds = np.zeros(kernels.N_METRICS)
         self.in_float32 = np.zeros(kernels.N_METRICS, dtype=np.bool_)
         args = dict(kernels.IDLE_ARGS)
-        self.details: list[tuple[tuple[str, ...], list[float], list[int]]] = []
+        self.layouts: list[_Layout] = []
         for s in self.specs:
+            # A result's details are picked from its clip's row: the
+            # kernel's detail columns, then the spec's constants.
             keys, constants, order = [], [], []
             for d in s.details:
                 if isinstance(d, str):
@@ -235,7 +264,7 @@ class Plan:
                     order.append(kernels.N_DETAILS + len(constants))
                     constants.append(float(d[1]))
                     keys.append(d[0])
-            self.details.append((tuple(keys), constants, order))
+            self.layouts.append(_Layout(tuple(keys), constants, _picker(order)))
             if s.args is None:
                 continue
             self.enabled[s.slot] = True
@@ -272,7 +301,7 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[Met
     bounds = offsets.tolist()
     ok = available.tolist()
     out = []
-    for s, layout in zip(plan.specs, plan.details, strict=True):
+    for s, layout in zip(plan.specs, plan.layouts, strict=True):
         if s.args is None:
             out.append(s.not_available(batch))
             continue
@@ -291,38 +320,39 @@ _FROM_FIELDS = not hasattr(MetricResult, "__post_init__") and not hasattr(
     MetricResult, "__slots__")
 
 
-def _results(batch: ClipBatch, spec: MetricSpec,
-             layout: tuple[tuple[str, ...], list[float], list[int]], tl: np.ndarray,
+def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray,
              values: list[float], columns: list[list[float]],
              spans: list[tuple[int, int, float]], bounds: list[int], ok: list[bool] | None
              ) -> list[MetricResult]:
-    """The results of one metric: ``layout`` its detail keys, constant
-    details and the order of both in the (kernel columns + constants) row,
+    """The results of one metric: ``layout`` how its details are read,
     ``tl`` (B, T) float32 timelines, ``values`` (B,), ``columns`` (B, 4)
     detail columns, the violation runs and their bounds (see
     :func:`simenv.plausibility.kernels.score`), ``ok`` (B,) clips the metric
     could be computed on (None: all)."""
-    thr = float(spec.threshold)
+    name, unit, limit = spec.name, spec.unit, spec.threshold
+    thr = float(limit)
     ft = thr if spec.frame_threshold is None else float(spec.frame_threshold)
-    unit_tl = spec.timeline_unit or spec.unit
-    keys, constants, order = layout
+    unit_tl = spec.timeline_unit or unit
+    keys, constants, pick = layout
+    first = spec.slot
     out = []
-    for b in range(batch.size):
-        r = batch.reasons[b] or (None if ok is None or ok[b] else spec.reason)
-        if r is not None:
+    # Per clip only what differs; a row view per clip from iterating tl.
+    for b, (v, row, timeline, reason) in enumerate(zip(values, columns, tl, batch.reasons,
+                                                       strict=True)):
+        if reason is None and ok is not None and not ok[b]:
+            reason = spec.reason
+        if reason is not None:
             out.append(MetricResult.not_available(
-                spec.name, batch.num_frames, spec.unit, spec.threshold, r,
+                name, batch.num_frames, unit, limit, reason,
                 frame_threshold=spec.frame_threshold, timeline_unit=spec.timeline_unit))
             continue
-        row = columns[b] + constants
-        v = values[b]
-        k = b * kernels.N_METRICS + spec.slot
-        details = dict(zip(keys, [row[i] for i in order], strict=True))
+        k = b * kernels.N_METRICS + first
         fields = {
-            "name": spec.name, "value": v, "unit": spec.unit, "threshold": thr,
-            "passed": v <= spec.threshold, "timeline": tl[b],
+            "name": name, "value": v, "unit": unit, "threshold": thr,
+            "passed": v <= limit, "timeline": timeline,
             "violations": spans[bounds[k]:bounds[k + 1]], "frame_threshold": ft,
-            "timeline_unit": unit_tl, "details": details,
+            "timeline_unit": unit_tl, "details": dict(zip(keys, pick(row + constants),
+                                                          strict=True)),
             "reason": None,
         }
         if _FROM_FIELDS:
