@@ -33,6 +33,7 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -456,7 +457,177 @@ class PerceptionLoop:
                           time.perf_counter() - start)
 
 
+# -- the loop measured on labelled clips --------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LoopReading:
+    """Both stages of one perception tick on one clip, before any threshold.
+
+    Attributes:
+        name, label, subject: the clip's name, true label and subject key.
+        p_real: (C,) probabilities on the 1 s of real motion.
+        p_pred: (C,) probabilities on the 1 s real + the predicted frames.
+    """
+
+    name: str
+    label: str
+    subject: str
+    p_real: np.ndarray
+    p_pred: np.ndarray
+
+
+def loop_readings(clips: Sequence[GestureClip], classifier: GestureModel, predictor: Any,
+                  *, scenario: str = "default", real_frames: int = 25,
+                  progress: bool = False) -> tuple[list[LoopReading], list[str]]:
+    """The loop's stages on each clip, the room's way.
+
+    Each clip's recording (``clip.source``) is retargeted onto the user in ``scenario``
+    (:func:`simenv.session.user_track`) and the avatar's canonical keypoints are read at
+    the tick ending ``real_frames`` into the clip's centre 3-s window (the frames a short
+    clip lacks before it repeat its first, as when a session starts).
+
+    Returns:
+        (one reading per clip that could be retargeted, the skipped clips with the
+        reason: no source motion, or no pelvis keypoint as in Florence 3D).
+    """
+    from tqdm import tqdm
+
+    from simenv.session import Session, user_track
+
+    need = max(real_frames, int(getattr(predictor, "history_len", real_frames)))
+    readings, skipped = [], []
+    joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
+    for clip in tqdm(clips, desc="loop readings", disable=not progress):
+        if clip.source is None:
+            skipped.append(f"{clip.name}: no source motion")
+            continue
+        try:
+            kp = user_track(Session(clip.source), scenario).keypoints.astype(np.float32)
+        except SimenvError as exc:
+            skipped.append(f"{clip.name}: {exc.detail}")
+            continue
+        end = min(max(len(kp) - WINDOW_FRAMES, 0) // 2 + real_frames, len(kp))
+        h = kp[max(end - need, 0):end]
+        h = np.concatenate([np.repeat(h[:1], need - len(h), axis=0), h])
+        real = h[-real_frames:][:, joints]
+        p_real = classifier.classify(real, np.ones(len(real), bool))
+        future = np.asarray(predictor.predict(h[-int(predictor.history_len):]), np.float32)
+        both = np.concatenate([real, future[:, joints]])
+        p_pred = classifier.classify(both, np.ones(len(both), bool))
+        readings.append(LoopReading(clip.name, clip.label, clip.subject_key,
+                                    np.asarray(p_real), np.asarray(p_pred)))
+    return readings, skipped
+
+
+def loop_decisions(readings: Sequence[LoopReading], labels: Sequence[str], threshold: float,
+                   greet: str = "wave") -> dict[str, Any]:
+    """What :class:`PerceptionLoop` decides on each reading at ``threshold`` (real stage
+    first, then real + predicted), summed up: clips decided, decided label right, greet
+    (label ``greet`` decided) on ``greet`` clips / on the others / on ``idle`` clips, as
+    ``[k, n]``, and decisions per stage."""
+    decided = right = 0
+    greets = {"greet_clips": [0, 0], "other_clips": [0, 0], "idle_clips": [0, 0]}
+    stages = {"real": 0, "predicted": 0}
+    for r in readings:
+        if r.p_real.max() >= threshold:
+            stage, p = "real", r.p_real
+        elif r.p_pred.max() >= threshold:
+            stage, p = "predicted", r.p_pred
+        else:
+            stage, p = None, None
+        label = labels[int(np.argmax(p))] if p is not None else None
+        groups = ["greet_clips" if r.label == greet else "other_clips"]
+        if r.label == "idle":
+            groups.append("idle_clips")
+        for g in groups:
+            greets[g][1] += 1
+            greets[g][0] += int(label == greet)
+        if stage is not None:
+            decided += 1
+            right += int(label == r.label)
+            stages[stage] += 1
+    n = max(len(readings), 1)
+    return {"threshold": threshold, "clips": len(readings), "decided": round(decided / n, 4),
+            "decided_right": round(right / max(decided, 1), 4), **greets, "stages": stages}
+
+
+def choose_threshold(readings: Sequence[LoopReading], labels: Sequence[str],
+                     grid: Sequence[float] = (0.25, 0.30, 0.35, 0.40, 0.45, 0.50, 0.55, 0.60),
+                     greet: str = "wave") -> tuple[float, list[dict[str, Any]]]:
+    """The grid value maximising Youden's J of greeting, ``greets on greet clips / their
+    number - greets on the others / their number`` (ties: the highest threshold, the one
+    deciding least); returns (threshold, :func:`loop_decisions` at every grid value)."""
+    rows = [loop_decisions(readings, labels, t, greet) for t in grid]
+
+    def j(row: dict[str, Any]) -> float:
+        (a, n), (b, m) = row["greet_clips"], row["other_clips"]
+        return a / max(n, 1) - b / max(m, 1)
+
+    best = max(range(len(rows)), key=lambda k: (round(j(rows[k]), 9), grid[k]))
+    for row in rows:
+        row["youden_j"] = round(j(row), 4)
+    return float(grid[best]), rows
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m simenv.perception --subjects train|test``: the loop's decisions on the
+    MSR Action3D and UTKinect clips (labelled and ``idle``) of the classifier's training
+    or test subjects at every threshold of the grid, and the threshold
+    :func:`choose_threshold` picks, as JSON (``--out``) and a table."""
+    import argparse
+    import json
+
+    from simenv.gestures import load_gesture_clips, split_cross_subject
+    from simenv.session import shared_data_root
+
+    parser = argparse.ArgumentParser(prog="python -m simenv.perception",
+                                     description=main.__doc__.splitlines()[0])
+    parser.add_argument("--subjects", choices=("train", "test"), required=True)
+    parser.add_argument("--classifier", default=DEFAULT_CLASSIFIER)
+    parser.add_argument("--predictor", default="auto")
+    parser.add_argument("--data", help="corpus root (default: SIMENV_SHARED_DATA or "
+                        "../shared/data)")
+    parser.add_argument("--out", help="JSON file for the readings' decisions")
+    args = parser.parse_args(argv)
+    try:
+        clips = load_gesture_clips(shared_data_root(args.data) / "gestures",
+                                   datasets=("msr_action3d", "utkinect"), idle=True)
+        train, test = split_cross_subject(clips)
+        classifier = TrainedClassifier.shipped(args.classifier)
+        predictor = load_predictor(args.predictor)
+        readings, skipped = loop_readings(train if args.subjects == "train" else test,
+                                          classifier, predictor, progress=True)
+    except SimenvError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    best, rows = choose_threshold(readings, classifier.labels)
+    print("| threshold | decided | decided right | greet on wave | greet on others | "
+          "greet on idle | real / predicted | J |")
+    for r in rows:
+        (a, n), (b, m), (c, k) = r["greet_clips"], r["other_clips"], r["idle_clips"]
+        print(f"| {r['threshold']:.2f} | {r['decided']:.3f} | {r['decided_right']:.3f} | "
+              f"{a}/{n} | {b}/{m} | {c}/{k} | {r['stages']['real']} / "
+              f"{r['stages']['predicted']} | {r['youden_j']:.3f} |")
+    print(f"chosen threshold (max J): {best:.2f}; skipped {len(skipped)} clips")
+    if args.out:
+        Path(args.out).write_text(json.dumps({
+            "subjects": args.subjects, "classifier": args.classifier,
+            "predictor": getattr(predictor, "name", str(args.predictor)),
+            "chosen_threshold": best, "rows": rows, "skipped": skipped,
+            "readings": [{"name": r.name, "label": r.label, "subject": r.subject,
+                          "p_real": r.p_real.round(4).tolist(),
+                          "p_pred": r.p_pred.round(4).tolist()} for r in readings],
+            "labels": list(classifier.labels)}, indent=1))
+    return 0
+
+
 __all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR",
-           "CanonicalPredictor", "GestureModel", "Perception", "PerceptionLoop",
-           "TemplateClassifier", "TrainedClassifier", "default_classifier", "load_predictor",
+           "CanonicalPredictor", "GestureModel", "LoopReading", "Perception", "PerceptionLoop",
+           "TemplateClassifier", "TrainedClassifier", "choose_threshold", "default_classifier",
+           "loop_decisions", "load_predictor", "loop_readings",
            "vocabulary_map"]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -256,3 +256,62 @@ def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
     real = PerceptionLoop(behaviour, classifier, None, threshold=1.01).perceive(
         1.0, kp[:26].astype(np.float32))
     assert real.stage is None and max(real.probabilities, key=real.probabilities.get) != "wave"
+
+
+# -- the loop measured on clips ------------------------------------------------------------
+
+
+def _reading(label: str, p_real, p_pred):
+    from simenv.perception import LoopReading
+
+    return LoopReading(f"clip-{label}", label, "x/s01", np.array(p_real), np.array(p_pred))
+
+
+def test_loop_decisions_and_threshold_choice_on_known_readings():
+    """Three readings whose decisions at each threshold are known by hand: the real stage
+    wins when confident, else the predicted stage, else nothing."""
+    from simenv.perception import choose_threshold, loop_decisions
+
+    labels = ("wave", "other", "idle")
+    readings = [_reading("wave", [0.2, 0.5, 0.3], [0.6, 0.2, 0.2]),
+                _reading("idle", [0.1, 0.2, 0.7], [0.5, 0.1, 0.4]),
+                _reading("other", [0.3, 0.4, 0.3], [0.45, 0.45, 0.1])]
+    low = loop_decisions(readings, labels, 0.45)
+    # wave: real stage reads other; idle: real reads idle; other: predicted reads wave.
+    assert low["greet_clips"] == [0, 1] and low["other_clips"] == [1, 2]
+    assert low["idle_clips"] == [0, 1]
+    assert low["stages"] == {"real": 2, "predicted": 1}
+    assert low["decided_right"] == round(1 / 3, 4)  # only idle is right
+    high = loop_decisions(readings, labels, 0.55)
+    # wave: predicted 0.6 -> greet; idle: real 0.7 -> idle; other: nothing reaches 0.55.
+    assert high["greet_clips"] == [1, 1] and high["other_clips"] == [0, 2]
+    assert high["decided"] == round(2 / 3, 4) and high["decided_right"] == 1.0
+    best, rows = choose_threshold(readings, labels, grid=(0.45, 0.55, 0.65))
+    assert best == 0.55 and [r["youden_j"] for r in rows] == [-0.5, 1.0, 0.0]
+    # A tie goes to the higher threshold (fewer decisions).
+    tie, _ = choose_threshold(readings[1:], labels, grid=(0.65, 0.75))
+    assert tie == 0.75
+
+
+@shipped
+def test_loop_readings_on_real_clips(shared_data):
+    """Real MSR clips of a training subject (a wave and an idle lead-in) retargeted into
+    the room: each gives both stages' probabilities; a Florence clip (no pelvis keypoint)
+    is skipped with the reason."""
+    from simenv.gestures import load_gesture_clips
+    from simenv.perception import TrainedClassifier, load_predictor, loop_readings
+
+    root = shared_data / "gestures"
+    msr = load_gesture_clips(root, datasets=("msr_action3d",), idle=True)
+    wave = next(c for c in msr if c.label == "wave" and c.subject == 1)
+    idle = next(c for c in msr if c.label == "idle" and c.subject == 1)
+    florence = load_gesture_clips(root, datasets=("florence3d",))[0]
+    classifier = TrainedClassifier.shipped()
+    readings, skipped = loop_readings([wave, idle, florence], classifier, load_predictor())
+    assert [r.name for r in readings] == [wave.name, idle.name]
+    assert len(skipped) == 1 and skipped[0].startswith(florence.name)
+    for r in readings:
+        assert r.p_real.shape == r.p_pred.shape == (len(classifier.labels),)
+        assert r.p_real.sum() == pytest.approx(1.0, abs=1e-5)
+        assert r.p_pred.sum() == pytest.approx(1.0, abs=1e-5)
+        assert not np.allclose(r.p_real, r.p_pred)  # the forecast changes the reading
