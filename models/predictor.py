@@ -35,6 +35,22 @@ Pipeline (one window; P observed frames, F to predict, 17 joints, D = 51)
 6. **Integration without a seam.** ``q̂ = â p̂`` is integrated from the last observed
    pose ``x_T`` with the exact inverse SRVF, ``x̂_k = x_T + (1/F) Σ_{i<k} q̂_i |q̂_i|``,
    so the predicted motion starts exactly where the history ends.
+7. **Residual to a prior future** (optional, ``prior``; not in the papers). A cheap
+   prior future ``x̃_k = x_T + Σ_t W[t, k] (x_t - x_T)`` (one temporal filter ``W``
+   shared by all joint coordinates, fitted on the training windows by
+   :func:`fit_prior`: the last velocity continued and damped, or a ridge least-squares
+   filter) is mapped like a true future, ``[x_T, x̃]`` -> SRVF -> ``p̃``, ``ã``,
+   ``ũ = log_{μ_F}(p̃)`` (scaled coordinates). The generator then outputs a
+   *correction*, ``ṽ = ũ + G(·)``, and the head ``log â = log ã + h(·)`` (instead of
+   ``log a_P + h(·)``); their last layers start at zero, so the untrained model predicts
+   the prior. The tangent space stays the one at ``μ_F``; the critic judges the full
+   ``ṽ``. Why: without it the generator's output correlated 0.026 with the true
+   future tangent coordinates and the head shrank the curve to a median 0.18 of the
+   true length (zero-velocity); the prior gives the nets a reference that already
+   carries the history's motion.
+8. **Test-time mirror averaging** (optional, ``mirror_average``): the prediction is
+   ``½ (f(h) + M f(M h))``, ``M`` the left-right mirror (:func:`mirror`); it makes the
+   predictor exactly mirror-equivariant, as the mirrored training data asks.
 
 Networks (paper -> here, scaled for a 1-thread CPU budget of minutes)
 ---------------------------------------------------------------------
@@ -51,8 +67,10 @@ Networks (paper -> here, scaled for a 1-thread CPU budget of minutes)
 * Condition: the paper's generator sees the history tangent vector only. We also give
   it ``log a_P`` and the last observed pose ``x_T`` (heading-normalised, decimetres):
   the SRVF forgets where the curve is, yet the next motion depends on the pose (the
-  phase of a gait, a raised arm). Noise ``z`` (16-D, N(0, 1)) in training; ``z = 0``
-  at prediction unless a seed is given.
+  phase of a gait, a raised arm). With ``velocity_condition`` also the last velocity
+  ``x_T - x_{T-1}`` (unit-RMS over the training windows): the tangent vector at ``μ_P``
+  holds it only as one of P steps of a unit-norm function. Noise ``z`` (16-D, N(0, 1))
+  in training; ``z = 0`` at prediction unless a seed is given.
 
 Losses (weights 1, 1, 10, 10 as in the paper)
 ---------------------------------------------

@@ -922,6 +922,23 @@ def model_card(name: str, metrics: dict) -> str:
                     f"CPU s on one thread, batch 64, Adam lr {cfg['lr']}, "
                     f"{cfg['n_critic']} critic step(s) per generator step, adversarial "
                     f"weight {cfg['adv_weight']}, dropout {cfg['dropout']}")
+        if cfg.get("prior", "none") != "none":
+            fit = cfg.get("prior_fit", {})
+            detail = (f"damping {fit['damping']}" if "damping" in fit else
+                      f"ridge {fit.get('ridge', 0):.3g}")
+            training += (f"; residual to the {cfg['prior'].replace('_', ' ')} prior "
+                         f"future ({detail}, fitted on the training windows)")
+        flags = [name for key, name in (
+            ("joint_amplitude", "generator and amplitude head trained together"),
+            ("velocity_condition", "last velocity in the condition"),
+            ("mirror_average", "test-time mirror averaging")) if cfg.get(key)]
+        if flags:
+            training += "; " + ", ".join(flags)
+        if "selected_iteration" in cfg:
+            training += (f"; iteration {cfg['selected_iteration']} selected on the "
+                         f"validation clips {', '.join(cfg['validation_clips'])} (training "
+                         f"clips held out of training, never the test clips; validation "
+                         f"MPJPE {cfg['val_mpjpe_mm']} mm)")
     lines = [
         f"# {name}: {title} "
         f"({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
