@@ -327,6 +327,34 @@ def windows_from_motions(
     )
 
 
+def concat_windows(*parts: PredictionWindows) -> PredictionWindows:
+    """The windows of several :class:`PredictionWindows` of one configuration, in order;
+    clips of the same name are one clip.
+
+    Raises:
+        MotionError: no part, or parts of different ``P -> F`` or fps.
+    """
+    if not parts:
+        raise MotionError("concat_windows needs at least one set of windows")
+    first = parts[0]
+    for w in parts[1:]:
+        if (w.past_len, w.future_len, w.fps) != (first.past_len, first.future_len, first.fps):
+            raise MotionError(
+                f"cannot join {w.past_len}->{w.future_len} windows at {w.fps:g} fps to "
+                f"{first.past_len}->{first.future_len} at {first.fps:g} fps",
+                field="windows")
+    names: list[str] = []
+    for w in parts:
+        names += [n for n in w.clip_names if n not in names]
+    clips = [np.array([names.index(n) for n in w.clip_names], dtype=np.int64)[w.clip]
+             for w in parts]
+    skipped = tuple(n for w in parts for n in w.skipped)
+    return PredictionWindows(
+        np.concatenate([w.frames for w in parts]), np.concatenate([w.root for w in parts]),
+        np.concatenate(clips), np.concatenate([w.start for w in parts]), tuple(names),
+        first.past_len, first.future_len, first.fps, skipped)
+
+
 @dataclass(frozen=True)
 class ClipSplit:
     """A train/test split of windows by clip.

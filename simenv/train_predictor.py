@@ -638,12 +638,20 @@ def plot_curves(metrics: dict, path: Path) -> None:
 
 
 def training_windows(motions: Sequence[Motion], clips: set[str],
-                     args: argparse.Namespace) -> pdata.PredictionWindows:
+                     args: argparse.Namespace, extra: Sequence[Motion] = ()
+                     ) -> pdata.PredictionWindows:
     """Training windows of the motions whose group is in ``clips``, with the speed
-    variants and (``args.mirror``) the mirror images of ``args``."""
+    variants and (``args.mirror``) the mirror images of ``args``, followed by those of
+    the ``extra`` training clips (:func:`extra_motions`: every ``args.extra_stride``-th
+    window, mirrored with ``args.mirror``, no speed variants: the Kinect clocks are
+    themselves uncertain, see ``gestures/SOURCES.md``)."""
     train_motions = [m for m in motions if group_of(m.name) in clips]
     windows = pdata.windows_from_motions(speed_variants(train_motions, args.speeds),
                                          args.past, args.future, stride=1)
+    if extra:
+        more = pdata.windows_from_motions(extra, args.past, args.future,
+                                          stride=getattr(args, "extra_stride", 1))
+        windows = pdata.concat_windows(windows, more)
     return mirrored(windows) if args.mirror else windows
 
 
@@ -694,7 +702,11 @@ def run(args: argparse.Namespace) -> dict:
         vsplit = make_split(base, args.validation, args.seed)
         val_w, val_clips = base.subset(vsplit.test), list(vsplit.test_clips)
         fit_clips = set(vsplit.train_clips)
-    train_w = training_windows(motions, fit_clips, args)
+    extra: list[Motion] = []
+    if getattr(args, "extra_data", None):
+        extra, extra_notes = extra_motions(Path(args.shared), args.extra_data)
+        notes = notes + extra_notes
+    train_w = training_windows(motions, fit_clips, args, extra)
     budget = {"iterations": args.iterations, "minutes": args.minutes,
               "validation": val_w, "seed": args.seed, "progress": not args.quiet}
     if args.model == "regression":
@@ -707,9 +719,11 @@ def run(args: argparse.Namespace) -> dict:
         for i in range(args.members):
             if i and args.cross_fit:  # every further member: its own validation fold
                 val_w = base.subset(folds[i].test)
-                train_w = training_windows(motions, set(folds[i].train_clips), args)
+                train_w = training_windows(motions, set(folds[i].train_clips), args, extra)
+            weights = (source_weights(train_w, args.extra_share)
+                       if extra and args.extra_share is not None else None)
             log = train_regression(model.member(i), train_w, lr=lr,
-                                   weight_decay=args.weight_decay,
+                                   weight_decay=args.weight_decay, sample_weights=weights,
                                    **budget | {"validation": val_w, "seed": args.seed + i})
             members.append(_member_info(log, val_w, len(train_w)))
             logs += [e | {"member": i} for e in log]
@@ -718,6 +732,10 @@ def run(args: argparse.Namespace) -> dict:
                   "weight_decay": args.weight_decay, "members": members,
                   "mirror_average": args.mirror_average,
                   "cross_fit": ensemble and args.cross_fit,
+                  "extra_data": list(getattr(args, "extra_data", None) or []),
+                  "extra_share": args.extra_share if extra else None,
+                  "extra_stride": args.extra_stride if extra else None,
+                  "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c)),
                   "train_seconds_total": round(sum(m["train_seconds"] for m in members), 1)}
     else:
         lr = args.lr or 1e-4
@@ -962,6 +980,14 @@ def model_card(name: str, metrics: dict) -> str:
         f"* training windows: {cfg['train_windows']} (with speed variants "
         f"{cfg['speeds']} and left-right mirroring: {cfg['mirror']}); held-out windows: "
         f"{cfg['test_windows']}",
+        *([f"* extra training data (training side only, never evaluated on): "
+           f"{', '.join(cfg['extra_data'])} (`train_predictor.extra_motions`: MSR Action3D "
+           "and UTKinect sessions of the odd subjects, the NuiSI Rocket training "
+           "repetitions; chest = spine-neck midpoint), every "
+           f"{cfg['extra_stride']}th window, mirrored: {cfg['extra_windows']} of the "
+           "training windows; batch share "
+           + ("their share of the windows" if cfg.get("extra_share") is None
+              else f"{cfg['extra_share']}")] if cfg.get("extra_data") else []),
         training,
         "",
         "## Held-out results",
@@ -1059,6 +1085,14 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--cross-fit", action=argparse.BooleanOptionalAction, default=False,
                     help="regression ensemble: cross-fit the members on as many folds of "
                     "the training clips (each member selected on its fold)")
+    ap.add_argument("--extra-data", nargs="*", choices=EXTRA_SOURCES, default=[],
+                    help="add these Kinect-era sources to the training pool only "
+                    "(extra_motions: MSR/UTKinect odd subjects, NuiSI training repetitions)")
+    ap.add_argument("--extra-share", type=float, default=None,
+                    help="regression: share of every batch drawn from the extra windows "
+                    "(default: their share of the windows)")
+    ap.add_argument("--extra-stride", type=int, default=2,
+                    help="frames between the starts of consecutive extra windows")
     ap.add_argument("--mirror-average", action=argparse.BooleanOptionalAction,
                     default=True, help="regression: average each prediction with the "
                     "mirrored prediction of the mirrored history")
