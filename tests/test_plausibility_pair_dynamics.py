@@ -60,6 +60,30 @@ def test_a_vanishing_grip_is_the_single_person_residual(salsa_fit) -> None:
         assert float(pr.force[i].mean()) == pytest.approx(single.value, abs=1e-5)
 
 
+def test_a_tighter_grip_bound_explains_less(salsa_fit) -> None:
+    # The bound is a strength capacity (0.25 BW); dancers were measured exchanging 10-30 N
+    # (0.05 BW of 60 kg is 30 N). A tighter bound can only leave more of the two residuals
+    # unexplained: per frame, the objective both people share (squared residual wrench in
+    # each one's body weights) grows as the bound shrinks, up to the floor-only value.
+    contacts = hand_contacts(salsa_fit)
+    levers = [p.humanoid.dims.hip_height for p in salsa_fit.people]
+
+    def objective(force: np.ndarray, torque: np.ndarray) -> np.ndarray:
+        return sum(force[i] ** 2 + (torque[i] / levers[i]) ** 2 for i in (0, 1))
+
+    costs, follower = [], []
+    for grip in (0.05, 0.25, 1.0):
+        th = replace(BodyThresholds(), grip_force_max_bw=grip)
+        pr = pair_root_residual_wrench(salsa_fit, th, contacts=contacts)
+        costs.append(objective(pr.force, pr.torque))
+        follower.append(float(pr.force[1].mean()))
+    single = objective(np.stack([s.force for s in pr.single]),
+                       np.stack([s.torque for s in pr.single]))
+    assert (costs[0] <= single + 1e-6).all()
+    assert (costs[1] <= costs[0] + 1e-6).all() and (costs[2] <= costs[1] + 1e-6).all()
+    assert follower[0] > follower[1] > follower[2], follower
+
+
 def test_partner_cannot_hide_a_floated_follower(salsa) -> None:
     # The follower lifted 15 cm: no floor contact, about one body weight missing on every
     # frame; the lead's hands (at most 0.25 body weight per contact) cannot carry it.

@@ -52,6 +52,16 @@ Measured on real CMU pairs (mean residual force, body weights, single person
     follower lifted 15 cm (or by the ``float`` corruption, 5-15 cm) is still
     flagged (0.49-0.54 after the partner's help), each contact taking at
     most ``F`` off her residual while the lead's own residual grows.
+
+The grip bound
+    ``grip_force_max_bw`` = 0.25 is a strength capacity (women's maximal
+    standing push, 140 N, is 0.24 of 60 kg; Das & Wang 2004), not what
+    partners use: dancers exchange 10-30 N in partnered stepping (Sawers et
+    al. 2017). The result depends on it (follower mean residual, body
+    weights, per-contact bound 0.05 / 0.1 / 0.25 / 1.0): 61_05 0.155 /
+    0.148 / 0.136 / 0.125, 61_10 0.171 / 0.166 / 0.156 / 0.149. At the
+    default the summed contact force averages 0.23 / 0.28 of the lighter
+    body weight over the contact frames.
 """
 
 from __future__ import annotations
