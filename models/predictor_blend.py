@@ -41,7 +41,7 @@ CHECKPOINT_FORMAT = "simenv-predictor-blend-1"
 ZERO_VELOCITY = "zero-velocity"
 
 
-def _loaders() -> dict[str, Any]:
+def member_loaders() -> dict[str, Any]:
     """Member checkpoint format tag -> predictor class (imported on demand)."""
     from simenv.models import predictor_attention, predictor_knn, predictor_regression
 
@@ -192,7 +192,7 @@ class BlendPredictor:
             data = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as exc:
             raise CheckpointError(f"cannot read blend checkpoint: {exc}", source=path) from None
-        loaders = _loaders()
+        loaders = member_loaders()
         with data:
             if "format" not in data or str(data["format"]) != CHECKPOINT_FORMAT:
                 raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)

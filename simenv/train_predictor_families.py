@@ -31,10 +31,11 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
 import sys
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,9 +44,15 @@ import torch
 from simenv import prediction_data as pdata
 from simenv import prediction_metrics as pm
 from simenv import train_predictor as tp
-from simenv.errors import MotionError
+from simenv.errors import MotionError, SimenvError
 from simenv.models.baselines import ZeroVelocity
 from simenv.models.predictor_attention import AttentionConfig, AttentionPredictor
+from simenv.models.predictor_blend import (
+    ZERO_VELOCITY,
+    BlendPredictor,
+    convex_weights,
+    member_loaders,
+)
 from simenv.models.predictor_knn import KNNConfig, KNNPredictor, normalised
 from simenv.models.predictor_regression import (
     check_lengths,
@@ -60,7 +67,7 @@ SPEEDS: tuple[float, ...] = (0.8, 1.0, 1.25)
 #: kNN search grid (validation): neighbours, velocity and history feature weights.
 KNN_K: tuple[int, ...] = (4, 8, 16, 32, 64)
 KNN_VELOCITY: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0)
-KNN_HISTORY: tuple[float, ...] = (0.0, 0.25, 0.5, 1.0)
+KNN_HISTORY: tuple[float, ...] = (0.0, 0.25)
 #: Shrinkage grid α (0 = zero-velocity).
 KNN_SHRINKAGE: tuple[float, ...] = tuple(np.round(np.arange(0.0, 1.51, 0.05), 2))
 
@@ -264,3 +271,295 @@ def fit_attention(split: Split, config: AttentionConfig, *, iterations: int = 30
                         "log": log})
     return model, {"train_windows": len(windows), "lr": lr, "seed": seed,
                    "members": members}
+
+
+def per_action(pred: np.ndarray, windows: pdata.PredictionWindows) -> dict:
+    """Per action type (:func:`simenv.train_predictor.action_of`) of the windows' clips:
+    window count and :func:`horizon_row` of the predictions."""
+    actions = np.array([tp.action_of(c) for c in windows.window_clip_names], dtype=object)
+    out = {}
+    for action in sorted(set(actions)):
+        sel = np.flatnonzero(actions == action)
+        out[action] = {"windows": len(sel)} | horizon_row(pred[sel], windows.subset(sel))
+    return out
+
+
+def validation_report(model: object, split: Split) -> dict:
+    """Validation score, 400 / 1000 ms rows and per-action rows of ``model``."""
+    pred = model.predict(split.validation.frames[:, : split.past_len + 1])
+    return {"score_mm": round(score(pred, split.validation), 2),
+            "overall": horizon_row(pred, split.validation),
+            "per_action": per_action(pred, split.validation)}
+
+
+def rate(fn: Callable[[], object], seconds: float) -> float:
+    """Calls per CPU second of ``fn`` after one warm-up call (as
+    ``benchmarks/bench_models.py`` measures the shipped models)."""
+    fn()
+    calls, start = 0, time.process_time()
+    while time.process_time() - start < seconds:
+        fn()
+        calls += 1
+    return calls / (time.process_time() - start)
+
+
+def speed(model: object, seconds: float = 3.0) -> dict[str, float]:
+    """Single-sample and batch-of-64 predictions per CPU second on one thread, on
+    histories of the bundled CMU walk 02_01 (``benchmarks/bench_models.py``'s inputs)."""
+    from simenv.assets import WALK, asset_path
+    from simenv.io import bvh
+
+    torch.set_num_threads(1)
+    walk = bvh.read(asset_path(WALK))
+    w = pdata.windows_from_motions([walk], model.past_len, 1, stride=1)
+    batch = w.frames[:64, : model.history_len]
+    return {"single_predictions_per_s": round(rate(lambda: model.predict(batch[0]),
+                                                   seconds), 1),
+            "batched_predictions_per_s": round(len(batch) * rate(
+                lambda: model.predict(batch), seconds), 1), "batch": len(batch)}
+
+
+def held_out(model: object, split: Split) -> dict:
+    """Held-out metrics of ``model`` in the format of
+    :func:`simenv.train_predictor.evaluate` (plus recursive prediction)."""
+    metrics = tp.evaluate(model, split.test)
+    metrics["recursive"] = tp.evaluate_recursive(model, split.motions, split.test_clips)
+    return metrics
+
+
+def card(name: str, title: str, module: str, metrics: dict, training: Sequence[str]
+         ) -> str:
+    """Markdown model card in the format of :func:`simenv.train_predictor.model_card`
+    (same header, data and split, held-out results), with ``training`` lines."""
+    cfg = metrics["config"]
+    lines = [
+        f"# {name}: {title} ({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
+        "",
+        f"Predicts the next {cfg['future_len']} frames "
+        f"({1000 * cfg['future_len'] / 25:.0f} ms) of a 17-joint root-relative skeleton "
+        "(simenv.prediction_data pred17 layout, metres, Z-up) from the last "
+        f"{cfg['past_len'] + 1} frames (lead-in + {cfg['past_len']} observed). Method: "
+        f"docstring of `{module}`. Not shipped: `{module}.{cfg['class']}.load(path)`, "
+        "then `.predict(history)`.",
+        "",
+        "## Data and split",
+        "",
+        "Real CMU motion capture from the shared corpus (BVH, ASF/AMC and both people of "
+        "the two-person trials), resampled to 25 fps, sliding windows with stride 1. "
+        "Split by clip group with `prediction_data.split_by_clip` (test fraction 0.25, "
+        "seed 0; partners of one two-person trial are one group): the held-out windows "
+        "of `predictor-25-25` and `predictor-dctmlp-25-25`.",
+        "",
+        f"* train clips ({len(cfg['train_clips'])}): {', '.join(cfg['train_clips'])}",
+        f"* held-out clips ({len(cfg['test_clips'])}): {', '.join(cfg['test_clips'])}",
+        f"* validation clips (inside the training clips, for every choice): "
+        f"{', '.join(cfg['validation_clips'])}; held-out windows: {cfg['test_windows']}",
+        *training,
+        "",
+        "## Held-out results",
+        "",
+        *tp.results_lines(metrics),
+        "",
+        "Licence of the training data: CMU Graphics Lab Motion Capture Database. The data "
+        "used in this project was obtained from mocap.cs.cmu.edu. The database was created "
+        "with funding from NSF EIA-0196217.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _split_info(split: Split) -> dict:
+    return {"past_len": split.past_len, "future_len": split.future_len,
+            "train_clips": list(split.train_clips), "test_clips": list(split.test_clips),
+            "validation_clips": list(split.validation_clips),
+            "fit_clips": list(split.fit_clips), "test_windows": len(split.test),
+            "validation_windows": len(split.validation), "speeds": list(SPEEDS),
+            "mirror": True, "seed": 0}
+
+
+def _write(out: Path, name: str, title: str, module: str, model: object, metrics: dict,
+           training: Sequence[str]) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    model.save(out / "model.npz")
+    metrics["checkpoint_bytes"] = (out / "model.npz").stat().st_size
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=1, default=float))
+    (out / "model.md").write_text(card(name, title, module, metrics, training))
+
+
+def run_knn(split: Split, out: Path, progress: bool = True) -> dict:
+    """Select the kNN predictor on validation, refit its database on all training
+    clips, evaluate on the held-out windows; writes ``out/knn``."""
+    t0 = time.process_time()
+    config, rows = select_knn(split, progress=progress)
+    fit = KNNPredictor(config, sequences(split.motions, split.fit_clips))
+    folder = out / "knn"
+    folder.mkdir(parents=True, exist_ok=True)
+    fit.save(folder / "model-fit.npz")
+    config.info = _split_info(split) | {"class": "KNNPredictor", "database_clips":
+                                        list(split.train_clips)}
+    model = KNNPredictor(config, sequences(split.motions, split.train_clips))
+    seconds = time.process_time() - t0
+    metrics = held_out(model, split)
+    metrics |= {"config": config.info, "validation": validation_report(fit, split),
+                "search": rows, "select_seconds": round(seconds, 1),
+                "speed": speed(model), "knn": asdict(config) | {"info": None}}
+    training = [
+        f"* selection: grid over k {list(KNN_K)}, velocity weight {list(KNN_VELOCITY)}, "
+        f"history weight {list(KNN_HISTORY)} and shrinkage 0 .. 1.5 (step 0.05), "
+        "database = the training clips minus the validation clips, scored on the "
+        "validation clips by the mean per-frame MPJPE over the horizons "
+        f"({seconds:.0f} CPU s): k = {config.k}, velocity weight "
+        f"{config.velocity_weight}, history weight {config.history_weight}, shrinkage "
+        f"{config.shrinkage}, validation {metrics['validation']['score_mm']} mm; then "
+        f"the database is all {len(split.train_clips)} training clips at speeds "
+        f"{list(SPEEDS)} ({model.num_windows} windows, mirror images searched too)"]
+    _write(folder, "knn-25-25", "motion-matching kNN predictor", "simenv.models."
+           "predictor_knn", model, metrics, training)
+    return metrics
+
+
+#: Size of the attention network (about 0.45 MB of float32 weights per member).
+ATTENTION_WIDTH, ATTENTION_LAYERS = 64, 3
+
+
+def run_attention(split: Split, out: Path, *, iterations: int = 1500, members: int = 1,
+                  retrain: bool = False, progress: bool = True) -> dict:
+    """Train (or, unless ``retrain``, reuse ``out/attention/model.npz`` and its
+    ``training.json``) the attention predictor, evaluate it; writes ``out/attention``."""
+    folder = out / "attention"
+    path, info_path = folder / "model.npz", folder / "training.json"
+    if path.is_file() and info_path.is_file() and not retrain:
+        model = AttentionPredictor.load(path)
+        info = json.loads(info_path.read_text())
+    else:
+        config = AttentionConfig(split.past_len, split.future_len, width=ATTENTION_WIDTH,
+                                 layers=ATTENTION_LAYERS, members=members)
+        model, info = fit_attention(split, config, iterations=iterations,
+                                    progress=progress)
+        folder.mkdir(parents=True, exist_ok=True)
+        info_path.write_text(json.dumps(info))
+    cfg = model.config
+    cfg.info = _split_info(split) | {"class": "AttentionPredictor"}
+    params = sum(p.numel() for p in model.nets.parameters())
+    metrics = held_out(model, split)
+    metrics |= {"config": cfg.info, "validation": validation_report(model, split),
+                "training": info, "speed": speed(model), "parameters": params}
+    selected = "; ".join(f"member {i}: iteration {m['selected_iteration']} of "
+                         f"{m['iterations']}, validation {m['val_mpjpe_mm']} mm, "
+                         f"{m['train_seconds']} CPU s" for i, m in enumerate(info["members"]))
+    training = [
+        f"* training windows: {info['train_windows']} (training clips minus the validation "
+        f"clips, speeds {list(SPEEDS)}, mirrored)",
+        f"* network: width {cfg.width}, {cfg.layers} layers, {cfg.heads} heads, dropout "
+        f"{cfg.dropout}, {params} parameters, {cfg.members} member(s), mirror-averaged: "
+        f"{cfg.mirror_average}; AdamW lr {info['lr']}, weight decay 1e-4, batch 128, "
+        f"cosine decay, one thread; iteration selected on the validation clips ({selected})"]
+    _write(folder, "attention-25-25", "joint-attention transformer on DCT coefficients",
+           "simenv.models.predictor_attention", model, metrics, training)
+    return metrics
+
+
+#: Members of the blend: name -> checkpoint under the output folder (validation fit,
+#: final); the DCT-MLP is the copy of the shipped model, the same in both.
+BLEND_MEMBERS: dict[str, tuple[str, str]] = {
+    "dct-mlp": ("base/predictor-dctmlp-25-25.npz", "base/predictor-dctmlp-25-25.npz"),
+    "knn": ("knn/model-fit.npz", "knn/model.npz"),
+    "attention": ("attention/model.npz", "attention/model.npz"),
+}
+
+
+def _load_member(path: Path) -> object:
+    if not path.is_file():
+        raise SimenvError(f"blend member {path} is missing (run the knn and attention "
+                          "stages first; copy the shipped predictor-dctmlp-25-25.* to "
+                          "base/)", source=path)
+    with np.load(path, allow_pickle=False) as data:
+        tag = str(data["format"])
+    return member_loaders()[tag].load(path)
+
+
+def run_blend(split: Split, out: Path, step: float = 0.05) -> dict:
+    """Per-frame convex weights over :data:`BLEND_MEMBERS` and zero-velocity chosen on
+    the validation windows with the members as fitted without the validation clips;
+    the blend of the final members is evaluated on the held-out windows; writes
+    ``out/blend``."""
+    names = [*BLEND_MEMBERS, ZERO_VELOCITY]
+    zv = ZeroVelocity(split.future_len)
+    fitted = [_load_member(out / a) for a, _ in BLEND_MEMBERS.values()] + [zv]
+    final = [_load_member(out / b) for _, b in BLEND_MEMBERS.values()] + [zv]
+    history = split.validation.frames[:, : split.past_len + 1]
+    t0 = time.process_time()
+    preds = np.stack([m.predict(history) for m in fitted])
+    weights = convex_weights(preds, split.validation.future, joints=tp.EVAL_JOINTS,
+                             step=step)
+    seconds = time.process_time() - t0
+    info = _split_info(split) | {"class": "BlendPredictor", "members": names,
+                                 "step": step}
+    blend = BlendPredictor(final, names, weights, info)
+    members_val = {n: validation_report(m, split) for n, m in zip(names, fitted,
+                                                                  strict=True)}
+    metrics = held_out(blend, split)
+    metrics |= {"config": info, "weights": weights.round(4).tolist(),
+                "validation": validation_report(BlendPredictor(fitted, names, weights),
+                                                split),
+                "validation_members": members_val, "weights_seconds": round(seconds, 1),
+                "speed": speed(blend)}
+    mean_w = ", ".join(f"{n} {w:.2f}" for n, w in zip(names, weights.mean(1), strict=True))
+    at = {h: ", ".join(f"{n} {w:.2f}" for n, w in zip(names, weights[:, h // 40 - 1],
+                                                      strict=True)) for h in (400, 1000)}
+    training = [
+        f"* members: {', '.join(names)}; per-frame convex weights on a simplex grid (step "
+        f"{step}) minimising the mean joint error on the validation windows, with the "
+        "members as fitted without the validation clips (the shipped DCT-MLP; the kNN "
+        "database of the training clips minus the validation clips; the attention "
+        "network); the final blend uses the same weights with the kNN database of all "
+        "training clips",
+        f"* weights averaged over the 25 frames: {mean_w}; at 400 ms: {at[400]}; at 1000 "
+        f"ms: {at[1000]}",
+        f"* validation (in-sample for the weights): {metrics['validation']['score_mm']} mm "
+        "mean over the horizons; members: " + ", ".join(
+            f"{n} {r['score_mm']} mm" for n, r in members_val.items())]
+    _write(out / "blend", "blend-25-25", "per-frame convex blend of predictors",
+           "simenv.models.predictor_blend", blend, metrics, training)
+    return metrics
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the named stages; returns the exit status (2 on a user error)."""
+    ap = argparse.ArgumentParser(prog="python -m simenv.train_predictor_families",
+                                 description=__doc__.split("\n")[0])
+    ap.add_argument("stages", nargs="+", choices=("knn", "attention", "blend"))
+    ap.add_argument("--shared", default=str(tp.SHARED), help="shared corpus root")
+    ap.add_argument("--out", default="out/families", help="output folder")
+    ap.add_argument("--iterations", type=int, default=1500,
+                    help="attention: iterations per member")
+    ap.add_argument("--members", type=int, default=1, help="attention: networks")
+    ap.add_argument("--retrain", action="store_true",
+                    help="attention: train even if <out>/attention/model.npz exists")
+    ap.add_argument("--quiet", action="store_true", help="no progress output")
+    args = ap.parse_args(argv)
+    torch.set_num_threads(1)
+    out = Path(args.out)
+    try:
+        split = load_split(tp.default_data(Path(args.shared)))
+        for stage in args.stages:
+            if stage == "knn":
+                metrics = run_knn(split, out, progress=not args.quiet)
+            elif stage == "attention":
+                metrics = run_attention(split, out, iterations=args.iterations,
+                                        members=args.members, retrain=args.retrain,
+                                        progress=not args.quiet)
+            else:
+                metrics = run_blend(split, out)
+            row = {h: metrics["overall"]["model"]["mpjpe_mm"][h] for h in (400, 1000)}
+            zv = {h: metrics["overall"]["zero_velocity"]["mpjpe_mm"][h] for h in (400, 1000)}
+            print(f"{stage}: held-out " + ", ".join(
+                f"{h} ms {row[h]:.1f} mm ({100 * (1 - row[h] / zv[h]):+.1f} % vs "
+                f"zero-velocity)" for h in row) + f"; outputs in {out / stage}")
+    except SimenvError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
