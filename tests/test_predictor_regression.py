@@ -240,3 +240,22 @@ def test_weighted_sampling_gives_the_extra_sources_their_share(shared_data, clip
                             iterations=1, sample_weights=w[:3], progress=False)
     with pytest.raises(SimenvError, match="unknown extra data source"):
         tp.extra_motions(shared_data, ["florence"])
+
+
+def test_run_with_extra_data_trains_on_it_but_never_validates_or_tests_on_it(shared_data,
+                                                                            tmp_path):
+    files = [shared_data / "cmu" / "bvh" / f"{n}.bvh" for n in ("02_01", "12_01", "49_06")]
+    args = tp.parse_args(["--model", "regression", "--past", "10", "--future", "10",
+                          "--members", "2", "--iterations", "20", "--speeds", "1.0",
+                          "--validation", "0.3", "--extra-data", "nuisi", "--extra-share",
+                          "0.4", "--data", *map(str, files), "--shared", str(shared_data),
+                          "--out", str(tmp_path), "--quiet"])
+    info = tp.run(args)["config"]
+    assert info["extra_data"] == ["nuisi"] and info["extra_share"] == 0.4
+    assert 0 < info["extra_windows"] < info["train_windows"]
+    cmu = {"02_01", "12_01", "49_06"}
+    assert set(info["test_clips"]) | set(info["validation_clips"]) <= cmu
+    for m in info["members"]:
+        assert set(m["validation_clips"]) <= cmu
+    card = (tmp_path / "predictor-dctmlp-10-10.md").read_text()
+    assert "extra training data" in card and "nuisi" in card
