@@ -42,6 +42,9 @@ from simenv.skeletons import canonical_skeleton
 _CLIP = types.Array(types.float32, 3, "A", readonly=True)
 #: Frames per batch (clips x frames): bounds the result arrays of one call.
 BATCH_FRAMES = 8192
+#: Violation runs per clip that :func:`score` makes room for (more cost a
+#: second kernel call).
+_RUNS_PER_CLIP = 16
 
 
 @lru_cache(maxsize=256)
@@ -291,13 +294,27 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[Met
     plan = specs if isinstance(specs, Plan) else Plan(specs)
     if batch.positions is None:
         return [s.not_available(batch) for s in plan.specs]
-    tl, value, details, available, span, runs, offsets = kernels.score(
-        batch.positions, batch.idx, plan.enabled, *plan.args, plan.frame_thresholds,
-        plan.in_float32)
+    b_count, t_count = batch.size, batch.num_frames
+    tl = np.empty((kernels.N_METRICS, b_count, t_count), dtype=np.float32)
+    value = np.zeros((kernels.N_METRICS, b_count))
+    details = np.zeros((kernels.N_METRICS, b_count, kernels.N_DETAILS))
+    available = np.zeros(b_count, dtype=np.bool_)
+    span = np.empty(b_count)
+    offsets = np.empty(b_count * kernels.N_METRICS + 1, dtype=np.int64)
+    runs = np.empty((_RUNS_PER_CLIP * b_count, 3))
+    while True:
+        count = kernels.score(batch.positions, batch.idx, plan.enabled, *plan.args,
+                              plan.frame_thresholds, plan.in_float32, tl, value, details,
+                              available, span, runs, offsets)
+        if count <= len(runs):
+            break
+        # Rare (many separate violations): score again with room for all.
+        runs = np.empty((count, 3))
+        value[:], details[:], available[:] = 0.0, 0.0, False
     batch._check_extent(span)
     # Python numbers at once: per-clip numpy calls would cost more than the
     # kernels on short clips.
-    spans = [(int(s), int(e), w) for s, e, w in runs.tolist()]
+    spans = [(int(s), int(e), w) for s, e, w in runs[:count].tolist()]
     bounds = offsets.tolist()
     ok = available.tolist()
     out = []

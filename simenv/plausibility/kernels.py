@@ -1,14 +1,16 @@
 """Compiled (numba) kernels of the joint-level metrics.
 
 :func:`score` is the one compiled entry: for each clip of a batch it gathers
-the canonical keypoints once into float64 coordinate planes ``p`` (3, J, T)
-(x, y, z; keypoints; frames) that stay in cache, runs every enabled metric
-on them (:func:`bone_length`, :func:`foot_skate`,
+the canonical keypoints once into float32 coordinate planes ``p`` (3, J, T)
+(x, y, z; keypoints; frames; exact copies of the float32 clip, which every
+metric converts to float64 as it reads them) that stay in cache, runs every
+enabled metric on them (:func:`bone_length`, :func:`foot_skate`,
 :func:`ground_penetration`, :func:`floating`, :func:`jitter`,
 :func:`velocity`: one function per metric and clip, frame axis innermost
 and contiguous so LLVM vectorises the elementwise loops) and turns each
-float64 timeline into the float32 result timeline and its violation runs.
-:func:`simenv.plausibility.clips.score` turns the outputs into results.
+float64 timeline into the float32 result timeline and its violation runs,
+all into the caller's arrays. :func:`simenv.plausibility.clips.score`
+allocates them and turns them into results.
 
 Numerics: every kernel does the same IEEE operations, in the same order, as
 the numpy formulas in the metric docstrings of
@@ -348,13 +350,17 @@ def _value_groups(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
 
 @njit(cache=True)
 def _gather(clip: np.ndarray, idx: np.ndarray, p: np.ndarray, zmin: np.ndarray) -> float:
-    """Canonical keypoints of one clip as float64 planes, in place.
+    """Canonical keypoints of one clip as float32 planes, in place.
+
+    Float32 as the clip, so exact; half the bytes of float64 planes, which
+    keeps a clip of about 1400 frames in a 512 KB L2 cache for the metrics
+    that read the planes in turn (each converts to float64 to compute).
 
     Args:
         clip: (T, S, 3) float32 source-skeleton joints, metres.
         idx: (J,) source joint of each canonical keypoint.
-        p: (3, J, T) out: x, y, z planes. zmin: (T,) out: height of the
-            lowest keypoint.
+        p: (3, J, T) float32 out: x, y, z planes. zmin: (T,) out: height of
+            the lowest keypoint.
 
     Returns:
         The smallest height span (highest minus lowest keypoint) over
@@ -369,19 +375,20 @@ def _gather(clip: np.ndarray, idx: np.ndarray, p: np.ndarray, zmin: np.ndarray) 
             row = p[c, j]
             for t in range(t_count):
                 row[t] = clip[t, s, c]
-    zmax = p[2, 0].copy()
+    zmax = p[2, 0].astype(np.float64)
     zmin[:] = zmax
     for j in range(1, idx.shape[0]):
         z = p[2, j]
         for t in range(t_count):
-            zmin[t] = min(zmin[t], z[t])
-            zmax[t] = max(zmax[t], z[t])
+            zt = np.float64(z[t])
+            zmin[t] = min(zmin[t], zt)
+            zmax[t] = max(zmax[t], zt)
     return (zmax - zmin).min()
 
 
 @njit(cache=True)
 def _violations(timeline: np.ndarray, threshold: float, in_float32: bool, out: np.ndarray,
-                runs: np.ndarray, count: int) -> tuple[np.ndarray, int]:
+                runs: np.ndarray, count: int) -> int:
     """Float32 timeline and its violation runs, in one pass.
 
     Args:
@@ -393,10 +400,11 @@ def _violations(timeline: np.ndarray, threshold: float, in_float32: bool, out: n
         out: (T,) float32 out: the timeline.
         runs: (R, 3) float64 rows (start frame, inclusive end frame, largest
             float32 value of the run), of which ``count`` are used; runs
-            are appended in frame order (the array grows when full).
+            are appended in frame order while they fit.
 
     Returns:
-        The runs array (the same, or a grown copy) and the new count.
+        The new count, which goes on past R when the runs do not fit (the
+        caller then scores again with room for them).
     """
     t_count = timeline.shape[0]
     thr32 = np.float32(threshold)
@@ -409,7 +417,7 @@ def _violations(timeline: np.ndarray, threshold: float, in_float32: bool, out: n
         over[t] = o
         hit |= o
     if not hit:
-        return runs, count
+        return count
     t = 0
     while t < t_count:
         if not over[t]:
@@ -420,29 +428,29 @@ def _violations(timeline: np.ndarray, threshold: float, in_float32: bool, out: n
         while t < t_count and over[t]:
             worst = max(worst, out[t])
             t += 1
-        if count == runs.shape[0]:
-            grown = np.empty((2 * count + 8, 3))
-            grown[:count] = runs[:count]
-            runs = grown
-        runs[count, 0] = start
-        runs[count, 1] = t - 1
-        runs[count, 2] = worst
+        if count < runs.shape[0]:
+            runs[count, 0] = start
+            runs[count, 1] = t - 1
+            runs[count, 2] = worst
         count += 1
-    return runs, count
+    return count
 
 
 @njit(cache=True)
 def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tuple,
           foot: tuple, flt: tuple, jit: tuple, vel: tuple, frame_thresholds: np.ndarray,
-          in_float32: np.ndarray
-          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                     np.ndarray]:
+          in_float32: np.ndarray, tl: np.ndarray, value: np.ndarray, details: np.ndarray,
+          available: np.ndarray, span: np.ndarray, runs: np.ndarray, offsets: np.ndarray
+          ) -> int:
     """Every enabled joint-level metric of every clip, in one pass per clip.
 
-    Each clip's canonical keypoints are gathered once into float64 planes
-    that stay in cache while all metrics read them, then each metric writes
-    its float64 timeline, converted to the float32 result timeline together
-    with its violation runs.
+    Each clip's canonical keypoints are gathered once into float32
+    coordinate planes (exact: the clips are float32) that stay in cache
+    while all metrics read them, each metric computing in float64, then each
+    metric's float64 timeline is converted to the float32 result timeline
+    together with its violation runs. The outputs are the caller's arrays:
+    arrays made here would cost about 2.5 us each to hand back to Python,
+    more than the kernels spend on a short clip.
 
     Args:
         positions: B clips of (T, S, 3) float32 source-skeleton joints,
@@ -456,26 +464,22 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
         frame_thresholds: (6,) per-frame limit of each metric's timeline;
             in_float32: (6,) bool, compare in float32 (see
             :func:`_violations`).
+        tl: (6, B, T) float32 out: timelines (rows of disabled metrics are
+            left unset). value: (6, B) out, zeros in. details: (6, B, 4) out,
+            zeros in. available: (B,) bool out: clips with a bone checked.
+            span: (B,) out: smallest height span over frames, metres.
+            runs: (R, 3) out: violation runs (see :func:`_violations`), the
+            first R. offsets: (B * 6 + 1,) int64 out: runs of clip b and
+            metric m are ``runs[offsets[6 b + m]:offsets[6 b + m + 1]]``.
 
     Returns:
-        tl: (6, B, T) float32 timelines (rows of disabled metrics are
-        unset). value: (6, B). details: (6, B, 4). available: (B,) bool,
-        clips with a bone checked. span: (B,) smallest height span over
-        frames, metres. runs: (R, 3) violation runs (see
-        :func:`_violations`). offsets: (B * 6 + 1,) int64, runs of clip b and
-        metric m are ``runs[offsets[6 b + m]:offsets[6 b + m + 1]]``.
+        The number of runs; above R, only the first R were written.
     """
     b_count, t_count = len(positions), positions[0].shape[0]
     j_count = idx.shape[0]
-    tl = np.empty((N_METRICS, b_count, t_count), dtype=np.float32)
-    value = np.zeros((N_METRICS, b_count))
-    details = np.zeros((N_METRICS, b_count, N_DETAILS))
-    available = np.zeros(b_count, dtype=np.bool_)
-    span = np.empty(b_count)
-    runs = np.empty((16, 3))
     count = 0
-    offsets = np.zeros(b_count * N_METRICS + 1, dtype=np.int64)
-    p = np.empty((3, j_count, t_count))
+    offsets[0] = 0
+    p = np.empty((3, j_count, t_count), dtype=np.float32)
     zmin = np.empty(t_count)
     line = np.empty(t_count)
     for b in range(b_count):
@@ -495,10 +499,10 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
                     value[m, b] = jitter(p, *jit, line, det)
                 else:
                     value[m, b] = velocity(p, *vel, line, det)
-                runs, count = _violations(line, frame_thresholds[m], in_float32[m], tl[m, b],
-                                          runs, count)
+                count = _violations(line, frame_thresholds[m], in_float32[m], tl[m, b], runs,
+                                    count)
             offsets[b * N_METRICS + m + 1] = count
-    return tl, value, details, available, span, runs[:count], offsets
+    return count
 
 
 # -- bone length ---------------------------------------------------------------
@@ -539,7 +543,9 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
         xp, yp, zp = p[0, parent[k]], p[1, parent[k]], p[2, parent[k]]
         xc, yc, zc = p[0, child[k]], p[1, child[k]], p[2, child[k]]
         for t in range(t_count):
-            dx, dy, dz = xc[t] - xp[t], yc[t] - yp[t], zc[t] - zp[t]
+            dx = np.float64(xc[t]) - np.float64(xp[t])
+            dy = np.float64(yc[t]) - np.float64(yp[t])
+            dz = np.float64(zc[t]) - np.float64(zp[t])
             length[t] = np.sqrt((dx * dx + dy * dy) + dz * dz)
         buf[:] = length
         m = median(buf, t_count, tmp)
@@ -591,20 +597,67 @@ def _interp(x_count: int, x_step: float, xp: np.ndarray, fp: np.ndarray, out: np
 
 
 @njit(cache=True)
-def _column_medians(a: np.ndarray, med: np.ndarray, top: np.ndarray) -> None:
-    """Per column of ``a`` (n, W), the value of :func:`median` (out ``med``
-    (W,)) and of ``.max()`` (out ``top`` (W,)).
+def median_network(n: int) -> np.ndarray:
+    """Compare-exchange pairs that bring the median of n values into place.
 
-    The order statistics come from the same ranking as :func:`_rank_pair`
-    (value i ranks ``#{j: a_j < a_i} + #{j < i: a_j == a_i}``), done for
-    all columns at once so that every comparison is a vector lane; a column
-    holding a NaN goes through :func:`median` itself.
+    Batcher's odd-even merge sort of the next power of two (m) sorts any
+    input, so its comparators (i, j), i < j, each replacing
+    ``(a_i, a_j)`` by ``(min, max)``, put the k-th smallest value at
+    position k for every k. Treat positions >= n as +inf padding: a
+    comparator touching one never exchanges, so it is dropped. Going back
+    from the end, only comparators that touch a position the middle order
+    statistics (n // 2, and n // 2 - 1 for even n) depend on are kept.
+
+    Returns:
+        (C, 2) int64 pairs in order (C = 91 for n = 21, against 420
+        comparisons of ranking).
+    """
+    m = 1
+    while m < n:
+        m *= 2
+    pairs = np.empty((max(m * m, 1), 2), dtype=np.int64)
+    count = 0
+    p = 1
+    while p < m:
+        k = p
+        while k >= 1:
+            for j in range(k % p, m - k, 2 * k):
+                for i in range(k):
+                    a, b = i + j, i + j + k
+                    if a // (2 * p) == b // (2 * p) and b < n:
+                        pairs[count, 0] = a
+                        pairs[count, 1] = b
+                        count += 1
+            k //= 2
+        p *= 2
+    needed = np.zeros(max(n, 1), dtype=np.bool_)
+    needed[n // 2] = True
+    if n % 2 == 0 and n > 0:
+        needed[n // 2 - 1] = True
+    keep = np.zeros(count, dtype=np.bool_)
+    for c in range(count - 1, -1, -1):
+        a, b = pairs[c, 0], pairs[c, 1]
+        if needed[a] or needed[b]:
+            keep[c] = True
+            needed[a] = True
+            needed[b] = True
+    return pairs[:count][keep]
+
+
+@njit(cache=True)
+def _column_medians(a: np.ndarray, network: np.ndarray, med: np.ndarray, top: np.ndarray
+                    ) -> None:
+    """Per column of ``a`` (n, W), the value of :func:`median` (out ``med``
+    (W,)) and of ``.max()`` (out ``top`` (W,)); ``a`` is overwritten.
+
+    The median comes from the pairs of :func:`median_network` (n), run on
+    all columns at once so that every compare-exchange is a vector lane;
+    each exchanges two values or leaves them, so it returns the order
+    statistics themselves, as :func:`median`. A column holding a NaN goes
+    through :func:`median` itself, before the network reorders it.
     """
     n, w_count = a.shape
     k = n // 2
-    rank = np.empty(w_count, dtype=np.int64)
-    lower = np.empty(w_count)
-    upper = np.empty(w_count)
     bad = np.zeros(w_count, dtype=np.bool_)
     top[:] = a[0]
     for i in range(n):
@@ -612,42 +665,37 @@ def _column_medians(a: np.ndarray, med: np.ndarray, top: np.ndarray) -> None:
         for w in range(w_count):
             bad[w] |= ai[w] != ai[w]
             top[w] = ai[w] if ai[w] > top[w] else top[w]
-    for i in range(n):
-        ai = a[i]
-        rank[:] = 0
-        # Ties rank in index order: a_j <= a_i before i, a_j < a_i after.
-        for j in range(i):
-            aj = a[j]
-            for w in range(w_count):
-                rank[w] += aj[w] <= ai[w]
-        for j in range(i + 1, n):
-            aj = a[j]
-            for w in range(w_count):
-                rank[w] += aj[w] < ai[w]
-        for w in range(w_count):
-            r = rank[w]
-            upper[w] = ai[w] if r == k else upper[w]
-            lower[w] = ai[w] if r == k - 1 else lower[w]
-    for w in range(w_count):
-        if n == 1:
-            med[w] = a[0, w]
-        elif n % 2 == 1:
-            med[w] = upper[w]
-        else:
-            med[w] = (lower[w] + upper[w]) / 2.0
     if bad.any():
         buf = np.empty(n)
         tmp = np.empty(n)
         for w in np.flatnonzero(bad):
             buf[:] = a[:, w]
+            top[w] = buf.max()
             med[w] = median(buf, n, tmp)
-            top[w] = a[:, w].max()
+    for c in range(network.shape[0]):
+        lo = a[network[c, 0]]
+        hi = a[network[c, 1]]
+        for w in range(w_count):
+            u, v = lo[w], hi[w]
+            swap = v < u
+            lo[w] = v if swap else u
+            hi[w] = u if swap else v
+    for w in range(w_count):
+        if bad[w]:
+            continue
+        if n == 1:
+            med[w] = a[0, w]
+        elif n % 2 == 1:
+            med[w] = a[k, w]
+        else:
+            med[w] = (a[k - 1, w] + a[k, w]) / 2.0
 
 
 @njit(cache=True)
 def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, fps: float,
            fa: float, w: int, eps: float, limit: float, dt3: float, duration5: float,
-           fa3: float, timeline: np.ndarray, details: np.ndarray) -> float:
+           fa3: float, network: np.ndarray, timeline: np.ndarray, details: np.ndarray
+           ) -> float:
     """Windowed normalized jerk of one clip (see
     :func:`simenv.plausibility.kinematic.jitter` and
     :func:`~simenv.plausibility.kinematic.windowed_normalized_jerk`).
@@ -664,6 +712,8 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
         dt3, duration5, fa3: ``(1 / fa) ** 3``, ``((w - 1) / fa) ** 5`` and
             ``fa ** 3`` as Python computes them (``pow``; numba would
             multiply, which rounds differently).
+        network: :func:`median_network` of J, for the medians over
+            keypoints.
         timeline: (T,) out: the median keypoint's NJ at each frame's window
             centre, NaN where none. details: out: (ProtoMotions' percent,
             mean |jerk| m/s^3, mean NJ).
@@ -732,7 +782,7 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
         nj[:, j] = nj_row
         jerk_norm[:, j] = jerk_row
     top = np.empty(windows)
-    _column_medians(njt, typical, top)
+    _column_medians(njt, network, typical, top)
     high = 0
     high_any = 0
     for i in range(windows):
@@ -779,14 +829,18 @@ def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float,
         # One pass for steps (frame pairs t, t+1) and jumps (second
         # differences at t+1, np.diff of the steps), the last step apart.
         for t in range(pairs - 1):
-            dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+            x0, y0, z0 = np.float64(x[t]), np.float64(y[t]), np.float64(z[t])
+            x1, y1, z1 = np.float64(x[t + 1]), np.float64(y[t + 1]), np.float64(z[t + 1])
+            dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
             q[t] = max(q[t], (dx * dx + dy * dy) + dz * dz)
-            ddx = (x[t + 2] - x[t + 1]) - dx
-            ddy = (y[t + 2] - y[t + 1]) - dy
-            ddz = (z[t + 2] - z[t + 1]) - dz
+            ddx = (np.float64(x[t + 2]) - x1) - dx
+            ddy = (np.float64(y[t + 2]) - y1) - dy
+            ddz = (np.float64(z[t + 2]) - z1) - dz
             jump_sq[t] = max(jump_sq[t], (ddx * ddx + ddy * ddy) + ddz * ddz)
         t = pairs - 1
-        dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+        dx = np.float64(x[t + 1]) - np.float64(x[t])
+        dy = np.float64(y[t + 1]) - np.float64(y[t])
+        dz = np.float64(z[t + 1]) - np.float64(z[t])
         q[t] = max(q[t], (dx * dx + dy * dy) + dz * dz)
     ratio = np.zeros(pairs)
     speed_max = np.zeros(pairs)
@@ -885,17 +939,19 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
             m = np.inf
             for f in range(f_count):
                 if ankle[f]:
-                    m = min(m, p[2, feet[f], t])
+                    m = min(m, np.float64(p[2, feet[f], t]))
             buf[t] = m
         ankle_floor = percentile(buf, t_count, 0.01, tmp)
     for f in range(f_count):
         x, y, z = p[0, feet[f]], p[1, feet[f]], p[2, feet[f]]
         fl = ankle_floor if ankle[f] else floor
         for t in range(t_count):
-            rel[f, t] = z[t] - fl
+            rel[f, t] = np.float64(z[t]) - fl
             low[f, t] = rel[f, t] < heights[f]
         for t in range(pairs):
-            dx, dy, dz = x[t + 1] - x[t], y[t + 1] - y[t], z[t + 1] - z[t]
+            dx = np.float64(x[t + 1]) - np.float64(x[t])
+            dy = np.float64(y[t + 1]) - np.float64(y[t])
+            dz = np.float64(z[t + 1]) - np.float64(z[t])
             v_h[f, t] = np.sqrt(dx * dx + dy * dy) * fps
             # Planted (foot_contacts): low and slow; the last frame
             # reuses the last speed.
@@ -989,11 +1045,13 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
     for h in hands:
         zh = p[2, h]
         for t in range(t_count):
-            lowest[t] = min(lowest[t], zh[t] - hand_reach)
+            lowest[t] = min(lowest[t], np.float64(zh[t]) - hand_reach)
     # np.mean over keypoints: a sequential sum, then one division.
-    com_z = p[2, com[0]].copy()
+    com_z = p[2, com[0]].astype(np.float64)
     for k in com[1:]:
-        com_z += p[2, k]
+        zk = p[2, k]
+        for t in range(t_count):
+            com_z[t] += np.float64(zk[t])
     com_z /= com.shape[0]
     tl[:] = 0.0
     worst, jumps, airborne, floating_frames = 0.0, 0, 0, 0
@@ -1056,6 +1114,6 @@ IDLE_ARGS: dict[int, tuple] = {
            0, 0, 0.0, 0.0),
     FLOAT: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0.0, 0.0, 0.0, 0.0, 0.0),
     JITTER: (False, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32), 0.0, 0.0, 0,
-             0.0, 0.0, 0.0, 0.0, 0.0),
+             0.0, 0.0, 0.0, 0.0, 0.0, np.zeros((0, 2), dtype=np.int64)),
     VELOCITY: (np.zeros(0), 0.0, 0.0),
 }

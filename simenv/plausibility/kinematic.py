@@ -292,13 +292,21 @@ def jitter_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS) -
             src, weight = _NO_RESAMPLE
         dt = 1.0 / fa
         args = (resample, src, weight, float(fps), float(fa), int(w), NJ_EPS,
-                float(thresholds.normalized_jerk_max), dt**3, ((w - 1) * dt) ** 5, fa**3)
+                float(thresholds.normalized_jerk_max), dt**3, ((w - 1) * dt) ** 5, fa**3,
+                _median_network(len(batch.names)))
     return MetricSpec(
         kernels.JITTER, "jitter", "%", thresholds.high_jerk_percent_max, args,
         ("protomotions_high_jerk_percent", "mean_jerk_mps3", "normalized_jerk_mean",
          ("analysis_fps", fa)),
         frame_threshold=thresholds.normalized_jerk_max, timeline_unit="normalized jerk",
         reason=reason or "")
+
+
+@lru_cache(maxsize=64)
+def _median_network(keypoints: int) -> np.ndarray:
+    """:func:`simenv.plausibility.kernels.median_network` of a keypoint
+    count, built once (shared: never modified)."""
+    return kernels.median_network(keypoints)
 
 
 #: Unused resampling arrays of a clip analysed at its own rate.
