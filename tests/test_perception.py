@@ -237,25 +237,32 @@ def test_template_fallback_without_shipped_classifier(monkeypatch, shared_data):
 
 @shipped
 def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
-    """A real UTKinect waveHands segment (test subject 2) through the loop with the shipped
-    classifier and predictor: the 1 s real + 2 s predicted stage reads it as a wave; the
-    1 s of real motion alone does not (the card's 1-s wave recall is 0)."""
-    from simenv.io import utkinect
-    from simenv.perception import TrainedClassifier, load_predictor
+    """Test subject 2 of UTKinect retargeted into the room, through the loop with the
+    shipped classifier, predictor and threshold: the 1 s of real motion of its waveHands
+    segment reads wave and the loop greets on the real stage; its idle stretches (near
+    still, unlabelled) read idle on both stages, and nothing is greeted."""
+    from simenv.gestures import load_gesture_clips
+    from simenv.perception import TrainedClassifier, load_predictor, loop_readings
+
+    clips = load_gesture_clips(shared_data / "gestures", datasets=("utkinect",), idle=True)
+    s02 = [c for c in clips if c.name.startswith("joints_s02_e01")
+           and c.label in ("wave", "idle")]
+    assert {c.label for c in s02} == {"wave", "idle"}
+    classifier = TrainedClassifier.shipped()
+    readings, _ = loop_readings(s02, classifier, load_predictor())
+    behaviour = load_scenario("default").behaviour
+    loop = PerceptionLoop(behaviour, classifier, load_predictor())
+    for r in readings:
+        top_real = classifier.labels[int(np.argmax(r.p_real))]
+        top_pred = classifier.labels[int(np.argmax(r.p_pred))]
+        assert top_real == top_pred == r.label
+        assert r.p_real.max() >= loop.threshold  # decided on real motion
+    wave = next(c for c in s02 if c.label == "wave")
     from simenv.session import Session, user_track
 
-    motion = utkinect.read(shared_data / "gestures" / "utkinect" / "joints" /
-                           "joints_s02_e01.txt")
-    seg = next(s for s in motion.metadata["segments"] if s["label"] == "waveHands")
-    kp = user_track(Session(motion.slice(seg["start"], seg["end"]))).keypoints
-    behaviour = load_scenario("default").behaviour
-    classifier = TrainedClassifier.shipped()
-    loop = PerceptionLoop(behaviour, classifier, load_predictor())
-    tick = loop.perceive(1.0, kp[:26].astype(np.float32))
-    assert tick.stage == "predicted" and (tick.label, tick.reaction) == ("wave", "greet")
-    real = PerceptionLoop(behaviour, classifier, None, threshold=1.01).perceive(
-        1.0, kp[:26].astype(np.float32))
-    assert real.stage is None and max(real.probabilities, key=real.probabilities.get) != "wave"
+    kp = user_track(Session(wave.source)).keypoints.astype(np.float32)
+    tick = loop.perceive(1.04, kp[:26])
+    assert (tick.stage, tick.label, tick.reaction) == ("real", "wave", "greet")
 
 
 # -- the loop measured on clips ------------------------------------------------------------
