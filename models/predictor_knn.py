@@ -54,6 +54,8 @@ VELOCITY_LAGS: tuple[int, ...] = (1, 2)
 HISTORY_LAGS: tuple[int, ...] = (5, 10, 15, 25)
 #: Queries per distance block (bounds the memory of the distance matrix).
 CHUNK = 256
+#: Queries per block of gathered neighbour futures.
+SUM_CHUNK = 32
 _EPS = 1e-6
 
 
@@ -87,15 +89,17 @@ def normalised(frames: np.ndarray, last: int = -1) -> tuple[np.ndarray, np.ndarr
 
 def features(history: np.ndarray, config: KNNConfig) -> np.ndarray:
     """(N, H, 17, 3) heading-normalised history, metres -> (N, D) float64 features φ
-    (float64: the squared distances are differences of large terms)."""
+    (parts with weight 0 are left out)."""
     last = history[:, -1]
     parts = [last]
-    parts += [config.velocity_weight * (5.0 / lag) * (last - history[:, -1 - lag])
-              for lag in _lags(config.past_len, VELOCITY_LAGS)]
-    parts += [config.history_weight * (history[:, -1 - lag] - last)
-              for lag in _lags(config.past_len, HISTORY_LAGS)]
+    if config.velocity_weight:
+        parts += [config.velocity_weight * (5.0 / lag) * (last - history[:, -1 - lag])
+                  for lag in _lags(config.past_len, VELOCITY_LAGS)]
+    if config.history_weight:
+        parts += [config.history_weight * (history[:, -1 - lag] - last)
+                  for lag in _lags(config.past_len, HISTORY_LAGS)]
     n = len(history)
-    return np.concatenate([p.reshape(n, -1) for p in parts], axis=1).astype(np.float64)
+    return np.concatenate([p.reshape(n, -1) for p in parts], axis=1)
 
 
 class KNNPredictor:
@@ -131,8 +135,12 @@ class KNNPredictor:
                                              for i, o in starts[a : a + CHUNK]]), h - 1)
             feats.append(features(frames[:, :h], config))
             futures.append((frames[:, h:] - frames[:, h - 1 : h]).astype(np.float32))
-        self.db_features = np.concatenate(feats)
-        self.db_sqnorm = (self.db_features ** 2).sum(1)
+        feats = np.concatenate(feats)
+        # centred float32: a fast product, and centring keeps the squared distances
+        # (differences of large terms) accurate in float32
+        self.db_mean = feats.mean(0)
+        self.db_features = (feats - self.db_mean).astype(np.float32)
+        self.db_sqnorm = (self.db_features.astype(np.float64) ** 2).sum(1)
         self.db_future = np.concatenate(futures)
 
     @property
@@ -165,14 +173,16 @@ class KNNPredictor:
         queries = [features(history, self.config)]
         if self.config.mirror:
             queries.append(features(mirror(history), self.config))
+        queries = [(q - self.db_mean).astype(np.float32) for q in queries]
         n, size = len(history), self.num_windows
         k = min(k, size * len(queries))
         index = np.empty((n, k), np.int64)
         dist = np.empty((n, k))
         for a in range(0, n, CHUNK):
+            # database @ query (not query @ database.T): a contiguous BLAS product
             d2 = np.concatenate([
-                (q[a : a + CHUNK] ** 2).sum(1)[:, None] + self.db_sqnorm
-                - 2.0 * (q[a : a + CHUNK] @ self.db_features.T) for q in queries], axis=1)
+                (q[a : a + CHUNK].astype(np.float64) ** 2).sum(1)[:, None] + self.db_sqnorm
+                - 2.0 * (self.db_features @ q[a : a + CHUNK].T).T for q in queries], axis=1)
             part = np.argpartition(d2, k - 1, axis=1)[:, :k]
             pd = np.take_along_axis(d2, part, 1)
             order = np.argsort(pd, axis=1)
@@ -186,14 +196,14 @@ class KNNPredictor:
         w = 1.0 / (dist + _EPS)
         w /= w.sum(1, keepdims=True)
         size = self.num_windows
-        out = np.zeros((len(index), self.future_len, NUM_JOINTS, 3))
-        for j in range(index.shape[1]):
-            i = index[:, j]
-            plain = self.db_future[np.minimum(i, size - 1)]
-            if self.config.mirror:
-                flipped = mirror(self.db_future[np.maximum(i - size, 0)])
-                plain = np.where((i >= size)[:, None, None, None], flipped, plain)
-            out += w[:, j, None, None, None] * plain
+        flipped = index >= size
+        out = np.empty((len(index), self.future_len, NUM_JOINTS, 3))
+        for a in range(0, len(index), SUM_CHUNK):
+            y = self.db_future[index[a : a + SUM_CHUNK] % size]  # (n, k, F, 17, 3)
+            wa, fa = w[a : a + SUM_CHUNK], flipped[a : a + SUM_CHUNK]
+            # mirroring is linear: mirror the weighted sum of the mirrored neighbours
+            out[a : a + SUM_CHUNK] = (np.einsum("nk,nk...->n...", wa * ~fa, y)
+                                      + mirror(np.einsum("nk,nk...->n...", wa * fa, y)))
         return out
 
     @staticmethod
