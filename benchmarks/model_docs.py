@@ -949,7 +949,7 @@ the same code as the model card (`simenv.train_classifier.results_markdown`).
 ## Reproduce
 
 ```bash
-simenv train classifier --epochs 12 --max-minutes 6 --out out/gestures  # or --config FILE
+simenv train classifier --out out/gestures  # the defaults (seed 0, 20 epochs); or --config FILE
 simenv eval classifier                                        # shipped model, test subjects
 OMP_NUM_THREADS=1 .venv/bin/python benchmarks/model_docs.py   # this document
 ```
