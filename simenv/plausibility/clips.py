@@ -351,31 +351,34 @@ def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray
     ft = thr if spec.frame_threshold is None else float(spec.frame_threshold)
     unit_tl = spec.timeline_unit or unit
     keys, constants, pick = layout
-    first = spec.slot
+    missing = [r or (None if ok is None or ok[b] else spec.reason)
+               for b, r in enumerate(batch.reasons)]
+    new, set_dict = object.__new__, object.__setattr__
     out = []
-    # Per clip only what differs; a row view per clip from iterating tl.
-    for b, (v, row, timeline, reason) in enumerate(zip(values, columns, tl, batch.reasons,
-                                                       strict=True)):
-        if reason is None and ok is not None and not ok[b]:
-            reason = spec.reason
+    # Per clip only what differs (about 1.5 us a result); a row view per
+    # clip from iterating tl; k walks the clip's runs bounds.
+    k = spec.slot
+    for v, row, timeline, reason in zip(values, columns, tl, missing, strict=True):
         if reason is not None:
             out.append(MetricResult.not_available(
                 name, batch.num_frames, unit, limit, reason,
                 frame_threshold=spec.frame_threshold, timeline_unit=spec.timeline_unit))
-            continue
-        k = b * kernels.N_METRICS + first
-        fields = {
-            "name": name, "value": v, "unit": unit, "threshold": thr,
-            "passed": v <= limit, "timeline": timeline,
-            "violations": spans[bounds[k]:bounds[k + 1]], "frame_threshold": ft,
-            "timeline_unit": unit_tl, "details": dict(zip(keys, pick(row + constants),
-                                                          strict=True)),
-            "reason": None,
-        }
-        if _FROM_FIELDS:
-            result = object.__new__(MetricResult)
-            object.__setattr__(result, "__dict__", fields)
+        elif _FROM_FIELDS:
+            result = new(MetricResult)
+            set_dict(result, "__dict__", {
+                "name": name, "value": v, "unit": unit, "threshold": thr,
+                "passed": v <= limit, "timeline": timeline,
+                "violations": spans[bounds[k]:bounds[k + 1]], "frame_threshold": ft,
+                "timeline_unit": unit_tl,
+                "details": dict(zip(keys, pick(row + constants), strict=True)),
+                "reason": None,
+            })
+            out.append(result)
         else:
-            result = MetricResult(**fields)
-        out.append(result)
+            out.append(MetricResult(
+                name=name, value=v, unit=unit, threshold=thr, passed=v <= limit,
+                timeline=timeline, violations=spans[bounds[k]:bounds[k + 1]],
+                frame_threshold=ft, timeline_unit=unit_tl,
+                details=dict(zip(keys, pick(row + constants), strict=True)), reason=None))
+        k += kernels.N_METRICS
     return out
