@@ -1,6 +1,11 @@
 """Other predictor families for the 20 % goal of issue 5: selection, training, evaluation.
 
-``python -m simenv.train_predictor_families knn|attention|blend|all [--out out/families]``
+``OMP_NUM_THREADS=1 python -m simenv.train_predictor_families knn attention blend
+[--out out/families]`` (stages in that order; the blend needs the other two and a copy of
+the shipped ``predictor-dctmlp-25-25.*`` in ``<out>/base``). ``OMP_NUM_THREADS=1`` puts
+numpy's BLAS on one thread: the speeds recorded (:func:`speed`) are one-thread speeds,
+and on a shared machine a multi-threaded BLAS makes the kNN's single predictions several
+times slower in CPU time.
 
 Every family is fitted on the training clips of ``predictor-25-25``'s split
 (:func:`simenv.train_predictor.make_split`, test fraction 0.25, seed 0) and tuned only on
@@ -13,14 +18,17 @@ windows are exactly the shipped model card's (1 + 25 + 25 frames, stride 1).
   weights and the shrinkage are chosen on a grid by the validation score of
   :func:`simenv.train_predictor.validation_score` (mean per-frame MPJPE over the
   horizons). The final model searches all training clips with the chosen values.
-* ``attention`` (:mod:`simenv.models.predictor_attention`): trained with
-  :func:`simenv.train_predictor.train_regression` (same loss, optimiser and model
-  selection on the validation clips as the DCT-MLP) on the fit clips' windows with the
-  speed and mirror augmentation.
+* ``attention`` (:mod:`simenv.models.predictor_attention`): trained by
+  :func:`train_attention` (the loss, optimiser, schedule and model selection on the
+  validation clips of :func:`simenv.train_predictor.train_regression`) on the fit clips'
+  windows with the speed and mirror augmentation; ``--members K`` trains K networks
+  with seeds 0 .. K-1. An existing ``<out>/attention/model.npz`` with its
+  ``training.json`` is evaluated again instead of retrained (``--retrain``).
 * ``blend`` (:mod:`simenv.models.predictor_blend`): convex weights per horizon frame
   over the shipped DCT-MLP (a copy in ``out/families/base``), the kNN and attention
   predictors *as fitted without the validation clips*, and zero-velocity, chosen on the
-  validation windows (:func:`simenv.models.predictor_blend.convex_weights`).
+  validation windows (:func:`simenv.models.predictor_blend.convex_weights`); the final
+  blend keeps the weights and swaps in the kNN searching all training clips.
 
 Each run writes ``<out>/<family>/metrics.json`` (validation search, held-out metrics of
 the final candidate in the format of :func:`simenv.train_predictor.evaluate`), the model
