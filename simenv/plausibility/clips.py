@@ -93,12 +93,14 @@ class ClipBatch:
         idx: (J,) int64 source joint of each canonical keypoint.
     """
 
-    def __init__(self, motions: Sequence[Motion]) -> None:
+    def __init__(self, motions: Sequence[Motion], layout_key: tuple | None = None) -> None:
+        """``layout_key``: :func:`_layout_key` of the clips' skeleton when
+        the caller has it (:func:`batches`), which spares hashing it again."""
         first = motions[0]
         self.motions = list(motions)
         self.num_frames = first.num_frames
         self.fps = first.fps
-        layout = _layout(_layout_key(first.skeleton))
+        layout = _layout(_layout_key(first.skeleton) if layout_key is None else layout_key)
         self.reasons: list[str | None] = [None] * len(motions)
         self.positions: np.ndarray | List | None = None
         if layout is None:
@@ -173,11 +175,12 @@ def batches(motions: Sequence[Motion], max_frames: int | None = None
             number = numbers[id(m.skeleton)] = layouts.setdefault(
                 _layout_key(m.skeleton), len(layouts))
         groups.setdefault((number, m.fps, m.num_frames), []).append(i)
-    for (_, _, frames), members in groups.items():
+    keys = list(layouts)
+    for (number, _, frames), members in groups.items():
         per = max(1, max_frames // frames)
         for start in range(0, len(members), per):
             chunk = members[start:start + per]
-            yield chunk, ClipBatch([motions[i] for i in chunk])
+            yield chunk, ClipBatch([motions[i] for i in chunk], keys[number])
 
 
 @dataclass(frozen=True)
@@ -312,19 +315,24 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[Met
         runs = np.empty((count, 3))
         value[:], details[:], available[:] = 0.0, 0.0, False
     batch._check_extent(span)
-    # Python numbers at once: per-clip numpy calls would cost more than the
-    # kernels on short clips.
+    # Python numbers at once, in one conversion per array: per-clip or
+    # per-metric numpy calls would cost more than the kernels on short clips.
     spans = [(int(s), int(e), w) for s, e, w in runs[:count].tolist()]
     bounds = offsets.tolist()
+    values, columns = value.tolist(), details.tolist()
     ok = available.tolist()
     out = []
     for s, layout in zip(plan.specs, plan.layouts, strict=True):
         if s.args is None:
             out.append(s.not_available(batch))
             continue
-        out.append(_results(batch, s, layout, tl[s.slot], value[s.slot].tolist(),
-                            details[s.slot].tolist(), spans, bounds,
-                            ok if s.slot == kernels.BONE else None))
+        # Per clip, why it has no result (None for most): its own reason,
+        # or for bone_length no bone checked.
+        missing = batch.reasons
+        if s.slot == kernels.BONE and not all(ok):
+            missing = [r or (None if a else s.reason) for r, a in zip(missing, ok, strict=True)]
+        out.append(_results(batch, s, layout, tl[s.slot], values[s.slot], columns[s.slot],
+                            spans, bounds, missing))
     return out
 
 
@@ -339,20 +347,18 @@ _FROM_FIELDS = not hasattr(MetricResult, "__post_init__") and not hasattr(
 
 def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray,
              values: list[float], columns: list[list[float]],
-             spans: list[tuple[int, int, float]], bounds: list[int], ok: list[bool] | None
-             ) -> list[MetricResult]:
+             spans: list[tuple[int, int, float]], bounds: list[int],
+             missing: list[str | None]) -> list[MetricResult]:
     """The results of one metric: ``layout`` how its details are read,
     ``tl`` (B, T) float32 timelines, ``values`` (B,), ``columns`` (B, 4)
     detail columns, the violation runs and their bounds (see
-    :func:`simenv.plausibility.kernels.score`), ``ok`` (B,) clips the metric
-    could be computed on (None: all)."""
+    :func:`simenv.plausibility.kernels.score`), ``missing`` (B,) why a clip
+    has no result (None: it has one)."""
     name, unit, limit = spec.name, spec.unit, spec.threshold
     thr = float(limit)
     ft = thr if spec.frame_threshold is None else float(spec.frame_threshold)
     unit_tl = spec.timeline_unit or unit
     keys, constants, pick = layout
-    missing = [r or (None if ok is None or ok[b] else spec.reason)
-               for b, r in enumerate(batch.reasons)]
     new, set_dict = object.__new__, object.__setattr__
     out = []
     # Per clip only what differs (about 1.5 us a result); a row view per
