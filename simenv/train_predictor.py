@@ -16,6 +16,8 @@ group is one clip, except that the two people of one CMU two-person trial (18_01
 60_xx/61_xx salsa) form one group, since each partner's motion mirrors the other's, and
 a trial read from BVH and from AMC (02_01) is one clip by name. No group has windows on
 both sides. The Karcher means and scales are fitted on the training windows only.
+``--extra-data msr utkinect nuisi`` adds Kinect-era clips to the *training* pool only
+(:func:`extra_motions`; the held-out CMU clips stay the test set).
 
 The DCT-residual MLP (``--model regression``, :func:`train_regression`) is trained on
 the same windows; ``--members K`` makes it an ensemble cross-fitted on K folds of the
