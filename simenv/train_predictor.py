@@ -748,7 +748,7 @@ def run(args: argparse.Namespace) -> dict:
         model = fit_geometry(train_w, config)
         log = train(model, train_w, n_critic=args.n_critic, lr=lr,
                     adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
-                    **budget)
+                    validate_every=args.validate_every, **budget)
         recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
                   "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude,
                   "prior": args.prior, "velocity_condition": args.velocity_condition,
@@ -1110,6 +1110,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                     default="none", help="GAN: prior future whose tangent vector and "
                     "amplitude the generator and head correct (simenv.models.predictor."
                     "fit_prior; none: the paper's model)")
+    ap.add_argument("--validate-every", type=int, default=100,
+                    help="GAN: iterations between scores on the validation clips")
     ap.add_argument("--velocity-condition", action=argparse.BooleanOptionalAction,
                     default=False, help="GAN: add the last observed velocity to the "
                     "generator's condition")
