@@ -212,3 +212,38 @@ def test_velocity_is_the_numpy_formula(walk, limb_mps) -> None:
     assert r.details["max_speed_mps"] == speed.max()
     assert r.details["max_speed_ratio"] == ratio.max()
     assert r.details["max_jump_m"] == jump.max()
+
+
+def test_violation_runs_beyond_the_room_made_for_them_are_all_kept(walk, monkeypatch) -> None:
+    # clips.score makes room for a few runs per clip and scores again when a
+    # batch has more; a joint teleported every 20 frames gives many runs.
+    from simenv.plausibility import clips
+
+    pos = walk.positions.copy()
+    pos[10::20, 5] += np.float32(0.5)
+    jumpy = walk.with_positions(pos)
+    expected = kinematic_metrics(jumpy)
+    assert len(expected["velocity"].violations) > 10
+    monkeypatch.setattr(clips, "_RUNS_PER_CLIP", 1)
+    got = kinematic_metrics(jumpy)
+    for name, r in expected.items():
+        assert got[name].violations == r.violations, name
+        assert got[name].value == r.value or np.isnan(r.value), name
+        assert got[name].details == r.details, name
+        np.testing.assert_array_equal(got[name].timeline, r.timeline, err_msg=name)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 8, 15, 16, 21, 22, 31, 33])
+def test_median_network_gives_numpy_median_and_max(n) -> None:
+    # Jitter's median over keypoints (a pruned Batcher network), on columns
+    # with and without ties: numpy's median is the answer.
+    from simenv.plausibility import kernels
+
+    rng = np.random.default_rng(n)
+    a = rng.standard_normal((n, 40))
+    a[:, 20:] = np.round(a[:, 20:])
+    med, top = np.empty(40), np.empty(40)
+    kernels._column_medians(a.copy(), kernels.median_network(n), med, top)
+    np.testing.assert_array_equal(med, np.median(a, axis=0))
+    np.testing.assert_array_equal(top, a.max(axis=0))
+    assert len(kernels.median_network(21)) < 21 * 20
