@@ -734,6 +734,27 @@ the shipped model on the held-out clips would replace it.
 
 {regression_text(extra, GOAL_MODEL)}
 
+## Other predictor families tried (not shipped)
+
+Measured on 2026-12-02 against the DCT-MLP shipped before the Kinect-era training data
+(113.2 / 164.2 mm), on the same 1337 held-out windows of {GOAL_MODEL}, every choice made on
+the validation clips 05_02, 135_06 and 49_04 (817 windows). None beat that DCT-MLP on the
+held-out clips, so none is shipped; their code (`models/predictor_knn.py`,
+`models/predictor_attention.py`, `models/predictor_blend.py`, the driver
+`simenv/train_predictor_families.py` and their tests) was removed from the tree and is in
+commit `f2e14d5` (`git show f2e14d5:models/predictor_knn.py`). Static record, not
+recomputed by this script:
+
+| candidate | held-out 400 ms (vs zero-velocity) | held-out 1000 ms | single predictions/s |
+|---|---|---|---|
+| motion matching (kNN, k = 64, shrinkage 0.9) | 127.0 (+3.1 %) | 197.0 (-3.3 %) | 270 |
+| joint-attention network on DCT coefficients, 2 members | 122.3 (+6.7 %) | 167.8 (+12.0 %) | 132 |
+| per-frame convex blend (DCT-MLP, kNN, attention, zero-velocity) | 118.9 (+9.3 %) | 167.8 (+12.0 %) | 63 |
+
+The validation clips chose the blend (110.1 mm against the DCT-MLP's 117.6) although it is
+worse on the held-out clips: 630 of the 817 validation windows come from one strike clip
+(135_06), too lopsided a set to choose between families.
+
 ## What the numbers say
 
 * **The goal is {'met' if all(goal_met.values()) else 'not met'}.** At 400 ms and 1000 ms
