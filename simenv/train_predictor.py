@@ -1096,8 +1096,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--extra-stride", type=int, default=2,
                     help="frames between the starts of consecutive extra windows")
     ap.add_argument("--mirror-average", action=argparse.BooleanOptionalAction,
-                    default=True, help="regression: average each prediction with the "
-                    "mirrored prediction of the mirrored history")
+                    default=True, help="average each prediction with the mirrored "
+                    "prediction of the mirrored history (GAN and regression)")
     ap.add_argument("--n-critic", type=int, default=2, help="critic steps per G step")
     ap.add_argument("--lr", type=float, default=None,
                     help="learning rate (default 1e-4 for the GAN, 3e-4 for regression)")
