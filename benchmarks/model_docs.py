@@ -498,7 +498,7 @@ def _extra_training(info: dict) -> str:
     return (f"plus {info['extra_windows']} windows of Kinect-era training clips "
             f"(`--extra-data {' '.join(info['extra_data'])}`: the gesture classifier's "
             "training subjects of MSR Action3D and UTKinect, NuiSI's training "
-            f"repetitions; every {info['extra_stride']}th window, mirrored; validation "
+            f"repetitions; one window in {info['extra_stride']}, mirrored; validation "
             "and test stay CMU), ")
 
 
