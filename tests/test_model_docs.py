@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from simenv import train_classifier as tc
 from simenv.gestures import GESTURE_LABELS
@@ -41,8 +42,15 @@ def test_recognition_doc_numbers_come_from_the_metrics() -> None:
     assert "123 parameters" in doc
     assert "No subject is on both sides." in doc
     assert "| gesture-classifier | 12 | 46 (4) |" in doc
-    # the learned continuation (all `other`) is the worst: the finding says so
-    assert "does not help" in doc
+    # the learned continuation (all `other`: 2 of 4 right) beats 1 s real (1 of 4)
+    assert "The learned predictor helps recognition." in doc
+    assert "(3 of 3 above 1 s" in doc
+    metrics = _metrics()
+    y = np.array([GESTURE_LABELS.index(k) for k in ("wave", "wave", "other", "other")])
+    metrics["test"]["real_1s"] = tc.score(y, y, ["msr_action3d", "utkinect"] * 2)
+    doc = model_docs.recognition_doc(metrics, speed, "HEADER LINE")
+    assert "Predicted frames do not help recognition here." in doc
+    assert "(0 of 3 above 1 s" in doc
 
 
 def test_header_names_the_command_and_forbids_hand_edits() -> None:
@@ -66,8 +74,28 @@ def test_generator_diagnostics_on_real_windows(shared_data) -> None:
     assert 0 <= d["dist_mean_future"] <= np.pi and 0 <= d["dist_past_future"] <= np.pi
     # a walk's 400 ms future is nearer the mean of such futures than orthogonal to it
     assert d["dist_mean_future"] < np.pi / 2
+    assert "prior_mm" not in d
     text = model_docs.diagnostics_text(d, "predictor-10-10")
-    assert f"{d['direction_corr']:.3f}" in text and "We did not train" in text
+    assert f"{d['direction_corr']:.3f}" in text and "repeating the past motion" in text
+
+
+def test_generator_diagnostics_of_an_untrained_prior_model(shared_data) -> None:
+    from simenv import prediction_data as pdata
+    from simenv.io import bvh
+    from simenv.models import predictor as P
+
+    clip = bvh.read(shared_data / "cmu" / "bvh" / "02_01.bvh")
+    windows = pdata.windows_from_motions([clip], 10, 10, stride=5)
+    config = P.PredictorConfig(10, 10, prior="damped_velocity")
+    model = P.fit_geometry(windows, config, max_iter=20)
+    d = model_docs.generator_diagnostics(model, windows)
+    # the correction layers start at zero: the networks predict the prior exactly
+    assert d["direction_corr"] == pytest.approx(d["prior_direction_corr"], abs=1e-6)
+    assert d["amplitude_ratio"] == pytest.approx(d["prior_amplitude_ratio"], rel=1e-5)
+    assert d["network_mm"][400] == pytest.approx(d["prior_mm"][400], rel=1e-5)
+    text = model_docs.diagnostics_text(d, "predictor-10-10")
+    assert "The prior carries most of the prediction." in text
+    assert f"{d['prior_direction_corr']:.3f}" in text
 
 
 def test_variant_and_regression_text_come_from_the_metrics() -> None:
