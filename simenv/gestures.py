@@ -715,9 +715,24 @@ def make_windows(
         w, v = cut_window(clip.positions, length=length, offset=offset, real_frames=real_frames)
         xs.append(w)
         vs.append(v)
-    valid = np.stack(vs)
-    x = normalise_windows(np.stack(xs), valid, joints=joints)
+    return pack_windows(clips, xs, vs, joints)
+
+
+def pack_windows(clips: Sequence[GestureClip], windows: Sequence[np.ndarray],
+                 valid: Sequence[np.ndarray], joints: Sequence[str] = GESTURE15_JOINTS
+                 ) -> GestureWindows:
+    """One :class:`GestureWindows` of cut windows, one per clip, normalised
+    (:func:`normalise_windows`) and labelled from their clips.
+
+    Args:
+        clips: the clips the windows were cut from, in order.
+        windows: per clip a (75, J, 3) window (:func:`cut_window`), metres.
+        valid: per clip its (75,) bool mask of real frames.
+        joints: joint names of the windows.
+    """
+    mask = np.stack(valid)
+    x = normalise_windows(np.stack(windows), mask, joints=joints)
     y = np.array([GESTURE_LABELS.index(c.label) for c in clips], dtype=np.int64)
-    return GestureWindows(x, valid, y, tuple(c.subject_key for c in clips),
+    return GestureWindows(x, mask, y, tuple(c.subject_key for c in clips),
                           tuple(c.dataset for c in clips), tuple(c.name for c in clips),
                           tuple(joints))

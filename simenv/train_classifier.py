@@ -85,7 +85,7 @@ from simenv.gestures import (
     load_gesture_clips,
     make_windows,
     mirror_windows,
-    normalise_windows,
+    pack_windows,
     room_reaction,
     split_cross_subject,
 )
@@ -201,12 +201,7 @@ def training_windows(clips: Sequence[GestureClip], rng: np.random.Generator,
                           real_frames=None if kind == 0 else SHORT_FRAMES)
         xs.append(w)
         vs.append(np.ones_like(v) if kind == 2 else v)
-    valid = np.stack(vs)
-    x = normalise_windows(np.stack(xs), valid, joints=joints)
-    y = np.array([GESTURE_LABELS.index(c.label) for c in clips], dtype=np.int64)
-    return GestureWindows(x, valid, y, tuple(c.subject_key for c in clips),
-                          tuple(c.dataset for c in clips), tuple(c.name for c in clips),
-                          tuple(joints))
+    return pack_windows(clips, xs, vs, joints)
 
 
 def length_buckets(lengths: np.ndarray, batch_size: int, rng: np.random.Generator,
