@@ -364,22 +364,30 @@ def ensemble_ablation(model: DCTRegressionPredictor, windows: pdata.PredictionWi
     return rows
 
 
-def gan_command(cfg: dict, out: str) -> str:
-    """The ``simenv train predictor`` command of a PredictiveMA-WGAN run, rebuilt from
-    the configuration its checkpoint records (``metrics["config"]``)."""
-    info = cfg.get("info", cfg)
-    flags = [f"--past {cfg['past_len']} --future {cfg['future_len']}",
-             f"--minutes {info['train_seconds'] / 60:.0f}"]
+def gan_flags(info: dict) -> list[str]:
+    """The ``simenv train predictor`` options a PredictiveMA-WGAN checkpoint records
+    beyond the defaults (prior, velocity condition, joint amplitude, adversarial weight,
+    validation split), in that order."""
+    flags = []
     if info.get("prior", "none") != "none":
         flags.append(f"--prior {info['prior']}")
     if info.get("velocity_condition"):
         flags.append("--velocity-condition")
     if info.get("joint_amplitude"):
         flags.append("--joint-amplitude")
-    if info.get("adv_weight", 1.0) != 1.0:
+    if info.get("adv_weight", 1) != 1:
         flags.append(f"--adv-weight {info['adv_weight']:g}")
     if info.get("validation_clips"):
         flags.append("--validation 0.2")
+    return flags
+
+
+def gan_command(cfg: dict, out: str) -> str:
+    """The ``simenv train predictor`` command of a PredictiveMA-WGAN run, rebuilt from
+    the configuration its checkpoint records (``metrics["config"]``)."""
+    info = cfg.get("info", cfg)
+    flags = [f"--past {cfg['past_len']} --future {cfg['future_len']}",
+             f"--minutes {info['train_seconds'] / 60:.0f}", *gan_flags(info)]
     return f"simenv train predictor {' '.join(flags)} --out {out}"
 
 
@@ -470,16 +478,9 @@ def variants_text(variants: Sequence[dict], shipped: dict) -> str:
                 f"{ov['model']['mpjs_m_s']:.3f} |")
 
     def label(info: dict) -> str:
-        flags = [f"`--adv-weight {info['adv_weight']:g}`"] if info.get("adv_weight", 1) != 1 \
-            else []
-        if info.get("prior", "none") != "none":
-            flags.append(f"`--prior {info['prior']}`")
-        if info.get("velocity_condition"):
-            flags.append("`--velocity-condition`")
-        if info.get("joint_amplitude"):
-            flags.append("`--joint-amplitude`")
-        if info.get("validation_clips"):
-            flags.append(f"`--validation` (selected iteration {info['selected_iteration']})")
+        flags = [f"`{f}`" if not f.startswith("--validation") else
+                 f"`--validation` (selected iteration {info['selected_iteration']})"
+                 for f in gan_flags(info)]
         return ", ".join(flags) or "defaults"
 
     lines = ["| run | iterations | 400 ms (vs zero-velocity) | 1000 ms | MPJS [m/s] |",

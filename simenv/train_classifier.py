@@ -314,8 +314,10 @@ def extrapolate_with_predictor(windows: GestureWindows, predictor: Any) -> Gestu
     (``predict`` on pred17 root-relative histories of ``1 + P`` frames, see
     :mod:`simenv.models.predictor`), all frames valid.
 
-    gesture15 -> pred17: the pelvis is the mid-hip point and the chest the midpoint of
-    spine and neck (gesture15 has neither); the other 15 joints map by name. The lead-in
+    gesture15 -> pred17: the pelvis and the chest (gesture15 has neither) are derived as
+    :func:`simenv.prediction_data.to_pred17` derives them
+    (:data:`~simenv.prediction_data.DERIVED_KEYPOINTS`: mid-hip, spine-neck midpoint);
+    the other 15 joints map by name. The lead-in
     frame repeats the first real frame when the window has only P real frames. The
     predicted root-relative poses are put on a constant-velocity root (the predictor
     does not predict the root); repeated predictions (P -> F steps) fill the window.
@@ -324,7 +326,7 @@ def extrapolate_with_predictor(windows: GestureWindows, predictor: Any) -> Gestu
         MotionError: the windows are not on the gesture15 joints.
     """
     from simenv.models.predictor import rollout
-    from simenv.prediction_data import PRED17_JOINTS
+    from simenv.prediction_data import DERIVED_KEYPOINTS, PRED17_JOINTS
 
     names = list(windows.joints)
     if set(names) != set(GESTURE15_JOINTS):
@@ -338,9 +340,9 @@ def extrapolate_with_predictor(windows: GestureWindows, predictor: Any) -> Gestu
         if n == len(v):
             continue
         real = x[i, :n].astype(np.float64)
-        pelvis = 0.5 * (real[:, col["left_hip"]] + real[:, col["right_hip"]])
-        chest = 0.5 * (real[:, col["spine"]] + real[:, col["neck"]])
-        extra = {"pelvis": pelvis, "chest": chest}
+        extra = {k: 0.5 * (real[:, col[a]] + real[:, col[b]])
+                 for k, (a, b) in DERIVED_KEYPOINTS.items()}
+        pelvis = extra["pelvis"]
         pose = np.stack([extra[j] if j in extra else real[:, col[j]] for j in PRED17_JOINTS],
                         axis=1) - pelvis[:, None]
         if n < need:

@@ -61,6 +61,7 @@ from simenv.models.baselines import ConstantVelocity, ZeroVelocity
 from simenv.models.predictor import (
     LOSS_WEIGHTS,
     PARENTS,
+    PRIORS,
     PredictiveMAWGAN,
     PredictorConfig,
     amplitude_loss,
@@ -1106,7 +1107,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--joint-amplitude", action=argparse.BooleanOptionalAction,
                     default=False, help="train generator and amplitude head together "
                     "on the position losses at the predicted amplitude")
-    ap.add_argument("--prior", choices=("none", "damped_velocity", "linear"),
+    ap.add_argument("--prior", choices=PRIORS,
                     default="none", help="GAN: prior future whose tangent vector and "
                     "amplitude the generator and head correct (simenv.models.predictor."
                     "fit_prior; none: the paper's model)")
