@@ -745,7 +745,8 @@ def run(args: argparse.Namespace) -> dict:
         config = PredictorConfig(args.past, args.future, dropout=args.dropout,
                                  prior=args.prior,
                                  velocity_condition=args.velocity_condition,
-                                 mirror_average=args.mirror_average)
+                                 mirror_average=args.mirror_average,
+                                 restore_bones=args.restore_bones)
         model = fit_geometry(train_w, config)
         log = train(model, train_w, n_critic=args.n_critic, lr=lr,
                     adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
@@ -753,7 +754,11 @@ def run(args: argparse.Namespace) -> dict:
         recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
                   "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude,
                   "prior": args.prior, "velocity_condition": args.velocity_condition,
-                  "mirror_average": args.mirror_average}
+                  "mirror_average": args.mirror_average,
+                  "restore_bones": args.restore_bones,
+                  "extra_data": list(getattr(args, "extra_data", None) or []),
+                  "extra_stride": args.extra_stride if extra else None,
+                  "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c))}
     # an ensemble's selections are per member (recipe["members"])
     selected = [] if ensemble else [e for e in log if "val_mpjpe_mm" in e]
     config.info.update({"train_clips": list(split.train_clips),
@@ -1116,6 +1121,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--velocity-condition", action=argparse.BooleanOptionalAction,
                     default=False, help="GAN: add the last observed velocity to the "
                     "generator's condition")
+    ap.add_argument("--restore-bones", action=argparse.BooleanOptionalAction,
+                    default=False, help="GAN: rebuild the prior future and every "
+                    "predicted frame with the last observed pose's bone lengths")
     ap.add_argument("--speeds", type=float, nargs="+", default=[0.8, 1.0, 1.25],
                     help="speed augmentation factors of the training clips")
     ap.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -351,3 +352,52 @@ def test_checkpoint_with_a_prior_round_trips(with_prior, windows, tmp_path):
     with pytest.raises(MotionError, match="prior must be one of"):
         P.PredictiveMAWGAN(P.PredictorConfig(10, 10, prior="spline"),
                            with_prior.mu_past, with_prior.mu_future)
+
+
+def _bones(frames):
+    child = list(range(1, 17))
+    par = [P.PARENTS[j] for j in child]
+    return np.linalg.norm(frames[..., child, :] - frames[..., par, :], axis=-1)
+
+
+def test_restore_bone_lengths_keeps_directions_and_real_skeletons(windows):
+    last = torch.as_tensor(windows.past[:6, -1], dtype=torch.float64)
+    future = torch.as_tensor(windows.future[:6], dtype=torch.float64)
+    # real mocap futures already have the last observed pose's bones: nothing moves
+    np.testing.assert_allclose(P.restore_bone_lengths(future, last), future, atol=2e-3)
+    # a blend of poses (as a linear prior makes) has other bone lengths; restored, it
+    # has the reference's, and every bone keeps its direction
+    blend = 0.5 * (future + future.flip(1)) + 0.02 * torch.sin(
+        torch.arange(17 * 3, dtype=torch.float64)).view(17, 3)
+    out = P.restore_bone_lengths(blend, last).numpy()
+    assert np.abs(_bones(blend.numpy()) - _bones(last.numpy())[:, None]).max() > 0.02
+    np.testing.assert_allclose(_bones(out), np.broadcast_to(
+        _bones(last.numpy())[:, None], _bones(out).shape), atol=1e-9)
+    np.testing.assert_allclose(out[..., 0, :], blend[..., 0, :].numpy(), atol=1e-12)
+    for j in range(1, 17):
+        d_in = blend[..., j, :] - blend[..., P.PARENTS[j], :]
+        d_out = out[..., j, :] - out[..., P.PARENTS[j], :]
+        cos = (d_in.numpy() * d_out).sum(-1) / (np.linalg.norm(d_out, axis=-1)
+                                                 * d_in.norm(dim=-1).numpy())
+        np.testing.assert_allclose(cos, 1.0, atol=1e-9)
+
+
+def test_restore_bones_predicts_the_observed_skeleton(windows):
+    config = P.PredictorConfig(10, 10, prior="linear", velocity_condition=True,
+                               restore_bones=True)
+    model = P.fit_geometry(windows, config, tol=1e-5)
+    history = windows.frames[:8, :11]
+    pred = model.predict(history)
+    drift = np.abs(_bones(pred.astype(np.float64))
+                   - _bones(history[:, -1].astype(np.float64))[:, None])
+    assert drift.max() < 1e-5
+    # without the restoration the same linear prior drifts (it blends poses)
+    plain = P.PredictiveMAWGAN(replace(config, restore_bones=False),
+                               model.mu_past, model.mu_future, model.prior_filter)
+    raw = plain.predict(history)
+    assert np.abs(_bones(raw.astype(np.float64))
+                  - _bones(history[:, -1].astype(np.float64))[:, None]).mean() > 1e-3
+    # training sees the restored frames: its bone loss is ~0
+    batch = _batch(model, windows, 8)
+    _, terms, _ = P.generator_loss(model, batch, torch.zeros(8, 16), joint_amplitude=True)
+    assert terms["bone"] < 1e-4
