@@ -28,8 +28,11 @@ Pipeline (one window; P observed frames, F to predict, 17 joints, D = 51)
 5. **Amplitude.** A small head predicts ``log a_F - log a_P`` from the same condition
    (the colleague's measurement: carrying ``a_P`` correlates only 0.35 with ``a_F``).
    The alternative "carried" amplitude ``a_P sqrt(F / P)`` (same mean speed) is
-   available for comparison (``amplitude="carried"``). By default the head is trained
-   on its own (:func:`amplitude_loss`) and the generator at the true amplitude; with
+   available for comparison (``amplitude="carried"``), and with a prior (item 7) the
+   prior future's own amplitude ``ã`` (``amplitude="prior"``). By default the head is
+   trained on its own (:func:`amplitude_loss`: the position error at the generator's
+   direction, or with ``target="true"`` the L1 error of ``log a_F`` itself, which does
+   not reward a shorter curve) and the generator at the true amplitude; with
    ``joint_amplitude`` (:func:`generator_loss`) both are trained together on the
    position losses at the predicted amplitude (measured in docs/prediction.md).
 6. **Integration without a seam.** ``q̂ = â p̂`` is integrated from the last observed
@@ -140,7 +143,7 @@ CHECKPOINT_FORMAT = "simenv-predictive-ma-wgan-1"
 #: Prior futures the networks can correct (:func:`fit_prior`).
 PRIORS = ("none", "damped_velocity", "linear")
 #: How the future amplitude is restored (:meth:`PredictiveMAWGAN.log_amplitude`).
-AMPLITUDES = ("predicted", "carried")
+AMPLITUDES = ("predicted", "carried", "prior")
 
 
 # -- heading normalisation ------------------------------------------------------
@@ -576,12 +579,18 @@ class PredictiveMAWGAN:
                       amplitude: str = "predicted", base: torch.Tensor | None = None
                       ) -> torch.Tensor:
         """log of the future amplitude: ``"predicted"``, the head's output added to
-        ``base`` (the prior future's log amplitude; ``log_amp_past`` when None), or
-        ``"carried"`` from the past, ``a_P sqrt(F / P)`` (the same mean speed)."""
+        ``base`` (the prior future's log amplitude; ``log_amp_past`` when None),
+        ``"carried"`` from the past, ``a_P sqrt(F / P)`` (the same mean speed), or
+        ``"prior"``, the prior future's own (``base``; a model with a prior only)."""
         if amplitude == "predicted":
             return (log_amp_past if base is None else base) + self.amplitude(cond)
         if amplitude == "carried":
             return log_amp_past + 0.5 * math.log(self.future_len / self.past_len)
+        if amplitude == "prior":
+            if self.prior_filter is None or base is None:
+                raise MotionError("amplitude 'prior' needs a model with a prior future",
+                                  field="amplitude")
+            return base
         raise MotionError(f"amplitude must be one of {', '.join(AMPLITUDES)}; got "
                           f"{amplitude!r}", field="amplitude")
 
@@ -595,7 +604,8 @@ class PredictiveMAWGAN:
         Args:
             history: (N, H, 17, 3) or (H, 17, 3) root-relative positions, metres,
                 H >= 1 + P, ending at the last observed frame.
-            amplitude: ``"predicted"`` (default) or ``"carried"``.
+            amplitude: ``"predicted"`` (default), ``"carried"`` or ``"prior"``
+                (:meth:`log_amplitude`).
             seed: sample the generator noise with this seed; None uses ``z = 0``.
 
         Returns:
@@ -852,15 +862,23 @@ def generator_loss(model: PredictiveMAWGAN, batch: Batch, z: torch.Tensor,
     return loss, info, u
 
 
-def amplitude_loss(model: PredictiveMAWGAN, batch: Batch, u: torch.Tensor) -> torch.Tensor:
-    """L1 position error (decimetres) of the future integrated with the generator's
-    direction ``u`` (held fixed) and the predicted amplitude.
+def amplitude_loss(model: PredictiveMAWGAN, batch: Batch, u: torch.Tensor,
+                   target: str = "positions") -> torch.Tensor:
+    """Loss of the amplitude head.
 
-    Training the head on the position error rather than on the true amplitude makes it
-    the MPJPE-optimal length for the direction the generator actually predicts: where
-    the direction is uncertain, a shorter curve errs less.
+    ``target="positions"``: L1 position error (decimetres) of the future integrated with
+    the generator's direction ``u`` (held fixed) and the predicted amplitude. Training
+    the head on the position error rather than on the true amplitude makes it the
+    MPJPE-optimal length for the direction the generator actually predicts: where the
+    direction is uncertain, a shorter curve errs less. ``target="true"``: ``mean |log â -
+    log a_F|``, the true amplitude (median-unbiased; the curve is not shrunk).
     """
     log_amp = model.log_amplitude(batch.cond, batch.log_amp_past, base=batch.log_amp_base)
+    if target == "true":
+        return (log_amp - batch.log_amp_future).abs().mean()
+    if target != "positions":
+        raise MotionError(f"target must be 'positions' or 'true'; got {target!r}",
+                          field="target")
     frames, _ = model.decode(u.detach(), log_amp, batch.last)
     return LOSS_UNIT * (frames - batch.future).abs().mean()
 

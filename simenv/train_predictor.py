@@ -295,6 +295,7 @@ def train(
     lr: float = 1e-4,
     adv_weight: float = 1.0,
     joint_amplitude: bool = False,
+    amplitude_target: str = "positions",
     validation: pdata.PredictionWindows | None = None,
     validate_every: int = 100,
     seed: int = 0,
@@ -306,7 +307,9 @@ def train(
     amplitude-head step, each on a fresh random batch. With ``joint_amplitude`` the
     generator's position losses use the predicted amplitude and one optimiser step
     updates generator and head together
-    (:func:`simenv.models.predictor.generator_loss`). With ``validation`` windows
+    (:func:`simenv.models.predictor.generator_loss`); otherwise the head's loss is
+    :func:`simenv.models.predictor.amplitude_loss` with ``amplitude_target``. With
+    ``validation`` windows
     (clips held out *inside* the training clips, never the test clips) the model is
     scored every ``validate_every`` iterations (:func:`validation_score`) and the best
     generator and head are kept. ``minutes`` budgets the
@@ -363,7 +366,7 @@ def train(
         if joint_amplitude:
             loss_a = torch.as_tensor(info_g["rec"])
         else:
-            loss_a = amplitude_loss(model, batch, u)
+            loss_a = amplitude_loss(model, batch, u, amplitude_target)
             opt_a.zero_grad()
             loss_a.backward()
             opt_a.step()
@@ -750,12 +753,14 @@ def run(args: argparse.Namespace) -> dict:
         model = fit_geometry(train_w, config)
         log = train(model, train_w, n_critic=args.n_critic, lr=lr,
                     adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
+                    amplitude_target=args.amplitude_target,
                     validate_every=args.validate_every, **budget)
         recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
                   "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude,
                   "prior": args.prior, "velocity_condition": args.velocity_condition,
                   "mirror_average": args.mirror_average,
                   "restore_bones": args.restore_bones,
+                  "amplitude_target": None if args.joint_amplitude else args.amplitude_target,
                   "extra_data": list(getattr(args, "extra_data", None) or []),
                   "extra_stride": args.extra_stride if extra else None,
                   "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c))}
@@ -1121,6 +1126,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--velocity-condition", action=argparse.BooleanOptionalAction,
                     default=False, help="GAN: add the last observed velocity to the "
                     "generator's condition")
+    ap.add_argument("--amplitude-target", choices=("positions", "true"),
+                    default="positions", help="GAN without --joint-amplitude: train the "
+                    "amplitude head on the position error at the generator's direction "
+                    "or on the true log amplitude")
     ap.add_argument("--restore-bones", action=argparse.BooleanOptionalAction,
                     default=False, help="GAN: rebuild the prior future and every "
                     "predicted frame with the last observed pose's bone lengths")

@@ -401,3 +401,25 @@ def test_restore_bones_predicts_the_observed_skeleton(windows):
     batch = _batch(model, windows, 8)
     _, terms, _ = P.generator_loss(model, batch, torch.zeros(8, 16), joint_amplitude=True)
     assert terms["bone"] < 1e-4
+
+
+def test_prior_amplitude_and_true_amplitude_target(with_prior, fitted, windows):
+    model = P.PredictiveMAWGAN(with_prior.config, with_prior.mu_past, with_prior.mu_future,
+                               with_prior.prior_filter)
+    torch.manual_seed(2)
+    torch.nn.init.normal_(model.amplitude.net[-1].weight, std=0.5)  # head != 0
+    history = windows.frames[:4, :11]
+    # amplitude "prior" ignores the head: a fresh model's prediction, the prior itself
+    fresh = with_prior.predict(history)
+    np.testing.assert_allclose(model.predict(history, amplitude="prior"), fresh, atol=1e-5)
+    assert not np.allclose(model.predict(history), fresh, atol=1e-4)
+    with pytest.raises(MotionError, match="prior future"):
+        fitted.predict(history, amplitude="prior")
+    # the "true" target is the log-amplitude error, 0 exactly at the true amplitude
+    batch = _batch(model, windows, 16)
+    u = model.direction(batch.cond, batch.u_base, torch.zeros(16, 16))
+    log_amp = model.log_amplitude(batch.cond, batch.log_amp_past, base=batch.log_amp_base)
+    expected = (log_amp - batch.log_amp_future).abs().mean()
+    assert P.amplitude_loss(model, batch, u, "true").item() == pytest.approx(expected.item())
+    with pytest.raises(MotionError, match="target"):
+        P.amplitude_loss(model, batch, u, "speed")
