@@ -147,17 +147,29 @@ class DCTRegressionPredictor:
     metres -> (N, F, 17, 3) float32 future.
     """
 
-    def __init__(self, config: RegressionConfig) -> None:
+    def __init__(self, config: RegressionConfig, seed: int | None = None) -> None:
+        """``seed``: network ``i`` starts from the weights ``torch.manual_seed(seed + i)``
+        gives, whatever the process, the global generator or the ensemble size; None:
+        from the global torch generator (which torch seeds *randomly* in every process,
+        so a training run is then not reproducible across processes)."""
         if config.members < 1:
             raise MotionError(f"members must be >= 1; got {config.members}", field="members")
         self.config = config
         self.past_len = config.past_len
         self.future_len = config.future_len
         self.fps = config.fps
-        self.nets = nn.ModuleList(
-            DCTMLP(self.history_len, self.future_len, config.blocks, config.dropout,
-                   config.root_input)
-            for _ in range(config.members))
+        self.nets = nn.ModuleList(self._network(None if seed is None else seed + i)
+                                  for i in range(config.members))
+
+    def _network(self, seed: int | None) -> DCTMLP:
+        c = self.config
+        if seed is None:
+            return DCTMLP(self.history_len, self.future_len, c.blocks, c.dropout,
+                          c.root_input)
+        with torch.random.fork_rng(devices=[]):  # leave the caller's generator alone
+            torch.manual_seed(seed)
+            return DCTMLP(self.history_len, self.future_len, c.blocks, c.dropout,
+                          c.root_input)
 
     @property
     def history_len(self) -> int:

@@ -720,7 +720,7 @@ def run(args: argparse.Namespace) -> dict:
         config = RegressionConfig(args.past, args.future, blocks=args.blocks,
                                   dropout=args.dropout, members=args.members,
                                   mirror_average=args.mirror_average)
-        model = DCTRegressionPredictor(config)
+        model = DCTRegressionPredictor(config, seed=args.seed)  # reproducible init
         members, logs = [], []
         for i in range(args.members):
             if i and args.cross_fit:  # every further member: its own validation fold

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from dataclasses import asdict, replace
 
 import numpy as np
@@ -55,6 +58,43 @@ def test_untrained_model_is_zero_velocity_and_heading_equivariant(windows):
                                P.rotate_z(pred.astype(np.float64), np.full(5, 0.8)),
                                atol=1e-4)
     np.testing.assert_allclose(model.predict(history[0]), pred[0], atol=1e-6)
+
+
+_INIT_DIGEST = """
+import hashlib, sys
+from simenv.models.predictor_regression import DCTRegressionPredictor, RegressionConfig
+m = DCTRegressionPredictor(RegressionConfig(10, 10, blocks=2, members=2), seed=int(sys.argv[1]))
+h = hashlib.md5()
+for v in m.nets.state_dict().values():
+    h.update(v.numpy().tobytes())
+print(h.hexdigest())
+"""
+
+
+def _init_digest(seed: int | None) -> str:
+    """Digest of a fresh 2-member model's weights built in a new Python process."""
+    code = _INIT_DIGEST if seed is not None else _INIT_DIGEST.replace(
+        ", seed=int(sys.argv[1])", "")
+    done = subprocess.run([sys.executable, "-c", code, str(seed)], capture_output=True,
+                          text=True, check=True, env=os.environ | {"OMP_NUM_THREADS": "1"})
+    return done.stdout.strip()
+
+
+def test_seeded_initial_weights_are_the_same_in_every_process():
+    # torch seeds its global generator randomly per process: an unseeded model differs
+    # from process to process, which made same-seed trainings select different iterations
+    assert _init_digest(None) != _init_digest(None)
+    assert _init_digest(3) == _init_digest(3) != _init_digest(4)
+    a = R.DCTRegressionPredictor(R.RegressionConfig(10, 10, members=2), seed=3)
+    b = R.DCTRegressionPredictor(R.RegressionConfig(10, 10, members=1), seed=4)
+    # member i starts from seed + i whatever the ensemble size, and the global
+    # generator is left as it was
+    state = torch.random.get_rng_state()
+    R.DCTRegressionPredictor(R.RegressionConfig(10, 10), seed=0)
+    assert torch.equal(state, torch.random.get_rng_state())
+    for k, v in b.net.state_dict().items():
+        assert torch.equal(a.nets[1].state_dict()[k], v)
+    assert not torch.equal(a.nets[0].fc_in.weight, a.nets[1].fc_in.weight)
 
 
 def test_short_training_lowers_the_loss_and_keeps_the_best_validation_state(clips):
