@@ -247,3 +247,57 @@ def test_median_network_gives_numpy_median_and_max(n) -> None:
     np.testing.assert_array_equal(med, np.median(a, axis=0))
     np.testing.assert_array_equal(top, a.max(axis=0))
     assert len(kernels.median_network(21)) < 21 * 20
+
+
+def _same_result(a, b, where: str) -> None:
+    assert (a.name, a.unit, a.threshold, a.passed, a.frame_threshold, a.timeline_unit,
+            a.reason) == (b.name, b.unit, b.threshold, b.passed, b.frame_threshold,
+                          b.timeline_unit, b.reason), where
+    assert repr(a.value) == repr(b.value), where  # NaN equals NaN
+    assert a.violations == b.violations and a.details.keys() == b.details.keys(), where
+    assert [repr(v) for v in a.details.values()] == [repr(v) for v in b.details.values()], where
+    assert a.timeline.dtype == b.timeline.dtype and a.timeline.tobytes() == b.timeline.tobytes()
+
+
+def test_batch_of_windows_equals_scoring_each_window_alone(shared_data) -> None:
+    # The shape of a generator's output: equal-length windows (views into
+    # real clips, so they share each clip's memory), plus windows too short
+    # for jitter, batched together; each must score exactly as alone.
+    from simenv.plausibility import KINEMATIC_METRICS, kinematic_metrics_batch
+
+    clips = [bvh.read(shared_data / f"cmu/bvh/{n}.bvh") for n in ("02_01", "05_02", "49_02")]
+    wins = [c.slice(s, s + f) for f in (240, 37) for c in clips
+            for s in range(0, c.num_frames - f + 1, 3 * f)]
+    assert len(wins) > 20
+    batched = kinematic_metrics_batch(wins)
+    assert len(batched) == len(wins)
+    for i, (motion, got) in enumerate(zip(wins, batched, strict=True)):
+        assert list(got) == list(KINEMATIC_METRICS)
+        for name, fn in KINEMATIC_METRICS.items():
+            _same_result(got[name], fn(motion), f"window {i}: {name}")
+
+
+def test_batch_results_are_a_sequence_built_on_reading(shared_data, walk) -> None:
+    from simenv.plausibility import KINEMATIC_METRICS, KinematicResults, kinematic_metrics_batch
+
+    wins = [walk.slice(s, s + 60) for s in range(0, 300, 60)] + [walk.slice(0, 2)]
+    res = kinematic_metrics_batch(wins)
+    assert isinstance(res, KinematicResults) and len(res) == 6
+    # Reading a clip again gives the same objects, by any index form.
+    first = res[0]
+    assert res[0] is first and res[-6] is first and res[:1][0] is first
+    assert [r is s for r, s in zip(res, list(res), strict=True)] == [True] * 6
+    with pytest.raises(IndexError, match="out of range"):
+        res[6]
+    # values() gives the results' values without building them (NaN where
+    # not available: jitter on the 2-frame clip).
+    fresh = kinematic_metrics_batch(wins)
+    for name in KINEMATIC_METRICS:
+        v = fresh.values(name)
+        assert v.shape == (6,)
+        expected = np.array([r[name].value for r in res])
+        np.testing.assert_array_equal(v, expected)
+    assert np.isnan(fresh.values("jitter")[-1]) and not np.isnan(fresh.values("jitter")[0])
+    with pytest.raises(SimenvError, match="not a kinematic metric"):
+        fresh.values("tracking")
+    assert kinematic_metrics_batch([]) == [] and kinematic_metrics_batch([]) != [{}]

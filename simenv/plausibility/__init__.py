@@ -22,10 +22,14 @@ equal length; same values). Thresholds: :class:`Thresholds`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import operator
+from collections.abc import Iterator, Sequence
 
+import numpy as np
+
+from simenv.errors import SimenvError
 from simenv.motion import Motion
-from simenv.plausibility.clips import ClipBatch, Plan, batches, score
+from simenv.plausibility.clips import ClipBatch, Plan, Scores, batches, run
 from simenv.plausibility.contact import (
     floating,
     floating_spec,
@@ -87,31 +91,101 @@ def kinematic_metrics(
     return kinematic_metrics_batch([motion], thresholds)[0]
 
 
+class KinematicResults(Sequence[dict[str, MetricResult]]):
+    """The joint-level metrics of a list of motions, in input order: item i
+    is the ``{metric name: MetricResult}`` dict of motion i.
+
+    A read-only sequence backed by the compiled kernels' output arrays
+    (:class:`simenv.plausibility.clips.Scores`): every metric of every clip
+    is computed when :func:`kinematic_metrics_batch` returns, but a clip's
+    dict of result objects (about 1.5 us per result, more than the kernels
+    spend per metric on a short clip) is built the first time the clip is
+    read and then kept, so reading it again gives the same objects.
+    :meth:`values` reads one metric's values of all clips without building
+    any. Equal to a list (or any sequence) holding equal dicts.
+    """
+
+    def __init__(self, size: int) -> None:
+        #: Per clip: (scores of its batch, its index in the batch).
+        self._where: list[tuple[Scores, int]] = [None] * size  # type: ignore[list-item]
+        self._built: list[dict[str, MetricResult] | None] = [None] * size
+        #: Per batch: its scores and the positions of its clips.
+        self._batches: list[tuple[Scores, list[int]]] = []
+
+    def __len__(self) -> int:
+        return len(self._where)
+
+    def _clip(self, i: int) -> dict[str, MetricResult]:
+        built = self._built[i]
+        if built is None:
+            scores, k = self._where[i]
+            built = self._built[i] = dict(zip(KINEMATIC_METRICS, scores.clip(k), strict=True))
+        return built
+
+    def __getitem__(self, i):  # type: ignore[override]
+        if isinstance(i, slice):
+            return [self._clip(j) for j in range(*i.indices(len(self)))]
+        n = len(self)
+        j = operator.index(i)
+        if not -n <= j < n:
+            raise IndexError(f"motion index {i} out of range for {n} motions")
+        return self._clip(j % n)
+
+    def __iter__(self) -> Iterator[dict[str, MetricResult]]:
+        return (self._clip(i) for i in range(len(self)))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Sequence) or isinstance(other, str | bytes):
+            return NotImplemented
+        return len(self) == len(other) and all(a == b for a, b in zip(self, other, strict=True))
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"KinematicResults({len(self)} motions)"
+
+    def values(self, name: str) -> np.ndarray:
+        """(N,) float64 ``value`` of metric ``name`` of every motion, NaN
+        where it is not available: ``[r[name].value for r in self]``
+        without building the results."""
+        if name not in KINEMATIC_METRICS:
+            raise SimenvError(f"metric name {name!r} is not a kinematic metric; expected one "
+                              f"of {', '.join(KINEMATIC_METRICS)}")
+        m = list(KINEMATIC_METRICS).index(name)
+        out = np.empty(len(self))
+        for scores, members in self._batches:
+            out[members] = scores.values(m)
+        return out
+
+
 def kinematic_metrics_batch(
     motions: Sequence[Motion], thresholds: Thresholds = DEFAULT_THRESHOLDS
-) -> list[dict[str, MetricResult]]:
+) -> KinematicResults:
     """Every joint-level metric of every motion, in input order.
 
     Results equal :func:`kinematic_metrics` of each motion. Clips of equal
     skeleton, frame rate and length (e.g. a batch of generated motions) are
     scored together, vectorised over clips
     (:func:`simenv.plausibility.clips.batches`), all six metrics in one
-    compiled call per batch (:func:`simenv.plausibility.clips.score`), which
+    compiled call per batch (:func:`simenv.plausibility.clips.run`), which
     removes the per-call overhead that dominates short clips; any mix of
-    clips is accepted.
+    clips is accepted. The metrics are computed here; the result objects of
+    a clip are built when it is first read (:class:`KinematicResults`).
     """
-    out: list[dict[str, MetricResult]] = [{} for _ in motions]
-    names = list(KINEMATIC_METRICS)
+    out = KinematicResults(len(motions))
+    where = out._where
     for members, batch in batches(motions):
-        per_metric = score(batch, _plan(batch, thresholds))
+        scores = run(batch, _plan(batch, thresholds))
+        out._batches.append((scores, members))
         for k, i in enumerate(members):
-            out[i] = {name: rs[k] for name, rs in zip(names, per_metric, strict=True)}
+            where[i] = (scores, k)
     return out
 
 
 __all__ = [
     "DEFAULT_THRESHOLDS",
     "KINEMATIC_METRICS",
+    "KinematicResults",
     "MetricResult",
     "Thresholds",
     "bone_length",

@@ -225,13 +225,19 @@ class MetricSpec:
 
 
 class _Layout(NamedTuple):
-    """How a spec's details are read: their ``keys`` in order, the
-    ``constants`` appended to the kernel's detail columns, and ``pick``,
-    which takes the keys' values from that (columns + constants) row."""
+    """What the results of one spec share: how its details are read (their
+    ``keys`` in order, the ``constants`` appended to the kernel's detail
+    columns, and ``pick``, which takes the keys' values from that
+    (columns + constants) row) and the result fields that are the same for
+    every clip (``threshold`` as a float, ``frame_threshold`` as a float,
+    ``timeline_unit``)."""
 
     keys: tuple[str, ...]
     constants: list[float]
     pick: Callable[[list[float]], tuple[float, ...]]
+    threshold: float
+    frame_threshold: float
+    timeline_unit: str
 
 
 def _picker(order: list[int]) -> Callable[[list[float]], tuple[float, ...]]:
@@ -270,7 +276,11 @@ class Plan:
                     order.append(kernels.N_DETAILS + len(constants))
                     constants.append(float(d[1]))
                     keys.append(d[0])
-            self.layouts.append(_Layout(tuple(keys), constants, _picker(order)))
+            thr = float(s.threshold)
+            self.layouts.append(_Layout(
+                tuple(keys), constants, _picker(order), thr,
+                thr if s.frame_threshold is None else float(s.frame_threshold),
+                s.timeline_unit or s.unit))
             if s.args is None:
                 continue
             self.enabled[s.slot] = True
@@ -286,25 +296,114 @@ class Plan:
                      args[kernels.JITTER], args[kernels.VELOCITY])
 
 
-def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[MetricResult]]:
-    """Every metric of ``specs`` on every clip of ``batch``, in one compiled
-    call.
+#: Whether results may be built from their field dicts (as ``copy`` and
+#: ``pickle`` do), which skips the frozen dataclass's per-field
+#: ``object.__setattr__`` (about 3 us per result: more than the kernels
+#: spend on a 2 s window); only while MetricResult has no ``__post_init__``
+#: or slots.
+_FROM_FIELDS = not hasattr(MetricResult, "__post_init__") and not hasattr(
+    MetricResult, "__slots__")
 
-    Returns:
-        Per spec, one result per clip, as :meth:`MetricResult.from_timeline`
-        builds them.
+
+class Scores:
+    """The kernel's outputs for one batch and plan, turned into
+    :class:`~simenv.plausibility.timeline.MetricResult` s on demand.
+
+    The compiled call computes every metric of every clip (:func:`run`);
+    building the Python result objects costs about 1.5 us each, more than
+    the kernels spend on a short clip per metric, so they are built only
+    for the clips and metrics asked for (:meth:`clip`, :meth:`metric`), from
+    the arrays kept here. Each call builds new results; timelines are rows
+    of the one (6, B, T) float32 array of the batch.
     """
+
+    def __init__(self, batch: ClipBatch, plan: Plan, tl: np.ndarray, value: np.ndarray,
+                 details: np.ndarray, available: np.ndarray, runs: np.ndarray,
+                 offsets: np.ndarray) -> None:
+        self.batch, self.plan = batch, plan
+        self.tl, self.value = tl, value
+        self._arrays = (details, available, runs, offsets)
+        self._lists: tuple | None = None
+
+    def _python(self) -> tuple:
+        """Python numbers of the outputs, converted once, in one conversion
+        per array (per-clip or per-metric numpy calls would cost more than
+        the kernels on short clips): violation runs, their bounds, values,
+        detail columns, and per spec why each clip has no result."""
+        if self._lists is None:
+            details, available, runs, offsets = self._arrays
+            bounds = offsets.tolist()
+            spans = [(int(s), int(e), w) for s, e, w in runs[:bounds[-1]].tolist()]
+            ok = available.tolist()
+            missing = []
+            for s in self.plan.specs:
+                # Per clip, why it has no result (None for most): its own
+                # reason, or for bone_length no bone checked.
+                reasons = self.batch.reasons
+                if s.args is not None and s.slot == kernels.BONE and not all(ok):
+                    reasons = [r or (None if a else s.reason)
+                               for r, a in zip(reasons, ok, strict=True)]
+                missing.append(reasons)
+            self._lists = (spans, bounds, self.value.tolist(), details.tolist(), missing)
+        return self._lists
+
+    def values(self, i: int) -> np.ndarray:
+        """(B,) float64 values of spec ``i`` of the plan, NaN for the clips
+        without a result, without building results."""
+        s = self.plan.specs[i]
+        if s.args is None:
+            return np.full(self.batch.size, np.nan)
+        out = self.value[s.slot].copy()
+        missing = np.array([r is not None for r in self.batch.reasons], dtype=np.bool_)
+        if s.slot == kernels.BONE:
+            missing |= ~self._arrays[1]
+        out[missing] = np.nan
+        return out
+
+    def metric(self, i: int) -> list[MetricResult]:
+        """The results of spec ``i`` of the plan, one per clip."""
+        s, layout = self.plan.specs[i], self.plan.layouts[i]
+        if s.args is None:
+            return s.not_available(self.batch)
+        spans, bounds, values, columns, missing = self._python()
+        return _results(self.batch, s, layout, self.tl[s.slot], values[s.slot],
+                        columns[s.slot], spans, bounds, missing[i])
+
+    def clip(self, k: int) -> list[MetricResult]:
+        """The results of clip ``k`` of the batch, one per spec."""
+        spans, bounds, values, columns, missing = self._python()
+        out = []
+        n = self.batch.num_frames
+        for s, layout, reasons in zip(self.plan.specs, self.plan.layouts, missing,
+                                      strict=True):
+            reason = reasons[k] if s.args is not None else reasons[k] or s.reason
+            if reason is not None:
+                out.append(MetricResult.not_available(
+                    s.name, n, s.unit, s.threshold, reason,
+                    frame_threshold=s.frame_threshold, timeline_unit=s.timeline_unit))
+                continue
+            m = s.slot
+            b = k * kernels.N_METRICS + m
+            out.append(_result(s, layout, values[m][k], columns[m][k], self.tl[m, k],
+                               spans[bounds[b]:bounds[b + 1]]))
+        return out
+
+
+def run(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> Scores:
+    """Every metric of ``specs`` on every clip of ``batch``, in one compiled
+    call; the results are built on demand from the returned
+    :class:`Scores`."""
     plan = specs if isinstance(specs, Plan) else Plan(specs)
-    if batch.positions is None:
-        return [s.not_available(batch) for s in plan.specs]
     b_count, t_count = batch.size, batch.num_frames
     tl = np.empty((kernels.N_METRICS, b_count, t_count), dtype=np.float32)
     value = np.zeros((kernels.N_METRICS, b_count))
     details = np.zeros((kernels.N_METRICS, b_count, kernels.N_DETAILS))
     available = np.zeros(b_count, dtype=np.bool_)
-    span = np.empty(b_count)
-    offsets = np.empty(b_count * kernels.N_METRICS + 1, dtype=np.int64)
+    offsets = np.zeros(b_count * kernels.N_METRICS + 1, dtype=np.int64)
     runs = np.empty((_RUNS_PER_CLIP * b_count, 3))
+    if batch.positions is None:
+        return Scores(batch, plan, tl, value, details, available, runs, offsets)
+    span = np.empty(b_count)
     while True:
         count = kernels.score(batch.positions, batch.idx, plan.enabled, *plan.args,
                               plan.frame_thresholds, plan.in_float32, tl, value, details,
@@ -315,34 +414,37 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[Met
         runs = np.empty((count, 3))
         value[:], details[:], available[:] = 0.0, 0.0, False
     batch._check_extent(span)
-    # Python numbers at once, in one conversion per array: per-clip or
-    # per-metric numpy calls would cost more than the kernels on short clips.
-    spans = [(int(s), int(e), w) for s, e, w in runs[:count].tolist()]
-    bounds = offsets.tolist()
-    values, columns = value.tolist(), details.tolist()
-    ok = available.tolist()
-    out = []
-    for s, layout in zip(plan.specs, plan.layouts, strict=True):
-        if s.args is None:
-            out.append(s.not_available(batch))
-            continue
-        # Per clip, why it has no result (None for most): its own reason,
-        # or for bone_length no bone checked.
-        missing = batch.reasons
-        if s.slot == kernels.BONE and not all(ok):
-            missing = [r or (None if a else s.reason) for r, a in zip(missing, ok, strict=True)]
-        out.append(_results(batch, s, layout, tl[s.slot], values[s.slot], columns[s.slot],
-                            spans, bounds, missing))
-    return out
+    return Scores(batch, plan, tl, value, details, available, runs, offsets)
 
 
-#: Whether results may be built from their field dicts (as ``copy`` and
-#: ``pickle`` do), which skips the frozen dataclass's per-field
-#: ``object.__setattr__`` (about 3 us per result: more than the kernels
-#: spend on a 2 s window); only while MetricResult has no ``__post_init__``
-#: or slots.
-_FROM_FIELDS = not hasattr(MetricResult, "__post_init__") and not hasattr(
-    MetricResult, "__slots__")
+def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[MetricResult]]:
+    """Every metric of ``specs`` on every clip of ``batch``, in one compiled
+    call (:func:`run`).
+
+    Returns:
+        Per spec, one result per clip, as :meth:`MetricResult.from_timeline`
+        builds them.
+    """
+    scores = run(batch, specs)
+    return [scores.metric(i) for i in range(len(scores.plan.specs))]
+
+
+def _result(spec: MetricSpec, layout: _Layout, v: float, row: list[float],
+            timeline: np.ndarray, violations: list[tuple[int, int, float]]) -> MetricResult:
+    """One available result: value ``v``, detail columns ``row`` (4,),
+    (T,) float32 ``timeline`` and its violation runs."""
+    keys, constants, pick, thr, ft, unit_tl = layout
+    fields = {
+        "name": spec.name, "value": v, "unit": spec.unit, "threshold": thr,
+        "passed": v <= spec.threshold, "timeline": timeline, "violations": violations,
+        "frame_threshold": ft, "timeline_unit": unit_tl,
+        "details": dict(zip(keys, pick(row + constants), strict=True)), "reason": None,
+    }
+    if not _FROM_FIELDS:
+        return MetricResult(**fields)
+    result = object.__new__(MetricResult)
+    object.__setattr__(result, "__dict__", fields)
+    return result
 
 
 def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray,
@@ -355,10 +457,7 @@ def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray
     :func:`simenv.plausibility.kernels.score`), ``missing`` (B,) why a clip
     has no result (None: it has one)."""
     name, unit, limit = spec.name, spec.unit, spec.threshold
-    thr = float(limit)
-    ft = thr if spec.frame_threshold is None else float(spec.frame_threshold)
-    unit_tl = spec.timeline_unit or unit
-    keys, constants, pick = layout
+    keys, constants, pick, thr, ft, unit_tl = layout
     new, set_dict = object.__new__, object.__setattr__
     out = []
     # Per clip only what differs (about 1.5 us a result); a row view per
@@ -381,10 +480,6 @@ def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray
             })
             out.append(result)
         else:
-            out.append(MetricResult(
-                name=name, value=v, unit=unit, threshold=thr, passed=v <= limit,
-                timeline=timeline, violations=spans[bounds[k]:bounds[k + 1]],
-                frame_threshold=ft, timeline_unit=unit_tl,
-                details=dict(zip(keys, pick(row + constants), strict=True)), reason=None))
+            out.append(_result(spec, layout, v, row, timeline, spans[bounds[k]:bounds[k + 1]]))
         k += kernels.N_METRICS
     return out
