@@ -833,6 +833,68 @@ def _rot_y(a: float) -> np.ndarray:
     return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
 
 
+#: Most a shod foot's toe keypoint may sit above the anthropometric (barefoot)
+#: value, metres: the forefoot sole of a regular shoe (forefoot stack up to
+#: ~30 mm: running shoes' heel stack 9-35 mm minus a 0-12 mm heel-toe drop,
+#: RunRepeat's lab measurements) plus the offset of a keypoint solved from a
+#: toe marker on the shoe's upper (CMU: 14 mm spheres on a ~2 mm base,
+#: ~9 mm from the surface). CMU subjects' planted balls sit 34-46 mm above
+#: the floor, a few 57-68 mm (01_01, 131_03, 55_02).
+SHOD_TOE_ALLOWANCE = 0.04
+
+
+def _foot_heights(motion: Motion, kp: Mapping[str, np.ndarray],
+                  scale: float) -> tuple[float, float]:
+    """Toe height above the sole and ankle-over-toe drop of the neutral foot, metres.
+
+    The floor is z = 0 (readers put it there). A rigid foot standing flat has
+    its ankle keypoint ``drop`` above its toe keypoint, so:
+
+    * ``drop`` is measured within frames, as the median of ``z_ankle - z_toe``
+      over the frames a foot is planted (:func:`simenv.plausibility.contact.foot_contacts`:
+      low and slow): a loaded foot is flat for most of its stance, the
+      assumption a gait lab's static calibration makes ("foot flat").
+    * The sole offset then has two estimates, one per keypoint: the 2nd
+      percentile of the toe heights ``t2`` (the ball on the floor) and that
+      of the ankle heights less the drop, ``a2 - drop`` (the heel on the
+      floor). For a rigid foot they agree; where the data's foot keypoints
+      disagree between loaded frames (CMU 131_04: the ball 4-5 cm higher
+      relative to the ankle in its quiet stances than in its single stances)
+      the fit takes the least-squares value of the one offset, their mean
+      ``toe_height = (t2 + a2 - drop) / 2``.
+
+    ``toe_height`` is kept within 0.6x the scaled anthropometric value and
+    that value plus :data:`SHOD_TOE_ALLOWANCE` (clips whose floor is off
+    z = 0 would otherwise give absurd soles), ``drop`` within 0.3-1x the
+    scaled ankle height. Without toe keypoints the anthropometric values are
+    used; without a planted frame the drop is the difference of the two
+    percentiles (the two estimates then agree).
+    """
+    toe_default = DEFAULT.toe_height * scale
+    ankle_default = DEFAULT.ankle_height * scale
+    low = {}
+    for key in ("ankle", "toe"):
+        zs = [kp[f"{s}_{key}"][:, 2] for s in _SIDES if f"{s}_{key}" in kp]
+        low[key] = float(np.percentile(np.concatenate(zs), 2)) if zs else None
+    if low["toe"] is None:
+        return toe_default, ankle_default - toe_default
+    if low["ankle"] is None:
+        return float(np.clip(low["toe"], 0.6 * toe_default,
+                             toe_default + SHOD_TOE_ALLOWANCE)), ankle_default - toe_default
+    # Imported here: the contact detector lives in the scorer, which builds on this module.
+    from simenv.plausibility.contact import foot_contacts
+
+    feet, planted = foot_contacts(motion)
+    drops = [kp[f"{s}_ankle"][planted[:, feet.index(f"{s}_toe")], 2]
+             - kp[f"{s}_toe"][planted[:, feet.index(f"{s}_toe")], 2]
+             for s in _SIDES if f"{s}_toe" in feet and f"{s}_ankle" in kp]
+    both = np.concatenate(drops) if drops else np.zeros(0)
+    drop = float(np.median(both)) if both.size else low["ankle"] - low["toe"]
+    drop = float(np.clip(drop, 0.3 * ankle_default, ankle_default))
+    toe_h = 0.5 * (low["toe"] + low["ankle"] - drop)
+    return float(np.clip(toe_h, 0.6 * toe_default, toe_default + SHOD_TOE_ALLOWANCE)), drop
+
+
 def fit_dimensions(motion: Motion) -> BodyDimensions:
     """Measure a subject's :class:`BodyDimensions` from its canonical keypoints.
 
@@ -944,23 +1006,7 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
             ch[f.name] = getattr(DEFAULT, f.name) * scale
             if f.name in chain or f.name.endswith("clavicle") or f.name == "clavicle_pivot":
                 fallback.append(f.name)
-    # Foot heights. The data's floor should be z = 0 (readers put it there), so
-    # the low percentiles of the toe heights give the toe's height above the
-    # sole, kept within 0.6-1.25x the scaled anthropometric value (clips whose
-    # floor is off z = 0 would otherwise give absurd soles); the ankle sits the
-    # measured ankle-toe drop above it, so the neutral foot is flat in the data.
-    low = {}
-    for key in ("ankle", "toe"):
-        zs = [kp[f"{s}_{key}"][:, 2] for s in _SIDES if f"{s}_{key}" in have]
-        low[key] = float(np.percentile(np.concatenate(zs), 2)) if zs else None
-    toe_default = DEFAULT.toe_height * scale
-    ankle_default = DEFAULT.ankle_height * scale
-    toe_h = toe_default if low["toe"] is None else float(
-        np.clip(low["toe"], 0.6 * toe_default, 1.25 * toe_default))
-    if low["ankle"] is not None and low["toe"] is not None:
-        drop = float(np.clip(low["ankle"] - low["toe"], 0.3 * ankle_default, ankle_default))
-    else:
-        drop = ankle_default - toe_default
+    toe_h, drop = _foot_heights(motion, kp, scale)
     ch["toe_height"], ch["ankle_height"] = toe_h, toe_h + drop
     ch["girth"] = float(np.clip(scale, 0.6, 1.4))
     if fallback:

@@ -10,6 +10,7 @@ from simenv.errors import RetargetError
 from simenv.humanoid import (
     BONES,
     JOINTS,
+    SHOD_TOE_ALLOWANCE,
     BodyDimensions,
     Humanoid,
     build_scene,
@@ -158,6 +159,56 @@ def test_fit_recovers_the_bones_of_a_known_body() -> None:
         if bone.endswith("toe"):  # the foot's pitch depends on the sole heights
             continue
         assert got[bone] == pytest.approx(want[bone], abs=1e-3), bone
+
+
+def standing_motion(h: Humanoid, frames: int = 120) -> Motion:
+    """The humanoid standing still in its rest pose (soles flat on z = 0), its arms
+    swinging so the frames differ."""
+    q = np.tile(h.default_qpos(), (frames, 1))
+    names = [mujoco.mj_id2name(h.model, mujoco.mjtObj.mjOBJ_JOINT, j)
+             for j in range(h.model.njnt)]
+    for j, n in enumerate(names):
+        if n and "upper_arm" in n:
+            q[:, h.model.jnt_qposadr[j]] = 0.3 * np.sin(np.linspace(0, 2 * np.pi, frames))
+    return fk_motion(h, q, "stand")
+
+
+def test_fit_recovers_the_sole_of_a_flat_standing_body(adult: Humanoid) -> None:
+    # Both feet flat on the floor on every frame: the planted ankle-over-toe drop and
+    # both lowest-height anchors agree, so the fit returns the body's own foot heights.
+    d = fit_dimensions(standing_motion(adult))
+    assert d.toe_height == pytest.approx(adult.dims.toe_height, abs=1e-4)
+    assert d.ankle_height == pytest.approx(adult.dims.ankle_height, abs=1e-4)
+
+
+def test_fit_splits_disagreeing_foot_keypoints_by_least_squares(adult: Humanoid) -> None:
+    # The ball keypoints raised by delta on 60 % of the (planted) frames, as CMU 131_04's
+    # are in its quiet stances: the planted drop becomes drop - delta (the median), the
+    # lowest toes still say toe_height and the lowest ankles ankle_height, so the one
+    # sole offset that fits both anchors best is toe_height + delta / 2 (and the ankle
+    # sits delta / 2 lower). The old rule (toe from the ball alone) kept toe_height.
+    motion = standing_motion(adult, 100)
+    delta = 0.02
+    P = motion.positions.copy()
+    for side in ("left", "right"):
+        P[40:, CANONICAL_KEYPOINTS.index(f"{side}_toe"), 2] += delta
+    d = fit_dimensions(Motion(P, motion.fps, motion.skeleton, "raised balls"))
+    assert d.toe_height == pytest.approx(adult.dims.toe_height + delta / 2, abs=1e-4)
+    assert d.ankle_height == pytest.approx(adult.dims.ankle_height - delta / 2, abs=1e-4)
+
+
+def test_fit_sole_follows_the_floor_up_to_a_shod_foot(adult: Humanoid) -> None:
+    # Raising every keypoint by h raises the fitted sole offset by h (the readers put
+    # the floor at z = 0, so higher feet mean a thicker sole under them) up to the shod
+    # allowance; beyond it the data's floor is taken to be off and the offset is capped.
+    motion = standing_motion(adult)
+    for lift in (0.03, 0.10):
+        P = motion.positions + np.float32(lift) * np.array([0, 0, 1], dtype=np.float32)
+        d = fit_dimensions(Motion(P, motion.fps, motion.skeleton, "lifted"))
+        want = min(adult.dims.toe_height + lift, adult.dims.toe_height + SHOD_TOE_ALLOWANCE)
+        assert d.toe_height == pytest.approx(want, abs=1e-4), lift
+        assert d.ankle_height - d.toe_height == pytest.approx(
+            adult.dims.ankle_height - adult.dims.toe_height, abs=1e-4), lift
 
 
 def test_fit_on_real_cmu_clip(shared_data) -> None:
