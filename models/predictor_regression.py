@@ -304,14 +304,31 @@ class DCTRegressionPredictor:
         return model
 
 
-def regression_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def horizon_weights(length: int, slope: float) -> torch.Tensor:
+    """(length,) frame weights ``w_t ∝ 1 + slope · t / (length - 1)``, mean 1."""
+    w = 1 + slope * torch.arange(length, dtype=torch.float32) / max(length - 1, 1)
+    return w / w.mean()
+
+
+def regression_loss(pred: torch.Tensor, target: torch.Tensor,
+                    horizon_weight: float = 0.0) -> torch.Tensor:
     """Mean per-joint Euclidean error of positions plus that of frame-to-frame
-    velocities, of (B, T, 51) tensors in decimetres (siMLPe's two terms)."""
+    velocities, of (B, T, 51) tensors in decimetres (siMLPe's two terms).
+
+    ``horizon_weight`` a >= 0 weights future frame t by ``1 + a t / (T - 1)`` (weights
+    normalised to mean 1, :func:`horizon_weights`; velocities by the weights of their
+    later frame's slot): a > 0 favours the long horizons, which the per-frame mean
+    otherwise trades for the easy first frames.
+    """
     p = pred.view(*pred.shape[:2], NUM_JOINTS, 3)
     t = target.view(*target.shape[:2], NUM_JOINTS, 3)
-    pos = (p - t).norm(dim=-1).mean()
-    vel = ((p[:, 1:] - p[:, :-1]) - (t[:, 1:] - t[:, :-1])).norm(dim=-1).mean()
-    return pos + vel
+    pos = (p - t).norm(dim=-1).mean(dim=(0, 2))
+    vel = ((p[:, 1:] - p[:, :-1]) - (t[:, 1:] - t[:, :-1])).norm(dim=-1).mean(dim=(0, 2))
+    if not horizon_weight:
+        return pos.mean() + vel.mean()
+    w = horizon_weights(p.shape[1], horizon_weight)
+    wv = w[1:] / w[1:].mean()
+    return (pos * w).mean() + (vel * wv).mean()
 
 
 def targets(history_len: int, frames: np.ndarray) -> tuple[torch.Tensor, ...]:

@@ -439,10 +439,12 @@ def train_regression(
     seed: int = 0,
     progress: bool = True,
     sample_weights: np.ndarray | None = None,
+    horizon_weight: float = 0.0,
 ) -> list[dict[str, float]]:
     """Supervised training of the DCT-residual MLP (AdamW, cosine decay over
-    ``iterations``; loss :func:`simenv.models.predictor_regression.regression_loss`).
-    Budget and model selection on ``validation`` as in :func:`train`.
+    ``iterations``; loss :func:`simenv.models.predictor_regression.regression_loss`
+    with ``horizon_weight``). Budget and model selection on ``validation`` as in
+    :func:`train`.
 
     ``sample_weights`` (N,) >= 0: batches draw window i with probability proportional to
     its weight (with replacement; e.g. :func:`source_weights`); None: uniformly without
@@ -480,7 +482,8 @@ def train_regression(
         idx = torch.as_tensor(rng.choice(len(residual), bs, replace=p is not None, p=p))
         model.net.train()
         v = None if velocity is None else velocity[idx]
-        loss = regression_loss(model.forward(residual[idx], last[idx], v), future[idx])
+        loss = regression_loss(model.forward(residual[idx], last[idx], v), future[idx],
+                               horizon_weight)
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -730,12 +733,14 @@ def run(args: argparse.Namespace) -> dict:
                        if extra and args.extra_share is not None else None)
             log = train_regression(model.member(i), train_w, lr=lr,
                                    weight_decay=args.weight_decay, sample_weights=weights,
+                                   horizon_weight=args.horizon_weight,
                                    **budget | {"validation": val_w, "seed": args.seed + i})
             members.append(_member_info(log, val_w, len(train_w)))
             logs += [e | {"member": i} for e in log]
         log = logs
         recipe = {"model": "dct-mlp", "blocks": args.blocks,
                   "weight_decay": args.weight_decay, "members": members,
+                  "horizon_weight": args.horizon_weight,
                   "mirror_average": args.mirror_average,
                   "cross_fit": ensemble and args.cross_fit,
                   "extra_data": list(getattr(args, "extra_data", None) or []),
@@ -1093,6 +1098,9 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--blocks", type=int, default=4, help="regression: temporal blocks")
     ap.add_argument("--weight-decay", type=float, default=1e-4,
                     help="regression: AdamW weight decay")
+    ap.add_argument("--horizon-weight", type=float, default=0.0,
+                    help="regression: loss weight slope a, future frame t weighted "
+                    "1 + a t / (F - 1) (0: the per-frame mean)")
     ap.add_argument("--members", type=int, default=1,
                     help="regression: networks of the ensemble (seeds seed, seed + 1, ...)")
     ap.add_argument("--cross-fit", action=argparse.BooleanOptionalAction, default=False,

@@ -299,3 +299,18 @@ def test_run_with_extra_data_trains_on_it_but_never_validates_or_tests_on_it(sha
         assert set(m["validation_clips"]) <= cmu
     card = (tmp_path / "predictor-dctmlp-10-10.md").read_text()
     assert "extra training data" in card and "nuisi" in card
+
+
+def test_horizon_weighted_loss_favours_the_late_frames():
+    target = torch.zeros(2, 5, 51)
+    early, late = target.clone(), target.clone()
+    early[:, 0, 0] = 1.0  # the pelvis 1 dm off along x in the first frame only
+    late[:, -1, 0] = 1.0  # ... in the last frame only
+    w = R.horizon_weights(5, 2.0)
+    np.testing.assert_allclose(w.numpy(), np.array([1, 1.5, 2, 2.5, 3]) / 2, rtol=1e-6)
+    flat = [R.regression_loss(p, target).item() for p in (early, late)]
+    assert flat[0] == pytest.approx(flat[1])
+    assert flat[0] == pytest.approx(1 / 17 / 5 + 1 / 17 / 4)  # position + velocity term
+    weighted = [R.regression_loss(p, target, 2.0).item() for p in (early, late)]
+    assert weighted[0] == pytest.approx(0.5 / 17 / 5 + (1.5 / 2.25) / 17 / 4)
+    assert weighted[1] == pytest.approx(1.5 / 17 / 5 + (3 / 2.25) / 17 / 4)
