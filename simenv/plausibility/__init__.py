@@ -119,7 +119,7 @@ class KinematicResults(Sequence[dict[str, MetricResult]]):
         built = self._built[i]
         if built is None:
             scores, k = self._where[i]
-            built = self._built[i] = dict(zip(KINEMATIC_METRICS, scores.clip(k), strict=True))
+            built = self._built[i] = dict(zip(KINEMATIC_METRICS, scores.clip(k)))  # noqa: B905
         return built
 
     def __getitem__(self, i):  # type: ignore[override]
