@@ -59,7 +59,8 @@ Pipeline (one window; P observed frames, F to predict, 17 joints, D = 51)
    is rebuilt from the pelvis outwards with the bone lengths of the last observed pose
    along the predicted bone directions, ``x̂_j <- x̂_{parent(j)} + b_j d_j / |d_j|``
    (:func:`restore_bone_lengths`; in :meth:`PredictiveMAWGAN.decode` too, so the
-   training losses see the frames that are predicted). Why: the drift enters at the
+   training losses see the frames that are predicted; at prediction after the mirror
+   average of item 8, since the mean of two poses has shorter bones). Why: the drift enters at the
    prior (a linear filter blends poses, which shortens and lengthens bones: 20.5 mm
    mean drift on the 25-25 validation clips) and the tangent-space output inherits it
    (14.6 mm); nothing in the SRVF integration keeps a bone rigid, and the bone loss
@@ -624,6 +625,10 @@ class PredictiveMAWGAN:
             out = 0.5 * (both[: len(h)] + mirror(both[len(h):]))
         else:
             out = self._predict(h, amplitude, seed)
+        if self.config.restore_bones:  # after the average: a mean of two poses is shorter
+            last = h[:, -1].astype(np.float64).reshape(len(h), DIMS)
+            out = self._restore(out.reshape(len(h), self.future_len, DIMS), last)
+            out = out.reshape(len(h), self.future_len, NUM_JOINTS, 3)
         out = out.astype(np.float32)
         return out if batched else out[0]
 
@@ -645,10 +650,8 @@ class PredictiveMAWGAN:
         _, p = self.decode(u, log_amp, torch.as_tensor(last, dtype=torch.float32))
         # integrate in float64 from the exact last observed pose: no seam
         q = p.double().numpy() * np.exp(log_amp.double().numpy())[:, None, None]
-        out = srvf.inverse_srvf(q, last)[:, 1:]
-        if self.config.restore_bones:
-            out = self._restore(out, last)
-        return rotate_z(out.reshape(len(h), self.future_len, NUM_JOINTS, 3), angle)
+        out = srvf.inverse_srvf(q, last)[:, 1:].reshape(len(h), self.future_len, NUM_JOINTS, 3)
+        return rotate_z(out, angle)
 
     # -- checkpoints ------------------------------------------------------------------------
 

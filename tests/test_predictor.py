@@ -391,6 +391,15 @@ def test_restore_bones_predicts_the_observed_skeleton(windows):
     drift = np.abs(_bones(pred.astype(np.float64))
                    - _bones(history[:, -1].astype(np.float64))[:, None])
     assert drift.max() < 1e-5
+    # also a trained (non-zero) correction, averaged with its mirror image
+    torch.manual_seed(3)
+    torch.nn.init.normal_(model.generator.convs[-1].weight, std=0.05)
+    model.config = replace(config, mirror_average=True)
+    pred = model.predict(history)
+    drift = np.abs(_bones(pred.astype(np.float64))
+                   - _bones(history[:, -1].astype(np.float64))[:, None])
+    assert drift.max() < 1e-5
+    model.config = config
     # without the restoration the same linear prior drifts (it blends poses)
     plain = P.PredictiveMAWGAN(replace(config, restore_bones=False),
                                model.mu_past, model.mu_future, model.prior_filter)
