@@ -29,14 +29,17 @@ Math (one window; H = 1 + P history frames, F future frames, D = 51)
    history's world pelvis positions (``root=``).
 7. **Ensemble and test-time mirroring** (not in siMLPe; both reduce the variance that
    13 training clips leave). With ``members = K`` the prediction is the mean of K
-   networks, each trained with its own seed and selected on its own validation clips
+   networks, each trained with its own seed (``DCTRegressionPredictor(config, seed)``:
+   network i starts from ``seed + i``) and either selected on validation clips or
+   refitted on all training clips for a schedule chosen on them
    (:func:`simenv.train_predictor.run`); with ``mirror_average`` each network's
    prediction is ``½ (f(h) + M f(M h))``, ``M`` the left-right mirror
    (:func:`simenv.models.predictor.mirror`), which makes the predictor exactly
    mirror-equivariant, as the mirrored training data asks it to be.
 
 Loss: mean per-joint Euclidean position error (decimetres) plus the same on the
-frame-to-frame velocities (siMLPe's two terms), Adam with cosine decay, weight decay.
+frame-to-frame velocities (siMLPe's two terms), Adam with cosine decay, weight decay;
+optionally weighted towards the late frames (:func:`regression_loss`).
 """
 
 from __future__ import annotations
