@@ -149,24 +149,25 @@ class BodyThresholds:
         friction: 1.0. Coulomb friction coefficient of the feet on the floor
             (rubber soles on concrete 0.8-1.0; MuJoCo's default is 1).
         support_height_m: 0.05. A geom point lower than this above the floor
-            may carry load (a contact candidate). The fitted body's soles come
-            from the data's lowest toe heights, so on data whose foot keypoints
+            may carry load (a contact candidate). On data whose foot keypoints
             vary between loaded frames a planted forefoot can hover near this
-            height: CMU 131_04's opening stance fails ``balance`` on frames
-            0-8 with its forefoot corners at 5.0-5.4 cm, and passes with the
-            fitted sole 4 mm lower (docs/plausibility.md, calibration findings).
+            height: with the sole fitted from the lowest balls alone, CMU
+            131_04's opening stance failed ``balance`` on frames 0-8 with its
+            forefoot corners at 5.0-5.4 cm; the fit's two-anchor sole
+            (:func:`simenv.humanoid.fit_dimensions`) passes it, at 49.96 mm of
+            the 50 mm margin (docs/plausibility.md, calibration findings).
         root_force_mean_max: 0.15. Largest allowed mean (over frames) of the
             residual root force, as a fraction of body weight m g: the
             "invisible help" the motion needs after the best feasible ground
             reaction forces. Real walking needs (near) zero; a walk lifted
             30 cm needs ~1. Calibrated on real CMU clips: single-person clips
-            0.00-0.12, except 49_04 at 0.161, whose last 6 frames are frozen
+            0.00-0.12, except 49_04 at 0.160, whose last 6 frames are frozen
             copies (the body stops dead rising at 0.9 m/s; 0.070 without
             them). In two-person files each person is judged on the residual
             left after the partner's hand forces (``pair_root_residual``):
-            salsa followers 0.164 -> 0.136 and 0.176 -> 0.156 (61_10 fails: the
-            template file needs 0.38 at the dancer's own size, see
-            docs/plausibility.md).
+            salsa followers 0.157 -> 0.130 and 0.167 -> 0.148 (0.164 -> 0.136
+            and 0.176 -> 0.156 with the previous sole fit; the 61_10 template
+            file needed 0.38 at the dancer's own size, see docs/plausibility.md).
         root_force_frame_max: 0.5. Per-frame limit (fraction of body weight)
             for the residual's violation runs (landings of real jumps peak
             briefly as the 6 Hz filter spreads the impact).
