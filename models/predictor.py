@@ -307,28 +307,53 @@ def gradient_penalty(critic: nn.Module, real: torch.Tensor, fake: torch.Tensor,
     return ((grad.flatten(1).norm(dim=1) - 1) ** 2).mean()
 
 
-def restore_bone_lengths(frames: torch.Tensor, reference: torch.Tensor) -> torch.Tensor:
+#: Child joints of the 16 bones and their parents (pred17 layout).
+BONE_CHILD: tuple[int, ...] = tuple(j for j, p in enumerate(PARENTS) if p >= 0)
+BONE_PARENT: tuple[int, ...] = tuple(PARENTS[j] for j in BONE_CHILD)
+
+
+def _ancestor_matrix() -> np.ndarray:
+    """(17, 16) ``A[j, k] = 1`` when bone ``k`` lies on the path from the pelvis to
+    joint ``j``, so that poses are ``x = x_pelvis + A b`` for bone vectors ``b``."""
+    a = np.zeros((NUM_JOINTS, len(BONE_CHILD)))
+    for j in range(NUM_JOINTS):
+        k = j
+        while PARENTS[k] >= 0:
+            a[j, BONE_CHILD.index(k)] = 1.0
+            k = PARENTS[k]
+    return a
+
+
+ANCESTORS = _ancestor_matrix()
+
+
+def restore_bone_lengths(frames: np.ndarray | torch.Tensor, reference: np.ndarray | torch.Tensor
+                         ) -> np.ndarray | torch.Tensor:
     """Frames with the bone lengths of a reference pose, along their own bone directions.
 
-    Rebuilds each pose from the pelvis outwards (:data:`PARENTS` is topologically
-    ordered): ``x_j = x_{parent(j)} + b_j d_j / |d_j|`` with ``d_j`` the frame's own bone
-    vector and ``b_j`` the reference's bone length. The pelvis stays where it is; a bone
-    of zero length in the frame (no direction) stays of zero length.
+    Rebuilds each pose from the pelvis outwards, ``x_j = x_{parent(j)} + b_j d_j / |d_j|``
+    with ``d_j`` the frame's own bone vector and ``b_j`` the reference's bone length, in
+    one step: ``x = x_pelvis + A (b d / |d|)`` with the ancestor matrix ``A``
+    (:data:`ANCESTORS`). The pelvis stays where it is; a bone of zero length in the
+    frame (no direction) stays of zero length.
 
     Args:
-        frames: (B, F, 17, 3) poses; reference: (B, 17, 3) poses, same unit.
+        frames: (B, F, 17, 3) poses; reference: (B, 17, 3) poses, same unit; both numpy
+            arrays or both torch tensors (then differentiable in ``frames``).
 
     Returns:
-        (B, F, 17, 3) poses, differentiable in ``frames``.
+        (B, F, 17, 3) poses, of the input's kind.
     """
-    joints = [frames[..., 0, :]]
-    for j in range(1, NUM_JOINTS):
-        par = PARENTS[j]
-        bone = frames[..., j, :] - frames[..., par, :]
-        norm = bone.norm(dim=-1, keepdim=True).clamp_min(1e-9)
-        length = (reference[:, j] - reference[:, par]).norm(dim=-1)[:, None, None]
-        joints.append(joints[par] + length * bone / norm)
-    return torch.stack(joints, dim=-2)
+    def length(v):  # |v| over the last axis, kept; numpy and torch alike
+        return ((v * v).sum(-1)[..., None] + 1e-18) ** 0.5
+
+    child, par = list(BONE_CHILD), list(BONE_PARENT)
+    bones = frames[..., child, :] - frames[..., par, :]
+    ref = length(reference[:, child] - reference[:, par])[:, None]
+    bones = bones * (ref / length(bones))
+    anc = (torch.as_tensor(ANCESTORS, dtype=frames.dtype) if isinstance(frames, torch.Tensor)
+           else ANCESTORS)
+    return frames[..., :1, :] + anc @ bones
 
 
 def gram_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -494,10 +519,9 @@ class PredictiveMAWGAN:
     def _restore(self, future: np.ndarray, last: np.ndarray) -> np.ndarray:
         """(N, F, 51) futures with the bone lengths of the (N, 51) last poses."""
         n = len(future)
-        out = restore_bone_lengths(
-            torch.as_tensor(future, dtype=torch.float64).view(n, -1, NUM_JOINTS, 3),
-            torch.as_tensor(last, dtype=torch.float64).view(n, NUM_JOINTS, 3))
-        return out.numpy().reshape(future.shape)
+        out = restore_bone_lengths(future.reshape(n, -1, NUM_JOINTS, 3),
+                                   last.reshape(n, NUM_JOINTS, 3))
+        return out.reshape(future.shape)
 
     def _condition(self, frames: np.ndarray) -> tuple[np.ndarray, ...]:
         """(N, 1+P, 17, 3) heading-normalised history -> condition, log a_P, last pose,
