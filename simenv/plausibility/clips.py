@@ -2,13 +2,15 @@
 
 A :class:`ClipBatch` holds B clips of equal length and frame rate on one
 canonical keypoint layout: their source joint positions (B, T, S, 3) and the
-source joint of each canonical keypoint. :func:`score` runs any set of
+source joint of each canonical keypoint. :func:`run` runs any set of
 joint-level metrics, each described by a :class:`MetricSpec`, on all B clips
 in one compiled call (:func:`simenv.plausibility.kernels.score`), which reads
-each clip's keypoints once for all metrics, and turns its per-clip arrays
-into one :class:`~simenv.plausibility.timeline.MetricResult` per metric and
-clip. :func:`batches` groups any list of motions into such batches (clips of
-other lengths or skeletons go to other batches).
+each clip's keypoints once for all metrics, and keeps the per-clip arrays in
+a :class:`Scores`, which builds the
+:class:`~simenv.plausibility.timeline.MetricResult` s of a clip or of a
+metric when asked; :func:`score` builds them all. :func:`batches` groups any
+list of motions into such batches (clips of other lengths or skeletons go to
+other batches).
 
 Numerics are those of the per-clip formulas: each operation is the same
 IEEE operation on the same numbers (e.g. a Euclidean norm is
