@@ -366,8 +366,8 @@ def ensemble_ablation(model: DCTRegressionPredictor, windows: pdata.PredictionWi
 
 def gan_flags(info: dict) -> list[str]:
     """The ``simenv train predictor`` options a PredictiveMA-WGAN checkpoint records
-    beyond the defaults (prior, velocity condition, joint amplitude, adversarial weight,
-    validation split), in that order."""
+    beyond the defaults (prior, velocity condition, joint amplitude, bone restoration,
+    extra data, amplitude target, adversarial weight, validation split), in that order."""
     flags = []
     if info.get("prior", "none") != "none":
         flags.append(f"--prior {info['prior']}")
@@ -375,6 +375,12 @@ def gan_flags(info: dict) -> list[str]:
         flags.append("--velocity-condition")
     if info.get("joint_amplitude"):
         flags.append("--joint-amplitude")
+    if info.get("restore_bones"):
+        flags.append("--restore-bones")
+    if info.get("extra_data"):
+        flags.append("--extra-data " + " ".join(info["extra_data"]))
+    if info.get("amplitude_target") not in (None, "positions"):
+        flags.append(f"--amplitude-target {info['amplitude_target']}")
     if info.get("adv_weight", 1) != 1:
         flags.append(f"--adv-weight {info['adv_weight']:g}")
     if info.get("validation_clips"):

@@ -967,7 +967,9 @@ def model_card(name: str, metrics: dict) -> str:
         flags = [name for key, name in (
             ("joint_amplitude", "generator and amplitude head trained together"),
             ("velocity_condition", "last velocity in the condition"),
-            ("mirror_average", "test-time mirror averaging")) if cfg.get(key)]
+            ("mirror_average", "test-time mirror averaging"),
+            ("restore_bones", "bone lengths restored to the last observed pose's"))
+            if cfg.get(key)]
         if flags:
             training += "; " + ", ".join(flags)
         if "selected_iteration" in cfg:
