@@ -755,6 +755,7 @@ def run(args: argparse.Namespace) -> dict:
                                  velocity_condition=args.velocity_condition,
                                  mirror_average=args.mirror_average,
                                  restore_bones=args.restore_bones)
+        torch.manual_seed(args.seed)  # fit_geometry builds the networks before train() seeds
         model = fit_geometry(train_w, config)
         log = train(model, train_w, n_critic=args.n_critic, lr=lr,
                     adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
@@ -924,27 +925,34 @@ def model_card(name: str, metrics: dict) -> str:
                       "model)", "simenv.models.predictor_regression") if regression else
                      ("PredictiveMA-WGAN motion predictor", "simenv.models.predictor"))
     if regression and isinstance(cfg.get("members"), list):
+        selected = all("selected_iteration" in m for m in cfg["members"])
         how = (f"cross-fitted: the training clip groups are dealt into "
                f"{len(cfg['members'])} folds, member i is trained on the other folds (seed "
                "+ i) and its iteration selected on fold i" if cfg.get("cross_fit", True)
                else "member i trained with seed + i on the same clips, its iteration "
-               "selected on the validation clips")
+               "selected on the validation clips" if selected
+               else "member i trained with seed + i on all training clips for a fixed "
+               "schedule, its last iteration kept (no validation clips, no selection)")
+        rows = (["| member | validation clips | selected iteration | validation MPJPE [mm] "
+                 "| training windows |", "|---|---|---|---|---|",
+                 *(f"| {i} | {', '.join(m['validation_clips'])} | "
+                   f"{m['selected_iteration']} | {m['val_mpjpe_mm']} | "
+                   f"{m['train_windows']} |" for i, m in enumerate(cfg["members"]))]
+                if selected else
+                ["| member | iterations | training windows |", "|---|---|---|",
+                 *(f"| {i} | {m['iterations']} | {m['train_windows']} |"
+                   for i, m in enumerate(cfg["members"]))])
+        held_out = (" (training clips held out of that member's training, never the test "
+                    "clips)" if selected else "")
         training = "\n".join([
-            f"* training: an ensemble of {len(cfg['members'])} networks, {how} "
-            "(training clips held out of that member's training, never the test clips). "
+            f"* training: an ensemble of {len(cfg['members'])} networks, {how}{held_out}. "
             f"{cfg['members'][0]['iterations']} iterations per member, "
             f"{cfg['train_seconds_total']} CPU s in all on one thread, batch 128, AdamW lr "
             f"{cfg['lr']}, weight decay {cfg['weight_decay']}, {cfg['blocks']} blocks, "
             f"dropout {cfg['dropout']}; prediction = mean of the members"
             + (", each averaged with its mirrored prediction of the mirrored history"
                if cfg.get("mirror_average") else ""),
-            "",
-            "| member | validation clips | selected iteration | validation MPJPE [mm] | "
-            "training windows |",
-            "|---|---|---|---|---|",
-            *(f"| {i} | {', '.join(m['validation_clips'])} | {m['selected_iteration']} | "
-              f"{m['val_mpjpe_mm']} | {m['train_windows']} |"
-              for i, m in enumerate(cfg["members"]))])
+            "", *rows])
     elif regression:
         training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
                     f"CPU s on one thread, batch 128, AdamW lr {cfg['lr']}, weight decay "
