@@ -197,8 +197,9 @@ class TrainedClassifier:
     #: subjects only (488 MSR and UTKinect clips, 97 of them idle, retargeted into the
     #: room, through the loop: ``python -m simenv.perception --subjects train``) by
     #: :func:`choose_threshold` on the grid 0.10, 0.15, ..., 0.60: Youden's J of greeting
-    #: 10/55 - 21/433 = 0.133 at 0.10 and 0.15 (0.129 at 0.20, 0.036 at 0.25, 0 from
-    #: 0.30); the tie goes to the higher. Test-subject numbers in docs/room.md.
+    #: 10/55 - 20/433 = 0.136 at 0.10 and 0.15 (0.134 at 0.20, 0.113 at 0.25, 0.018 at
+    #: 0.30, 0 from 0.35; with the predictor-25-50 of 2026-12-02); the tie goes to the
+    #: higher. Test-subject numbers in docs/room.md.
     threshold = 0.15
 
     def __init__(self, model: Any, label_map: dict[str, str] | None = None,
