@@ -837,8 +837,9 @@ def _rot_y(a: float) -> np.ndarray:
 #: value, metres: the forefoot sole of a regular shoe (forefoot stack up to
 #: ~30 mm: running shoes' heel stack 9-35 mm minus a 0-12 mm heel-toe drop,
 #: RunRepeat's lab measurements) plus the offset of a keypoint solved from a
-#: toe marker on the shoe's upper (CMU: 14 mm spheres on a ~2 mm base,
-#: ~9 mm from the surface). CMU subjects' planted balls sit 34-46 mm above
+#: toe marker on the shoe's upper (~9 mm from the surface for a 14 mm sphere
+#: on a ~2 mm base: an assumption, no source gives CMU's marker size). CMU
+#: subjects' planted balls sit 34-46 mm above
 #: the floor, a few 57-68 mm (01_01, 131_03, 55_02).
 SHOD_TOE_ALLOWANCE = 0.04
 
