@@ -364,6 +364,15 @@ def ensemble_ablation(model: DCTRegressionPredictor, windows: pdata.PredictionWi
     return rows
 
 
+def extra_flags(info: dict) -> list[str]:
+    """The ``--extra-data`` / ``--extra-stride`` options a checkpoint trained on the
+    Kinect-era clips records, or none."""
+    if not info.get("extra_data"):
+        return []
+    return [f"--extra-data {' '.join(info['extra_data'])}",
+            f"--extra-stride {info['extra_stride']}"]
+
+
 def gan_flags(info: dict) -> list[str]:
     """The ``simenv train predictor`` options a PredictiveMA-WGAN checkpoint records
     beyond the defaults (prior, velocity condition, joint amplitude, bone restoration,
@@ -377,8 +386,7 @@ def gan_flags(info: dict) -> list[str]:
         flags.append("--joint-amplitude")
     if info.get("restore_bones"):
         flags.append("--restore-bones")
-    if info.get("extra_data"):
-        flags.append("--extra-data " + " ".join(info["extra_data"]))
+    flags += extra_flags(info)
     if info.get("amplitude_target") not in (None, "positions"):
         flags.append(f"--amplitude-target {info['amplitude_target']}")
     if info.get("adv_weight", 1) != 1:
@@ -689,9 +697,7 @@ def prediction_doc(metrics: dict[str, dict], extra: dict[str, Any], head: str) -
                 + (" --cross-fit" if info.get("cross_fit", True) else " --validation 0.2")
                 if isinstance(members, list) else
                 f"--validation 0.2 --iterations {info['iterations']}")
-        if info.get("extra_data"):
-            size += (f" --extra-data {' '.join(info['extra_data'])} --extra-stride "
-                     f"{info['extra_stride']}")
+        size = " ".join([size, *extra_flags(info)])
         runs.append(f"simenv train predictor --model regression --past {r['config']['past_len']}"
                     f" --future {r['config']['future_len']} {size} --lr {info['lr']:g} "
                     f"--dropout {info['dropout']:g} --out out/p{r['config']['past_len']}-"

@@ -145,6 +145,8 @@ CHECKPOINT_FORMAT = "simenv-predictive-ma-wgan-1"
 PRIORS = ("none", "damped_velocity", "linear")
 #: How the future amplitude is restored (:meth:`PredictiveMAWGAN.log_amplitude`).
 AMPLITUDES = ("predicted", "carried", "prior")
+#: What the amplitude head is trained against (:func:`amplitude_loss`).
+AMPLITUDE_TARGETS = ("positions", "true")
 
 
 # -- heading normalisation ------------------------------------------------------
@@ -903,9 +905,9 @@ def amplitude_loss(model: PredictiveMAWGAN, batch: Batch, u: torch.Tensor,
     log_amp = model.log_amplitude(batch.cond, batch.log_amp_past, base=batch.log_amp_base)
     if target == "true":
         return (log_amp - batch.log_amp_future).abs().mean()
-    if target != "positions":
-        raise MotionError(f"target must be 'positions' or 'true'; got {target!r}",
-                          field="target")
+    if target not in AMPLITUDE_TARGETS:
+        raise MotionError(f"target must be one of {', '.join(AMPLITUDE_TARGETS)}; got "
+                          f"{target!r}", field="target")
     frames, _ = model.decode(u.detach(), log_amp, batch.last)
     return LOSS_UNIT * (frames - batch.future).abs().mean()
 

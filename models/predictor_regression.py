@@ -166,11 +166,10 @@ class DCTRegressionPredictor:
 
     def _network(self, seed: int | None) -> DCTMLP:
         c = self.config
-        if seed is None:
-            return DCTMLP(self.history_len, self.future_len, c.blocks, c.dropout,
-                          c.root_input)
-        with torch.random.fork_rng(devices=[]):  # leave the caller's generator alone
-            torch.manual_seed(seed)
+        # A seeded network leaves the caller's generator alone.
+        with torch.random.fork_rng(devices=[], enabled=seed is not None):
+            if seed is not None:
+                torch.manual_seed(seed)
             return DCTMLP(self.history_len, self.future_len, c.blocks, c.dropout,
                           c.root_input)
 

@@ -59,6 +59,7 @@ from simenv.errors import MotionError, SimenvError, SkeletonError, UnitsError
 from simenv.io import load
 from simenv.models.baselines import ConstantVelocity, ZeroVelocity
 from simenv.models.predictor import (
+    AMPLITUDE_TARGETS,
     LOSS_WEIGHTS,
     PARENTS,
     PRIORS,
@@ -1144,7 +1145,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--velocity-condition", action=argparse.BooleanOptionalAction,
                     default=False, help="GAN: add the last observed velocity to the "
                     "generator's condition")
-    ap.add_argument("--amplitude-target", choices=("positions", "true"),
+    ap.add_argument("--amplitude-target", choices=AMPLITUDE_TARGETS,
                     default="positions", help="GAN without --joint-amplitude: train the "
                     "amplitude head on the position error at the generator's direction "
                     "or on the true log amplitude")

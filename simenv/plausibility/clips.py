@@ -230,18 +230,14 @@ class _Layout(NamedTuple):
     """What the results of one spec share: how its details are read (their
     ``keys`` in order, the ``constants`` appended to the kernel's detail
     columns, and ``pick``, which takes the keys' values from that
-    (columns + constants) row) and the result fields that are the same for
-    every clip (``threshold`` as a float, ``frame_threshold`` as a float,
-    ``timeline_unit``), and ``template``, an available result's field dict
-    in field order with those set (copying it and setting the five fields
-    that differ costs about half of building the dict)."""
+    (columns + constants) row) and ``template``, an available result's field
+    dict in field order with the fields that are the same for every clip set
+    (copying it and setting the five fields that differ costs about half of
+    building the dict)."""
 
     keys: tuple[str, ...]
     constants: list[float]
     pick: Callable[[list[float]], tuple[float, ...]]
-    threshold: float
-    frame_threshold: float
-    timeline_unit: str
     template: dict
 
 
@@ -287,8 +283,7 @@ class Plan:
                         "passed": None, "timeline": None, "violations": None,
                         "frame_threshold": ft, "timeline_unit": s.timeline_unit or s.unit,
                         "details": None, "reason": None}
-            self.layouts.append(_Layout(tuple(keys), constants, _picker(order), thr, ft,
-                                        s.timeline_unit or s.unit, template))
+            self.layouts.append(_Layout(tuple(keys), constants, _picker(order), template))
             if s.args is None:
                 continue
             self.enabled[s.slot] = True
@@ -442,7 +437,7 @@ def _result(spec: MetricSpec, layout: _Layout, v: float, row: list[float],
             timeline: np.ndarray, violations: list[tuple[int, int, float]]) -> MetricResult:
     """One available result: value ``v``, detail columns ``row`` (4,),
     (T,) float32 ``timeline`` and its violation runs."""
-    keys, constants, pick, _, _, _, template = layout
+    keys, constants, pick, template = layout
     fields = template.copy()
     fields["value"] = v
     fields["passed"] = v <= spec.threshold
@@ -467,9 +462,6 @@ def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray
     detail columns, the violation runs and their bounds (see
     :func:`simenv.plausibility.kernels.score`), ``missing`` (B,) why a clip
     has no result (None: it has one)."""
-    name, unit, limit = spec.name, spec.unit, spec.threshold
-    keys, constants, pick, _, _, _, template = layout
-    new, set_dict = object.__new__, object.__setattr__
     out = []
     # Per clip only what differs (about 1.5 us a result); a row view per
     # clip from iterating tl; k walks the clip's runs bounds.
@@ -477,18 +469,8 @@ def _results(batch: ClipBatch, spec: MetricSpec, layout: _Layout, tl: np.ndarray
     for v, row, timeline, reason in zip(values, columns, tl, missing, strict=True):
         if reason is not None:
             out.append(MetricResult.not_available(
-                name, batch.num_frames, unit, limit, reason,
+                spec.name, batch.num_frames, spec.unit, spec.threshold, reason,
                 frame_threshold=spec.frame_threshold, timeline_unit=spec.timeline_unit))
-        elif _FROM_FIELDS:
-            fields = template.copy()
-            fields["value"] = v
-            fields["passed"] = v <= limit
-            fields["timeline"] = timeline
-            fields["violations"] = spans[bounds[k]:bounds[k + 1]]
-            fields["details"] = dict(zip(keys, pick(row + constants)))  # noqa: B905
-            result = new(MetricResult)
-            set_dict(result, "__dict__", fields)
-            out.append(result)
         else:
             out.append(_result(spec, layout, v, row, timeline, spans[bounds[k]:bounds[k + 1]]))
         k += kernels.N_METRICS
