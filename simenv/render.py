@@ -46,6 +46,16 @@ STILL_EXTENT = 0.25
 MIN_DISTANCE = 3.0
 #: Opacity of the body's geoms when a ghost is drawn, so the ghost inside the limbs shows.
 BODY_ALPHA_WITH_GHOST = 0.55
+#: MP4 codecs (FourCC) :func:`write_video` tries, in order: H.264, which every browser plays
+#: (absent from OpenCV's pip wheels), then MPEG-4 part 2, which OpenCV always has.
+VIDEO_CODECS = ("avc1", "mp4v")
+#: The same for a video played in a web page: VP9 in MP4 (Chrome, Firefox, Edge) before
+#: ``mp4v``, which browsers do not decode; VP9 costs ~50 ms a 480x360 frame on one CPU core.
+BROWSER_CODECS = ("avc1", "vp09", "mp4v")
+#: Opacity of the dark band behind a caption (:func:`caption_frame`): the scene shows through.
+CAPTION_BAND_ALPHA = 0.6
+#: Height of one caption line as a fraction of the frame height (15 px at 360 rows).
+CAPTION_LINE_FRACTION = 1 / 24
 
 
 def _as_ghost_list(
@@ -175,6 +185,45 @@ def _overlay(frame: np.ndarray, text: str) -> np.ndarray:
     return frame
 
 
+def caption_frame(frame: np.ndarray, lines: Sequence[str]) -> np.ndarray:
+    """A copy of ``frame`` with ``lines`` written in a semi-transparent dark band at its bottom.
+
+    Each line is :data:`CAPTION_LINE_FRACTION` of the frame height (at least 10 px), white
+    anti-aliased Hershey text, scaled down if needed so that the longest line fits the width;
+    the band (:data:`CAPTION_BAND_ALPHA`) is as tall as the lines.
+
+    Args:
+        frame: RGB image, uint8 (H, W, 3).
+        lines: text, top to bottom; ASCII (OpenCV's Hershey fonts draw no other characters).
+
+    Returns:
+        The captioned image, uint8 (H, W, 3).
+
+    Raises:
+        SimenvError: ``frame`` is not a uint8 (H, W, 3) image.
+    """
+    out = np.array(frame, copy=True)
+    if out.ndim != 3 or out.shape[2] != 3 or out.dtype != np.uint8:
+        raise SimenvError(
+            f"frame is {out.dtype} {out.shape}; expected uint8 (H, W, 3) RGB", field="frame"
+        )
+    if not lines:
+        return out
+    h, w = out.shape[:2]
+    font, pad = cv2.FONT_HERSHEY_SIMPLEX, 4
+    step = max(10, round(h * CAPTION_LINE_FRACTION))  # px per line
+    ascent = cv2.getTextSize("A", font, 1.0, 1)[0][1]  # px at scale 1
+    widest = max(cv2.getTextSize(line, font, 1.0, 1)[0][0] for line in lines)
+    # Capitals take 70 % of a line, leaving room for descenders and the gap.
+    scale = min(0.7 * step / ascent, (w - 2 * pad) / max(widest, 1))
+    top = max(0, h - len(lines) * step - pad)
+    out[top:] = (out[top:] * (1.0 - CAPTION_BAND_ALPHA)).astype(np.uint8)
+    for i, line in enumerate(lines):
+        baseline = top + pad // 2 + i * step + round(0.5 * step + 0.5 * ascent * scale)
+        cv2.putText(out, line, (pad, baseline), font, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    return out
+
+
 def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
     """Create an offscreen renderer, turning a missing OpenGL into a clear :class:`SimenvError`.
 
@@ -289,13 +338,118 @@ def render_frames(
         renderer.close()
 
 
-def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps: float) -> Path:
-    """Write RGB frames (H, W, 3) uint8 to an MP4 file (OpenCV, ``mp4v`` codec).
+class VideoFile:
+    """An MP4 file written one RGB frame at a time, so that no frame is kept in memory.
+
+    The first frame fixes the size; the file opens with the first of ``codecs`` this OpenCV
+    build can encode. Use it as a context manager (or call :meth:`close`).
+
+    Args:
+        path: output file; its folder is created. Use the ``.mp4`` suffix.
+        fps: playback frame rate (frames per second), > 0.
+        codecs: FourCC codes tried in order (:data:`VIDEO_CODECS`, :data:`BROWSER_CODECS`).
+
+    Raises:
+        SimenvError: bad fps.
+    """
+
+    def __init__(
+        self, path: str | os.PathLike[str], fps: float, codecs: Sequence[str] = VIDEO_CODECS
+    ) -> None:
+        self.path = Path(path)
+        if not (np.isfinite(fps) and fps > 0):
+            raise SimenvError(f"video fps {fps}; expected a positive number", source=self.path)
+        self.fps = float(fps)
+        self.codecs = tuple(codecs)
+        #: The FourCC the file is encoded with, once the first frame is written.
+        self.codec: str | None = None
+        self.count = 0
+        self._writer: cv2.VideoWriter | None = None
+        self._size: tuple[int, int] | None = None
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+
+    def write(self, frame: np.ndarray) -> None:
+        """Append an RGB frame, uint8 (H, W, 3) of the first frame's size.
+
+        Raises:
+            SimenvError: a frame of another type, shape or size, or no codec can write
+                the file.
+        """
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+            raise SimenvError(
+                f"frame {self.count} is {frame.dtype} {frame.shape}; expected uint8 (H, W, 3) RGB",
+                source=self.path,
+            )
+        size = (frame.shape[1], frame.shape[0])
+        if self._writer is None:
+            self._writer, self.codec = self._open(size)
+            self._size = size
+        elif size != self._size:
+            raise SimenvError(
+                f"frame {self.count} is {size[0]}x{size[1]}; expected {self._size[0]}x"
+                f"{self._size[1]} like frame 0",
+                source=self.path,
+            )
+        self._writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+        self.count += 1
+
+    def _open(self, size: tuple[int, int]) -> tuple[cv2.VideoWriter, str]:
+        logging = cv2.utils.logging
+        level = logging.getLogLevel()
+        # A missing encoder is expected (pip wheels have no H.264): OpenCV need not log it.
+        logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+        try:
+            for codec in self.codecs:
+                writer = cv2.VideoWriter(
+                    str(self.path), cv2.VideoWriter_fourcc(*codec), self.fps, size
+                )
+                if writer.isOpened():
+                    return writer, codec
+                writer.release()
+        finally:
+            logging.setLogLevel(level)
+        raise SimenvError(
+            f"OpenCV cannot open the file for MP4 writing with any of the codecs {self.codecs}",
+            source=self.path,
+        )
+
+    def close(self) -> Path:
+        """Finish the file and return its path.
+
+        Raises:
+            SimenvError: no frame was written.
+        """
+        if self._writer is not None:
+            self._writer.release()
+            self._writer = None
+        if self.count == 0:
+            raise SimenvError("no frames to write", source=self.path)
+        return self.path
+
+    def __enter__(self) -> VideoFile:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
+        if kind is None:
+            self.close()
+        elif self._writer is not None:  # keep the error that stopped the writing
+            self._writer.release()
+
+
+def write_video(
+    frames: Iterable[np.ndarray],
+    path: str | os.PathLike[str],
+    fps: float,
+    codecs: Sequence[str] = VIDEO_CODECS,
+) -> Path:
+    """Write RGB frames (H, W, 3) uint8 to an MP4 file (OpenCV, :class:`VideoFile`).
 
     Args:
         frames: images of equal size, e.g. from :func:`render_frames`.
         path: output file; its folder is created. Use the ``.mp4`` suffix.
         fps: playback frame rate (frames per second), > 0.
+        codecs: FourCC codes tried in order.
 
     Returns:
         The path written.
@@ -303,40 +457,10 @@ def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps:
     Raises:
         SimenvError: no frames, frames of different sizes, bad fps, or the file cannot be opened.
     """
-    path = Path(path)
-    if not (np.isfinite(fps) and fps > 0):
-        raise SimenvError(f"video fps {fps}; expected a positive number", source=path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    writer = None
-    size = None
-    count = 0
-    try:
+    with VideoFile(path, fps, codecs) as video:
         for frame in frames:
-            frame = np.asarray(frame)
-            if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
-                raise SimenvError(
-                    f"frame {count} is {frame.dtype} {frame.shape}; expected uint8 (H, W, 3) RGB",
-                    source=path,
-                )
-            if writer is None:
-                size = (frame.shape[1], frame.shape[0])
-                writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
-                if not writer.isOpened():
-                    raise SimenvError("OpenCV cannot open the file for MP4 writing", source=path)
-            elif (frame.shape[1], frame.shape[0]) != size:
-                raise SimenvError(
-                    f"frame {count} is {frame.shape[1]}x{frame.shape[0]}; expected {size[0]}x"
-                    f"{size[1]} like frame 0",
-                    source=path,
-                )
-            writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
-            count += 1
-    finally:
-        if writer is not None:
-            writer.release()
-    if count == 0:
-        raise SimenvError("no frames to write", source=path)
-    return path
+            video.write(frame)
+    return video.path
 
 
 def keypoint_edges(names: Sequence[str]) -> list[tuple[int, int]]:

@@ -93,6 +93,7 @@ from simenv.divergence import physics_problem, warning_counts
 from simenv.errors import SimenvError
 from simenv.motion import Motion
 from simenv.perception import load_predictor
+from simenv.room import CHAIR_OFFSET
 from simenv.scenario import REACTIONS, Scenario, load_scenario
 from simenv.session import PERCEPTION_FPS, GestureEvent, Session, user_track
 
@@ -121,6 +122,22 @@ TAIL_S = 2.0
 #: reaction such as close_window: stand up, walk, push, then back to the chair and sit,
 #: takes ~51 s).
 MAX_TAIL_S = 60.0
+#: The render camera's eye: height above the floor, m (over the people's heads and the desk
+#: top, so the seated agent's hands show; under the ceiling) ...
+CAMERA_HEIGHT_M = 2.2
+#: ... least clearance to the walls, m (a wall behind the eye would hide the room) ...
+CAMERA_WALL_CLEARANCE_M = 0.3
+#: ... least horizontal distance to the user and to the seated agent, m (so that a standing
+#: body fits in the free camera's 45-degree vertical field) ...
+CAMERA_MIN_RANGE_M = 2.5
+#: ... least angle between the directions to the user and to the agent, degrees (so that
+#: neither hides the other) ...
+CAMERA_MIN_SEPARATION_DEG = 20.0
+#: ... and the angle kept free at the edges of the horizontal field of view, degrees in all
+#: (half a body's width on either side, at ~3 m).
+CAMERA_FOV_MARGIN_DEG = 10.0
+#: Height the render camera aims at, m: between the seated agent's hands and the user's chest.
+CAMERA_AIM_HEIGHT_M = 1.0
 
 
 def _assistance_total(stages: list[dict[str, Any]]) -> dict[str, float]:
@@ -227,6 +244,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._step: int | None = None
         self._obs: dict[str, np.ndarray] | None = None
         self._renderer: mujoco.Renderer | None = None
+        self._camera: mujoco.MjvCamera | str = "room"
 
     # -- Gymnasium API ----------------------------------------------------------
 
@@ -296,15 +314,72 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         return self._obs, float(sum(terms.values())), False, truncated, info
 
     def render(self) -> np.ndarray | None:
+        """The room seen by :meth:`camera`: an RGB image (height, width, 3) uint8, or None
+        unless ``render_mode="rgb_array"``."""
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
             from simenv.render import make_renderer
 
             self._renderer = make_renderer(self.model, *self._size)
+            self._camera = self.camera()
         self.room.sync_visuals(self.data)
-        self._renderer.update_scene(self.data, camera="room")
+        self._renderer.update_scene(self.data, camera=self._camera)
         return self._renderer.render()
+
+    def camera(self) -> mujoco.MjvCamera | str:
+        """A fixed viewpoint that sees the user's gestures and the agent's face and hands.
+
+        The eye, :data:`CAMERA_HEIGHT_M` high and inside the walls, is the point of a 5-cm
+        grid that sees the less frontally seen of the two people -- the agent in its chair,
+        facing the desk, and the user where the scenario places the session's first frame
+        (``user.position``, facing ``user.yaw_deg``) -- as frontally as possible, with both at least
+        :data:`CAMERA_MIN_RANGE_M` away and in the horizontal field of view (a margin of
+        :data:`CAMERA_MIN_SEPARATION_DEG` to its edges) at least that angle apart. It aims at
+        :data:`CAMERA_AIM_HEIGHT_M` between them. (The room's ``room`` camera, in a corner
+        behind the user, sees the user's back, who hides the agent.)
+
+        Returns:
+            a free camera, or ``"room"`` when no eye in the room meets these conditions.
+        """
+        width, height = self._size
+        half_v = np.deg2rad(self.model.vis.global_.fovy) / 2
+        fov_h = np.degrees(2 * np.arctan(np.tan(half_v) * width / height))
+        hx, hy = np.asarray(self.scenario.room.size) / 2 - CAMERA_WALL_CLEARANCE_M
+        gx, gy = np.meshgrid(np.arange(-hx, hx + 1e-9, 0.05), np.arange(-hy, hy + 1e-9, 0.05))
+        eyes = np.column_stack([gx.ravel(), gy.ravel()])  # (N, 2), m
+        yaw = np.deg2rad(self.scenario.desk.yaw_deg)
+        turn = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+        seat = np.asarray(self.scenario.desk.position) + turn @ np.asarray(CHAIR_OFFSET)
+        user = np.asarray(self.scenario.user.position)
+        user_yaw = np.deg2rad(self.scenario.user.yaw_deg)
+        facing = np.array([[np.cos(yaw), np.sin(yaw)], [np.cos(user_yaw), np.sin(user_yaw)]])
+        # Eye -> seated agent, user, desk centre (the agent's objects lie on it), (N, 3, 2).
+        to = np.stack([seat, user, self.scenario.desk.position])[None] - eyes[:, None]
+        dist = np.linalg.norm(to, axis=2)
+        frontal = -(to[:, :2] * facing[None]).sum(axis=2) / dist[:, :2]  # cos(facing, -> eye)
+        # Directions seen from the eye relative to the user's, degrees in (-180, 180].
+        bearing = np.arctan2(to[..., 1], to[..., 0])
+        rel = np.degrees(np.angle(np.exp(1j * (bearing - bearing[:, 1:2]))))
+        fits = ((dist[:, :2].min(axis=1) >= CAMERA_MIN_RANGE_M)
+                & (np.abs(rel[:, 0]) >= CAMERA_MIN_SEPARATION_DEG)
+                & (np.ptp(rel, axis=1) <= fov_h - CAMERA_FOV_MARGIN_DEG))
+        if not fits.any():
+            return "room"
+        best = int(np.argmax(np.where(fits, frontal.min(axis=1), -np.inf)))
+        eye = np.array([*eyes[best], CAMERA_HEIGHT_M])
+        # Aim at the middle of the framed directions.
+        mid = bearing[best, 1] + np.deg2rad(rel[best].max() + rel[best].min()) / 2
+        aim = np.array([*(eyes[best] + dist[best].mean() * np.array([np.cos(mid), np.sin(mid)])),
+                        CAMERA_AIM_HEIGHT_M])
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.lookat[:] = aim
+        ahead = aim - eye
+        cam.distance = float(np.linalg.norm(ahead))
+        cam.azimuth = float(np.degrees(np.arctan2(ahead[1], ahead[0])))
+        cam.elevation = float(np.degrees(np.arctan2(ahead[2], np.linalg.norm(ahead[:2]))))
+        return cam
 
     def close(self) -> None:
         if self._renderer is not None:
