@@ -71,7 +71,9 @@ def load(name: str) -> Any:
     :class:`simenv.models.predictor.PredictiveMAWGAN` (P observed -> F predicted frames
     at 25 fps, ``predict(history)``), ``predictor-dctmlp-<P>-<F>`` the regression
     baseline :class:`simenv.models.predictor_regression.DCTRegressionPredictor` (same
-    interface); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
+    interface), ``predictor-gesture-<P>-<F>`` the gesture-domain forecaster
+    :class:`simenv.models.gesture_predictor.GesturePredictor` (world-frame gesture15
+    joints, not pred17); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
     give the baselines; ``gesture-classifier`` gives a
     :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
     ``predict_proba``, ``features``); an :data:`INTERACTION_MODELS` name gives that
@@ -87,6 +89,10 @@ def load(name: str) -> Any:
         if name.startswith(prefix) and name[len(prefix):].isdigit():
             return cls(int(name[len(prefix):]))
     path = checkpoint_path(name)
+    if name.startswith("predictor-gesture-"):
+        from simenv.models.gesture_predictor import GesturePredictor
+
+        return GesturePredictor.load(path)
     if name.startswith("predictor-dctmlp-"):
         from simenv.models.predictor_regression import DCTRegressionPredictor
 

@@ -1,0 +1,409 @@
+"""Gesture-domain motion forecaster: 1 s of a Kinect skeleton -> the next 2 s (issue 14).
+
+The room's perception loop classifies "1 s real + 2 s predicted" frames. The CMU-trained
+predictors (:mod:`simenv.models.predictor`, :mod:`simenv.models.predictor_regression`)
+work on the root-relative pred17 layout and were fitted on clean optical mocap; this one
+works directly on the classifier's ``gesture15`` joints
+(:data:`simenv.gestures.GESTURE15_JOINTS`) in the **world frame** and is trained on the
+real Kinect recordings of the gesture corpus (:mod:`simenv.train_gesture_predictor`).
+
+``GesturePredictor.predict(history)``: (25, 15, 3) world positions, metres, Z up,
+25 fps -> (50, 15, 3) world positions of the next 50 frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from simenv.errors import MotionError
+from simenv.gestures import GESTURE15_JOINTS, mirror_windows
+from simenv.models.baselines import check_history
+from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from simenv.models.predictor_regression import dct_matrix
+
+__all__ = ["CHECKPOINT_FORMAT", "GesturePredictor", "GesturePredictorConfig", "ROOT_MODES",
+           "body_frame", "from_body", "to_body"]
+
+#: Format tag of checkpoint files.
+CHECKPOINT_FORMAT = "simenv-gesture-predictor-1"
+#: Joints of every history and forecast (order of axis J).
+JOINTS: tuple[str, ...] = GESTURE15_JOINTS
+NUM_JOINTS = len(JOINTS)
+DIMS = 3 * NUM_JOINTS
+_SPINE = JOINTS.index("spine")
+_LS, _RS = JOINTS.index("left_shoulder"), JOINTS.index("right_shoulder")
+#: Network unit: decimetres (positions of ~0.1-1 m become ~1-10, a good range for an MLP).
+UNIT = 10.0
+#: How the forecast's root (spine) moves: ``learned`` = as the network predicts it;
+#: ``damped`` = the spine velocity of the last :attr:`GesturePredictorConfig.root_frames`
+#: history frames, decaying with time constant ``root_tau_s``; ``still`` = the spine stays.
+ROOT_MODES = ("learned", "damped", "still")
+
+
+@dataclass
+class GesturePredictorConfig:
+    """Hyper-parameters (saved in checkpoints).
+
+    Attributes:
+        history_len: observed frames H (25 = 1 s). future_len: predicted frames F (50 = 2 s).
+        fps: frame rate of both, frames/s.
+        dct_in: DCT coefficients of the history kept (low frequencies first).
+        dct_out: DCT coefficients of the future predicted (the forecast is band-limited
+            to ``dct_out / (2 F / fps)`` Hz).
+        hidden: width of the MLP. blocks: residual blocks. dropout: in each block.
+        heading_frames: last history frames whose mean shoulder axis gives the heading
+            (a few, to damp Kinect jitter of the shoulders).
+        root_mode: one of :data:`ROOT_MODES`. root_frames: history frames the root
+            velocity of ``damped`` is measured over. root_tau_s: its decay time, s.
+        info: free provenance (training command, data), JSON.
+    """
+
+    history_len: int = 25
+    future_len: int = 50
+    fps: float = 25.0
+    dct_in: int = 10
+    dct_out: int = 12
+    hidden: int = 160
+    blocks: int = 1
+    dropout: float = 0.1
+    heading_frames: int = 3
+    root_mode: str = "learned"
+    root_frames: int = 5
+    root_tau_s: float = 0.5
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def check(self) -> None:
+        """Raise a MotionError naming the first inconsistent field."""
+        if self.root_mode not in ROOT_MODES:
+            raise MotionError(f"root_mode must be one of {ROOT_MODES}; got {self.root_mode!r}",
+                              field="root_mode")
+        for name, hi in (("dct_in", self.history_len), ("dct_out", self.future_len),
+                         ("heading_frames", self.history_len),
+                         ("root_frames", self.history_len - 1)):
+            value = getattr(self, name)
+            if not 1 <= value <= hi:
+                raise MotionError(f"{name} must be in [1, {hi}]; got {value}", field=name)
+        if self.hidden < 1 or self.blocks < 0 or not self.fps > 0 or not self.root_tau_s > 0:
+            raise MotionError("hidden >= 1, blocks >= 0, fps > 0 and root_tau_s > 0 are "
+                              "required", field="config")
+
+
+# -- body frame -----------------------------------------------------------------------
+
+
+def body_frame(history: np.ndarray, heading_frames: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Origin and heading of the body frame of each history.
+
+    Origin ``o`` = the spine of the last frame; heading ``θ`` such that ``R_z(-θ)`` turns
+    the forward direction ``Z × (r_shoulder - l_shoulder)`` (mean over the last
+    ``heading_frames`` frames) onto +X, as :func:`simenv.gestures.normalise_windows`
+    defines facing.
+
+    Args:
+        history: (N, H, 15, 3) world positions, metres.
+
+    Returns:
+        origin (N, 3) metres, heading (N,) radians.
+
+    Raises:
+        MotionError: shoulders without horizontal separation (facing undefined).
+    """
+    origin = history[:, -1, _SPINE]
+    across = (history[:, -heading_frames:, _RS] - history[:, -heading_frames:, _LS]).mean(1)
+    flat = np.flatnonzero(np.hypot(across[:, 0], across[:, 1]) < 1e-4)
+    if flat.size:
+        raise MotionError(f"history {int(flat[0])}: the shoulders have no horizontal "
+                          "separation in its last frames; cannot tell which way the person "
+                          "faces", field="history")
+    return origin, np.arctan2(across[:, 0], -across[:, 1])
+
+
+def _rotation(angle: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations about Z by ``angle`` (N,) radians."""
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.zeros((len(angle), 3, 3))
+    rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, -s, s, c, 1.0
+    return rot
+
+
+def to_body(x: np.ndarray, origin: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(N, T, J, 3) world metres -> body frame ``R_z(-θ)(x - o)``, metres."""
+    return np.einsum("nij,ntkj->ntki", _rotation(-angle), x - origin[:, None, None])
+
+
+def from_body(x: np.ndarray, origin: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`to_body`: ``R_z(θ) x + o``, metres."""
+    return np.einsum("nij,ntkj->ntki", _rotation(angle), x) + origin[:, None, None]
+
+
+# -- network --------------------------------------------------------------------------
+
+
+class _Block(nn.Module):
+    """Pre-norm residual block ``h + Drop(GELU(W LN(h)))``."""
+
+    def __init__(self, width: int, dropout: float) -> None:
+        super().__init__()
+        self.norm = nn.LayerNorm(width)
+        self.fc = nn.Linear(width, width)
+        self.drop = nn.Dropout(dropout)
+
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        return h + self.drop(nn.functional.gelu(self.fc(self.norm(h))))
+
+
+class GestureDCTMLP(nn.Module):
+    """(B, H, 45) residual history, (B, 45) last pose, decimetres -> (B, F, 45) residual
+    future, decimetres (see :class:`GesturePredictor` for the math)."""
+
+    def __init__(self, config: GesturePredictorConfig) -> None:
+        super().__init__()
+        c = config
+        self.register_buffer("dct_in", torch.as_tensor(
+            dct_matrix(c.history_len)[: c.dct_in], dtype=torch.float32))
+        self.register_buffer("idct_out", torch.as_tensor(
+            dct_matrix(c.future_len)[: c.dct_out].T, dtype=torch.float32))
+        self.dct_out = c.dct_out
+        self.fc_in = nn.Linear(c.dct_in * DIMS + DIMS, c.hidden)
+        self.blocks = nn.Sequential(*(_Block(c.hidden, c.dropout) for _ in range(c.blocks)))
+        self.norm = nn.LayerNorm(c.hidden)
+        self.fc_out = nn.Linear(c.hidden, c.dct_out * DIMS)
+        # A zero output is the zero-velocity forecast: training starts from it.
+        nn.init.zeros_(self.fc_out.weight)
+        nn.init.zeros_(self.fc_out.bias)
+
+    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+        coeffs = (self.dct_in @ residual).flatten(1)  # (B, K_in * 45)
+        h = nn.functional.gelu(self.fc_in(torch.cat([coeffs, last], dim=1)))
+        out = self.fc_out(self.norm(self.blocks(h))).view(-1, self.dct_out, DIMS)
+        return self.idct_out @ out  # (B, F, 45)
+
+
+# -- predictor ------------------------------------------------------------------------
+
+
+class GesturePredictor:
+    """DCT-residual MLP forecaster of world-frame ``gesture15`` skeletons.
+
+    Math (one history ``x_1..x_H`` (H = 25), F = 50 future frames, J = 15, D = 3J = 45)
+    -------------------------------------------------------------------------------
+    1. **Body frame.** ``o = spine(x_H)``; ``θ`` = heading of the mean shoulder axis
+       ``a = r_shoulder - l_shoulder`` over the last ``heading_frames`` frames,
+       ``θ = atan2(a_x, -a_y)``, so that ``R_z(-θ)`` maps the forward direction
+       ``Z × a`` onto +X (left = +Y; the convention of
+       :func:`simenv.gestures.normalise_windows`). Every frame becomes
+       ``b_t = U · R_z(-θ)(x_t - o)`` in decimetres (``U = 10``); the person stands at
+       the origin facing +X at the last observed frame, height (Z) kept, no scaling.
+    2. **Residual to the last pose.** ``r_t = b_t - b_H`` (H, D); ``b_H`` (D,) also
+       enters on its own (posture: seated, bent, arm raised).
+    3. **DCT.** ``C = (M_H r)[:K_in]`` with the orthonormal DCT-II matrix ``M_H``
+       (H x H, :func:`simenv.models.predictor_regression.dct_matrix`), keeping the
+       ``K_in`` lowest temporal frequencies (K_in x D).
+    4. **MLP.** ``z = GELU(W_in [vec C; b_H])``, ``blocks`` residual blocks
+       ``z + Drop(GELU(W LN(z)))``, then ``Ĉ = W_out LN(z)`` reshaped to (K_out, D).
+    5. **Inverse DCT and residual.** ``b̂_{H+k} = b_H + (M_F[:K_out]ᵀ Ĉ)_k``: the forecast
+       is the last pose plus a band-limited change, so ``W_out = 0`` (the initialisation)
+       is the zero-velocity forecast.
+    6. **Root.** The spine is a joint like the others, so the network predicts the root
+       displacement (``root_mode="learned"``). Alternatives, chosen per model in the
+       config: ``"damped"`` keeps the pose relative to the predicted spine and moves the
+       spine by ``d_k = v τ (1 - e^{-k / (τ fps)})``, ``v`` the mean spine velocity over
+       the last ``root_frames`` history frames (m/s), ``τ = root_tau_s``; ``"still"``
+       keeps the spine where it was (``d_k = 0``).
+    7. **Back to the world:** ``x̂ = R_z(θ) b̂ / U + o``.
+
+    Training (:mod:`simenv.train_gesture_predictor`): per-joint Euclidean error of the
+    positions plus that of the frame-to-frame velocities (siMLPe's two terms), in the
+    body frame, decimetres.
+
+    Attributes:
+        config: :class:`GesturePredictorConfig`. net: the torch network.
+        name: registry name (``predictor-gesture-25-50`` when shipped).
+        history_len, future_len, fps: from the config.
+        joint_names: :data:`simenv.gestures.GESTURE15_JOINTS`.
+        metadata: provenance read from / written to the checkpoint (JSON).
+    """
+
+    joint_names: tuple[str, ...] = JOINTS
+
+    def __init__(self, config: GesturePredictorConfig | None = None, seed: int | None = None,
+                 name: str = "predictor-gesture-25-50") -> None:
+        """``seed``: the network starts from the weights ``torch.manual_seed(seed)`` gives
+        (the caller's generator is left alone); None: from the global generator."""
+        self.config = config or GesturePredictorConfig()
+        self.config.check()
+        with torch.random.fork_rng(devices=[], enabled=seed is not None):
+            if seed is not None:
+                torch.manual_seed(seed)
+            self.net = GestureDCTMLP(self.config)
+        self.net.eval()
+        self.name = name
+        self.metadata: dict[str, Any] = {}
+
+    @property
+    def history_len(self) -> int:
+        return self.config.history_len
+
+    @property
+    def future_len(self) -> int:
+        return self.config.future_len
+
+    @property
+    def fps(self) -> float:
+        return self.config.fps
+
+    # -- tensors ------------------------------------------------------------------------
+
+    def inputs(self, history: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, np.ndarray,
+                                                   np.ndarray]:
+        """Network inputs of validated (N, H, 15, 3) world histories, metres: residual
+        (N, H, 45) and last pose (N, 45) in body-frame decimetres, origin (N, 3) metres
+        and heading (N,) radians."""
+        origin, angle = body_frame(history, self.config.heading_frames)
+        b = to_body(history, origin, angle).reshape(len(history), history.shape[1], DIMS)
+        b = b * UNIT
+        last = b[:, -1]
+        return (torch.as_tensor(b - last[:, None], dtype=torch.float32),
+                torch.as_tensor(last, dtype=torch.float32), origin, angle)
+
+    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+        """Differentiable body-frame forecast (B, F, 45), decimetres (what training fits;
+        the root as the network predicts it)."""
+        return last[:, None, :] + self.net(residual, last)
+
+    def _root_path(self, history: np.ndarray) -> np.ndarray:
+        """(N, F, 3) world displacement of the spine after the last frame, metres, for the
+        ``damped`` / ``still`` root modes."""
+        c = self.config
+        n = len(history)
+        if c.root_mode == "still":
+            return np.zeros((n, c.future_len, 3))
+        spine = history[:, :, _SPINE]
+        v = (spine[:, -1] - spine[:, -1 - c.root_frames]) / c.root_frames * c.fps  # m/s
+        k = np.arange(1, c.future_len + 1) / c.fps  # s after the last frame
+        gain = c.root_tau_s * (1.0 - np.exp(-k / c.root_tau_s))  # s
+        return v[:, None, :] * gain[None, :, None]
+
+    # -- prediction ---------------------------------------------------------------------
+
+    def check(self, history: Any) -> tuple[np.ndarray, bool]:
+        """Validated (N, H, 15, 3) float64 history (its last H frames) and whether the
+        input was batched.
+
+        Raises:
+            MotionError: not numeric, wrong shape, fewer than H frames, not 15 joints,
+                a non-finite value (window, frame and joint named).
+        """
+        h, batched = check_history(history, self.history_len)
+        if h.shape[2] != NUM_JOINTS:
+            raise MotionError(f"history has {h.shape[2]} joints; this predictor expects "
+                              f"{NUM_JOINTS} (simenv.gestures.GESTURE15_JOINTS: "
+                              f"{', '.join(JOINTS)})", field="history")
+        if len(h) == 0:
+            raise MotionError("history holds no window", field="history")
+        return h[:, -self.history_len:], batched
+
+    @torch.no_grad()
+    def predict_batch(self, history: np.ndarray) -> np.ndarray:
+        """Forecast the F frames after each of N histories.
+
+        Args:
+            history: (N, H', 15, 3) world positions, metres, Z up, at :attr:`fps`,
+                H' >= H (the last H frames are used), ending at the last observed frame.
+
+        Returns:
+            (N, F, 15, 3) float32 world positions, metres.
+
+        Raises:
+            MotionError: see :meth:`check`; shoulders on top of each other.
+        """
+        h, _ = self.check(history if np.ndim(history) == 4 else np.asarray(history)[None])
+        return self._predict(h)
+
+    def predict(self, history: np.ndarray) -> np.ndarray:
+        """Forecast one history (H', 15, 3) -> (F, 15, 3), or a batch (N, H', 15, 3) ->
+        (N, F, 15, 3); float32 world positions, metres (see :meth:`predict_batch`)."""
+        h, batched = self.check(history)
+        out = self._predict(h)
+        return out if batched else out[0]
+
+    @torch.no_grad()
+    def _predict(self, h: np.ndarray) -> np.ndarray:
+        residual, last, origin, angle = self.inputs(h)
+        self.net.eval()
+        body = self.forward(residual, last).double().numpy() / UNIT
+        body = body.reshape(len(h), self.future_len, NUM_JOINTS, 3)
+        out = from_body(body, origin, angle)
+        if self.config.root_mode != "learned":
+            spine = h[:, -1, _SPINE][:, None] + self._root_path(h)  # (N, F, 3)
+            out = out - out[:, :, _SPINE:_SPINE + 1] + spine[:, :, None]
+        return out.astype(np.float32)
+
+    def with_root_mode(self, mode: str, tau_s: float | None = None) -> GesturePredictor:
+        """A predictor sharing this network with another :data:`ROOT_MODES` root."""
+        config = GesturePredictorConfig(**{**asdict(self.config), "root_mode": mode})
+        if tau_s is not None:
+            config.root_tau_s = float(tau_s)
+        other = GesturePredictor.__new__(GesturePredictor)
+        config.check()
+        other.config, other.net, other.name = config, self.net, self.name
+        other.metadata = dict(self.metadata)
+        return other
+
+    # -- checkpoints --------------------------------------------------------------------
+
+    def num_parameters(self) -> int:
+        return sum(p.numel() for p in self.net.parameters())
+
+    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
+        """Write an arrays-only ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`):
+        config and metadata JSON, the network's parameters under ``net.``."""
+        if metadata is not None:
+            self.metadata = dict(metadata)
+        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config),
+                               {"net": self.net}, metadata={"name": self.name,
+                                                            **self.metadata})
+
+    @classmethod
+    def load(cls, path: str | Path) -> GesturePredictor:
+        """Read a checkpoint written by :meth:`save`.
+
+        Raises:
+            CheckpointError: missing file, another format, a config or weights that do
+                not fit.
+        """
+        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT)
+        try:
+            config = GesturePredictorConfig(**ckpt.config)
+            config.check()
+        except (TypeError, MotionError) as exc:
+            raise CheckpointError(f"bad gesture-predictor config: {exc}",
+                                  source=ckpt.path) from None
+        model = cls(config, seed=0, name=str(ckpt.metadata.get("name",
+                                                               "predictor-gesture-25-50")))
+        ckpt.load_into({"net": model.net})
+        model.net.eval()
+        model.metadata = dict(ckpt.metadata)
+        return model
+
+
+def mirror_world(windows: np.ndarray) -> np.ndarray:
+    """Left-right mirror of (..., 15, 3) world windows (Y negated, left/right swapped):
+    still a valid world-frame motion, of a left-handed twin (training augmentation)."""
+    return mirror_windows(windows, JOINTS)
+
+
+def position_velocity_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """siMLPe's two terms on (B, F, 45) body-frame tensors (decimetres): mean per-joint
+    Euclidean error of the positions plus that of the frame-to-frame velocities."""
+    p = pred.view(*pred.shape[:2], NUM_JOINTS, 3)
+    t = target.view(*target.shape[:2], NUM_JOINTS, 3)
+    pos = (p - t).norm(dim=-1).mean()
+    vel = ((p[:, 1:] - p[:, :-1]) - (t[:, 1:] - t[:, :-1])).norm(dim=-1).mean()
+    return pos + vel

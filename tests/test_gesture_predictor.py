@@ -1,0 +1,187 @@
+"""The gesture-domain forecaster (issue 14): shipped checkpoint, validation, checkpoints,
+body frame, and a short training run on the real gesture corpus."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import simenv.models
+from simenv.errors import MotionError
+from simenv.gestures import GESTURE_FPS, gesture_skeleton, to_gesture_joints
+from simenv.io import bvh
+from simenv.models.checkpoint import CheckpointError
+from simenv.models.gesture_predictor import (
+    GesturePredictor,
+    GesturePredictorConfig,
+    body_frame,
+    from_body,
+    to_body,
+)
+
+torch.set_num_threads(1)
+NAME = "predictor-gesture-25-50"
+
+
+@pytest.fixture(scope="module")
+def walk15() -> np.ndarray:
+    """The bundled real CMU walk 02_01 on gesture15 at 25 fps: (72, 15, 3) metres."""
+    m = bvh.read(Path(str(resources.files("simenv.assets"))) / "cmu_02_01_walk.bvh")
+    sub = m.with_positions(to_gesture_joints(m), skeleton=gesture_skeleton())
+    return sub.resample(GESTURE_FPS).positions.astype(np.float64)
+
+
+@pytest.fixture(scope="module")
+def shipped() -> GesturePredictor:
+    if NAME not in simenv.models.available():
+        pytest.skip(f"{NAME} is not shipped in assets/models")
+    return simenv.models.load(NAME)
+
+
+def test_shipped_checkpoint_predicts_world_frames(shipped, walk15) -> None:
+    assert isinstance(shipped, GesturePredictor)
+    assert (shipped.history_len, shipped.future_len, shipped.fps) == (25, 50, 25.0)
+    one = shipped.predict(walk15[:25])
+    assert one.shape == (50, 15, 3) and one.dtype == np.float32
+    batch = shipped.predict_batch(np.stack([walk15[:25], walk15[10:35]]))
+    assert batch.shape == (2, 50, 15, 3)
+    np.testing.assert_allclose(batch[0], one, atol=1e-5)
+    # World frame: the forecast starts near the last observed pose (within 0.15 m per
+    # joint at the first frame: a walker moves ~5 cm in 40 ms) and stays person-sized.
+    assert np.linalg.norm(one[0] - walk15[24], axis=-1).max() < 0.15
+    assert 1.0 < one[:, :, 2].max() < 2.2 and one[:, :, 2].min() > -0.2
+    # A longer history uses its last 25 frames.
+    np.testing.assert_allclose(shipped.predict(walk15[:35]), shipped.predict(walk15[10:35]),
+                               atol=1e-5)
+
+
+def test_shipped_checkpoint_is_small_and_has_a_card() -> None:
+    path = Path(str(resources.files("simenv.assets"))) / "models" / f"{NAME}.npz"
+    if not path.is_file():
+        pytest.skip(f"{NAME} is not shipped")
+    assert path.stat().st_size < 1024 * 1024
+    text = path.with_suffix(".md").read_text()
+    assert "MPJPE" in text and "split" in text.lower() and "ms per single" in text
+
+
+def test_bad_histories_are_clear_errors(walk15) -> None:
+    model = GesturePredictor(seed=0)
+    h = walk15[:25].copy()
+    h[7, 4, 1] = np.nan
+    with pytest.raises(MotionError, match="non-finite") as exc:
+        model.predict(h)
+    assert exc.value.frame == 7
+    with pytest.raises(MotionError, match="at least 25"):
+        model.predict(walk15[:10])
+    with pytest.raises(MotionError, match="15"):
+        model.predict(np.zeros((25, 17, 3)))
+    with pytest.raises(MotionError, match="shape"):
+        model.predict(np.zeros((25, 45)))
+    flat = walk15[:25].copy()
+    flat[:, 6] = flat[:, 3]  # shoulders on top of each other: facing undefined
+    with pytest.raises(MotionError, match="faces"):
+        model.predict(flat)
+    with pytest.raises(MotionError, match="root_mode"):
+        GesturePredictor(GesturePredictorConfig(root_mode="sideways"))
+
+
+def test_untrained_model_is_zero_velocity(walk15) -> None:
+    """The output layer starts at zero, so the untrained forecast repeats the last pose."""
+    out = GesturePredictor(seed=3).predict(walk15[:25])
+    np.testing.assert_allclose(out, np.repeat(walk15[24:25], 50, axis=0), atol=1e-5)
+
+
+def test_body_frame_faces_plus_x_and_round_trips(walk15) -> None:
+    rng = np.random.default_rng(0)
+    h = walk15[None, :25]
+    origin, angle = body_frame(h)
+    b = to_body(h, origin, angle)
+    np.testing.assert_allclose(b[0, -1, 0], 0.0, atol=1e-9)  # last spine at the origin
+    across = b[0, -1, 6] - b[0, -1, 3]  # right - left shoulder points to -Y: facing +X
+    assert across[1] < 0 and abs(across[0]) < abs(across[1])
+    np.testing.assert_allclose(from_body(b, origin, angle), h, atol=1e-9)
+    # Rotating and moving the input rotates and moves the forecast (equivariance).
+    model = GesturePredictor(seed=1)
+    with torch.no_grad():
+        for p in model.net.fc_out.parameters():
+            p.copy_(0.01 * torch.as_tensor(rng.standard_normal(p.shape), dtype=torch.float32))
+    turn, shift = 0.7, np.array([1.0, -2.0, 0.0])
+    c, s = np.cos(turn), np.sin(turn)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    moved = walk15[:25] @ rot.T + shift
+    np.testing.assert_allclose(model.predict(moved), model.predict(walk15[:25]) @ rot.T + shift,
+                               atol=1e-4)
+
+
+def test_root_modes(walk15) -> None:
+    model = GesturePredictor(seed=0)
+    still = model.with_root_mode("still").predict(walk15[:25])
+    np.testing.assert_allclose(still[:, 0], np.repeat(walk15[24:25, 0], 50, axis=0), atol=1e-5)
+    damped = model.with_root_mode("damped", tau_s=0.5).predict(walk15[:25])
+    step = np.linalg.norm(np.diff(damped[:, 0, :2], axis=0), axis=-1)
+    assert step[0] > 0.02 and step[-1] < 0.3 * step[0]  # walking ~1.3 m/s, then slows
+
+
+def test_save_load_round_trip(tmp_path, walk15) -> None:
+    model = GesturePredictor(GesturePredictorConfig(hidden=32, root_mode="damped"), seed=5)
+    with torch.no_grad():
+        for p in model.net.parameters():
+            p.add_(0.01 * torch.randn(p.shape, generator=torch.Generator().manual_seed(1)))
+    path = model.save(tmp_path / "m.npz", metadata={"fold": 2})
+    back = GesturePredictor.load(path)
+    assert back.config == model.config and back.metadata["fold"] == 2
+    np.testing.assert_array_equal(back.predict(walk15[:25]), model.predict(walk15[:25]))
+    with np.load(path, allow_pickle=False) as data:  # arrays only: loads without pickle
+        assert "net.fc_in.weight" in data.files
+    with pytest.raises(CheckpointError):
+        GesturePredictor.load(tmp_path / "missing.npz")
+    np.savez(tmp_path / "other.npz", format=np.array("something-else"))
+    with pytest.raises(CheckpointError, match="not a"):
+        GesturePredictor.load(tmp_path / "other.npz")
+
+
+# -- real gesture corpus ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def recordings(shared_data):
+    from simenv.train_gesture_predictor import load_sequences
+
+    if not (shared_data / "gestures" / "utkinect").is_dir():
+        pytest.skip(f"gesture corpus not found at {shared_data / 'gestures'}")
+    return load_sequences(shared_data, cmu=False)
+
+
+def test_folds_keep_held_out_subjects_out(recordings) -> None:
+    from simenv.train_gesture_predictor import eval_windows, split_fold
+
+    assert {r.dataset for r in recordings} == {"msr_action3d", "utkinect"}
+    assert all(len(r.positions) >= 75 for r in recordings)
+    for k in range(5):
+        train, test = split_fold(recordings, k)
+        held = {r.subject_key for r in test}
+        assert held and not held & {r.subject_key for r in train}
+        assert all(int(s.rsplit("/s", 1)[1]) % 5 == (k + 1) % 5 for s in held)
+        windows, names = eval_windows(test)
+        assert windows.shape[1:] == (75, 15, 3) and len(names) == len(windows)
+
+
+def test_short_training_lowers_the_loss_and_evaluates(recordings) -> None:
+    from simenv.train_gesture_predictor import TrainConfig, eval_windows, evaluate, train
+
+    train_recs = [r for r in recordings if r.fold != 0]
+    model, history = train(train_recs, TrainConfig(steps=300, batch=64, seed=0),
+                           progress=False)
+    assert history["loss"][-1] < 0.9 * history["loss"][0]
+    assert "utkinect/s01" not in history["subjects"]  # fold 0's subject stays out
+    windows, names = eval_windows([r for r in recordings if r.fold == 0], stride=25)
+    result = evaluate(model, windows, names)
+    assert set(result) >= {"all", "utkinect", "msr_action3d"}
+    table = result["all"]
+    for method in ("model-learned", "model-damped", "zero-velocity", "constant-velocity"):
+        assert np.isfinite(table[method]["mpjpe_2s_mm"])
+    assert table["zero-velocity"]["mpjs_mps"] == 0.0 and table["real_mpjs_mps"] > 0
