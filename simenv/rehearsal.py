@@ -3,7 +3,15 @@
 :func:`rehearse` runs :class:`~simenv.envs.interaction_room.InteractionRoomEnv` on a session
 with one of the agents below, and writes to ``out``:
 
-* ``rehearsal.mp4``: the room camera (user, agent, objects), 25 fps (unless ``render=False``);
+* ``rehearsal.mp4`` (unless ``render=False``): the room seen from the camera of
+  :meth:`~simenv.envs.interaction_room.InteractionRoomEnv.camera` (the user's front, the
+  agent's face and hands), 25 fps, one frame per ``log.jsonl`` line (the state at the end of
+  that step), each captioned (:func:`simenv.render.caption_frame`) with what the agent
+  perceived: the time and labelled gesture, the last perception tick's three most probable
+  classes and its stage, the last decision and the reaction executing, and each object's
+  state label and level (% of its joint's range). H.264 when this OpenCV build can encode
+  it, else ``mp4v``, with then the same frames in VP8 in ``rehearsal.webm`` for browsers
+  (:class:`simenv.render.WebVideo`);
 * ``log.jsonl``: one JSON line per step, flushed as it goes: ``t``, the labelled ``gesture``,
   the last perception's ``probabilities``, ``stage`` and ``predicted_motion_m``, the
   ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
@@ -26,9 +34,13 @@ with one of the agents below, and writes to ``out``:
   force on its bodies -- the residual force of a simulated agent, measured),
   ``perception_compute_s``, ``timing_s`` (wall time of the preparation -- retargeting,
   room --, the simulation loop -- rendering included when on -- and the outputs, and the
-  loop's real-time factor);
-* ``report.html``: a timeline of gestures, decisions and object states, and the agent's
-  plausibility table.
+  loop's real-time factor), and with the video ``video``: ``file``, ``codec`` (FourCC),
+  ``webm`` (the WebM copy's file or None), ``width`` and ``height`` (pixels), ``frames``;
+* ``report.html``: the video (``<video>`` with relative sources ``rehearsal.webm`` and
+  ``rehearsal.mp4``: keep the files together),
+  a timeline of gestures, decisions and object states, the reactions started, and the
+  agent's plausibility table, in the style of the plausibility reports
+  (:func:`simenv.plausibility.html_report.html_page`).
 
 Agents: ``"scripted"`` decides with a :class:`~simenv.perception.PerceptionLoop` (predict,
 classify, decide every second; by default the shipped ``gesture-classifier`` and
@@ -53,6 +65,7 @@ import json
 import os
 import time
 from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -72,11 +85,15 @@ from simenv.perception import (
     load_predictor,
     vocabulary_map,
 )
+from simenv.plausibility.html_report import html_page
 from simenv.scenario import REACTIONS, Scenario, load_scenario
 from simenv.session import PERCEPTION_FPS, GestureEvent, Session, session_recipes
 from simenv.skeletons import canonical_skeleton
 
 AGENTS = ("scripted", "labels", "random")
+#: Accepted video width and height, pixels: room for the scene under the five caption lines
+#: (at least 10 px each), and within the offscreen buffers OpenGL drivers provide.
+VIDEO_SIZE_RANGE = (96, 4096)
 
 
 def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.PathLike[str],
@@ -100,16 +117,27 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             perception ticks only: the environment's own ``user_future`` observation,
             which none of these agents reads, is the constant-velocity baseline's (the
             WGAN on every step would cost ~14 ms of each 40 ms frame).
-        render, width, height: the video and its size, pixels.
+        render, width, height: the video and its size, pixels (integers in
+            :data:`VIDEO_SIZE_RANGE`; 640 x 480 for a larger view).
         seed: seed of the environment and the random agent.
         data: root of the shared corpus (session recipes, the template fallback).
 
     Returns:
         the summary (as written to ``summary.json``).
+
+    Raises:
+        SimenvError: unknown agent, video size outside :data:`VIDEO_SIZE_RANGE`, and the
+            errors of the environment and the perception.
     """
     if agent not in AGENTS:
         raise SimenvError(f"unknown agent {agent!r}; expected one of {list(AGENTS)}",
                           field="agent")
+    low, high = VIDEO_SIZE_RANGE
+    for name, size in (("width", width), ("height", height)):
+        if not isinstance(size, int | np.integer) or isinstance(size, bool) \
+                or not low <= size <= high:
+            raise SimenvError(f"video {name} {size!r}; expected a whole number of pixels "
+                              f"from {low} to {high}", field=name)
     out = Path(out)
     clock = [time.perf_counter()]
     ahead = load_predictor(predictor) if agent == "scripted" else None
@@ -126,14 +154,19 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
     rng = np.random.default_rng(seed)
     obs, _ = env.reset(seed=seed)
     clock.append(time.perf_counter())
-    frames, agent_kp, perceptions, depths, assistance = [], [], [], [], 0.0
+    agent_kp, perceptions, depths, assistance = [], [], [], 0.0
     weight = env.room.agent.total_mass * 9.81  # N, for assistance as a fraction of it
     last: Perception | None = None
+    decided: tuple[str, float] | None = None  # the last decision and its time, s
     answered: set[int] = set()
     step, done = 0, False
+    video = None
     if render:
-        frames.append(env.render())
-    with (out / "log.jsonl").open("w", encoding="utf-8") as log:
+        from simenv.render import WebVideo, caption_frame
+
+        # Written as it goes: a long session's frames would not fit in memory.
+        video = WebVideo(out / "rehearsal.mp4", PERCEPTION_FPS)
+    with (out / "log.jsonl").open("w", encoding="utf-8") as log, video or nullcontext():
         while not done:
             t = step / PERCEPTION_FPS
             action = 0
@@ -150,15 +183,15 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             elif agent == "random" and tick:
                 action = int(rng.integers(0, env.action_space.n))
             obs, _, _, truncated, info = env.step(action)
+            if action:
+                decided = (env.reactions[action], t)
             done = truncated
             step += 1
             agent_kp.append(env.room.agent_keypoints(env.data))
             depths.append(list(env.agent_penetration().values()))
             help_n = env.agent_assistance_n()
             assistance = max(assistance, help_n)
-            if render:
-                frames.append(env.render())
-            log.write(json.dumps({
+            row = {
                 "t": round(t, 4), "gesture": info.get("gesture"),
                 "probabilities": None if last is None else last.probabilities,
                 "stage": None if last is None else last.stage,
@@ -168,15 +201,18 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
                 "levels": dict(zip(OBJECTS, map(float, env.object_levels()), strict=True)),
                 "labels": info.get("object_labels"),
                 "assistance_n": help_n, "assistance_bw": help_n / weight,
-            }) + "\n")
+            }
+            log.write(json.dumps(row) + "\n")
             log.flush()
+            if video is not None:
+                video.write(caption_frame(env.render(), _caption(row, decided)))
     clock.append(time.perf_counter())
-    if render:
-        from simenv.render import write_video
-
-        write_video(frames, out / "rehearsal.mp4", PERCEPTION_FPS)
     env.close()
     summary = _summary(env, np.array(agent_kp), perceptions)
+    if video is not None:
+        summary["video"] = {"file": video.mp4.path.name, "codec": video.mp4.codec,
+                            "webm": None if video.webm is None else video.webm.path.name,
+                            "width": width, "height": height, "frames": video.mp4.count}
     if loop is not None:
         summary["perception"] = {
             "classifier": getattr(classifier, "name", type(classifier).__name__),
@@ -191,6 +227,24 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
                            "loop_real_time_factor": summary["duration_s"] / loop_s}
     (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     return summary
+
+
+def _caption(row: dict[str, Any], decided: tuple[str, float] | None) -> list[str]:
+    """The caption lines of the video frame of ``log.jsonl`` line ``row``: time (s) and
+    labelled gesture; the last perception tick's three most probable classes with their
+    probabilities and its stage; the last decision ``decided`` (reaction, time in s) and
+    the reaction executing; each object's state label and level (% of its joint's range)."""
+    best = sorted((row["probabilities"] or {}).items(), key=lambda kv: -kv[1])[:3]
+    perceived = "  ".join(f"{label} {p:.2f}" for label, p in best) or "-"
+    stage = f" ({row['stage']})" if row["stage"] else ""
+    decision = "-" if decided is None else f"{decided[0]} at {decided[1]:.2f} s"
+    labels = row["labels"] or {}  # None on a step whose physics diverged
+    objects = [f"{name} {labels.get(name, '?')} {100 * row['levels'][name]:.0f}%"
+               for name in OBJECTS]
+    return [f"t {row['t']:.2f} s   labelled gesture: {row['gesture'] or '-'}",
+            f"perceived{stage}: {perceived}",
+            f"decision: {decision}   executing: {row['executing'] or '-'}",
+            "   ".join(objects[:3]), "   ".join(objects[3:])]
 
 
 def _oracle(env: InteractionRoomEnv, t: float, answered: set[int]) -> int:
@@ -277,7 +331,8 @@ def _physics(depths: np.ndarray, assistance: float) -> dict[str, Any]:
 
 
 def _report(out: Path, summary: dict[str, Any]) -> None:
-    """``report.html``: the timeline (from ``log.jsonl``) and the plausibility table."""
+    """``report.html``: the video, the timeline (from ``log.jsonl``), the reactions and
+    the plausibility table."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -308,32 +363,61 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
     image = base64.b64encode(buf.getvalue()).decode()
+    e = html.escape
+
+    def verdict(passed: bool | str | None) -> str:
+        if passed is None or isinstance(passed, str):  # not available, or not judged
+            return f"<td class='na'>{e(passed or 'n/a')}</td>"
+        return f"<td class='{'pass' if passed else 'fail'}'>{'pass' if passed else 'fail'}</td>"
+
     table = "".join(
-        f"<tr><td>{html.escape(k)}</td><td>{v['value']:.4g} {html.escape(v['unit'])}</td>"
-        f"<td>{v['passed']}</td></tr>" for k, v in summary["agent_plausibility"].items())
+        f"<tr><td>{e(k)}</td><td class='num'>{v['value']:.4g} {e(v['unit'])}</td>"
+        f"{verdict(v['passed'])}</tr>" for k, v in summary["agent_plausibility"].items())
     phys = summary.get("agent_physics")
     if phys is not None:
         table += "".join(
-            f"<tr><td>penetration into {html.escape(k)} (max / p95)</td>"
-            f"<td>{1000 * v['max']:.1f} / {1000 * v['p95']:.1f} mm</td>"
-            f"<td>{v['steps_over_tolerance'] == 0 if k != 'user' else 'n/a (user pushes)'}"
-            "</td></tr>" for k, v in phys["penetration_m"].items())
-        table += (f"<tr><td>assistance force (max)</td><td>{phys['assistance_max_n']:.3g} N"
-                  f"</td><td>{phys['assistance_max_n'] == 0}</td></tr>")
+            f"<tr><td>penetration into {e(k)} (max / p95)</td>"
+            f"<td class='num'>{1000 * v['max']:.1f} / {1000 * v['p95']:.1f} mm</td>"
+            + verdict(v["steps_over_tolerance"] == 0 if k != "user" else "n/a (user pushes)")
+            + "</tr>" for k, v in phys["penetration_m"].items())
+        table += (f"<tr><td>assistance force (max)</td><td class='num'>"
+                  f"{phys['assistance_max_n']:.3g} N</td>"
+                  f"{verdict(phys['assistance_max_n'] == 0)}</tr>")
     reactions = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in (
+        "<tr>" + "".join(f"<td>{e(str(r[c]))}</td>" for c in (
             "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
-            "t_success", "success")) + "</tr>" for r in summary["reactions"])
-    (out / "report.html").write_text(f"""<!doctype html><meta charset="utf-8">
-<title>simenv rehearsal: {html.escape(summary['session'])}</title>
-<h1>Rehearsal of {html.escape(summary['session'])} ({html.escape(summary['scenario'])})</h1>
-<img src="data:image/png;base64,{image}" alt="timeline">
-<h2>Reactions started</h2><table border=1><tr><th>gesture</th><th>onset (s)</th>
+            "t_success")) + verdict(bool(r["success"])) + "</tr>"
+        for r in summary["reactions"])
+    video = summary.get("video")
+    if video is None:
+        film = "<p class='na'>No video (rendering was off).</p>"
+    else:
+        # Relative sources, the browser's pick first (it plays H.264 and VP8, not mp4v):
+        # the folder can be moved or served as is.
+        sources = [(video["file"], "video/mp4"), (video["webm"], "video/webm")]
+        if video["codec"] != "avc1":
+            sources.reverse()
+        film = ("<video controls muted width='{}' height='{}'>{}</video>".format(
+                    video["width"], video["height"],
+                    "".join(f"<source src='{e(src)}' type='{kind}'>" for src, kind in sources
+                            if src))
+                + "<p class='small'>The room as the agent sees it; captions: the time, the "
+                "labelled gesture, the last perception tick's three most probable classes "
+                "and its stage (real or predicted frames), the last decision, the reaction "
+                "executing, and the objects' states. "
+                f"<a href='{e(video['file'])}'>Download the MP4</a> "
+                f"({e(video['codec'])}).</p>")
+    title = f"simenv rehearsal: {summary['session']}"
+    (out / "report.html").write_text(html_page(title, f"""
+<h1>Rehearsal of {e(summary['session'])} ({e(summary['scenario'])})</h1>
+<h2>Video</h2>{film}
+<h2>Timeline</h2><img class="timeline" src="data:image/png;base64,{image}" alt="timeline">
+<h2>Reactions started</h2><table><tr><th>gesture</th><th>onset (s)</th>
 <th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
 <th>success measured (s)</th><th>success</th></tr>{reactions}</table>
-<h2>Agent plausibility</h2><table border=1><tr><th>metric</th><th>value</th><th>passed</th>
+<h2>Agent plausibility</h2><table><tr><th>metric</th><th>value</th><th>verdict</th>
 </tr>{table}</table>
-""", encoding="utf-8")
+"""), encoding="utf-8")
 
 
 def _gesture(text: str) -> GestureEvent:
@@ -368,6 +452,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "utkinect/, florence3d/): the scripted agent classifies with "
                         "nearest-neighbour templates from it instead")
     parser.add_argument("--no-render", action="store_true", help="skip the video")
+    parser.add_argument("--width", type=int, default=480, help="video width, pixels "
+                        "(default 480; e.g. 640 with --height 480)")
+    parser.add_argument("--height", type=int, default=360, help="video height, pixels "
+                        "(default 360)")
     args = parser.parse_args(argv)
     scenario = load_scenario(args.scenario)
     vocabulary = scenario.behaviour.vocabulary
@@ -382,14 +470,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     session = Session.load(args.session, args.gesture, data=args.data)
     summary = rehearse(session, args.out, scenario=scenario, agent=args.agent,
                        classifier=classifier, predictor=args.predictor,
-                       render=not args.no_render, data=args.data)
+                       render=not args.no_render, width=args.width,
+                       height=args.height, data=args.data)
     started = len(summary["reactions"])
     done = sum(bool(r["success"]) for r in summary["reactions"])
     print(f"{started} reaction(s) started, {done} succeeded; outputs in {args.out}")
     return 0
 
 
-__all__ = ["AGENTS", "main", "rehearse"]
+__all__ = ["AGENTS", "VIDEO_SIZE_RANGE", "main", "rehearse"]
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ in place, a three-quarter front view; its distance grows with the people's separ
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -27,6 +28,8 @@ import numpy as np
 
 from simenv import _glenv
 from simenv.errors import SimenvError
+
+log = logging.getLogger(__name__)
 
 #: RGBA of the ghost of person 0, 1, ... (cycled): orange, cyan, magenta, yellow.
 GHOST_COLOURS = (
@@ -49,9 +52,9 @@ BODY_ALPHA_WITH_GHOST = 0.55
 #: MP4 codecs (FourCC) :func:`write_video` tries, in order: H.264, which every browser plays
 #: (absent from OpenCV's pip wheels), then MPEG-4 part 2, which OpenCV always has.
 VIDEO_CODECS = ("avc1", "mp4v")
-#: The same for a video played in a web page: VP9 in MP4 (Chrome, Firefox, Edge) before
-#: ``mp4v``, which browsers do not decode; VP9 costs ~50 ms a 480x360 frame on one CPU core.
-BROWSER_CODECS = ("avc1", "vp09", "mp4v")
+#: Codec of the WebM copy of :class:`WebVideo`: VP8, which browsers play, unlike ``mp4v``
+#: (VP8 costs ~20 ms a 480x360 frame on a CPU core; VP9, playable inside an MP4, ~140 ms).
+WEBM_CODECS = ("VP80",)
 #: Opacity of the dark band behind a caption (:func:`caption_frame`): the scene shows through.
 CAPTION_BAND_ALPHA = 0.6
 #: Height of one caption line as a fraction of the frame height (15 px at 360 rows).
@@ -347,7 +350,7 @@ class VideoFile:
     Args:
         path: output file; its folder is created. Use the ``.mp4`` suffix.
         fps: playback frame rate (frames per second), > 0.
-        codecs: FourCC codes tried in order (:data:`VIDEO_CODECS`, :data:`BROWSER_CODECS`).
+        codecs: FourCC codes tried in order.
 
     Raises:
         SimenvError: bad fps.
@@ -395,10 +398,10 @@ class VideoFile:
         self.count += 1
 
     def _open(self, size: tuple[int, int]) -> tuple[cv2.VideoWriter, str]:
-        logging = cv2.utils.logging
-        level = logging.getLogLevel()
+        cv_log = cv2.utils.logging
+        level = cv_log.getLogLevel()
         # A missing encoder is expected (pip wheels have no H.264): OpenCV need not log it.
-        logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+        cv_log.setLogLevel(cv_log.LOG_LEVEL_SILENT)
         try:
             for codec in self.codecs:
                 writer = cv2.VideoWriter(
@@ -408,7 +411,7 @@ class VideoFile:
                     return writer, codec
                 writer.release()
         finally:
-            logging.setLogLevel(level)
+            cv_log.setLogLevel(level)
         raise SimenvError(
             f"OpenCV cannot open the file for MP4 writing with any of the codecs {self.codecs}",
             source=self.path,
@@ -437,19 +440,55 @@ class VideoFile:
             self._writer.release()
 
 
-def write_video(
-    frames: Iterable[np.ndarray],
-    path: str | os.PathLike[str],
-    fps: float,
-    codecs: Sequence[str] = VIDEO_CODECS,
-) -> Path:
+class WebVideo:
+    """A video for a web page, written frame by frame: ``path`` (MP4, :data:`VIDEO_CODECS`)
+    and, unless that is H.264, the same frames in ``path`` with the ``.webm`` suffix
+    (:data:`WEBM_CODECS`), since browsers do not decode ``mp4v``. A context manager.
+
+    Args:
+        path: the MP4 file; its folder is created.
+        fps: playback frame rate (frames per second), > 0.
+
+    Attributes:
+        mp4: the MP4 :class:`VideoFile`.
+        webm: the WebM :class:`VideoFile`, or None (H.264 MP4, or no VP8 encoder: a warning
+            is logged).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], fps: float) -> None:
+        self.mp4 = VideoFile(path, fps)
+        self.webm: VideoFile | None = None
+
+    def write(self, frame: np.ndarray) -> None:
+        """Append an RGB frame, uint8 (H, W, 3), to both files (:meth:`VideoFile.write`)."""
+        self.mp4.write(frame)
+        if self.mp4.count == 1 and self.mp4.codec != "avc1":
+            webm = VideoFile(self.mp4.path.with_suffix(".webm"), self.mp4.fps, WEBM_CODECS)
+            try:
+                webm.write(frame)
+            except SimenvError as err:
+                log.warning("no WebM copy, browsers may not play %s: %s", self.mp4.path, err)
+            else:
+                self.webm = webm
+        elif self.webm is not None:
+            self.webm.write(frame)
+
+    def __enter__(self) -> WebVideo:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for video in (self.mp4, self.webm):
+            if video is not None:
+                video.__exit__(*exc)
+
+
+def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps: float) -> Path:
     """Write RGB frames (H, W, 3) uint8 to an MP4 file (OpenCV, :class:`VideoFile`).
 
     Args:
         frames: images of equal size, e.g. from :func:`render_frames`.
         path: output file; its folder is created. Use the ``.mp4`` suffix.
         fps: playback frame rate (frames per second), > 0.
-        codecs: FourCC codes tried in order.
 
     Returns:
         The path written.
@@ -457,7 +496,7 @@ def write_video(
     Raises:
         SimenvError: no frames, frames of different sizes, bad fps, or the file cannot be opened.
     """
-    with VideoFile(path, fps, codecs) as video:
+    with VideoFile(path, fps) as video:
         for frame in frames:
             video.write(frame)
     return video.path

@@ -127,15 +127,18 @@ MAX_TAIL_S = 60.0
 CAMERA_HEIGHT_M = 2.2
 #: ... least clearance to the walls, m (a wall behind the eye would hide the room) ...
 CAMERA_WALL_CLEARANCE_M = 0.3
+#: ... vertical field of view, degrees (as the room's fixed cameras: wide enough for the user,
+#: the agent and the desk from inside a small room) ...
+CAMERA_FOVY_DEG = 60.0
 #: ... least horizontal distance to the user and to the seated agent, m (so that a standing
-#: body fits in the free camera's 45-degree vertical field) ...
-CAMERA_MIN_RANGE_M = 2.5
+#: body fits in the vertical field) ...
+CAMERA_MIN_RANGE_M = 2.0
 #: ... least angle between the directions to the user and to the agent, degrees (so that
 #: neither hides the other) ...
 CAMERA_MIN_SEPARATION_DEG = 20.0
 #: ... and the angle kept free at the edges of the horizontal field of view, degrees in all
-#: (half a body's width on either side, at ~3 m).
-CAMERA_FOV_MARGIN_DEG = 10.0
+#: (a body's half width and a raised arm on either side, at ~3 m).
+CAMERA_FOV_MARGIN_DEG = 20.0
 #: Height the render camera aims at, m: between the seated agent's hands and the user's chest.
 CAMERA_AIM_HEIGHT_M = 1.0
 
@@ -245,6 +248,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._obs: dict[str, np.ndarray] | None = None
         self._renderer: mujoco.Renderer | None = None
         self._camera: mujoco.MjvCamera | str = "room"
+        self.model.vis.global_.fovy = CAMERA_FOVY_DEG  # the field of camera()'s free camera
 
     # -- Gymnasium API ----------------------------------------------------------
 
@@ -333,17 +337,18 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         The eye, :data:`CAMERA_HEIGHT_M` high and inside the walls, is the point of a 5-cm
         grid that sees the less frontally seen of the two people -- the agent in its chair,
         facing the desk, and the user where the scenario places the session's first frame
-        (``user.position``, facing ``user.yaw_deg``) -- as frontally as possible, with both at least
-        :data:`CAMERA_MIN_RANGE_M` away and in the horizontal field of view (a margin of
-        :data:`CAMERA_MIN_SEPARATION_DEG` to its edges) at least that angle apart. It aims at
-        :data:`CAMERA_AIM_HEIGHT_M` between them. (The room's ``room`` camera, in a corner
-        behind the user, sees the user's back, who hides the agent.)
+        (``user.position``, facing ``user.yaw_deg``) -- as frontally as possible, and both
+        from the front half, at least :data:`CAMERA_MIN_RANGE_M` away and at least
+        :data:`CAMERA_MIN_SEPARATION_DEG` apart; the user, the agent and the desk's centre
+        fit in the horizontal field of view less :data:`CAMERA_FOV_MARGIN_DEG`. It aims at
+        the middle of them, :data:`CAMERA_AIM_HEIGHT_M` high. (The room's ``room`` camera,
+        in a corner behind the user, sees the user's back, who hides the agent.)
 
         Returns:
             a free camera, or ``"room"`` when no eye in the room meets these conditions.
         """
         width, height = self._size
-        half_v = np.deg2rad(self.model.vis.global_.fovy) / 2
+        half_v = np.deg2rad(CAMERA_FOVY_DEG) / 2
         fov_h = np.degrees(2 * np.arctan(np.tan(half_v) * width / height))
         hx, hy = np.asarray(self.scenario.room.size) / 2 - CAMERA_WALL_CLEARANCE_M
         gx, gy = np.meshgrid(np.arange(-hx, hx + 1e-9, 0.05), np.arange(-hy, hy + 1e-9, 0.05))
@@ -361,7 +366,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         # Directions seen from the eye relative to the user's, degrees in (-180, 180].
         bearing = np.arctan2(to[..., 1], to[..., 0])
         rel = np.degrees(np.angle(np.exp(1j * (bearing - bearing[:, 1:2]))))
-        fits = ((dist[:, :2].min(axis=1) >= CAMERA_MIN_RANGE_M)
+        fits = ((dist[:, :2].min(axis=1) >= CAMERA_MIN_RANGE_M) & (frontal.min(axis=1) > 0)
                 & (np.abs(rel[:, 0]) >= CAMERA_MIN_SEPARATION_DEG)
                 & (np.ptp(rel, axis=1) <= fov_h - CAMERA_FOV_MARGIN_DEG))
         if not fits.any():

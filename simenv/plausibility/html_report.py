@@ -25,6 +25,10 @@ API (stable; used by ``simenv score --report DIR``)
         The clip's score for the index: the minimum over its people's scores and
         its pairwise metrics' scores (same scale as
         :attr:`~simenv.plausibility.report.PersonReport.score`).
+    ``html_page(title, body) -> str``
+        A whole page around ``body`` (HTML) with these pages' inline style (tables,
+        ``pass`` / ``fail`` / ``na`` / ``small`` / ``num`` classes); the rehearsal
+        report uses it too.
 
 Files of one clip's page, all next to ``report.html``
     ``p<i>_<metric>.png``
@@ -164,7 +168,7 @@ def write_report(report: PlausibilityReport, out_dir: str | os.PathLike[str], *,
 
     title = f"simenv plausibility: {Path(report.source).name}"
     page = out / REPORT_PAGE
-    page.write_text(_document(title, "\n".join(parts)), encoding="utf-8")
+    page.write_text(html_page(title, "\n".join(parts)), encoding="utf-8")
     return page
 
 
@@ -203,7 +207,7 @@ def write_index(entries: Iterable[IndexEntry], out_dir: str | os.PathLike[str]) 
     table = ("<table><tr><th>file</th><th>verdict</th><th>score</th><th>error</th></tr>"
              + "".join(rows) + "</table>")
     page_path = out / INDEX_PAGE
-    page_path.write_text(_document("simenv plausibility: batch",
+    page_path.write_text(html_page("simenv plausibility: batch",
                                    f"<h1>Plausibility scores</h1>{summary}{table}"),
                          encoding="utf-8")
     return page_path
@@ -216,7 +220,9 @@ def _e(text: object) -> str:
     return html.escape(str(text), quote=True)
 
 
-def _document(title: str, body: str) -> str:
+def html_page(title: str, body: str) -> str:
+    """A complete HTML page with the reports' inline style (no external resources): its
+    ``title`` (escaped) and ``body`` (HTML, inserted as is)."""
     return (f"<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
             f"<title>{_e(title)}</title><style>{_CSS}</style></head>\n<body>\n{body}\n"
             f"</body></html>\n")
