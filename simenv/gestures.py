@@ -611,6 +611,45 @@ def split_cross_subject(clips: Sequence[GestureClip]
     return train, test
 
 
+#: Folds of the leave-subjects-out protocol over the whole gesture corpus.
+SUBJECT_FOLDS = 5
+
+
+def subject_fold(subject_key: str, folds: int = SUBJECT_FOLDS) -> int:
+    """Fold of a subject in the leave-subjects-out protocol: subject ``sNN`` of any dataset
+    is in fold ``(NN - 1) % folds``, so every fold holds subjects of every dataset and each
+    subject is tested exactly once (MSR s01..s09, UTKinect and Florence s01..s10: five or
+    six subjects a fold)."""
+    try:
+        number = int(subject_key.rsplit("/s", 1)[1])
+    except (IndexError, ValueError):
+        raise SimenvError(f"subject key {subject_key!r} is not '<dataset>/s<id>'",
+                          field="subject") from None
+    return (number - 1) % folds
+
+
+def split_subject_folds(clips: Sequence[GestureClip], folds: int = SUBJECT_FOLDS
+                        ) -> list[tuple[list[GestureClip], list[GestureClip]]]:
+    """Leave-subjects-out over every subject (:func:`subject_fold`): per fold, (train
+    clips, test clips); no subject is on both sides of a fold, and every clip is a test
+    clip of exactly one fold.
+
+    Raises:
+        SimenvError: ``folds < 2``, or a fold without test clips.
+    """
+    if folds < 2:
+        raise SimenvError(f"need at least 2 folds; got {folds}", field="folds")
+    fold_of = [subject_fold(c.subject_key, folds) for c in clips]
+    out = []
+    for k in range(folds):
+        test = [c for c, f in zip(clips, fold_of, strict=True) if f == k]
+        if not test:
+            raise SimenvError(f"fold {k} of {folds} has no test clip (too few subjects)",
+                              field="folds")
+        out.append(([c for c, f in zip(clips, fold_of, strict=True) if f != k], test))
+    return out
+
+
 # -- windows --------------------------------------------------------------------------
 
 

@@ -1,0 +1,236 @@
+"""Skeleton temporal convolutional network: the room's gesture recogniser.
+
+A small 1-D convolutional network over time on three streams of a body-centred skeleton
+(joints, bones, motion: what two-stream and multi-stream skeleton recognisers such as
+2s-AGCN learned to feed a network), with masked pooling so that any number of valid
+frames can be classified: a whole clip, 1 s of it, or 1 s real + a forecast.
+
+Math
+----
+Input ``x`` (B, T, J, 3): windows normalised by :func:`simenv.gestures.normalise_windows`
+(origin at the spine, facing +X, arm size scaled to the reference adult; metres of that
+body, Z up), and a validity mask ``m`` (B, T). Per frame t the feature vector is
+
+    f_t = [x_t - x_t,root ;  x_t - x_t,parent ;  s (x_t - x_{t-1}) ;  x_t,root]
+
+(joint stream relative to the frame's root, bone stream, motion stream scaled by
+``s = fps / 5`` so a 0.2 m/s limb reads 1; the root's own trajectory), of size 9J + 3.
+Then
+
+    h⁰ = W_in f                       (1x1 convolution, width D)
+    hᵏ = (hᵏ⁻¹ + W₂ᵏ GELU(LN(W₁ᵏ * hᵏ⁻¹))) ⊙ m     k = 1..K
+
+with ``W₁ᵏ *`` a temporal convolution of kernel 5 and dilation ``dᵏ`` (1, 2, 4, 1: a
+receptive field of 33 frames, 1.3 s at 25 fps), LN a layer norm over channels (padded
+frames must not enter batch statistics, so no batch norm), ⊙ m zeroing padded frames.
+Pooling is the masked mean and max over valid frames,
+``z = [Σ_t m_t hᵗ / Σ_t m_t ; max_{t: m_t} hᵗ]`` (2D), the penultimate features
+(:meth:`SkeletonTCN.features`), and ``logits = W_out dropout(z)``.
+
+Calibrated probabilities: ``p = softmax(logits / τ)`` with the temperature ``τ``
+fitted after training (Guo et al. 2017, "On calibration of modern neural networks";
+:func:`fit_temperature`), stored in the checkpoint, so that a decision threshold on
+``p`` means a probability of being right.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from simenv.errors import MotionError
+from simenv.models.checkpoint import read_checkpoint, save_checkpoint
+
+CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
+#: Dilations of the residual blocks (receptive field 1 + 4 (1 + 2 + 4 + 1) = 33 frames).
+DILATIONS: tuple[int, ...] = (1, 2, 4, 1)
+KERNEL = 5
+
+
+@dataclass
+class TCNConfig:
+    """Architecture and data contract of a :class:`SkeletonTCN`.
+
+    Attributes:
+        joint_names: (J,) input joints; parents: (J,) parent index (-1: root, the joint
+            of index ``root``).
+        labels: class names, index = class id.
+        fps: frame rate of the windows, frames/s.
+        width: channels D of the blocks.
+        dropout: dropout before the output layer and inside the blocks, in training.
+        temperature: softmax temperature τ of :meth:`SkeletonTCN.predict_proba`.
+        extra: JSON-able provenance (joint set, dataset, protocol).
+    """
+
+    joint_names: tuple[str, ...]
+    parents: tuple[int, ...]
+    labels: tuple[str, ...]
+    fps: float = 25.0
+    width: int = 128
+    dropout: float = 0.2
+    temperature: float = 1.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.joint_names = tuple(self.joint_names)
+        self.parents = tuple(int(p) for p in self.parents)
+        self.labels = tuple(self.labels)
+        if len(self.joint_names) != len(self.parents):
+            raise ValueError("joint_names and parents differ in length")
+        if sum(p < 0 for p in self.parents) != 1:
+            raise ValueError("the skeleton needs exactly one root (parent -1)")
+        if not self.temperature > 0:
+            raise ValueError(f"temperature must be > 0; got {self.temperature}")
+
+
+class _Block(nn.Module):
+    """``h + W₂ GELU(LN(W₁ * h))``, padded frames zeroed (module docstring)."""
+
+    def __init__(self, width: int, dilation: int, dropout: float) -> None:
+        super().__init__()
+        self.conv = nn.Conv1d(width, width, KERNEL, padding=dilation * (KERNEL // 2),
+                              dilation=dilation)
+        self.norm = nn.GroupNorm(1, width)
+        self.mix = nn.Conv1d(width, width, 1)
+        self.drop = nn.Dropout(dropout)
+
+    def forward(self, h: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        return (h + self.mix(self.drop(nn.functional.gelu(self.norm(self.conv(h)))))) * mask
+
+
+class SkeletonTCN(nn.Module):
+    """Multi-stream temporal convolutional skeleton classifier (math in the module
+    docstring). ``forward(x, valid) -> logits`` with ``x`` (B, T, J, 3) normalised
+    windows and ``valid`` (B, T) bool; any T >= 1."""
+
+    def __init__(self, config: TCNConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.metadata: dict[str, Any] = {}
+        joints = len(config.joint_names)
+        self.root = config.parents.index(-1)
+        parents = [p if p >= 0 else self.root for p in config.parents]
+        self.register_buffer("parent_index", torch.tensor(parents), persistent=False)
+        self.inp = nn.Conv1d(9 * joints + 3, config.width, 1)
+        self.blocks = nn.ModuleList(_Block(config.width, d, config.dropout)
+                                    for d in DILATIONS)
+        self.drop = nn.Dropout(config.dropout)
+        self.out = nn.Linear(2 * config.width, len(config.labels))
+
+    def _check(self, x: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
+        joints = len(self.config.joint_names)
+        if x.ndim != 4 or x.shape[2:] != (joints, 3) or x.shape[1] < 1:
+            raise MotionError(
+                f"classifier input must have shape (B, T, {joints}, 3) (joints "
+                f"{', '.join(self.config.joint_names)}); got {tuple(x.shape)}", field="x")
+        if valid is None:
+            return torch.ones(x.shape[:2], dtype=torch.bool)
+        if valid.shape != x.shape[:2]:
+            raise MotionError(f"valid must have shape {tuple(x.shape[:2])}; got "
+                              f"{tuple(valid.shape)}", field="valid")
+        valid = valid.bool()
+        if not bool(valid.any(dim=1).all()):
+            raise MotionError("every window needs at least one valid frame", field="valid")
+        return valid
+
+    def streams(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, T, 9J + 3) per-frame joint, bone, motion and root features."""
+        b, t = x.shape[:2]
+        root = x[:, :, self.root:self.root + 1]
+        motion = torch.zeros_like(x)
+        motion[:, 1:] = (x[:, 1:] - x[:, :-1]) * (self.config.fps / 5.0)
+        return torch.cat([(x - root).reshape(b, t, -1),
+                          (x - x[:, :, self.parent_index]).reshape(b, t, -1),
+                          motion.reshape(b, t, -1), root.reshape(b, t, -1)], dim=-1)
+
+    def features(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, 2D) masked mean and max of the last block over valid frames."""
+        valid = self._check(x, valid)
+        # Padded frames are zeroed after every layer, exactly what the convolutions'
+        # own zero padding gives, so trailing frames that pad every window can be cut.
+        last = int(torch.nonzero(valid.any(dim=0)).max()) + 1
+        x, valid = x[:, :last], valid[:, :last]
+        mask = valid[:, None, :].to(x.dtype)
+        h = self.inp(self.streams(x).transpose(1, 2)) * mask
+        for block in self.blocks:
+            h = block(h, mask)
+        mean = h.sum(-1) / mask.sum(-1)
+        peak = h.masked_fill(mask == 0, float("-inf")).amax(-1)
+        return torch.cat([mean, peak], dim=-1)
+
+    def forward(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, C) class logits (before the temperature)."""
+        return self.out(self.drop(self.features(x, valid)))
+
+    @torch.no_grad()
+    def predict_proba(self, x: np.ndarray, valid: np.ndarray | None = None,
+                      batch_size: int = 256) -> np.ndarray:
+        """(N, C) calibrated probabilities ``softmax(logits / τ)`` of normalised windows
+        (N, T, J, 3)."""
+        self.eval()
+        xt = torch.as_tensor(np.asarray(x, np.float32))
+        vt = None if valid is None else torch.as_tensor(np.asarray(valid, bool))
+        tau = self.config.temperature
+        out = [torch.softmax(self(xt[i:i + batch_size],
+                                  None if vt is None else vt[i:i + batch_size]) / tau, -1)
+               for i in range(0, len(xt), batch_size)]
+        return torch.cat(out).numpy()
+
+    def classify_world(self, windows: np.ndarray, valid: np.ndarray | None = None
+                       ) -> np.ndarray:
+        """Probabilities of world-frame windows (metres, Z up, ``fps``): (N, T, J, 3) or
+        (T, J, 3) on ``config.joint_names``, normalised here
+        (:func:`simenv.gestures.normalise_windows`). Returns (N, C) or (C,)."""
+        from simenv.gestures import normalise_windows
+
+        single = np.ndim(windows) == 3
+        x = normalise_windows(windows, valid, joints=self.config.joint_names)
+        v = None if valid is None else np.asarray(valid, bool)
+        if single:
+            x, v = x[None], None if v is None else v[None]
+        p = self.predict_proba(x, v)
+        return p[0] if single else p
+
+    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
+        """Arrays-only ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`)."""
+        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config), {"net": self},
+                               metadata=metadata)
+
+    @classmethod
+    def load(cls, path: str | Path) -> SkeletonTCN:
+        """Model saved by :meth:`save`, in eval mode (``model.metadata``: its metadata).
+
+        Raises:
+            CheckpointError: missing, unreadable or foreign file, or weights that do
+                not fit the config.
+        """
+        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT)
+        model = cls(TCNConfig(**ckpt.config))
+        ckpt.load_into({"net": model})
+        model.metadata = ckpt.metadata
+        return model.eval()
+
+
+def fit_temperature(logits: np.ndarray, y: np.ndarray,
+                    grid: Sequence[float] = tuple(np.exp(np.linspace(np.log(0.25),
+                                                                     np.log(8.0), 61)))
+                    ) -> float:
+    """Temperature minimising the negative log-likelihood of ``softmax(logits / τ)`` on
+    held-out (logits (N, C), labels (N,)), over a log-spaced grid 0.25..8 (the NLL is
+    convex in 1/τ, so a fine grid finds its minimum without an optimiser)."""
+    z = torch.as_tensor(np.asarray(logits, np.float64))
+    target = torch.as_tensor(np.asarray(y, np.int64))
+    if z.ndim != 2 or len(z) != len(target) or len(z) == 0:
+        raise ValueError(f"need (N, C) logits and (N,) labels; got {tuple(z.shape)} and "
+                         f"{tuple(target.shape)}")
+    nll = [float(nn.functional.cross_entropy(z / t, target)) for t in grid]
+    return float(grid[int(np.argmin(nll))])
+
+
+__all__ = ["CHECKPOINT_FORMAT", "SkeletonTCN", "TCNConfig", "fit_temperature"]
