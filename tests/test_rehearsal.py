@@ -36,7 +36,7 @@ class _Always:
 def test_labelled_rehearsal_writes_every_output(tmp_path: Path, short):
     session = Session(short, (GestureEvent("smell", 0.2, 0.5),))
     summary = rehearse(session, tmp_path, scenario="discomfort", agent="labels",
-                       width=160, height=120)
+                       width=240, height=180)
     for name in ("rehearsal.mp4", "log.jsonl", "summary.json", "report.html"):
         assert (tmp_path / name).stat().st_size > 0, name
     rows = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
@@ -62,6 +62,77 @@ def test_labelled_rehearsal_writes_every_output(tmp_path: Path, short):
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
     report = (tmp_path / "report.html").read_text()
     assert "cigarette" in report and "assistance force" in report
+    # The video: one captioned frame per log line, played by the page from relative paths.
+    video = summary["video"]
+    assert video["file"] == "rehearsal.mp4" and video["frames"] == len(rows)
+    assert (video["width"], video["height"]) == (240, 180)
+    assert "<video" in report and "src='rehearsal.mp4'" in report
+    assert str(tmp_path) not in report
+    if video["codec"] != "avc1":  # browsers do not play mp4v: a VP8 copy for the page
+        assert video["webm"] == "rehearsal.webm" and "src='rehearsal.webm'" in report
+    frames = _frames(tmp_path / "rehearsal.mp4")
+    assert len(frames) == len(rows) and frames[0].shape == (180, 240, 3)
+    band = 180 - 5 * 10 - 4  # five caption lines of 10 px (the least) and the padding
+    for frame in frames[::25]:
+        text = frame[band:].min(axis=2) > 180  # white on the darkened band
+        assert text.sum() > 50
+        assert np.median(frame[band:][~text]) < np.median(frame[:band])
+
+
+def _frames(path: Path) -> list[np.ndarray]:
+    """The frames of a video file, BGR uint8 (H, W, 3)."""
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    frames = []
+    while (frame := cap.read()[1]) is not None:
+        frames.append(frame)
+    cap.release()
+    return frames
+
+
+def test_video_size_is_validated(tmp_path: Path, short):
+    from simenv.rehearsal import main
+
+    for size, field in (({"width": 0}, "width"), ({"height": -360}, "height"),
+                        ({"width": 100_000}, "width"), ({"height": 360.5}, "height"),
+                        ({"width": True}, "width")):
+        with pytest.raises(SimenvError, match=f"video {field}") as err:
+            rehearse(short, tmp_path, **size)
+        assert err.value.field == field
+    with pytest.raises(SimenvError, match="video height 20000; expected a whole number"):
+        main([WALK, "--out", str(tmp_path), "--width", "640", "--height", "20000"])
+    assert not (tmp_path / "log.jsonl").exists()  # refused before any output
+
+
+def test_camera_sees_the_user_and_the_agents_face_and_hands(short):
+    """Segmentation render from the rehearsal camera: the user's head and hands and the
+    seated agent's head and both hands are in view, and the eye is in front of both."""
+    import mujoco
+
+    from simenv.envs.interaction_room import InteractionRoomEnv
+    from simenv.render import make_renderer
+
+    env = InteractionRoomEnv(Session(short, ()), scenario="discomfort", width=160,
+                             height=120)
+    env.reset(seed=0)
+    camera = env.camera()
+    assert isinstance(camera, mujoco.MjvCamera)
+    renderer = make_renderer(env.model, 160, 120)
+    try:
+        renderer.enable_segmentation_rendering()
+        renderer.update_scene(env.data, camera=camera)
+        seg = renderer.render()
+        eye = np.mean([renderer.scene.camera[i].pos for i in range(2)], axis=0)
+    finally:
+        renderer.close()
+    geoms = seg[..., 0][seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)]
+    seen = {env.model.body(env.model.geom_bodyid[g]).name for g in np.unique(geoms)}
+    for who in ("agent", "user"):
+        assert {f"{who}/head", f"{who}/left_hand", f"{who}/right_hand"} <= seen, who
+        head = env.data.body(f"{who}/head")
+        forward = head.xmat.reshape(3, 3)[:2, 0]  # the body's x axis: where it faces
+        assert forward @ (eye - head.xpos)[:2] > 0, who
 
 
 def test_scripted_agent_decides_through_the_perception_loop(tmp_path: Path, short):

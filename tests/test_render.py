@@ -15,7 +15,13 @@ import pytest
 from simenv.assets import WALK, asset_path
 from simenv.errors import SimenvError
 from simenv.io import bvh
-from simenv.render import render_frames, write_video
+from simenv.render import (
+    CAPTION_BAND_ALPHA,
+    CAPTION_LINE_FRACTION,
+    caption_frame,
+    render_frames,
+    write_video,
+)
 
 N_FRAMES = 6  # rendering costs ~0.05-0.1 s a frame on a CPU: keep videos short
 
@@ -94,6 +100,37 @@ def test_write_video_roundtrip(walk, tmp_path: Path):
         assert ok and image.std() > 5
     finally:
         cap.release()
+
+
+@pytest.mark.parametrize("size", [(480, 360), (640, 480)])
+def test_caption_draws_in_a_dark_band_at_the_bottom(walk, size):
+    """White text on a darkened band as tall as the lines; the scene above is untouched;
+    a line too long for the width is shrunk to fit."""
+    model, qpos, *_ = walk
+    width, height = size
+    frame = next(render_frames(model, qpos, width=width, height=height, overlay=False))
+    lines = ["t 3.24 s   labelled gesture: wave",
+             "perceived (predicted): wave 0.82  clap 0.07  other 0.05",
+             "window open 45%   curtain open 0%   hifi loud 80%   cigarette lit 0%   door "
+             "closed 0%   (a line longer than the frame is wide at the base size)"]
+    before = frame.copy()
+    out = caption_frame(frame, lines)
+    assert out.shape == frame.shape and out.dtype == np.uint8
+    assert np.array_equal(frame, before)  # the input is not drawn on
+    step = round(height * CAPTION_LINE_FRACTION)  # px a line
+    top = height - len(lines) * step - 4
+    assert np.array_equal(out[:top], frame[:top])
+    band, scene = out[top:].astype(int), frame[top:].astype(int)
+    text = band.min(axis=2) > 200  # white: brighter than any darkened scene pixel
+    assert text.sum() > 20 * len(lines)
+    darkened = band == (scene * (1 - CAPTION_BAND_ALPHA)).astype(int)
+    assert darkened.all(axis=2).mean() > 0.8  # elsewhere the scene, darkened
+    for i in range(len(lines)):  # each line in its own slot of the band
+        assert text[2 + i * step:2 + (i + 1) * step].any(), i
+    assert np.flatnonzero(text.any(axis=0)).max() < width - 1  # the long line fits
+    assert np.array_equal(caption_frame(frame, []), frame)
+    with pytest.raises(SimenvError, match=r"expected uint8 \(H, W, 3\)"):
+        caption_frame(frame[..., 0], lines)
 
 
 def test_bad_input_is_a_simenv_error(walk, tmp_path: Path):
