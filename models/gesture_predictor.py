@@ -399,11 +399,28 @@ def mirror_world(windows: np.ndarray) -> np.ndarray:
     return mirror_windows(windows, JOINTS)
 
 
-def position_velocity_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def position_velocity_loss(pred: torch.Tensor, target: torch.Tensor, *,
+                           horizon_weight: float = 0.0, speed_weight: float = 0.0,
+                           speed_step: int = 5) -> torch.Tensor:
     """siMLPe's two terms on (B, F, 45) body-frame tensors (decimetres): mean per-joint
-    Euclidean error of the positions plus that of the frame-to-frame velocities."""
+    Euclidean error of the positions plus that of the frame-to-frame velocities.
+
+    ``horizon_weight`` a >= 0 weighs frame t by ``1 + a t / (F - 1)`` (normalised to mean
+    1): favours the long horizons the per-frame mean trades for the easy first frames.
+    ``speed_weight`` adds ``|‖p_{t+s} - p_t‖ - ‖q_{t+s} - q_t‖|`` (s = ``speed_step``
+    frames, joints and frames averaged): a penalty on moving too slowly *or* too fast that
+    ignores the direction, against the mean-regression of a deterministic forecast; over
+    ``s`` frames so that Kinect jitter of the target does not set the speed.
+    """
     p = pred.view(*pred.shape[:2], NUM_JOINTS, 3)
     t = target.view(*target.shape[:2], NUM_JOINTS, 3)
-    pos = (p - t).norm(dim=-1).mean()
-    vel = ((p[:, 1:] - p[:, :-1]) - (t[:, 1:] - t[:, :-1])).norm(dim=-1).mean()
-    return pos + vel
+    pos = (p - t).norm(dim=-1).mean(dim=(0, 2))  # (F,)
+    vel = ((p[:, 1:] - p[:, :-1]) - (t[:, 1:] - t[:, :-1])).norm(dim=-1).mean(dim=(0, 2))
+    w = 1 + horizon_weight * torch.linspace(0, 1, p.shape[1])
+    w = w / w.mean()
+    loss = (pos * w).mean() + (vel * w[1:] / w[1:].mean()).mean()
+    if speed_weight:
+        sp = (p[:, speed_step:] - p[:, :-speed_step]).norm(dim=-1)
+        st = (t[:, speed_step:] - t[:, :-speed_step]).norm(dim=-1)
+        loss = loss + speed_weight * (sp - st).abs().mean()
+    return loss
