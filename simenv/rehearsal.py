@@ -383,10 +383,17 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
         table += (f"<tr><td>assistance force (max)</td><td class='num'>"
                   f"{phys['assistance_max_n']:.3g} N</td>"
                   f"{verdict(phys['assistance_max_n'] == 0)}</tr>")
+    def cell(value: Any) -> str:
+        if value is None:  # not applicable, or never happened
+            return "<td class='na'>&ndash;</td>"
+        if isinstance(value, float):  # a time, s
+            return f"<td class='num'>{value:.2f}</td>"
+        return f"<td>{e(str(value))}</td>"
+
     reactions = "".join(
-        "<tr>" + "".join(f"<td>{e(str(r[c]))}</td>" for c in (
+        "<tr>" + "".join(cell(r[c]) for c in (
             "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
-            "t_success")) + verdict(bool(r["success"])) + "</tr>"
+            "t_success")) + verdict(r["success"]) + "</tr>"
         for r in summary["reactions"])
     video = summary.get("video")
     if video is None:
