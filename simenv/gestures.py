@@ -541,8 +541,6 @@ def load_gesture_clips(
     Raises:
         SimenvError: unknown dataset key, or no usable recording at all.
     """
-    from simenv.io import florence3d, msr_action3d, utkinect
-
     root = Path(root)
     report = report if report is not None else LoadReport()
     clips: list[GestureClip] = []
@@ -551,46 +549,114 @@ def load_gesture_clips(
             raise SimenvError(f"unknown gesture dataset {ds!r}; expected one of "
                               f"{', '.join(DATASETS)}", field="datasets")
         if ds == "msr_action3d":
-            for path in sorted((root / "msr_action3d").glob("a*_s*_e*_skeleton3D.txt")):
-                try:
-                    m = msr_action3d.read(path)
-                except SimenvError as exc:
-                    report.skipped.append(f"{path.name}: {exc.detail}")
-                    continue
-                clips.append(_clip(m, ds, str(m.metadata["label"]), int(m.metadata["subject"]),
-                                   m.name, joints))
-                if idle:
-                    clips += _idle_clips(m, ds, int(m.metadata["subject"]), joints)
+            files = sorted((root / "msr_action3d").glob(MSR_PATTERN))
         elif ds == "utkinect":
-            for path in sorted((root / "utkinect" / "joints").glob("joints_s*_e*.txt")):
-                session = utkinect.read(path)
-                report.skipped += [f"{path.name}: {q}" for q in session.metadata["quirks"]]
-                for seg in session.metadata["segments"]:
-                    start, end = int(seg["start"]), int(seg["end"])
-                    if end - start < 2:
-                        report.skipped.append(f"{path.name} {seg['label']}: {end - start} frame")
-                        continue
-                    clips.append(_clip(session.slice(start, end), ds, str(seg["label"]),
-                                       int(session.metadata["subject"]),
-                                       f"{session.name}_{seg['label']}", joints))
-                if idle:
-                    clips += _idle_clips(session, ds, int(session.metadata["subject"]),
-                                         joints, _session_labelled(session))
+            files = sorted((root / "utkinect" / "joints").glob(UTK_PATTERN))
         else:
-            mat = root / "florence3d" / "skeletal_data.mat"
-            if not mat.is_file():
-                continue
-            for m in florence3d.read(mat):
-                clips.append(_clip(m, ds, str(m.metadata["label"]), int(m.metadata["subject"]),
-                                   m.name, joints))
-                if idle:
-                    clips += _idle_clips(m, ds, int(m.metadata["subject"]), joints)
+            files = [f for f in [root / "florence3d" / FLORENCE_FILE] if f.is_file()]
+        clips += _dataset_clips(ds, files, joints, report, idle)
     if not clips:
         raise SimenvError(
             f"no gesture recording found under {root} (expected msr_action3d/, "
             "utkinect/joints/ or florence3d/skeletal_data.mat)",
             source=root,
         )
+    return clips
+
+
+#: File-name patterns of the three datasets' recordings.
+MSR_PATTERN = "a*_s*_e*_skeleton3D.txt"
+UTK_PATTERN = "joints_s*_e*.txt"
+FLORENCE_FILE = "skeletal_data.mat"
+
+
+def _dataset_clips(dataset: str, files: Sequence[Path], joints: JointSet, report: LoadReport,
+                   idle: bool) -> list[GestureClip]:
+    """The labelled clips (and idle clips) of one dataset's recording files."""
+    from simenv.io import florence3d, msr_action3d, utkinect
+
+    clips: list[GestureClip] = []
+    for path in files:
+        if dataset == "msr_action3d":
+            try:
+                m = msr_action3d.read(path)
+            except SimenvError as exc:
+                report.skipped.append(f"{path.name}: {exc.detail}")
+                continue
+            clips.append(_clip(m, dataset, str(m.metadata["label"]),
+                               int(m.metadata["subject"]), m.name, joints))
+            if idle:
+                clips += _idle_clips(m, dataset, int(m.metadata["subject"]), joints)
+        elif dataset == "utkinect":
+            session = utkinect.read(path)
+            report.skipped += [f"{path.name}: {q}" for q in session.metadata["quirks"]]
+            for seg in session.metadata["segments"]:
+                start, end = int(seg["start"]), int(seg["end"])
+                if end - start < 2:
+                    report.skipped.append(f"{path.name} {seg['label']}: {end - start} frame")
+                    continue
+                clips.append(_clip(session.slice(start, end), dataset, str(seg["label"]),
+                                   int(session.metadata["subject"]),
+                                   f"{session.name}_{seg['label']}", joints))
+            if idle:
+                clips += _idle_clips(session, dataset, int(session.metadata["subject"]),
+                                     joints, _session_labelled(session))
+        else:
+            for m in florence3d.read(path):
+                clips.append(_clip(m, dataset, str(m.metadata["label"]),
+                                   int(m.metadata["subject"]), m.name, joints))
+                if idle:
+                    clips += _idle_clips(m, dataset, int(m.metadata["subject"]), joints)
+    return clips
+
+
+def load_labelled(paths: Sequence[str | Path], *, joints: JointSet = "gesture15",
+                  report: LoadReport | None = None, idle: bool = False) -> list[GestureClip]:
+    """Labelled gesture clips from any mix of paths, labels from each dataset's naming.
+
+    A path may be a corpus root (``msr_action3d/``, ``utkinect/joints/``,
+    ``florence3d/`` below it), one dataset's folder, or single recordings: MSR Action3D
+    ``aAA_sSS_eEE_skeleton3D.txt`` (class, subject, repetition in the name), UTKinect
+    ``joints_sSS_eEE.txt`` (segments from the ``actionLabel.txt`` next to it), Florence
+    ``skeletal_data.mat``. A recording found twice is loaded once.
+
+    Raises:
+        SimenvError: a path that does not exist or holds none of these recordings (the
+            message names it and what was expected).
+    """
+    report = report if report is not None else LoadReport()
+    found: dict[str, list[Path]] = {d: [] for d in DATASETS}
+    for raw in paths:
+        path = Path(raw)
+        if not path.exists():
+            raise SimenvError("no such file or folder", source=path, field="data")
+        before = sum(map(len, found.values()))
+        if path.is_dir():
+            for ds, sub, pattern in (("msr_action3d", "msr_action3d", MSR_PATTERN),
+                                     ("utkinect", "utkinect/joints", UTK_PATTERN),
+                                     ("florence3d", "florence3d", FLORENCE_FILE)):
+                found[ds] += sorted((path / sub).glob(pattern)) + sorted(path.glob(pattern))
+                if ds == "utkinect":
+                    found[ds] += sorted((path / "joints").glob(pattern))
+        elif path.match(MSR_PATTERN):
+            found["msr_action3d"].append(path)
+        elif path.match(UTK_PATTERN):
+            found["utkinect"].append(path)
+        elif path.name == FLORENCE_FILE:
+            found["florence3d"].append(path)
+        if sum(map(len, found.values())) == before:
+            raise SimenvError(
+                "no labelled gesture recording here: expected a corpus root, a dataset "
+                f"folder, or files named {MSR_PATTERN} (MSR Action3D), {UTK_PATTERN} "
+                f"(UTKinect, with actionLabel.txt beside it) or {FLORENCE_FILE} (Florence 3D)",
+                source=path, field="data")
+    clips: list[GestureClip] = []
+    for ds, files in found.items():
+        unique = list(dict.fromkeys(f.resolve() for f in files))
+        clips += _dataset_clips(ds, unique, joints, report, idle)
+    if not clips:
+        raise SimenvError(f"the recordings under {', '.join(map(str, paths))} gave no usable "
+                          f"clip ({'; '.join(report.skipped) or 'none'})", field="data")
     return clips
 
 

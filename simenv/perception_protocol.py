@@ -1,0 +1,264 @@
+"""The room's perception loop measured on people it never saw, as the room runs it.
+
+What the loop sees (:func:`avatar_clips`): each recording is retargeted onto the user's
+fitted body and placed in the room (:func:`simenv.session.user_track`, the
+rehearsal's path), and the avatar's keypoints are read on the gesture joints -- not the
+raw Kinect joints, which the agent never sees. Florence 3D has no pelvis and cannot be
+retargeted; its clips are left out and listed.
+
+Streaming (:func:`stream_readings`): a clip plays from its first frame (before it, the
+person holds the first pose); the loop ticks every :data:`TICK_FRAMES` frames with a
+seeded random phase relative to the gesture's onset (a real user does not start in step
+with the loop). At each tick it has the last second of keypoints and computes both of its
+stages (:class:`simenv.perception.PerceptionLoop`): the classifier on the 1 s of real
+motion, and on that second continued by the forecaster's 2 s. Ticks continue until the
+tick whose second holds the clip's last frame.
+
+Decisions (:func:`loop_outcomes`), the loop's rule: a tick decides when the top class of
+the real stage reaches the threshold, else when that of the real + predicted stage does;
+a clip is *greeted* when any of its ticks decides ``wave``. Reported: waves greeted,
+other labelled clips greeted, idle clips greeted, the decision's time after the gesture's
+onset (median, p90) and the share of greeted waves decided before the gesture ended.
+
+The threshold (:func:`choose_threshold`) is the lowest grid value whose greetings on
+non-wave clips stay at or below :data:`FALSE_GREET_TARGET` on *calibration* readings: for
+a held-out fold, the readings of the other folds (cross-fitting), never its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from simenv.errors import SimenvError
+from simenv.gestures import GESTURE15_JOINTS, GestureClip, normalise_windows
+from simenv.recognition import SHORT_FRAMES, Forecaster, logits_of
+
+#: Frames between perception ticks (1 s at 25 fps, the thesis's rate).
+TICK_FRAMES = 25
+#: Largest share of non-wave clips a chosen threshold may greet on calibration readings.
+FALSE_GREET_TARGET = 0.02
+#: Thresholds tried by :func:`choose_threshold`.
+THRESHOLD_GRID: tuple[float, ...] = tuple(np.round(np.arange(0.30, 0.96, 0.025), 3))
+GREET_LABEL = "wave"
+
+
+def avatar_clips(clips: Sequence[GestureClip], scenario: str = "default", *,
+                 progress: bool = True) -> tuple[list[GestureClip], list[str]]:
+    """The clips as the room's agent sees them (module docstring): the same labels and
+    names, positions (T, 15, 3) of the avatar's keypoints on ``gesture15``, metres, Z up,
+    25 fps. Returns (clips, skipped clips with the reason)."""
+    from simenv.session import Session, user_track
+    from simenv.skeletons import CANONICAL_KEYPOINTS
+
+    cols = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]
+    out, skipped = [], []
+    for clip in tqdm(clips, desc="retarget onto the avatar", disable=not progress):
+        if clip.source is None:
+            skipped.append(f"{clip.name}: no source motion")
+            continue
+        try:
+            kp = user_track(Session(clip.source), scenario).keypoints
+        except SimenvError as exc:
+            skipped.append(f"{clip.name}: {exc.detail}")
+            continue
+        out.append(GestureClip(kp[:, cols].astype(np.float32), clip.label, clip.source_label,
+                               clip.dataset, clip.subject, clip.name, clip.source))
+    return out, skipped
+
+
+@dataclass(frozen=True)
+class StreamReading:
+    """Both stages of every tick of one clip, before any threshold.
+
+    Attributes:
+        name, label, subject, dataset: the clip's.
+        duration_s: the clip's length, s.
+        ticks_s: (K,) time of each tick after the clip's first frame, s.
+        logits_real: (K, C) classifier logits on the 1 s of real motion.
+        logits_pred: (K, C) on 1 s real + forecast (NaN without a forecaster).
+    """
+
+    name: str
+    label: str
+    subject: str
+    dataset: str
+    duration_s: float
+    ticks_s: np.ndarray
+    logits_real: np.ndarray
+    logits_pred: np.ndarray
+
+
+def tick_frames(length: int, phase: int) -> np.ndarray:
+    """End frames (exclusive) of the ticks on a clip of ``length`` frames whose loop
+    phase is ``phase`` in [0, TICK_FRAMES): ``phase + 1 + k TICK_FRAMES``, k = 0, 1, ...
+    up to the first tick at or after the clip's last frame."""
+    return np.arange(phase + 1, length + TICK_FRAMES, TICK_FRAMES)
+
+
+def stream_readings(clips: Sequence[GestureClip], model: Any,
+                    forecast: Forecaster | None = None, *, seed: int = 0
+                    ) -> list[StreamReading]:
+    """The loop's two stages at every tick of every clip (module docstring).
+
+    Args:
+        clips: gesture15 clips (e.g. :func:`avatar_clips`), 25 fps.
+        model: a :class:`~simenv.models.skeleton_tcn.SkeletonTCN`.
+        forecast: world-frame forecaster (N, 25, 15, 3) -> (N, F, 15, 3), or None.
+        seed: seed of the ticks' phases.
+    """
+    rng = np.random.default_rng(seed)
+    histories, owner, ends = [], [], []
+    for i, clip in enumerate(clips):
+        p = clip.positions
+        lead = np.concatenate([np.repeat(p[:1], SHORT_FRAMES, axis=0), p])
+        for end in tick_frames(len(p), int(rng.integers(0, TICK_FRAMES))):
+            # A tick after the clip's end sees its last second (what follows a gesture
+            # is not in the recording); its time stays the tick's own.
+            stop = min(int(end), len(p)) + SHORT_FRAMES
+            histories.append(lead[stop - SHORT_FRAMES:stop])
+            owner.append(i)
+            ends.append(int(end))
+    h = np.stack(histories).astype(np.float32)
+    ones = np.ones(h.shape[:2], bool)
+    z_real = logits_of(model, normalise_windows(h, ones), ones)
+    if forecast is not None:
+        both = np.concatenate([h, np.asarray(forecast(h), np.float32)], axis=1)
+        v = np.ones(both.shape[:2], bool)
+        # Normalised from the real second's first frames, as a window of the loop is.
+        z_pred = logits_of(model, normalise_windows(both, v), v)
+    else:
+        z_pred = np.full_like(z_real, np.nan)
+    owner_arr, ends_arr = np.array(owner), np.array(ends)
+    out = []
+    for i, clip in enumerate(clips):
+        rows = np.flatnonzero(owner_arr == i)
+        out.append(StreamReading(clip.name, clip.label, clip.subject_key, clip.dataset,
+                                 clip.num_frames / 25.0, ends_arr[rows] / 25.0,
+                                 z_real[rows], z_pred[rows]))
+    return out
+
+
+def _softmax(z: np.ndarray, temperature: float) -> np.ndarray:
+    e = np.exp((z - z.max(axis=-1, keepdims=True)) / temperature)
+    return e / e.sum(axis=-1, keepdims=True)
+
+
+def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], threshold: float,
+                  temperature: float = 1.0, *, use_forecast: bool = True,
+                  greet: str = GREET_LABEL) -> dict[str, Any]:
+    """What the loop decides on ``readings`` at ``threshold`` (module docstring).
+
+    Returns:
+        ``greet_clips`` / ``other_clips`` / ``idle_clips``: [greeted, clips];
+        ``greeted_rate``, ``false_greet_rate`` (other + idle), ``decision_after_onset_s``
+        (median, p90 over greeted waves), ``decided_before_end`` (share of greeted waves),
+        ``stages`` (which stage took the greetings of waves), ``decided_right`` (share of
+        clips whose first decision is their own label).
+    """
+    k = labels.index(greet)
+    counts = {"greet_clips": [0, 0], "other_clips": [0, 0], "idle_clips": [0, 0]}
+    delays, before, stages = [], 0, {"real": 0, "predicted": 0}
+    first_right = first_any = 0
+    for r in readings:
+        p_real = _softmax(r.logits_real, temperature)
+        p_pred = _softmax(r.logits_pred, temperature) if use_forecast and \
+            np.isfinite(r.logits_pred).all() else None
+        decided = []
+        for t in range(len(r.ticks_s)):
+            if p_real[t].max() >= threshold:
+                decided.append((int(p_real[t].argmax()), "real", r.ticks_s[t]))
+            elif p_pred is not None and p_pred[t].max() >= threshold:
+                decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
+        if decided:
+            first_any += 1
+            first_right += int(labels[decided[0][0]] == r.label)
+        greets = [d for d in decided if d[0] == k]
+        group = "greet_clips" if r.label == greet else \
+            "idle_clips" if r.label == "idle" else "other_clips"
+        counts[group][1] += 1
+        if greets:
+            counts[group][0] += 1
+            if group == "greet_clips":
+                delays.append(greets[0][2])
+                before += int(greets[0][2] < r.duration_s)
+                stages[greets[0][1]] += 1
+    (a, n), (b, m), (c, q) = (counts[g] for g in ("greet_clips", "other_clips", "idle_clips"))
+    return {"threshold": float(threshold), "temperature": float(temperature),
+            "use_forecast": use_forecast, **counts,
+            "greeted_rate": round(a / max(n, 1), 4),
+            "other_greet_rate": round(b / max(m, 1), 4),
+            "idle_greet_rate": round(c / max(q, 1), 4),
+            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
+            "decision_after_onset_s": {
+                "median": round(float(np.median(delays)), 3) if delays else None,
+                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
+            "decided_before_end": round(before / max(len(delays), 1), 4),
+            "stages": stages, "decided_right": round(first_right / max(first_any, 1), 4)}
+
+
+def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
+                     temperature: float = 1.0, *, use_forecast: bool = True,
+                     grid: Sequence[float] = THRESHOLD_GRID,
+                     target: float = FALSE_GREET_TARGET) -> float:
+    """The lowest grid threshold whose false-greeting rate on ``readings`` is at most
+    ``target`` (the highest grid value when none is)."""
+    for t in sorted(grid):
+        row = loop_outcomes(readings, labels, t, temperature, use_forecast=use_forecast)
+        if row["false_greet_rate"] <= target:
+            return float(t)
+    return float(max(grid))
+
+
+def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[str], int],
+                          labels: Sequence[str], temperatures: Sequence[float], *,
+                          use_forecast: bool = True) -> dict[str, Any]:
+    """Loop outcomes on every held-out fold, each with the threshold chosen on the other
+    folds' readings (``fold_of(subject_key)``) and its own cross-fitted temperature;
+    pooled over folds, with each fold's threshold."""
+    folds = sorted({fold_of(r.subject) for r in readings})
+    pooled: list[StreamReading] = []
+    chosen, per_fold = [], []
+    merged: dict[str, Any] = {}
+    for k in folds:
+        held = [r for r in readings if fold_of(r.subject) == k]
+        calib = [r for r in readings if fold_of(r.subject) != k]
+        t = choose_threshold(calib, labels, temperatures[k], use_forecast=use_forecast)
+        chosen.append(t)
+        row = loop_outcomes(held, labels, t, temperatures[k], use_forecast=use_forecast)
+        per_fold.append({"fold": k, **{key: row[key] for key in (
+            "threshold", "greet_clips", "other_clips", "idle_clips")}})
+        pooled += held
+        for key in ("greet_clips", "other_clips", "idle_clips"):
+            merged.setdefault(key, [0, 0])
+            merged[key] = [merged[key][0] + row[key][0], merged[key][1] + row[key][1]]
+    # Timing statistics pooled over folds need each reading's own fold threshold.
+    delays, before, stages = [], 0, {"real": 0, "predicted": 0}
+    for k, t in zip(folds, chosen, strict=True):
+        held = [r for r in readings if fold_of(r.subject) == k and r.label == GREET_LABEL]
+        for r in held:
+            row = loop_outcomes([r], labels, t, temperatures[k], use_forecast=use_forecast)
+            if row["greet_clips"][0]:
+                delays.append(row["decision_after_onset_s"]["median"])
+                before += int(row["decided_before_end"] > 0)
+                for s, v in row["stages"].items():
+                    stages[s] += v
+    (a, n), (b, m), (c, q) = (merged[g] for g in ("greet_clips", "other_clips", "idle_clips"))
+    return {"use_forecast": use_forecast, "folds": per_fold, **merged,
+            "greeted_rate": round(a / max(n, 1), 4),
+            "other_greet_rate": round(b / max(m, 1), 4),
+            "idle_greet_rate": round(c / max(q, 1), 4),
+            "decision_after_onset_s": {
+                "median": round(float(np.median(delays)), 3) if delays else None,
+                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
+            "decided_before_end": round(before / max(len(delays), 1), 4),
+            "stages": stages}
+
+
+__all__ = ["FALSE_GREET_TARGET", "GREET_LABEL", "THRESHOLD_GRID", "TICK_FRAMES",
+           "StreamReading", "avatar_clips", "choose_threshold", "cross_fitted_outcomes",
+           "loop_outcomes", "stream_readings", "tick_frames"]
