@@ -33,7 +33,8 @@ INTERACTION_MODELS: dict[str, tuple[str, str, str]] = {
 }
 
 #: Name prefixes of shipped checkpoints and what they hold.
-KINDS: tuple[str, ...] = ("predictor-", "gesture-classifier", *INTERACTION_MODELS)
+KINDS: tuple[str, ...] = ("predictor-", "gesture-classifier", "gesture-tcn",
+                         *INTERACTION_MODELS)
 
 
 def _folder() -> Path:
@@ -74,7 +75,9 @@ def load(name: str) -> Any:
     interface), ``predictor-gesture-<P>-<F>`` the gesture-domain forecaster
     :class:`simenv.models.gesture_predictor.GesturePredictor` (world-frame gesture15
     joints, not pred17); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
-    give the baselines; ``gesture-classifier`` gives a
+    give the baselines; ``gesture-tcn`` the room's recogniser
+    :class:`simenv.models.skeleton_tcn.SkeletonTCN` (any window length, calibrated
+    probabilities); ``gesture-classifier`` gives a
     :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
     ``predict_proba``, ``features``); an :data:`INTERACTION_MODELS` name gives that
     two-person model.
@@ -99,6 +102,10 @@ def load(name: str) -> Any:
         return DCTRegressionPredictor.load(path)
     if name in INTERACTION_MODELS:
         return interaction_model_class(name).load(path)
+    if name.startswith("gesture-tcn"):
+        from simenv.models.skeleton_tcn import SkeletonTCN
+
+        return SkeletonTCN.load(path)
     if name.startswith("gesture-classifier"):
         from simenv.models.gesture_classifier import GestureClassifier
 

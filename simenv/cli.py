@@ -340,6 +340,10 @@ def cmd_train(args: argparse.Namespace) -> int:
         from simenv.train_interaction import main as interaction_main
 
         return interaction_main(args.options)
+    if args.kind == "recogniser":
+        from simenv.train_recogniser import main as recogniser_main
+
+        return recogniser_main(["train", *args.options])
     from simenv.train_classifier import main as classifier_main
 
     return classifier_main(["train", *args.options])
@@ -357,9 +361,20 @@ def cmd_eval(args: argparse.Namespace) -> int:
         from simenv.eval_interaction import main as interaction_main
 
         return interaction_main(list(args.options))
-    from simenv.train_classifier import main as classifier_main
+    if name is not None and name.startswith("gesture-classifier"):
+        from simenv.train_classifier import main as classifier_main
 
-    return classifier_main(["eval", "--model", name or "gesture-classifier", *options])
+        return classifier_main(["eval", "--model", name, *options])
+    from simenv.train_recogniser import MODEL_NAME
+    from simenv.train_recogniser import main as recogniser_main
+
+    if "--benchmark" in options:
+        i = options.index("--benchmark")
+        has_value = i + 1 < len(options) and not options[i + 1].startswith("-")
+        dataset = options[i + 1] if has_value else "all"
+        rest = options[:i] + options[i + 1 + has_value:]
+        return recogniser_main(["benchmark", "--dataset", dataset, *rest])
+    return recogniser_main(["eval", "--model", name or MODEL_NAME, *options])
 
 
 def cmd_rehearse(args: argparse.Namespace) -> int:
@@ -477,18 +492,21 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo)
 
     for verb, func, text in (
-        ("train", cmd_train, "train the motion predictor, the gesture classifier or a "
+        ("train", cmd_train, "train the motion predictor, the gesture classifier, the room's "
+         "recogniser (`train recogniser`: leave-subjects-out protocol, loop, shipped network) or a "
          "two-person model (`train interaction --model NAME`) on the real mocap of the shared "
          "corpus (CPU, seeded, progress bar): checkpoint, model card, metrics and plots. "
          "Options after KIND go to its training script (see `simenv train KIND --help`); "
          "--config FILE reads them from a TOML or JSON file."),
         ("eval", cmd_eval, "evaluate a shipped model [NAME] (default predictor-25-25 / "
-         "gesture-classifier) on its held-out split, or for the predictor on --data PATH... "
-         "(--json prints one object); writes metrics.json and plots (--out DIR). "
+         "gesture-tcn, the room's recogniser; gesture-classifier: the thesis's transformer) "
+         "on its held-out split, or on --data PATH... (--json prints one object); writes "
+         "metrics.json and plots (--out DIR). `eval classifier --benchmark [DATASET]` runs "
+         "the MSR Action3D / UTKinect / Florence 3D protocols against published figures. "
          "`eval interaction` scores the two-person reaction baselines on the held-out "
          "recordings with the papers' metrics and physics (docs/interaction.md)."),
     ):
-        kinds = ("predictor", "classifier", "interaction")
+        kinds = ("predictor", "classifier", "recogniser", "interaction")
         cmd = sub.add_parser(verb, help=text.split(" (")[0].split(":")[0], description=text)
         cmd.add_argument("kind", choices=kinds, metavar="KIND", help=" or ".join(kinds))
         cmd.add_argument("options", nargs=argparse.REMAINDER, metavar="...",

@@ -214,7 +214,13 @@ class TrainedClassifier:
         mapped = [label_map.get(label, label) for label in source]
         self.model, self.name = model, name
         self.joint_names = tuple(config.joint_names)
-        self.window = int(config.window)
+        # A network with a fixed window (the transformer) is padded to it; one that takes
+        # any length (the TCN) classifies the frames it is given.
+        self.window = int(config.window) if hasattr(config, "window") else None
+        # A checkpoint that records its loop threshold (chosen on held-out subjects by
+        # its training) overrides the class default.
+        self.threshold = float(getattr(model, "metadata", {}).get("loop_threshold",
+                                                                  type(self).threshold))
         self.labels: tuple[str, ...] = tuple(dict.fromkeys(mapped))
         self._to = np.array([self.labels.index(m) for m in mapped])
 
@@ -240,6 +246,9 @@ class TrainedClassifier:
                               f"valid mask; got {x.shape} and {v.shape}", field="window")
         if not v.any():
             raise SimenvError("window has no valid frame", field="valid")
+        if self.window is None:
+            return np.bincount(self._to, weights=self.model.classify_world(x, v),
+                               minlength=len(self.labels))
         x, v = x[-self.window:], v[-self.window:]
         pad = self.window - len(x)
         if pad:
@@ -330,6 +339,10 @@ def load_predictor(spec: Any = None) -> Any:
     if not isinstance(spec, str):
         return spec
     model = simenv.models.load(spec)
+    if spec.startswith("predictor-gesture-"):
+        # World-frame gesture15 forecaster: its own root motion, no pred17 layout.
+        return CanonicalPredictor(model, joints=GESTURE15_JOINTS, root_relative=False,
+                                  name=spec)
     if spec.startswith("predictor-"):
         return CanonicalPredictor(model, name=spec)
     model.name = spec  # a baseline: on any joints, the canonical keypoints included

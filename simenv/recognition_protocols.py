@@ -29,7 +29,7 @@ calibrates the probabilities it is judged with.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -74,7 +74,7 @@ ROOM_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s",
                                     "real_1s_pred_2s_zv", "real_1s_pred_2s_cv")
 
 
-def _scores(y: np.ndarray, pred: np.ndarray, labels: Sequence[str],
+def classification_scores(y: np.ndarray, pred: np.ndarray, labels: Sequence[str],
             datasets: Sequence[str] | None = None) -> dict[str, Any]:
     """Accuracy, balanced accuracy (mean recall over present classes), per-class recall,
     confusion (rows true), and per-dataset accuracy."""
@@ -145,8 +145,10 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     excluded: list[str] = []
     stems = _msr_protocol_stems(root) if dataset == "msr_action3d" else None
     if stems is not None:
-        excluded = sorted(c.name for c in clips if c.name not in stems)
-        clips = [c for c in clips if c.name in stems]
+        # Listed as "a01_s01_e01"; our clip names keep the file's "_skeleton3D".
+        stem = {c.name: c.name.removesuffix("_skeleton3D") for c in clips}
+        excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
+        clips = [c for c in clips if stem[c.name] in stems]
     labels = sorted({c.source_label for c in clips})
     folds = benchmark_folds(dataset, clips)
     y_all, p_all, per_fold, cpu = [], [], [], 0.0
@@ -166,10 +168,10 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     return {"dataset": dataset, "protocol": "cross-subject (odd train, even test)"
             if dataset == "msr_action3d" else "leave-one-subject-out",
             "classes": labels, "clips": len(clips), "excluded": excluded,
-            "scores": _scores(y, pred, labels),
+            "scores": classification_scores(y, pred, labels),
             "mean_fold_accuracy": round(float(np.mean([f["accuracy"] for f in per_fold])), 4),
             "folds": per_fold, "train_cpu_s": round(cpu, 1),
-            "config": config.__dict__ | {}, "published": PUBLISHED[dataset]}
+            "config": asdict(config), "published": PUBLISHED[dataset]}
 
 
 # -- the room's vocabulary --------------------------------------------------------------
@@ -256,7 +258,7 @@ def run_room_protocol(clips: Sequence[GestureClip], config: RecognitionConfig, *
     conditions = {}
     for name, z in z_all.items():
         pred = z.argmax(1)
-        s = _scores(y, pred, labels, datasets)
+        s = classification_scores(y, pred, labels, datasets)
         s["room_reaction_accuracy"] = round(float((react[y] == react[pred]).mean()), 4)
         labelled = y != labels.index(IDLE_LABEL)
         s["accuracy_labelled"] = round(float((y == pred)[labelled].mean()), 4)
@@ -279,5 +281,6 @@ def calibrated(model: SkeletonTCN, temperature: float) -> SkeletonTCN:
 
 
 __all__ = ["BENCHMARK_FRAMES", "PUBLISHED", "ROOM_CONDITIONS", "benchmark_folds",
+           "classification_scores",
            "calibrated", "condition_windows", "run_benchmark", "run_room_protocol",
            "whole_windows"]

@@ -229,7 +229,8 @@ def test_eval_classifier_writes_every_condition(tmp_path: Path, capsys,
     data.mkdir()
     (data / "florence3d").symlink_to(florence)
     out = tmp_path / "eval"
-    assert cli.main(["eval", "classifier", "--data", str(data), "--out", str(out)]) == 0
+    assert cli.main(["eval", "classifier", "gesture-classifier", "--data", str(data), "--out",
+                     str(out)]) == 0
     assert "real_3s: accuracy" in capsys.readouterr().out
     metrics = json.loads((out / "metrics.json").read_text())
     expected = {"real_3s", "real_1s", "real_1s_pred_2s_cv", "real_1s_pred_2s_zv"}
