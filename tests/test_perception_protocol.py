@@ -1,0 +1,111 @@
+"""The perception loop streamed on clips: ticks, decisions, thresholds, folds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from simenv.gestures import GESTURE15_JOINTS, GESTURE_LABELS, subject_fold
+from simenv.perception_protocol import (
+    TICK_FRAMES,
+    StreamReading,
+    choose_threshold,
+    cross_fitted_outcomes,
+    loop_outcomes,
+    tick_frames,
+)
+
+WAVE, IDLE, OTHER = (GESTURE_LABELS.index(k) for k in ("wave", "idle", "other"))
+
+
+def _reading(label: str, subject: str, wave_logit: float, duration: float = 2.0,
+             ticks: int = 2, pred_logit: float | None = None) -> StreamReading:
+    z = np.zeros((ticks, len(GESTURE_LABELS)))
+    z[:, WAVE] = wave_logit
+    zp = np.zeros_like(z)
+    zp[:, WAVE] = wave_logit if pred_logit is None else pred_logit
+    return StreamReading(f"{label}-{subject}", label, subject, "msr_action3d", duration,
+                         (np.arange(ticks) + 1.0) * 1.0, z, zp)
+
+
+def test_tick_frames_cover_the_clip_once_past_its_end():
+    assert tick_frames(60, 0).tolist() == [1, 26, 51, 76]
+    assert tick_frames(10, 24).tolist() == [25]
+    assert all(np.diff(tick_frames(200, 7)) == TICK_FRAMES)
+
+
+def test_outcomes_count_greetings_per_group():
+    readings = [_reading("wave", "msr/s01", 5.0), _reading("wave", "msr/s02", 0.0),
+                _reading("other", "msr/s01", 5.0), _reading("idle", "msr/s03", 0.0)]
+    row = loop_outcomes(readings, GESTURE_LABELS, 0.5, use_forecast=False)
+    assert row["greet_clips"] == [1, 2] and row["other_clips"] == [1, 1]
+    assert row["idle_clips"] == [0, 1]
+    assert row["decision_after_onset_s"]["median"] == 1.0 and row["decided_before_end"] == 1.0
+    # a strong forecast stage greets the wave the real stage missed
+    readings[1] = _reading("wave", "msr/s02", 0.0, pred_logit=6.0)
+    row = loop_outcomes(readings, GESTURE_LABELS, 0.5, use_forecast=True)
+    assert row["greet_clips"] == [2, 2] and row["stages"] == {"real": 1, "predicted": 1}
+
+
+def test_threshold_keeps_false_greetings_under_target():
+    readings = [_reading("wave", f"utkinect/s0{i}", 3.0 + i) for i in range(1, 6)]
+    readings += [_reading("other", f"utkinect/s0{i}", 2.0 + 0.3 * i) for i in range(1, 6)]
+    t = choose_threshold(readings, GESTURE_LABELS, use_forecast=False, target=0.0)
+    row = loop_outcomes(readings, GESTURE_LABELS, t, use_forecast=False)
+    assert row["other_clips"][0] == 0 and row["greet_clips"][0] >= 3
+
+
+def test_cross_fitting_never_uses_the_held_out_fold():
+    """Fold 0's threshold is chosen on folds 1-4 only: making fold 0's own non-waves look
+    like waves must not move it."""
+    base = [_reading(lab, f"utkinect/s{s:02d}", w)
+            for s in range(1, 11) for lab, w in (("wave", 4.0), ("other", 1.0))]
+    a = cross_fitted_outcomes(base, subject_fold, GESTURE_LABELS, [1.0] * 5, use_forecast=False)
+    moved = [_reading(r.label, r.subject, 4.0) if subject_fold(r.subject) == 0 else r
+             for r in base]
+    b = cross_fitted_outcomes(moved, subject_fold, GESTURE_LABELS, [1.0] * 5,
+                              use_forecast=False)
+    assert a["folds"][0]["threshold"] == b["folds"][0]["threshold"]
+    assert b["folds"][0]["other_clips"][0] > a["folds"][0]["other_clips"][0]
+
+
+@pytest.fixture(scope="module")
+def utk_clips(shared_data):
+    from simenv.gestures import load_gesture_clips
+
+    root = shared_data / "gestures"
+    if not (root / "utkinect").is_dir():
+        pytest.skip(f"gesture corpus not found at {root}")
+    return load_gesture_clips(root, datasets=("utkinect",))
+
+
+def test_avatar_clips_and_stream_readings_on_real_sessions(utk_clips):
+    """Two real UTKinect segments retargeted into the room: gesture15 keypoints of the
+    avatar, then one reading per clip with a tick per second past its end."""
+    import torch
+
+    from simenv.gestures import gesture_skeleton
+    from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
+    from simenv.perception_protocol import avatar_clips, stream_readings
+
+    wave = next(c for c in utk_clips if c.label == "wave")
+    walk = next(c for c in utk_clips if c.label == "walk")
+    avatars, skipped = avatar_clips([wave, walk], progress=False)
+    assert not skipped and [a.label for a in avatars] == ["wave", "walk"]
+    assert avatars[0].positions.shape == (wave.num_frames, 15, 3)
+    # the avatar's hands follow the recording's: wrist paths correlate
+    hand = GESTURE15_JOINTS.index("right_wrist")
+    r = np.corrcoef(np.linalg.norm(np.diff(avatars[0].positions[:, hand], axis=0), axis=1),
+                    np.linalg.norm(np.diff(wave.positions[:, hand], axis=0), axis=1))[0, 1]
+    assert r > 0.5
+    skel = gesture_skeleton("gesture15")
+    torch.manual_seed(0)
+    net = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, GESTURE_LABELS)).eval()
+    readings = stream_readings(avatars, net, lambda h: np.repeat(h[:, -1:], 50, axis=1))
+    for reading, clip in zip(readings, avatars, strict=True):
+        duration = clip.num_frames / 25.0
+        assert reading.ticks_s[-1] >= duration
+        assert len(reading.ticks_s) == 1 or reading.ticks_s[-2] < duration
+        assert reading.logits_real.shape == reading.logits_pred.shape == (
+            len(reading.ticks_s), len(GESTURE_LABELS))
+        assert np.isfinite(reading.logits_pred).all()
