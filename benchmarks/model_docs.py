@@ -1,4 +1,5 @@
-"""Regenerate docs/prediction.md and docs/recognition.md from the shipped checkpoints.
+"""Regenerate docs/prediction.md and docs/recognition_transformer.md (the thesis's
+transformer classifier) from the shipped checkpoints.
 
 Every number in the two documents is computed here, from the shipped models in
 ``assets/models`` and the evaluation code, on every run:
@@ -95,7 +96,8 @@ THESIS_ACCURACY: dict[str, float] = {"3 s real": 63.6, "1 s real": 47.7,
 TRAIN_STRIDE = 7
 #: The files this script writes, relative to the repository.
 OUTPUTS: tuple[str, ...] = ("docs/prediction.md", "docs/prediction_error_curves.png",
-                            "docs/recognition.md", "docs/recognition_confusion.png")
+                            "docs/recognition_transformer.md",
+                            "docs/recognition_transformer_confusion.png")
 #: Windows per forward pass when measuring the reconstruction term (bounds the memory of
 #: the generator's 36,864-wide layer).
 CHUNK = 256
@@ -967,7 +969,7 @@ recognition doc for the numbers).
 
 def recognition_doc(metrics: dict[str, Any], speed: dict[str, dict[str, float]],
                     head: str) -> str:
-    """docs/recognition.md from :func:`simenv.train_classifier.run_evaluation` metrics
+    """docs/recognition_transformer.md from :func:`simenv.train_classifier.run_evaluation` metrics
     and :func:`bench_models.measure` rates."""
     model = load("gesture-classifier")
     cfg = model.config
@@ -1061,7 +1063,7 @@ the same code as the model card (`simenv.train_classifier.results_markdown`).
 ### Test results
 
 {tc.results_markdown(metrics)}
-![confusion matrices](recognition_confusion.png)
+![confusion matrices](recognition_transformer_confusion.png)
 
 ## What the numbers say
 
@@ -1166,10 +1168,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return cls, measure(args.bench_seconds)
 
     (cls, speed), t_rec = timed(recognition)
-    (docs / "recognition.md").write_text(recognition_doc(cls, speed, header(command, t_rec)))
+    (docs / "recognition_transformer.md").write_text(
+        recognition_doc(cls, speed, header(command, t_rec)))
     shutil.copyfile(work / "gesture-classifier" / "confusion.png",
-                    docs / "recognition_confusion.png")
-    print(f"wrote {docs / 'prediction.md'} and {docs / 'recognition.md'} "
+                    docs / "recognition_transformer_confusion.png")
+    print(f"wrote {docs / 'prediction.md'} and {docs / 'recognition_transformer.md'} "
           f"({t_pred + t_rec:.0f} CPU s; evaluations in {work})")
     return 0
 

@@ -219,8 +219,9 @@ class TrainedClassifier:
         self.window = int(config.window) if hasattr(config, "window") else None
         # A checkpoint that records its loop threshold (chosen on held-out subjects by
         # its training) overrides the class default.
-        self.threshold = float(getattr(model, "metadata", {}).get("loop_threshold",
-                                                                  type(self).threshold))
+        metadata = getattr(model, "metadata", {})
+        self.threshold = float(metadata.get("loop_threshold", type(self).threshold))
+        self.uses_forecast = bool(metadata.get("loop_uses_forecast", True))
         self.labels: tuple[str, ...] = tuple(dict.fromkeys(mapped))
         self._to = np.array([self.labels.index(m) for m in mapped])
 
@@ -414,11 +415,15 @@ class PerceptionLoop:
             ``threshold`` attribute if it has one, else 0.6).
         cooldown_s: a decided label does not trigger again within this time, s.
         fps: frame rate of the keypoints, Hz.
+        use_forecast: run the real + predicted stage (None: the classifier's
+            ``uses_forecast`` attribute if it has one -- a trained recogniser records
+            whether its loop greeted better with it on held-out subjects --, else True).
     """
 
     def __init__(self, behaviour: Behaviour, classifier: GestureModel, predictor: Any = None,
                  *, real_frames: int = 25, period: int = 25, threshold: float | None = None,
-                 cooldown_s: float = 3.0, fps: float = 25.0) -> None:
+                 cooldown_s: float = 3.0, fps: float = 25.0,
+                 use_forecast: bool | None = None) -> None:
         missing = [j for j in classifier.joint_names if j not in CANONICAL_KEYPOINTS]
         if missing:
             raise SimenvError(f"classifier joints {missing} are not canonical keypoints",
@@ -428,6 +433,9 @@ class PerceptionLoop:
         if threshold is None:
             threshold = getattr(classifier, "threshold", 0.6)
         self.threshold, self.cooldown_s, self.fps = float(threshold), float(cooldown_s), fps
+        if use_forecast is None:
+            use_forecast = bool(getattr(classifier, "uses_forecast", True))
+        self.use_forecast = use_forecast
         self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
         self._last: dict[str, float] = {}
 
@@ -453,7 +461,7 @@ class PerceptionLoop:
         stage, probs, motion = None, p_real, 0.0
         if p_real.max() >= self.threshold:
             stage = "real"
-        elif self.predictor is not None:
+        elif self.predictor is not None and self.use_forecast:
             future = np.asarray(self.predictor.predict(h[-int(self.predictor.history_len):]),
                                 dtype=np.float32)
             motion = float(np.linalg.norm(future - h[-1][None], axis=-1).mean())

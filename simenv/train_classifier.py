@@ -472,7 +472,7 @@ def split_summary(train_clips: Sequence[GestureClip], test_clips: Sequence[Gestu
 def results_markdown(metrics: dict[str, Any]) -> str:
     """The test-results tables of a model card (per condition; per-class recall) from
     the metrics of a training run or of :func:`run_evaluation`;
-    ``benchmarks/model_docs.py`` puts the same text into docs/recognition.md."""
+    ``benchmarks/model_docs.py`` puts the same text into docs/recognition_transformer.md."""
     ev = metrics["test"]
     per_ds = " / ".join(sorted(ev["real_3s"]["per_dataset_accuracy"]))
     rows = "\n".join(
@@ -601,7 +601,7 @@ def run_evaluation(checkpoint: Path, data: Path, out: Path) -> dict[str, Any]:
 
     Besides the scores, the metrics record what the data section of the docs states
     (clip count, skipped recordings, split, parameter count), so that
-    ``benchmarks/model_docs.py`` can write docs/recognition.md from them alone."""
+    ``benchmarks/model_docs.py`` can write docs/recognition_transformer.md from them alone."""
     model = GestureClassifier.load(checkpoint)
     joints = model.config.extra.get("joint_set", "gesture15")
     report = LoadReport()
