@@ -49,7 +49,17 @@ def measure(seconds: float = 3.0, *, verbose: bool = False) -> dict[str, dict[st
     # The two-person generators (INTERACTION_MODELS) are not issue 5's and take other inputs.
     for name in (n for n in available() if n not in INTERACTION_MODELS):
         model = load(name)
-        if name.startswith("predictor-"):
+        gesture_frames = to_gesture_joints(walk.resample(25.0), "gesture15")
+        if name.startswith("predictor-gesture-"):
+            # world-frame gesture15 histories, not the pred17 layout
+            h = model.history_len
+            batch = np.stack([gesture_frames[i:i + h]
+                              for i in range(len(gesture_frames) - h)][:64])
+            single = batch[0]
+            unit = "predictions"
+            one, many = (lambda m=model, x=single: m.predict(x)), \
+                (lambda m=model, x=batch: m.predict_batch(x))
+        elif name.startswith("predictor-"):
             w = pdata.windows_from_motions([walk], model.past_len, 1, stride=1)
             batch = w.frames[:64, : model.history_len]
             single = batch[0]
@@ -58,10 +68,10 @@ def measure(seconds: float = 3.0, *, verbose: bool = False) -> dict[str, dict[st
                 (lambda m=model, x=batch: m.predict(x))
         else:
             frames = to_gesture_joints(walk.resample(model.config.fps),
-                                       model.config.extra["joint_set"])
+                                       model.config.extra.get("joint_set", "gesture15"))
             # the 2.9-s walk played forwards then backwards: long enough for 3-s windows
             frames = np.concatenate([frames, frames[::-1]])
-            t = model.config.window
+            t = getattr(model.config, "window", 75)  # the TCN takes any length: 3 s
             batch = np.stack([frames[i:i + t] for i in range(0, len(frames) - t, 1)][:64])
             unit = "classifications"
             one, many = (lambda m=model, x=batch[0]: m.classify_world(x)), \
