@@ -12,8 +12,9 @@ protocol, next to published figures (:data:`PUBLISHED`):
 * **Florence 3D, leave-one-subject-out**: the 9 classes, 10 folds.
 
 Whole sequences are classified (the network takes any length); training windows are
-random crops of up to :data:`BENCHMARK_FRAMES` frames, never partial (the benchmarks
-classify segmented actions).
+random crops of up to :data:`BENCHMARK_FRAMES` frames (``whole_sequences``: up to the
+longest clip, i.e. whole sequences), never partial (the benchmarks classify segmented
+actions); ``members`` networks of consecutive seeds can be averaged (logits).
 
 The room's vocabulary (:func:`run_room_protocol`): every subject of the gesture corpus,
 leave-subjects-out in :data:`~simenv.gestures.SUBJECT_FOLDS` folds
@@ -126,7 +127,8 @@ def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]
 
 
 def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
-                  *, progress: bool = True) -> dict[str, Any]:
+                  *, members: int = 1, whole_sequences: bool = False,
+                  progress: bool = True) -> dict[str, Any]:
     """Train and test ``dataset`` (``msr_action3d``, ``utkinect`` or ``florence3d``) on its
     own classes with its standard protocol; returns accuracy (pooled over folds), the
     mean of per-fold accuracies, per-fold numbers, training CPU time and the published
@@ -150,18 +152,27 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
         clips = [c for c in clips if stem[c.name] in stems]
     labels = sorted({c.source_label for c in clips})
+    if whole_sequences:
+        config = replace(config, max_frames=max(c.num_frames for c in clips))
     folds = benchmark_folds(dataset, clips)
     y_all, p_all, per_fold, cpu = [], [], [], 0.0
     for name, train, test in tqdm(folds, desc=f"benchmark {dataset}", disable=not progress):
-        model, history = train_recogniser(train, labels, lambda c: c.source_label, config,
-                                          progress=False, extra={"benchmark": dataset})
         x, valid = whole_windows(test)
-        pred = logits_of(model, x, valid).argmax(1)
+        logits = 0.0
+        fold_cpu = 0.0
+        for member in range(members):
+            model, history = train_recogniser(
+                train, labels, lambda c: c.source_label,
+                replace(config, seed=config.seed + member), progress=False,
+                extra={"benchmark": dataset})
+            logits = logits + logits_of(model, x, valid) / members
+            fold_cpu += history["train_cpu_s"]
+        pred = np.asarray(logits).argmax(1)
         y = np.array([labels.index(c.source_label) for c in test])
         per_fold.append({"fold": name, "n": len(test),
                          "accuracy": round(float((pred == y).mean()), 4),
-                         "train_cpu_s": history["train_cpu_s"]})
-        cpu += history["train_cpu_s"]
+                         "train_cpu_s": round(fold_cpu, 1)})
+        cpu += fold_cpu
         y_all.append(y)
         p_all.append(pred)
     y, pred = np.concatenate(y_all), np.concatenate(p_all)
@@ -170,7 +181,8 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             "classes": labels, "clips": len(clips), "excluded": excluded,
             "scores": classification_scores(y, pred, labels),
             "mean_fold_accuracy": round(float(np.mean([f["accuracy"] for f in per_fold])), 4),
-            "folds": per_fold, "train_cpu_s": round(cpu, 1),
+            "folds": per_fold, "train_cpu_s": round(cpu, 1), "members": members,
+            "whole_sequences": whole_sequences,
             "config": asdict(config), "published": PUBLISHED[dataset]}
 
 
