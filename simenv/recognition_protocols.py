@@ -140,6 +140,8 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     if dataset not in PUBLISHED:
         raise SimenvError(f"unknown benchmark {dataset!r}; expected one of "
                           f"{', '.join(PUBLISHED)}", field="dataset")
+    if members < 1:
+        raise SimenvError(f"members must be >= 1; got {members}", field="members")
     root = Path(root)
     config = config or RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES,
                                          epochs=60)
