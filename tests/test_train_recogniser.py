@@ -1,0 +1,55 @@
+"""The recogniser's command line: eval on any labelled folder (--json), errors, tables."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import simenv.models
+from simenv import cli
+from simenv.train_recogniser import benchmark_table
+
+shipped = pytest.mark.skipif(
+    not {"gesture-tcn", "predictor-gesture-25-50"} <= set(simenv.models.available()),
+    reason="shipped gesture-tcn / predictor-gesture-25-50 absent")
+
+
+@shipped
+def test_eval_classifier_json_on_a_folder_of_msr_files(tmp_path: Path, capsys,
+                                                       shared_data: Path) -> None:
+    """A folder holding only some MSR Action3D files (labels from their names) gives one
+    JSON object with the three conditions."""
+    src = shared_data / "gestures" / "msr_action3d"
+    files = sorted(src.glob("a0[1-3]_s02_e0*_skeleton3D.txt"))
+    if not files:
+        pytest.skip(f"MSR Action3D not found under {src}")
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    for f in files:
+        (folder / f.name).symlink_to(f)
+    assert cli.main(["eval", "classifier", "--data", str(folder), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["clips"] == len(files)
+    assert set(out["conditions"]) == {"real_3s", "real_1s", "real_1s_pred_2s"}
+    for v in out["conditions"].values():
+        assert set(v) == {"accuracy", "balanced_accuracy"} and 0 <= v["accuracy"] <= 1
+
+
+@shipped
+def test_eval_classifier_names_a_folder_without_recordings(tmp_path: Path, capsys) -> None:
+    (tmp_path / "notes.txt").write_text("nothing here")
+    assert cli.main(["eval", "classifier", "--data", str(tmp_path), "--json"]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path) in err and "skeleton3D.txt" in err
+
+
+def test_benchmark_table_lists_published_figures() -> None:
+    row = {"dataset": "florence3d", "protocol": "leave-one-subject-out", "classes": list("ab"),
+           "clips": 10, "scores": {"accuracy": 0.9}, "mean_fold_accuracy": 0.91,
+           "published": {"Lie group": 90.88}, "train_cpu_s": 12.0, "members": 1,
+           "whole_sequences": True, "config": {"max_frames": 43}}
+    table = benchmark_table([row])
+    assert "| florence3d |" in table and "90.0 %" in table and "Lie group 90.9 %" in table
+    assert "whole sequences, 1 network(s)" in table
