@@ -261,6 +261,16 @@ def poser_canonical_map(joint_names: Sequence[str]) -> dict[str, str]:
 #                *_ankle          RFoot/LFoot (start of the foot bone = ankle)
 #                *_wrist          RWrist/LWrist; chest, toes, hands absent
 # gesture9       identity         spine, neck, head, shoulders, elbows, wrists
+# smpl22         pelvis, hips,    the SMPL joints of the same names
+#                knees, ankles,
+#                shoulders,
+#                elbows, wrists,
+#                neck, head
+#                *_toe            left_foot/right_foot (SMPL "foot" = toe base)
+#                spine            spine1 (lumbar, ~0.12 m above the pelvis)
+#                chest            spine3 (upper thorax, where neck and collars
+#                                 branch, as CMU ``Spine1``); spine2 and the
+#                                 collars stay unmapped; *_hand absent
 # ============== ================ ==============================================
 
 #: Kinect SDK v1 ``NUI_SKELETON_POSITION_INDEX`` order (0-based), as in
@@ -352,6 +362,21 @@ GESTURE9_JOINTS: tuple[str, ...] = (
 )
 _GESTURE9_PARENTS = (-1, 0, 1, 1, 3, 4, 1, 6, 7)
 
+#: The 22 body joints of SMPL in SMPL order, as text-to-motion models emit them
+#: (HumanML3D ``new_joints``, MDM, InterGen). Parents follow HumanML3D's
+#: ``t2m_kinematic_chain`` (github.com/EricGuo5513/HumanML3D, paramUtil.py /
+#: src/humanml3d/skeletons.py): [0,2,5,8,11], [0,1,4,7,10], [0,3,6,9,12,15],
+#: [9,14,17,19,21], [9,13,16,18,20].
+SMPL22_JOINTS: tuple[str, ...] = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
+    "left_ankle", "right_ankle", "spine3", "left_foot", "right_foot", "neck",
+    "left_collar", "right_collar", "head", "left_shoulder", "right_shoulder",
+    "left_elbow", "right_elbow", "left_wrist", "right_wrist",
+)
+SMPL22_PARENTS: tuple[int, ...] = (
+    -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19,
+)
+
 
 def _sided(mapping: dict[str, str], left: str, right: str) -> dict[str, str]:
     """Expand ``{"shoulder": "Shoulder{s}"}``-style entries for both sides."""
@@ -430,6 +455,17 @@ def h36m_skeleton() -> Skeleton:
 
 
 @cache
+def smpl22_skeleton() -> Skeleton:
+    """SMPL 22-joint body skeleton (HumanML3D / MDM / InterGen joint positions)."""
+    canonical = {"pelvis": "pelvis", "spine": "spine1", "chest": "spine3", "neck": "neck",
+                 "head": "head"}
+    canonical |= _sided({"hip": "{s}_hip", "knee": "{s}_knee", "ankle": "{s}_ankle",
+                         "toe": "{s}_foot", "shoulder": "{s}_shoulder",
+                         "elbow": "{s}_elbow", "wrist": "{s}_wrist"}, "left", "right")
+    return Skeleton("smpl22", SMPL22_JOINTS, SMPL22_PARENTS, canonical)
+
+
+@cache
 def gesture9_skeleton() -> Skeleton:
     """The 9-joint upper-body gesture skeleton (canonical names, identity map)."""
     return Skeleton("gesture9", GESTURE9_JOINTS, _GESTURE9_PARENTS,
@@ -447,6 +483,7 @@ def _registry() -> dict[str, Callable[[], Skeleton]]:
         "h36m17": h36m_skeleton,
         "gesture9": gesture9_skeleton,
         "cmu31": cmu31_skeleton,
+        "smpl22": smpl22_skeleton,
     }
     return entries
 
@@ -460,6 +497,7 @@ SKELETON_ALIASES: dict[str, str] = {
     "florence_15": "florence15", "openni15": "florence15", "nuisi": "nuitrack",
     "h36m": "h36m17", "h36m_17": "h36m17", "gesture": "gesture9", "gesture_9": "gesture9",
     "cmu": "cmu31", "cmu_31": "cmu31",
+    "smpl": "smpl22", "smpl_22": "smpl22", "humanml3d": "smpl22", "t2m": "smpl22",
 }
 
 
