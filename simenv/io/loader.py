@@ -47,6 +47,11 @@ READERS: tuple[str, ...] = (
     "florence3d",
     "nuisi",
     "ntu",
+    # Before h36m: all three claim .npy, and an unrecognised .npy gets humanml3d's
+    # error, which names every .npy layout simenv reads (humanml3d's sniff leaves
+    # person1/ and person2/ files to intergen).
+    "humanml3d",
+    "intergen",
     "h36m",
 )
 
