@@ -242,7 +242,7 @@ def test_feature_vectors_and_pickles_are_refused(tmp_path: Path, walk20: Motion)
 # -- MDM results.npy ------------------------------------------------------------------
 
 
-def _mdm_dict(walk20: Motion) -> dict:
+def _mdm_dict(walk20: Motion) -> tuple[dict, list[int], list[int]]:
     """MDM's documented layout by hand: 2 prompts x 2 repetitions, entry
     rep * num_samples + sample, motion (N, 22, 3, T), shorter samples padded."""
     full = y_up(walk20.positions).astype(np.float32)  # (T, 22, 3)
