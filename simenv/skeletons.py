@@ -364,8 +364,9 @@ _GESTURE9_PARENTS = (-1, 0, 1, 1, 3, 4, 1, 6, 7)
 
 #: The 22 body joints of SMPL in SMPL order, as text-to-motion models emit them
 #: (HumanML3D ``new_joints``, MDM, InterGen). Parents follow HumanML3D's
-#: ``t2m_kinematic_chain`` (github.com/EricGuo5513/HumanML3D, paramUtil.py /
-#: src/humanml3d/skeletons.py): [0,2,5,8,11], [0,1,4,7,10], [0,3,6,9,12,15],
+#: ``t2m_kinematic_chain`` (github.com/EricGuo5513/HumanML3D src/humanml3d/skeletons.py;
+#: the same in MDM's data_loaders/humanml/utils/paramUtil.py, and HumanML3D's rule
+#: parent = previous joint of a chain): [0,2,5,8,11], [0,1,4,7,10], [0,3,6,9,12,15],
 #: [9,14,17,19,21], [9,13,16,18,20].
 SMPL22_JOINTS: tuple[str, ...] = (
     "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",
