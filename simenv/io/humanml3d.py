@@ -7,10 +7,11 @@ Layouts, as verified against their sources:
   sample ``HumanML3D/new_joints/012314.npy``: float32 (170, 22, 3)): one clip
   per file, a plain (T, 22, 3) array of joint positions in **metres**,
   **Y up** (floor at y = 0), 20 fps (README: "Motions are downsampled into
-  20 fps"; ``raw_pose_processing``: ``ex_fps = 20``). Joints in SMPL order
+  20 fps"; ``raw_pose_processing.ipynb``: ``ex_fps = 20``). Joints in SMPL order
   (:data:`simenv.skeletons.SMPL22_JOINTS`), parents from
-  ``t2m_kinematic_chain``. The frame is right-handed: HumanML3D maps AMASS's
-  Z-up world by swapping y and z *and* negating x (``trans_matrix`` then
+  ``t2m_kinematic_chain`` (``src/humanml3d/skeletons.py``). The frame is
+  right-handed: HumanML3D maps AMASS's Z-up world by swapping y and z *and*
+  negating x (``raw_pose_processing.ipynb``: ``trans_matrix`` then
   ``data[..., 0] *= -1``: a proper rotation), and the sample clip's bodies are
   not mirrored (the toes point along up x (right hip - left hip), as in a
   right-handed frame).
