@@ -222,6 +222,8 @@ class TrainedClassifier:
         metadata = getattr(model, "metadata", {})
         self.threshold = float(metadata.get("loop_threshold", type(self).threshold))
         self.uses_forecast = bool(metadata.get("loop_uses_forecast", True))
+        #: Real windows (frames) its loop threshold was chosen with.
+        self.loop_windows = tuple(int(w) for w in metadata.get("loop_windows", (25,)))
         self.labels: tuple[str, ...] = tuple(dict.fromkeys(mapped))
         self._to = np.array([self.labels.index(m) for m in mapped])
 
@@ -410,6 +412,10 @@ class PerceptionLoop:
             never trigger.
         predictor: forecaster on canonical-keypoint windows (None: real frames only).
         real_frames: frames of real motion classified (25 = 1 s).
+        context_frames: longer windows of real motion also classified at each tick, frames
+            (None: the classifier's ``loop_windows`` beyond ``real_frames`` if it has
+            them, else none); the most confident window speaks for the real stage. A
+            history shorter than a window gives it what there is.
         period: frames between ticks.
         threshold: probability at which a label is decided (None: the classifier's
             ``threshold`` attribute if it has one, else 0.6).
@@ -423,7 +429,8 @@ class PerceptionLoop:
     def __init__(self, behaviour: Behaviour, classifier: GestureModel, predictor: Any = None,
                  *, real_frames: int = 25, period: int = 25, threshold: float | None = None,
                  cooldown_s: float = 3.0, fps: float = 25.0,
-                 use_forecast: bool | None = None) -> None:
+                 use_forecast: bool | None = None,
+                 context_frames: Sequence[int] | None = None) -> None:
         missing = [j for j in classifier.joint_names if j not in CANONICAL_KEYPOINTS]
         if missing:
             raise SimenvError(f"classifier joints {missing} are not canonical keypoints",
@@ -436,6 +443,10 @@ class PerceptionLoop:
         if use_forecast is None:
             use_forecast = bool(getattr(classifier, "uses_forecast", True))
         self.use_forecast = use_forecast
+        if context_frames is None:
+            context_frames = [w for w in getattr(classifier, "loop_windows", ())
+                              if w > self.real_frames]
+        self.context_frames = tuple(sorted(int(w) for w in context_frames))
         self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
         self._last: dict[str, float] = {}
 
@@ -458,6 +469,11 @@ class PerceptionLoop:
                               f"{h.shape}", field="history")
         real = h[-self.real_frames:][:, self._joints]
         p_real = self.classifier.classify(real, np.ones(len(real), bool))
+        for w in self.context_frames:
+            longer = h[-w:][:, self._joints]
+            p = self.classifier.classify(longer, np.ones(len(longer), bool))
+            if p.max() > p_real.max():
+                p_real = p
         stage, probs, motion = None, p_real, 0.0
         if p_real.max() >= self.threshold:
             stage = "real"

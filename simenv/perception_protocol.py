@@ -9,13 +9,15 @@ retargeted; its clips are left out and listed.
 Streaming (:func:`stream_readings`): a clip plays from its first frame (before it, the
 person holds the first pose); the loop ticks every :data:`TICK_FRAMES` frames with a
 seeded random phase relative to the gesture's onset (a real user does not start in step
-with the loop). At each tick it has the last second of keypoints and computes both of its
-stages (:class:`simenv.perception.PerceptionLoop`): the classifier on the 1 s of real
-motion, and on that second continued by the forecaster's 2 s. Ticks continue until the
-tick whose second holds the clip's last frame.
+with the loop). At each tick it computes both of its stages
+(:class:`simenv.perception.PerceptionLoop`): the classifier on the last seconds of real
+motion -- the thesis's 1 s, and optionally longer windows ending at the tick
+(``real_windows``) --, and on the last second continued by the forecaster's 2 s. Ticks
+continue until the tick whose second holds the clip's last frame.
 
 Decisions (:func:`loop_outcomes`), the loop's rule: a tick decides when the top class of
-the real stage reaches the threshold, else when that of the real + predicted stage does;
+the real stage (its most confident window) reaches the threshold, else when that of the
+real + predicted stage does;
 a clip is *greeted* when any of its ticks decides ``wave``. Reported: waves greeted,
 other labelled clips greeted, idle clips greeted, the decision's time after the gesture's
 onset (median, p90) and the share of greeted waves decided before the gesture ended.
@@ -79,7 +81,8 @@ class StreamReading:
         name, label, subject, dataset: the clip's.
         duration_s: the clip's length, s.
         ticks_s: (K,) time of each tick after the clip's first frame, s.
-        logits_real: (K, C) classifier logits on the 1 s of real motion.
+        logits_real: (K, W, C) classifier logits on the last ``real_windows[w]`` frames of
+            real motion (W = 1: the thesis's 1 s).
         logits_pred: (K, C) on 1 s real + forecast (NaN without a forecaster).
     """
 
@@ -101,8 +104,8 @@ def tick_frames(length: int, phase: int) -> np.ndarray:
 
 
 def stream_readings(clips: Sequence[GestureClip], model: Any,
-                    forecast: Forecaster | None = None, *, seed: int = 0
-                    ) -> list[StreamReading]:
+                    forecast: Forecaster | None = None, *, seed: int = 0,
+                    real_windows: Sequence[int] = (SHORT_FRAMES,)) -> list[StreamReading]:
     """The loop's two stages at every tick of every clip (module docstring).
 
     Args:
@@ -110,29 +113,33 @@ def stream_readings(clips: Sequence[GestureClip], model: Any,
         model: a :class:`~simenv.models.skeleton_tcn.SkeletonTCN`.
         forecast: world-frame forecaster (N, 25, 15, 3) -> (N, F, 15, 3), or None.
         seed: seed of the ticks' phases.
+        real_windows: lengths (frames) of the real windows classified at each tick.
     """
+    longest = max(max(real_windows), SHORT_FRAMES)
     rng = np.random.default_rng(seed)
     histories, owner, ends = [], [], []
     for i, clip in enumerate(clips):
         p = clip.positions
-        lead = np.concatenate([np.repeat(p[:1], SHORT_FRAMES, axis=0), p])
+        lead = np.concatenate([np.repeat(p[:1], longest, axis=0), p])
         for end in tick_frames(len(p), int(rng.integers(0, TICK_FRAMES))):
             # A tick after the clip's end sees its last second (what follows a gesture
             # is not in the recording); its time stays the tick's own.
-            stop = min(int(end), len(p)) + SHORT_FRAMES
-            histories.append(lead[stop - SHORT_FRAMES:stop])
+            stop = min(int(end), len(p)) + longest
+            histories.append(lead[stop - longest:stop])
             owner.append(i)
             ends.append(int(end))
-    h = np.stack(histories).astype(np.float32)
-    ones = np.ones(h.shape[:2], bool)
-    z_real = logits_of(model, normalise_windows(h, ones), ones)
+    full = np.stack(histories).astype(np.float32)
+    z_real = np.stack([logits_of(model, normalise_windows(full[:, -w:], ones), ones)
+                       for w in real_windows
+                       for ones in [np.ones((len(full), w), bool)]], axis=1)
+    h = full[:, -SHORT_FRAMES:]
     if forecast is not None:
         both = np.concatenate([h, np.asarray(forecast(h), np.float32)], axis=1)
         v = np.ones(both.shape[:2], bool)
         # Normalised from the real second's first frames, as a window of the loop is.
         z_pred = logits_of(model, normalise_windows(both, v), v)
     else:
-        z_pred = np.full_like(z_real, np.nan)
+        z_pred = np.full_like(z_real[:, 0], np.nan)
     owner_arr, ends_arr = np.array(owner), np.array(ends)
     out = []
     for i, clip in enumerate(clips):
@@ -170,8 +177,10 @@ def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], thre
             np.isfinite(r.logits_pred).all() else None
         decided = []
         for t in range(len(r.ticks_s)):
-            if p_real[t].max() >= threshold:
-                decided.append((int(p_real[t].argmax()), "real", r.ticks_s[t]))
+            # The most confident of the tick's real windows speaks for the real stage.
+            w = int(p_real[t].max(axis=-1).argmax())
+            if p_real[t, w].max() >= threshold:
+                decided.append((int(p_real[t, w].argmax()), "real", r.ticks_s[t]))
             elif p_pred is not None and p_pred[t].max() >= threshold:
                 decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
         if decided:

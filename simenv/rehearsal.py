@@ -142,7 +142,8 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
     clock = [time.perf_counter()]
     ahead = load_predictor(predictor) if agent == "scripted" else None
     env = InteractionRoomEnv(session, scenario=scenario, predictor=FALLBACK_PREDICTOR,
-                             history_frames=max(25, 0 if ahead is None else ahead.history_len),
+                             # 3 s: the longest real window a recogniser's loop classifies
+                             history_frames=max(75, 0 if ahead is None else ahead.history_len),
                              render_mode="rgb_array" if render else None,
                              width=width, height=height, data=data)
     loop = None

@@ -61,6 +61,10 @@ from simenv.recognition_protocols import (
 #: Registry name of the shipped recogniser and of its forecaster.
 MODEL_NAME = "gesture-tcn"
 FORECASTER = "predictor-gesture-25-50"
+#: Real windows (frames) the shipped loop classifies at each tick: the thesis's 1 s and
+#: the last 2 and 3 s (3 s of real motion is read far better than 1 s; fixed before the
+#: loop was measured with them). The 1-s-only loop is reported beside it.
+LOOP_WINDOWS: tuple[int, ...] = (25, 50, 75)
 #: Conditions printed by ``eval`` (the issue's interface), from :data:`ROOM_CONDITIONS`.
 EVAL_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s")
 
@@ -123,7 +127,11 @@ def plot_confusions(conditions: dict[str, Any], labels: Sequence[str], path: Pat
 
 def _loop(protocol: dict[str, Any], clips: Sequence[Any], forecasters: list[Forecaster] | None,
           progress: bool) -> dict[str, Any]:
-    """Step 2 of ``train``: the loop on held-out avatar clips, with and without forecasts."""
+    """Step 2 of ``train``: the loop on held-out avatar clips with the shipped windows
+    (:data:`LOOP_WINDOWS`) and with the thesis's 1 s alone, each with and without the
+    forecast stage; ``readings`` are the shipped windows' (for the shipped threshold)."""
+    from dataclasses import replace as copy_with
+
     from simenv.perception_protocol import avatar_clips, cross_fitted_outcomes, stream_readings
 
     avatars, skipped = avatar_clips(clips, progress=progress)
@@ -131,14 +139,17 @@ def _loop(protocol: dict[str, Any], clips: Sequence[Any], forecasters: list[Fore
     for k, model in enumerate(protocol["models"]):
         held = [c for c in avatars if subject_fold(c.subject_key) == k]
         readings += stream_readings(held, model, forecasters[k] if forecasters else None,
-                                    seed=k)
+                                    seed=k, real_windows=LOOP_WINDOWS)
+    one_second = [copy_with(r, logits_real=r.logits_real[:, :1]) for r in readings]
     temps = [row["temperature"] for row in protocol["folds"]]
-    out = {"clips": len(readings), "skipped": skipped,
-           "real_only": cross_fitted_outcomes(readings, subject_fold, GESTURE_LABELS, temps,
-                                              use_forecast=False)}
-    if forecasters:
-        out["with_forecast"] = cross_fitted_outcomes(readings, subject_fold, GESTURE_LABELS,
-                                                     temps, use_forecast=True)
+    out: dict[str, Any] = {"clips": len(readings), "skipped": skipped,
+                           "windows_s": [w / 25.0 for w in LOOP_WINDOWS]}
+    for tag, rows in (("", readings), ("1s_", one_second)):
+        out[f"{tag}real_only"] = cross_fitted_outcomes(rows, subject_fold, GESTURE_LABELS,
+                                                       temps, use_forecast=False)
+        if forecasters:
+            out[f"{tag}with_forecast"] = cross_fitted_outcomes(
+                rows, subject_fold, GESTURE_LABELS, temps, use_forecast=True)
     out["readings"] = readings
     return out
 
@@ -167,7 +178,10 @@ def run_train(config: RecognitionConfig, out: Path, *, data: Path,
                                       extra={"joint_set": "gesture15",
                                              "trained_on": "every subject of the corpus"})
     calibrated(model, temperature)
-    del protocol["models"]
+    for k, fold_model in enumerate(protocol.pop("models")):
+        # Kept for later analysis of the loop on held-out subjects (not shipped).
+        calibrated(fold_model, protocol["folds"][k]["temperature"])
+        fold_model.save(out / "folds" / f"fold{k}.npz")
     metrics = {"config": asdict(config), "clips": len(clips), "skipped": report.skipped,
                "protocol": {k: v for k, v in protocol.items() if k != "oof"},
                "loop": loop, "loop_uses_forecast": use_forecast,
@@ -181,6 +195,7 @@ def run_train(config: RecognitionConfig, out: Path, *, data: Path,
     plot_confusions(protocol["conditions"], GESTURE_LABELS, out / "confusion.png")
     model.save(out / f"{MODEL_NAME}.npz", metadata={
         "loop_threshold": threshold, "loop_uses_forecast": use_forecast,
+        "loop_windows": list(LOOP_WINDOWS),
         "temperature": temperature, "seed": config.seed,
         "protocol_accuracy": {c: protocol["conditions"][c]["accuracy"]
                               for c in protocol["conditions"]}})
@@ -223,11 +238,15 @@ def protocol_table(metrics: dict[str, Any]) -> str:
     loop = metrics["loop"]
     lines += ["", "| loop stages | waves greeted | other actions greeted | idle greeted | "
               "decision after onset, s (median / p90) | greeted waves decided before the "
-              "end | threshold per fold |", "|---|---|---|---|---|---|---|",
-              _loop_row("1 s real", loop["real_only"])]
-    if "with_forecast" in loop:
-        lines.append(_loop_row("1 s real, then 1 s real + 2 s forecast",
-                               loop["with_forecast"]))
+              "end | threshold per fold |", "|---|---|---|---|---|---|---|"]
+    windows = " / ".join(f"{w:g}" for w in loop.get("windows_s", [1.0]))
+    for key, name in (("1s_real_only", "1 s real (the thesis's tick)"),
+                      ("1s_with_forecast", "1 s real, then 1 s real + 2 s forecast"),
+                      ("real_only", f"last {windows} s real"),
+                      ("with_forecast", f"last {windows} s real, then 1 s real + 2 s "
+                                        "forecast")):
+        if key in loop:
+            lines.append(_loop_row(name, loop[key]))
     return "\n".join(lines)
 
 

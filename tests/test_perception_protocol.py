@@ -25,7 +25,7 @@ def _reading(label: str, subject: str, wave_logit: float, duration: float = 2.0,
     zp = np.zeros_like(z)
     zp[:, WAVE] = wave_logit if pred_logit is None else pred_logit
     return StreamReading(f"{label}-{subject}", label, subject, "msr_action3d", duration,
-                         (np.arange(ticks) + 1.0) * 1.0, z, zp)
+                         (np.arange(ticks) + 1.0) * 1.0, z[:, None], zp)
 
 
 def test_tick_frames_cover_the_clip_once_past_its_end():
@@ -45,6 +45,16 @@ def test_outcomes_count_greetings_per_group():
     readings[1] = _reading("wave", "msr/s02", 0.0, pred_logit=6.0)
     row = loop_outcomes(readings, GESTURE_LABELS, 0.5, use_forecast=True)
     assert row["greet_clips"] == [2, 2] and row["stages"] == {"real": 1, "predicted": 1}
+
+
+def test_the_most_confident_real_window_decides():
+    r = _reading("wave", "msr/s01", 0.0)
+    z = np.repeat(r.logits_real, 2, axis=1)
+    z[:, 1, WAVE] = 6.0  # the longer window sees the wave
+    two = StreamReading(r.name, r.label, r.subject, r.dataset, r.duration_s, r.ticks_s, z,
+                        r.logits_pred)
+    assert loop_outcomes([r], GESTURE_LABELS, 0.5, use_forecast=False)["greet_clips"] == [0, 1]
+    assert loop_outcomes([two], GESTURE_LABELS, 0.5, use_forecast=False)["greet_clips"] == [1, 1]
 
 
 def test_threshold_keeps_false_greetings_under_target():
@@ -101,11 +111,12 @@ def test_avatar_clips_and_stream_readings_on_real_sessions(utk_clips):
     skel = gesture_skeleton("gesture15")
     torch.manual_seed(0)
     net = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, GESTURE_LABELS)).eval()
-    readings = stream_readings(avatars, net, lambda h: np.repeat(h[:, -1:], 50, axis=1))
+    readings = stream_readings(avatars, net, lambda h: np.repeat(h[:, -1:], 50, axis=1),
+                               real_windows=(25, 50))
     for reading, clip in zip(readings, avatars, strict=True):
         duration = clip.num_frames / 25.0
         assert reading.ticks_s[-1] >= duration
         assert len(reading.ticks_s) == 1 or reading.ticks_s[-2] < duration
-        assert reading.logits_real.shape == reading.logits_pred.shape == (
-            len(reading.ticks_s), len(GESTURE_LABELS))
+        assert reading.logits_real.shape == (len(reading.ticks_s), 2, len(GESTURE_LABELS))
+        assert reading.logits_pred.shape == (len(reading.ticks_s), len(GESTURE_LABELS))
         assert np.isfinite(reading.logits_pred).all()
