@@ -176,13 +176,41 @@ def kinect_noise(x: np.ndarray, rng: np.random.Generator, config: RecognitionCon
     return x.astype(np.float32)
 
 
-def clip_skeleton(clips: Sequence[GestureClip]) -> Skeleton:
-    """The gesture joint set (``gesture15`` or ``gesture9``) all ``clips`` are on.
+def clip_skeleton(clips: Sequence[GestureClip], skeleton: Skeleton | None = None) -> Skeleton:
+    """The joint set all ``clips`` are on.
+
+    ``skeleton`` when given; else the skeleton the clips carry, when they have a
+    ``skeleton`` attribute (e.g. the benchmarks' native-skeleton clips,
+    :class:`simenv.recognition_protocols.NativeClip`); else ``gesture15`` or ``gesture9``,
+    told apart by the joint count. Any skeleton works that names the joints
+    :func:`~simenv.gestures.normalise_windows` measures a window by (``spine``, left/right
+    ``shoulder``, ``elbow``, ``wrist``); its parents give the network's bone stream.
 
     Raises:
-        SkeletonError: clips on different or unknown joint counts.
+        SkeletonError: clips on different or unknown joint counts, clips carrying different
+            skeletons (or only some of them one), a skeleton whose joint count is not the
+            clips', or one lacking a joint the normalisation needs.
     """
     counts = {c.positions.shape[1] for c in clips}
+    carried = [getattr(c, "skeleton", None) for c in clips]
+    if skeleton is None and any(s is not None for s in carried):
+        if any(s is None or s != carried[0] for s in carried):
+            raise SkeletonError("clips carry different skeletons (or only some carry one); "
+                                "train and test one skeleton at a time", field="joints")
+        skeleton = carried[0]
+    if skeleton is not None:
+        needed = ("spine", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
+                  "left_wrist", "right_wrist")
+        missing = [j for j in needed if j not in skeleton.joint_names]
+        if missing:
+            raise SkeletonError(f"skeleton {skeleton.name!r} lacks joint(s) "
+                                f"{', '.join(missing)} that the window normalisation needs",
+                                field="joints")
+        if counts != {len(skeleton.joint_names)}:
+            raise SkeletonError(f"clips must all be on the {len(skeleton.joint_names)} joints "
+                                f"of {skeleton.name!r}; joint counts {sorted(counts)}",
+                                field="joints")
+        return skeleton
     sets = {len(s.joint_names): s for s in (gesture_skeleton("gesture15"),
                                             gesture_skeleton("gesture9"))}
     if len(counts) != 1 or next(iter(counts)) not in sets:

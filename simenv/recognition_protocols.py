@@ -16,6 +16,17 @@ random crops of up to :data:`BENCHMARK_FRAMES` frames (``whole_sequences``: up t
 longest clip, i.e. whole sequences), never partial (the benchmarks classify segmented
 actions); ``members`` networks of consecutive seeds can be averaged (logits).
 
+Joints (``joints``): ``gesture15`` (default; the room's joint set, measured by all three
+datasets) or ``native``, each dataset's own skeleton as its reader gives it
+(:func:`native_clips`: MSR Action3D and UTKinect the 20 Kinect v1 joints, hands, feet and
+hip centre included; Florence its 15 OpenNI joints), the joints renamed to their canonical
+keypoint names (so the normalisation finds spine, shoulders, elbows, wrists), the tree
+kept, resampled to 25 fps like the gesture clips. The mirror augmentation of
+:func:`simenv.recognition.kinect_noise` swaps only the left/right pairs it knows (not the
+Kinect hands and feet), so when a native skeleton has others the benchmark mirrors clips
+instead: each training clip and its mirror image (:func:`mirror_clip`), half the epochs
+(the same number of optimisation steps, half the windows mirrored, as with ``mirror``).
+
 The room's vocabulary (:func:`run_room_protocol`): every subject of the gesture corpus,
 leave-subjects-out in :data:`~simenv.gestures.SUBJECT_FOLDS` folds
 (:func:`simenv.gestures.split_subject_folds`; idle clips included), one network per fold,
@@ -30,15 +41,16 @@ calibrates the probabilities it is judged with.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from tqdm import tqdm
 
 from simenv.errors import SimenvError
 from simenv.gestures import (
+    GESTURE_FPS,
     GESTURE_LABELS,
     IDLE_LABEL,
     WINDOW_FRAMES,
@@ -46,11 +58,13 @@ from simenv.gestures import (
     cut_window,
     load_gesture_clips,
     make_windows,
+    mirror_windows,
     normalise_windows,
     room_reaction,
     split_subject_folds,
 )
 from simenv.models.skeleton_tcn import SkeletonTCN, fit_temperature
+from simenv.motion import Skeleton
 from simenv.recognition import (
     SHORT_FRAMES,
     Forecaster,
@@ -70,6 +84,9 @@ PUBLISHED: dict[str, dict[str, float]] = {
 }
 #: Longest training crop of the benchmarks, frames at 25 fps (5 s).
 BENCHMARK_FRAMES = 125
+#: Joint sets of the benchmarks (module docstring, *Joints*).
+BENCHMARK_JOINTS: tuple[str, ...] = ("gesture15", "native")
+BenchmarkJoints = Literal["gesture15", "native"]
 #: Conditions of the room protocol, in table order.
 ROOM_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s",
                                     "real_1s_pred_2s_zv", "real_1s_pred_2s_cv")
@@ -106,6 +123,80 @@ def _msr_protocol_stems(root: Path) -> set[str] | None:
     return {line.strip() for line in listing.read_text().split() if line.strip()}
 
 
+@dataclass(frozen=True, eq=False)
+class NativeClip(GestureClip):
+    """A gesture clip on its dataset's own skeleton (:func:`native_clips`), which it
+    carries so that :func:`simenv.recognition.clip_skeleton` finds it.
+
+    Attributes:
+        skeleton: the joints of ``positions`` (canonical keypoint names) and their tree.
+    """
+
+    skeleton: Skeleton = field(kw_only=True)
+
+
+def native_skeleton(skeleton: Skeleton) -> Skeleton:
+    """``skeleton`` with each joint renamed to its canonical keypoint name (joints without
+    one keep their name); same order and parents."""
+    key_of = {joint: key for key, joint in skeleton.canonical.items()}
+    names = tuple(key_of.get(j, j) for j in skeleton.joint_names)
+    return Skeleton(f"{skeleton.name}_native", names, skeleton.parents,
+                    {key: key for key in key_of.values()})
+
+
+def native_clips(clips: Sequence[GestureClip]) -> list[NativeClip]:
+    """``clips`` on their recordings' own skeletons (:func:`native_skeleton` of
+    ``clip.source``), resampled to :data:`~simenv.gestures.GESTURE_FPS` as the gesture
+    clips are (same frames; the joints shared with ``gesture15`` equal the clip's).
+
+    Raises:
+        SimenvError: a clip without its source recording.
+    """
+    out = []
+    for c in clips:
+        if c.source is None:
+            raise SimenvError(f"clip {c.name!r} has no source recording; cannot put it on "
+                              "its native skeleton", field="joints")
+        skel = native_skeleton(c.source.skeleton)
+        m = c.source.on_layout(skel, "the native benchmark skeleton")
+        if m.num_frames >= 2:
+            m = m.resample(GESTURE_FPS)
+        out.append(NativeClip(np.ascontiguousarray(m.positions, dtype=np.float32), c.label,
+                              c.source_label, c.dataset, c.subject, c.name, c.source,
+                              skeleton=skel))
+    return out
+
+
+def _mirror_perm(names: Sequence[str]) -> list[int]:
+    """Joint order of the mirror image: every ``left_*`` / ``right_*`` pair swapped."""
+    index = {n: k for k, n in enumerate(names)}
+    perm = list(range(len(names)))
+    for n, k in index.items():
+        for a, b in (("left_", "right_"), ("right_", "left_")):
+            if n.startswith(a) and b + n[len(a):] in index:
+                perm[k] = index[b + n[len(a):]]
+    return perm
+
+
+def window_mirror_complete(skeleton: Skeleton) -> bool:
+    """Whether :func:`simenv.gestures.mirror_windows` (the training mirror) swaps every
+    left/right pair of ``skeleton`` (True for gesture15/gesture9 and Florence; False for
+    the Kinect hands and feet)."""
+    names = skeleton.joint_names
+    probe = np.zeros((len(names), 3), np.float32)
+    probe[:, 0] = np.arange(len(names))
+    return mirror_windows(probe, names)[:, 0].astype(int).tolist() == _mirror_perm(names)
+
+
+def mirror_clip(clip: GestureClip, skeleton: Skeleton) -> GestureClip:
+    """The mirror image of ``clip`` (world Y negated, left/right joints of ``skeleton``
+    swapped), named ``<name>_mirror``; normalised, it is the training mirror of the clip's
+    normalised windows."""
+    positions = np.array(clip.positions[:, _mirror_perm(skeleton.joint_names)], np.float32)
+    positions[..., 1] *= -1
+    return replace(clip, positions=positions, name=f"{clip.name}_mirror", source=None)
+
+
 def benchmark_folds(dataset: str, clips: Sequence[GestureClip]
                     ) -> list[tuple[str, list[GestureClip], list[GestureClip]]]:
     """(fold name, train, test) of ``dataset``'s standard protocol (module docstring)."""
@@ -128,18 +219,22 @@ def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]
 
 def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
                   *, members: int = 1, whole_sequences: bool = False,
+                  joints: BenchmarkJoints = "gesture15",
                   progress: bool = True) -> dict[str, Any]:
     """Train and test ``dataset`` (``msr_action3d``, ``utkinect`` or ``florence3d``) on its
-    own classes with its standard protocol; returns accuracy (pooled over folds), the
-    mean of per-fold accuracies, per-fold numbers, training CPU time and the published
-    figures.
+    own classes with its standard protocol, on ``joints`` (``gesture15`` or ``native``,
+    module docstring); returns accuracy (pooled over folds), the mean of per-fold
+    accuracies, per-fold numbers, training CPU time and the published figures.
 
     Raises:
-        SimenvError: unknown dataset or no clips.
+        SimenvError: unknown dataset or joint set, or no clips.
     """
     if dataset not in PUBLISHED:
         raise SimenvError(f"unknown benchmark {dataset!r}; expected one of "
                           f"{', '.join(PUBLISHED)}", field="dataset")
+    if joints not in BENCHMARK_JOINTS:
+        raise SimenvError(f"unknown joint set {joints!r}; expected one of "
+                          f"{', '.join(BENCHMARK_JOINTS)}", field="joints")
     if members < 1:
         raise SimenvError(f"members must be >= 1; got {members}", field="members")
     root = Path(root)
@@ -153,20 +248,29 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         stem = {c.name: c.name.removesuffix("_skeleton3D") for c in clips}
         excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
         clips = [c for c in clips if stem[c.name] in stems]
+    if joints == "native":
+        clips = native_clips(clips)
+    skeleton = clip_skeleton(clips)
     labels = sorted({c.source_label for c in clips})
     if whole_sequences:
         config = replace(config, max_frames=max(c.num_frames for c in clips))
+    # The training mirror must swap every left/right pair; otherwise mirror the clips.
+    mirror_copies = config.mirror and not window_mirror_complete(skeleton)
+    train_config = (replace(config, mirror=False, epochs=max(1, round(config.epochs / 2)))
+                    if mirror_copies else config)
     folds = benchmark_folds(dataset, clips)
     y_all, p_all, per_fold, cpu = [], [], [], 0.0
     for name, train, test in tqdm(folds, desc=f"benchmark {dataset}", disable=not progress):
         x, valid = whole_windows(test)
         logits = 0.0
         fold_cpu = 0.0
+        if mirror_copies:
+            train = list(train) + [mirror_clip(c, skeleton) for c in train]
         for member in range(members):
             model, history = train_recogniser(
                 train, labels, lambda c: c.source_label,
-                replace(config, seed=config.seed + member), progress=False,
-                extra={"benchmark": dataset})
+                replace(train_config, seed=config.seed + member), progress=False,
+                extra={"benchmark": dataset, "joints": joints})
             logits = logits + logits_of(model, x, valid) / members
             fold_cpu += history["train_cpu_s"]
         pred = np.asarray(logits).argmax(1)
@@ -184,8 +288,12 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             "scores": classification_scores(y, pred, labels),
             "mean_fold_accuracy": round(float(np.mean([f["accuracy"] for f in per_fold])), 4),
             "folds": per_fold, "train_cpu_s": round(cpu, 1), "members": members,
-            "whole_sequences": whole_sequences,
-            "config": asdict(config), "published": PUBLISHED[dataset]}
+            "whole_sequences": whole_sequences, "joints": joints,
+            "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},
+            "mirror": ("clips (each training clip and its mirror image, half the epochs)"
+                       if mirror_copies else "windows" if config.mirror else "none"),
+            "config": asdict(config), "train_config": asdict(train_config),
+            "published": PUBLISHED[dataset]}
 
 
 # -- the room's vocabulary --------------------------------------------------------------
@@ -294,7 +402,8 @@ def calibrated(model: SkeletonTCN, temperature: float) -> SkeletonTCN:
     return model
 
 
-__all__ = ["BENCHMARK_FRAMES", "PUBLISHED", "ROOM_CONDITIONS", "benchmark_folds",
-           "classification_scores",
-           "calibrated", "condition_windows", "run_benchmark", "run_room_protocol",
-           "whole_windows"]
+__all__ = ["BENCHMARK_FRAMES", "BENCHMARK_JOINTS", "PUBLISHED", "ROOM_CONDITIONS",
+           "BenchmarkJoints", "NativeClip", "benchmark_folds", "classification_scores",
+           "calibrated", "condition_windows", "mirror_clip", "native_clips",
+           "native_skeleton", "run_benchmark", "run_room_protocol", "whole_windows",
+           "window_mirror_complete"]

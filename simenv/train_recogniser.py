@@ -22,8 +22,10 @@ gesture predictor). ``--json`` prints one object ``{"clips": N, "conditions": {n
 {"accuracy": a, "balanced_accuracy": b}}}``. Clips of subjects the shipped network trained
 on are in-sample; the protocol's numbers are the unseen-subject ones.
 
-``benchmark [--dataset NAME]``: :func:`simenv.recognition_protocols.run_benchmark` on MSR
-Action3D, UTKinect and Florence 3D, printed next to the published figures.
+``benchmark [--dataset NAME] [--joints {gesture15,native}]``:
+:func:`simenv.recognition_protocols.run_benchmark` on MSR Action3D, UTKinect and Florence
+3D, printed next to the published figures; ``--joints native`` trains and tests on each
+dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``).
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ from simenv.gestures import (
 )
 from simenv.recognition import Forecaster, RecognitionConfig, logits_of, train_recogniser
 from simenv.recognition_protocols import (
+    BENCHMARK_JOINTS,
     PUBLISHED,
     ROOM_CONDITIONS,
     calibrated,
@@ -320,7 +323,9 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
         pub = "; ".join(f"{k} {v:.1f} %" for k, v in r["published"].items())
         windows = ("whole sequences" if r.get("whole_sequences") else
                    f"crops <= {r['config']['max_frames']} frames")
-        windows += f", {r.get('members', 1)} network(s)"
+        windows += f", {r.get('members', 1)} network(s), {r.get('joints', 'gesture15')}"
+        if r.get("joints", "gesture15") != "gesture15":
+            windows += f" ({len(r['skeleton']['joint_names'])} joints)"
         lines.append(f"| {r['dataset']} | {r['protocol']} | {len(r['classes'])} | "
                      f"{r['clips']} | {windows} | {100 * r['scores']['accuracy']:.1f} % | "
                      f"{100 * r['mean_fold_accuracy']:.1f} % | {pub} | {r['train_cpu_s']} |")
@@ -357,6 +362,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                          help="networks of consecutive seeds averaged per fold")
     p_bench.add_argument("--whole-sequences", action="store_true",
                          help="train on whole sequences instead of 5-s crops")
+    p_bench.add_argument("--joints", choices=BENCHMARK_JOINTS, default="gesture15",
+                         help="joint set: the room's gesture15, or each dataset's own "
+                         "skeleton (native)")
     p_bench.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     try:
@@ -394,8 +402,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             results = []
             for name in names:
                 results.append(run_benchmark(name, data, members=args.members,
-                                             whole_sequences=args.whole_sequences))
+                                             whole_sequences=args.whole_sequences,
+                                             joints=args.joints))
                 tag = f"{name}_m{args.members}_w{int(args.whole_sequences)}"
+                if args.joints != "gesture15":
+                    tag += f"_{args.joints}"
                 (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1,
                                                             default=str))
             print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}

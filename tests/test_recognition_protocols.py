@@ -7,16 +7,24 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import SimenvError
-from simenv.gestures import load_gesture_clips, split_subject_folds, subject_fold
-from simenv.recognition import RecognitionConfig
+from simenv.errors import SimenvError, SkeletonError
+from simenv.gestures import (
+    GESTURE15_JOINTS,
+    load_gesture_clips,
+    split_subject_folds,
+    subject_fold,
+)
+from simenv.recognition import RecognitionConfig, clip_skeleton, logits_of, train_recogniser
 from simenv.recognition_protocols import (
     benchmark_folds,
     classification_scores,
     condition_windows,
+    mirror_clip,
+    native_clips,
     run_benchmark,
     run_room_protocol,
     whole_windows,
+    window_mirror_complete,
 )
 
 
@@ -100,3 +108,39 @@ def test_room_protocol_runs_every_fold_on_unseen_subjects(utk):
 def test_benchmark_rejects_unknown_datasets(root: Path):
     with pytest.raises(SimenvError, match="unknown benchmark"):
         run_benchmark("ntu", root)
+    with pytest.raises(SimenvError, match="unknown joint set"):
+        run_benchmark("msr_action3d", root, joints="kinect")  # type: ignore[arg-type]
+
+
+def test_native_msr_clips_carry_the_20_kinect_joints(root: Path):
+    """MSR on its own skeleton: 20 joints renamed to canonical keypoints, the gesture15
+    joints equal to the gesture clips', the clip mirror equal to the training mirror of
+    normalised windows, and a thin network trains and classifies on them."""
+    if not (root / "msr_action3d").is_dir():
+        pytest.skip("MSR Action3D not in the corpus")
+    gesture = load_gesture_clips(root, datasets=("msr_action3d",))[:24]
+    clips = native_clips(gesture)
+    skel = clip_skeleton(clips)
+    assert len(skel.joint_names) == 20 and skel.parents[skel.joint_names.index("pelvis")] == -1
+    assert {"left_hand", "right_toe", "pelvis"} <= set(skel.joint_names)
+    idx = [skel.joint_names.index(j) for j in GESTURE15_JOINTS]
+    for g, n in zip(gesture, clips, strict=True):
+        np.testing.assert_array_equal(n.positions[:, idx], g.positions)
+    assert clip_skeleton(gesture).name == "gesture15"  # the default is unchanged
+    with pytest.raises(SkeletonError, match="carry"):
+        clip_skeleton(clips[:2] + gesture[:2])
+    # kinect_noise's mirror does not swap the Kinect hands and feet: the benchmark
+    # mirrors clips, which normalise to the same image.
+    assert not window_mirror_complete(skel)
+    x, valid = whole_windows(clips)
+    xm, _ = whole_windows([mirror_clip(c, skel) for c in clips])
+    swap = [skel.joint_names.index(j.replace("left_", "@").replace("right_", "left_")
+                                   .replace("@", "right_")) for j in skel.joint_names]
+    ideal = x[:, :, swap] * np.array([1, -1, 1], np.float32)
+    np.testing.assert_allclose(xm[valid], ideal[valid], atol=1e-4)
+    labels = sorted({c.source_label for c in clips})
+    model, _ = train_recogniser(clips, labels, lambda c: c.source_label,
+                                RecognitionConfig(epochs=1, width=8, mirror=False),
+                                progress=False)
+    assert model.config.joint_names == skel.joint_names
+    assert logits_of(model, x, valid).shape == (len(clips), len(labels))
