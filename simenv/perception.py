@@ -19,9 +19,12 @@ on the root-relative pred17 layout, through :class:`CanonicalPredictor`); any
 :class:`GestureModel` classifies.
 
 Defaults (:func:`load_predictor`, :func:`default_classifier`): the shipped models when they
-are present -- the PredictiveMA-WGAN ``predictor-25-50`` (:data:`DEFAULT_PREDICTOR`; any
-other shipped ``predictor-*`` can be named) and the trained transformer
-``gesture-classifier`` through :class:`TrainedClassifier` -- and otherwise the
+are present -- the gesture-domain forecaster ``predictor-gesture-25-50``
+(:data:`DEFAULT_PREDICTOR`; any other shipped ``predictor-*`` can be named, e.g. the
+thesis's PredictiveMA-WGAN ``predictor-25-50``) and the skeleton TCN ``gesture-tcn``
+(:data:`DEFAULT_CLASSIFIER`; the thesis's transformer ``gesture-classifier`` by name)
+through :class:`TrainedClassifier`, with the threshold, real windows and use of the
+forecast stage its training chose on held-out subjects -- and otherwise the
 constant-velocity baseline and the nearest-neighbour :class:`TemplateClassifier` built from
 the labelled real clips of the gesture corpus.
 """
@@ -228,12 +231,13 @@ class TrainedClassifier:
         self._to = np.array([self.labels.index(m) for m in mapped])
 
     @classmethod
-    def shipped(cls, name: str = "gesture-classifier",
+    def shipped(cls, name: str | None = None,
                 vocabulary: Sequence[str] | None = None) -> TrainedClassifier:
-        """The shipped checkpoint ``name``, its labels mapped onto ``vocabulary``
-        (:func:`vocabulary_map`; None: the network's own labels)."""
+        """The shipped checkpoint ``name`` (None: :data:`DEFAULT_CLASSIFIER`), its labels
+        mapped onto ``vocabulary`` (:func:`vocabulary_map`; None: the network's own)."""
         import simenv.models
 
+        name = name or DEFAULT_CLASSIFIER
         model = simenv.models.load(name)
         mapping = None if vocabulary is None else vocabulary_map(model.config.labels,
                                                                  vocabulary)
@@ -312,12 +316,15 @@ class CanonicalPredictor:
         return out
 
 
-#: The shipped predictor the room uses by default (1 s observed -> 2 s ahead).
-DEFAULT_PREDICTOR = "predictor-25-50"
+#: The shipped predictor the room uses by default (1 s observed -> 2 s ahead): the
+#: gesture-domain forecaster, trained on Kinect recordings of people gesturing.
+DEFAULT_PREDICTOR = "predictor-gesture-25-50"
 #: The fallback when no learned predictor is shipped: the 2-s constant-velocity baseline.
 FALLBACK_PREDICTOR = "constant-velocity-50"
-#: The shipped classifier the room uses by default.
-DEFAULT_CLASSIFIER = "gesture-classifier"
+#: The shipped classifier the room uses by default: the skeleton TCN, measured on
+#: subjects it never saw (docs/recognition.md); ``gesture-classifier`` is the thesis's
+#: transformer.
+DEFAULT_CLASSIFIER = "gesture-tcn"
 
 
 def load_predictor(spec: Any = None) -> Any:

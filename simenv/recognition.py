@@ -90,7 +90,7 @@ class RecognitionConfig:
     max_frames: int = 75
     partial_prob: float = 0.5
     partial_frames: tuple[int, int] = (10, 40)
-    forecast_prob: float = 0.0
+    forecast_prob: float = 0.25
     speed: tuple[float, float] = (0.75, 1.33)
     mirror: bool = True
     yaw_deg: float = 30.0

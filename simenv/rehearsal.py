@@ -43,8 +43,8 @@ with one of the agents below, and writes to ``out``:
   (:func:`simenv.plausibility.html_report.html_page`).
 
 Agents: ``"scripted"`` decides with a :class:`~simenv.perception.PerceptionLoop` (predict,
-classify, decide every second; by default the shipped ``gesture-classifier`` and
-``predictor-25-50``, falling back to templates from the gesture corpus and constant
+classify, decide every second; by default the shipped ``gesture-tcn`` and
+``predictor-gesture-25-50``, falling back to templates from the gesture corpus and constant
 velocity, :func:`simenv.perception.default_classifier` /
 :func:`~simenv.perception.load_predictor`; ``summary.json`` names them under
 ``perception`` and gives each decision's ``stage``; it perceives while the recording plays,
@@ -113,7 +113,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             vocabulary).
         predictor: the perception loop's predictor,
             :func:`~simenv.perception.load_predictor` (``"auto"``: the shipped
-            ``predictor-25-50`` when present, else constant velocity). It runs at the
+            ``predictor-gesture-25-50`` when present, else constant velocity). It runs at the
             perception ticks only: the environment's own ``user_future`` observation,
             which none of these agents reads, is the constant-velocity baseline's (the
             WGAN on every step would cost ~14 ms of each 40 ms frame).
@@ -452,10 +452,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data", help="root of the shared corpus (session recipes, "
                         "templates); default $SIMENV_SHARED_DATA or ../shared/data")
     parser.add_argument("--predictor", default="auto", help="perception predictor: a shipped "
-                        "predictor-* name or constant-velocity-50 (default: predictor-25-50 "
-                        "when shipped)")
+                        "predictor-* name or constant-velocity-50 (default: "
+                        "predictor-gesture-25-50 when shipped)")
     parser.add_argument("--classifier", help="shipped classifier name for the scripted agent "
-                        "(default: gesture-classifier when shipped, else templates)")
+                        "(default: gesture-tcn when shipped, else templates)")
     parser.add_argument("--templates", help="gesture recordings folder (msr_action3d/, "
                         "utkinect/, florence3d/): the scripted agent classifies with "
                         "nearest-neighbour templates from it instead")

@@ -188,20 +188,20 @@ def test_greeting_carried_out_in_simulation_is_measured_and_rewarded():
     assert infos[-1]["executing"] is None
 
 
-@pytest.mark.skipif("predictor-25-50" not in simenv.models.available(),
-                    reason="shipped predictor-25-50 absent")
-def test_default_predictor_is_the_shipped_wgan(env: InteractionRoomEnv):
-    """The observation's future comes from the shipped PredictiveMA-WGAN (26-frame
+@pytest.mark.skipif("predictor-gesture-25-50" not in simenv.models.available(),
+                    reason="shipped predictor-gesture-25-50 absent")
+def test_default_predictor_is_the_shipped_gesture_forecaster(env: InteractionRoomEnv):
+    """The observation's future comes from the shipped gesture-domain forecaster (25-frame
     history, 2 s ahead) and, made at a perception tick, starts where the observed motion
     ends (no seam)."""
-    assert env.predictor.name == "predictor-25-50"
+    assert env.predictor.name == "predictor-gesture-25-50"
     obs, _ = env.reset(seed=0)
     for _ in range(env.predict_every):
         obs, *_ = env.step(0)
     K = obs["user_history"].shape[1]
     assert obs["user_history"].shape == (25, K, 3) and obs["user_future"].shape == (50, K, 3)
     kept = env.user_keypoints()
-    assert kept.shape == (26, K, 3)
+    assert kept.shape == (25, K, 3)
     np.testing.assert_array_equal(kept[-25:], obs["user_history"])
     step = np.linalg.norm(np.diff(obs["user_history"], axis=0), axis=-1).mean()
     seam = np.linalg.norm(obs["user_future"][0] - obs["user_history"][-1], axis=-1).mean()

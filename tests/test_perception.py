@@ -150,8 +150,10 @@ def test_loop_with_the_shipped_predictor():
 # -- the shipped models as the loop's stages --------------------------------------------
 
 shipped = pytest.mark.skipif(
-    not {"gesture-classifier", "predictor-25-50"} <= set(simenv.models.available()),
-    reason="shipped gesture-classifier / predictor-25-50 absent")
+    not {"gesture-classifier", "predictor-25-50", "gesture-tcn", "predictor-gesture-25-50"}
+    <= set(simenv.models.available()),
+    reason="shipped gesture-classifier / predictor-25-50 / gesture-tcn / "
+           "predictor-gesture-25-50 absent")
 
 
 def test_vocabulary_map_reads_labels_in_a_scenario():
@@ -175,7 +177,7 @@ def test_trained_classifier_adapter_pads_truncates_and_maps(shared_data):
 
     clips = load_gesture_clips(shared_data / "gestures", datasets=("msr_action3d",))
     wave = next(c for c in clips if c.label == "wave" and c.num_frames >= 40)
-    adapter = TrainedClassifier.shipped()
+    adapter = TrainedClassifier.shipped("gesture-classifier")
     assert isinstance(adapter, GestureModel) and adapter.joint_names == GESTURE15_JOINTS
     assert adapter.labels == adapter.model.config.labels
     short = wave.positions[:25]
@@ -187,7 +189,8 @@ def test_trained_classifier_adapter_pads_truncates_and_maps(shared_data):
     long = np.concatenate([np.repeat(wave.positions[:1], 40, axis=0), padded])
     long_valid = np.concatenate([np.ones(40, bool), valid])
     np.testing.assert_allclose(adapter.classify(long, long_valid), p, atol=1e-6)
-    mapped = TrainedClassifier.shipped(vocabulary=load_scenario("discomfort").behaviour.vocabulary)
+    mapped = TrainedClassifier.shipped("gesture-classifier",
+                                       vocabulary=load_scenario("discomfort").behaviour.vocabulary)
     assert set(mapped.labels) == {"hello", "idle"}
     q = dict(zip(mapped.labels, mapped.classify(short, np.ones(25, bool)), strict=True))
     assert q["hello"] == pytest.approx(p[adapter.labels.index("wave")], abs=1e-6)
@@ -207,17 +210,23 @@ def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
     )
 
     predictor = load_predictor()
-    assert isinstance(predictor, CanonicalPredictor) and predictor.name == "predictor-25-50"
-    assert (predictor.history_len, predictor.future_len) == (26, 50)
-    future = predictor.predict(_waving(26))
+    assert isinstance(predictor, CanonicalPredictor)
+    assert predictor.name == "predictor-gesture-25-50"
+    assert (predictor.history_len, predictor.future_len) == (25, 50)
+    future = predictor.predict(_waving(25))
     assert future.shape == (50, K, 3) and np.isfinite(future).all()
     assert isinstance(load_predictor("constant-velocity-50"), ConstantVelocity)
     assert load_predictor("predictor-25-25").future_len == 25
     vocab = load_scenario("default").behaviour.vocabulary
     classifier = default_classifier(vocab, data=tmp_path)  # no corpus needed
     assert isinstance(classifier, TrainedClassifier)
+    assert classifier.name == "gesture-tcn"
     loop = PerceptionLoop(load_scenario("default").behaviour, classifier, predictor)
-    assert loop.threshold == TrainedClassifier.threshold
+    # the threshold, windows and forecast use its training chose on held-out subjects
+    assert loop.threshold == classifier.model.metadata["loop_threshold"]
+    assert loop.use_forecast == classifier.model.metadata["loop_uses_forecast"]
+    assert (loop.real_frames, *loop.context_frames) == tuple(
+        classifier.model.metadata.get("loop_windows", (25,)))
     # Nothing shipped and no corpus: a clear error naming where to point.
     monkeypatch.setattr(simenv.models, "available", lambda: [])
     assert isinstance(load_predictor(), ConstantVelocity)

@@ -10,7 +10,7 @@ Observation (``Dict``, float32)
     in the room frame, m (frames before the session start repeat its first frame);
     ``user_future`` (F, K, 3): the predictor's F frames ahead of the history as it was at
     the latest prediction (default :func:`simenv.perception.load_predictor`: the shipped
-    PredictiveMA-WGAN ``predictor-25-50``, 2 s, run on the keypoints through
+    gesture-domain forecaster ``predictor-gesture-25-50``, 2 s, run on the keypoints through
     :class:`~simenv.perception.CanonicalPredictor`; the constant-velocity baseline
     ``constant-velocity-50`` when it is not shipped). It predicts at the perception loop's
     rate, every ``predict_every`` = 25 steps (1 s) and at reset, and holds the forecast in
@@ -165,7 +165,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         gestures: labelled gestures of the session when ``session`` is not a Session.
         scenario: a :class:`~simenv.scenario.Scenario`, a bundled name or a TOML path.
         history_frames: H, frames of user history observed.
-        predictor: ``"auto"`` (the shipped ``predictor-25-50`` when present, else
+        predictor: ``"auto"`` (the shipped ``predictor-gesture-25-50`` when present, else
             ``constant-velocity-50``), a ``simenv.models.load`` name (shipped
             ``predictor-*`` models are run on the keypoints through
             :class:`~simenv.perception.CanonicalPredictor`) or an object with
