@@ -8,8 +8,9 @@ leading dashes, with ``-`` or ``_`` (``n_critic`` = ``n-critic``).
 from __future__ import annotations
 
 import json
+from dataclasses import fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from simenv.errors import SimenvError
 
@@ -35,3 +36,23 @@ def read_options(path: str | Path) -> dict[str, Any]:
     if not isinstance(raw, dict):
         raise SimenvError("a config file must hold one table of option values", source=path)
     return raw
+
+
+Config = TypeVar("Config")
+
+
+def dataclass_from_file(cls: type[Config], path: str | Path, **overrides: Any) -> Config:
+    """An options dataclass ``cls`` from a config file (:func:`read_options`), ``overrides``
+    winning over the file.
+
+    Raises:
+        SimenvError: unreadable file, or keys that are not fields of ``cls`` (the message
+            names them and the known ones).
+    """
+    raw = read_options(path)
+    known = {f.name for f in fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(raw) - known)
+    if unknown:
+        raise SimenvError(f"unknown option(s) {', '.join(unknown)}; known: "
+                          f"{', '.join(sorted(known))}", source=path)
+    return cls(**{**raw, **overrides})

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +40,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from simenv.config import read_options
+from simenv.config import dataclass_from_file
 from simenv.errors import SimenvError, SkeletonError
 from simenv.gestures import (
     GESTURE_FPS,
@@ -121,11 +121,7 @@ class RecognitionConfig:
     @classmethod
     def from_file(cls, path: str | Path, **overrides: Any) -> RecognitionConfig:
         """Config from a TOML or JSON file (unknown keys are an error)."""
-        raw = read_options(path)
-        unknown = sorted(set(raw) - {f.name for f in fields(cls)})
-        if unknown:
-            raise SimenvError(f"unknown option(s) {', '.join(unknown)}", source=path)
-        return cls(**{**raw, **overrides})
+        return dataclass_from_file(cls, path, **overrides)
 
 
 def time_scale(positions: np.ndarray, factor: float) -> np.ndarray:

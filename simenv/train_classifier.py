@@ -60,7 +60,7 @@ import os
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +68,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from simenv.config import read_options
+from simenv.config import dataclass_from_file
 from simenv.errors import MotionError, SimenvError
 from simenv.gestures import (
     GESTURE15_JOINTS,
@@ -90,6 +90,7 @@ from simenv.gestures import (
     split_cross_subject,
 )
 from simenv.models.gesture_classifier import ClassifierConfig, GestureClassifier
+from simenv.recognition import class_weights
 
 #: Default location of the gesture corpus (``SIMENV_SHARED_DATA`` overrides the root).
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA",
@@ -150,20 +151,7 @@ class TrainConfig:
     @classmethod
     def from_file(cls, path: str | Path, **overrides: Any) -> TrainConfig:
         """Config from a TOML or JSON file (unknown keys are an error)."""
-        raw = read_options(path)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise SimenvError(f"unknown option(s) {', '.join(unknown)}; known: "
-                              f"{', '.join(sorted(known))}", source=path)
-        return cls(**{**raw, **overrides})
-
-
-def class_weights(y: np.ndarray, num_classes: int) -> torch.Tensor:
-    """(C,) loss weights ``(N / (C n_c))^(1/2)`` (1 for absent classes)."""
-    counts = np.bincount(y, minlength=num_classes).astype(np.float64)
-    w = np.where(counts > 0, np.sqrt(len(y) / (num_classes * np.maximum(counts, 1))), 1.0)
-    return torch.tensor(w, dtype=torch.float32)
+        return dataclass_from_file(cls, path, **overrides)
 
 
 def augment(x: np.ndarray, rng: np.random.Generator, config: TrainConfig,
