@@ -13,7 +13,9 @@ Training windows (:func:`training_windows`), one fresh window per clip and epoch
 3. **Forecast** (only with a ``predictor``): with probability ``forecast_prob`` a 1 s
    partial window is continued by the predictor's forecast, all frames valid -- the
    window "1 s real + 2 s predicted" the loop's anticipation stage classifies, so the
-   network learns to read forecasts instead of meeting them first at test time.
+   network learns to read forecasts instead of meeting them first at test time. The
+   forecaster runs on the normalised window (a similarity transform of the world frame,
+   scale near 1; the gesture forecaster body-centres its input itself).
 4. **Normalise** (:func:`simenv.gestures.normalise_windows`), then **Kinect noise**
    (:func:`kinect_noise`): mirror image, rotation (yaw, and pitch/roll of a tilted
    sensor), isotropic and per-axis scale, Gaussian jitter, and dropped joints (a joint
