@@ -10,7 +10,9 @@ Inputs (every number in the documents comes from them; nothing is typed in by ha
   ``python -m simenv.train_gesture_predictor --evaluate``), optional;
 * ``--ticks FILE``: ``benchmarks/bench_perception.py --json`` output, optional;
 * ``--eval DIR``: ``simenv eval classifier --data ... --out`` results, one sub-folder a
-  dataset, optional (in-sample for the shipped network: stated in the document).
+  dataset, optional (in-sample for the shipped network: stated in the document);
+* ``--ablation DIR``: a ``train`` output made with ``forecast_prob = 0`` (networks never
+  trained on forecasts), optional: its protocol accuracies are put beside the shipped's.
 """
 
 from __future__ import annotations
@@ -109,9 +111,24 @@ def _forecast_text(forecast: dict[str, Any] | None) -> str:
             "the real motion's.\n\n" + "\n".join(rows))
 
 
+def _ablation_text(m: dict[str, Any], ablation: dict[str, Any] | None) -> str:
+    if not ablation:
+        return ""
+    rows = ["| condition | trained with forecast windows (shipped) | without them |",
+            "|---|---|---|"]
+    for name in ("real_3s", "real_1s", "real_1s_pred_2s", "real_1s_pred_2s_zv"):
+        a, b = (x["protocol"]["conditions"][name]["accuracy"] for x in (m, ablation))
+        rows.append(f"| {name} | {a:.3f} | {b:.3f} |")
+    return ("Networks trained with and without the \"1 s real + forecast\" windows "
+            f"(forecast_prob {m['config']['forecast_prob']} / "
+            f"{ablation['config']['forecast_prob']}), same folds and seed:\n\n"
+            + "\n".join(rows))
+
+
 def recognition_doc(m: dict[str, Any], bench: list[dict[str, Any]],
                     forecast: dict[str, Any] | None, ticks: dict[str, Any] | None,
-                    evals: dict[str, Any], header: str) -> str:
+                    evals: dict[str, Any], header: str,
+                    ablation: dict[str, Any] | None = None) -> str:
     folds = m["protocol"]["folds"]
     bench_text = benchmark_table(bench) if bench else "Not run for this document."
     eval_lines = "\n".join(
@@ -175,6 +192,8 @@ Thesis (its own 7-gesture data): 63.6 % with 3 s real, 47.7 % with 1 s, 60.2 % w
 ## Forecasting in the gesture domain
 
 {_forecast_text(forecast)}
+
+{_ablation_text(m, ablation)}
 
 ## The loop
 
@@ -248,6 +267,7 @@ def main() -> int:
     parser.add_argument("--forecast", type=Path)
     parser.add_argument("--ticks", type=Path)
     parser.add_argument("--eval", type=Path)
+    parser.add_argument("--ablation", type=Path)
     args = parser.parse_args()
     command = "python benchmarks/recognition_docs.py " + " ".join(sys.argv[1:])
     header = _header(command)
@@ -259,8 +279,10 @@ def main() -> int:
     evals = {p.parent.name: json.loads(p.read_text())
              for p in sorted(args.eval.glob("*/metrics.json"))} if args.eval else {}
     docs = ROOT / "docs"
+    ablation = json.loads((args.ablation / "metrics.json").read_text()) \
+        if args.ablation else None
     (docs / "recognition.md").write_text(recognition_doc(m, bench, forecast, ticks, evals,
-                                                         header))
+                                                         header, ablation))
     shutil.copyfile(args.train / "confusion.png", docs / "recognition_confusion.png")
     room = (docs / "room.md").read_text()
     section = room_section(m, header)
