@@ -224,12 +224,14 @@ subject; the unseen-subject numbers are the protocol's above):
 ## Reproduce
 
 ```bash
-python -m simenv.train_gesture_predictor ...            # per-fold forecasters (see its --help)
+python -m simenv.train_gesture_predictor --fold K ...    # per-fold forecasters, --evaluate
 python -m simenv.train_recogniser train --forecasters out/gesture-predictor --out out/gesture-tcn
-python -m simenv.train_recogniser benchmark --out out/recognition-benchmark
+python -m simenv.train_recogniser benchmark --out out/recognition-benchmark  # --members,
+                                                 # --whole-sequences, --joints native
 python benchmarks/bench_perception.py --json out/ticks.json
-python benchmarks/recognition_docs.py --train out/gesture-tcn \\
-    --benchmark out/recognition-benchmark --ticks out/ticks.json
+simenv eval classifier --data GESTURES/msr_action3d --out out/eval/msr_action3d  # per dataset
+# then this document, with the command in its header (--ablation: a train run made with
+# forecast_prob = 0 in a --config file)
 ```
 
 Training options of the shipped network: `{json.dumps(m['config'])}`; {m['cpu_s']} CPU s
