@@ -155,6 +155,80 @@ def _softmax(z: np.ndarray, temperature: float) -> np.ndarray:
     return e / e.sum(axis=-1, keepdims=True)
 
 
+_GROUPS = ("greet_clips", "other_clips", "idle_clips")
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What the loop did on one reading: its group, its first greeting (time, stage) and
+    whether its first decision named its own label (None: nothing decided)."""
+
+    group: str
+    greet: tuple[float, str] | None
+    first_right: bool | None
+    duration_s: float
+
+
+def _probabilities(readings: Sequence[StreamReading], temperature: float,
+                   use_forecast: bool) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Each reading's (real (K, W, C), real + forecast (K, C) or None) probabilities."""
+    out = []
+    for r in readings:
+        p_pred = _softmax(r.logits_pred, temperature) if use_forecast and \
+            np.isfinite(r.logits_pred).all() else None
+        out.append((_softmax(r.logits_real, temperature), p_pred))
+    return out
+
+
+def _outcomes(readings: Sequence[StreamReading],
+              probabilities: Sequence[tuple[np.ndarray, np.ndarray | None]],
+              labels: Sequence[str], threshold: float, greet: str) -> list[_Outcome]:
+    """The loop's rule (module docstring) on each reading at ``threshold``."""
+    k = labels.index(greet)
+    out = []
+    for r, (p_real, p_pred) in zip(readings, probabilities, strict=True):
+        decided = []
+        for t in range(len(r.ticks_s)):
+            # The most confident of the tick's real windows speaks for the real stage.
+            w = int(p_real[t].max(axis=-1).argmax())
+            if p_real[t, w].max() >= threshold:
+                decided.append((int(p_real[t, w].argmax()), "real", r.ticks_s[t]))
+            elif p_pred is not None and p_pred[t].max() >= threshold:
+                decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
+        greets = [(float(t), stage) for c, stage, t in decided if c == k]
+        group = "greet_clips" if r.label == greet else \
+            "idle_clips" if r.label == "idle" else "other_clips"
+        out.append(_Outcome(group, greets[0] if greets else None,
+                            labels[decided[0][0]] == r.label if decided else None,
+                            r.duration_s))
+    return out
+
+
+def _summary(outcomes: Sequence[_Outcome]) -> dict[str, Any]:
+    """Counts, rates and timing of :func:`loop_outcomes` from per-reading outcomes."""
+    counts = {g: [sum(o.group == g and o.greet is not None for o in outcomes),
+                  sum(o.group == g for o in outcomes)] for g in _GROUPS}
+    waves = [o for o in outcomes if o.group == "greet_clips" and o.greet is not None]
+    delays = [o.greet[0] for o in waves]
+    stages = {"real": 0, "predicted": 0}
+    for o in waves:
+        stages[o.greet[1]] += 1
+    decided = [o.first_right for o in outcomes if o.first_right is not None]
+    (a, n), (b, m), (c, q) = (counts[g] for g in _GROUPS)
+    return {**counts,
+            "greeted_rate": round(a / max(n, 1), 4),
+            "other_greet_rate": round(b / max(m, 1), 4),
+            "idle_greet_rate": round(c / max(q, 1), 4),
+            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
+            "decision_after_onset_s": {
+                "median": round(float(np.median(delays)), 3) if delays else None,
+                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
+            "decided_before_end": round(sum(o.greet[0] < o.duration_s for o in waves)
+                                        / max(len(waves), 1), 4),
+            "stages": stages,
+            "decided_right": round(sum(decided) / max(len(decided), 1), 4)}
+
+
 def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], threshold: float,
                   temperature: float = 1.0, *, use_forecast: bool = True,
                   greet: str = GREET_LABEL) -> dict[str, Any]:
@@ -167,47 +241,10 @@ def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], thre
         ``stages`` (which stage took the greetings of waves), ``decided_right`` (share of
         clips whose first decision is their own label).
     """
-    k = labels.index(greet)
-    counts = {"greet_clips": [0, 0], "other_clips": [0, 0], "idle_clips": [0, 0]}
-    delays, before, stages = [], 0, {"real": 0, "predicted": 0}
-    first_right = first_any = 0
-    for r in readings:
-        p_real = _softmax(r.logits_real, temperature)
-        p_pred = _softmax(r.logits_pred, temperature) if use_forecast and \
-            np.isfinite(r.logits_pred).all() else None
-        decided = []
-        for t in range(len(r.ticks_s)):
-            # The most confident of the tick's real windows speaks for the real stage.
-            w = int(p_real[t].max(axis=-1).argmax())
-            if p_real[t, w].max() >= threshold:
-                decided.append((int(p_real[t, w].argmax()), "real", r.ticks_s[t]))
-            elif p_pred is not None and p_pred[t].max() >= threshold:
-                decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
-        if decided:
-            first_any += 1
-            first_right += int(labels[decided[0][0]] == r.label)
-        greets = [d for d in decided if d[0] == k]
-        group = "greet_clips" if r.label == greet else \
-            "idle_clips" if r.label == "idle" else "other_clips"
-        counts[group][1] += 1
-        if greets:
-            counts[group][0] += 1
-            if group == "greet_clips":
-                delays.append(greets[0][2])
-                before += int(greets[0][2] < r.duration_s)
-                stages[greets[0][1]] += 1
-    (a, n), (b, m), (c, q) = (counts[g] for g in ("greet_clips", "other_clips", "idle_clips"))
+    probabilities = _probabilities(readings, temperature, use_forecast)
     return {"threshold": float(threshold), "temperature": float(temperature),
-            "use_forecast": use_forecast, **counts,
-            "greeted_rate": round(a / max(n, 1), 4),
-            "other_greet_rate": round(b / max(m, 1), 4),
-            "idle_greet_rate": round(c / max(q, 1), 4),
-            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
-            "decision_after_onset_s": {
-                "median": round(float(np.median(delays)), 3) if delays else None,
-                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
-            "decided_before_end": round(before / max(len(delays), 1), 4),
-            "stages": stages, "decided_right": round(first_right / max(first_any, 1), 4)}
+            "use_forecast": use_forecast,
+            **_summary(_outcomes(readings, probabilities, labels, threshold, greet))}
 
 
 def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
@@ -216,9 +253,10 @@ def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
                      target: float = FALSE_GREET_TARGET) -> float:
     """The lowest grid threshold whose false-greeting rate on ``readings`` is at most
     ``target`` (the highest grid value when none is)."""
+    probabilities = _probabilities(readings, temperature, use_forecast)
     for t in sorted(grid):
-        row = loop_outcomes(readings, labels, t, temperature, use_forecast=use_forecast)
-        if row["false_greet_rate"] <= target:
+        outcomes = _outcomes(readings, probabilities, labels, t, GREET_LABEL)
+        if _summary(outcomes)["false_greet_rate"] <= target:
             return float(t)
     return float(max(grid))
 
@@ -229,43 +267,22 @@ def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[
     """Loop outcomes on every held-out fold, each with the threshold chosen on the other
     folds' readings (``fold_of(subject_key)``) and its own cross-fitted temperature;
     pooled over folds, with each fold's threshold."""
-    folds = sorted({fold_of(r.subject) for r in readings})
-    pooled: list[StreamReading] = []
-    chosen, per_fold = [], []
-    merged: dict[str, Any] = {}
-    for k in folds:
+    pooled: list[_Outcome] = []
+    per_fold = []
+    for k in sorted({fold_of(r.subject) for r in readings}):
         held = [r for r in readings if fold_of(r.subject) == k]
         calib = [r for r in readings if fold_of(r.subject) != k]
         t = choose_threshold(calib, labels, temperatures[k], use_forecast=use_forecast)
-        chosen.append(t)
-        row = loop_outcomes(held, labels, t, temperatures[k], use_forecast=use_forecast)
-        per_fold.append({"fold": k, **{key: row[key] for key in (
-            "threshold", "greet_clips", "other_clips", "idle_clips")}})
-        pooled += held
-        for key in ("greet_clips", "other_clips", "idle_clips"):
-            merged.setdefault(key, [0, 0])
-            merged[key] = [merged[key][0] + row[key][0], merged[key][1] + row[key][1]]
-    # Timing statistics pooled over folds need each reading's own fold threshold.
-    delays, before, stages = [], 0, {"real": 0, "predicted": 0}
-    for k, t in zip(folds, chosen, strict=True):
-        held = [r for r in readings if fold_of(r.subject) == k and r.label == GREET_LABEL]
-        for r in held:
-            row = loop_outcomes([r], labels, t, temperatures[k], use_forecast=use_forecast)
-            if row["greet_clips"][0]:
-                delays.append(row["decision_after_onset_s"]["median"])
-                before += int(row["decided_before_end"] > 0)
-                for s, v in row["stages"].items():
-                    stages[s] += v
-    (a, n), (b, m), (c, q) = (merged[g] for g in ("greet_clips", "other_clips", "idle_clips"))
-    return {"use_forecast": use_forecast, "folds": per_fold, **merged,
-            "greeted_rate": round(a / max(n, 1), 4),
-            "other_greet_rate": round(b / max(m, 1), 4),
-            "idle_greet_rate": round(c / max(q, 1), 4),
-            "decision_after_onset_s": {
-                "median": round(float(np.median(delays)), 3) if delays else None,
-                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
-            "decided_before_end": round(before / max(len(delays), 1), 4),
-            "stages": stages}
+        outcomes = _outcomes(held, _probabilities(held, temperatures[k], use_forecast),
+                             labels, t, GREET_LABEL)
+        pooled += outcomes
+        row = _summary(outcomes)
+        per_fold.append({"fold": k, "threshold": t, **{g: row[g] for g in _GROUPS}})
+    summary = _summary(pooled)
+    return {"use_forecast": use_forecast, "folds": per_fold,
+            **{key: summary[key] for key in (*_GROUPS, "greeted_rate", "other_greet_rate",
+                                             "idle_greet_rate", "decision_after_onset_s",
+                                             "decided_before_end", "stages")}}
 
 
 __all__ = ["FALSE_GREET_TARGET", "GREET_LABEL", "THRESHOLD_GRID", "TICK_FRAMES",

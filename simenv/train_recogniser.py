@@ -35,7 +35,7 @@ import json
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -133,8 +133,6 @@ def _loop(protocol: dict[str, Any], clips: Sequence[Any], forecasters: list[Fore
     """Step 2 of ``train``: the loop on held-out avatar clips with the shipped windows
     (:data:`LOOP_WINDOWS`) and with the thesis's 1 s alone, each with and without the
     forecast stage; ``readings`` are the shipped windows' (for the shipped threshold)."""
-    from dataclasses import replace as copy_with
-
     from simenv.perception_protocol import avatar_clips, cross_fitted_outcomes, stream_readings
 
     avatars, skipped = avatar_clips(clips, progress=progress)
@@ -143,7 +141,7 @@ def _loop(protocol: dict[str, Any], clips: Sequence[Any], forecasters: list[Fore
         held = [c for c in avatars if subject_fold(c.subject_key) == k]
         readings += stream_readings(held, model, forecasters[k] if forecasters else None,
                                     seed=k, real_windows=LOOP_WINDOWS)
-    one_second = [copy_with(r, logits_real=r.logits_real[:, :1]) for r in readings]
+    one_second = [replace(r, logits_real=r.logits_real[:, :1]) for r in readings]
     temps = [row["temperature"] for row in protocol["folds"]]
     out: dict[str, Any] = {"clips": len(readings), "skipped": skipped,
                            "windows_s": [w / 25.0 for w in LOOP_WINDOWS]}
