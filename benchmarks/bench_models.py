@@ -46,10 +46,10 @@ def measure(seconds: float = 3.0, *, verbose: bool = False) -> dict[str, dict[st
     torch.set_num_threads(1)
     walk = bvh.read(Path(str(resources.files("simenv.assets"))) / "cmu_02_01_walk.bvh")
     results: dict[str, dict[str, float]] = {}
+    gesture_frames = to_gesture_joints(walk.resample(25.0), "gesture15")
     # The two-person generators (INTERACTION_MODELS) are not issue 5's and take other inputs.
     for name in (n for n in available() if n not in INTERACTION_MODELS):
         model = load(name)
-        gesture_frames = to_gesture_joints(walk.resample(25.0), "gesture15")
         if name.startswith("predictor-gesture-"):
             # world-frame gesture15 histories, not the pred17 layout
             h = model.history_len
