@@ -84,6 +84,7 @@ from simenv.plausibility.contact import floating, foot_skate, ground_penetration
 from simenv.plausibility.dynamics import balance, root_residual
 from simenv.plausibility.kinematic import bone_length, jitter, velocity
 from simenv.plausibility.pair_dynamics import pair_root_residual
+from simenv.plausibility.published import published_record
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 from simenv.plausibility.tracking import tracking
@@ -198,6 +199,9 @@ class PersonReport:
         basis: name -> which computation produced it (module docstring).
         retargeted: the retargeting used by the body metrics, or None when
             physics was off or the body could not be fitted.
+        published: the papers' metrics in their published definitions
+            (:func:`simenv.plausibility.published.published_record`); they
+            do not enter the verdict or the score.
     """
 
     person: int
@@ -207,6 +211,7 @@ class PersonReport:
     metrics: dict[str, MetricResult]
     basis: dict[str, str]
     retargeted: RetargetResult | None = None
+    published: dict[str, Any] = field(default_factory=dict)
 
     @property
     def verdict(self) -> str:
@@ -261,7 +266,9 @@ class PlausibilityReport:
         ``file``, ``person``, ``name``, ``frames``, ``fps``, ``verdict``, ``score``,
         ``physics``, ``metrics`` {name: {``value``, ``unit``, ``threshold``, ``passed``,
         ``basis``, ``details``, ``reason``}}, ``violations`` [{``metric``,
-        ``start_frame``, ``end_frame``, ``worst_value``}]; for two people also
+        ``start_frame``, ``end_frame``, ``worst_value``}], ``published`` (the
+        papers' metrics: {name: {``value``, ``unit``}}, ``feet``, ``fps``,
+        ``floor``, or {``reason``}); for two people also
         ``interaction`` {``verdict``, ``metrics``, ``violations``}."""
         pair = None
         if self.interaction is not None:
@@ -279,6 +286,7 @@ class PlausibilityReport:
                 "score": round(p.score, 2), "physics": self.physics,
                 "metrics": {n: _metric_record(m, p.basis[n]) for n, m in p.metrics.items()},
                 "violations": p.violations,
+                "published": p.published,
             }
             if pair is not None:
                 rec["interaction"] = pair
@@ -352,7 +360,7 @@ def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason:
     ordered = {n: metrics[n] for n in PERSON_METRICS}
     return PersonReport(person=person, name=motion.name, frames=T, fps=motion.fps,
                         metrics=ordered, basis={n: basis[n] for n in PERSON_METRICS},
-                        retargeted=fitted)
+                        retargeted=fitted, published=published_record(motion))
 
 
 def _tracking(fitted: RetargetResult, config: ScoreConfig) -> MetricResult:
