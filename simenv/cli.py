@@ -1,4 +1,5 @@
-"""The ``simenv`` command line: ``info``, ``retarget``, ``render``, ``score`` and ``demo``.
+"""The ``simenv`` command line: ``info``, ``retarget``, ``render``, ``score``, ``export`` and
+``demo``.
 
 Every command that takes a motion file also takes a folder holding a two-person recording (one
 file per person, e.g. the CMU pairs), which loads as one interaction. User errors
@@ -322,6 +323,18 @@ def cmd_score(args: argparse.Namespace) -> int:
     return EXIT_USER_ERROR if any("error" in r for r in records) else 0
 
 
+def cmd_export(args: argparse.Namespace) -> int:
+    from simenv.export import export
+    from simenv.io.gltf import check_gltf
+
+    path = export(args.paths, args.to, scenario=args.scenario, stride=args.stride)
+    info = check_gltf(path)
+    print(f"wrote {path}: {info['meshes']} meshes, {info['vertices']} vertices"
+          + (f", animation of {info['frames']} frames ({info['duration_s']:.2f} s, "
+             f"{info['channels']} channels)" if info["animations"] else ", static"))
+    return 0
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from simenv.demo import run_demo
 
@@ -482,6 +495,20 @@ def build_parser() -> argparse.ArgumentParser:
         "read BVH files with the thorax and wrist bones that the CMU conversions collapse "
         "put back (reader's repair; listed in each record's repairs); default: as written"))
     sco.set_defaults(func=cmd_score)
+
+    exp = sub.add_parser("export", help="export a motion or a room to glTF/GLB", description=(
+        "Write a 3D file any viewer opens (glTF 2.0: .glb binary or .gltf): a motion file "
+        "retargeted onto fitted humanoids, animated at its frame rate; a room scenario "
+        "(bundled name or TOML, user furniture meshes included); or, with --scenario, the "
+        "room with the motion played by its user."))
+    exp.add_argument("paths", nargs="*", metavar="FILE|FOLDER", help=path_help
+                     + "; or a scenario .toml")
+    exp.add_argument("--to", required=True, metavar="OUT.glb", help="output .glb or .gltf")
+    exp.add_argument("--scenario", metavar="NAME|FILE",
+                     help="export this room (bundled name or TOML); with FILE, as its user")
+    exp.add_argument("--stride", type=_positive_int, default=1,
+                     help="keep every S-th frame of the animation (default 1)")
+    exp.set_defaults(func=cmd_export)
 
     demo = sub.add_parser("demo", help="the main job on bundled real CMU data", description=(
         "Retarget the bundled CMU walk (02_01) and two-person handshake (18_01 + 19_01), write "
