@@ -2,7 +2,9 @@
 
 Built in code with :class:`mujoco.MjSpec` from a :class:`~simenv.scenario.Scenario`:
 floor, four walls (cut around the window and the door), a desk with keyboard, laptop,
-notebook and an ashtray, the agent's chair, and the interactive objects below. Each object
+notebook and an ashtray, the agent's chair, the scenario's own furniture meshes
+(:func:`simenv.furniture.add_furniture`: static, colliding with the agent like the rest of the
+furniture), and the interactive objects below. Each object
 is a body on one joint; its *state* is that joint's position, so an object changes state only
 when something in the simulation moves it (a hand's contact, a grasp constraint, a force):
 
@@ -65,6 +67,7 @@ import mujoco
 import numpy as np
 
 from simenv.errors import ScenarioError, SimenvError
+from simenv.furniture import add_furniture
 from simenv.humanoid import (
     BONES,
     DEFAULT,
@@ -289,6 +292,9 @@ class Room:
         self._build_walls(spec)
         self._build_desk(spec)
         self._build_hifi(spec)
+        for item in s.furniture:
+            add_furniture(spec, item, contype=_STATIC, conaffinity=_AFFINITY[_STATIC],
+                          source=s.source)
         self._build_cameras(spec)
         _add_person(spec, self.agent.dims, "agent/", pos=(0.0, 0.0, 0.0))
         for g in spec.geoms:

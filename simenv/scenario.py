@@ -9,6 +9,12 @@ tables or keys (typos), missing keys, wrong types, values outside their range, f
 outside the room and overlapping wall openings are each a :class:`~simenv.errors.ScenarioError`
 naming the file and the dotted field (``window.offset``).
 
+Optional ``[[furniture]]`` tables add user-supplied meshes (OBJ, STL, glTF/GLB, ...) to the
+room (:class:`FurnitureMesh`; reading, placement and collision geometry in
+:mod:`simenv.furniture`); each file is read while the scenario loads, so a missing or
+unreadable file, an empty mesh or one in the wrong units (larger than 10 m) is a
+:class:`~simenv.errors.ScenarioError` naming ``furniture[i].mesh``.
+
 Conventions: metres and degrees in the file (radians inside simenv). The room is centred on
 the origin, x east, y north, z up, floor at z = 0. A wall-mounted object's ``offset`` is
 measured from the wall's centre, positive to the right as seen from inside the room facing
@@ -176,6 +182,40 @@ class UserLayout:
 
 
 @dataclass(frozen=True)
+class FurnitureMesh:
+    """``[[furniture]]``: a user-supplied mesh placed in the room (:mod:`simenv.furniture`).
+
+    Attributes:
+        name: unique name; the MuJoCo body is ``furniture/<name>``.
+        mesh: the mesh file (a path in the TOML is relative to the TOML's folder).
+        position: floor position (x, y) of the centre of its footprint, m.
+        yaw_deg: turn about the vertical from the file's orientation, degrees.
+        elevation: height of its lowest point above the floor, m.
+        scale: file units -> metres (0.001 for a file in millimetres).
+        up: the file's up axis, ``"y"`` (default for glTF/GLB and OBJ) or ``"z"`` (STL).
+        collision: ``parts`` / ``voxels`` / ``hull`` / ``none``
+            (:data:`simenv.furniture.COLLISIONS`).
+        voxel: voxel size for ``collision = "voxels"``, m.
+        rgba: colour (0-1), or None for the file's own (else a wood brown).
+        size: measured bounding box (x, y, z) in the room, m, before ``yaw_deg``.
+        field: the table's name in errors (``furniture[0]``).
+    """
+
+    name: str
+    mesh: Path
+    position: tuple[float, float]
+    yaw_deg: float
+    elevation: float
+    scale: float
+    up: str
+    collision: str
+    voxel: float
+    rgba: tuple[float, float, float, float] | None
+    size: tuple[float, float, float]
+    field: str
+
+
+@dataclass(frozen=True)
 class Behaviour:
     """``[behaviour]``: the gesture labels the scenario understands, the reaction to each
     listed label, and the reaction (``otherwise``) to every other label."""
@@ -213,6 +253,7 @@ class Scenario:
     agent: AgentLayout
     user: UserLayout
     behaviour: Behaviour
+    furniture: tuple[FurnitureMesh, ...] = ()
 
 
 # ---------------------------------------------------------------------------
@@ -280,6 +321,10 @@ class _Table:
         if not isinstance(v, bool):
             self.fail(self._field(key), f"expected true or false, got {v!r}")
         return v
+
+    def has(self, key: str) -> bool:
+        """Whether optional ``key`` is present (then read it with a typed getter)."""
+        return key in self.raw
 
     def table(self, key: str) -> _Table:
         return _Table(self._get(key), self._field(key), self.source)
@@ -368,10 +413,11 @@ def parse_scenario(raw: Mapping[str, Any], source: str = "<scenario>") -> Scenar
                       t.string("appearance", ("solid", "ghost")))
     t.done()
     behaviour = _behaviour(top.table("behaviour"))
+    furniture = _furniture(top) if top.has("furniture") else ()
     top.done()
 
     scenario = Scenario(name, description, source, room, desk, window, curtain, hifi,
-                        cigarette, door, agent, user, behaviour)
+                        cigarette, door, agent, user, behaviour, furniture)
     _check_layout(scenario)
     return scenario
 
@@ -401,6 +447,57 @@ def _behaviour(t: _Table) -> Behaviour:
     return Behaviour(vocabulary, reactions, otherwise)
 
 
+#: Mesh suffixes whose files are Y-up by default (glTF's convention; most OBJ exporters).
+_Y_UP_SUFFIXES = (".glb", ".gltf", ".obj")
+
+
+def _furniture(top: _Table) -> tuple[FurnitureMesh, ...]:
+    """The ``[[furniture]]`` array: each table's fields, its mesh read and measured."""
+    from simenv.furniture import COLLISIONS, read_mesh
+
+    items = top._get("furniture")
+    if not isinstance(items, list):
+        top.fail("furniture", "expected [[furniture]] tables (an array of tables), got "
+                 f"{type(items).__name__}")
+    base = Path(top.source).parent if Path(top.source).is_file() else Path.cwd()
+    out: list[FurnitureMesh] = []
+    for i, raw in enumerate(items):
+        t = _Table(raw, f"furniture[{i}]", top.source)
+        name = t.string("name") if t.has("name") else f"item{i}"
+        if not name or any(c in name for c in "/ "):
+            t.fail(f"{t.name}.name", f"{name!r}: expected a name without spaces or '/'")
+        if name in [f.name for f in out]:
+            t.fail(f"{t.name}.name", f"duplicate furniture name {name!r}")
+        mesh = Path(t.string("mesh")).expanduser()
+        mesh = mesh if mesh.is_absolute() else base / mesh
+        position = t.pair("position")
+        yaw = t.number("yaw_deg", -360, 360) if t.has("yaw_deg") else 0.0
+        elevation = t.number("elevation", 0.0, 3.0) if t.has("elevation") else 0.0
+        scale = t.number("scale", 1e-6, 1e3) if t.has("scale") else 1.0
+        up = t.string("up", ("y", "z")) if t.has("up") else (
+            "y" if mesh.suffix.lower() in _Y_UP_SUFFIXES else "z")
+        collision = t.string("collision", COLLISIONS) if t.has("collision") else "parts"
+        voxel = t.number("voxel", 0.005, 0.5) if t.has("voxel") else 0.03
+        rgba = None
+        if t.has("rgba"):
+            v = t._get("rgba")
+            if not (isinstance(v, list) and len(v) == 4 and all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) and 0 <= x <= 1
+                    for x in v)):
+                t.fail(f"{t.name}.rgba", f"expected four numbers in [0, 1], got {v!r}")
+            rgba = tuple(float(x) for x in v)
+        t.done()
+        whole, _, _ = read_mesh(mesh, scale=scale, up=up, field=f"{t.name}.mesh",
+                                source=top.source)
+        size = tuple(float(e) for e in whole.extents)
+        if elevation + size[2] > 3.0:
+            t.fail(f"{t.name}.elevation", f"the mesh reaches {elevation + size[2]:.2f} m "
+                   "above the floor")
+        out.append(FurnitureMesh(name, mesh, position, yaw, elevation, scale, up, collision,
+                                 voxel, rgba, size, t.name))
+    return tuple(out)
+
+
 def _check_layout(s: Scenario) -> None:
     """Furniture inside the room, openings within their walls and not overlapping."""
     half = (s.room.size[0] / 2, s.room.size[1] / 2)
@@ -428,6 +525,15 @@ def _check_layout(s: Scenario) -> None:
             fail("user.position", f"{list(s.user.position)} puts the user inside the {name} "
                  f"(keep {USER_CLEARANCE} m clear of its {2 * hx:.2f} x {2 * hy:.2f} m "
                  "footprint)")
+    for f in s.furniture:
+        corners = _rectangle(f.position, f.yaw_deg, (0.0, 0.0), (f.size[0] / 2, f.size[1] / 2))
+        if (np.abs(corners) > np.array(s.room.size) / 2).any():
+            fail(f"{f.field}.position", f"{list(f.position)} (yaw {f.yaw_deg} deg) puts the "
+                 f"{f.size[0]:.2f} x {f.size[1]:.2f} m mesh {f.mesh.name} through a wall")
+        if _overlap(corners, _rectangle(s.user.position, 0.0, (0.0, 0.0),
+                                        (USER_CLEARANCE, USER_CLEARANCE))):
+            fail("user.position", f"{list(s.user.position)} puts the user inside furniture "
+                 f"{f.name!r} (keep {USER_CLEARANCE} m clear of its footprint)")
     hifi = _rectangle(s.hifi.position, s.hifi.yaw_deg, (0.0, 0.0), HIFI_FOOTPRINT)
     for name, (centre, half) in (("desk", DESK_TOP), ("chair", CHAIR)):
         if _overlap(hifi, _rectangle(s.desk.position, s.desk.yaw_deg, centre, half)):
@@ -485,5 +591,5 @@ def wall_length(room: RoomLayout, wall: str) -> float:
     return room.size[0] if wall in ("north", "south") else room.size[1]
 
 
-__all__ = ["REACTIONS", "WALLS", "Behaviour", "Reaction", "Scenario", "list_scenarios",
-           "load_scenario", "parse_scenario", "scenario_path", "wall_length"]
+__all__ = ["REACTIONS", "WALLS", "Behaviour", "FurnitureMesh", "Reaction", "Scenario",
+           "list_scenarios", "load_scenario", "parse_scenario", "scenario_path", "wall_length"]
