@@ -15,12 +15,14 @@ rigid ones: the hips live on the pelvis, the neck on the chest.
 
 Joints are hinges (triplets where the anatomy has three degrees of freedom, so
 every degree of freedom gets its own box limit and its own position actuator).
-Limits are the normal active ranges of motion of the AAOS (American Academy of
-Orthopaedic Surgeons, *Joint Motion: Method of Measuring and Recording*, 1965)
-with margins of 5-20 degrees for the looser joint centres of motion capture;
-the spine's total range is split over three joints. Signs are mirrored between
-the sides so that a positive angle means the same anatomical motion on the left
-and on the right. See :data:`JOINTS` for the table.
+Limits follow one rule: the largest value a named normative study reports for
+healthy people (aged 2 and over; dancers included where a study measured them)
+plus :data:`ROM_SPREAD_DEG` for the population's spread; ends no study gives
+(the spine's split over three joints, the upper arm's Euler angles, the foot's
+toe-out) are stated assumptions. :data:`RANGE_SOURCES` gives each end's motion,
+value and reference (:data:`ROM_REFERENCES`); ``docs/plausibility.md`` tabulates
+them. Signs are mirrored between the sides so that a positive angle means the
+same anatomical motion on the left and on the right. See :data:`JOINTS`.
 
 Masses come from the geoms at body density (:data:`BODY_DENSITY`); the default
 adult (1.75 m) weighs about 72 kg (see :attr:`Humanoid.total_mass`).
@@ -31,6 +33,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -68,13 +71,73 @@ class JointSpec:
     mirror: bool = True
 
 
+#: Population spread added to the largest published value of a motion, degrees:
+#: about two standard deviations of goniometric range-of-motion measures (an
+#: assumption: the tables quoted in :data:`RANGE_SOURCES` give means, not their
+#: spread). Motion capture's own joint-centre error is not in the table; it is
+#: the tolerance of the joint-limit metric
+#: (:attr:`simenv.plausibility.body_thresholds.BodyThresholds.joint_limit_max_deg`).
+ROM_SPREAD_DEG = 10.0
+
+#: Full references of the range table (keys of :class:`RangeEnd.source`).
+ROM_REFERENCES: dict[str, str] = {
+    "NW-A1": "Norkin CC, White DJ. Measurement of Joint Motion: A Guide to Goniometry "
+             "(F.A. Davis), Appendix A, Table A.1 'Shoulder, Elbow, Forearm, and Wrist "
+             "Motion: Mean Values in Degrees': means of Boone & Azen 1979 (1-54 y, 109 M), "
+             "Greene & Wolf (18-55 y, 10 M 10 F), Walker et al. (65-85 y), Macedo & Magee "
+             "(18-59 y, 90 F), AAOS and AMA; universal goniometer",
+    "Soucie": "Soucie JM et al. Range of motion measurements: reference values and a "
+              "database for comparison studies. Haemophilia 2011;17(3):500-507 (674 "
+              "healthy subjects 2-69 y, passive ROM, goniometer); reference values as "
+              "published by the CDC, archive.cdc.gov/www_cdc_gov/ncbddd/jointrom",
+    "Merck": "The Merck Manual (professional edition, Merck Sharp & Dohme 2010-2013), "
+             "Table 'Normal Values for Range of Motion of Joints' (ranges for people of "
+             "all ages)",
+    "Bennell": "Bennell K et al., ballet dancers and controls, Br J Sports Med, Table 3 "
+               "'Baseline and final measurements of range of motion ... mean (SD)' "
+               "(bjsm.bmj.com/highwire/markup/79235)",
+    "Rabin": "Rabin A, Kozol Z. J Am Podiatr Med Assoc 2012;102(5):406-411 "
+             "(weight-bearing lunge test: the tibia 30-45 deg over the foot)",
+    "AAOS": "American Academy of Orthopaedic Surgeons, Joint Motion: Method of Measuring "
+            "and Recording, 1965 (the figures of this table's previous version)",
+    "model": "no published counterpart: a range of this model's own angle (the spine "
+             "split over three joints, the upper arm's Euler angles measured from the "
+             "A-pose, the foot's toe-out) -- an assumption, sized on the real CMU clips",
+}
+
+
+class RangeEnd(NamedTuple):
+    """Where one end of a hinge's range comes from.
+
+    Attributes:
+        motion: the anatomical motion at that end (e.g. ``"extension"``).
+        published_deg: the largest value the cited healthy-population study
+            reports for it (a group mean, or the upper end of a quoted normal
+            range), degrees; None when the end is an assumption (``source``
+            ``"model"``, or a figure no normative study gives).
+        source: key of :data:`ROM_REFERENCES`, plus the group the value is from.
+    """
+
+    motion: str
+    published_deg: float | None
+    source: str
+
+
 #: Joint table per body (left side; right side mirrored: x and z axis
 #: components negated so positive angles keep their anatomical meaning).
-#: Gains: kp in N m/rad, kv = 0.1 * kp (N m s/rad). kp grows with the mass the
+#: Ranges follow one rule (:data:`RANGE_SOURCES` gives each end's motion,
+#: value and source): the largest value a cited study reports for healthy
+#: people aged 2 and over (children are the most mobile group of Soucie et al.;
+#: infants are left out), plus :data:`ROM_SPREAD_DEG`. Ends with no such
+#: value are assumptions, said so in the source. Gains (not calibrated here):
+#: kp in N m/rad, kv = 0.1 * kp (N m s/rad). kp grows with the mass the
 #: joint carries; 0.1 s time constant keeps PD tracking critically damped-ish.
 JOINTS: dict[str, tuple[JointSpec, ...]] = {
-    # Thoraco-lumbar spine (AAOS: flexion 80, extension 25, lateral 35, rotation 45)
-    # split over lumbar / thorax / chest with margins.
+    # Thoraco-lumbar spine split over lumbar / thorax / chest: no normative
+    # study gives per-segment ranges of a keypoint spine (whose segments also
+    # carry the pelvis tilt and marker errors the goniometer's single spine
+    # does not); kept as sized on the CMU clips (totals flexion 145, extension
+    # 90, lateral 80, rotation 95 against AAOS 80 / 25 / 35 / 45).
     "lumbar": (
         JointSpec("flex", (0, 1, 0), (-30, 60), 600),
         JointSpec("lat", (1, 0, 0), (-30, 30), 600),
@@ -92,64 +155,120 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     ),
     # Cervical spine + head (AAOS: flexion 45, extension 45, lateral 45, rotation 60).
     "neck": (
-        JointSpec("flex", (0, 1, 0), (-60, 60), 80),
-        JointSpec("lat", (1, 0, 0), (-45, 45), 80),
-        JointSpec("rot", (0, 0, 1), (-80, 80), 60),
+        JointSpec("flex", (0, 1, 0), (-55, 55), 80),
+        JointSpec("lat", (1, 0, 0), (-55, 55), 80),
+        JointSpec("rot", (0, 0, 1), (-70, 70), 60),
     ),
-    # Shoulder girdle: elevation 45 / depression 15, protraction/retraction ~30.
+    # Shoulder girdle (AAOS: elevation 45, depression 15, protraction and
+    # retraction 30).
     "clavicle": (
-        JointSpec("protract", (0, 0, -1), (-35, 35), 200),
-        JointSpec("elevate", (1, 0, 0), (-20, 45), 200),
+        JointSpec("protract", (0, 0, -1), (-40, 40), 200),
+        JointSpec("elevate", (1, 0, 0), (-25, 55), 200),
     ),
-    # Glenohumeral (AAOS: flexion 180, extension 60, abduction 180, adduction
-    # ~45 across the body, internal rotation 70, external rotation 90). The
-    # third Euler angle is axial rotation only near neutral elevation; with the
-    # arm raised it absorbs the Codman coupling, hence its wider range. Angles
-    # are measured from the A-pose of :data:`ARM_TILT` (abduction -50..185 deg
-    # from the hanging arm becomes -84..151); flexion in the tilted plane
-    # reaches -90 (extension with the arm abducted, seen in CMU dance clips).
+    # Glenohumeral, as Euler angles of this model (Table A.1's largest adult
+    # means: flexion 188, extension 70, abduction 188, medial rotation 94,
+    # lateral rotation 108, Macedo & Magee). The third angle is axial rotation
+    # only near neutral elevation; with the arm raised it absorbs the Codman
+    # coupling, hence its wider (model) range. Angles are measured from the
+    # A-pose of :data:`ARM_TILT`: abduction -50..198 deg from the hanging arm
+    # becomes -84..164; flexion in the tilted plane reaches -90 (extension with
+    # the arm abducted, seen in CMU dance clips; a model range).
     "upper_arm": (
-        JointSpec("flex", (0, -1, 0), (-90, 185), 200),
-        JointSpec("abd", (1, 0, 0), (-84, 151), 200),
+        JointSpec("flex", (0, -1, 0), (-90, 198), 200),
+        JointSpec("abd", (1, 0, 0), (-84, 164), 200),
         JointSpec("rot", (0, 0, -1), (-150, 150), 100),
     ),
-    # Elbow 0..150 flexion; forearm pronation 80 / supination 80.
+    # Elbow flexion / hyperextension; forearm pronation > 0, supination < 0.
     "forearm": (
-        JointSpec("flex", (0, -1, 0), (0, 150), 120),
-        JointSpec("pronate", (0, 0, -1), (-90, 90), 40),
+        JointSpec("flex", (0, -1, 0), (-12, 159), 120),
+        JointSpec("pronate", (0, 0, -1), (-106, 102), 40),
     ),
-    # Wrist (palm facing the thigh at rest): flexion 80 / extension 70,
-    # radial 20 / ulnar 30 deviation.
+    # Wrist (palm facing the thigh at rest): extension > 0, palmar flexion < 0;
+    # ulnar deviation > 0, radial < 0.
     "hand": (
-        JointSpec("flex", (1, 0, 0), (-80, 85), 30),
-        JointSpec("dev", (0, 1, 0), (-35, 35), 30),
+        JointSpec("flex", (1, 0, 0), (-103, 96), 30),
+        JointSpec("dev", (0, 1, 0), (-35, 51), 30),
     ),
-    # Hip (AAOS: flexion 120, extension 30, abduction 45, adduction 30,
-    # internal 45, external 45).
+    # Hip: flexion > 0; abduction > 0; internal rotation > 0.
     "thigh": (
-        JointSpec("flex", (0, -1, 0), (-35, 130), 600),
-        JointSpec("abd", (1, 0, 0), (-35, 55), 600),
-        JointSpec("rot", (0, 0, -1), (-55, 50), 300),
+        JointSpec("flex", (0, -1, 0), (-38, 151), 600),
+        JointSpec("abd", (1, 0, 0), (-55, 55), 600),
+        JointSpec("rot", (0, 0, -1), (-57, 55), 300),
     ),
-    # Knee 0..150 flexion (AAOS 135; 150 in deep squats).
-    "shin": (JointSpec("flex", (0, 1, 0), (0, 150), 500),),
-    # Ankle (AAOS: dorsiflexion 20, plantarflexion 50) + subtalar inversion 35 /
-    # eversion 15 + toe-out (tibial torsion, foot abduction) about the shin.
-    # flex > 0 is plantarflexion (toe down about +y; 0 = shin perpendicular to
-    # the flat sole, the toe keypoint the fitted drop below the ankle).
-    # Dorsiflexion is the weight-bearing range, not AAOS's passive one: under
-    # body weight with the knee bent (squats, landings, lunges) the ankle
-    # dorsiflexes about twice as far (Rabin & Kozol, J Am Podiatr Med Assoc
-    # 2012, 102(5):406-411; weight-bearing lunge test: tibia 30-45 deg over
-    # the foot), so 40 + 5 margin. Measured: real CMU jump, squat and dance
-    # clips demand 40-55 deg (joint_limits, simenv.plausibility.body_thresholds).
+    # Knee flexion > 0, hyperextension < 0.
+    "shin": (JointSpec("flex", (0, 1, 0), (-15, 163), 500),),
+    # Ankle + subtalar inversion / eversion + toe-out (tibial torsion, foot
+    # abduction) about the shin. flex > 0 is plantarflexion (toe down about +y;
+    # 0 = shin perpendicular to the flat sole, the toe keypoint the fitted drop
+    # below the ankle). Dorsiflexion is the weight-bearing range, not the
+    # passive one: under body weight with the knee bent (squats, landings,
+    # lunges) the tibia leans 30-45 deg over the foot (Rabin & Kozol).
     "foot": (
-        JointSpec("flex", (0, 1, 0), (-45, 60), 300),
-        JointSpec("inv", (1, 0, 0), (-30, 40), 150),
+        JointSpec("flex", (0, 1, 0), (-55, 60), 300),
+        JointSpec("inv", (1, 0, 0), (-35, 45), 150),
         JointSpec("abd", (0, 0, 1), (-35, 35), 100),
     ),
-    # Metatarsophalangeal: extension 70, flexion 40.
-    "toes": (JointSpec("ext", (0, -1, 0), (-40, 75), 40),),
+    # Metatarsophalangeal: extension > 0, flexion < 0.
+    "toes": (JointSpec("ext", (0, -1, 0), (-40, 90), 40),),
+}
+
+#: Per hinge (``"<body>_<hinge>"``, keys of :data:`JOINTS`), the motion, the
+#: published value and the source of its lower and upper range ends. Where
+#: ``published_deg`` is given, the range end is ``published_deg +``
+#: :data:`ROM_SPREAD_DEG` (signed: the lower end is its negative).
+RANGE_SOURCES: dict[str, tuple[RangeEnd, RangeEnd]] = {
+    "lumbar_flex": (RangeEnd("extension", None, "model"), RangeEnd("flexion", None, "model")),
+    "lumbar_lat": (RangeEnd("lateral flexion, right", None, "model"),
+                   RangeEnd("lateral flexion, left", None, "model")),
+    "lumbar_rot": (RangeEnd("rotation, right", None, "model"),
+                   RangeEnd("rotation, left", None, "model")),
+    "thorax_flex": (RangeEnd("extension", None, "model"), RangeEnd("flexion", None, "model")),
+    "thorax_lat": (RangeEnd("lateral flexion, right", None, "model"),
+                   RangeEnd("lateral flexion, left", None, "model")),
+    "thorax_rot": (RangeEnd("rotation, right", None, "model"),
+                   RangeEnd("rotation, left", None, "model")),
+    "chest_flex": (RangeEnd("extension", None, "model"), RangeEnd("flexion", None, "model")),
+    "chest_lat": (RangeEnd("lateral flexion, right", None, "model"),
+                  RangeEnd("lateral flexion, left", None, "model")),
+    "chest_rot": (RangeEnd("rotation, right", None, "model"),
+                  RangeEnd("rotation, left", None, "model")),
+    "neck_flex": (RangeEnd("extension", 45.0, "AAOS"), RangeEnd("flexion", 45.0, "AAOS")),
+    "neck_lat": (RangeEnd("lateral flexion, right", 45.0, "AAOS"),
+                 RangeEnd("lateral flexion, left", 45.0, "AAOS")),
+    "neck_rot": (RangeEnd("rotation, right", 60.0, "AAOS"),
+                 RangeEnd("rotation, left", 60.0, "AAOS")),
+    "clavicle_protract": (RangeEnd("retraction", 30.0, "AAOS"),
+                          RangeEnd("protraction", 30.0, "AAOS")),
+    "clavicle_elevate": (RangeEnd("depression", 15.0, "AAOS"),
+                         RangeEnd("elevation", 45.0, "AAOS")),
+    "upper_arm_flex": (RangeEnd("extension in the A-pose plane", None, "model"),
+                       RangeEnd("flexion", 188.0, "NW-A1, Macedo & Magee (women 18-59 y)")),
+    "upper_arm_abd": (RangeEnd("adduction across the body", None, "model"),
+                      RangeEnd("abduction, less the A-pose tilt of 34", 154.0,
+                               "NW-A1, Macedo & Magee (women 18-59 y): 188 - 34")),
+    "upper_arm_rot": (RangeEnd("lateral rotation with Codman coupling", None, "model"),
+                      RangeEnd("medial rotation with Codman coupling", None, "model")),
+    "forearm_flex": (RangeEnd("hyperextension", 2.0, "NW-A1, Macedo & Magee (women 18-59 y)"),
+                     RangeEnd("flexion", 149.0, "NW-A1, Macedo & Magee (women 18-59 y)")),
+    "forearm_pronate": (RangeEnd("supination", 96.0, "NW-A1, Macedo & Magee (women 18-59 y)"),
+                        RangeEnd("pronation", 92.0, "NW-A1, Macedo & Magee (women 18-59 y)")),
+    "hand_flex": (RangeEnd("palmar flexion", 93.0, "NW-A1, Macedo & Magee (women 18-59 y)"),
+                  RangeEnd("extension", 86.0, "NW-A1, Macedo & Magee (women 18-59 y)")),
+    "hand_dev": (RangeEnd("radial deviation", 25.0, "NW-A1, Greene & Wolf (18-55 y)"),
+                 RangeEnd("ulnar deviation", 41.0, "NW-A1, Macedo & Magee (women 18-59 y)")),
+    "thigh_flex": (RangeEnd("extension", 28.3, "Soucie, boys 2-8 y"),
+                   RangeEnd("flexion", 140.8, "Soucie, girls 2-8 y")),
+    "thigh_abd": (RangeEnd("adduction", 45.0, "Merck"), RangeEnd("abduction", 45.0, "Merck")),
+    "thigh_rot": (RangeEnd("external rotation", 47.2,
+                           "Bennell, ballet dancers (final, supine, mean)"),
+                  RangeEnd("internal rotation", 45.0, "Merck")),
+    "shin_flex": (RangeEnd("hyperextension", 5.4, "Soucie, girls 2-8 y"),
+                  RangeEnd("flexion", 152.6, "Soucie, girls 2-8 y")),
+    "foot_flex": (RangeEnd("dorsiflexion, weight-bearing", 45.0, "Rabin (upper end)"),
+                  RangeEnd("plantarflexion", 50.0, "Merck")),
+    "foot_inv": (RangeEnd("eversion", 25.0, "Merck"), RangeEnd("inversion", 35.0, "Merck")),
+    "foot_abd": (RangeEnd("toe-in", None, "model"), RangeEnd("toe-out", None, "model")),
+    "toes_ext": (RangeEnd("flexion", 30.0, "Merck"), RangeEnd("extension", 80.0, "Merck")),
 }
 
 

@@ -97,11 +97,13 @@ def test_clamp_cost_of_a_knee_bent_backwards() -> None:
     h = Humanoid()
     q = h.default_qpos()
     knee = h.joint_names.index("left_shin_flex")
-    q[h.hinge_qpos[knee]] = np.deg2rad(-30.0)  # 30 deg of hyperextension
+    # 30 deg beyond the knee's hyperextension limit (humanoid.RANGE_SOURCES).
+    q[h.hinge_qpos[knee]] = h.joint_limits[knee, 0] - np.deg2rad(30.0)
     targets = h.keypoints(q)[None]
     cand = np.array([[0, knee], [0, h.joint_names.index("left_toes_ext")]])
     cost = joint_limit_clamp_cost(h, q[None], targets, h.keypoint_names, cand)
-    # Clamping the knee to 0 moves the ankle by 2 * shin * sin(15 deg) (more for the toe).
+    # Clamping the knee to its limit moves the ankle by 2 * shin * sin(15 deg) (more for
+    # the toe).
     assert cost[0] > 2 * h.dims.left_shin * np.sin(np.deg2rad(15.0)) - 1e-6
     assert cost[1] == 0.0  # the toes move no keypoint
 
@@ -156,7 +158,7 @@ def test_retarget_result_counts_every_frame(walk: Motion) -> None:
     assert joint_limits(fit).value == 0.0  # the solver projects onto the limits
     h = fit.humanoid
     knee = h.joint_names.index("right_shin_flex")
-    fit.qpos[10:20, h.hinge_qpos[knee]] = np.deg2rad(-25.0)
+    fit.qpos[10:20, h.hinge_qpos[knee]] = h.joint_limits[knee, 0] - np.deg2rad(25.0)
     r = joint_limits(fit)
     assert r.value == pytest.approx(25.0) and _worst(r) == "right_shin_flex"
 
@@ -189,7 +191,8 @@ def test_least_excess_resplits_a_foot_but_not_a_knee(shared_data: Path, walk: Mo
     knee = body.joint_names.index("left_shin_flex")
     wfit = retarget(walk.slice(0, 60))
     q = wfit.qpos.copy()
-    q[10:20, wfit.humanoid.hinge_qpos[knee]] = np.deg2rad(-40.0)
+    q[10:20, wfit.humanoid.hinge_qpos[knee]] = (wfit.humanoid.joint_limits[knee, 0]
+                                                - np.deg2rad(40.0))
     targets = wfit.humanoid.keypoints(q)
     flagged = np.zeros((10, len(body.joint_names)), dtype=bool)
     flagged[:, knee] = True
