@@ -301,6 +301,15 @@ def cmd_score(args: argparse.Namespace) -> int:
         report_dir.mkdir(parents=True, exist_ok=True)
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
                    else str(report_dir), restore_collapsed_bones=args.restore_collapsed_bones)
+    progress = sys.stderr.isatty() or args.progress
+    if args.reference:
+        from simenv.scoring import calibrate_reference
+
+        reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,
+                                        backend=args.backend, ray_address=args.ray_address,
+                                        progress=progress)
+        job = dataclasses.replace(job, reference=reference)
+
     def show(_target: Path, records: list[dict[str, Any]]) -> None:
         for rec in records:
             if args.json:
@@ -310,17 +319,53 @@ def cmd_score(args: argparse.Namespace) -> int:
 
     records = score_batch(targets, job, jobs=args.jobs, backend=args.backend,
                           ray_address=args.ray_address, out=args.out,
-                          progress=sys.stderr.isatty() or args.progress, on_result=show)
+                          progress=progress, on_result=show)
     if report_dir is not None:
         from simenv.plausibility.html_report import write_index
 
         index = write_index(index_entries(records), report_dir)
         if not args.json:
             print(f"wrote {index}")
+    if job.reference is not None:
+        _reference_summary(args, job.reference, records, report_dir)
     if args.out and not args.json:
         print(f"results in {args.out}")
     # Every file was attempted and recorded; the status still says some input was bad.
     return EXIT_USER_ERROR if any("error" in r for r in records) else 0
+
+
+def _reference_summary(args: argparse.Namespace, reference: Any,
+                       records: list[dict[str, Any]], report_dir: Path | None) -> None:
+    """Compare the generated set with the reference; print (JSON: one
+    ``{"reference_summary": ...}`` line), write it next to ``--out`` and into
+    ``--report``."""
+    from simenv.plausibility.reference import compare, read_records, write_reference_page
+
+    # With --out, the set is every record of the results file (a rerun skips files already in it).
+    if args.out:
+        records = read_records(args.out)
+    summary = compare(reference, records)
+    if args.out:
+        Path(args.out).with_suffix(".reference.json").write_text(
+            json.dumps(summary, indent=1), encoding="utf-8")
+    if report_dir is not None:
+        page = write_reference_page(summary, records, report_dir)
+        if not args.json:
+            print(f"wrote {page}")
+    if args.json:
+        print(json.dumps({"reference_summary": summary}), flush=True)
+        return
+    o = summary["overall"]
+    print(f"reference: {summary['reference']['people']} real people; generated: "
+          f"{summary['generated']['people']}: {summary['verdict']} "
+          f"({100 * o['share_beyond_p99']:.1f} % beyond the real 99th percentile of the worst "
+          f"metric, expected {100 * o['expected_share_beyond_p99']:.1f} %; p = "
+          f"{o['p_value']:.3g})")
+    for name, m in summary["metrics"].items():
+        g = m.get("generated")
+        if g is not None:
+            print(f"  {name}: median percentile {g['median_percentile']:.1f}, "
+                  f"{100 * g['share_beyond_p99']:.1f} % beyond real p99 ({g['verdict']})")
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -336,9 +381,17 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from simenv.demo import run_demo
+    from simenv.demo import PAGE, check_page, run_demo
 
-    run_demo(Path(args.out), stride=args.stride)
+    if not args.check_only:
+        run_demo(Path(args.out), stride=args.stride)
+    if args.check or args.check_only:
+        result = check_page(Path(args.out) / PAGE)
+        print(f"checked {Path(args.out) / PAGE}: {result['links']} links resolve in "
+              f"{result['pages']} pages; screenshot {result['screenshot']} has "
+              f"{100 * result['content_fraction']:.0f} % content and shows "
+              f"{len(result['posters'])} video posters (match >= "
+              f"{min((p['match'] for p in result['posters']), default=1):.2f})")
     return 0
 
 
@@ -494,6 +547,12 @@ def build_parser() -> argparse.ArgumentParser:
     sco.add_argument("--restore-collapsed-bones", action="store_true", help=(
         "read BVH files with the thorax and wrist bones that the CMU conversions collapse "
         "put back (reader's repair; listed in each record's repairs); default: as written"))
+    sco.add_argument("--reference", nargs="+", action="extend", metavar="REAL_PATH", help=(
+        "judge the clips relative to real data of the same source: score these real files or "
+        "folders (or read their earlier --out .jsonl results), calibrate every metric on them "
+        "(percentiles) and report per clip and for the set where the scored clips fall "
+        "(records get 'reference'; a summary line, REPORT/reference.html and "
+        "OUT.reference.json). Put it after the scored PATHs"))
     sco.set_defaults(func=cmd_score)
 
     exp = sub.add_parser("export", help="export a motion or a room to glTF/GLB", description=(
@@ -512,10 +571,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser("demo", help="the main job on bundled real CMU data", description=(
         "Retarget the bundled CMU walk (02_01) and two-person handshake (18_01 + 19_01), write "
-        "videos, NPZ trajectories and a JSON summary into the output folder."))
+        "videos, NPZ trajectories, glTF files, plausibility reports, a room rehearsal and a "
+        "JSON summary into the output folder, and index.html, the page that shows them."))
     demo.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     demo.add_argument("--stride", type=_positive_int, default=None,
                       help="render every S-th frame (default: chosen to keep the demo short)")
+    demo.add_argument("--check", action="store_true", help=(
+        "then check the page: every link resolves, and a headless Chromium screenshot "
+        "(index.png) is not blank and shows every video's poster"))
+    demo.add_argument("--check-only", action="store_true",
+                      help="check the page of an earlier run in --out without running")
     demo.set_defaults(func=cmd_demo)
 
     for verb, func, text in (

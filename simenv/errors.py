@@ -86,3 +86,9 @@ class PhysicsError(SimenvError):
 class GeometryError(SimenvError):
     """An SRVF/hypersphere operation got arguments outside its domain: not on the
     sphere, not tangent, antipodal points, mismatched shapes, zero-length curves."""
+
+
+class ReferenceDataError(SimenvError):
+    """Scoring relative to real data cannot be done: an empty or too small
+    reference corpus, a metric without reference values, a generated clip at
+    a frame rate the reference does not have, a non-finite metric value."""

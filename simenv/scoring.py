@@ -29,6 +29,7 @@ from simenv.errors import SimenvError
 from simenv.motion import Interaction
 
 if TYPE_CHECKING:  # the scorer pulls in MuJoCo; workers import it when they score
+    from simenv.plausibility.reference import Reference
     from simenv.plausibility.report import ScoreConfig
 
 BACKENDS = ("local", "ray")
@@ -96,12 +97,16 @@ class ScoreJob:
             pairs) with the reader's repair of the CMU conversions' collapsed
             thorax and wrist bones (:func:`simenv.io.bvh.read`); other
             formats are read as they are, since only BVH conversions drop them.
+        reference: a real corpus calibrated by :func:`calibrate_reference`;
+            each record then also says where it falls in it (``reference``,
+            :meth:`~simenv.plausibility.reference.Reference.judge`).
     """
 
     physics: bool = True
     report_dir: str | None = None
     config: ScoreConfig | None = None
     restore_collapsed_bones: bool = False
+    reference: Reference | None = None
 
 
 def _read_options(target: Path, job: ScoreJob) -> dict[str, Any]:
@@ -129,10 +134,12 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
         :meth:`PlausibilityReport.to_records`), plus ``seconds``, ``repairs``
         (the reader's repairs, when it made any), and ``clip``
         (0, 1, ...) when the file holds several clips (e.g. an SBU file with
-        two segments, a gesture session); or, when the
-        input is bad (a :class:`SimenvError`), a single record
-        ``{"file", "error"}`` with the message, so one bad file never stops
-        a batch. Other exceptions are bugs and propagate.
+        two segments, a gesture session), and ``reference`` (where the person
+        falls in ``job.reference``) when a reference is given; or, when the
+        input is bad (a :class:`SimenvError`, e.g. a clip at another frame
+        rate than the reference), a single record ``{"file", "error"}`` with
+        the message, so one bad file never stops a batch. Other exceptions
+        are bugs and propagate.
     """
     from simenv.io.loader import load
     from simenv.plausibility.report import score
@@ -155,7 +162,9 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
             name = _report_name(target) + (f"__clip{i}" if len(reports) > 1 else "")
             page = write_report(report, Path(job.report_dir) / name)
             for rec in recs:
-                rec["report"] = str(page)
+                # Absolute: the index links it relative to its own folder, whatever the
+                # working directory (a relative report folder would otherwise be doubled).
+                rec["report"] = str(page.absolute())
         for rec in recs:
             rec["file"] = str(target)
             rec["seconds"] = round(report.seconds, 3)
@@ -164,6 +173,13 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
             if len(reports) > 1:
                 rec["clip"] = i
         records.extend(recs)
+    if job.reference is not None:
+        try:
+            for rec in records:
+                rec["reference"] = job.reference.judge(rec)
+        except SimenvError as exc:
+            return [{"file": str(target), "error": str(exc),
+                     "error_type": type(exc).__name__}]
     return records
 
 
@@ -290,5 +306,43 @@ def score_batch(
     return collected
 
 
-__all__ = ["BACKENDS", "ScoreJob", "done_files", "find_targets", "index_entries", "score_batch",
-           "score_target"]
+def calibrate_reference(paths: Sequence[str | Path], job: ScoreJob = ScoreJob(), *,
+                        exclude: Iterable[str | Path] = (), **batch: Any) -> Reference:
+    """Score a real corpus and calibrate every metric on it
+    (:func:`simenv.plausibility.reference.calibrate`).
+
+    Args:
+        paths: real motion files or folders (walked as :func:`find_targets`),
+            or ``.jsonl`` results files of an earlier ``simenv score --out``
+            run on them (read, not scored again).
+        job: how to score them (physics on or off: the same as the generated
+            set, so that the same metrics are calibrated); its report folder
+            and reference are not used.
+        exclude: the generated targets; none may also be in the reference.
+        **batch: :func:`score_batch` options (``jobs``, ``backend``, ``progress``...).
+
+    Raises:
+        ReferenceDataError: a generated target is also a reference file, or
+            the reference cannot calibrate (empty, too small, bad values).
+        SimenvError: a path does not exist.
+    """
+    from dataclasses import replace
+
+    from simenv.errors import ReferenceDataError
+    from simenv.plausibility.reference import calibrate, read_records
+
+    results = [Path(p) for p in paths if str(p).endswith(".jsonl") and Path(p).is_file()]
+    targets = find_targets([p for p in paths if Path(p) not in results])
+    generated = {Path(t).resolve() for t in exclude}
+    for t in targets:
+        if t.resolve() in generated:
+            raise ReferenceDataError("is both a reference (real) and a generated clip: a clip "
+                                     "cannot be judged against itself", source=t)
+    records = [rec for r in results for rec in read_records(r)]
+    if targets:
+        records += score_batch(targets, replace(job, report_dir=None, reference=None), **batch)
+    return calibrate(records)
+
+
+__all__ = ["BACKENDS", "ScoreJob", "calibrate_reference", "done_files", "find_targets",
+           "index_entries", "score_batch", "score_target"]
