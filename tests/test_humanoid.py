@@ -10,6 +10,9 @@ from simenv.errors import RetargetError
 from simenv.humanoid import (
     BONES,
     JOINTS,
+    RANGE_SOURCES,
+    ROM_REFERENCES,
+    ROM_SPREAD_DEG,
     SHOD_TOE_ALLOWANCE,
     BodyDimensions,
     Humanoid,
@@ -82,6 +85,32 @@ def test_joint_limits_and_actuators(adult: Humanoid) -> None:
         assert kp > 0 and kv > 0
         np.testing.assert_allclose(m.actuator_ctrlrange[a], adult.joint_limits[a])
     assert (m.dof_armature[6:] > 0).all() and (m.dof_damping[6:] > 0).all()
+
+
+def test_range_table_is_sourced(adult: Humanoid) -> None:
+    """Every hinge's two range ends name a motion and a reference; a published end
+    is that value plus the population spread (rounded to the degree), and the
+    rest pose (all zeros) lies inside every range."""
+    hinges = {f"{part}_{js.name}": js.range_deg for part, specs in JOINTS.items()
+              for js in specs}
+    assert set(RANGE_SOURCES) == set(hinges)
+    published = 0
+    for name, (lo, hi) in hinges.items():
+        assert lo < 0.0 < hi, name
+        for end, value, sign in zip(RANGE_SOURCES[name], (lo, hi), (-1.0, 1.0), strict=True):
+            assert end.motion and end.source.split(",")[0].split(" ")[0] in ROM_REFERENCES, end
+            if end.published_deg is None:
+                assert end.source == "model" or end.source in ROM_REFERENCES, (name, end)
+                continue
+            published += 1
+            assert abs(value - sign * (end.published_deg + ROM_SPREAD_DEG)) <= 0.5, (name, end)
+    # Most ends are published values; the model's own angles are the exceptions.
+    assert published >= 30
+    # Both sides of the built body carry the table's ranges.
+    lim = dict(zip(adult.joint_names, np.degrees(adult.joint_limits), strict=True))
+    for side in ("left", "right"):
+        np.testing.assert_allclose(lim[f"{side}_thigh_flex"], hinges["thigh_flex"])
+        np.testing.assert_allclose(lim[f"{side}_hand_dev"], hinges["hand_dev"])
 
 
 def test_rest_pose_touches_only_the_floor(adult: Humanoid) -> None:

@@ -153,6 +153,25 @@ def test_elbow_hyperextended_is_caught(walk: Motion) -> None:
     assert _worst(r).split("_")[:2] in (["left", "forearm"], ["left", "upper"])
 
 
+def test_real_dance_within_ranges_and_a_bent_knee_is_not(shared_data: Path) -> None:
+    """The CMU Charleston (103_charleston1, ASF/AMC) demanded 3.1 degrees of
+    elbow flexion past the former 150 on frame 75; within the sourced ranges it
+    demands none. The same steps with a knee bent backwards are caught."""
+    dance = asf_amc.read(shared_data / "cmu" / "asf_amc" / "103_charleston1.amc")
+    dance = dance.to_canonical().slice(40, 160)
+    r = joint_limits(dance)
+    assert r.passed and r.value <= 1.0, r.to_dict()
+    names = list(dance.skeleton.joint_names)
+    flex = _angle(dance.positions.astype(np.float64), "right_hip", "right_knee",
+                  "right_ankle", names)
+    frames = np.flatnonzero(flex >= 30.0)
+    assert len(frames) >= 10, flex.max()
+    broken = _bend_backwards(dance, "right_hip", "right_knee", ("right_ankle", "right_toe"),
+                             frames, None)
+    b = joint_limits(broken)
+    assert not b.passed and b.value >= 2 * THR, b.to_dict()
+
+
 def test_retarget_result_counts_every_frame(walk: Motion) -> None:
     fit = retarget(walk.slice(0, 60))
     assert joint_limits(fit).value == 0.0  # the solver projects onto the limits
