@@ -77,8 +77,7 @@ import json
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -88,7 +87,7 @@ from tqdm import tqdm
 
 from simenv import interaction_data as idata
 from simenv.errors import MotionError, SimenvError
-from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-bigraphdiff-1"
 
@@ -371,7 +370,7 @@ def _mirror(x: np.ndarray) -> np.ndarray:
     return x[..., swap, :] * np.array([1.0, -1.0, 1.0], dtype=x.dtype)
 
 
-class BiGraphDiff:
+class BiGraphDiff(CheckpointMixin):
     """A trained BiGraphDiff: :meth:`sample` both people's windows from class labels.
 
     Attributes:
@@ -506,36 +505,21 @@ class BiGraphDiff:
 
     # -- checkpoints ------------------------------------------------------------------------
 
-    def save(self, path: str | Path, metadata: dict | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format, config
-        and metadata JSON, labels (JSON) and window, standardisation and the denoiser's
-        state dict."""
-        return save_checkpoint(
-            path, CHECKPOINT_FORMAT, asdict(self.config), {"denoiser": self.denoiser},
-            metadata=metadata, arrays={"labels": np.array(json.dumps(list(self.labels))),
-                                       "window": np.array(self.window),
-                                       "mean": self.mean, "std": self.std})
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"denoiser": self.denoiser}
+
+    def checkpoint_arrays(self) -> dict[str, np.ndarray]:
+        """Labels (JSON), window and the standardisation."""
+        return {"labels": np.array(json.dumps(list(self.labels))),
+                "window": np.array(self.window), "mean": self.mean, "std": self.std}
 
     @classmethod
-    def load(cls, path: str | Path) -> BiGraphDiff:
-        """Read a checkpoint written by :meth:`save` (its metadata in ``.metadata``).
-
-        Raises:
-            CheckpointError: missing or unreadable file, another format, or weights that
-                do not fit the config.
-        """
-        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
-        try:
-            model = cls(BiGraphDiffConfig(**ck.config),
-                        json.loads(str(ck.arrays["labels"])), ck.arrays["mean"],
-                        ck.arrays["std"], int(ck.arrays["window"]))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CheckpointError(f"BiGraphDiff checkpoint does not fit: {exc}",
-                                  source=ck.path) from None
-        ck.load_into({"denoiser": model.denoiser})
-        model.metadata = ck.metadata
-        model.denoiser.eval()
-        return model
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> BiGraphDiff:
+        a = checkpoint.arrays
+        return cls(BiGraphDiffConfig(**checkpoint.config), json.loads(str(a["labels"])),
+                   a["mean"], a["std"], int(a["window"]))
 
 
 # -- training ------------------------------------------------------------------------------

@@ -32,18 +32,17 @@ FID/FVD elsewhere) and ``logits = W_2 φ + b_2``.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
 
-from simenv.errors import FormatError, MotionError
+from simenv.errors import MotionError
+from simenv.models.checkpoint import Checkpoint, CheckpointError, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-gesture-classifier"
 CHECKPOINT_VERSION = 2
@@ -185,7 +184,7 @@ def _time_encoding(length: int, dim: int) -> torch.Tensor:
     return pe
 
 
-class GestureClassifier(nn.Module):
+class GestureClassifier(CheckpointMixin, nn.Module):
     """Transformer gesture classifier (math in the module docstring).
 
     ``forward(x, valid) -> logits`` with ``x`` (B, T, J, 3) normalised windows and
@@ -282,49 +281,21 @@ class GestureClassifier(nn.Module):
 
     # -- checkpoints --------------------------------------------------------------------
 
-    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (arrays only, no pickle): format tag, version,
-        config and ``metadata`` (JSON-like) as JSON strings, and the weights."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array(CHECKPOINT_FORMAT), "version": np.array(CHECKPOINT_VERSION),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "metadata": np.array(json.dumps(metadata or {})),
-        }
-        for key, value in self.state_dict().items():
-            arrays[f"weights.{key}"] = value.detach().cpu().numpy()
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"weights": self}
+
+    def checkpoint_arrays(self) -> dict[str, np.ndarray]:
+        return {"version": np.array(CHECKPOINT_VERSION)}
 
     @classmethod
-    def load(cls, path: str | Path) -> GestureClassifier:
-        """Model saved by :meth:`save` (in eval mode; ``model.metadata`` holds the
-        saved metadata). Raises :class:`FormatError` for a missing or foreign file."""
-        path = Path(path)
-        if not path.is_file():
-            raise FormatError("gesture classifier checkpoint not found", source=path)
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise FormatError(f"cannot read checkpoint ({type(exc).__name__}: {exc})",
-                              source=path) from None
-        with data:
-            if "format" not in data.files or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise FormatError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            version = int(data["version"]) if "version" in data.files else None
-            if version != CHECKPOINT_VERSION:
-                raise FormatError(f"checkpoint version {version!r}; this simenv reads "
-                                  f"version {CHECKPOINT_VERSION}", source=path,
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> GestureClassifier:
+        """Raises :class:`CheckpointError` (field ``version``) for another version."""
+        stored = checkpoint.arrays.get("version")
+        version = None if stored is None else int(stored)
+        if version != CHECKPOINT_VERSION:
+            raise CheckpointError(f"checkpoint version {version!r}; this simenv reads "
+                                  f"version {CHECKPOINT_VERSION}", source=checkpoint.path,
                                   field="version")
-            model = cls(ClassifierConfig(**json.loads(str(data["config"]))))
-            state = {k.removeprefix("weights."): torch.as_tensor(data[k])
-                     for k in data.files if k.startswith("weights.")}
-            try:
-                model.load_state_dict(state)
-            except RuntimeError as exc:
-                raise FormatError(f"weights do not fit the config: {exc}",
-                                  source=path) from None
-            model.metadata = json.loads(str(data["metadata"]))
-        return model.eval()
+        return cls(ClassifierConfig(**checkpoint.config))

@@ -24,7 +24,7 @@ from torch import nn
 from simenv.errors import MotionError
 from simenv.gestures import GESTURE15_JOINTS, mirror_windows
 from simenv.models.baselines import check_history
-from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.predictor_regression import dct_matrix
 
 __all__ = ["CHECKPOINT_FORMAT", "GesturePredictor", "GesturePredictorConfig", "ROOT_MODES",
@@ -188,7 +188,7 @@ class GestureDCTMLP(nn.Module):
 # -- predictor ------------------------------------------------------------------------
 
 
-class GesturePredictor:
+class GesturePredictor(CheckpointMixin):
     """DCT-residual MLP forecaster of world-frame ``gesture15`` skeletons.
 
     Math (one history ``x_1..x_H`` (H = 25), F = 50 future frames, J = 15, D = 3J = 45)
@@ -361,36 +361,23 @@ class GesturePredictor:
     def num_parameters(self) -> int:
         return sum(p.numel() for p in self.net.parameters())
 
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write an arrays-only ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`):
-        config and metadata JSON, the network's parameters under ``net.``."""
-        if metadata is not None:
-            self.metadata = dict(metadata)
-        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config),
-                               {"net": self.net}, metadata={"name": self.name,
-                                                            **self.metadata})
+        """The checkpoint (:class:`~simenv.models.checkpoint.CheckpointMixin`), with the
+        predictor's ``name`` in its metadata."""
+        own = self.metadata if metadata is None else metadata
+        return super().save(path, {"name": self.name, **own})
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"net": self.net}
 
     @classmethod
-    def load(cls, path: str | Path) -> GesturePredictor:
-        """Read a checkpoint written by :meth:`save`.
-
-        Raises:
-            CheckpointError: missing file, another format, a config or weights that do
-                not fit.
-        """
-        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT)
-        try:
-            config = GesturePredictorConfig(**ckpt.config)
-            config.check()
-        except (TypeError, MotionError) as exc:
-            raise CheckpointError(f"bad gesture-predictor config: {exc}",
-                                  source=ckpt.path) from None
-        model = cls(config, seed=0, name=str(ckpt.metadata.get("name",
-                                                               "predictor-gesture-25-50")))
-        ckpt.load_into({"net": model.net})
-        model.net.eval()
-        model.metadata = dict(ckpt.metadata)
-        return model
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> GesturePredictor:
+        config = GesturePredictorConfig(**checkpoint.config)
+        config.check()
+        return cls(config, seed=0,
+                   name=str(checkpoint.metadata.get("name", "predictor-gesture-25-50")))
 
 
 def mirror_world(windows: np.ndarray) -> np.ndarray:

@@ -75,7 +75,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -88,7 +88,7 @@ from simenv import augment_targets as at
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
 from simenv.interaction_metrics import KEY_JOINT_PAIRS
-from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-interaction-augment-v1"
 J = len(at.PARENTS)
@@ -290,7 +290,7 @@ class InteractionAugmenterConfig:
     w_rel: float = 0.1
 
 
-class InteractionAugmenter:
+class InteractionAugmenter(CheckpointMixin):
     """The three VAEs and :meth:`augment` (module docstring)."""
 
     name = "interaction-augment"
@@ -396,29 +396,19 @@ class InteractionAugmenter:
 
     # -- checkpoints ------------------------------------------------------------------------
 
-    def save(self, path: str | Path, metadata: dict | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format, config
-        JSON, metadata JSON and the state dicts of the three networks."""
-        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config), self.nets,
-                               metadata={**self.metadata, **(metadata or {})})
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
+        """The checkpoint (:class:`~simenv.models.checkpoint.CheckpointMixin`) with the
+        model's metadata updated with ``metadata``."""
+        return super().save(path, {**self.metadata, **(metadata or {})})
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return dict(self.nets)
 
     @classmethod
-    def load(cls, path: str | Path) -> InteractionAugmenter:
-        """Read a checkpoint written by :meth:`save`.
-
-        Raises:
-            CheckpointError: missing or unreadable file, another format, or weights that
-                do not fit the config.
-        """
-        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
-        try:
-            config = InteractionAugmenterConfig(**ck.config)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CheckpointError(f"bad config in checkpoint: {exc}", source=ck.path) from None
-        model = cls(config)
-        model.metadata = ck.metadata
-        ck.load_into(model.nets)
-        return model
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> InteractionAugmenter:
+        return cls(InteractionAugmenterConfig(**checkpoint.config))
 
 
 # -- training ------------------------------------------------------------------------------

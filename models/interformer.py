@@ -107,8 +107,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -117,7 +116,7 @@ from torch import nn
 
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
-from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.gesture_classifier import adjacency_mask
 from simenv.models.reaction_baselines import _mirror_index, check_inputs
 
@@ -320,7 +319,7 @@ def _features(p: torch.Tensor, fps: float) -> torch.Tensor:
     return torch.cat([p, vel], dim=-1)
 
 
-class InterFormer(nn.Module):
+class InterFormer(CheckpointMixin, nn.Module):
     """Reaction generator (math in the module docstring); ``generate`` implements
     :class:`simenv.models.reaction_baselines.ReactionGenerator`."""
 
@@ -478,30 +477,14 @@ class InterFormer(nn.Module):
 
     # -- checkpoints --------------------------------------------------------------------
 
-    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format tag,
-        config and ``metadata`` as JSON strings, and the weights."""
-        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config),
-                               {"weights": self}, metadata=metadata if metadata is not None
-                               else self.metadata)
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"weights": self}
 
     @classmethod
-    def load(cls, path: str | Path) -> InterFormer:
-        """Model saved by :meth:`save`, in eval mode (``metadata`` restored).
-
-        Raises:
-            CheckpointError: missing or unreadable file, another format, or weights that
-                do not fit the config.
-        """
-        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
-        try:
-            config = InterFormerConfig(**ck.config)
-        except (TypeError, ValueError, MotionError) as exc:
-            raise CheckpointError(f"bad config in checkpoint: {exc}", source=ck.path) from None
-        model = cls(config)
-        ck.load_into({"weights": model})
-        model.metadata = ck.metadata
-        return model.eval()
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> InterFormer:
+        return cls(InterFormerConfig(**checkpoint.config))
 
 
 def train(train: idata.InteractionWindows, config: InterFormerConfig | None = None, *,

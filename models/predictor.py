@@ -111,11 +111,11 @@ training option (the WGAN-GP default 5; fewer fit a minutes-long CPU budget).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -124,7 +124,7 @@ from torch import nn
 from simenv import srvf
 from simenv.errors import MotionError
 from simenv.models.baselines import check_history
-from simenv.models.checkpoint import CheckpointError
+from simenv.models.checkpoint import Checkpoint, CheckpointError, CheckpointMixin
 from simenv.prediction_data import PRED17_JOINTS, PRED17_LAYOUT, PredictionWindows
 
 NUM_JOINTS = 17
@@ -453,7 +453,7 @@ def _sphere(curve: np.ndarray, fallback: np.ndarray) -> tuple[np.ndarray, np.nda
     return points, amp
 
 
-class PredictiveMAWGAN:
+class PredictiveMAWGAN(CheckpointMixin):
     """The trained predictor: networks, Karcher means and the SRVF pipeline.
 
     ``predict(history)`` takes (N, 1 + P, 17, 3) (or longer; the last 1 + P frames are
@@ -468,6 +468,7 @@ class PredictiveMAWGAN:
             raise MotionError(f"prior must be one of {', '.join(PRIORS)}; got "
                               f"{config.prior!r}", field="prior")
         self.config = config
+        self.metadata: dict[str, Any] = {}
         self.past_len = config.past_len
         self.future_len = config.future_len
         self.fps = config.fps
@@ -681,67 +682,33 @@ class PredictiveMAWGAN:
 
     # -- checkpoints ------------------------------------------------------------------------
 
-    def save(self, path: str | Path, *, with_critic: bool = True) -> Path:
-        """Write an ``.npz`` checkpoint (arrays only, no pickle): config JSON, Karcher
-        means and the state dicts of the networks."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array(CHECKPOINT_FORMAT),
-            "config": np.array(json.dumps(asdict(self.config))),
-            "mu_past": self.mu_past, "mu_future": self.mu_future,
-        }
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+    OPTIONAL_NETS = ("critic",)
+
+    def save(self, path: str | Path, metadata: dict[str, Any] | None = None, *,
+             with_critic: bool = True) -> Path:
+        """The checkpoint (:class:`~simenv.models.checkpoint.CheckpointMixin`): config,
+        Karcher means, prior filter and the networks; the critic, needed only to train
+        on, is left out when ``with_critic`` is False."""
+        return super().save(path, metadata, leave_out=() if with_critic else ("critic",))
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"generator": self.generator, "amplitude": self.amplitude,
+                "critic": self.critic}
+
+    def checkpoint_arrays(self) -> dict[str, np.ndarray]:
+        arrays = {"mu_past": self.mu_past, "mu_future": self.mu_future}
         if self.prior_filter is not None:
             arrays["prior_filter"] = self.prior_filter
-        nets = {"generator": self.generator, "amplitude": self.amplitude}
-        if with_critic:
-            nets["critic"] = self.critic
-        for name, net in nets.items():
-            for key, value in net.state_dict().items():
-                arrays[f"{name}.{key}"] = value.detach().cpu().numpy()
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+        return arrays
 
     @classmethod
-    def load(cls, path: str | Path) -> PredictiveMAWGAN:
-        """Read a checkpoint written by :meth:`save`.
-
-        Raises:
-            CheckpointError: missing file, not a checkpoint, or mismatched arrays.
-        """
-        path = Path(path)
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"cannot read predictor checkpoint: {exc}",
-                                  source=path) from None
-        with data:
-            if "format" not in data or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            raw = json.loads(str(data["config"]))
-            for key in ("gen_channels", "critic_channels"):
-                raw[key] = tuple(raw[key])
-            prior = data["prior_filter"] if "prior_filter" in data.files else None
-            try:
-                model = cls(PredictorConfig(**raw), data["mu_past"], data["mu_future"],
-                            prior)
-            except MotionError as exc:
-                raise CheckpointError(exc.detail, source=path) from None
-            nets = {"generator": model.generator, "amplitude": model.amplitude,
-                    "critic": model.critic}
-            for name, net in nets.items():
-                prefix = name + "."
-                state = {k[len(prefix):]: torch.as_tensor(data[k]) for k in data.files
-                         if k.startswith(prefix)}
-                if not state and name == "critic":
-                    continue
-                try:
-                    net.load_state_dict(state)
-                except RuntimeError as exc:
-                    raise CheckpointError(f"{name} weights do not fit the config: {exc}",
-                                          source=path) from None
-        return model
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> PredictiveMAWGAN:
+        raw = dict(checkpoint.config)
+        for key in ("gen_channels", "critic_channels"):
+            raw[key] = tuple(raw[key])
+        a = checkpoint.arrays
+        return cls(PredictorConfig(**raw), a["mu_past"], a["mu_future"], a.get("prior_filter"))
 
 
 def fit_geometry(windows: PredictionWindows, config: PredictorConfig,

@@ -44,10 +44,9 @@ optionally weighted towards the late frames (:func:`regression_loss`).
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import torch
@@ -55,11 +54,11 @@ from torch import nn
 
 from simenv.errors import MotionError
 from simenv.models.baselines import check_history
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.predictor import (
     DIMS,
     LOSS_UNIT,
     NUM_JOINTS,
-    CheckpointError,
     heading,
     mirror,
     rotate_z,
@@ -143,7 +142,7 @@ class DCTMLP(nn.Module):
         return self.idct_out @ self.fc_out(c)
 
 
-class DCTRegressionPredictor:
+class DCTRegressionPredictor(CheckpointMixin):
     """Trained DCT-residual MLP with the predictor interface of :mod:`simenv.models.baselines`.
 
     ``predict(history)``: (N, 1 + P, 17, 3) (or longer) root-relative pred17 positions,
@@ -158,6 +157,7 @@ class DCTRegressionPredictor:
         if config.members < 1:
             raise MotionError(f"members must be >= 1; got {config.members}", field="members")
         self.config = config
+        self.metadata: dict[str, Any] = {}
         self.past_len = config.past_len
         self.future_len = config.future_len
         self.fps = config.fps
@@ -265,45 +265,19 @@ class DCTRegressionPredictor:
         out = out.astype(np.float32)
         return out if batched else out[0]
 
-    def save(self, path: str | Path) -> Path:
-        """Write an ``.npz`` checkpoint (arrays only): config JSON and the weights."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        arrays = {"format": np.array(CHECKPOINT_FORMAT),
-                  "config": np.array(json.dumps(asdict(self.config)))}
-        arrays |= {f"nets.{k}": v.detach().cpu().numpy()
-                   for k, v in self.nets.state_dict().items()}
-        with path.open("wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        return path
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"nets": self.nets}
 
     @classmethod
-    def load(cls, path: str | Path) -> DCTRegressionPredictor:
-        """Read a checkpoint written by :meth:`save`.
-
-        Raises:
-            CheckpointError: missing file, not such a checkpoint, or mismatched arrays.
-        """
-        path = Path(path)
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise CheckpointError(f"cannot read regression checkpoint: {exc}",
-                                  source=path) from None
-        with data:
-            if "format" not in data or str(data["format"]) != CHECKPOINT_FORMAT:
-                raise CheckpointError(f"not a {CHECKPOINT_FORMAT} checkpoint", source=path)
-            model = cls(RegressionConfig(**json.loads(str(data["config"]))))
-            # "net.<k>": the single network of checkpoints written before ensembles
-            state = {k.split(".", 1)[1] if k.startswith("nets.") else f"0.{k[4:]}":
-                     torch.as_tensor(data[k]) for k in data.files
-                     if k.startswith(("net.", "nets."))}
-            try:
-                model.nets.load_state_dict(state)
-            except RuntimeError as exc:
-                raise CheckpointError(f"weights do not fit the config: {exc}",
-                                      source=path) from None
-        return model
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> DCTRegressionPredictor:
+        # Checkpoints from before ensembles hold their one network as "net.<k>": it is
+        # member 0 of the ensemble.
+        a = checkpoint.arrays
+        for key in [k for k in a if k.startswith("net.")]:
+            a[f"nets.0.{key[4:]}"] = a.pop(key)
+        return cls(RegressionConfig(**checkpoint.config))
 
 
 def horizon_weights(length: int, slope: float) -> torch.Tensor:

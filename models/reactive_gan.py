@@ -103,7 +103,6 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -113,7 +112,7 @@ from torch.nn import functional as F
 
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
-from simenv.models.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.reaction_baselines import _mirror_index, check_inputs
 
 #: Checkpoint format tag.
@@ -367,7 +366,7 @@ def _chunks(length: int, window: int) -> list[tuple[int, int]]:
         start = stop - 1
 
 
-class ReactiveGAN:
+class ReactiveGAN(CheckpointMixin):
     """The trained reactive GAN: generator, discriminator and config.
 
     ``generate(actor_window, reactor_first_frame)``: (N, T, J, 3) / (T, J, 3) actor and
@@ -430,32 +429,16 @@ class ReactiveGAN:
 
     # -- checkpoints -----------------------------------------------------------------------
 
-    def save(self, path: str | Path, metadata: dict | None = None) -> Path:
-        """Write an ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`): format tag,
-        config JSON, metadata JSON and the generator and discriminator state dicts."""
-        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config),
-                               {"generator": self.generator,
-                                "discriminator": self.discriminator}, metadata=metadata)
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"generator": self.generator, "discriminator": self.discriminator}
 
     @classmethod
-    def load(cls, path: str | Path) -> ReactiveGAN:
-        """Read a checkpoint written by :meth:`save` (metadata in ``model.metadata``).
-
-        Raises:
-            CheckpointError: missing or unreadable file, another format, or weights that
-                do not fit the config.
-        """
-        ck = read_checkpoint(path, CHECKPOINT_FORMAT)
-        try:
-            raw = dict(ck.config)
-            raw["labels"] = tuple(raw["labels"])
-            model = cls(ReactiveGANConfig(**raw))
-        except (KeyError, TypeError, ValueError, MotionError) as exc:
-            raise CheckpointError(f"bad config in the checkpoint: {exc}",
-                                  source=ck.path) from None
-        ck.load_into({"generator": model.generator, "discriminator": model.discriminator})
-        model.metadata = ck.metadata
-        return model
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> ReactiveGAN:
+        raw = dict(checkpoint.config)
+        raw["labels"] = tuple(raw["labels"])
+        return cls(ReactiveGANConfig(**raw))
 
 
 # -- training --------------------------------------------------------------------------

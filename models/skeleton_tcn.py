@@ -36,8 +36,7 @@ fitted after training (Guo et al. 2017, "On calibration of modern neural network
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -45,7 +44,7 @@ import torch
 from torch import nn
 
 from simenv.errors import MotionError
-from simenv.models.checkpoint import read_checkpoint, save_checkpoint
+from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
 #: Dilations of the residual blocks (receptive field 1 + 4 (1 + 2 + 4 + 1) = 33 frames).
@@ -104,7 +103,7 @@ class _Block(nn.Module):
         return (h + self.mix(self.drop(nn.functional.gelu(self.norm(self.conv(h)))))) * mask
 
 
-class SkeletonTCN(nn.Module):
+class SkeletonTCN(CheckpointMixin, nn.Module):
     """Multi-stream temporal convolutional skeleton classifier (math in the module
     docstring). ``forward(x, valid) -> logits`` with ``x`` (B, T, J, 3) normalised
     windows and ``valid`` (B, T) bool; any T >= 1."""
@@ -197,24 +196,14 @@ class SkeletonTCN(nn.Module):
         p = self.predict_proba(x, v)
         return p[0] if single else p
 
-    def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-        """Arrays-only ``.npz`` checkpoint (:mod:`simenv.models.checkpoint`)."""
-        return save_checkpoint(path, CHECKPOINT_FORMAT, asdict(self.config), {"net": self},
-                               metadata=metadata)
+    CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {"net": self}
 
     @classmethod
-    def load(cls, path: str | Path) -> SkeletonTCN:
-        """Model saved by :meth:`save`, in eval mode (``model.metadata``: its metadata).
-
-        Raises:
-            CheckpointError: missing, unreadable or foreign file, or weights that do
-                not fit the config.
-        """
-        ckpt = read_checkpoint(path, CHECKPOINT_FORMAT)
-        model = cls(TCNConfig(**ckpt.config))
-        ckpt.load_into({"net": model})
-        model.metadata = ckpt.metadata
-        return model.eval()
+    def from_checkpoint(cls, checkpoint: Checkpoint) -> SkeletonTCN:
+        return cls(TCNConfig(**checkpoint.config))
 
 
 def fit_temperature(logits: np.ndarray, y: np.ndarray,
