@@ -4,7 +4,7 @@ For every shipped predictor (``predictor-<P>-<F>``) and the gesture classifier: 
 second for single samples (the room's loop: one history every second) and samples per
 second in batches of 64. Inputs are real: histories from the bundled CMU walk (02_01),
 gesture windows from the same clip (played forwards then backwards, for 3-s windows)
-on the classifier's joints. The goal of issue 5 is
+on the classifier's joints. The goal is
 >= 100 single-sample predictions/s, far inside a 25 fps loop.
 
 Usage::
@@ -47,7 +47,7 @@ def measure(seconds: float = 3.0, *, verbose: bool = False) -> dict[str, dict[st
     walk = bvh.read(Path(str(resources.files("simenv.assets"))) / "cmu_02_01_walk.bvh")
     results: dict[str, dict[str, float]] = {}
     gesture_frames = to_gesture_joints(walk.resample(25.0), "gesture15")
-    # The two-person generators (INTERACTION_MODELS) are not issue 5's and take other inputs.
+    # The two-person generators (INTERACTION_MODELS) are benchmarked apart: they take other inputs.
     for name in (n for n in available() if n not in INTERACTION_MODELS):
         model = load(name)
         if name.startswith("predictor-gesture-"):

@@ -1,4 +1,4 @@
-"""Speed of the plausibility scorer (issue 3, "Scale and speed"), one core.
+"""Speed of the plausibility scorer, one core.
 
 1. Joint-level (kinematic) metrics: frames per second of all six metrics
    (:func:`simenv.plausibility.kinematic_metrics`) on real 31-joint CMU BVH

@@ -18,7 +18,7 @@ from simenv.errors import SimenvError
 __all__ = ["INTERACTION_MODELS", "available", "checkpoint_path", "interaction_model_class",
            "interaction_model_entry", "interaction_model_names", "load"]
 
-#: The two-person models of issue 6: registry name -> (module, class, kind). ``kind`` is
+#: The two-person models: registry name -> (module, class, kind). ``kind`` is
 #: ``reaction`` (``generate(actor_window, reactor_first_frame)``, the protocol of
 #: :mod:`simenv.models.reaction_baselines`), ``interaction`` (``sample(labels)``: both
 #: people from a class label) or ``augmentation`` (``augment(actor, reactor, scales)``).

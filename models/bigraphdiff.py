@@ -1,5 +1,5 @@
 """BiGraphDiff: a denoising diffusion model generating both people of an interaction
-from a class label (issue 6).
+from a class label.
 
 The model generates the actor's and the reactor's 40-frame windows together, in the actor
 frame of :mod:`simenv.interaction_data` (metres, Z-up, the actor's pelvis on the floor at

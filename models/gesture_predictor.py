@@ -1,4 +1,4 @@
-"""Gesture-domain motion forecaster: 1 s of a Kinect skeleton -> the next 2 s (issue 14).
+"""Gesture-domain motion forecaster: 1 s of a Kinect skeleton -> the next 2 s.
 
 The room's perception loop classifies "1 s real + 2 s predicted" frames. The CMU-trained
 predictors (:mod:`simenv.models.predictor`, :mod:`simenv.models.predictor_regression`)

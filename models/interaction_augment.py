@@ -1,5 +1,5 @@
 """Interaction augmentation with skeleton priors (Li et al.): three conditional VAEs that
-give a real two-person window new body proportions while keeping its contacts (issue 6).
+give a real two-person window new body proportions while keeping its contacts.
 
 ``augment(actor_window, reactor_window, scales=None, seed=0) -> (actor', reactor',
 scales)``: windows (T, 18, 3) or (N, T, 18, 3) metres in one Z-up frame (the actor frame

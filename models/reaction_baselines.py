@@ -1,4 +1,4 @@
-"""Reaction-synthesis baselines: generate the reactor B from the actor A (issue 6).
+"""Reaction-synthesis baselines: generate the reactor B from the actor A.
 
 One interface (:class:`ReactionGenerator`)::
 

@@ -1,6 +1,6 @@
 """Reactive GAN: the reactor B generated from the actor A by a part-based LSTM generator
 and a class-aware BiLSTM discriminator (Men et al., "GAN-based reactive motion synthesis
-with class-aware discriminators for human-human interaction", 2022), issue 6.
+with class-aware discriminators for human-human interaction", 2022).
 
 Data: windows of :mod:`simenv.interaction_data` ((N, T, J, 3) metres in the actor's
 first-frame frame, J = 18 keypoints :data:`~simenv.interaction_data.INTER18_JOINTS`,

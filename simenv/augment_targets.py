@@ -1,4 +1,4 @@
-"""Training targets of interaction augmentation with skeleton priors (Li et al., issue 6),
+"""Training targets of interaction augmentation with skeleton priors (Li et al.),
 built from real two-person windows.
 
 Li et al. train their retargeting networks on the output of an optimiser. We have no such

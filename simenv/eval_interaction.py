@@ -1,5 +1,5 @@
 """Evaluate two-person generators on held-out real two-person windows, the papers' way
-and with physics (issue 6).
+and with physics.
 
 ``python -m simenv.eval_interaction [--model NAME ...] [--shared PATH] [--data PATH ...]
 [--json]`` (``simenv eval interaction``) writes ``docs/interaction.md`` (the table,

@@ -29,7 +29,7 @@ other         MSR hammer, hand catch, forward punch, high throw, draw x, draw   
 idle          no dataset class: near-still real frames (see *Idle* below)        keep
 ============= ================================================================== =========
 
-The room column is :data:`ROOM_REACTIONS` (issue 4): ``greet`` = stop idling, face the
+The room column is :data:`ROOM_REACTIONS`: ``greet`` = stop idling, face the
 user and wave back; ``hifi_down`` = turn the hi-fi down; ``bow_back`` = nod/bow back;
 ``keep`` = keep working (no reaction; ``idle`` is one of them).
 
@@ -120,7 +120,7 @@ VOCABULARY: dict[str, str] = {
 #: Class order of the classifier (index = class id).
 GESTURE_LABELS: tuple[str, ...] = tuple(VOCABULARY)
 
-#: What the room's agent does for each label (issue 4); labels not listed: ``keep``.
+#: What the room's agent does for each label; labels not listed: ``keep``.
 ROOM_REACTIONS: dict[str, str] = {"wave": "greet", "answer_phone": "hifi_down",
                                   "bow": "bow_back"}
 

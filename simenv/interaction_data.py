@@ -1,5 +1,5 @@
 """Two-person interaction datasets from real recordings: recordings, windows, splits and
-the reactive-GAN normalisation (issue 6).
+the reactive-GAN normalisation.
 
 Pipeline
 --------

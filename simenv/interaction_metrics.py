@@ -1,5 +1,5 @@
 """Metrics of two-person motion generation: the seed papers' error, distribution and
-timing measures (issue 6).
+timing measures.
 
 Inputs are windows of :mod:`simenv.interaction_data`: (N, T, J, 3) positions in metres in
 the actor frame of each window (origin at the actor's pelvis on the floor at the first

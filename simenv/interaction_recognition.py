@@ -1,5 +1,5 @@
 """Recognition accuracy of generated interactions: a classifier trained on real two-person
-windows, asked to name the class of (real actor, generated reactor) windows (issue 6).
+windows, asked to name the class of (real actor, generated reactor) windows.
 
 The papers measure how recognisable a generated reaction is with an action classifier
 trained on real data. Ours is an L2-regularised multinomial logistic regression on window

@@ -1,6 +1,6 @@
 """Rehearse a generated reaction on simulated bodies: a reaction generator answers a
-recorded person, and the answer is retargeted, tracked by PD control and scored (issue 6,
-"use in the room"; ``simenv rehearse SESSION --agent interformer --out DIR``).
+recorded person, and the answer is retargeted, tracked by PD control and scored
+(``simenv rehearse SESSION --agent interformer --out DIR``).
 
 Pipeline (one way: load -> Motion -> generate -> retarget/track -> report):
 

@@ -1,4 +1,4 @@
-"""Train a two-person model of issue 6 on the real recordings (``simenv train interaction``).
+"""Train a two-person model on the real recordings (``simenv train interaction``).
 
 ``python -m simenv.train_interaction --model NAME [--config FILE] [--shared PATH]
 [--out DIR] [--seed N] [--quiet]`` trains one of
@@ -141,7 +141,7 @@ def render_card(name: str, config: Any, history: Mapping[str, Any],
     loss = [float(v) for v in history.get("loss", [])]
     lines = [
         f"# {name}", "",
-        f"`{module}.{cls}` ({kind} model of issue 6), trained by `simenv train interaction "
+        f"`{module}.{cls}` (two-person {kind} model), trained by `simenv train interaction "
         f"--model {name}`. How it works and every difference from the paper: the docstring "
         f"of `{module}`.", "",
         "## Data and split", "",

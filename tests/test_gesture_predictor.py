@@ -1,4 +1,4 @@
-"""The gesture-domain forecaster (issue 14): shipped checkpoint, validation, checkpoints,
+"""The gesture-domain forecaster: shipped checkpoint, validation, checkpoints,
 body frame, and a short training run on the real gesture corpus."""
 
 from __future__ import annotations

@@ -271,7 +271,7 @@ def test_train_predictor_writes_checkpoint_card_metrics_and_plot(tmp_path: Path,
     assert shipped.predict(_history(11)).shape == (2, 10, 17, 3)
 
 
-#: Budget of the shipped two-person models of issue 6 (checkpoints and cards), bytes.
+#: Budget of the shipped two-person models (checkpoints and cards), bytes.
 INTERACTION_BUDGET_BYTES = 40 * 1024 * 1024
 
 

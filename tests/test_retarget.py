@@ -22,7 +22,7 @@ from simenv.retarget import (
 )
 from simenv.skeletons import canonical_skeleton
 
-#: Accuracy goals of issue 2 (metres).
+#: Retargeting accuracy goals (metres).
 MEAN_GOAL, P95_GOAL = 0.015, 0.03
 
 
