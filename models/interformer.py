@@ -118,7 +118,7 @@ from simenv import interaction_data as idata
 from simenv.errors import MotionError
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.gesture_classifier import adjacency_mask
-from simenv.models.reaction_baselines import _mirror_index, check_inputs
+from simenv.models.reaction_baselines import check_inputs, mirror_index
 
 CHECKPOINT_FORMAT = "simenv-interformer-1"
 #: Positions are multiplied by this inside the loss (metres -> decimetres).
@@ -346,7 +346,7 @@ class InterFormer(CheckpointMixin, nn.Module):
                                      for _ in range(c.decoder_layers))
         self.out_norm = nn.LayerNorm(c.d_model)
         self.head = nn.Linear(c.d_model, 3)
-        self._swap = _mirror_index(c.joint_names)
+        self._swap = mirror_index(c.joint_names)
 
     # -- network ------------------------------------------------------------------------
 

@@ -93,7 +93,7 @@ def check_inputs(actor_window: np.ndarray, reactor_first_frame: np.ndarray,
     return a, b, batched
 
 
-def _mirror_index(joint_names: Sequence[str]) -> list[int]:
+def mirror_index(joint_names: Sequence[str]) -> list[int]:
     """Index permutation swapping every ``left_*`` joint with its ``right_*`` partner."""
     names = list(joint_names)
 
@@ -131,7 +131,7 @@ class MirrorActor:
         self.reflect = bool(reflect)
         self.joint_names = tuple(joint_names)
         self.name = "mirror" if self.reflect else "copy"
-        self._swap = _mirror_index(self.joint_names)
+        self._swap = mirror_index(self.joint_names)
 
     def generate(self, actor_window: np.ndarray, reactor_first_frame: np.ndarray
                  ) -> np.ndarray:

@@ -113,7 +113,7 @@ from torch.nn import functional as F
 from simenv import interaction_data as idata
 from simenv.errors import MotionError
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
-from simenv.models.reaction_baselines import _mirror_index, check_inputs
+from simenv.models.reaction_baselines import check_inputs, mirror_index
 
 #: Checkpoint format tag.
 CHECKPOINT_FORMAT = "simenv-reactive-gan-1"
@@ -447,7 +447,7 @@ class ReactiveGAN(CheckpointMixin):
 def mirror_windows(x: np.ndarray) -> np.ndarray:
     """Left/right mirror image of (..., J, 3) actor-frame poses: negate y, swap the
     left and right joints (keeps the actor frame; module docstring)."""
-    out = np.array(x[..., _mirror_index(idata.INTER18_JOINTS), :], copy=True)
+    out = np.array(x[..., mirror_index(idata.INTER18_JOINTS), :], copy=True)
     out[..., 1] *= -1
     return out
 

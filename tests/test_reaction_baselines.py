@@ -79,7 +79,7 @@ def test_mirror_and_copy_face_to_face():
     np.testing.assert_allclose(copy[1, rh], b0[rh] + [-0.3, 0.0, 0.6], atol=1e-6)
     np.testing.assert_allclose(mirror[1, lh], b0[lh] + [-0.3, 0.0, 0.6], atol=1e-6)
     # mirror = reflection across the plane x = 0.5 between them
-    reflected = a[1][rb._mirror_index(J)] * [-1.0, 1.0, 1.0] + [1.0, 0.0, 0.0]
+    reflected = a[1][rb.mirror_index(J)] * [-1.0, 1.0, 1.0] + [1.0, 0.0, 0.0]
     np.testing.assert_allclose(mirror[1], reflected, atol=1e-6)
 
 
