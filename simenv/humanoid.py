@@ -18,8 +18,8 @@ every degree of freedom gets its own box limit and its own position actuator).
 Limits follow one rule: the largest value a named normative study reports for
 healthy people (aged 2 and over; dancers included where a study measured them)
 plus :data:`ROM_SPREAD_DEG` for the population's spread; ends no study gives
-(the spine's split over three joints, the upper arm's Euler angles, the foot's
-toe-out) are stated assumptions. :data:`RANGE_SOURCES` gives each end's motion,
+(the spine's split over three joints, the upper arm's Euler angles) are stated
+assumptions. :data:`RANGE_SOURCES` gives each end's motion,
 value and reference (:data:`ROM_REFERENCES`); ``docs/plausibility.md`` tabulates
 them. Signs are mirrored between the sides so that a positive angle means the
 same anatomical motion on the left and on the right. See :data:`JOINTS`.
@@ -98,11 +98,15 @@ ROM_REFERENCES: dict[str, str] = {
                "(bjsm.bmj.com/highwire/markup/79235)",
     "Rabin": "Rabin A, Kozol Z. J Am Podiatr Med Assoc 2012;102(5):406-411 "
              "(weight-bearing lunge test: the tibia 30-45 deg over the foot)",
+    "AJSM1983": "Am J Sports Med 1983;11(3):152-156: passive knee axial rotation with the "
+                "knee flexed 30-90 deg, about 25 internal and 45 external (as cited in "
+                "docs/plausibility.md's calibration findings); the foot's toe-out hinge turns "
+                "about the shin, so it carries the tibia's rotation when the knee is bent",
     "AAOS": "American Academy of Orthopaedic Surgeons, Joint Motion: Method of Measuring "
             "and Recording, 1965 (the figures of this table's previous version)",
     "model": "no published counterpart: a range of this model's own angle (the spine "
              "split over three joints, the upper arm's Euler angles measured from the "
-             "A-pose, the foot's toe-out) -- an assumption, sized on the real CMU clips",
+             "A-pose) -- an assumption, sized on the real CMU clips",
 }
 
 
@@ -197,8 +201,8 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     ),
     # Knee flexion > 0, hyperextension < 0.
     "shin": (JointSpec("flex", (0, 1, 0), (-15, 163), 500),),
-    # Ankle + subtalar inversion / eversion + toe-out (tibial torsion, foot
-    # abduction) about the shin. flex > 0 is plantarflexion (toe down about +y;
+    # Ankle + subtalar inversion / eversion + toe-out about the shin (the
+    # tibia's axial rotation when the knee is bent, plus forefoot abduction). flex > 0 is plantarflexion (toe down about +y;
     # 0 = shin perpendicular to the flat sole, the toe keypoint the fitted drop
     # below the ankle). Dorsiflexion is the weight-bearing range, not the
     # passive one: under body weight with the knee bent (squats, landings,
@@ -206,7 +210,7 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     "foot": (
         JointSpec("flex", (0, 1, 0), (-55, 60), 300),
         JointSpec("inv", (1, 0, 0), (-35, 45), 150),
-        JointSpec("abd", (0, 0, 1), (-35, 35), 100),
+        JointSpec("abd", (0, 0, 1), (-55, 55), 100),
     ),
     # Metatarsophalangeal: extension > 0, flexion < 0.
     "toes": (JointSpec("ext", (0, -1, 0), (-40, 90), 40),),
@@ -267,7 +271,9 @@ RANGE_SOURCES: dict[str, tuple[RangeEnd, RangeEnd]] = {
     "foot_flex": (RangeEnd("dorsiflexion, weight-bearing", 45.0, "Rabin (upper end)"),
                   RangeEnd("plantarflexion", 50.0, "Merck")),
     "foot_inv": (RangeEnd("eversion", 25.0, "Merck"), RangeEnd("inversion", 35.0, "Merck")),
-    "foot_abd": (RangeEnd("toe-in", None, "model"), RangeEnd("toe-out", None, "model")),
+    "foot_abd": (RangeEnd("toe-in: knee internal rotation + forefoot adduction", 45.0,
+                          "AJSM1983 25 + AAOS 20"),
+                 RangeEnd("toe-out: knee external rotation", 45.0, "AJSM1983")),
     "toes_ext": (RangeEnd("flexion", 30.0, "Merck"), RangeEnd("extension", 80.0, "Merck")),
 }
 

@@ -1,0 +1,440 @@
+"""Leave-clips-out calibration of the plausibility verdict on every real clip of the corpus.
+
+Every real clip is judged with thresholds set from the *other* subjects' clips
+of its own source, never from itself, so the share judged plausible is what a
+new user's real motion capture would get. Sources are calibrated apart:
+``cmu`` (marker motion capture: ``cmu/bvh``, ``cmu/asf_amc``,
+``cmu/two_person``) and each depth-camera corpus (``gestures/msr_action3d``,
+``gestures/utkinect``, ``gestures/florence3d``: Kinect skeletons, whose bones
+and feet wander far more). Folds are leave-one-subject-out within a source
+(CMU subject = the number before the underscore, so a take stored both as BVH
+and as ASF/AMC is held out with its twin; a two-person recording holds out
+both partners' subjects; Kinect subjects from ``gestures/index.csv``).
+
+Threshold rule (:func:`fold_threshold`), per metric, from the training
+people's values ``v``::
+
+    thr = max(prior, Q3(v) + FENCE_K * (Q3(v) - Q1(v)))
+
+``prior`` is the default of :mod:`simenv.plausibility.thresholds` /
+:mod:`simenv.plausibility.body_thresholds` (a physical bound or a published
+metric), Q1 / Q3 the quartiles and FENCE_K = 3 Tukey's "far out" fence: a
+threshold only rises above its prior where the real clips of the source
+demand it, and a single extreme training clip (a capture glitch) cannot drag
+it up. ``tracking`` keeps its prior (its thresholds belong to the tracking
+controller). A metric's value does not depend on its pass threshold
+(``floating`` to a few millimetres: its airborne test uses the clearance),
+so every clip is scored once, with the defaults, and judged per fold
+afterwards.
+
+Stages (each appends JSON lines under ``--out`` as it goes and skips what is
+there, so a killed run resumes):
+
+``score``
+    every real target scored by ``simenv.score(physics=True)`` -> ``real.jsonl``.
+``corrupt``
+    every corruption of :data:`simenv.corrupt.CORRUPTIONS` at its moderate
+    strength (seed 0) applied to every single-person CMU clip and to every
+    ``--depth-every``-th depth-camera clip, scored alike -> ``corrupt.jsonl``.
+``report``
+    folds, verdicts and the Markdown of ``docs/calibration.md``
+    (:func:`markdown`; with the per-corpus distributions of
+    ``calibrate_score.summarise``) and ``summary.json``.
+
+Usage::
+
+    nohup nice .venv/bin/python benchmarks/calibrate_loo.py score corrupt report &
+    .venv/bin/python benchmarks/calibrate_loo.py report      # docs only
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import re
+import time
+from collections import Counter, defaultdict
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.corrupt import CORRUPTIONS
+from simenv.errors import SimenvError
+from simenv.motion import Interaction, Motion
+from simenv.plausibility.report import PERSON_METRICS, score
+from simenv.scoring import ScoreJob, done_files, find_targets, score_batch
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_OUT = REPO / "out" / "calibration_loo"
+
+#: Tukey's far-out fence multiplier of the threshold rule.
+FENCE_K = 3.0
+#: Metrics judged at their prior in every fold (not calibrated here).
+FIXED_METRICS: tuple[str, ...] = ("tracking",)
+#: Folders of the real corpus, per source.
+SOURCES: dict[str, tuple[str, ...]] = {
+    "cmu": ("cmu/bvh", "cmu/asf_amc", "cmu/two_person"),
+    "msr_action3d": ("gestures/msr_action3d",),
+    "utkinect": ("gestures/utkinect",),
+    "florence3d": ("gestures/florence3d",),
+}
+
+#: Real clips whose failure is a defect of the capture or of its conversion,
+#: diagnosed on the data (frames are the file's, 0-based, 120 fps).
+DIAGNOSES: dict[str, str] = {}
+
+
+# -- corpus ------------------------------------------------------------------------
+
+
+def source_of(file: str, data: Path) -> str:
+    """The source label of a scored file (keys of :data:`SOURCES`)."""
+    rel = Path(file).resolve().relative_to(data.resolve()).as_posix()
+    for name, folders in SOURCES.items():
+        if any(rel.startswith(f) for f in folders):
+            return name
+    raise SimenvError(f"{rel} is in no calibrated source", source=file)
+
+
+def _florence_subjects(data: Path) -> dict[int, str]:
+    subjects = {}
+    with (data / "gestures" / "index.csv").open() as fh:
+        for row in csv.DictReader(fh):
+            m = re.match(r"florence3d/skeletal_data\.mat#skeletal_data\[(\d+)\]", row["file"])
+            if m:
+                subjects[int(m.group(1))] = row["subject"]
+    return subjects
+
+
+def subject_of(rec: dict[str, Any], data: Path, florence: dict[int, str]) -> str:
+    """The fold group of a record: its source and subject, e.g. ``cmu/49``."""
+    src = source_of(rec["file"], data)
+    name = Path(rec["file"]).name
+    if src == "cmu":
+        parts = name.split("_")
+        subject = parts[rec.get("person", 0)] if Path(rec["file"]).is_dir() else parts[0]
+    elif src == "florence3d":
+        subject = florence[int(rec.get("clip", 0))]
+    else:
+        m = re.search(r"_s(\d+)_", name)
+        if m is None:
+            raise SimenvError(f"no subject in the file name {name}", source=rec["file"])
+        subject = str(int(m.group(1)))
+    return f"{src}/{subject}"
+
+
+def real_targets(data: Path) -> list[Path]:
+    """Every real target of :data:`SOURCES` under ``data``."""
+    roots = [data / f for folders in SOURCES.values() for f in folders]
+    return find_targets([r for r in roots if r.exists()])
+
+
+def _read_jsonl(path: Path) -> list[dict[str, Any]]:
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue  # a torn last line of a killed run
+    return out
+
+
+# -- corrupted copies --------------------------------------------------------------
+
+
+def corruption_inputs(data: Path, depth_every: int, only: str | None = None
+                      ) -> Iterator[tuple[str, int, Motion]]:
+    """``(file, clip index, motion)`` of the clips the corruptions are applied to:
+    every single-person CMU clip and every ``depth_every``-th depth-camera clip
+    (in file order, over the clips of each source); ``only``: one source."""
+    from simenv.io.loader import load
+
+    counter: Counter[str] = Counter()
+    for target in real_targets(data):
+        src = source_of(str(target), data)
+        if only is not None and src != only:
+            continue
+        loaded = load(target)
+        clips = loaded if isinstance(loaded, list) else [loaded]
+        for i, clip in enumerate(clips):
+            if isinstance(clip, Interaction):
+                continue
+            k = counter[src]
+            counter[src] += 1
+            if src != "cmu" and k % depth_every:
+                continue
+            yield str(target), i, clip
+
+
+def run_corruptions(data: Path, out: Path, depth_every: int, only: str | None = None) -> None:
+    """Score every corrupted copy (module docstring), appending to ``out``."""
+    done = {(r["file"], r.get("clip", 0), r["corruption"]) for r in _read_jsonl(out)}
+    with out.open("a", encoding="utf-8") as fh:
+        for file, clip_index, motion in corruption_inputs(data, depth_every, only):
+            for kind, spec in CORRUPTIONS.items():
+                if (file, clip_index, kind) in done:
+                    continue
+                t0 = time.perf_counter()
+                base = {"file": file, "clip": clip_index, "corruption": kind,
+                        "strength": spec.moderate, "seed": 0, "targets": list(spec.targets)}
+                try:
+                    bad = spec.fn(motion, spec.moderate, seed=0)
+                    rec = {**score(bad, physics=True).to_records()[0], **base}
+                except SimenvError as exc:
+                    rec = {**base, "error": str(exc)}
+                rec["seconds"] = round(time.perf_counter() - t0, 2)
+                fh.write(json.dumps(rec) + "\n")
+                fh.flush()
+                print(f"{Path(file).name}[{clip_index}] {kind}: "
+                      f"{rec.get('verdict', 'error')} ({rec['seconds']} s)", flush=True)
+
+
+# -- thresholds and verdicts ----------------------------------------------------------
+
+
+def metric_value(m: dict[str, Any]) -> float | None:
+    """A record's metric value (None when not available; ``"inf"`` -> inf)."""
+    if m.get("passed") is None or m.get("value") is None:
+        return None
+    return float("inf") if m["value"] == "inf" else float(m["value"])
+
+
+def fold_threshold(values: Iterable[float | None], prior: float) -> float:
+    """``max(prior, Q3 + FENCE_K * IQR)`` of the finite values (module docstring)."""
+    v = np.array([x for x in values if x is not None and np.isfinite(x)], dtype=float)
+    if len(v) < 4:
+        return prior
+    q1, q3 = np.percentile(v, [25, 75])
+    return float(max(prior, q3 + FENCE_K * (q3 - q1)))
+
+
+def thresholds_from(records: list[dict[str, Any]]) -> dict[str, float]:
+    """Per metric, the rule's threshold from ``records`` (the training people)."""
+    out = {}
+    for name in PERSON_METRICS:
+        priors = [r["metrics"][name]["threshold"] for r in records]
+        prior = float(priors[0]) if priors else float("nan")
+        if name in FIXED_METRICS or not records:
+            out[name] = prior
+            continue
+        out[name] = fold_threshold((metric_value(r["metrics"][name]) for r in records), prior)
+    return out
+
+
+def failing(rec: dict[str, Any], thr: dict[str, float]) -> list[str]:
+    """Metrics of ``rec`` above ``thr`` (unavailable ones never fail)."""
+    out = []
+    for name in PERSON_METRICS:
+        v = metric_value(rec["metrics"][name])
+        if v is not None and v > thr[name]:
+            out.append(name)
+    return out
+
+
+def judge(real: list[dict[str, Any]], corrupt: list[dict[str, Any]], data: Path
+          ) -> dict[str, Any]:
+    """Leave-one-subject-out verdicts of every real person and corrupted copy."""
+    florence = _florence_subjects(data)
+    for r in real + corrupt:
+        r["_source"] = source_of(r["file"], data)
+        r["_subject"] = subject_of(r, data, florence)
+    by_source: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for r in real:
+        by_source[r["_source"]].append(r)
+    folds: dict[str, dict[str, float]] = {}
+    for recs in by_source.values():
+        for subject in sorted({r["_subject"] for r in recs}):
+            folds[subject] = thresholds_from([r for r in recs if r["_subject"] != subject])
+    defaults = {src: {n: float(recs[0]["metrics"][n]["threshold"]) for n in PERSON_METRICS}
+                for src, recs in by_source.items()}
+    shipped = {src: thresholds_from(recs) for src, recs in by_source.items()}
+    for r in real + corrupt:
+        thr = folds.get(r["_subject"], shipped[r["_source"]])
+        r["_fail_loo"] = failing(r, thr)
+        r["_fail_default"] = failing(r, defaults[r["_source"]])
+        r["_thr"] = thr
+    return {"folds": folds, "defaults": defaults, "shipped": shipped}
+
+
+# -- report ---------------------------------------------------------------------------
+
+
+def _rel(file: str, data: Path) -> str:
+    return Path(file).resolve().relative_to(data.resolve()).as_posix()
+
+
+def _pct(k: int, n: int) -> str:
+    return f"{100.0 * k / n:.1f} % ({k}/{n})" if n else "-"
+
+
+def _who(r: dict[str, Any], data: Path) -> str:
+    name = _rel(r["file"], data)
+    if "clip" in r and r["_source"] != "cmu":
+        name += f"[{r['clip']}]"
+    if Path(r["file"]).is_dir():
+        name += f" person {r['person']}"
+    return name
+
+
+def markdown(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
+             th: dict[str, Any], data: Path) -> str:
+    """The leave-clips-out sections of docs/calibration.md."""
+    lines = [
+        "# Calibration of the plausibility verdict on real capture, leave clips out",
+        "",
+        "Generated by `benchmarks/calibrate_loo.py` (do not edit by hand). Every real clip of",
+        "the shared corpus is scored once by `simenv.score(path, physics=True)`; each person is",
+        "then judged with thresholds set from the *other subjects* of its own source",
+        "(leave-one-subject-out), by the rule `thr = max(prior, Q3 + 3 IQR)` per metric",
+        "(`tracking` at its prior). Corrupted copies (`simenv.corrupt`, moderate strength,",
+        "seed 0) are judged with the thresholds of their clip's fold.",
+        "",
+        "## Real clips judged plausible",
+        "",
+        "| source | people | subjects | plausible, default thresholds | plausible, leave-clips-out "
+        "| with a diagnosed capture defect | plausible among the others |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    sources = sorted({r["_source"] for r in real}, key=list(SOURCES).index)
+    for src in sources:
+        recs = [r for r in real if r["_source"] == src]
+        diag = [r for r in recs if _who(r, data) in DIAGNOSES]
+        clean = [r for r in recs if _who(r, data) not in DIAGNOSES]
+        lines.append(
+            f"| {src} | {len(recs)} | {len({r['_subject'] for r in recs})} "
+            f"| {_pct(sum(not r['_fail_default'] for r in recs), len(recs))} "
+            f"| {_pct(sum(not r['_fail_loo'] for r in recs), len(recs))} "
+            f"| {len(diag)} (caught: {sum(bool(r['_fail_loo']) for r in diag)}) "
+            f"| {_pct(sum(not r['_fail_loo'] for r in clean), len(clean))} |")
+    lines += ["", "## Thresholds", "",
+              "Prior (the shipped default before this calibration), the rule on all clips of the "
+              "source (what a new clip of that source is judged with), and the range over the "
+              "folds.", "",
+              "| source | metric | prior | all clips | folds min-max | real people failing (LOO) |",
+              "|---|---|---|---|---|---|"]
+    for src in sources:
+        subjects = {r["_subject"] for r in real if r["_source"] == src}
+        for name in PERSON_METRICS:
+            fold = [th["folds"][s][name] for s in subjects]
+            nfail = sum(name in r["_fail_loo"] for r in real if r["_source"] == src)
+            lines.append(f"| {src} | {name} | {th['defaults'][src][name]:.4g} "
+                         f"| {th['shipped'][src][name]:.4g} | {min(fold):.4g}-{max(fold):.4g} "
+                         f"| {nfail} |")
+    lines += ["", "## Real people judged implausible (leave-clips-out)", "",
+              "Each with its failing metrics (value / fold threshold) and, where the data were "
+              "diagnosed, why the failure is the capture's.", ""]
+    for r in sorted((r for r in real if r["_fail_loo"]), key=lambda r: _who(r, data)):
+        if r["_source"] != "cmu":
+            continue
+        fails = ", ".join(f"{n} {metric_value(r['metrics'][n]):.3g}/{r['_thr'][n]:.3g} "
+                          f"{r['metrics'][n]['unit']}" for n in r["_fail_loo"])
+        note = DIAGNOSES.get(_who(r, data))
+        lines.append(f"* `{_who(r, data)}`: {fails}" + (f". {note}" if note else ""))
+    for src in sources[1:]:
+        recs = [r for r in real if r["_source"] == src and r["_fail_loo"]]
+        counts = Counter(n for r in recs for n in r["_fail_loo"])
+        lines.append(f"* {src}: {len(recs)} people; failing metrics "
+                     + ", ".join(f"{n} {c}" for n, c in counts.most_common()))
+    lines += ["", "## Corrupted copies caught", "",
+              "Caught = some metric fails. *Target* = the corruption's target metric fails. "
+              "Deciding metrics: how often each metric fails on the caught copies.", "",
+              "| source | corruption | copies | caught, default thresholds "
+              "| caught, leave-clips-out | target caught (LOO) | deciding metrics (LOO) |",
+              "|---|---|---|---|---|---|---|"]
+    for src in sources:
+        for kind, spec in CORRUPTIONS.items():
+            recs = [r for r in corrupt if r["_source"] == src and r["corruption"] == kind
+                    and "error" not in r]
+            if not recs:
+                continue
+            caught = [r for r in recs if r["_fail_loo"]]
+            target = sum(any(t in r["_fail_loo"] for t in spec.targets) for r in recs)
+            deciding = Counter(n for r in caught for n in r["_fail_loo"])
+            lines.append(
+                f"| {src} | {kind} | {len(recs)} "
+                f"| {_pct(sum(bool(r['_fail_default']) for r in recs), len(recs))} "
+                f"| {_pct(len(caught), len(recs))} | {_pct(target, len(recs))} | "
+                + ", ".join(f"{n} {c}" for n, c in deciding.most_common()) + " |")
+    errors = [r for r in corrupt if "error" in r]
+    if errors:
+        reasons = Counter((r["corruption"], r["error"].split(";")[0][-90:]) for r in errors)
+        lines += ["", f"Corrupted copies that could not be made: {len(errors)} "
+                  "(too short for the corruption):", ""]
+        lines += [f"* {k}: {c} x {why}" for (k, why), c in reasons.most_common(8)]
+    return "\n".join(lines) + "\n"
+
+
+def summary(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
+            th: dict[str, Any], data: Path) -> dict[str, Any]:
+    """Machine-readable numbers of the report (``summary.json``)."""
+    out: dict[str, Any] = {"thresholds": th["shipped"], "sources": {}}
+    for src in {r["_source"] for r in real}:
+        recs = [r for r in real if r["_source"] == src]
+        cor = [r for r in corrupt if r["_source"] == src and "error" not in r]
+        out["sources"][src] = {
+            "people": len(recs),
+            "plausible_loo": sum(not r["_fail_loo"] for r in recs) / len(recs),
+            "plausible_default": sum(not r["_fail_default"] for r in recs) / len(recs),
+            "failing": {_who(r, data): r["_fail_loo"] for r in recs if r["_fail_loo"]},
+            "corruptions": {k: {"n": sum(r["corruption"] == k for r in cor),
+                                "caught_loo": sum(bool(r["_fail_loo"]) for r in cor
+                                                  if r["corruption"] == k)}
+                            for k in CORRUPTIONS},
+        }
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("stages", nargs="+", choices=("score", "corrupt", "report"))
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("--depth-every", type=int, default=10,
+                    help="corrupt every N-th depth-camera clip (all CMU clips are corrupted)")
+    ap.add_argument("--only", choices=tuple(SOURCES),
+                    help="score and corrupt only this source (report: all)")
+    ap.add_argument("--docs", type=Path, default=REPO / "docs")
+    args = ap.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    # One file per source when run per source, so parallel runs never share a file.
+    tag = f"-{args.only}" if args.only else ""
+    real_path, corrupt_path = args.out / f"real{tag}.jsonl", args.out / f"corrupt{tag}.jsonl"
+    if "score" in args.stages:
+        targets = real_targets(args.data)
+        if args.only:
+            targets = [t for t in targets if source_of(str(t), args.data) == args.only]
+        done = done_files(real_path)
+        print(f"{len(targets)} targets, {sum(str(t) in done for t in targets)} already scored")
+        score_batch(targets, ScoreJob(physics=True), out=real_path)
+    if "corrupt" in args.stages:
+        run_corruptions(args.data, corrupt_path, args.depth_every, args.only)
+    if "report" in args.stages:
+        from calibrate_score import summarise
+
+        # Keyed by person, so a target scored by two runs counts once.
+        real_all = list({(r["file"], r.get("clip", 0), r.get("person", 0)): r
+                         for p in sorted(args.out.glob("real*.jsonl"))
+                         for r in _read_jsonl(p)}.values())
+        real = [r for r in real_all if "error" not in r]
+        corrupt = [r for p in sorted(args.out.glob("corrupt*.jsonl")) for r in _read_jsonl(p)]
+        th = judge(real, corrupt, args.data)
+        text = markdown(real, corrupt, th, args.data)
+        text += "\n" + summarise(real_all, args.data).replace(
+            "# Calibration of the plausibility scorer on real motion capture",
+            "# Appendix: every real clip at the default thresholds", 1)
+        (args.docs / "calibration.md").write_text(text)
+        (args.out / "summary.json").write_text(json.dumps(summary(real, corrupt, th, args.data),
+                                                          indent=1))
+        print(f"wrote {args.docs / 'calibration.md'} and {args.out / 'summary.json'}")
+
+
+if __name__ == "__main__":
+    main()
