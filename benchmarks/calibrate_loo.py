@@ -86,8 +86,31 @@ SOURCES: dict[str, tuple[str, ...]] = {
 }
 
 #: Real clips whose failure is a defect of the capture or of its conversion,
-#: diagnosed on the data (frames are the file's, 0-based, 120 fps).
-DIAGNOSES: dict[str, str] = {}
+#: diagnosed on the data (frames 0-based at 120 fps; the long diagnoses are in
+#: docs/plausibility.md, "Calibration findings"). Checked again for this run:
+#: 16_15's jump and 49_04's frozen copies in the positions the reader returns,
+#: 49_06 rescored with the reader's repair.
+DIAGNOSES: dict[str, str] = {
+    "cmu/bvh/16_15.bvh": "Capture defect, frames 0-1: the left forearm and hand still hold "
+                         "the converter's T-pose and jump 0.42-0.75 m between frames 1 and 2 "
+                         "(85-90 m/s); the rest of the walk is 1-2 cm a frame",
+    "cmu/bvh/49_04.bvh": "Capture defect, frames 245-250: byte-identical copies of frame 244 "
+                         "after the body moved 54-60 mm a frame, so it stops dead rising out "
+                         "of the landing (up to 2.5 BW of pull); frames 0-244 need 0.070 BW",
+    "cmu/bvh/49_06.bvh": "Conversion defect: the BVH converter collapsed the wrist and thorax "
+                         "bones, so in the hands-down phase (frames 236-298) the hands end "
+                         "15-17 cm above the floor and the thorax bends in the segment that "
+                         "stands in for it; read with restore_collapsed_bones=True floating is "
+                         "0 mm and joint_limits 0 deg (ground_penetration 57 mm: the repair's "
+                         "wrist is ~3 cm too long for this subject)",
+    "cmu/bvh/49_02.bvh": "Capture defect, frames 692-731 and 845-892: the trunk folds onto the "
+                         "thighs while the capture's pelvis (root) stays nearly upright, so the "
+                         "lumbar bone sits at 100 deg to the pelvis (frame 867); the same fold "
+                         "at frame 560 has the pelvis tilted 35 deg and every joint in range",
+    "cmu/two_person/60_61_salsa_10 person 0": "Capture defect: the release notes a tremble at "
+                                              "the start, and on frames 294-316 joints move at "
+                                              "29-46 m/s with the thorax flexed 105 deg",
+}
 
 
 # -- corpus ------------------------------------------------------------------------
