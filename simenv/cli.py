@@ -388,7 +388,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     if args.check or args.check_only:
         result = check_page(Path(args.out) / PAGE)
         print(f"checked {Path(args.out) / PAGE}: {result['links']} links resolve in "
-              f"{result['pages']} pages; screenshot {result['screenshot']} has "
+              f"{result['pages']} pages; Chromium plays its {len(result['videos'])} videos ("
+              + ", ".join(f"{v['src']} {v['duration']:.1f} s" for v in result["videos"])
+              + f"); screenshot {result['screenshot']} has "
               f"{100 * result['content_fraction']:.0f} % content and shows "
               f"{len(result['posters'])} video posters (match >= "
               f"{min((p['match'] for p in result['posters']), default=1):.2f})")

@@ -551,6 +551,7 @@ def render_result(
     width: int = 320,
     height: int = 240,
     progress: bool = False,
+    web: bool = False,
 ) -> Path:
     """Render a retargeting result (one or two people) to MP4: humanoids plus source ghosts.
 
@@ -563,9 +564,10 @@ def render_result(
         max_frames: render at most this many frames.
         width, height: image size in pixels.
         progress: show a progress bar on stderr (when it is a terminal).
+        web: also write the WebM copy browsers play (:class:`WebVideo`), next to ``path``.
 
     Returns:
-        The path written.
+        The path written (the MP4).
     """
     from tqdm import tqdm
 
@@ -577,4 +579,9 @@ def render_result(
                            ghost_edges=edges, fps=fps, stride=stride, max_frames=max_frames)
     frames = tqdm(frames, total=total, desc=f"render {Path(path).name}", unit="frame",
                   disable=None if progress else True, leave=False)
-    return write_video(frames, path, fps=fps / stride)
+    if not web:
+        return write_video(frames, path, fps=fps / stride)
+    with WebVideo(path, fps / stride) as video:
+        for frame in frames:
+            video.write(frame)
+    return video.mp4.path

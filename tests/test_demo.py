@@ -1,0 +1,132 @@
+"""The demo's page (simenv.demo.write_page) and the report writers' links: every link is
+relative and resolves after the folder is moved; a headless Chromium screenshot of the page
+is not blank and shows the video's poster (skipped when Chromium is absent: `make
+demo-check` installs it and checks the full demo's page)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from simenv.assets import WALK, asset_path
+from simenv.cli import main, save_npz, summary
+from simenv.demo import (
+    _export,
+    _poster,
+    check_links,
+    check_page,
+    check_screenshot,
+    check_videos,
+    find_chromium,
+    page_links,
+    write_page,
+)
+from simenv.errors import SimenvError
+from simenv.io.loader import load
+from simenv.plausibility.html_report import write_report
+from simenv.plausibility.report import score
+from simenv.render import render_result
+from simenv.retarget import retarget
+
+needs_chromium = pytest.mark.skipif(find_chromium() is None, reason=(
+    "no chromium (Debian: apt-get install chromium; `make demo-check` installs it)"))
+
+
+@pytest.fixture(scope="module")
+def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small demo folder written as run_demo writes it, then moved elsewhere: 0.5 s of
+    the bundled walk retargeted, 3 frames rendered (MP4 + WebM + poster), scored without
+    physics into a report, exported to GLB."""
+    out = tmp_path_factory.mktemp("demo") / "demo"
+    clip = load(asset_path(WALK)).slice(0, 60)
+    result = retarget(clip)
+    entry = summary(result)
+    video = render_result(result, out / "walk.mp4", stride=20, web=True)
+    scored = score(clip, physics=False)
+    page = write_report(scored, out / "report" / "walk", video=False)
+    entry.update(asset=WALK, npz=str(save_npz(result, out / "walk.npz")),
+                 glb=str(_export(result, out / "walk.glb")), video=str(video),
+                 poster=_poster(video), render_stride=20,
+                 plausibility={"verdict": scored.verdict, "report": str(page), "people": [
+                     {"name": p.name, "verdict": p.verdict, "score": p.score, "failed": []}
+                     for p in scored.people]})
+    write_page(out, {"clips": {"walk": entry}, "total_seconds": 1.0,
+                     "data_acknowledgement": "mocap.cs.cmu.edu"})
+    moved = out.parent / "moved" / "elsewhere"
+    shutil.move(str(out), str(moved))
+    return moved
+
+
+def test_page_links_are_relative_and_survive_a_move(demo_dir: Path):
+    page = demo_dir / "index.html"
+    links = page_links(page)
+    for name in ("walk.webm", "walk.mp4", "walk.png", "walk.glb", "walk.npz",
+                 "report/walk/report.html"):
+        assert name in links
+    assert not any(str(demo_dir.parent.parent) in link for link in links)
+    checked = check_links(page)
+    # The page and the clip's plausibility report with its timeline PNGs.
+    assert checked["pages"] == 2 and checked["links"] > 10
+    text = page.read_text()
+    assert "<video" in text and "type='video/webm'" in text
+    assert text.index("walk.webm") < text.index("walk.mp4'")  # browsers play VP8, not mp4v
+
+
+def test_check_links_catches_absolute_and_missing_links(tmp_path: Path):
+    (tmp_path / "a.html").write_text(f"<a href='{tmp_path / 'b.txt'}'>x</a>")
+    (tmp_path / "b.txt").write_text("b")
+    with pytest.raises(SimenvError, match="not relative"):
+        check_links(tmp_path / "a.html")
+    (tmp_path / "a.html").write_text("<img src='gone.png'><a href='#top'>top</a>")
+    with pytest.raises(SimenvError, match="missing file"):
+        check_links(tmp_path / "a.html")
+
+
+def test_score_report_index_links_resolve_from_a_relative_folder(tmp_path: Path, capsys,
+                                                                 monkeypatch):
+    # `simenv score --report rep` run inside the folder: the index once linked
+    # rep/<clip>/report.html from inside rep/.
+    monkeypatch.chdir(tmp_path)
+    assert main(["score", str(asset_path(WALK)), "--no-physics", "--report", "rep"]) == 0
+    capsys.readouterr()
+    shutil.move("rep", "moved")
+    checked = check_links(tmp_path / "moved" / "index.html")
+    assert checked["pages"] == 2
+
+
+@needs_chromium
+def test_screenshot_shows_the_page_and_its_video(demo_dir: Path):
+    result = check_page(demo_dir / "index.html")
+    # Chromium decodes the WebM's first frame (3 frames at 120 / 20 fps).
+    (video,) = result["videos"]
+    assert video["src"] == "walk.webm" and (video["width"], video["height"]) == (320, 240)
+    assert video["duration"] == pytest.approx(0.5, abs=0.01)
+    assert result["content_fraction"] > 0.02
+    (poster,) = result["posters"]
+    assert poster["match"] > 0.9 and Path(poster["file"]).name == "walk.png"
+    shot = cv2.imread(result["screenshot"])
+    x, y = poster["at"]
+    region = shot[y:y + 240, x:x + 320]
+    # The humanoid and the floor, not page background.
+    assert region.std() > 10 and (np.abs(region.astype(int) - 255).sum(axis=2) > 30).mean() > 0.5
+    # An image that is not on the page is not found.
+    other = demo_dir / "other.png"
+    cv2.imwrite(str(other), np.random.default_rng(0).integers(0, 255, (240, 320, 3), np.uint8))
+    with pytest.raises(SimenvError, match="not visible"):
+        check_screenshot(result["screenshot"], [other])
+
+
+@needs_chromium
+def test_browser_cannot_play_an_mp4v_only_video(demo_dir: Path):
+    # Why the page leads with the WebM: OpenCV's pip build writes MPEG-4 part 2 (mp4v).
+    page = demo_dir / "mp4_only.html"
+    page.write_text("<video controls><source src='walk.mp4' type='video/mp4'></video>")
+    try:
+        with pytest.raises(SimenvError, match="cannot play"):
+            check_videos(page)
+    finally:
+        page.unlink()
