@@ -40,16 +40,20 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
+from simenv.control.mpc import MPCConfig, TrackingMPC
+from simenv.control.reference import TrackingReference
 from simenv.divergence import physics_problem, warning_counts
 from simenv.errors import PhysicsError
 from simenv.humanoid import Humanoid
-from simenv.plausibility.body import check_qpos
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.clips import norm3
-from simenv.plausibility.dynamics import finite_differences
 from simenv.plausibility.timeline import MetricResult
 from simenv.retarget import RetargetResult
+
+#: The tracking controllers :func:`track` runs.
+CONTROLLERS: tuple[str, ...] = ("pd", "mpc")
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,10 @@ class TrackingResult:
         error: PhysicsError message when the simulation diverged, else None.
         steps: simulator steps taken. wall_s: wall time, seconds.
         sim_keypoints: (T, K, 3) simulated keypoints, NaN after the stop.
+        controller: ``"pd"`` or ``"mpc"``.
+        work_j: positive mechanical work of the hinge actuators over the
+            simulated stretch, ``sum_t sum_i max(tau_i qd_i, 0) dt``, joules.
+        work_j_per_kg: ``work_j`` per kilogram of body mass.
     """
 
     success: bool
@@ -88,6 +96,9 @@ class TrackingResult:
     steps: int
     wall_s: float
     sim_keypoints: np.ndarray
+    controller: str = "pd"
+    work_j: float = 0.0
+    work_j_per_kg: float = 0.0
 
 
 def _assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
@@ -110,54 +121,64 @@ def _assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
     return spec.compile()
 
 
+def _work(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Positive mechanical power of the actuators at this step, watts:
+    ``sum_i max(tau_i qd_i, 0)`` (negative work, braking, is not credited)."""
+    p = data.actuator_force * data.actuator_velocity
+    return float(p[p > 0].sum())
+
+
 def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
-          assist: bool = False, max_seconds: float | None = None) -> TrackingResult:
-    """PD-track ``result.qpos`` in forward simulation (see the module docstring).
+          assist: bool = False, max_seconds: float | None = None, controller: str = "pd",
+          mpc: MPCConfig | None = None, progress: bool = False) -> TrackingResult:
+    """Track ``result.qpos`` in forward simulation (see the module docstring).
 
     Args:
         result: the retargeted reference trajectory (T >= 2 frames).
         thresholds: failure distance, assistance gain, default length cap.
-        assist: add the root assistance spring and measure its force.
+        assist: add the root assistance spring and measure its force (PD only).
         max_seconds: simulate at most this much of the clip (default
             ``thresholds.tracking_max_seconds``).
+        controller: ``"pd"`` (the servos on the reference) or ``"mpc"``
+            (:class:`simenv.control.TrackingMPC`, unassisted).
+        mpc: the MPC's settings (default :class:`simenv.control.MPCConfig`).
+        progress: show a progress bar over the reference frames.
+
+    Raises:
+        PhysicsError: bad qpos (shape, NaN/inf, fewer than 2 frames), an unknown
+            controller, or ``assist`` with the MPC.
     """
+    if controller not in CONTROLLERS:
+        raise PhysicsError(f"unknown controller {controller!r}; expected one of {CONTROLLERS}",
+                           field="controller")
+    if assist and controller != "pd":
+        raise PhysicsError("root assistance is a PD-tracker option; the MPC is never assisted",
+                           field="assist")
     h = result.humanoid
-    model = _assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
-    ref = check_qpos(model, result.qpos)
-    T = len(ref)
-    if T < 2:
-        raise PhysicsError(f"tracking needs at least 2 frames; got {T}", field="qpos")
-    fps = float(result.fps)
-    limit = thresholds.tracking_max_seconds if max_seconds is None else float(max_seconds)
-    n_frames = min(T, int(np.floor(limit * fps)) + 1)
-    ref_kp = h.keypoints(ref[:n_frames])
-    qvel_ref, _ = finite_differences(model, ref[:n_frames], fps, thresholds.filter_cutoff_hz)
-    act_qpos = model.jnt_qposadr[model.actuator_trnid[:, 0]]
-    act_dof = model.jnt_dofadr[model.actuator_trnid[:, 0]]
-    # A position actuator applies kp (ctrl - q) - kv qd; offsetting ctrl by
-    # (kv / kp) qd_ref turns that into kp (q_ref - q) + kv (qd_ref - qd), a PD
-    # on the velocity error instead of a brake on all motion.
-    ratio = -model.actuator_biasprm[:, 2] / model.actuator_gainprm[:, 0]
-    ctrl_ref = ref[:n_frames, act_qpos] + ratio * qvel_ref[:, act_dof]
-    dt = model.opt.timestep
-    frame_step = np.round(np.arange(n_frames) / fps / dt).astype(int)
-    # Every step's control (and assistance) target, interpolated linearly
-    # between the reference frames around it, computed up front so the
-    # stepping loop is little more than mj_step: step s of the interval from
-    # frame k-1 to k has alpha = clip(s dt fps - (k-1), 0, 1).
-    step_frame = np.repeat(np.arange(1, n_frames), np.diff(frame_step))
-    alpha = np.clip(np.arange(frame_step[0], frame_step[-1]) * dt * fps - (step_frame - 1),
-                    0.0, 1.0)[:, None]
-    prev = step_frame - 1
-    ctrl_steps = ctrl_ref[prev] + alpha * (ctrl_ref[step_frame] - ctrl_ref[prev])
+    if controller == "mpc":
+        ref = TrackingReference.from_retarget(result, h.model, thresholds, max_seconds)
+        planner: TrackingMPC | None = TrackingMPC(h, ref, mpc)
+        model = planner.model
+    else:
+        model = _assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
+        ref = TrackingReference.from_retarget(result, model, thresholds, max_seconds,
+                                              feedforward=False)
+        planner = None
+    T = len(result.qpos)
+    fps, n_frames, dt = ref.fps, ref.n_frames, ref.dt
+    ref_kp = ref.frame_keypoints
+    frame_step = ref.frame_step
     if assist:
-        root = ref[:n_frames, :3]
-        mocap_steps = root[prev] + alpha * (root[step_frame] - root[prev])
+        # The mocap target follows the reference root, interpolated like the servo targets.
+        root = result.qpos[:n_frames, :3]
+        u = np.clip(np.arange(ref.n_steps) * dt * fps, 0.0, n_frames - 1)
+        i0 = np.minimum(np.floor(u).astype(int), n_frames - 2)
+        mocap_steps = root[i0] + (u - i0)[:, None] * (root[i0 + 1] - root[i0])
 
     data = mujoco.MjData(model)
     warnings_at_start = warning_counts(data)
-    data.qpos[:] = ref[0]
-    data.qvel[:] = qvel_ref[0]
+    data.qpos[:] = ref.qpos0
+    data.qvel[:] = ref.qvel0
     mujoco.mj_forward(model, data)
     # The assistance force is read from the first three constraint rows (see
     # the stepping loop); MuJoCo orders equality constraints first.
@@ -173,35 +194,43 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
     error: str | None = None
     failed_at: int | None = None
     steps = 0
+    work = 0.0
     wall = time.perf_counter()
-    for k in range(1, n_frames):
-        force_sum, n_sub = 0.0, 0
-        first, last = frame_step[k - 1] - frame_step[0], frame_step[k] - frame_step[0]
-        if assist:
-            data.mocap_quat[0] = ref[k, 3:7]
-        for s in range(first, last):
-            data.ctrl[:] = ctrl_steps[s]
+    frames = tqdm(range(1, n_frames), desc=f"track {result.name} ({controller})",
+                  unit="frame", disable=not progress)
+    try:
+        for k in frames:
+            force_sum, n_sub = 0.0, 0
             if assist:
-                data.mocap_pos[0] = mocap_steps[s]
-            mujoco.mj_step(model, data)
-            if assist:
-                # The weld is the model's only equality constraint, and MuJoCo
-                # puts equality rows first: rows 0-2 are its translation.
-                force_sum += float(np.linalg.norm(data.efc_force[:3]))
-                n_sub += 1
-        steps += last - first
-        reason = physics_problem(model, data, warnings_at_start)
-        if reason is not None:
-            error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
-                                     source=result.name))
-            failed_at = k
-            break
-        kp_sim[k] = data.site_xpos[h.site_ids]
-        body_err[k] = norm3(kp_sim[k] - ref_kp[k]).mean()
-        assist_f[k] = force_sum / max(n_sub, 1) / weight
-        if body_err[k] > thresholds.tracking_fail_m:
-            failed_at = k
-            break
+                data.mocap_quat[0] = result.qpos[k, 3:7]
+            for s in range(frame_step[k - 1], frame_step[k]):
+                data.ctrl[:] = planner.control(data, s) if planner is not None else ref.ctrl[s]
+                if assist:
+                    data.mocap_pos[0] = mocap_steps[s]
+                mujoco.mj_step(model, data)
+                work += _work(model, data) * dt
+                if assist:
+                    # The weld is the model's only equality constraint, and MuJoCo
+                    # puts equality rows first: rows 0-2 are its translation.
+                    force_sum += float(np.linalg.norm(data.efc_force[:3]))
+                    n_sub += 1
+            steps += frame_step[k] - frame_step[k - 1]
+            reason = physics_problem(model, data, warnings_at_start)
+            if reason is not None:
+                error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
+                                         source=result.name))
+                failed_at = k
+                break
+            kp_sim[k] = data.site_xpos[h.site_ids]
+            body_err[k] = norm3(kp_sim[k] - ref_kp[k]).mean()
+            assist_f[k] = force_sum / max(n_sub, 1) / weight
+            if body_err[k] > thresholds.tracking_fail_m:
+                failed_at = k
+                break
+    finally:
+        frames.close()
+        if planner is not None:
+            planner.close()
     wall = time.perf_counter() - wall
     tracked = n_frames if failed_at is None else failed_at + (0 if error else 1)
     ok = failed_at is None
@@ -228,12 +257,16 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         steps=steps,
         wall_s=wall,
         sim_keypoints=full,
+        controller=controller,
+        work_j=work,
+        work_j_per_kg=work / h.total_mass,
     )
 
 
 def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
-             assist: bool = False, max_seconds: float | None = None) -> MetricResult:
-    """Physics tracking as a metric (:func:`track`).
+             assist: bool = False, max_seconds: float | None = None, controller: str = "pd",
+             mpc: MPCConfig | None = None, progress: bool = False) -> MetricResult:
+    """Physics tracking as a metric (:func:`track`, same arguments).
 
     Timeline: body error per frame (m), NaN after the simulation stopped.
     Value: the largest body error reached (inf when the simulation
@@ -242,11 +275,16 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
     (0/1), ``time_to_failure_s``, ``tracked_fraction`` (of the simulated
     stretch), ``simulated_s``, ``mpjpe_mm``, ``accel_error_mm_per_frame2``,
     ``assist_force_mean`` (body weights; 0 without assistance), ``diverged``
-    (0/1) and ``steps_per_s`` (simulator throughput).
+    (0/1), ``steps_per_s`` (simulator throughput, planning included),
+    ``work_j`` and ``work_j_per_kg`` (positive work of the hinge actuators),
+    ``mpc`` (1 when the MPC tracked, 0 for the PD servos) and
+    ``realtime_ratio`` (wall time per simulated second).
     """
-    tr = track(result, thresholds, assist=assist, max_seconds=max_seconds)
+    tr = track(result, thresholds, assist=assist, max_seconds=max_seconds,
+               controller=controller, mpc=mpc, progress=progress)
     value = float("inf") if tr.error else float(np.nanmax(tr.body_error))
     n_sim = int(round(tr.simulated_s * result.fps)) + 1
+    sim_s = tr.steps * result.humanoid.model.opt.timestep
     return MetricResult.from_timeline(
         "tracking", tr.body_error, value, "m", thresholds.tracking_fail_m,
         details={"success": float(tr.success), "time_to_failure_s": tr.time_to_failure_s,
@@ -254,5 +292,8 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
                  "mpjpe_mm": tr.mpjpe_mm, "accel_error_mm_per_frame2": tr.accel_error,
                  "assist_force_mean": float(np.nanmean(tr.assist_force)),
                  "diverged": float(tr.error is not None),
-                 "steps_per_s": tr.steps / max(tr.wall_s, 1e-9)},
+                 "steps_per_s": tr.steps / max(tr.wall_s, 1e-9),
+                 "work_j": tr.work_j, "work_j_per_kg": tr.work_j_per_kg,
+                 "mpc": float(tr.controller == "mpc"),
+                 "realtime_ratio": tr.wall_s / sim_s if sim_s > 0 else float("nan")},
     )

@@ -1,0 +1,230 @@
+"""Sampling-based model-predictive tracking of a retargeted clip.
+
+The controller drives only the humanoid's hinge servos (``data.ctrl``); no
+force or torque ever acts on the free root, no equality constraint is added:
+the body balances on its own feet. Every ``replan_steps`` physics steps it
+
+1. reads the current full physics state ``x`` (``mj_getState``);
+2. draws N knot-offset samples around the nominal (:class:`~simenv.control.sampling.Sampler`);
+3. rolls each out for the horizon's H planning steps with ``mujoco.rollout``
+   (threads), the servo targets being
+
+       u_i(j) = u*(s + f j) + delta_i(j),
+
+   ``u*`` the reference PD targets with velocity feed-through
+   (:class:`~simenv.control.reference.TrackingReference`), ``s`` the current
+   step, ``f`` the planning model's ``timestep_factor`` and ``delta_i`` the
+   sample's spline (:class:`~simenv.control.sampling.Spline`);
+4. scores the rollouts (:class:`~simenv.control.costs.TrackingCost`) and
+   takes the cheapest (or the MPPI average) as the new nominal, which is
+   applied until the next replan and then shifted forward in time to
+   warm-start it. The carried-over nominal acts as the integral term a PD
+   lacks: the stance-leg offsets that hold the body weight persist from plan
+   to plan.
+
+Costs: N H f physics steps per replan, i.e. ``N H / replan_steps`` rolled-out
+steps per simulated step (MuJoCo MPC's predictive sampling; Howell et al.
+2022). Deterministic for a seed: the rollouts are independent of the thread
+that runs them, and the noise comes from one seeded generator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from mujoco import rollout
+
+from simenv.control.costs import CostWeights, TrackingCost
+from simenv.control.model import SensorLayout, planning_model
+from simenv.control.reference import TrackingReference, actuated_indices
+from simenv.control.sampling import Sampler, Spline
+from simenv.errors import PhysicsError
+from simenv.humanoid import Humanoid
+
+_STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass(frozen=True)
+class MPCConfig:
+    """Settings of :class:`TrackingMPC`.
+
+    Attributes:
+        horizon_s: planning horizon, seconds.
+        n_knots: spline knots over the horizon.
+        n_samples: rollouts per replan, the nominal included.
+        replan_steps: physics steps between replans.
+        noise_rad: knot noise standard deviation, radians (scaled per actuator
+            by ``sqrt(kp / kp_max)``... see :attr:`noise_scaling`).
+        noise_scaling: scale each actuator's noise by its gain relative to the
+            strongest one, ``(kp / kp_max) ** noise_scaling`` (0: uniform).
+        sampled_parts: body parts (:data:`simenv.humanoid.JOINTS` keys) whose
+            hinges get sampled offsets; the others follow the reference
+            servo targets. Empty: every hinge.
+        limit_rad: largest knot offset, radians.
+        temperature: 0 = predictive sampling (keep the best), > 0 = MPPI.
+        timestep_factor: planning timestep as a multiple of the physics step.
+        gain_scale: servo stiffness and damping (kp, kv) relative to the
+            humanoid's; the force limits stay the humanoid's.
+        feedforward: fraction of the reference's feed-forward torques added
+            to the servo targets (as ``tau_ff / kp``).
+        cost_stride: evaluate the cost every this many planning steps.
+        nthread: rollout threads.
+        seed: noise seed.
+        weights: cost weights.
+    """
+
+    horizon_s: float = 0.3
+    n_knots: int = 4
+    n_samples: int = 32
+    replan_steps: int = 10
+    noise_rad: float = 0.1
+    noise_scaling: float = 0.0
+    sampled_parts: tuple[str, ...] = ("lumbar", "thigh", "shin", "foot", "toes")
+    limit_rad: float = 0.8
+    temperature: float = 0.0
+    timestep_factor: int = 1
+    gain_scale: float = 1.0
+    feedforward: float = 1.0
+    cost_stride: int = 5
+    nthread: int = 2
+    seed: int = 0
+    weights: CostWeights = field(default_factory=CostWeights)
+
+    def __post_init__(self) -> None:
+        checks = {
+            "horizon_s": self.horizon_s > 0, "n_knots": self.n_knots >= 2,
+            "n_samples": self.n_samples >= 2, "replan_steps": self.replan_steps >= 1,
+            "noise_rad": self.noise_rad >= 0, "limit_rad": self.limit_rad > 0,
+            "temperature": self.temperature >= 0, "timestep_factor": self.timestep_factor >= 1,
+            "cost_stride": self.cost_stride >= 1, "nthread": self.nthread >= 1,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise PhysicsError(f"MPCConfig.{name} out of range: {getattr(self, name)!r}",
+                                   field=name)
+
+
+class TrackingMPC:
+    """The predictive-sampling tracking controller (module docstring).
+
+    Args:
+        humanoid: the simulated body (its spec is copied for the planning model).
+        reference: the clip resampled to the humanoid's timestep.
+        config: planner settings.
+
+    Per-step use::
+
+        mpc = TrackingMPC(h, ref, config)
+        model = mpc.model                  # simulate this model (sensors added)
+        data = mujoco.MjData(model); mpc.reset(data)
+        for s in range(ref.n_steps):
+            data.ctrl[:] = mpc.control(data, s)
+            mujoco.mj_step(model, data)
+        mpc.close()                        # or use it as a context manager
+    """
+
+    def __init__(self, humanoid: Humanoid, reference: TrackingReference,
+                 config: MPCConfig | None = None) -> None:
+        self.config = config = config or MPCConfig()
+        self.reference = reference
+        self.model, self.layout = planning_model(humanoid, 1, config.gain_scale)
+        if config.timestep_factor == 1:
+            self.plan_model, plan_layout = self.model, self.layout
+        else:
+            self.plan_model, plan_layout = planning_model(humanoid, config.timestep_factor,
+                                                         config.gain_scale)
+        self._check_layout(plan_layout)
+        f = config.timestep_factor
+        self.horizon = max(2, int(round(config.horizon_s / (reference.dt * f))))
+        self.spline = Spline(self.horizon, config.n_knots)
+        kp = self.model.actuator_gainprm[:, 0]
+        sigma = config.noise_rad * (kp / kp.max()) ** config.noise_scaling
+        if config.sampled_parts:
+            names = [self.model.actuator(i).name for i in range(self.model.nu)]
+            sigma = sigma * np.array([any(part in n for part in config.sampled_parts)
+                                      for n in names])
+        self.sampler = Sampler(config.n_samples, sigma, config.limit_rad,
+                               config.temperature, config.seed)
+        _, hinge_dofs = actuated_indices(self.model)
+        qvel_offset = (mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_TIME)
+                       + self.model.nq)
+        # A position servo adds kp (u - q): a target offset tau / kp is a torque tau.
+        self.ctrl_ref = reference.ctrl + config.feedforward * reference.torque / kp
+        self.cost = TrackingCost(reference, plan_layout, hinge_dofs, qvel_offset,
+                                 config.weights)
+        # Rollout rows whose cost is read: every cost_stride-th, always the last.
+        rows = np.arange(config.cost_stride - 1, self.horizon, config.cost_stride)
+        self._rows = rows if rows[-1] == self.horizon - 1 else np.append(rows, self.horizon - 1)
+        nstate = mujoco.mj_stateSize(self.plan_model, _STATE)
+        N, H = config.n_samples, self.horizon
+        self._state = np.empty((N, H, nstate))
+        self._sensor = np.empty((N, H, plan_layout.size))
+        self._x0 = np.empty(mujoco.mj_stateSize(self.model, _STATE))
+        self._datas = [mujoco.MjData(self.plan_model) for _ in range(config.nthread)]
+        self._pool = rollout.Rollout(nthread=config.nthread) if config.nthread > 1 else None
+        self.knots = np.zeros((config.n_knots, self.model.nu))
+        self.plan_step = 0
+        self.replans = 0
+        self.last_costs: np.ndarray = np.zeros(0)
+
+    def _check_layout(self, layout: SensorLayout) -> None:
+        if layout != self.layout:
+            raise PhysicsError("planning and simulated models disagree on sensors",
+                               field="timestep_factor")
+
+    def __enter__(self) -> TrackingMPC:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the rollout thread pool (idempotent)."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    def reset(self, data: mujoco.MjData) -> None:
+        """Put ``data`` in the reference's first state and clear the plan."""
+        mujoco.mj_resetData(self.model, data)
+        data.qpos[:] = self.reference.qpos0
+        data.qvel[:] = self.reference.qvel0
+        mujoco.mj_forward(self.model, data)
+        self.knots[:] = 0.0
+        self.plan_step = 0
+        self.replans = 0
+
+    def _offsets(self, step: int) -> np.ndarray:
+        """(nu,) the nominal's offset at physics step ``step``."""
+        j = (step - self.plan_step) / self.config.timestep_factor
+        return (self.spline._hat(np.array([j])) @ self.knots)[0]
+
+    def plan(self, data: mujoco.MjData, step: int) -> None:
+        """Replan from ``data``'s state at physics step ``step`` (module docstring)."""
+        ref, f = self.reference, self.config.timestep_factor
+        if self.replans:
+            self.knots = self.spline.shift(self.knots, (step - self.plan_step) / f)
+        samples = self.sampler.sample(self.knots)
+        ctrl_steps = ref.window(step, self.horizon * f)[::f]
+        controls = self.ctrl_ref[ctrl_steps] + self.spline.evaluate(samples)
+        mujoco.mj_getState(self.model, data, self._x0, _STATE)
+        runner = self._pool if self._pool is not None else rollout
+        runner.rollout(self.plan_model, self._datas, self._x0[None], controls,
+                       initial_warmstart=data.qacc_warmstart[None],
+                       state=self._state, sensordata=self._sensor)
+        rows = self._rows
+        costs = self.cost(ctrl_steps[rows], self._sensor[:, rows],
+                          ref.window(step + f, self.horizon * f)[::f][rows],
+                          self._state[:, rows], samples)
+        self.knots = self.sampler.update(samples, costs)
+        self.last_costs = costs
+        self.plan_step = step
+        self.replans += 1
+
+    def control(self, data: mujoco.MjData, step: int) -> np.ndarray:
+        """(nu,) servo targets for physics step ``step``, replanning when due."""
+        if self.replans == 0 or step - self.plan_step >= self.config.replan_steps:
+            self.plan(data, step)
+        return self.ctrl_ref[min(step, self.reference.n_steps)] + self._offsets(step)
