@@ -26,10 +26,11 @@ APT_PACKAGES := libosmesa6 libgl1 libegl1
 GL_BACKEND = $(shell ldconfig -p 2>/dev/null | grep -q 'libOSMesa\.so' && echo osmesa || echo egl)
 RUN_ENV = MUJOCO_GL=$${MUJOCO_GL:-$(GL_BACKEND)}
 
-.PHONY: help setup system-deps demo test lint bench clean distclean
+.PHONY: help setup system-deps demo demo-check test lint bench clean distclean
 
 help:
-	@echo "make demo   - set up and run the demo (writes $(DEMO_OUT)/)"
+	@echo "make demo   - set up and run the demo (writes $(DEMO_OUT)/, open $(DEMO_OUT)/index.html)"
+	@echo "make demo-check - check the demo's page in headless Chromium (installs it as root)"
 	@echo "make test   - set up and run the test suite"
 	@echo "make lint   - ruff check"
 	@echo "make bench  - retargeting benchmark (simenv vs mink)"
@@ -62,6 +63,24 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(RUN_ENV) $(BIN)/simenv demo --out $(DEMO_OUT)
+
+# The demo's page checked in a browser (`simenv demo --check-only`): every link resolves,
+# headless Chromium plays every video, and its screenshot ($(DEMO_OUT)/index.png) is not blank
+# and shows every video's poster. Chromium (~300 MB) is installed here only (as root, when
+# missing), not by set-up: `make test` skips its browser tests without it.
+BROWSER_PACKAGES := chromium
+
+demo-check: $(STAMP)
+	@if ! command -v chromium >/dev/null 2>&1 && command -v dpkg >/dev/null 2>&1; then \
+		if [ "$$(id -u)" != 0 ]; then \
+			echo "demo-check: chromium is missing (not root: run 'sudo apt-get install $(BROWSER_PACKAGES)')"; \
+			exit 1; \
+		fi; \
+		echo "demo-check: installing $(BROWSER_PACKAGES)"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $(BROWSER_PACKAGES); \
+	fi
+	test -f $(DEMO_OUT)/index.html || $(MAKE) --no-print-directory demo
+	$(RUN_ENV) $(BIN)/simenv demo --out $(DEMO_OUT) --check-only
 
 test: $(STAMP)
 	$(RUN_ENV) $(BIN)/pytest

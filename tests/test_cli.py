@@ -13,6 +13,7 @@ import pytest
 
 from simenv import cli
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
+from simenv.demo import check_links
 
 SUMMARY_KEYS = {
     "frames", "fps", "people", "mean_residual_m", "p95_residual_m", "max_residual_m", "seconds"
@@ -171,6 +172,9 @@ def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
         assert plaus["verdict"] in ("plausible", "implausible")
         assert len(plaus["people"]) == people and Path(plaus["report"]).is_file()
     assert (tmp_path / "demo" / "report" / "index.html").is_file()
+    # The page a person opens: every link relative and resolving (tests/test_demo.py checks
+    # such a page in a browser).
+    assert check_links(tmp_path / "demo" / "index.html")["pages"] >= 5
     (reaction,) = report["rehearsal"]["reactions"]
     assert reaction["object"] == "cigarette" and reaction["success"] is True
     assert reaction["t_object_changed"] > reaction["t_decision"] >= reaction["t_onset"]
