@@ -193,7 +193,15 @@ def _file_colour(mesh: Any) -> tuple[float, ...] | None:
 
 
 def prepare(item: FurnitureMesh, source: str | None = None) -> PreparedFurniture:
-    """Read ``item``'s mesh and build its collision pieces (module docstring)."""
+    """Read ``item``'s mesh and build its collision pieces (module docstring). Cached
+    until the file changes: a room rebuilt for every episode reads and decomposes each
+    mesh once (the result is shared, not to be modified)."""
+    mtime = item.mesh.stat().st_mtime_ns if item.mesh.is_file() else 0
+    return _prepare(item, source, mtime)
+
+
+@lru_cache(maxsize=32)
+def _prepare(item: FurnitureMesh, source: str | None, _mtime: int) -> PreparedFurniture:
     field = f"{item.field}.mesh"
     mesh, pieces, file_rgba = read_mesh(item.mesh, scale=item.scale, up=item.up, field=field,
                                         source=source)
