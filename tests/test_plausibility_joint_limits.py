@@ -27,6 +27,7 @@ from simenv.plausibility.body import (
     lowest_box_z,
     observed_hinges,
     relaxed_humanoid,
+    sustained_max,
 )
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.retarget import retarget
@@ -170,6 +171,14 @@ def test_real_dance_within_ranges_and_a_bent_knee_is_not(shared_data: Path) -> N
                              frames, None)
     b = joint_limits(broken)
     assert not b.passed and b.value >= 2 * THR, b.to_dict()
+
+
+def test_sustained_max_ignores_a_single_frame() -> None:
+    tl = np.array([0.0, 12.0, 0.0, 5.0, 6.0, 7.0, 0.0])
+    assert sustained_max(tl, 3) == 5.0  # the 12 lasts one frame
+    assert sustained_max(tl, 1) == 12.0
+    assert sustained_max(tl[:2], 3) == 12.0  # shorter than the window: the plain maximum
+    assert sustained_max(np.zeros(0), 3) == 0.0
 
 
 def test_retarget_result_counts_every_frame(walk: Motion) -> None:

@@ -593,8 +593,11 @@ def joint_limits(source: Motion | RetargetResult,
     Timeline: ``max_h excess_h(t)`` degrees (:func:`joint_limit_excess`) over
     the hinges the motion's keypoints observe (:func:`observed_hinges`), 0
     where not demanded; on the frames a hinge is demanded, the least excess
-    the flagged bodies need (:func:`joint_limit_least_excess`). Value: its
-    maximum over frames; passes when at most ``joint_limit_max_deg``. Details:
+    the flagged bodies need (:func:`joint_limit_least_excess`). Value: the
+    largest excess the timeline holds for ``joint_limit_min_duration_s``
+    (:func:`sustained_max`; one frame below 40 fps); passes when at most
+    ``joint_limit_max_deg``. ``peak_deg`` in the details is the single-frame
+    maximum. Details:
     ``frames_over`` (fraction of frames above 1 degree), ``joints_over``
     (hinges above the threshold anywhere), ``mean_deg``, ``worst_hinge``
     (index into :attr:`Humanoid.joint_names` of the hinge with the largest
@@ -611,13 +614,30 @@ def joint_limits(source: Motion | RetargetResult,
         excess[:, ~observed_hinges(source.humanoid, source.keypoint_names)] = 0.0
     timeline = excess.max(axis=1)
     thr = thresholds.joint_limit_max_deg
+    fps = source.fps
+    held = sustained_max(timeline, max(1, int(np.ceil(thresholds.joint_limit_min_duration_s
+                                                      * fps - 1e-9))))
     peak = excess.max(axis=0)
     details.update({"frames_over": float((timeline > 1.0).mean()),
                     "joints_over": float((peak > thr).sum()),
                     "mean_deg": float(timeline.mean()),
+                    "peak_deg": float(timeline.max()) if len(timeline) else 0.0,
                     "worst_hinge": float(peak.argmax()) if peak.max() > 0 else -1.0})
-    return MetricResult.from_timeline("joint_limits", timeline, float(timeline.max()), "deg",
+    return MetricResult.from_timeline("joint_limits", timeline, held, "deg",
                                       thr, details=details)
+
+
+def sustained_max(timeline: np.ndarray, frames: int) -> float:
+    """The largest value a (T,) timeline holds for ``frames`` consecutive frames:
+    ``max_t min(timeline[t : t + frames])`` (the plain maximum for one frame, or
+    when the timeline is shorter than ``frames``)."""
+    x = np.asarray(timeline, dtype=float)
+    if len(x) == 0:
+        return 0.0
+    if frames <= 1 or len(x) < frames:
+        return float(x.max())
+    windows = np.lib.stride_tricks.sliding_window_view(x, frames)
+    return float(windows.min(axis=1).max())
 
 
 # -- penetration between geoms ---------------------------------------------------

@@ -106,6 +106,16 @@ class BodyThresholds:
             real walk scores >= 30 and 18 (tests/test_plausibility_joint_limits.py;
             the least excess lets the upper arm's twist absorb part of the
             elbow's).
+        joint_limit_min_duration_s: 0.025. The excess the metric reports is
+            the largest one held this long (3 frames at 120 fps; a single
+            frame below 40 fps). Measured on real CMU clips with the sourced
+            ranges: two single-frame excesses are the retargeting's basin on
+            one frame, not the joint -- the salsa 61_05 follower's right foot
+            on frame 623 (18.5 deg at the eversion bound -35; 0.0 at -30 and
+            11.7 at -40, so not a monotone function of the range) and 135_06's
+            right foot on frame 1986 (12.3 deg); both hold 0 over 3 frames.
+            A corrupted pose lasts as long as the corruption (the bent knees
+            and elbows of the tests: 10-50 frames).
 
     Self- and inter-person penetration
         self_penetration_max_mm: 100. Largest allowed penetration depth
@@ -225,6 +235,7 @@ class BodyThresholds:
     joint_limit_probe_deg: float = 60.0
     joint_limit_max_deg: float = 10.0
     joint_limit_cost_m: float = 0.01
+    joint_limit_min_duration_s: float = 0.025
 
     self_penetration_max_mm: float = 100.0
     inter_penetration_max_mm: float = 100.0
