@@ -57,6 +57,35 @@ def test_residual_grows_with_unsupported_time(walk_2s_retargeted) -> None:
     assert np.median(rr.force[:50]) < 0.1
 
 
+def test_measured_residual_counts_only_what_the_controller_could_not_track(
+        walk_2s_retargeted) -> None:
+    """With an unassisted controller's body error, frames it followed need no help
+    and the rest keep the inferred residual: a walk lifted 30 cm for its middle
+    second, which a body under gravity cannot follow there, still needs it."""
+    q = walk_2s_retargeted.qpos.copy()
+    q[60:180, 2] += 0.3
+    lifted = replace(walk_2s_retargeted, qpos=q)
+    inferred = root_residual(lifted)
+    T = lifted.num_frames
+    err = np.full(T, 0.03)
+    err[60:180] = 0.25   # the simulated body dropped to the floor there
+    err[-20:] = np.nan   # and stopped before the end
+    measured = root_residual(lifted, tracked_error=err)
+    untracked = np.zeros(T, dtype=bool)
+    untracked[60:180] = untracked[-20:] = True
+    np.testing.assert_allclose(measured.timeline[untracked], inferred.timeline[untracked])
+    assert (measured.timeline[~untracked] == 0.0).all()
+    assert measured.details["measured_fraction"] == pytest.approx((~untracked).mean())
+    assert measured.details["inferred_mean"] == pytest.approx(inferred.value)
+    assert inferred.details["measured_fraction"] == 0.0
+    # The lift alone (120 of T frames at ~1 BW) keeps it implausible.
+    assert not measured.passed and 0.8 * 120 / T < measured.value < inferred.value
+    # A controller that followed every frame within the limit measured no help.
+    assert root_residual(lifted, tracked_error=np.zeros(T)).value == 0.0
+    with pytest.raises(PhysicsError, match="one body error per frame"):
+        root_residual(lifted, tracked_error=np.zeros(T - 1))
+
+
 def test_balance_flags_a_lean_past_the_feet(walk_2s_retargeted) -> None:
     # A frozen pose is quasi-static on every frame. Standing frozen in the
     # walk's first pose is balanced; the same pose tipped forward by 0.4 rad
