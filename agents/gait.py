@@ -1,0 +1,611 @@
+"""Walking on the agent's own legs: footsteps, a statically balanced stepping gait, and
+centre-of-mass feedback through the stance legs. No force or torque acts on the body but
+its own servos and its contacts.
+
+A walk is a list of :class:`Footstep` (which foot, where its ankle lands on the floor,
+its heading). Each step is three keyframes of the whole body (leg hinges solved by damped
+least squares on the four feet keypoints, :func:`~simenv.agents.reach.reach_pose`):
+
+1. *shift* (:data:`SHIFT_S`): both feet planted, the centre of mass moves over the stance
+   foot's support centre (:func:`support_centre`);
+2. *lift* (:data:`LIFT_S`): the swing foot rises :data:`LIFT_M` half-way to its new place;
+3. *place* (:data:`PLACE_S`): the swing foot lands at its new place, the centre of mass
+   still over the stance foot.
+
+The pelvis of every keyframe is placed so that the body's centre of mass ``c(q)`` is at the
+keyframe's target ``c*`` (three fixed-point iterations ``p <- p + (c* - c(q))`` of the
+pelvis's horizontal position, the legs re-solved each time), :data:`CROUCH_M` below its
+standing height, with the mean heading of the feet. The servo targets are the keyframes'
+hinge angles with the stance legs' static torques fed forward
+(:func:`simenv.agents.seat.stance_targets`), moved between keyframes along minimum-jerk
+profiles. The last keyframe centres the body over both feet; the plan ends standing
+with :data:`~simenv.agents.stand.ComBalance` style feedback.
+
+:class:`StepBalance` closes the loop at every physics step. With ``e = c - c*`` the
+horizontal error of the centre of mass from its planned position (m) and ``e'`` its rate
+(m/s), the virtual force ``F = -M (K e + D e')`` (N) at the centre of mass is produced by
+the legs in contact with the floor (virtual model control, Pratt et al. 2001; Coros et al.
+2010): with ``J_i`` the (2, n) Jacobian of the centre of mass relative to foot ``i`` over
+that leg's hinges, ``tau_i = w_i J_i^T F`` (``w_i`` the planned share of the weight on
+that foot), added to the position servos' targets as ``tau / kp``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from simenv.agents.reach import min_jerk, pd_targets, upper_body_joints
+from simenv.errors import SimenvError
+from simenv.humanoid import Humanoid
+from simenv.room import Room
+
+#: Durations of a step's keyframes (module docstring), s.
+SHIFT_S = 1.6
+LIFT_S = 0.5
+PLACE_S = 1.0
+#: Standing still at the end, balanced, s.
+HOLD_S = 1.0
+#: Swing foot's lift, m; the pelvis's drop below standing while stepping, m.
+LIFT_M = 0.1
+CROUCH_M = 0.08
+#: The support centre of a foot is this far ahead of its ankle (the sole's box runs from
+#: 6 cm behind the ankle to 14 cm ahead of it, the toes to 20 cm), m.
+SUPPORT_AHEAD_M = 0.05
+#: Centre-of-mass feedback gains (module docstring): ``K`` in 1/s^2, ``D`` in 1/s.
+COM_K = 45.0
+COM_D = 15.0
+SIDES = ("left", "right")
+FF = 1.0
+INSIDE_M = 0.02
+SETTLE_S = 0.4
+PRESS_M = 0.0
+SHARE_REF = 1.0
+STANCE_T = 0.0
+TORSO = 1.0
+KT = 1.0
+DT = 0.1
+LEAD = 1.0
+N_SUB = 4
+DYNFF = 1.0
+ADMIT = 0.0
+KA = 1.0
+DA = 0.2
+TOUCH_N = 10.0
+ONLY_SHIFT = 0.0
+
+
+def _other(side: str) -> str:
+    return "right" if side == "left" else "left"
+
+
+def _rot(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def _yaw_quat(yaw: float) -> np.ndarray:
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def _mean_yaw(a: float, b: float) -> float:
+    return float(np.arctan2(np.sin(a) + np.sin(b), np.cos(a) + np.cos(b)))
+
+
+@dataclass(frozen=True)
+class Footstep:
+    """One step: foot ``side`` lands with its ankle over ``xy`` (2,) m on the floor,
+    heading ``yaw`` rad."""
+
+    side: str
+    xy: np.ndarray
+    yaw: float
+
+
+def support_centre(xy: np.ndarray, yaw: float) -> np.ndarray:
+    """(2,) the middle of a foot's sole on the floor, m."""
+    return np.asarray(xy, float) + SUPPORT_AHEAD_M * np.array([np.cos(yaw), np.sin(yaw)])
+
+
+def feet_now(room: Room, data: mujoco.MjData) -> dict[str, tuple[np.ndarray, float]]:
+    """Each foot body's position on the floor (x, y), m, and heading, rad, in the room
+    now."""
+    m = room.model
+    out = {}
+    for s in SIDES:
+        b = m.body(f"agent/{s}_foot").id
+        fwd = data.xmat[b].reshape(3, 3)[:2, 0]
+        out[s] = (data.xpos[b, :2].copy(), float(np.arctan2(fwd[1], fwd[0])))
+    return out
+
+
+def _legs(h: Humanoid) -> tuple[str, ...]:
+    return tuple(n for n in h.joint_names if n.split("_")[1] in ("thigh", "shin", "foot"))
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.zeros(4)
+    mujoco.mju_mulQuat(out, a, b)
+    return out
+
+
+class LegIK:
+    """Leg hinges putting each foot body at a pose: position of its ankle and orientation
+    ``yaw`` about the vertical times the foot's standing rest orientation (sole flat), by
+    damped least squares on the 6D error (position, m; rotation vector, rad) over that
+    leg's hip, knee and ankle hinges; the pelvis stays where ``q`` puts it."""
+
+    def __init__(self, h: Humanoid) -> None:
+        m = self.model = h.model
+        self.data = mujoco.MjData(m)
+        rest = h.default_qpos()
+        rest[:2] = 0.0
+        rest[3:7] = _yaw_quat(0.0)
+        self.data.qpos[:] = rest
+        mujoco.mj_kinematics(m, self.data)
+        self.body = [m.body(f"{s}_foot").id for s in SIDES]
+        self.rest_quat = [self.data.xquat[b].copy() for b in self.body]
+        #: (2, 2) the feet's bodies on the floor relative to a standing pelvis at the
+        #: origin heading +x, and (2,) their height with the sole on the floor, m.
+        self.offset = self.data.xpos[self.body, :2].copy()
+        self.z = self.data.xpos[self.body, 2].copy()
+        legs = _legs(h)
+        self.joints = [[m.joint(n).id for n in legs if n.startswith(s) and "toes" not in n]
+                       for s in SIDES]
+        self.qadr = [m.jnt_qposadr[j] for j in self.joints]
+        self.dadr = [m.jnt_dofadr[j] for j in self.joints]
+        self.lo = [m.jnt_range[j, 0] for j in self.joints]
+        self.hi = [m.jnt_range[j, 1] for j in self.joints]
+
+    def solve(self, q: np.ndarray, feet: dict[str, tuple[np.ndarray, float]],
+              iterations: int = 60, damping: float = 0.02) -> tuple[np.ndarray, float]:
+        """(nq,) ``q`` with the leg hinges solved so that foot ``side``'s body is at
+        ``feet[side]`` = (position (3,), yaw); and the largest position error, m."""
+        m, d = self.model, self.data
+        d.qpos[:] = q
+        jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        err = np.inf
+        for _ in range(iterations):
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            err = 0.0
+            for i, side in enumerate(SIDES):
+                pos, yaw = feet[side]
+                b = self.body[i]
+                goal = _quat_mul(_yaw_quat(yaw), self.rest_quat[i])
+                rot = np.zeros(3)
+                mujoco.mju_subQuat(rot, goal, d.xquat[b])
+                rot = d.xmat[b].reshape(3, 3) @ rot  # from the foot's frame to the world's
+                e = np.concatenate([pos - d.xpos[b], rot])
+                err = max(err, float(np.linalg.norm(e[:3])))
+                mujoco.mj_jacBody(m, d, jp, jr, b)
+                j = np.concatenate([jp, jr])[:, self.dadr[i]]
+                dq = j.T @ np.linalg.solve(j @ j.T + damping**2 * np.eye(6), e)
+                d.qpos[self.qadr[i]] = np.clip(d.qpos[self.qadr[i]] + dq, self.lo[i],
+                                               self.hi[i])
+            if err < 1e-4:
+                break
+        return d.qpos.copy(), err
+
+    def neutral(self, side: str, pelvis_xy: np.ndarray, yaw: float) -> np.ndarray:
+        """(2,) where foot ``side`` stands under a standing pelvis at ``pelvis_xy``
+        heading ``yaw``, m."""
+        return np.asarray(pelvis_xy, float) + _rot(yaw) @ self.offset[SIDES.index(side)]
+
+    def place(self, side: str, xy: np.ndarray, yaw: float, lift: float = 0.0
+              ) -> tuple[np.ndarray, float]:
+        """The foot body's pose (position (3,), yaw) standing at ``xy``, lifted ``lift``."""
+        return np.array([*xy, self.z[SIDES.index(side)] + lift]), float(yaw)
+
+    def com(self, q: np.ndarray) -> np.ndarray:
+        """(2,) the centre of mass of the body in ``q``, m."""
+        self.data.qpos[:] = q
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_comPos(self.model, self.data)
+        return self.data.subtree_com[1, :2].copy()
+
+    def foot_pose(self, q: np.ndarray, side: str) -> tuple[np.ndarray, float]:
+        """Foot ``side``'s body position (3,) and heading in ``q``."""
+        self.data.qpos[:] = q
+        mujoco.mj_kinematics(self.model, self.data)
+        b = self.body[SIDES.index(side)]
+        fwd = self.data.xmat[b].reshape(3, 3)[:2, 0]
+        return self.data.xpos[b].copy(), float(np.arctan2(fwd[1], fwd[0]))
+
+
+def balanced_pose(ik: LegIK, upper: np.ndarray, feet: dict[str, tuple[np.ndarray, float]],
+                  com: np.ndarray, yaw: float, height: float, guess: np.ndarray
+                  ) -> tuple[np.ndarray, float]:
+    """(nq,) a pose with the feet's bodies at ``feet`` (:meth:`LegIK.solve`), the centre of
+    mass over ``com`` (2,), the pelvis upright at ``height`` m heading ``yaw``, the
+    hinges off the legs as in ``upper`` (nq,); and the feet's largest IK error, m."""
+    q = guess.copy()
+    legs = np.concatenate(ik.qadr)
+    keep = np.ones(len(q), bool)
+    keep[legs] = False
+    keep[:7] = False
+    q[keep] = upper[keep]
+    for i in range(2):  # off a straight knee (singular for IK: no gradient downwards)
+        hip, knee, ankle = ik.qadr[i][0], ik.qadr[i][3], ik.qadr[i][4]
+        if q[knee] < 0.2:
+            q[[hip, knee, ankle]] = [0.15, 0.3, -0.15]
+    q[2] = height
+    q[3:7] = _yaw_quat(yaw)
+    q[:2] += com - ik.com(q)
+    err = np.inf
+    for _ in range(4):
+        q, err = ik.solve(q, feet)
+        q[:2] += com - ik.com(q)
+    q, err = ik.solve(q, feet)
+    return q, err
+
+
+def weighted_stance_targets(h: Humanoid, qpos: np.ndarray, shares: np.ndarray) -> np.ndarray:
+    """(nu,) servo targets holding ``qpos`` with the body's weight carried by the feet in
+    ``shares`` (2,) (left, right; each foot's share split over its ankle and toe
+    keypoints): the hinges' static torques ``tau = g(q) - sum_i J_i^T f_i`` fed forward as
+    ``tau / kp``."""
+    m = h.model
+    data = mujoco.MjData(m)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(m, data)
+    tau = data.qfrc_bias.copy()
+    jacp = np.zeros((3, m.nv))
+    weight = h.total_mass * 9.81
+    for i, side in enumerate(SIDES):
+        for part in ("ankle", "toe"):
+            mujoco.mj_jacSite(m, data, jacp, None, m.site(f"{side}_{part}").id)
+            tau -= jacp[2] * (0.5 * shares[i] * weight)
+    dof = np.array([m.joint(n).dofadr[0] for n in h.joint_names])
+    return qpos[h.hinge_qpos] + FF * tau[dof] / m.actuator_gainprm[:, 0]
+
+
+def _shares(feet: dict, com: np.ndarray, lifted: str | None) -> np.ndarray:
+    """(2,) the weight on the left and right foot for the centre of mass over ``com``:
+    all on the standing foot when one is ``lifted``, else by the lever rule between the
+    feet's support centres."""
+    if lifted is not None:
+        return np.array([0.0, 1.0]) if lifted == "left" else np.array([1.0, 0.0])
+    a, b = support_centre(*feet["left"]), support_centre(*feet["right"])
+    u = float(np.clip((com - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-6), 0.0, 1.0))
+    return np.array([1.0 - u, u])
+
+
+def _leg_qpos(h: Humanoid) -> np.ndarray:
+    return np.array([h.hinge_qpos[h.joint_names.index(n)] for n in _legs(h)])
+
+
+@dataclass(frozen=True)
+class LinearTrajectory:
+    """PD targets moving at constant rate from ``start`` to ``goal`` (both (nu,), rad) in
+    ``duration`` s (keyframes dense enough for straight interpolation), with the rate
+    passed through the servos' damping: ``ctrl = q(t) + (kv / kp) q'(t)``
+    (``lead`` (nu,) = kv / kp, s), so that the damping does not hold the motion back."""
+
+    start: np.ndarray
+    goal: np.ndarray
+    duration: float
+    lead: np.ndarray | float = 0.0
+
+    def at(self, t: float) -> np.ndarray:
+        """Targets ``t`` seconds after the start (``goal`` from ``duration`` on)."""
+        if self.duration <= 0 or t >= self.duration:
+            return self.goal
+        s = max(t / self.duration, 0.0)
+        return self.start + s * (self.goal - self.start) + self.lead * (
+            self.goal - self.start) / self.duration
+
+
+@dataclass
+class StepBalance:
+    """Centre-of-mass feedback through the legs on the floor (module docstring), a
+    :data:`~simenv.agents.reach.Feedback`.
+
+    Attributes:
+        room: the room. times: (N,) keyframe times, s into the plan. com: (N, 2) planned
+            centre of mass at them, m. yaws: (N,) planned heading of the upright pelvis,
+            rad. down: (N, 2) whether the left and right foot are planned on the floor
+            at them. k, d: ``K`` (1/s^2) and ``D`` (1/s).
+    """
+
+    room: Room
+    times: np.ndarray
+    com: np.ndarray
+    yaws: np.ndarray
+    down: np.ndarray
+    k: float = COM_K
+    d: float = COM_D
+
+    def __post_init__(self) -> None:
+        m, h = self.room.model, self.room.agent
+        self._pelvis = m.body("agent/pelvis").id
+        self._foot = [m.body(f"agent/{s}_foot").id for s in SIDES]
+        legs = _legs(h)
+        self._act = [np.array([h.joint_names.index(n) for n in legs if n.startswith(s)])
+                     for s in SIDES]
+        self._dof = [np.array([m.joint(f"agent/{n}").dofadr[0] for n in legs
+                               if n.startswith(s)]) for s in SIDES]
+        self._kp = m.actuator_gainprm[self.room.agent_ctrl, 0]
+        self._mass = float(h.total_mass)
+        self._jc = np.zeros((3, m.nv))
+        self._jf = np.zeros((3, m.nv))
+        self._jr = np.zeros((3, m.nv))
+        self._geoms = [{m.geom(f"agent/{s}_{g}").id for g in ("foot", "toes")} for s in SIDES]
+        self._wrench = np.zeros(6)
+        self._root = int(m.jnt_dofadr[m.body("agent/pelvis").jntadr[0]])
+        hips = [[f"{s}_thigh_{p}" for p in ("flex", "abd", "rot")] for s in SIDES]
+        self._hip = [np.array([h.joint_names.index(n) for n in hs]) for hs in hips]
+        self._hipj = [np.array([m.joint(f"agent/{n}").id for n in hs]) for hs in hips]
+
+    def loads(self, data: mujoco.MjData) -> np.ndarray:
+        """(2,) the normal contact force on the left and right foot now, N."""
+        out = np.zeros(2)
+        for k in range(data.ncon):
+            g1, g2 = data.contact.geom[k]
+            for i in range(2):
+                if g1 in self._geoms[i] or g2 in self._geoms[i]:
+                    mujoco.mj_contactForce(self.room.model, data, k, self._wrench)
+                    out[i] += self._wrench[0]
+        return out
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Planned centre of mass (2,) and weight shares (2,) at ``t`` s (minimum-jerk
+        between keyframes, as the targets)."""
+        i = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0,
+                        len(self.times) - 2))
+        s = float(np.clip((t - self.times[i]) / (self.times[i + 1] - self.times[i]), 0, 1))
+        return ((1 - s) * self.com[i] + s * self.com[i + 1],
+                (1 - s) * self.yaws[i] + s * self.yaws[i + 1])
+
+    def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
+        m = self.room.model
+        ref, yaw = self.reference(t)
+        i = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0,
+                        len(self.times) - 2))
+        planned = (self.down[i] & self.down[i + 1]).astype(float)
+        load = self.loads(data)
+        touch = (load > TOUCH_N).astype(float)
+        w = touch / touch.sum() if touch.any() else touch
+        mujoco.mj_jacSubtreeCom(m, data, self._jc, self._pelvis)
+        c = data.subtree_com[self._pelvis, :2]
+        cd = (self._jc @ data.qvel)[:2]
+        force = -self._mass * (self.k * (c - ref) + self.d * cd)
+        u = targets.copy()
+        if TORSO:
+            # The pelvis held upright at the planned heading in the world (SIMBICON): its
+            # rotation error e (world rotation vector) is taken up by the hips: a stance
+            # hip turns the pelvis over its planted thigh (dq = -A^+ e), a swing hip keeps
+            # its thigh where the world wants it (dq = +A^+ e); A (3, 3) the hips' hinge
+            # axes in the world.
+            e = np.zeros(3)
+            mujoco.mju_subQuat(e, _yaw_quat(yaw), data.xquat[self._pelvis])
+            rmat = data.xmat[self._pelvis].reshape(3, 3)
+            e = rmat @ e
+            omega = rmat @ data.qvel[self._root + 3:self._root + 6]
+            corr = KT * e - DT * omega
+            for i in range(2):
+                axes = data.xaxis[self._hipj[i]].T
+                dq = np.linalg.solve(axes, corr)
+                u[self._hip[i]] += (-STANCE_T if planned[i] else 1.0) * dq * (
+                    1.0 / max(planned.sum(), 1.0) if planned[i] else 1.0)
+        if DYNFF:
+            # The legs' static torques for the weight shared by the feet on the floor as
+            # the centre of mass stands between them now (lever rule).
+            cen = [data.xpos[f, :2] + SUPPORT_AHEAD_M * data.xmat[f].reshape(3, 3)[:2, 0]
+                   for f in self._foot]
+            if planned.all():
+                ab = cen[1] - cen[0]
+                r = float(np.clip(((ref if SHARE_REF else c) - cen[0]) @ ab
+                                  / max(float(ab @ ab), 1e-6), 0, 1))
+                share = np.array([1 - r, r])
+            else:
+                share = planned
+            for j in range(2):
+                tau = data.qfrc_bias[self._dof[j]].copy()
+                if planned[j]:
+                    pt = np.array([*cen[j], data.xpos[self._foot[j], 2]])
+                    mujoco.mj_jac(m, data, self._jf, None, pt, self._foot[j])
+                    tau -= self._jf[2, self._dof[j]] * share[j] * self._mass * 9.81
+                u[self._act[j]] += tau / self._kp[self._act[j]]
+        if ADMIT:
+            dp = -(KA * (c - ref) + DA * cd)
+            dp = np.clip(dp, -0.1, 0.1)
+            for i in range(2):
+                if not touch[i]:
+                    continue
+                point = data.xpos[self._foot[i]]
+                mujoco.mj_jac(m, data, self._jf, self._jr, point, self._foot[i])
+                j6 = np.concatenate([self._jf, self._jr])[:, self._dof[i]]
+                goal = np.array([-dp[0], -dp[1], 0.0, 0.0, 0.0, 0.0])
+                dq = j6.T @ np.linalg.solve(j6 @ j6.T + 1e-4 * np.eye(6), goal)
+                u[self._act[i]] += dq
+            return u
+        for i in range(2):
+            if w[i] < 1e-3:
+                continue
+            point = data.xpos[self._foot[i]]
+            mujoco.mj_jac(m, data, self._jf, self._jr, point, self._foot[i])
+            # The kinematic tree hangs from the pelvis; with the foot held still instead,
+            # the centre of mass moves by (J_c - J_p + [r]x J_r) dq relative to it.
+            r = data.subtree_com[self._pelvis] - point
+            skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+            jrel = (self._jc - self._jf + skew @ self._jr)[:2, self._dof[i]]
+            u[self._act[i]] += w[i] * (jrel.T @ force) / self._kp[self._act[i]]
+        return u
+
+
+@dataclass
+class _Stage:
+    """One planned step (or the closing centring): its start ``t0`` (s into the plan),
+    keyframe times (absolute, s), centre-of-mass references (K, 2), pelvis headings (K,),
+    planned contacts (K, 2) and the servo-target segments between the keyframes."""
+
+    t0: float
+    times: list[float]
+    coms: list[np.ndarray]
+    yaws: list[float]
+    down: list[np.ndarray]
+    segments: list[LinearTrajectory]
+
+
+class SteppingPlan:
+    """The stepping gait over ``steps`` (module docstring), with the interface of a
+    :class:`~simenv.agents.reach.PDPlan` (``duration``, ``grasps``, ``feedback``,
+    :meth:`control`). Each step is planned when it starts, from where the feet are then
+    (measured in the simulation), so a foot that landed off its mark is stood on where it
+    is; the swing foot still goes to its footstep. All steps are planned once at
+    construction from the footsteps alone, to refuse a walk out of the legs' reach.
+
+    Raises:
+        SimenvError: a keyframe is out of the legs' reach (IK more than 2 cm short).
+    """
+
+    def __init__(self, room: Room, data: mujoco.MjData, steps: Sequence[Footstep]) -> None:
+        self.room = room
+        self.steps = list(steps)
+        self.grasps: tuple = ()
+        h = room.agent
+        self._ik = leg_ik(h)
+        self._upper = h.default_qpos()
+        self._height = float(self._upper[2]) - CROUCH_M
+        m = h.model
+        self._lead = LEAD * -m.actuator_biasprm[:, 2] / m.actuator_gainprm[:, 0]
+        self.step_s = N_SUB * (SHIFT_S / N_SUB) + SETTLE_S + LIFT_S + PLACE_S
+        self.duration = len(self.steps) * self.step_s + SHIFT_S + HOLD_S
+        pelvis = room.model.body("agent/pelvis").id
+        com = data.subtree_com[pelvis, :2].copy()
+        feet = feet_now(room, data)
+        q = data.qpos[room.agent_qpos].copy()
+        ctrl = data.ctrl[room.agent_ctrl].copy()
+        for k in range(len(self.steps) + 1):  # the dry run: every keyframe within reach
+            stage, feet, q = self._plan(k, feet, com, q, ctrl)
+            com, ctrl = stage.coms[-1], stage.segments[-1].goal
+        self._start = (com, q, ctrl)
+        self._stage: _Stage | None = None
+        self._last = (data.subtree_com[pelvis, :2].copy(), data.qpos[room.agent_qpos].copy(),
+                      data.ctrl[room.agent_ctrl].copy())
+        yaw = _mean_yaw(feet["left"][1], feet["right"][1])
+        self.feedback = StepBalance(room, np.array([0.0, 1.0]), np.array([com, com]),
+                                    np.array([yaw, yaw]), np.ones((2, 2), bool))
+
+    def _plan(self, k: int, feet: dict[str, tuple[np.ndarray, float]], com: np.ndarray,
+              q: np.ndarray, ctrl: np.ndarray
+              ) -> tuple[_Stage, dict[str, tuple[np.ndarray, float]], np.ndarray]:
+        """Stage ``k`` (step ``k``, or the closing centring for ``k = len(steps)``) from
+        ``feet``, the centre-of-mass reference ``com`` (2,), the pose ``q`` (an IK guess)
+        and the servo targets ``ctrl`` it starts from; the stage, the feet after it and
+        its last pose."""
+        h, ik = self.room.agent, self._ik
+        feet = dict(feet)
+        t0 = k * self.step_s
+        st = _Stage(t0, [t0], [np.asarray(com, float)], [_mean_yaw(feet["left"][1],
+                    feet["right"][1])], [np.array([True, True])], [])
+        targets = [ctrl]
+        guess = q
+
+        def key(duration: float, poses: dict[str, tuple[np.ndarray, float]],
+                c: np.ndarray, lifted: str | None) -> None:
+            nonlocal guess
+            yaw = _mean_yaw(feet["left"][1], feet["right"][1])
+            qk, err = balanced_pose(ik, self._upper, poses, c, yaw, self._height, guess)
+            if err > 0.02:
+                raise SimenvError(f"a step is out of the legs' reach ({err:.3f} m short)",
+                                  field="step")
+            guess = qk
+            st.times.append(st.times[-1] + duration)
+            st.coms.append(c)
+            st.yaws.append(yaw)
+            st.down.append(np.array([s != lifted for s in SIDES]))
+            targets.append(pd_targets(h, qk, upper_body_joints(h)))
+
+        def planted() -> dict[str, tuple[np.ndarray, float]]:
+            return {s: ik.place(s, *feet[s], -PRESS_M) for s in SIDES}
+
+        def shift(c: np.ndarray) -> None:
+            # Sub-keyframes along a minimum-jerk path of the centre of mass, each solved
+            # with the feet planted (hinge angles interpolated straight across a whole
+            # shift lifted a foot, measured).
+            c0 = st.coms[-1]
+            for j in range(1, N_SUB + 1):
+                key(SHIFT_S / N_SUB, planted(), c0 + min_jerk(j / N_SUB) * (c - c0), None)
+
+        if k < len(self.steps):
+            step = self.steps[k]
+            stance, swing = _other(step.side), step.side
+            centre = support_centre(*feet[stance])
+            inward = support_centre(*feet[swing]) - centre
+            centre = centre + INSIDE_M * inward / max(float(np.linalg.norm(inward)), 1e-6)
+            shift(centre)
+            key(SETTLE_S, planted(), centre, None)
+            poses = planted()
+            poses[swing] = ik.place(swing, 0.5 * (feet[swing][0] + step.xy),
+                                    _mean_yaw(feet[swing][1], step.yaw), LIFT_M)
+            key(LIFT_S, poses, centre, swing)
+            poses = planted()
+            poses[swing] = ik.place(swing, step.xy, step.yaw, LIFT_M / 2)
+            key(PLACE_S / 2, poses, centre, swing)
+            feet[swing] = (np.asarray(step.xy, float), float(step.yaw))
+            key(PLACE_S / 2, planted(), centre, None)
+        else:
+            shift(0.5 * (support_centre(*feet["left"]) + support_centre(*feet["right"])))
+            key(HOLD_S, planted(), st.coms[-1], None)
+        st.yaws = list(np.unwrap(st.yaws))
+        st.segments = [LinearTrajectory(a, b, t1 - ta, self._lead) for a, b, ta, t1 in zip(
+            targets[:-1], targets[1:], st.times[:-1], st.times[1:], strict=True)]
+        return st, feet, guess
+
+    def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """(nu,) servo targets ``t`` s into the plan, corrected by :class:`StepBalance`;
+        a step is planned when it starts, from the feet where they are."""
+        k = min(int(t // self.step_s), len(self.steps))
+        if self._stage is None or self._stage.t0 != k * self.step_s:
+            com, q, ctrl = self._last
+            st, _, _ = self._plan(k, feet_now(self.room, data), com, q, ctrl)
+            self._stage = st
+            self._last = (st.coms[-1], q, st.segments[-1].goal)
+            fb = self.feedback
+            fb.times, fb.com = np.array(st.times), np.array(st.coms)
+            fb.yaws, fb.down = np.array(st.yaws), np.array(st.down)
+        st = self._stage
+        i = int(np.clip(np.searchsorted(st.times, t, side="right") - 1, 0,
+                        len(st.segments) - 1))
+        return self.feedback(t, data, st.segments[i].at(t - st.times[i]))
+
+
+def plan_footsteps(room: Room, data: mujoco.MjData, steps: Sequence[Footstep]
+                   ) -> SteppingPlan:
+    """Plan for the standing agent taking ``steps`` one after the other (module
+    docstring), ending standing over both feet (:class:`SteppingPlan`)."""
+    return SteppingPlan(room, data, steps)
+
+
+_IK: dict[int, LegIK] = {}
+
+
+def leg_ik(h: Humanoid) -> LegIK:
+    """The :class:`LegIK` of ``h`` (one per humanoid)."""
+    if id(h) not in _IK:
+        _IK[id(h)] = LegIK(h)
+    return _IK[id(h)]
+
+
+def straight_steps(room: Room, data: mujoco.MjData, distance: float, length: float = 0.2,
+                   first: str = "left") -> list[Footstep]:
+    """Footsteps walking ``distance`` m straight ahead along the pelvis's heading in
+    steps of at most ``length`` m, ending with the feet side by side."""
+    ik = leg_ik(room.agent)
+    q = data.qpos[room.agent_qpos]
+    fwd = data.xmat[room.model.body("agent/pelvis").id].reshape(3, 3)[:2, 0]
+    yaw = float(np.arctan2(fwd[1], fwd[0]))
+    n = max(1, int(np.ceil(distance / length)))
+    out, side = [], first
+    for k in range(1, n + 1):
+        p = q[:2] + fwd * distance * k / n
+        out.append(Footstep(side, ik.neutral(side, p, yaw), yaw))
+        side = _other(side)
+    p = q[:2] + fwd * distance
+    out.append(Footstep(side, ik.neutral(side, p, yaw), yaw))
+    return out
