@@ -413,10 +413,56 @@ def markdown(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
     return "\n".join(lines) + "\n"
 
 
+#: Per metric, the threshold fields its pass level scales with (the metric's value
+#: is a ratio to them: ``bone_length`` in tolerances, ``velocity`` in fractions of
+#: the limits) or equals (a single field, in the metric's unit): (module, fields).
+FIELDS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "bone_length": ("thresholds", ("bone_length_rel_max", "bone_length_head_rel_max")),
+    "foot_skate": ("thresholds", ("skate_ratio_max",)),
+    "ground_penetration": ("body", ("geom_penetration_max_mm",)),
+    "floating": ("body", ("geom_float_clearance_m",)),
+    "jitter": ("thresholds", ("high_jerk_percent_max",)),
+    "velocity": ("thresholds", ("speed_limit_trunk_mps", "speed_limit_limb_mps",
+                                "speed_limit_distal_mps", "teleport_distance_m",
+                                "teleport_accel_mps2")),
+    "joint_limits": ("body", ("joint_limit_max_deg",)),
+    "self_penetration": ("body", ("self_penetration_max_mm",)),
+    "root_residual": ("body", ("root_force_mean_max",)),
+    "balance": ("body", ("balance_margin_mm",)),
+}
+
+
+def threshold_fields(thr: dict[str, float], prior: dict[str, float]) -> dict[str, dict[str, float]]:
+    """The :class:`Thresholds` / :class:`BodyThresholds` field values that put each
+    metric's pass level at ``thr`` (only the fields that change): ratio metrics
+    (threshold 1) scale their fields by ``thr / prior``; the others take
+    ``thr`` in the field's unit (``floating``: mm -> m)."""
+    from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+    from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
+
+    defaults = {"thresholds": DEFAULT_THRESHOLDS, "body": DEFAULT_BODY_THRESHOLDS}
+    out: dict[str, dict[str, float]] = {"thresholds": {}, "body": {}}
+    for name, (module, names) in FIELDS.items():
+        if thr[name] == prior[name]:
+            continue
+        for f in names:
+            base = getattr(defaults[module], f)
+            if len(names) > 1 or name == "bone_length":
+                out[module][f] = round(base * thr[name] / prior[name], 4)
+            elif name == "floating":
+                out[module][f] = round(thr[name] / 1000.0, 4)
+            else:
+                out[module][f] = round(thr[name], 4)
+    return out
+
+
 def summary(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
             th: dict[str, Any], data: Path) -> dict[str, Any]:
     """Machine-readable numbers of the report (``summary.json``)."""
-    out: dict[str, Any] = {"thresholds": th["shipped"], "sources": {}}
+    out: dict[str, Any] = {"thresholds": th["shipped"], "sources": {},
+                           "fields": {src: threshold_fields(th["shipped"][src],
+                                                            th["defaults"][src])
+                                      for src in th["shipped"]}}
     for src in {r["_source"] for r in real}:
         recs = [r for r in real if r["_source"] == src]
         cor = [r for r in corrupt if r["_source"] == src and "error" not in r]
