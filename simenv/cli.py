@@ -341,9 +341,11 @@ def _reference_summary(args: argparse.Namespace, reference: Any,
     ``--report``."""
     from simenv.plausibility.reference import compare, read_records, write_reference_page
 
-    # With --out, the set is every record of the results file (a rerun skips files already in it).
+    # With --out, the set is every record of the results file (a rerun skips files already in it),
+    # judged against this reference.
     if args.out:
-        records = read_records(args.out)
+        records = [rec if "error" in rec else {**rec, "reference": reference.judge(rec)}
+                   for rec in read_records(args.out)]
     summary = compare(reference, records)
     if args.out:
         Path(args.out).with_suffix(".reference.json").write_text(
@@ -524,7 +526,8 @@ def build_parser() -> argparse.ArgumentParser:
         "Score each motion: joint-level metrics (bone length, foot skate, jitter, velocity, "
         "...), and with --physics (default) the retargeted body's ground penetration, "
         "floating, joint limits, self-penetration, inverse-dynamics root residual, balance "
-        "and PD physics tracking; two-person clips add inter-person penetration and contact. "
+        "and unassisted physics tracking (model-predictive control); two-person clips add "
+        "inter-person penetration and contact. "
         "Folders are walked (a folder with one two-person recording is one clip). Prints a "
         "verdict per person, or with --json one JSON object per person."))
     sco.add_argument("paths", nargs="+", metavar="PATH", help="motion files or folders")

@@ -110,7 +110,10 @@ def _as_float(value: Any, rec: Mapping[str, Any], name: str) -> float:
     +inf); None or NaN for an available metric is an error."""
     if value == "inf":
         return math.inf
-    out = math.nan if value is None else float(value)
+    try:
+        out = math.nan if value is None else float(value)
+    except (TypeError, ValueError):
+        out = math.nan
     if math.isnan(out):
         raise ReferenceDataError(
             f"metric value is {value!r}; a metric marked available needs a number "
@@ -430,9 +433,9 @@ def compare(reference: Reference, records: Iterable[Mapping[str, Any]],
 
     Args:
         reference: from :func:`calibrate`.
-        records: the generated clips' score records; those already judged
-            (with a ``reference`` entry, as ``simenv score --reference``
-            writes them) are not judged again; error records are listed.
+        records: the generated clips' score records (judged again: an
+            earlier ``reference`` entry may come from another reference);
+            error records are listed.
         alpha: significance level of the verdicts.
 
     Returns:
@@ -450,8 +453,7 @@ def compare(reference: Reference, records: Iterable[Mapping[str, Any]],
     if not people:
         raise ReferenceDataError("no generated clip was scored: nothing to compare with the "
                                  "reference", field="generated")
-    judged = [rec["reference"] if "reference" in rec else reference.judge(rec)
-              for rec in people]
+    judged = [reference.judge(rec) for rec in people]
 
     def tally(name: str, key: str, present: list[dict[str, Any]]) -> dict[str, Any]:
         t = reference.thresholds[key]
