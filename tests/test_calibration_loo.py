@@ -1,0 +1,60 @@
+"""The leave-clips-out calibration of benchmarks/calibrate_loo.py on hand-made records."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+import calibrate_loo  # noqa: E402
+
+from simenv.plausibility.report import PERSON_METRICS  # noqa: E402
+
+
+def test_threshold_rule() -> None:
+    rule = calibrate_loo.fold_threshold
+    # Every real value below the prior: the prior stays (no loosening).
+    assert rule([1.0, 2.0, 3.0, 80.0, 89.0], 100.0) == 100.0
+    # Real clips above the prior raise it to the largest non-outlier ...
+    assert rule([30.0, 32.0, 35.0, 38.0, 39.0, 41.0], 30.0) == 41.0
+    # ... but a far-out value (Q3 + 3 IQR) cannot drag it up.
+    assert rule([0.0] * 20 + [36.8, 32.3, 60.0], 10.0) == 10.0
+    assert rule([1.0, 1.1, 1.2, 1.3, 1.4, 9.0], 1.0) == pytest.approx(1.4)
+    # Too few values, or none finite: the prior.
+    assert rule([50.0, 60.0, None], 30.0) == 30.0
+    assert rule([float("inf")] * 5, 0.5) == 0.5
+
+
+def _record(file: str, values: dict[str, float], person: int = 0) -> dict[str, Any]:
+    metrics = {n: {"value": 0.0, "threshold": 10.0, "passed": True, "unit": "u"}
+               for n in PERSON_METRICS}
+    for n, v in values.items():
+        metrics[n]["value"] = v
+    return {"file": file, "person": person, "metrics": metrics}
+
+
+def test_no_clip_judges_itself(tmp_path: Path) -> None:
+    """A clip's own value never enters the threshold it is judged with: the one
+    clip far above its prior fails in its fold, while the subjects whose values
+    sit just above the prior pass on the others' values."""
+    (tmp_path / "gestures").mkdir()
+    (tmp_path / "gestures" / "index.csv").write_text("dataset,file,subject\n")
+    base = tmp_path / "cmu" / "bvh"
+    real = [_record(str(base / f"{s}_01.bvh"), {"ground_penetration": v})
+            for s, v in ((1, 12.0), (2, 14.0), (3, 16.0), (4, 18.0), (5, 20.0))]
+    real.append(_record(str(base / "6_01.bvh"), {"ground_penetration": 400.0}))
+    real.append(_record(str(base / "7_01.bvh"), {"ground_penetration": 11.0}))
+    # Subjects 1-5 each exceed the prior (10); subject 7 only just.
+    th = calibrate_loo.judge(real, [], tmp_path)
+    verdicts = {Path(r["file"]).stem: r["_fail_loo"] for r in real}
+    assert verdicts["6_01"] == ["ground_penetration"]
+    assert th["folds"]["cmu/6"]["ground_penetration"] == 20.0
+    assert th["folds"]["cmu/5"]["ground_penetration"] == 18.0  # 400 is far out, 20 is its own
+    assert verdicts["5_01"] == ["ground_penetration"]  # the largest real value, held out
+    assert all(not verdicts[f"{s}_01"] for s in (1, 2, 3, 4, 7))
+    # Against the default threshold (10) every one of them fails.
+    assert all(r["_fail_default"] for r in real)
