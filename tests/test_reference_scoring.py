@@ -163,8 +163,9 @@ def test_held_out_real_kinect_subjects_fall_inside(utkinect: dict[str, Any]) -> 
     assert real["generated"]["people"] > 80
     assert real["overall"]["share_beyond_p99"] <= 0.03
     assert real["verdict"] == VERDICT_INSIDE
-    # The absolute thresholds call every one of them implausible.
-    assert all(r["verdict"] == "implausible" for r in utkinect["sets"]["real"])
+    # The absolute thresholds (calibrated on marker mocap) call nearly all of them implausible.
+    implausible = [r["verdict"] == "implausible" for r in utkinect["sets"]["real"]]
+    assert np.mean(implausible) > 0.9
 
 
 @pytest.mark.parametrize("corruption", ["foot_slide", "teleport"])
