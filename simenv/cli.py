@@ -286,6 +286,10 @@ def _print_score(rec: dict[str, Any]) -> None:
     pair = rec.get("interaction")
     if pair is not None and rec["person"] == 0:
         line += f"; interaction: {pair['verdict']}"
+    ref = rec.get("reference")
+    if ref is not None:
+        line += (f"; against the reference: {ref['verdict']} (worst: {ref['worst_metric']} at "
+                 f"percentile {ref['worst_percentile']:.1f})")
     print(line)
 
 
