@@ -88,10 +88,12 @@ What could not be confirmed, and what we chose:
   ratios are ours, not GMD's. A skeleton with neither toe nor ankle gets
   `{"reason": ...}` instead of the values (`published_metrics` raises
   `SkeletonError` naming the missing keypoint).
-* **Published reference values.** GMD's first author reports about 0.05 for
-  real HumanML3D clips with this code (GMD issue #8), and OmniControl's
-  authors withdrew the 0.00 they had printed for "Real". We found no
-  confirmed PhysDiff numbers for real data, so none are quoted.
+* **Published reference values.** In GMD issue #8 a user measured about 0.05
+  for real HumanML3D clips with this code, GMD's first author answered that
+  this is probably correct (a real ~200-frame clip always has a foot moving
+  more than 2.5 cm near the ground), and OmniControl's authors said the 0.00
+  they had printed for "Real" was not measured. We found no confirmed
+  PhysDiff numbers for real data, so none are quoted.
 """
 
 #: (key, paper, definition as implemented, where it was confirmed).
@@ -113,8 +115,8 @@ DEFINITION_ROWS: tuple[tuple[str, str, str, str], ...] = (
      "the paper's wording (\"the distance between the ground and the lowest body mesh vertex "
      "below the ground\"), quoted in nate-gillman/self-correcting-self-consuming "
      "`eval/physics.py`; the mean over frames follows UHC's `compute_penetration` "
-     "(ZhengyiLuo/UniversalHumanoidControl `uhc/smpllib/smpl_eval.py`), the code PhysDiff's "
-     "metrics descend from"),
+     "(ZhengyiLuo/UniversalHumanoidControl `uhc/smpllib/smpl_eval.py`), on which that "
+     "re-implementation bases its code"),
     ("physdiff_float", "PhysDiff",
      "per frame the height of the lowest point when it is above the ground (0 otherwise), mean "
      "over frames, mm",
