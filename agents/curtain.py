@@ -3,13 +3,14 @@ then back to the chair (:data:`simenv.agents.seat.RETURN_STAGES`).
 
 ``close_curtain`` (:func:`plan_close_curtain`) is a :class:`~simenv.agents.reach.PlanChain`
 like ``close_window`` (:mod:`simenv.agents.window`): stand up, turn on the feet and walk
-(measured root assistance) to a spot :data:`STAND_OFF_M` in front of the curtain's handle
+(on its own legs) to a spot :data:`STAND_OFF_M` in front of the curtain's handle
 (its leading edge) and :data:`ALONG_M` along its travel, then :func:`plan_curtain_pull`: the
 right palm (``grip`` site) onto the handle, the proximity grasp closes there if the palm is
 within the grasp radius, the hand draws the curtain along its rail towards
 :data:`TARGET_FRACTION` of its travel in :data:`PULL_VIA` IK via-points, lets go and comes
-back; the pelvis is held where the walk left it (:class:`~simenv.agents.walk.RootAssist`,
-measured). The curtain closes only if the hand drags it past its threshold. Then the
+back; the body stands balanced on both feet where the walk left it
+(:func:`simenv.agents.walk.held_grasp_stroke`, no external help). The curtain closes only
+if the hand drags it past its threshold. Then the
 return to the chair.
 """
 

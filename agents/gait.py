@@ -32,7 +32,7 @@ that foot), added to the position servos' targets as ``tau / kp``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -60,6 +60,8 @@ COM_K = 45.0
 COM_D = 15.0
 SIDES = ("left", "right")
 FF = 1.0
+K_YAW = 1.0
+F_MAX = 0.1
 INSIDE_M = 0.02
 SETTLE_S = 0.4
 PRESS_M = 0.0
@@ -71,6 +73,8 @@ DT = 0.1
 LEAD = 1.0
 N_SUB = 4
 DYNFF = 1.0
+K_YAW = 1.0
+F_MAX = 0.1
 ADMIT = 0.0
 KA = 1.0
 DA = 0.2
@@ -320,6 +324,8 @@ class StepBalance:
     d: float = COM_D
 
     def __post_init__(self) -> None:
+        #: The heading the lifted foot turns to, rad (set per step by the plan), or None.
+        self.swing_yaw: float | None = None
         m, h = self.room.model, self.room.agent
         self._pelvis = m.body("agent/pelvis").id
         self._foot = [m.body(f"agent/{s}_foot").id for s in SIDES]
@@ -373,6 +379,11 @@ class StepBalance:
         c = data.subtree_com[self._pelvis, :2]
         cd = (self._jc @ data.qvel)[:2]
         force = -self._mass * (self.k * (c - ref) + self.d * cd)
+        # No more than the feet can push: a virtual force beyond a fraction of the weight
+        # asks the ankles for more torque than the soles bear and tips the feet (measured).
+        norm = float(np.linalg.norm(force))
+        if norm > F_MAX * self._mass * 9.81:
+            force *= F_MAX * self._mass * 9.81 / norm
         u = targets.copy()
         if TORSO:
             # The pelvis held upright at the planned heading in the world (SIMBICON): its
@@ -391,6 +402,17 @@ class StepBalance:
                 dq = np.linalg.solve(axes, corr)
                 u[self._hip[i]] += (-STANCE_T if planned[i] else 1.0) * dq * (
                     1.0 / max(planned.sum(), 1.0) if planned[i] else 1.0)
+        for i in range(2):
+            if planned[i] or self.swing_yaw is None:
+                continue
+            # The swing foot turned onto its footstep's heading in the world: its yaw error
+            # taken up by that leg's hip (the hip's rotation lags, and a turn's feet landed
+            # 10-13 deg short without it, measured).
+            fwd = data.xmat[self._foot[i]].reshape(3, 3)[:2, 0]
+            err = float((self.swing_yaw - np.arctan2(fwd[1], fwd[0]) + np.pi) % (2 * np.pi)
+                        - np.pi)
+            axes = data.xaxis[self._hipj[i]].T
+            u[self._hip[i]] += np.linalg.solve(axes, np.array([0.0, 0.0, K_YAW * err]))
         if DYNFF:
             # The legs' static torques for the weight shared by the feet on the floor as
             # the centre of mass stands between them now (lever rule).
@@ -483,13 +505,18 @@ class SteppingPlan:
         for k in range(len(self.steps) + 1):  # the dry run: every keyframe within reach
             stage, feet, q = self._plan(k, feet, com, q, ctrl)
             com, ctrl = stage.coms[-1], stage.segments[-1].goal
-        self._start = (com, q, ctrl)
         self._stage: _Stage | None = None
+        #: Why a step could not be planned while walking (the feet were off every
+        #: reachable place: the body fell), or None.
+        self.failed: str | None = None
         self._last = (data.subtree_com[pelvis, :2].copy(), data.qpos[room.agent_qpos].copy(),
                       data.ctrl[room.agent_ctrl].copy())
         yaw = _mean_yaw(feet["left"][1], feet["right"][1])
-        self.feedback = StepBalance(room, np.array([0.0, 1.0]), np.array([com, com]),
-                                    np.array([yaw, yaw]), np.ones((2, 2), bool))
+        #: The balance feedback; :attr:`feedback` calls it (a wrapper may replace
+        #: :attr:`feedback`, e.g. :class:`simenv.agents.walk.GaitMeter`).
+        self.balance = StepBalance(room, np.array([0.0, 1.0]), np.array([com, com]),
+                                   np.array([yaw, yaw]), np.ones((2, 2), bool))
+        self.feedback: Callable[[float, mujoco.MjData, np.ndarray], np.ndarray] = self.balance
 
     def _plan(self, k: int, feet: dict[str, tuple[np.ndarray, float]], com: np.ndarray,
               q: np.ndarray, ctrl: np.ndarray
@@ -563,12 +590,19 @@ class SteppingPlan:
         k = min(int(t // self.step_s), len(self.steps))
         if self._stage is None or self._stage.t0 != k * self.step_s:
             com, q, ctrl = self._last
-            st, _, _ = self._plan(k, feet_now(self.room, data), com, q, ctrl)
+            try:
+                st, _, _ = self._plan(k, feet_now(self.room, data), com, q, ctrl)
+            except SimenvError as exc:  # the feet are not where a step can start: fallen
+                self.failed = str(exc)
+                st = _Stage(k * self.step_s, [k * self.step_s, self.duration], [com, com],
+                            [0.0, 0.0], [np.ones(2, bool)] * 2,
+                            [LinearTrajectory(ctrl, ctrl, self.duration - k * self.step_s)])
             self._stage = st
             self._last = (st.coms[-1], q, st.segments[-1].goal)
-            fb = self.feedback
+            fb = self.balance
             fb.times, fb.com = np.array(st.times), np.array(st.coms)
             fb.yaws, fb.down = np.array(st.yaws), np.array(st.down)
+            fb.swing_yaw = self.steps[k].yaw if k < len(self.steps) else None
         st = self._stage
         i = int(np.clip(np.searchsorted(st.times, t, side="right") - 1, 0,
                         len(st.segments) - 1))
@@ -609,3 +643,14 @@ def straight_steps(room: Room, data: mujoco.MjData, distance: float, length: flo
     p = q[:2] + fwd * distance
     out.append(Footstep(side, ik.neutral(side, p, yaw), yaw))
     return out
+
+
+def stand_balance(room: Room, data: mujoco.MjData, duration: float) -> StepBalance:
+    """:class:`StepBalance` holding the standing body's centre of mass over the middle of
+    its feet's support centres for ``duration`` s, both feet down, the pelvis upright at
+    the feet's mean heading (a standing manipulation's balance)."""
+    feet = feet_now(room, data)
+    middle = 0.5 * (support_centre(*feet["left"]) + support_centre(*feet["right"]))
+    yaw = _mean_yaw(feet["left"][1], feet["right"][1])
+    return StepBalance(room, np.array([0.0, max(duration, 1e-3)]), np.array([middle, middle]),
+                       np.array([yaw, yaw]), np.ones((2, 2), bool))

@@ -30,6 +30,7 @@ hips further brings it forward). Nothing but the agent's own servos acts on it.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import mujoco
@@ -37,6 +38,7 @@ import numpy as np
 
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, reach_pose, upper_body_joints
 from simenv.errors import SimenvError
+from simenv.humanoid import Humanoid
 from simenv.room import Room
 
 #: How far back the legs push the chair, m.
@@ -50,6 +52,8 @@ HIP_LEAN = np.deg2rad(125.0)
 SPINE_LEAN = np.deg2rad(15.0)
 #: Durations of the phases, s.
 PHASES_S = (1.0, 1.0, 1.2, 2.0)
+#: Knee flexion of the standing pose the rise ends in, rad (:func:`standing_pose`).
+STAND_KNEE = np.deg2rad(10.0)
 #: Standing balanced after the rise, s.
 HOLD_S = 3.0
 #: Feet keypoints (planted; their centre is the support's).
@@ -107,6 +111,21 @@ class ComBalance:
         return u
 
 
+def standing_pose(h: Humanoid) -> np.ndarray:
+    """(nq,) the standing rest pose with the knees :data:`STAND_KNEE` flexed (the hips
+    and ankles half that each, the trunk upright): the knee's range reaches 15 deg of
+    hyperextension, and a straight knee under the body's weight buckled back into it
+    (measured: the rising body then leant onto the desk, centre of mass 0.38 m ahead of
+    the feet)."""
+    q = h.default_qpos()
+    for side in ("left", "right"):
+        for name, angle in ((f"{side}_shin_flex", STAND_KNEE),
+                            (f"{side}_thigh_flex", STAND_KNEE / 2),
+                            (f"{side}_foot_flex", -STAND_KNEE / 2)):
+            q[h.hinge_qpos[h.joint_names.index(name)]] = angle
+    return q
+
+
 def plan_stand_up(room: Room, data: mujoco.MjData, balance: bool = True) -> PDPlan:
     """Plan for standing up from the chair from the current (seated) state.
 
@@ -129,7 +148,13 @@ def plan_stand_up(room: Room, data: mujoco.MjData, balance: bool = True) -> PDPl
     back = q.copy()
     heading = data.xmat[room.model.body("agent/pelvis").id].reshape(3, 3)[:2, 0]
     back[:2] -= ROLL_BACK_M * heading
-    pushed, err = reach_pose(h.model, back, FEET, pressed, legs, iterations=400)
+    # The knees stop straight (the model's range reaches 15 deg of hyperextension, which
+    # the IK then used: the chair rolled 0.5 m instead of 0.4 and the rise tipped onto
+    # the desk, measured).
+    m = copy.copy(h.model)
+    for side in ("left", "right"):
+        m.jnt_range[m.joint(f"{side}_shin_flex").id, 0] = 0.0
+    pushed, err = reach_pose(m, back, FEET, pressed, legs, iterations=400)
     if err > 0.02:
         raise SimenvError(f"the seated agent cannot push its chair back ({err:.3f} m short)",
                           field="stand_up")
@@ -148,7 +173,7 @@ def plan_stand_up(room: Room, data: mujoco.MjData, balance: bool = True) -> PDPl
     for name in ("lumbar_flex", "thorax_flex", "chest_flex"):
         lean[adr(name)] = SPINE_LEAN
     upper = upper_body_joints(h)
-    poses = [pd_targets(h, p, upper) for p in (pushed, drawn, lean, h.default_qpos())]
+    poses = [pd_targets(h, p, upper) for p in (pushed, drawn, lean, standing_pose(h))]
     now = data.ctrl[room.agent_ctrl].copy()
     segments = [PDTrajectory(a, b, dt)
                 for a, b, dt in zip([now, *poses[:-1]], poses, PHASES_S, strict=True)]

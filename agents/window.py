@@ -8,16 +8,17 @@ turn to the desk, sit down, settle), each planned from the state the previous on
 1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
 2. :func:`plan_walk_to_window`: a stepping turn onto the heading towards the wall, then
    :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
-   wall, :data:`ALONG_M` along the pane's travel, facing the wall (measured root
-   assistance);
+   wall, :data:`ALONG_M` along the pane's travel, facing the wall (on the agent's own
+   legs, :mod:`simenv.agents.gait`);
 3. :func:`plan_window_push`: the right palm (``grip`` site) to the pane's handle, the
    proximity grasp is asked for there (it closes only if the palm is within the grasp
    radius; measured: the hand's box meets the handle's first and the grip site stays
    7.7-8.4 cm away, so the grasp does not close and the hand pushes the handle by contact
    instead), the hand moves along the wall by the pane's opening plus
    :data:`OVERSHOOT_M` in :data:`PUSH_VIA` IK via-points, lets go and comes back. The
-   pelvis is held where the walk left it by :class:`~simenv.agents.walk.RootAssist`
-   (measured). The pane closes only if the grasp closed and the hand dragged it.
+   body stands balanced on both feet where the walk left it (the gait's centre-of-mass
+   feedback, :func:`simenv.agents.walk.held_grasp_stroke`; no external help). The pane
+   closes only if the grasp closed and the hand dragged it.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ previous one left: three stages, then the return to the chair
 2. :func:`plan_walk_to_open`: a stepping turn onto the heading towards the wall, then
    :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
    wall and :data:`ALONG_M` along the pane's opening direction from its handle, facing the
-   wall (measured root assistance);
+   wall (on the agent's own legs, :mod:`simenv.agents.gait`);
 3. :func:`plan_window_pull`: the right hand comes to the handle's side in the opening
    direction, fingers pointing into the wall and palm facing the handle (a handshake
    posture; IK on the palm's ``grip`` site together with the fingertip and wrist sites, so
@@ -17,8 +17,8 @@ previous one left: three stages, then the return to the chair
    there (it closes only if the grip site is within the grasp radius), the hand moves
    along the wall in the opening direction by :data:`PULL_M` in :data:`PULL_VIA` IK
    via-points, lets go, backs off and comes back to rest. Moving away from the handle's
-   face, the hand can drag the pane only through the grasp. The pelvis is held where the
-   walk left it by :class:`~simenv.agents.walk.RootAssist` (measured).
+   face, the hand can drag the pane only through the grasp. The body stands balanced on
+   both feet where the walk left it (no external help).
 """
 
 from __future__ import annotations

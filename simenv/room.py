@@ -121,8 +121,6 @@ SWIVEL_FRICTION = 4.0
 #: to this far, m, against this Coulomb friction, N.
 CHAIR_ROLL = 0.8
 CHAIR_ROLL_FRICTION = 30.0
-#: Time constant of the root assistance weld, s (:meth:`Room.set_assist`).
-ASSIST_TIMECONST_S = 0.05
 #: Hands of the agent (keypoint site suffixes) that can grasp.
 HANDS = ("left_hand", "right_hand")
 #: A greeting needs the agent's chest to face the user within this angle, degrees.
@@ -303,7 +301,6 @@ class Room:
         self._add_grips(spec)
         self._build_user(spec)
         self._build_grasps(spec)
-        self._build_assist(spec)
         self.spec = spec
         try:
             self.model = spec.compile()
@@ -523,23 +520,6 @@ class Room:
                 eq.active = False
                 eq.solref = [0.02, 1.0]  # a firm hand (~1.5 cm give pulling a door at 40 N)
 
-    def _build_assist(self, spec: mujoco.MjSpec) -> None:
-        """The root assistance: a mocap body and an inactive soft weld from it to the
-        agent's pelvis (MuJoCo's implicit "hand of god", as in
-        :func:`simenv.plausibility.tracking.track`), time constant
-        :data:`ASSIST_TIMECONST_S`, critically damped; see :meth:`Room.set_assist`."""
-        target = spec.worldbody.add_body()
-        target.name = "agent_assist"
-        target.mocap = True
-        weld = spec.add_equality()
-        weld.name = "agent/assist"
-        weld.type = mujoco.mjtEq.mjEQ_WELD
-        weld.objtype = mujoco.mjtObj.mjOBJ_BODY
-        weld.name1, weld.name2 = "agent_assist", "agent/pelvis"
-        weld.data[:11] = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1]
-        weld.solref = [ASSIST_TIMECONST_S, 1.0]
-        weld.active = False
-
     def _index(self) -> None:
         m, s = self.model, self.scenario
         w = s.window.width
@@ -577,8 +557,9 @@ class Room:
             for b in range(1, um.nbody)])
         self._user_data = mujoco.MjData(um)
         self._cigarette_tip = m.geom("cigarette/tip").id
-        self._assist_eq = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, "agent/assist")
-        self._assist_mocap = int(m.body_mocapid[m.body("agent_assist").id])
+        self._agent_bodies = np.array([b for b in range(m.nbody)
+                                       if m.body(b).name.startswith("agent/")])
+        self._agent_root = int(m.jnt_dofadr[m.body("agent/pelvis").jntadr[0]])
         self._grasp_eq = {name: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, name)
                           for name in (f"grasp/{h}/{o}" for h in HANDS for o in self.objects)}
 
@@ -690,30 +671,33 @@ class Room:
         data.eq_active[eq] = on
         return on
 
-    def set_assist(self, data: mujoco.MjData, pos: np.ndarray | None,
-                   quat: np.ndarray | None = None) -> None:
-        """Pull the agent's pelvis towards ``pos`` (3,), m, and ``quat`` (4,) wxyz through
-        the soft assistance weld, or release it (``pos`` None). Its force is measured by
-        :meth:`assist_wrench` and must be reported by whoever uses it."""
-        if pos is None:
-            data.eq_active[self._assist_eq] = 0
-            return
-        data.mocap_pos[self._assist_mocap] = pos
-        data.mocap_quat[self._assist_mocap] = quat
-        data.eq_active[self._assist_eq] = 1
-
     def assist_wrench(self, data: mujoco.MjData) -> tuple[float, float]:
-        """The assistance weld's force (N) and torque (N m) magnitudes at the last step
-        (its constraint rows' ``efc_force``: translation first, then rotation); zeros
-        when released."""
-        if not data.eq_active[self._assist_eq]:
-            return 0.0, 0.0
-        rows = np.flatnonzero((data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-                              & (data.efc_id[:data.nefc] == self._assist_eq))
-        if len(rows) < 6:
-            return 0.0, 0.0
-        f = data.efc_force[rows]
-        return float(np.linalg.norm(f[:3])), float(np.linalg.norm(f[3:6]))
+        """External help on the agent now: the largest force (N) and torque (N m) put on
+        any of its bodies from outside its own servos and contacts, ``xfrc_applied`` on
+        its bodies and ``qfrc_applied`` on its free joint (translation, rotation); and the
+        force (N) of any active equality constraint on it other than the hands' proximity
+        grasps. The room has no assistance mechanism (walking and standing are the
+        agent's own, :mod:`simenv.agents.gait`); this measures that nothing added one.
+        """
+        x = data.xfrc_applied[self._agent_bodies]
+        root = data.qfrc_applied[self._agent_root:self._agent_root + 6]
+        force = max(float(np.linalg.norm(x[:, :3], axis=1).max()), float(np.linalg.norm(root[:3])))
+        torque = max(float(np.linalg.norm(x[:, 3:], axis=1).max()),
+                     float(np.linalg.norm(root[3:])))
+        grasps = set(self._grasp_eq.values())
+        agent = set(self._agent_bodies.tolist())
+        m = self.model
+        for eq in np.flatnonzero(data.eq_active):
+            ends = {int(m.eq_obj1id[eq]), int(m.eq_obj2id[eq])}
+            if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE:
+                ends = {int(m.site_bodyid[i]) for i in ends}
+            if int(eq) in grasps or not ends & agent:
+                continue
+            rows = np.flatnonzero(
+                (data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+                & (data.efc_id[:data.nefc] == eq))
+            force = max(force, float(np.linalg.norm(data.efc_force[rows][:3])))
+        return force, torque
 
     # -- user ----------------------------------------------------------------
 

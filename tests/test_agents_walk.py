@@ -1,83 +1,115 @@
-"""The agent stands up, walks to the window along a retargeted real walk (measured root
-assistance) and tries to slide it shut, triggered by a ``cold`` label in the discomfort
-scenario (simenv.agents.walk, simenv.agents.window)."""
+"""The agent walks on its own legs (simenv.agents.gait, simenv.agents.walk): footsteps
+played by a statically balanced stepping gait, nothing but its servos and its contacts
+acting on it; help and falls are measured, never hidden. Short walks in the open part of
+the discomfort room."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
+import pytest
 
-import simenv
-from simenv.assets import WALK, asset_path
-from simenv.envs.interaction_room import InteractionRoomEnv
-from simenv.session import PERCEPTION_FPS, GestureEvent
+from simenv.agents.gait import stand_balance
+from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
+from simenv.agents.walk import FALLEN_FRACTION, STEP_M, GaitMeter, plan_walk, walk_steps
+from simenv.errors import SimenvError
+from simenv.room import Room
 
-
-def test_cold_label_stands_walks_to_the_window_with_measured_assistance():
-    # The real CMU walk's first half second, labelled "cold" (the user stays far away).
-    short = simenv.load(asset_path(WALK)).slice(0, 60)
-    env = InteractionRoomEnv(short, gestures=[GestureEvent("cold", 0.2, 0.5)],
-                             scenario="discomfort", predictor="constant-velocity-50")
-    from simenv.agents.window import window_spot
-
-    env.reset(seed=0)
-    spot, _ = window_spot(env.room, env.data)
-    decide, k, truncated = int(round(0.3 * PERCEPTION_FPS)), 0, False
-    act = env.reactions.index("close_window")
-    while not truncated and not (env.log and env.log[0]["success"] is not None):
-        *_, truncated, info = env.step(act if k == decide else 0)
-        k += 1
-    (entry,) = env.log
-    assert entry["started"] and entry["gesture"] == "cold"
-    stages = {s["stage"]: s for s in entry["stages"]}
-    assert "assistance" not in stages["stand_up"]  # standing up is unassisted
-    walk = stages["walk"]
-    # The walk ends at the spot in front of the window, measured in simulation.
-    assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
-    a = walk["assistance"]
-    assert a["steps"] > 0 and 0.0 < a["mean_bw"] <= a["max_bw"]
-    # A stepping turn, then a first step lifting the front foot onto the clip's first
-    # pose, instead of blending the planted feet round and apart (measured: 5.8 -> 2.6
-    # body weights at the peak).
-    assert a["max_bw"] < 4.0
-    assert entry["assistance"]["max_n"] >= a["max_n"]
-    # The return to the chair follows (tests/test_agents_seat.py).
-    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "push"]
-    # Success is what the window's joint says (measured: the hand pushes it shut).
-    assert entry["success"] == (info["object_labels"]["window"] == "closed")
-    assert entry["success"] is True and entry["t_object_changed"] > entry["t_decision"]
-    assert env.room.assist_wrench(env.data) == (0.0, 0.0)  # released at the end
+#: An open spot of the discomfort room (clear of the furniture and the user) and a heading
+#: towards the north wall, 1.7 m away.
+OPEN = np.array([-0.4, 0.3])
+NORTH = np.pi / 2
 
 
-def test_bright_label_draws_the_curtain_through_the_grasp():
-    """Discomfort scenario, "bright" on the real walk: stand up, walk to the curtain, the
-    palm's proximity grasp closes on its edge and the hand draws it past its threshold."""
-    short = simenv.load(asset_path(WALK)).slice(0, 60)
-    env = InteractionRoomEnv(short, gestures=[GestureEvent("bright", 0.2, 0.5)],
-                             scenario="discomfort", predictor="constant-velocity-50")
-    env.reset(seed=0)
-    decide, k, truncated = int(round(0.3 * PERCEPTION_FPS)), 0, False
-    act = env.reactions.index("close_curtain")
-    while not truncated and not (env.log and env.log[0]["success"] is not None):
-        *_, truncated, info = env.step(act if k == decide else 0)
-        k += 1
-    (entry,) = env.log
-    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "pull"]
-    assert entry["grasped"] is True
-    assert entry["success"] is True and info["object_labels"]["curtain"] == "closed"
-    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
-    assert entry["t_object_changed"] > pull_start
-    assert entry["assistance"]["max_bw"] > 0
+def _standing(room: Room) -> mujoco.MjData:
+    """The agent standing in its rest pose at :data:`OPEN` facing north, its servos on the
+    pose, balanced for 1 s."""
+    h, m = room.agent, room.model
+    data = room.make_data()
+    q = h.default_qpos()
+    q[:2] = OPEN
+    q[3:7] = [np.cos(NORTH / 2), 0.0, 0.0, np.sin(NORTH / 2)]
+    data.qpos[room.agent_qpos] = q
+    targets = pd_targets(h, q, upper_body_joints(h))
+    data.ctrl[room.agent_ctrl] = targets
+    mujoco.mj_forward(m, data)
+    _play(room, data, PDPlan([PDTrajectory(targets, targets, 1.0)],
+                             feedback=stand_balance(room, data, 1.0)))
+    return data
+
+
+def _play(room: Room, data: mujoco.MjData, plan, shove: tuple[float, float, np.ndarray] | None
+          = None) -> None:
+    """Play ``plan`` as the environment does (targets every physics step); ``shove`` =
+    (from, to s, (6,) wrench on the pelvis) is a test's outside push."""
+    dt = room.model.opt.timestep
+    pelvis = room.model.body("agent/pelvis").id
+    for i in range(int(round(plan.duration / dt))):
+        if shove is not None:
+            data.xfrc_applied[pelvis] = shove[2] if shove[0] <= i * dt < shove[1] else 0.0
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+
+
+def test_walks_to_the_goal_upright_with_no_help():
+    room = Room("discomfort")
+    data = _standing(room)
+    goal = OPEN + [0.0, 0.4]
+    plan = plan_walk(room, data, goal, NORTH)
+    assert isinstance(plan.feedback, GaitMeter)
+    assert [s.side for s in plan.steps] == ["left", "right", "left"]  # two steps, closing
+    _play(room, data, plan)
+    out = plan.feedback.outcome(data)
+    assert out["success"] and not out["fell"], out
+    assert out["goal_error_m"] < 0.08
+    assert out["lowest_pelvis_m"] > 0.85  # upright throughout (standing 1.0 m)
+    # Nothing but the servos and the contacts: no applied force or torque anywhere on the
+    # body, none on the free joint, no equality constraint on it, at every physics step.
+    a = plan.feedback.summary()
+    assert a["steps"] == int(round(plan.duration / room.model.opt.timestep))
+    assert a["max_n"] == 0.0 and a["max_torque_nm"] == 0.0 and a["max_bw"] == 0.0
+    assert not data.xfrc_applied.any() and not data.qfrc_applied.any()
+    assert not data.eq_active.any()
+    # Both feet took a step and stand side by side at the end, turned with the body.
+    feet = [data.xpos[room.model.body(f"agent/{s}_foot").id, :2] for s in ("left", "right")]
+    assert abs(feet[0][1] - feet[1][1]) < 0.05 and feet[0][1] > OPEN[1] + 0.3
+    assert room.assist_wrench(data) == (0.0, 0.0)
+
+
+def test_a_fall_is_detected_and_the_push_measured():
+    """A shove on the pelvis in the middle of a step (an outside force the test applies)
+    topples the body: the meter measures the force as help and reports the fall."""
+    room = Room("discomfort")
+    data = _standing(room)
+    plan = plan_walk(room, data, OPEN + [0.0, 0.4], NORTH)
+    _play(room, data, plan, shove=(2.0, 2.5, np.array([400.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
+    out = plan.feedback.outcome(data)
+    assert out["fell"] and not out["success"], out
+    assert out["lowest_pelvis_m"] < FALLEN_FRACTION * room.agent.default_qpos()[2]
+    assert plan.feedback.fallen()
+    assert plan.feedback.summary()["max_n"] == pytest.approx(400.0)
+
+
+def test_turn_on_the_spot_then_walk_footsteps():
+    """A quarter turn on the spot comes first (pairs of 45 deg steps, the foot on the side
+    of the turn first), then the path's steps, then the closing step beside the other."""
+    room = Room("discomfort")
+    data = _standing(room)
+    steps = walk_steps(room, data, OPEN + [-0.6, 0.0], np.pi, start_yaw=np.pi)
+    turn = steps[:4]
+    assert [s.side for s in turn] == ["left", "right", "left", "right"]
+    assert np.rad2deg([s.yaw for s in turn]) == pytest.approx([135, 135, 180, 180])
+    walk = steps[4:]  # steps of at most STEP_M along the 0.6 m path, then the closing one
+    assert len(walk) >= 0.6 / STEP_M + 1 and walk[-1].side != walk[-2].side
+    assert all(a.side != b.side for a, b in zip(walk[:-1], walk[1:], strict=True))
+    ankles = np.array([s.xy for s in walk[-2:]])
+    assert np.linalg.norm(ankles.mean(axis=0) - (OPEN + [-0.6, 0.0])) < 0.01
 
 
 def test_walk_refuses_a_body_that_is_not_standing():
-    """The seated agent (pelvis on the chair) is not walked anywhere by the weld."""
-    import pytest
-
-    from simenv.agents.walk import plan_walk
-    from simenv.errors import SimenvError
-    from simenv.room import Room
-
+    """The seated agent (pelvis on the chair) is not walked anywhere."""
     room = Room("discomfort")
     data = room.make_data()
+    mujoco.mj_forward(room.model, data)
     with pytest.raises(SimenvError, match="not standing"):
         plan_walk(room, data, np.array([-1.0, 1.5]), np.pi / 2)

@@ -50,8 +50,8 @@ def real_clip(shared_data):
 
 def test_real_session_labelled_hot_opens_the_window_through_the_grasp(real_clip):
     """A real MSR Action3D recording labelled hot: stand up (unassisted), turn on the feet
-    and walk to the window (assistance measured), the palm's grasp closes on the handle and the hand
-    drags the pane past the open threshold while it holds it."""
+    and walk to the window on its own legs (no help, measured), the palm's grasp closes on
+    the handle and the hand drags the pane past the open threshold while it holds it."""
     env, entry, rows = _rehearse_hot(real_clip)
     assert entry["started"] and entry["gesture"] == "hot"
     # (The return to the chair follows in the chain; the environment ends a chain once its
@@ -62,8 +62,9 @@ def test_real_session_labelled_hot_opens_the_window_through_the_grasp(real_clip)
     assert np.linalg.norm(np.asarray(stages["walk"]["pelvis_end"][:2]) - env.spot) < 0.15
     for name in ("walk", "pull"):
         a = stages[name]["assistance"]
-        assert a["steps"] > 0 and 0.0 < a["mean_bw"] <= a["max_bw"]
-    assert entry["assistance"]["max_n"] >= stages["walk"]["assistance"]["max_n"]
+        assert a["steps"] > 0 and a["max_n"] == 0.0 and a["max_torque_nm"] == 0.0
+        assert not stages[name]["outcome"]["fell"]
+    assert entry["assistance"]["max_n"] == 0.0 and not entry.get("fell")
     assert entry["grasped"] is True
     assert entry["success"] is True
     threshold = env.room.objects["window"].threshold
@@ -73,7 +74,7 @@ def test_real_session_labelled_hot_opens_the_window_through_the_grasp(real_clip)
     assert max(w for t, w, _ in rows if t < held[0]) < 0.02  # nothing moved it before
     assert entry["t_object_changed"] == pytest.approx(crossed)
     assert env.room.object_labels(env.data)["window"] == "open"
-    assert env.room.assist_wrench(env.data) == (0.0, 0.0)  # released at the end
+    assert env.room.assist_wrench(env.data) == (0.0, 0.0)
 
 
 def test_without_the_grasp_the_hand_does_not_open_it(real_clip):

@@ -67,11 +67,15 @@ Execution
     grasps (whether the
     proximity grasp closed: the hand was at the handle). A chained reaction
     (:class:`~simenv.agents.reach.PlanChain`) plans each stage when the previous one ends,
-    from the state it left, until its object succeeds or the stages run out; its entry lists
-    ``stages`` (``stage``, ``duration_s``, ``pelvis_end`` and, for a stage with a root
-    assistance, ``assistance``: the weld's force per physics step summarised in N and body
-    weights, with ``per_frame_n`` per env step), the total ``assistance``, and
-    ``failed_stage`` when a later stage could not be planned.
+    from the state it left, then the return stages after it; its entry lists ``stages``
+    (``stage``, ``duration_s``, ``pelvis_end``; for a stage on the feet, ``assistance``: the
+    external help on the agent per physics step -- applied forces and torques, equality
+    constraints other than the hands' grasps, :meth:`simenv.room.Room.assist_wrench`; there
+    is no assistance mechanism, so it measures 0 -- summarised in N and body weights with
+    ``per_frame_n`` per env step, and ``outcome``: ``fell``, ``lowest_pelvis_m``,
+    ``goal_error_m``, ``success``), the total ``assistance``, ``fell`` (True when a stage's
+    body fell: the chain stops there) and ``failed_stage`` when a stage could not be
+    planned or its body fell.
 """
 
 from __future__ import annotations
@@ -439,12 +443,12 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             entry["grasped"] = False
 
     def _end_plan(self, run: dict[str, Any]) -> None:
-        """A finished plan holds nothing and pushes nothing; its measured root assistance
-        (if it had one) and its measured outcome (if its feedback measures one, e.g. the
-        seated check that ends the return to the chair) go into the log."""
+        """A finished plan holds nothing; its measured external help (if it measures it:
+        the stages on the feet) and its measured outcome (if its feedback measures one,
+        e.g. whether a walk fell, or the seated check that ends the return to the chair)
+        go into the log. A stage whose body fell ends the chain, logged as failed."""
         for g in run["plan"].grasps:
             self.room.set_grasp(self.data, g.hand, g.name, False)
-        self.room.set_assist(self.data, None)
         if "stages" in run["entry"]:
             stage = run["entry"]["stages"][-1]
             stage["pelvis_end"] = self.data.qpos[self.room.agent_qpos][:3].tolist()
@@ -454,6 +458,12 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             outcome = getattr(run["plan"].feedback, "outcome", None)
             if outcome is not None:
                 stage["outcome"] = outcome(self.data)
+                if stage["outcome"].get("fell"):
+                    run["entry"]["fell"] = True
+                    run["entry"]["failed_stage"] = (
+                        f"{stage['stage']}: the agent fell (pelvis down to "
+                        f"{stage['outcome']['lowest_pelvis_m']:.2f} m)")
+                    run["stages"] = []
 
     def _simulate(self, t: float) -> None:
         """One env step of physics; a running plan sets the agent's targets every substep."""
@@ -511,7 +521,8 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             done = object_success(self.room, run["before"], labels, entry["reaction"])
             if entry["t_object_changed"] is None and done:
                 entry["t_object_changed"] = entry["t_success"] = t
-        if t - run["t0"] < run["plan"].duration:
+        fallen = getattr(run["plan"].feedback, "fallen", None)
+        if t - run["t0"] < run["plan"].duration and not (fallen is not None and fallen()):
             return 0.0
         self._end_plan(run)
         # The chain goes on after its object succeeded: the return stages bring the agent
@@ -571,13 +582,11 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         return dict(zip(_CONTACT_KINDS, out.tolist(), strict=True))
 
     def agent_assistance_n(self) -> float:
-        """Largest external force (N) acting now on any of the agent's bodies from outside
-        its own body: ``xfrc_applied`` or the root assistance weld
-        (:meth:`simenv.room.Room.assist_wrench`, used by walking reactions; 0 for the
-        seated ones)."""
-        forces = self.data.xfrc_applied[self._agent_bodies, :3]
-        return max(float(np.linalg.norm(forces, axis=1).max()),
-                   self.room.assist_wrench(self.data)[0])
+        """Largest external force (N) acting now on the agent from outside its own servos
+        and contacts (:meth:`simenv.room.Room.assist_wrench`: ``xfrc_applied`` on its
+        bodies, ``qfrc_applied`` on its free joint, equality constraints other than the
+        hands' grasps); nothing in the room applies one, so 0 unless someone adds it."""
+        return self.room.assist_wrench(self.data)[0]
 
     def _excess_penetration(self) -> float:
         d = self.data
