@@ -322,8 +322,9 @@ def calibrate_reference(paths: Sequence[str | Path], job: ScoreJob = ScoreJob(),
         **batch: :func:`score_batch` options (``jobs``, ``backend``, ``progress``...).
 
     Raises:
-        ReferenceDataError: a generated target is also a reference file, or
-            the reference cannot calibrate (empty, too small, bad values).
+        ReferenceDataError: no reference file, a generated target is also a
+            reference file, or the reference cannot calibrate (nothing scored,
+            too small, bad values).
         SimenvError: a path does not exist.
     """
     from dataclasses import replace
@@ -338,6 +339,9 @@ def calibrate_reference(paths: Sequence[str | Path], job: ScoreJob = ScoreJob(),
         if t.resolve() in generated:
             raise ReferenceDataError("is both a reference (real) and a generated clip: a clip "
                                      "cannot be judged against itself", source=t)
+    if not targets and not results:
+        raise ReferenceDataError("found no real motion file or results file for the reference",
+                                 source=", ".join(map(str, paths)), field="reference")
     records = [rec for r in results for rec in read_records(r)]
     if targets:
         records += score_batch(targets, replace(job, report_dir=None, reference=None), **batch)

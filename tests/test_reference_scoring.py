@@ -235,3 +235,13 @@ def test_cli_refuses_a_generated_file_in_the_reference(
     assert main(["score", str(judged), "--no-physics", "--reference", str(ref)]) == 2
     err = capsys.readouterr().err
     assert judged.name in err and "both a reference" in err
+
+
+def test_cli_empty_reference_names_the_folder(shared_data: Path, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    _, gen = _msr(shared_data, tmp_path)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["score", str(gen), "--no-physics", "--reference", str(empty)]) == 2
+    err = capsys.readouterr().err
+    assert str(empty) in err and "reference" in err
