@@ -20,40 +20,10 @@ from typing import Any
 import numpy as np
 
 from simenv.errors import SimenvError
+from simenv.io.loader import load_any, load_one
 from simenv.motion import Interaction, Motion
 
 EXIT_USER_ERROR = 2
-
-
-def load_any(paths: Sequence[str | Path]) -> list[Motion | Interaction]:
-    """Load one motion file or folder, or the two files of one two-person recording.
-
-    Returns:
-        The clips found (usually one; a folder of unrelated files gives several).
-    """
-    from simenv.io.loader import load
-
-    paths = [Path(p) for p in paths]
-    for path in paths:
-        if not path.exists():
-            raise SimenvError("no such file or folder", source=path)
-    if len(paths) > 2:
-        raise SimenvError(
-            f"got {len(paths)} paths; expected one file or folder, or the two files of one "
-            "two-person recording"
-        )
-    loaded = load(paths[0]) if len(paths) == 1 else load(paths)
-    return list(loaded) if isinstance(loaded, list) else [loaded]
-
-
-def _one_clip(paths: Sequence[str | Path]) -> Motion | Interaction:
-    clips = load_any(paths)
-    if len(clips) != 1:
-        raise SimenvError(
-            f"holds {len(clips)} clips; this command needs one (use `simenv info` to list them)",
-            source=paths[0],
-        )
-    return clips[0]
 
 
 def _stature(motion: Motion) -> float | None:
@@ -234,7 +204,7 @@ def _check_suffix(path: str, suffix: str, option: str) -> Path:
 def cmd_retarget(args: argparse.Namespace) -> int:
     out = _check_suffix(args.out, ".npz", "--out")
     video = _check_suffix(args.video, ".mp4", "--video") if args.video else None
-    result = retarget_clip(_one_clip(args.paths))
+    result = retarget_clip(load_one(args.paths))
     save_npz(result, out)
     if video is not None:
         from simenv.render import render_result
@@ -258,7 +228,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from simenv.render import render_result
 
     out = _check_suffix(args.out, ".mp4", "--out")
-    clip = _one_clip(args.paths)
+    clip = load_one(args.paths)
     if args.max_frames is not None:
         # Only the frames that will be shown need retargeting.
         clip = clip.slice(0, args.max_frames * args.stride)

@@ -79,12 +79,12 @@ class MPCConfig:
     n_knots: int = 4
     n_samples: int = 32
     replan_steps: int = 10
-    noise_rad: float = 0.1
+    noise_rad: float = 0.2
     noise_scaling: float = 0.0
     sampled_parts: tuple[str, ...] = ("lumbar", "thigh", "shin", "foot", "toes")
     limit_rad: float = 0.8
     temperature: float = 0.0
-    timestep_factor: int = 1
+    timestep_factor: int = 2
     gain_scale: float = 1.0
     feedforward: float = 1.0
     cost_stride: int = 5

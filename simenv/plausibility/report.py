@@ -21,7 +21,7 @@ Which computation stands behind each name
     root_residual       ``mj_inverse`` + floor NNLS    not available
                         (two people: + hand contacts)
     balance             COM vs support polygon         not available
-    tracking            PD tracking in ``mj_step``     not available
+    tracking            unassisted MPC in ``mj_step``  not available
     inter_penetration   geoms of the two bodies        not available
     contact             key joint pairs on the bodies  not available
     pair_root_residual  both ``mj_inverse`` + floor    not available
@@ -68,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from simenv.control.mpc import MPCConfig
 from simenv.errors import SimenvError
 from simenv.motion import Interaction, Motion
 from simenv.plausibility.body import (
@@ -111,17 +112,23 @@ class ScoreConfig:
         body: body-level thresholds (:class:`BodyThresholds`).
         tracking: run the PD physics-tracking simulation (up to
             ``body.tracking_max_seconds`` of simulated time per person).
-        tracking_assist: judge tracking with the root assistance on
-            (:func:`simenv.plausibility.tracking.track`, ``assist=True``). A PD
-            controller without learning cannot balance real locomotion: on
-            the bundled CMU walk 02_01 the unassisted body falls after
-            0.87 s, on 01_01 (jumps) after 1.19 s, on the 49_06 cartwheel
-            after 1.5 s, while with assistance all three are tracked to the
-            end (max body error 0.06-0.16 m). So the verdict asks whether the
-            limbs can follow the motion with the root helped; the help itself
-            is judged by ``root_residual``. The unassisted run is reported
-            too, in the details (``unassisted_time_to_failure_s``,
-            ``unassisted_success``). False: judge the unassisted run.
+        tracking_assist: judge tracking with the PD servos and the root
+            assistance on (:func:`simenv.plausibility.tracking.track`,
+            ``assist=True``; the unassisted ``tracking_controller`` run is then
+            reported in the details as ``unassisted_*``). Default False: the
+            verdict asks whether the body can perform the motion with its own
+            muscles -- the unassisted model-predictive controller
+            (:mod:`simenv.control`) tracks it, nothing acts on the root. A PD
+            controller alone cannot balance real locomotion (on the bundled
+            CMU walk 02_01 the unassisted PD body falls after 0.87 s, on 01_01
+            jumps after 1.19 s, on the 49_06 cartwheel after 1.5 s).
+        tracking_controller: ``"mpc"`` (default) or ``"pd"``: the controller
+            of the unassisted run.
+        tracking_assisted_detail: also run the assisted PD tracker (about 1x
+            real time) and report it in the details (``assisted_success``,
+            ``assisted_time_to_failure_s``, ``assisted_mpjpe_mm``,
+            ``assisted_force_mean``) when the judged run is unassisted.
+        mpc: settings of the MPC (:class:`simenv.control.MPCConfig`).
         joint_limits: run the joint-limit probe (one extra retargeting onto a
             body with widened ranges).
         contact_pairs: key joint pairs (person A keypoint, person B keypoint)
@@ -131,7 +138,10 @@ class ScoreConfig:
     thresholds: Thresholds = DEFAULT_THRESHOLDS
     body: BodyThresholds = DEFAULT_BODY_THRESHOLDS
     tracking: bool = True
-    tracking_assist: bool = True
+    tracking_assist: bool = False
+    tracking_controller: str = "mpc"
+    tracking_assisted_detail: bool = True
+    mpc: MPCConfig = field(default_factory=MPCConfig)
     joint_limits: bool = True
     contact_pairs: tuple[tuple[str, str], ...] = DEFAULT_CONTACT_PAIRS
 
@@ -366,15 +376,28 @@ def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason:
 def _tracking(fitted: RetargetResult, config: ScoreConfig) -> MetricResult:
     """Tracking judged as configured, with the other run's outcome in the details."""
     body = config.body
-    judged = tracking(fitted, body, assist=config.tracking_assist,
-                      max_seconds=body.tracking_max_seconds)
-    if not config.tracking_assist:
-        return judged
-    free = tracking(fitted, body, assist=False, max_seconds=body.tracking_max_seconds)
+
+    def run(assist: bool) -> MetricResult:
+        return tracking(fitted, body, assist=assist,
+                        max_seconds=body.tracking_max_seconds,
+                        controller="pd" if assist else config.tracking_controller,
+                        mpc=config.mpc)
+
+    judged = run(config.tracking_assist)
+    if config.tracking_assist:
+        free = run(False)
+    else:
+        free = judged
     details = {**judged.details,
                "unassisted_success": free.details["success"],
                "unassisted_time_to_failure_s": free.details["time_to_failure_s"],
                "unassisted_mpjpe_mm": free.details["mpjpe_mm"]}
+    if not config.tracking_assist and config.tracking_assisted_detail:
+        helped = run(True)
+        details.update({"assisted_success": helped.details["success"],
+                        "assisted_time_to_failure_s": helped.details["time_to_failure_s"],
+                        "assisted_mpjpe_mm": helped.details["mpjpe_mm"],
+                        "assisted_force_mean": helped.details["assist_force_mean"]})
     return replace(judged, details=details)
 
 

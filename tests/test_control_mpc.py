@@ -1,0 +1,104 @@
+"""The unassisted tracking MPC (simenv.control.mpc) on real CMU motion.
+
+Short clips only (at most 1.5 s of the bundled walk): the long per-clip
+evaluation lives in benchmarks/eval_tracking.py and docs/plausibility.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pytest
+
+from simenv.control import MPCConfig, TrackingMPC, TrackingReference
+from simenv.control.model import root_dofs
+from simenv.errors import PhysicsError
+from simenv.plausibility.tracking import track, tracking
+
+#: A cheaper planner than the scorer's default for the behavioural tests (the
+#: scorer's default is exercised by tests/test_plausibility_report.py).
+QUICK = MPCConfig(n_samples=16, timestep_factor=2, horizon_s=0.25)
+
+
+@pytest.fixture(scope="module")
+def walk_mpc(walk_2s_retargeted):
+    return track(walk_2s_retargeted, controller="mpc", mpc=QUICK, max_seconds=1.5)
+
+
+def test_mpc_keeps_the_real_walk_up_where_the_pd_servos_fall(walk_mpc,
+                                                             walk_2s_retargeted) -> None:
+    pd = track(walk_2s_retargeted, max_seconds=1.5)
+    assert not pd.success and pd.time_to_failure_s < 1.2
+    assert walk_mpc.success and walk_mpc.controller == "mpc" and not walk_mpc.assisted
+    assert walk_mpc.time_to_failure_s == pytest.approx(1.5)
+    assert walk_mpc.mpjpe_mm < 200.0
+    assert not np.isnan(walk_mpc.body_error[:181]).any()
+    # Walking costs the muscles work: positive, and per kilogram below a sprint's
+    # order of magnitude (a body thrashing against itself would do far more).
+    assert 1.0 < walk_mpc.work_j_per_kg < 100.0
+    assert walk_mpc.work_j == pytest.approx(
+        walk_mpc.work_j_per_kg * walk_2s_retargeted.humanoid.total_mass)
+
+
+def test_nothing_but_the_hinge_servos_acts_on_the_body(walk_2s_retargeted) -> None:
+    ref = TrackingReference.from_retarget(walk_2s_retargeted, max_seconds=0.2)
+    with TrackingMPC(walk_2s_retargeted.humanoid, ref, QUICK) as mpc:
+        model = mpc.model
+        assert model.neq == 0 and model.nmocap == 0
+        assert (model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT).all()
+        free = model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
+        assert not np.isin(model.actuator_trnid[:, 0], np.flatnonzero(free)).any()
+        data = mujoco.MjData(model)
+        mpc.reset(data)
+        root = root_dofs(model)
+        for s in range(ref.n_steps):
+            data.ctrl[:] = mpc.control(data, s)
+            mujoco.mj_step(model, data)
+            assert not data.xfrc_applied.any() and not data.qfrc_applied.any()
+            assert not data.qfrc_actuator[root].any()
+        assert mpc.replans == ref.n_steps // QUICK.replan_steps
+
+
+def test_same_seed_same_motion_whatever_the_threads(walk_2s_retargeted) -> None:
+    runs = [track(walk_2s_retargeted, controller="mpc", max_seconds=0.15,
+                  mpc=replace(QUICK, nthread=n, seed=seed))
+            for n, seed in ((1, 0), (2, 0), (2, 1))]
+    np.testing.assert_array_equal(runs[0].sim_keypoints, runs[1].sim_keypoints)
+    assert not np.array_equal(runs[0].sim_keypoints[-1], runs[2].sim_keypoints[-1])
+
+
+def test_a_teleported_walk_fails_at_the_jump(walk_2s_retargeted) -> None:
+    q = walk_2s_retargeted.qpos.copy()
+    q[60:, 0] += 2.0  # the whole reference jumps 2 m sideways at 0.5 s
+    r = tracking(replace(walk_2s_retargeted, qpos=q), controller="mpc", mpc=QUICK,
+                 max_seconds=0.7)
+    assert r.passed is False and r.details["mpc"] == 1.0
+    assert r.details["time_to_failure_s"] == pytest.approx(0.5, abs=2 / 120.0)
+    assert r.details["assist_force_mean"] == 0.0 and r.details["work_j"] > 0.0
+
+
+def test_a_floating_walk_falls(walk_2s_retargeted) -> None:
+    q = walk_2s_retargeted.qpos.copy()
+    q[:, 2] += 1.0  # a body 1 m in the air cannot follow a walk up there
+    tr = track(replace(walk_2s_retargeted, qpos=q), controller="mpc", mpc=QUICK)
+    assert not tr.success and tr.error is None and tr.time_to_failure_s < 0.6
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [
+    ({"controller": "lqr"}, "controller"),
+    ({"controller": "mpc", "assist": True}, "assist"),
+])
+def test_bad_tracking_options_raise_naming_the_field(walk_2s_retargeted, kwargs, field) -> None:
+    with pytest.raises(PhysicsError) as err:
+        track(walk_2s_retargeted, max_seconds=0.1, **kwargs)
+    assert err.value.field == field
+
+
+@pytest.mark.parametrize("field", ["horizon_s", "n_samples", "replan_steps", "nthread",
+                                   "timestep_factor", "temperature"])
+def test_bad_mpc_settings_raise_naming_the_field(field) -> None:
+    with pytest.raises(PhysicsError) as err:
+        MPCConfig(**{field: 0 if field != "temperature" else -1.0})
+    assert err.value.field == field
