@@ -23,6 +23,7 @@ import numpy as np
 
 from simenv.errors import SimenvError
 from simenv.io.gltf import body_poses, write_gltf
+from simenv.io.loader import load_one
 from simenv.motion import Interaction, Motion
 
 
@@ -80,8 +81,6 @@ def export(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str],
            scenario: str | os.PathLike[str] | None = None, stride: int = 1) -> Path:
     """The ``simenv export`` job: ``paths`` (a motion file or two-person recording, or
     a scenario TOML) and/or ``scenario`` to ``out`` (see the module docstring)."""
-    from simenv.cli import _one_clip
-
     paths = [Path(p) for p in paths]
     if paths and paths[0].suffix.lower() == ".toml":
         if scenario is not None or len(paths) > 1:
@@ -93,7 +92,7 @@ def export(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str],
             raise SimenvError("nothing to export: give a motion file, a scenario TOML or "
                               "--scenario NAME")
         return export_room(scenario, out, stride=stride)
-    clip = _one_clip(paths)
+    clip = load_one(paths)
     if scenario is None:
         from simenv.retarget import retarget
 

@@ -404,3 +404,37 @@ def pair(a: Motion, b: Motion, *, folder: Path | None = None) -> Interaction:
         meta["roles_source"] = "CMU trial descriptions (subject A / lead acts)"
     name = folder.name if folder else f"{names[0]}+{names[1]}"
     return Interaction(a, b, label=label, roles_known=roles_known, name=name, metadata=meta)
+
+
+def load_any(paths: Sequence[str | Path]) -> list[Motion | Interaction]:
+    """Load one motion file or folder, or the two files of one two-person recording.
+
+    Returns:
+        The clips found (usually one; a folder of unrelated files gives several).
+    """
+    paths = [Path(p) for p in paths]
+    for path in paths:
+        if not path.exists():
+            raise SimenvError("no such file or folder", source=path)
+    if len(paths) > 2:
+        raise SimenvError(
+            f"got {len(paths)} paths; expected one file or folder, or the two files of one "
+            "two-person recording"
+        )
+    loaded = load(paths[0]) if len(paths) == 1 else load(paths)
+    return list(loaded) if isinstance(loaded, list) else [loaded]
+
+
+def load_one(paths: Sequence[str | Path]) -> Motion | Interaction:
+    """The one clip of :func:`load_any`'s ``paths``.
+
+    Raises:
+        SimenvError: the paths hold several clips.
+    """
+    clips = load_any(paths)
+    if len(clips) != 1:
+        raise SimenvError(
+            f"holds {len(clips)} clips; this command needs one (use `simenv info` to list them)",
+            source=paths[0],
+        )
+    return clips[0]
