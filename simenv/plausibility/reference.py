@@ -48,15 +48,19 @@ Per set (:func:`compare`)
     p95 and p99 thresholds, and a p-value for the count ``k`` of ``m``
     clips beyond the p99 threshold under the hypothesis that the generated
     clips come from the reference's distribution. With ``e`` of the ``n``
-    out-of-fold reference scores above the threshold (the ``(n - e)``-th
-    order statistic), a new score exceeds it with probability ``Beta(e + 1,
-    n - e)`` (exact for continuous scores), so ``k ~ BetaBinomial(m, e + 1,
+    out-of-fold reference scores above the threshold, a new score exceeds
+    it with probability ``Beta(e + 1, n - e)`` (exact when the threshold is
+    the ``(n - e)``-th order statistic of continuous scores; the linear
+    percentile lies between two of them), so ``k ~ BetaBinomial(m, e + 1,
     n - e)`` and ``p = P(K >= k)``, which accounts for the size of the
     reference as well as of the set. Verdict: ``"outside_reference"`` when
     ``p < alpha`` (0.01); ``"inside_reference"`` when not and the set is
     large enough that ``m`` of ``m`` beyond would have been significant;
     else ``"too_few_clips"``. The set's verdict is that of ``W``; the
     per-metric ones say which metrics move it.
+
+Measured on the Kinect corpus (odd subjects as reference, even subjects
+judged), with the numbers per dataset and corruption: ``docs/published_metrics.md``.
 """
 
 from __future__ import annotations
