@@ -60,6 +60,7 @@ COM_K = 45.0
 COM_D = 15.0
 SIDES = ("left", "right")
 FF = 1.0
+HALF_WIDTH_M = 0.09
 K_YAW = 1.0
 F_MAX = 0.1
 INSIDE_M = 0.02
@@ -73,6 +74,7 @@ DT = 0.1
 LEAD = 1.0
 N_SUB = 4
 DYNFF = 1.0
+HALF_WIDTH_M = 0.09
 K_YAW = 1.0
 F_MAX = 0.1
 ADMIT = 0.0
@@ -196,8 +198,12 @@ class LegIK:
 
     def neutral(self, side: str, pelvis_xy: np.ndarray, yaw: float) -> np.ndarray:
         """(2,) where foot ``side`` stands under a standing pelvis at ``pelvis_xy``
-        heading ``yaw``, m."""
-        return np.asarray(pelvis_xy, float) + _rot(yaw) @ self.offset[SIDES.index(side)]
+        heading ``yaw`` when stepping: the rest pose's place brought to
+        :data:`HALF_WIDTH_M` from the midline (a narrower stance shortens the sideways
+        travel of the centre of mass at every step), m."""
+        off = self.offset[SIDES.index(side)].copy()
+        off[1] = np.sign(off[1]) * HALF_WIDTH_M
+        return np.asarray(pelvis_xy, float) + _rot(yaw) @ off
 
     def place(self, side: str, xy: np.ndarray, yaw: float, lift: float = 0.0
               ) -> tuple[np.ndarray, float]:

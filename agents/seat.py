@@ -20,8 +20,8 @@ Every step is the stepping gait of :mod:`simenv.agents.gait` on the agent's own 
 (:func:`simenv.agents.walk.turn_steps`: pairs of steps, the foot on the side of the turn
 first, each turning the feet by at most :data:`simenv.agents.walk.TURN_STEP_DEG` and
 moving them by at most :data:`simenv.agents.walk.STEP_M`). :func:`plan_turn_then_walk`
-puts such a turn, moving :data:`CLEAR_CHAIR_M` towards the desk out from in front of the
-chair, before a walk in one plan (the walks to the window and the curtain).
+puts side-steps out from between the desk and the chair (:data:`CLEAR_CHAIR_M`) and such
+a turn before a walk in one plan (the walks to the window and the curtain).
 """
 
 from __future__ import annotations
@@ -44,10 +44,13 @@ SEAT_STAND_OFF_M = 0.26
 #: front and the desk, clear of both), m; the last steps bring the pelvis to
 #: :data:`SEAT_STAND_OFF_M`.
 ARRIVE_OFF_M = 0.45
-#: The turn before a walk moves the pelvis this far towards the desk, out from in front of
-#: the rolled-back chair (its front legs 6 cm behind the standing heels, measured; the
-#: first steps of the walk hit them without it), m.
-CLEAR_CHAIR_M = 0.14
+#: Before turning to walk away, the agent side-steps this far along the desk's edge, out
+#: from between the desk and the rolled-back chair (turning there, its hand met the
+#: keyboard and its heels the chair's front legs, measured), m.
+CLEAR_CHAIR_M = 0.5
+#: ... after a step this far towards the desk, away from the chair's front legs (6 cm
+#: behind the standing heels; side-stepping there, a heel caught one, measured), m.
+CLEAR_AHEAD_M = 0.12
 #: Seated hold after sitting down, s.
 SETTLE_S = 1.5
 
@@ -106,13 +109,19 @@ def plan_step(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
 
 def plan_turn_then_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
                         start_yaw: float) -> SteppingPlan:
-    """One plan: a turn on the feet onto ``start_yaw`` (rad) moving :data:`CLEAR_CHAIR_M`
-    towards the desk, then the walk to ``goal`` (x, y, m) facing ``goal_yaw``
+    """One plan: a step :data:`CLEAR_AHEAD_M` towards the desk and side-steps
+    :data:`CLEAR_CHAIR_M` along its edge (towards the goal's side), out from between the
+    desk and the rolled-back chair, a turn on the feet
+    onto ``start_yaw`` (rad), then the walk to ``goal`` (x, y, m) facing ``goal_yaw``
     (:func:`simenv.agents.walk.plan_walk`)."""
+    q = data.qpos[room.agent_qpos]
     yaw = desk_heading(room)
-    clear = data.qpos[room.agent_qpos][:2] + CLEAR_CHAIR_M * np.array([np.cos(yaw),
-                                                                        np.sin(yaw)])
-    return plan_walk(room, data, goal, goal_yaw, start_yaw=start_yaw, turn_to=clear)
+    ahead = np.array([np.cos(yaw), np.sin(yaw)])
+    across = np.array([-ahead[1], ahead[0]])  # the desk's left, seen seated
+    side = 1.0 if float((np.asarray(goal, float)[:2] - q[:2]) @ across) >= 0 else -1.0
+    forward = q[:2] + CLEAR_AHEAD_M * ahead
+    return plan_walk(room, data, goal, goal_yaw, start_yaw=start_yaw,
+                     side_to=[forward, forward + side * CLEAR_CHAIR_M * across])
 
 
 def plan_turn_away(room: Room, data: mujoco.MjData) -> SteppingPlan:

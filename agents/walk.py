@@ -92,7 +92,11 @@ def turn_steps(ik: gait.LegIK, pelvis: np.ndarray, yaw0: float, yaw1: float,
     shift = float(np.linalg.norm(to - pelvis))
     k_pairs = max(int(np.ceil(abs(np.rad2deg(turn)) / TURN_STEP_DEG - 1e-9)),
                   int(np.ceil(shift / STEP_M - 1e-9)), 1)
-    lead = "left" if turn >= 0 else "right"
+    # The leading foot opens the way: on the side of the turn, or of the move when the
+    # heading stays.
+    left = turn if abs(np.rad2deg(turn)) > ALIGN_DEG else float(
+        (to - pelvis) @ [-np.sin(yaw0), np.cos(yaw0)])
+    lead = "left" if left >= 0 else "right"
     trail = "right" if lead == "left" else "left"
     out = []
     for k in range(1, k_pairs + 1):
@@ -195,22 +199,23 @@ def check_standing(room: Room, data: mujoco.MjData, what: str) -> None:
 
 
 def walk_steps(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
-               start_yaw: float | None = None, turn_to: np.ndarray | None = None
+               start_yaw: float | None = None, side_to: np.ndarray | None = None
                ) -> list[Footstep]:
     """Footsteps from where the agent stands to ``goal`` (x, y, m) facing ``goal_yaw``
-    (rad), leaving along ``start_yaw`` (default: the pelvis's heading) from ``turn_to``
-    (x, y, m; default: where the pelvis is), where the turn on the spot moves it (module
-    docstring)."""
+    (rad): first steps with the heading kept through the waypoints ``side_to`` ((K, 2) or
+    (2,), x, y, m) when given, then the turn on the spot onto ``start_yaw`` (default: the
+    pelvis's heading), then the path (module docstring)."""
     ik = gait.leg_ik(room.agent)
     q = data.qpos[room.agent_qpos]
     yaw0 = _yaw(q[3:7])
     yaw1 = yaw0 if start_yaw is None else float(start_yaw)
     pelvis = q[:2].copy()
     steps = []
-    if abs(np.rad2deg(_wrap(yaw1 - yaw0))) > ALIGN_DEG or turn_to is not None:
-        steps += turn_steps(ik, pelvis, yaw0, yaw1, turn_to)
-        if turn_to is not None:
-            pelvis = np.asarray(turn_to, float)[:2]
+    for way in [] if side_to is None else np.asarray(side_to, float).reshape(-1, 2):
+        steps += turn_steps(ik, pelvis, yaw0, yaw0, way)
+        pelvis = way
+    if abs(np.rad2deg(_wrap(yaw1 - yaw0))) > ALIGN_DEG:
+        steps += turn_steps(ik, pelvis, yaw0, yaw1)
     goal = np.asarray(goal, float)[:2]
     if float(np.linalg.norm(goal - pelvis)) > 0.05:
         first = steps[-2].side if steps else "left"
@@ -221,12 +226,13 @@ def walk_steps(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: floa
 
 
 def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
-              start_yaw: float | None = None, turn_to: np.ndarray | None = None
+              start_yaw: float | None = None, side_to: np.ndarray | None = None
               ) -> gait.SteppingPlan:
     """Plan for walking the standing agent from where it is to ``goal`` (x, y, m),
-    facing ``goal_yaw`` (rad) at the end, turning on the spot first onto ``start_yaw``
-    (default: the pelvis's heading) and over to ``turn_to`` (x, y; default: in place)
-    (module docstring), on its own legs.
+    facing ``goal_yaw`` (rad) at the end, stepping first through the waypoints
+    ``side_to`` ((K, 2) or (2,), x, y; default: none) with the heading kept and turning
+    on the spot onto ``start_yaw`` (default: the pelvis's heading) (module docstring,
+    :func:`walk_steps`), on its own legs.
 
     Raises:
         SimenvError: the agent is not standing (pelvis below :data:`STANDING_FRACTION` of
@@ -238,7 +244,7 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
         outcome (fallen or not, distance from the goal).
     """
     check_standing(room, data, "walk")
-    steps = walk_steps(room, data, goal, goal_yaw, start_yaw, turn_to)
+    steps = walk_steps(room, data, goal, goal_yaw, start_yaw, side_to)
     plan = gait.plan_footsteps(room, data, steps)
     plan.feedback = GaitMeter(room, plan.balance, np.asarray(goal, float)[:2])
     return plan

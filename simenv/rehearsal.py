@@ -15,14 +15,19 @@ with one of the agents below, and writes to ``out``:
 * ``log.jsonl``: one JSON line per step, flushed as it goes: ``t``, the labelled ``gesture``,
   the last perception's ``probabilities``, ``stage`` and ``predicted_motion_m``, the
   ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
-  (fractions of each joint's range), ``labels``, and the root assistance on the agent at
-  the step, ``assistance_n`` (N) and ``assistance_bw`` (body weights);
+  (fractions of each joint's range), ``labels``, and the external help on the agent at
+  the step, ``assistance_n`` (N) and ``assistance_bw`` (body weights): applied forces and
+  torques on its bodies and free joint and equality constraints other than the hands'
+  grasps (:meth:`simenv.room.Room.assist_wrench`). The room has no assistance mechanism
+  (the agent walks on its own legs), so it reads 0 on every line;
 * ``summary.json``: ``session``, ``gestures`` (the labelled ones), ``reactions`` (only those
   the agent started: ``gesture``, ``t_onset``,
   ``t_decision``, ``t_object_changed``, ``object``, ``reaction``, ``success``,
   ``t_success``; ``facing_deg_min`` for a greeting, ``grasped`` for a grasping reaction,
-  ``stages`` -- each with its ``assistance`` -- and the total ``assistance`` for a chained
-  reaction such as ``close_window``),
+  ``stages`` -- each with its ``assistance`` and, for the stages on the feet, its
+  ``outcome`` (``fell``, ``lowest_pelvis_m``, ``goal_error_m``, ``success``) -- the total
+  ``assistance``, ``fell`` and ``failed_stage`` (a stage whose body fell ends the chain)
+  for a chained reaction such as ``close_window``),
   ``decisions`` (every decision, with ``not_started``: why it was not carried out, and for
   the scripted agent the perception ``stage`` that took it: ``real`` or ``predicted``),
   ``decision_latency_s``
@@ -277,9 +282,9 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                     "object": REACTIONS[entry["reaction"]].object,
                     "reaction": entry["reaction"], "success": entry["success"],
                     "t_success": entry["t_success"]}
-        # greeting / grasping / chained (stand, walk, act; measured root assistance) reactions
+        # greeting / grasping / chained (stand, walk, act; measured help, falls) reactions
         for key in ("facing_deg_min", "dip_max_deg", "grasped", "stages", "assistance",
-                    "returned", "failed_stage"):
+                    "returned", "fell", "failed_stage"):
             if key in entry:
                 reaction[key] = entry[key]
         reactions.append(reaction)

@@ -275,3 +275,39 @@ def test_bow_back_is_scored_by_the_bow_meter():
     assert entry["success"] is True and entry["dip_max_deg"] >= 15.0
     assert entry["facing_deg_min"] < 30.0
     assert sum(i["reward_terms"].get("success", 0.0) for i in infos) == SUCCESS
+
+
+def test_a_walking_agent_that_falls_ends_its_chain_with_the_fall_reported():
+    """``cold`` in the discomfort scenario starts close_window: stand up (no help), then
+    the steps on the agent's own legs. A shove on the pelvis during the walk (the test's
+    own outside force) topples it: the help is measured on those steps (nothing else ever
+    pushes: 0 N before), the walk stage's outcome says it fell, and the chain stops there
+    with the fall named instead of walking on or acting from the floor."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    env = InteractionRoomEnv(short, gestures=[GestureEvent("cold", 0.2, 0.5)],
+                             scenario="discomfort", predictor="constant-velocity-50")
+    env.reset(seed=0)
+    act = env.reactions.index("close_window")
+    pelvis = env.room.model.body("agent/pelvis").id
+    decide, k, truncated, helps, walking = int(round(0.3 * PERCEPTION_FPS)), 0, False, [], 0
+    while not truncated and not (env.log and env.log[0]["success"] is not None):
+        stages = env.log[0].get("stages", []) if env.log else []
+        walking += bool(stages) and stages[-1]["stage"] == "walk"
+        # 1 s into the walk, a 0.5-s shove sideways
+        shove = 25 <= walking < 38
+        env.data.xfrc_applied[pelvis, :3] = [0.0, 500.0, 0.0] if shove else 0.0
+        *_, truncated, _ = env.step(act if k == decide else 0)
+        helps.append((shove, env.agent_assistance_n()))
+        k += 1
+    (entry,) = env.log
+    names = [s["stage"] for s in entry["stages"]]
+    assert names == ["stand_up", "walk"]  # stopped at the fall: no act, no return
+    stand, walk = entry["stages"]
+    assert "outcome" not in stand and "assistance" not in stand
+    assert walk["outcome"]["fell"] and not walk["outcome"]["success"]
+    assert entry["fell"] is True and entry["success"] is False
+    assert entry["failed_stage"].startswith("walk: the agent fell")
+    assert entry["returned"] is False
+    assert walk["assistance"]["max_n"] == pytest.approx(500.0)  # the shove, measured
+    assert all(h == 0.0 for shoved, h in helps if not shoved)
+    assert walk["duration_s"] > walk["assistance"]["steps"] * env.model.opt.timestep
