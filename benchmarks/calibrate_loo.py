@@ -503,6 +503,20 @@ def summary(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
     return out
 
 
+RESIDUAL_HEAD = """
+## Root residual measured by the unassisted controller
+
+`benchmarks/calibrate_residual.py`: the unassisted model-predictive tracker
+(`simenv.control`, nothing acting on the root) runs each short real CMU clip and its
+`float` / `time_warp` copies (moderate strength); `root_residual` is computed inferred
+(inverse dynamics of the reference, best floor forces) and measured (0 on the frames the
+controller followed within `root_residual_tracked_m` = 0.1 m, the inferred value elsewhere).
+The measured value is never above the inferred one; a frame counts as help only where a body
+under gravity did not perform it. Threshold 0.15 BW.
+
+"""
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("stages", nargs="+", choices=("score", "corrupt", "report"))
@@ -538,6 +552,11 @@ def main() -> None:
         corrupt = [r for p in sorted(args.out.glob("corrupt*.jsonl")) for r in _read_jsonl(p)]
         th = judge(real, corrupt, args.data)
         text = markdown(real, corrupt, th, args.data)
+        residual = _read_jsonl(args.out / "residual.jsonl")
+        if residual:
+            from calibrate_residual import table as residual_table
+
+            text += RESIDUAL_HEAD + residual_table(residual) + "\n"
         text += "\n" + summarise(real_all, args.data).replace(
             "# Calibration of the plausibility scorer on real motion capture",
             "# Appendix: every real clip at the default thresholds", 1)
