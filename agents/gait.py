@@ -60,6 +60,10 @@ COM_K = 45.0
 COM_D = 15.0
 SIDES = ("left", "right")
 FF = 1.0
+SHIFT_SPEED = 0.1
+PLACE_D = 0.0
+PLACE_V = 0.0
+LEG_M = 0.85
 HALF_WIDTH_M = 0.09
 K_YAW = 1.0
 F_MAX = 0.1
@@ -74,6 +78,10 @@ DT = 0.1
 LEAD = 1.0
 N_SUB = 4
 DYNFF = 1.0
+SHIFT_SPEED = 0.1
+PLACE_D = 0.0
+PLACE_V = 0.0
+LEG_M = 0.85
 HALF_WIDTH_M = 0.09
 K_YAW = 1.0
 F_MAX = 0.1
@@ -408,6 +416,15 @@ class StepBalance:
                 dq = np.linalg.solve(axes, corr)
                 u[self._hip[i]] += (-STANCE_T if planned[i] else 1.0) * dq * (
                     1.0 / max(planned.sum(), 1.0) if planned[i] else 1.0)
+        if PLACE_D or PLACE_V:
+            # Foot placement (SIMBICON's swing-hip feedback, in metres): the swing foot
+            # lands dx = C_d e + C_v e' further along the centre of mass's error, by a hip
+            # rotation r = (dx x z) / L of the swing leg (length L).
+            dx = np.array([*(PLACE_D * (c - ref) + PLACE_V * cd), 0.0])
+            r = np.cross(dx, [0.0, 0.0, 1.0]) / LEG_M
+            for i in range(2):
+                if not planned[i]:
+                    u[self._hip[i]] += np.linalg.solve(data.xaxis[self._hipj[i]].T, r)
         for i in range(2):
             if planned[i] or self.swing_yaw is None:
                 continue
@@ -501,16 +518,21 @@ class SteppingPlan:
         self._height = float(self._upper[2]) - CROUCH_M
         m = h.model
         self._lead = LEAD * -m.actuator_biasprm[:, 2] / m.actuator_gainprm[:, 0]
-        self.step_s = N_SUB * (SHIFT_S / N_SUB) + SETTLE_S + LIFT_S + PLACE_S
-        self.duration = len(self.steps) * self.step_s + SHIFT_S + HOLD_S
         pelvis = room.model.body("agent/pelvis").id
         com = data.subtree_com[pelvis, :2].copy()
         feet = feet_now(room, data)
         q = data.qpos[room.agent_qpos].copy()
         ctrl = data.ctrl[room.agent_ctrl].copy()
+        #: Start of each stage (the steps, then the closing centring), s; its weight
+        #: shift lasts at least :data:`SHIFT_S`, longer for a long shift
+        #: (:data:`SHIFT_SPEED`), fixed by the dry run below.
+        self.starts = [0.0]
+        self._shift_s: list[float] = []
         for k in range(len(self.steps) + 1):  # the dry run: every keyframe within reach
             stage, feet, q = self._plan(k, feet, com, q, ctrl)
             com, ctrl = stage.coms[-1], stage.segments[-1].goal
+            self.starts.append(stage.times[-1])
+        self.duration = self.starts.pop()
         self._stage: _Stage | None = None
         #: Why a step could not be planned while walking (the feet were off every
         #: reachable place: the body fell), or None.
@@ -533,7 +555,7 @@ class SteppingPlan:
         its last pose."""
         h, ik = self.room.agent, self._ik
         feet = dict(feet)
-        t0 = k * self.step_s
+        t0 = self.starts[k]
         st = _Stage(t0, [t0], [np.asarray(com, float)], [_mean_yaw(feet["left"][1],
                     feet["right"][1])], [np.array([True, True])], [])
         targets = [ctrl]
@@ -562,8 +584,11 @@ class SteppingPlan:
             # with the feet planted (hinge angles interpolated straight across a whole
             # shift lifted a foot, measured).
             c0 = st.coms[-1]
+            if len(self._shift_s) <= k:
+                self._shift_s.append(max(SHIFT_S, float(np.linalg.norm(c - c0)) / SHIFT_SPEED))
             for j in range(1, N_SUB + 1):
-                key(SHIFT_S / N_SUB, planted(), c0 + min_jerk(j / N_SUB) * (c - c0), None)
+                key(self._shift_s[k] / N_SUB, planted(), c0 + min_jerk(j / N_SUB) * (c - c0),
+                    None)
 
         if k < len(self.steps):
             step = self.steps[k]
@@ -593,16 +618,17 @@ class SteppingPlan:
     def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
         """(nu,) servo targets ``t`` s into the plan, corrected by :class:`StepBalance`;
         a step is planned when it starts, from the feet where they are."""
-        k = min(int(t // self.step_s), len(self.steps))
-        if self._stage is None or self._stage.t0 != k * self.step_s:
+        k = int(np.searchsorted(self.starts, t, side="right")) - 1
+        if self._stage is None or self._stage.t0 != self.starts[k]:
             com, q, ctrl = self._last
             try:
                 st, _, _ = self._plan(k, feet_now(self.room, data), com, q, ctrl)
             except SimenvError as exc:  # the feet are not where a step can start: fallen
                 self.failed = str(exc)
-                st = _Stage(k * self.step_s, [k * self.step_s, self.duration], [com, com],
-                            [0.0, 0.0], [np.ones(2, bool)] * 2,
-                            [LinearTrajectory(ctrl, ctrl, self.duration - k * self.step_s)])
+                t0 = self.starts[k]
+                st = _Stage(t0, [t0, self.duration], [com, com], [0.0, 0.0],
+                            [np.ones(2, bool)] * 2,
+                            [LinearTrajectory(ctrl, ctrl, self.duration - t0)])
             self._stage = st
             self._last = (st.coms[-1], q, st.segments[-1].goal)
             fb = self.balance
