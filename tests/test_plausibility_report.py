@@ -91,6 +91,18 @@ def test_raised_walk_fails_floating_and_root_residual(walk):
     assert person.metrics["root_residual"].value > 0.5  # body weights of help from nowhere
 
 
+def test_raised_walk_needs_help_the_unassisted_controller_measures(walk):
+    """With the unassisted controller judging, root_residual counts help only on the
+    frames the simulated body could not follow: a walk 30 cm up falls to the floor,
+    so nearly every frame keeps its inferred ~1 body weight."""
+    raised = walk.slice(0, 60).with_positions(walk.positions[:60] + np.float32([0, 0, 0.3]))
+    config = ScoreConfig(joint_limits=False, tracking_assisted_detail=False)
+    root = score(raised, config=config).people[0].metrics["root_residual"]
+    assert root.passed is False and root.value > 0.5, root.details
+    assert root.details["measured_fraction"] < 0.5
+    assert root.value <= root.details["inferred_mean"]
+
+
 def test_no_physics_reports_what_it_cannot_compute(walk):
     person = score(walk, physics=False).people[0]
     assert person.basis["ground_penetration"] == "keypoints"

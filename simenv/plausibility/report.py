@@ -18,8 +18,10 @@ Which computation stands behind each name
     velocity            keypoints                      keypoints
     joint_limits        relaxed refit vs fitted body   not available
     self_penetration    body geoms (``mj_collision``)  not available
-    root_residual       ``mj_inverse`` + floor NNLS    not available
-                        (two people: + hand contacts)
+    root_residual       ``mj_inverse`` + floor NNLS,   not available
+                        0 where the unassisted
+                        tracker followed (two people:
+                        + hand contacts)
     balance             COM vs support polygon         not available
     tracking            unassisted MPC in ``mj_step``  not available
     inter_penetration   geoms of the two bodies        not available
@@ -355,8 +357,6 @@ def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason:
             metrics.update(_unavailable_body(["joint_limits"], T, body,
                                              "joint-limit probe disabled in the config"))
         metrics["self_penetration"] = self_penetration(fitted, body)
-        # Two people: the partner-explained residual (computed for both at once).
-        metrics["root_residual"] = root if root is not None else root_residual(fitted, body)
         metrics["balance"] = balance(fitted, body)
         if config.tracking and T >= 2:
             metrics["tracking"] = _tracking(fitted, config)
@@ -364,6 +364,12 @@ def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason:
             why = ("physics tracking disabled in the config" if not config.tracking
                    else f"needs at least 2 frames; the motion has {T}")
             metrics.update(_unavailable_body(["tracking"], T, body, why))
+        # Measured by the unassisted controller where it ran (no help on the frames it
+        # followed), inferred elsewhere; two people: the partner-explained residual.
+        free = metrics["tracking"]
+        tracked = free.timeline if free.available and not config.tracking_assist else None
+        metrics["root_residual"] = root if root is not None else root_residual(
+            fitted, body, tracked_error=tracked)
     basis.update({"joint_limits": "geoms", "self_penetration": "geoms",
                   "root_residual": "dynamics", "balance": "dynamics",
                   "tracking": "simulation"})
