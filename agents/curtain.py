@@ -19,6 +19,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from simenv.agents.gait import SteppingPlan
 from simenv.agents.reach import (
     PDPlan,
     PlanChain,
@@ -111,12 +112,13 @@ def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
                              [(away, 0.6), (down, 0.6), (rest, 0.8)], HAND, "curtain")
 
 
-def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for walking to :func:`curtain_spot`: a stepping turn onto the heading towards
-    the wall, then the walk leaving along it
-    (:func:`simenv.agents.seat.plan_turn_then_walk`)."""
+def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> SteppingPlan:
+    """Plan for walking to :func:`curtain_spot` on the agent's own legs
+    (:func:`simenv.agents.seat.plan_turn_then_walk`): out from between the desk and the
+    rolled-back chair (a step towards the desk, side-steps along it), a turn on the spot
+    towards the spot, the walk straight there, a turn on the spot to face the wall."""
     spot, face = curtain_spot(room, data)
-    return plan_turn_then_walk(room, data, spot, face, start_yaw=face)
+    return plan_turn_then_walk(room, data, spot, face)
 
 
 def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:

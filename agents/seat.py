@@ -108,12 +108,12 @@ def plan_step(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
 
 
 def plan_turn_then_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
-                        start_yaw: float) -> SteppingPlan:
+                        start_yaw: float | None = None) -> SteppingPlan:
     """One plan: a step :data:`CLEAR_AHEAD_M` towards the desk and side-steps
     :data:`CLEAR_CHAIR_M` along its edge (towards the goal's side), out from between the
-    desk and the rolled-back chair, a turn on the feet
-    onto ``start_yaw`` (rad), then the walk to ``goal`` (x, y, m) facing ``goal_yaw``
-    (:func:`simenv.agents.walk.plan_walk`)."""
+    desk and the rolled-back chair, a turn on the feet onto ``start_yaw`` (rad; default:
+    facing the goal, then a straight walk and a turn there), then the walk to ``goal``
+    (x, y, m) facing ``goal_yaw`` (:func:`simenv.agents.walk.plan_walk`)."""
     q = data.qpos[room.agent_qpos]
     yaw = desk_heading(room)
     ahead = np.array([np.cos(yaw), np.sin(yaw)])

@@ -1,27 +1,29 @@
 """Walking the standing agent to a spot on its own legs, and standing still while its
-hands work: footsteps along a planned path, played by the statically balanced stepping
-gait of :mod:`simenv.agents.gait`. Nothing but the agent's servos and its contacts acts on
-it (no weld, no applied force; :class:`GaitMeter` measures that every physics step).
+hands work: footsteps played by the statically balanced stepping gait of
+:mod:`simenv.agents.gait`. Nothing but the agent's servos and its contacts acts on it (no
+weld, no applied force; :class:`GaitMeter` measures that every physics step, and whether
+the body fell).
 
-The path (:func:`walk_path`) is a cubic Bezier curve ``B(u)`` from the pelvis to the goal,
-leaving along the start heading and arriving along the goal heading (handles
-:data:`HANDLE_FRACTION` of the distance). The footsteps (:func:`walk_steps`):
+The footsteps (:func:`walk_steps`):
 
-1. a turn on the spot from the pelvis's heading onto the start heading, when they differ
-   by more than :data:`ALIGN_DEG`: ``K = ceil(|turn| / TURN_STEP_DEG)`` pairs of steps,
-   the foot on the side of the turn first, each foot landing where the standing rest
-   pose puts it for the pelvis turned by ``k turn / K``;
-2. the walk: ``n = ceil(L / STEP_M)`` steps along the path's arc length ``L``, feet
-   alternating, step ``k`` landing where the standing rest pose puts that foot for a
-   pelvis at ``B(s_k)`` heading along the path's tangent, ``s_k = k L / n``;
-3. the closing step: the trailing foot beside the other, at the goal facing the goal
-   heading.
+1. steps with the heading kept through waypoints (e.g. out from between the desk and the
+   chair), each ``ceil(d / STEP_M)`` pairs of steps, the foot on the side of the move
+   first;
+2. a turn on the spot onto the start heading (by default facing the goal):
+   ``K = ceil(|turn| / TURN_STEP_DEG)`` pairs of steps, the foot on the side of the turn
+   first, each foot landing where the standing rest pose puts it for the pelvis turned by
+   ``k turn / K`` (:func:`turn_steps`);
+3. the path (:func:`path_steps`): a cubic Bezier curve ``B(u)`` from the pelvis to the
+   goal leaving along the start heading and arriving along the arrival heading (handles
+   :data:`HANDLE_FRACTION` of the distance; a straight line when both face the goal),
+   ``n = ceil(L / STEP_M)`` steps along its arc length ``L``, feet alternating, step
+   ``k`` landing where the rest pose puts that foot for a pelvis at ``B(s_k)`` heading
+   along the tangent, ``s_k = k L / n``, then the closing step beside the other foot;
+4. a turn on the spot onto the goal heading.
 
-Measured in the room (docs/room.md "Walking"): the gait is slow (each step is a weight
-shift, a settle, a lift and a placement, :data:`simenv.agents.gait.SHIFT_S` ...), about
-0.05 m/s; the previous walk (a retargeted CMU walk tracked by the servos) kept up only
-with a pelvis weld carrying 0.57-0.78 body weights on average; without it that body fell
-at the desk.
+The former walk (a retargeted CMU walk tracked by the servos along a Bezier path) kept up
+only with a pelvis weld carrying 0.57-0.78 body weights on average; without it the body
+fell at the desk (docs/room.md).
 """
 
 from __future__ import annotations
@@ -202,26 +204,35 @@ def walk_steps(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: floa
                start_yaw: float | None = None, side_to: np.ndarray | None = None
                ) -> list[Footstep]:
     """Footsteps from where the agent stands to ``goal`` (x, y, m) facing ``goal_yaw``
-    (rad): first steps with the heading kept through the waypoints ``side_to`` ((K, 2) or
-    (2,), x, y, m) when given, then the turn on the spot onto ``start_yaw`` (default: the
-    pelvis's heading), then the path (module docstring)."""
+    (rad) (module docstring): first steps with the heading kept through the waypoints
+    ``side_to`` ((K, 2) or (2,), x, y, m) when given; the turn on the spot onto
+    ``start_yaw`` (default: facing the goal); the path, arriving along ``goal_yaw`` when
+    ``start_yaw`` is given, else straight, and then a turn on the spot onto ``goal_yaw``
+    (a curved path turns on every step: measured, steps turning 50 deg while reaching
+    0.28 m fell).
+    """
     ik = gait.leg_ik(room.agent)
     q = data.qpos[room.agent_qpos]
     yaw0 = _yaw(q[3:7])
-    yaw1 = yaw0 if start_yaw is None else float(start_yaw)
     pelvis = q[:2].copy()
+    goal = np.asarray(goal, float)[:2]
     steps = []
     for way in [] if side_to is None else np.asarray(side_to, float).reshape(-1, 2):
         steps += turn_steps(ik, pelvis, yaw0, yaw0, way)
         pelvis = way
+    far = float(np.linalg.norm(goal - pelvis)) > 0.05
+    straight = start_yaw is None and far
+    yaw1 = (float(np.arctan2(*(goal - pelvis)[::-1])) if straight else
+            yaw0 if start_yaw is None else float(start_yaw))
     if abs(np.rad2deg(_wrap(yaw1 - yaw0))) > ALIGN_DEG:
         steps += turn_steps(ik, pelvis, yaw0, yaw1)
-    goal = np.asarray(goal, float)[:2]
-    if float(np.linalg.norm(goal - pelvis)) > 0.05:
-        first = steps[-2].side if steps else "left"
-        steps += path_steps(ik, pelvis, yaw1, goal, goal_yaw, first)
-    elif abs(np.rad2deg(_wrap(goal_yaw - yaw1))) > ALIGN_DEG:
-        steps += turn_steps(ik, pelvis, yaw1, goal_yaw)
+    if far:
+        first = steps[-2].side if len(steps) > 1 else "left"
+        arrive = yaw1 if straight else goal_yaw
+        steps += path_steps(ik, pelvis, yaw1, goal, arrive, first)
+        yaw1 = arrive
+    if abs(np.rad2deg(_wrap(goal_yaw - yaw1))) > ALIGN_DEG:
+        steps += turn_steps(ik, goal, yaw1, goal_yaw)
     return steps
 
 
@@ -231,8 +242,8 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     """Plan for walking the standing agent from where it is to ``goal`` (x, y, m),
     facing ``goal_yaw`` (rad) at the end, stepping first through the waypoints
     ``side_to`` ((K, 2) or (2,), x, y; default: none) with the heading kept and turning
-    on the spot onto ``start_yaw`` (default: the pelvis's heading) (module docstring,
-    :func:`walk_steps`), on its own legs.
+    on the spot onto ``start_yaw`` (default: facing the goal, then a straight walk and a
+    turn at the goal) (:func:`walk_steps`), on its own legs.
 
     Raises:
         SimenvError: the agent is not standing (pelvis below :data:`STANDING_FRACTION` of

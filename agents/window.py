@@ -26,6 +26,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from simenv.agents.gait import SteppingPlan
 from simenv.agents.reach import (
     PDPlan,
     PlanChain,
@@ -119,13 +120,13 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
                              [(after, 0.6), (rest, 1.0)], HAND, "window")
 
 
-def plan_walk_to_window(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for walking from where the agent stands to :func:`window_spot`: a stepping
-    turn on the spot onto the heading towards the wall, then the walk leaving along it
-    (:func:`simenv.agents.seat.plan_turn_then_walk`): sideways out from between the desk
-    and the rolled-back chair, then curving onto the spot."""
+def plan_walk_to_window(room: Room, data: mujoco.MjData) -> SteppingPlan:
+    """Plan for walking to :func:`window_spot` on the agent's own legs
+    (:func:`simenv.agents.seat.plan_turn_then_walk`): out from between the desk and the
+    rolled-back chair (a step towards the desk, side-steps along it), a turn on the spot
+    towards the spot, the walk straight there, a turn on the spot to face the wall."""
     spot, face = window_spot(room, data)
-    return plan_turn_then_walk(room, data, spot, face, start_yaw=face)
+    return plan_turn_then_walk(room, data, spot, face)
 
 
 def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:

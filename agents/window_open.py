@@ -26,6 +26,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from simenv.agents.gait import SteppingPlan
 from simenv.agents.reach import (
     PDPlan,
     PlanChain,
@@ -125,13 +126,12 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
                              [(after, 0.6), (rest, 1.0)], HAND, "window")
 
 
-def plan_walk_to_open(room: Room, data: mujoco.MjData) -> PDPlan:
-    """Plan for walking from where the agent stands to :func:`open_spot`: a stepping turn
-    onto the heading towards the wall, then the walk leaving along it, as
+def plan_walk_to_open(room: Room, data: mujoco.MjData) -> SteppingPlan:
+    """Plan for walking to :func:`open_spot` on the agent's own legs, as
     :func:`simenv.agents.window.plan_walk_to_window` does
     (:func:`simenv.agents.seat.plan_turn_then_walk`)."""
     spot, face = open_spot(room, data)
-    return plan_turn_then_walk(room, data, spot, face, start_yaw=face)
+    return plan_turn_then_walk(room, data, spot, face)
 
 
 def plan_open_window(room: Room, data: mujoco.MjData) -> PlanChain:
