@@ -123,9 +123,9 @@ PENETRATION_TOLERANCE_M = 0.01
 #: The user holds the last pose this long after the recording ends, s ...
 TAIL_S = 2.0
 #: ... or longer while a reaction is still running, up to this bound, s (a chained
-#: reaction such as close_window: stand up, walk, push, then back to the chair and sit,
-#: takes ~51 s).
-MAX_TAIL_S = 60.0
+#: reaction on the agent's own legs, such as close_window: stand up, ~120 s of stepping to
+#: the window, push, then ~100 s of stepping back to the chair and sitting: ~250 s).
+MAX_TAIL_S = 300.0
 #: The render camera's eye: height above the floor, m (over the people's heads and the desk
 #: top, so the seated agent's hands show; under the ceiling) ...
 CAMERA_HEIGHT_M = 2.2
