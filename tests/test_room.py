@@ -31,8 +31,11 @@ def test_bundled_scenarios_compile():
         r = Room(name)
         data = r.make_data()
         assert set(r.objects) == set(OBJECTS)
-        # the user (kinematic, no dofs) and the agent's root-assistance target
-        assert r.model.nmocap == r.user.model.nbody - 1 + 1
+        # the user (kinematic, no dofs) only: no assistance target for the agent, and
+        # no equality constraint but the hands' proximity grasps (inactive)
+        assert r.model.nmocap == r.user.model.nbody - 1
+        assert all(r.model.equality(i).name.startswith("grasp/") for i in range(r.model.neq))
+        assert not data.eq_active.any() and r.assist_wrench(data) == (0.0, 0.0)
         assert r.model.nu == r.agent.model.nu  # only the agent is actuated
         assert np.isfinite(data.qpos).all()
 
