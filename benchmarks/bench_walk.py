@@ -31,6 +31,8 @@ import numpy as np
 BEGIN = "<!-- walking:begin (benchmarks/bench_walk.py) -->"
 END = "<!-- walking:end -->"
 OPEN = np.array([-0.4, 0.3])
+#: The room's physics step, s (``Room.model.opt.timestep``).
+TIMESTEP_S = 0.002
 NORTH = np.pi / 2
 
 
@@ -105,7 +107,10 @@ def chains(out: Path) -> list[dict[str, Any]]:
             "fell": reaction.get("fell", False), "failed_stage": reaction.get("failed_stage"),
             "returned": reaction.get("returned"),
             "stages": [{k: s.get(k) for k in ("stage", "duration_s", "pelvis_end", "outcome")}
-                       | {"help_max_n": (s.get("assistance") or {}).get("max_n")}
+                       | {"help_max_n": (s.get("assistance") or {}).get("max_n"),
+                          # measured stages run until they end or their body falls
+                          "ran_s": (s["assistance"]["steps"] * TIMESTEP_S
+                                    if "assistance" in s else s["duration_s"])}
                        for s in reaction["stages"]],
             "log_lines": len(lines),
             "log_assistance_bw_max": max(x["assistance_bw"] for x in lines),
@@ -128,8 +133,9 @@ def _section(walks: list[dict[str, Any]], runs: list[dict[str, Any]], command: s
                      f"{w['help_max_n']:.1f} |")
     lines += ["", "Rehearsals (bundled CMU 02_01 walk's first 0.5 s, labelled 0.2-0.5 s, "
               "`labels` agent):", "",
-              "| label | reaction | stage | simulated s | fell | lowest pelvis m | "
-              "from the goal m | help max N |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+              "| label | reaction | stage | planned s | ran s | fell | lowest pelvis m | "
+              "from the goal m | help max N |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     def num(v: Any) -> str:
         return "-" if v is None else f"{v:.3f}" if isinstance(v, float) else str(v)
 
@@ -137,7 +143,7 @@ def _section(walks: list[dict[str, Any]], runs: list[dict[str, Any]], command: s
         for s in r["stages"]:
             o = s["outcome"] or {}
             lines.append(f"| {r['label']} | {r['reaction']} | {s['stage']} | "
-                         f"{s['duration_s']:.1f} | {num(o.get('fell'))} | "
+                         f"{s['duration_s']:.1f} | {s['ran_s']:.1f} | {num(o.get('fell'))} | "
                          f"{num(o.get('lowest_pelvis_m'))} | {num(o.get('goal_error_m'))} | "
                          f"{num(s['help_max_n'])} |")
     lines += ["", "| label | object changed (success) | fell | failed stage | returned | "
@@ -158,13 +164,19 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("out/bench_walk"))
     parser.add_argument("--docs", type=Path, default=Path("docs/room.md"))
     parser.add_argument("--skip-open", action="store_true", help="only the rehearsals")
+    parser.add_argument("--from-json", action="store_true",
+                        help="rewrite the section from OUT/bench_walk.json, running nothing")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    walks = [] if args.skip_open else open_floor()
-    runs = chains(args.out)
-    (args.out / "bench_walk.json").write_text(json.dumps({"open_floor": walks,
-                                                          "rehearsals": runs}, indent=1,
-                                                         default=str))
+    stored = args.out / "bench_walk.json"
+    if args.from_json:
+        measured = json.loads(stored.read_text())
+        walks, runs = measured["open_floor"], measured["rehearsals"]
+    else:
+        walks = [] if args.skip_open else open_floor()
+        runs = chains(args.out)
+        stored.write_text(json.dumps({"open_floor": walks, "rehearsals": runs}, indent=1,
+                                     default=str))
     section = _section(walks, runs, "python benchmarks/bench_walk.py --out "
                        f"{args.out}" + (" --skip-open" if args.skip_open else ""))
     doc = args.docs.read_text()
