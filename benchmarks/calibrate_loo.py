@@ -210,7 +210,10 @@ def corruption_inputs(data: Path, depth_every: int, only: str | None = None
         src = source_of(str(target), data)
         if only is not None and src != only:
             continue
-        loaded = load(target)
+        try:
+            loaded = load(target)
+        except SimenvError:
+            continue  # recorded as an error by the score stage (e.g. Florence's label file)
         clips = loaded if isinstance(loaded, list) else [loaded]
         for i, clip in enumerate(clips):
             if isinstance(clip, Interaction):
