@@ -176,3 +176,35 @@ def test_bright_label_draws_the_curtain_through_the_grasp():
     pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
     assert entry["t_object_changed"] > pull_start
     assert entry["assistance"]["max_bw"] == 0.0
+
+
+def test_standing_act_keeps_its_balance_with_no_help():
+    """A standing manipulation (the window push's and the curtain pull's form): the right
+    arm reaches forward and sweeps sideways and back while the gait's balance holds the
+    body over its feet; no hold on the pelvis, none needed (measured)."""
+    from simenv.agents.reach import arm_joints, reach_pose
+    from simenv.agents.walk import held_grasp_stroke
+
+    room = Room("discomfort")
+    data = _standing(room)
+    h = room.agent
+    upper = upper_body_joints(h)
+    q = data.qpos[room.agent_qpos].copy()
+    pelvis = q[:2].copy()
+    ahead = np.array([np.cos(NORTH), np.sin(NORTH), 0.0])
+    side = np.array([np.cos(NORTH - np.pi / 2), np.sin(NORTH - np.pi / 2), 0.0])
+    shoulder = h.keypoints(q)[h.keypoint_names.index("right_shoulder")]
+    targets = []
+    for goal in (shoulder + 0.45 * ahead, shoulder + 0.45 * ahead + 0.1 * side,
+                 shoulder + 0.45 * ahead + 0.2 * side):
+        q, err = reach_pose(h.model, q, "right_hand", goal, arm_joints("right"))
+        assert err < 0.03
+        targets.append(pd_targets(h, q, upper))
+    rest = data.ctrl[room.agent_ctrl].copy()
+    plan = held_grasp_stroke(room, data, [(targets[0], 1.0)], targets[1:], [(rest, 1.0)],
+                             "right_hand", "window")
+    _play(room, data, plan)
+    out = plan.feedback.outcome(data)
+    assert not out["fell"] and out["lowest_pelvis_m"] > 0.9
+    assert plan.feedback.summary()["max_n"] == 0.0
+    assert np.linalg.norm(data.qpos[room.agent_qpos][:2] - pelvis) < 0.05  # stood its ground
