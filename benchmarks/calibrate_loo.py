@@ -299,6 +299,7 @@ def judge(real: list[dict[str, Any]], corrupt: list[dict[str, Any]], data: Path
     for r in real + corrupt:
         r["_source"] = source_of(r["file"], data)
         r["_subject"] = subject_of(r, data, florence)
+    corrupt = [r for r in corrupt if "error" not in r]  # copies that could not be made
     by_source: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for r in real:
         by_source[r["_source"]].append(r)
