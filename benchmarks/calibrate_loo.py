@@ -460,17 +460,28 @@ FIELDS: dict[str, tuple[str, tuple[str, ...]]] = {
 }
 
 
-def threshold_fields(thr: dict[str, float], prior: dict[str, float]) -> dict[str, dict[str, float]]:
+#: The same for the keypoint versions of the two metrics that fall back to keypoints
+#: when no body can be fitted (Florence's 15-joint skeleton).
+KEYPOINT_FIELDS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "ground_penetration": ("thresholds", ("penetration_max_mm",)),
+    "floating": ("thresholds", ("float_height_m",)),
+}
+
+
+def threshold_fields(thr: dict[str, float], prior: dict[str, float], keypoints: bool = False
+                     ) -> dict[str, dict[str, float]]:
     """The :class:`Thresholds` / :class:`BodyThresholds` field values that put each
     metric's pass level at ``thr`` (only the fields that change): ratio metrics
     (threshold 1) scale their fields by ``thr / prior``; the others take
-    ``thr`` in the field's unit (``floating``: mm -> m)."""
+    ``thr`` in the field's unit (``floating``: mm -> m). ``keypoints``: the
+    source's ground and floating metrics ran on keypoints (no body fitted)."""
     from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
     from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
 
     defaults = {"thresholds": DEFAULT_THRESHOLDS, "body": DEFAULT_BODY_THRESHOLDS}
     out: dict[str, dict[str, float]] = {"thresholds": {}, "body": {}}
-    for name, (module, names) in FIELDS.items():
+    table = {**FIELDS, **KEYPOINT_FIELDS} if keypoints else FIELDS
+    for name, (module, names) in table.items():
         if thr[name] == prior[name]:
             continue
         for f in names:
@@ -488,9 +499,11 @@ def summary(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
             th: dict[str, Any], data: Path) -> dict[str, Any]:
     """Machine-readable numbers of the report (``summary.json``)."""
     out: dict[str, Any] = {"thresholds": th["shipped"], "sources": {},
-                           "fields": {src: threshold_fields(th["shipped"][src],
-                                                            th["defaults"][src])
-                                      for src in th["shipped"]}}
+                           "fields": {src: threshold_fields(
+                               th["shipped"][src], th["defaults"][src],
+                               keypoints=all(r["metrics"]["floating"]["basis"] == "keypoints"
+                                             for r in real if r["_source"] == src))
+                               for src in th["shipped"]}}
     for src in {r["_source"] for r in real}:
         recs = [r for r in real if r["_source"] == src]
         cor = [r for r in corrupt if r["_source"] == src and "error" not in r]
