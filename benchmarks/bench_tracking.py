@@ -9,11 +9,13 @@ per simulated second of:
 3. the unassisted MPC tracker (``controller="mpc"``) with its rollouts on 1
    and on 2 threads (goal: <= 20x real time on 2 cores);
 
-and, when ``jax`` and ``mujoco.mjx`` import, one batched rollout of the
-planner's shape (N samples x H steps of the humanoid from one state) with
-MJX on the CPU (``jit(vmap(scan(mjx.step)))``, compile time excluded) against
-``mujoco.rollout`` on 1 and 2 threads, printed as a ratio. MJX is not a
-dependency of simenv: install ``mujoco-mjx`` (it brings ``jax``) to measure.
+and, when ``jax`` and ``mujoco.mjx`` import, a batched rollout of the
+planner's model (``--mjx-samples`` x ``--mjx-steps`` of the humanoid from one
+state: MJX on the CPU is too slow for the planner's full batch) with MJX
+(``jit(vmap(scan(mjx.step)))``, compile time excluded) against
+``mujoco.rollout`` of the same batch on 1 and 2 threads, printed as a ratio.
+MJX is not a dependency of simenv: install ``mujoco-mjx`` (it brings
+``jax``) to measure.
 
 The machine may be shared: the load average is printed before and after,
 and every timing is the best of ``--repeats`` runs; expect noise of tens of
@@ -145,6 +147,8 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=1.0, help="simulated seconds per run")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--no-mjx", action="store_true", help="skip the MJX comparison")
+    ap.add_argument("--mjx-samples", type=int, default=4)
+    ap.add_argument("--mjx-steps", type=int, default=10)
     args = ap.parse_args()
     print(f"load average before: {os.getloadavg()}  (2 cores, shared: timings are noisy)")
     result = retarget(bvh.read(asset_path(WALK)).slice(0, int(args.seconds * 120) + 2))
@@ -169,15 +173,20 @@ def main() -> None:
         n, h = controls.shape[:2]
         r1 = rollout_seconds(model, x0, controls, 1, args.repeats)
         r2 = rollout_seconds(model, x0, controls, 2, args.repeats)
-        print(f"\nbatched rollout {n} x {h} steps: mujoco.rollout 1 thread {r1 * 1e3:.1f} ms, "
+        print(f"\nplanner batch {n} x {h} steps: mujoco.rollout 1 thread {r1 * 1e3:.1f} ms, "
               f"2 threads {r2 * 1e3:.1f} ms ({r2 / (n * h) * 1e6:.1f} us/step)")
-        mj = mjx_seconds(model, x0, controls, args.repeats)
+        small = controls[:args.mjx_samples, :args.mjx_steps]
+        n, h = small.shape[:2]
+        s1 = rollout_seconds(model, x0, small, 1, args.repeats)
+        s2 = rollout_seconds(model, x0, small, 2, args.repeats)
+        mj = mjx_seconds(model, x0, small, args.repeats)
         if isinstance(mj, str):
             print(f"MJX: {mj}")
         else:
-            print(f"MJX (jax CPU) {mj[0] * 1e3:.1f} ms (compile {mj[1]:.1f} s): "
-                  f"{mj[0] / r2:.1f}x the time of mujoco.rollout on 2 threads, "
-                  f"{mj[0] / r1:.1f}x on 1 thread")
+            print(f"batch {n} x {h} steps: MJX (jax CPU) {mj[0] / (n * h) * 1e6:,.0f} us/step "
+                  f"(compile {mj[1]:.0f} s), mujoco.rollout {s1 / (n * h) * 1e6:,.0f} us/step "
+                  f"on 1 thread, {s2 / (n * h) * 1e6:,.0f} on 2: MJX is {mj[0] / s2:,.0f}x "
+                  f"slower than mujoco.rollout on 2 threads ({mj[0] / s1:,.0f}x vs 1 thread)")
     print(f"load average after: {os.getloadavg()}")
 
 

@@ -44,6 +44,14 @@ def test_sampler_keeps_the_nominal_clips_and_is_seeded() -> None:
     np.testing.assert_array_equal(frozen[:, :, 0], 0.5)
 
 
+def test_constant_samples_shift_every_knot_alike() -> None:
+    nominal = np.zeros((4, 3))
+    out = Sampler(9, sigma=0.1, limit=1.0, seed=0, constant_fraction=0.5).sample(nominal)
+    steady = out[1:5]  # round(0.5 * 8) = 4 constant offsets, then 4 free ones
+    np.testing.assert_array_equal(steady, np.repeat(steady[:, :1], 4, axis=1))
+    assert (np.abs(np.diff(out[5:], axis=1)) > 0).all()
+
+
 def test_update_keeps_the_best_or_the_mppi_average() -> None:
     samples = np.arange(4.0)[:, None, None] * np.ones((4, 2, 3))
     costs = np.array([3.0, 1.0, np.nan, 2.0])
@@ -62,6 +70,7 @@ def test_update_keeps_the_best_or_the_mppi_average() -> None:
     (lambda: Spline(10, 11), "n_knots"),
     (lambda: Sampler(1, 1.0, 1.0), "n_samples"),
     (lambda: Sampler(4, 1.0, 1.0, temperature=-1.0), "temperature"),
+    (lambda: Sampler(4, 1.0, 1.0, constant_fraction=1.5), "constant_fraction"),
 ])
 def test_bad_settings_raise_physics_errors_naming_the_field(make, field) -> None:
     with pytest.raises(PhysicsError) as err:

@@ -64,6 +64,8 @@ class MPCConfig:
             servo targets. Empty: every hinge.
         limit_rad: largest knot offset, radians.
         temperature: 0 = predictive sampling (keep the best), > 0 = MPPI.
+        constant_fraction: share of the samples offset by the same amount on
+            every knot (:class:`~simenv.control.sampling.Sampler`).
         timestep_factor: planning timestep as a multiple of the physics step.
         gain_scale: servo stiffness and damping (kp, kv) relative to the
             humanoid's; the force limits stay the humanoid's.
@@ -75,7 +77,7 @@ class MPCConfig:
         weights: cost weights.
     """
 
-    horizon_s: float = 0.3
+    horizon_s: float = 0.45
     n_knots: int = 4
     n_samples: int = 32
     replan_steps: int = 10
@@ -84,6 +86,7 @@ class MPCConfig:
     sampled_parts: tuple[str, ...] = ("lumbar", "thigh", "shin", "foot", "toes")
     limit_rad: float = 0.8
     temperature: float = 0.0
+    constant_fraction: float = 0.5
     timestep_factor: int = 2
     gain_scale: float = 1.0
     feedforward: float = 1.0
@@ -146,7 +149,7 @@ class TrackingMPC:
             sigma = sigma * np.array([any(part in n for part in config.sampled_parts)
                                       for n in names])
         self.sampler = Sampler(config.n_samples, sigma, config.limit_rad,
-                               config.temperature, config.seed)
+                               config.temperature, config.seed, config.constant_fraction)
         _, hinge_dofs = actuated_indices(self.model)
         qvel_offset = (mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_TIME)
                        + self.model.nq)

@@ -16,6 +16,14 @@ MPPI variant (Williams et al. 2017): around the nominal knots
 I)``, i = 1 .. N-1 (sample 0 is the nominal itself, so a plan never gets
 worse than the previous one by sampling), roll them out, and keep
 
+A fraction ``constant_fraction`` of the samples draws one ``eps`` per
+actuator for all knots (a constant offset over the horizon): balance
+corrections are mostly such sustained shifts (lean the ankles, bend the
+hips), and a search over ``nu`` constant offsets finds them far more often
+than one over ``n x nu`` independent knots.
+
+The next nominal is
+
 * the cheapest sample (``temperature = 0``: predictive sampling), or
 * the weighted mean ``sum_i w_i theta_i`` with ``w_i ~ exp(-(c_i - c_min) /
   (lambda (c_mean - c_min)))`` (MPPI with the temperature ``lambda``
@@ -71,17 +79,24 @@ class Sampler:
         limit: (nu,) or scalar, largest offset magnitude of any knot, radians.
         temperature: 0 keeps the cheapest sample (predictive sampling); > 0
             the MPPI average (module docstring).
+        constant_fraction: share of the noisy samples whose offset is the same
+            on every knot.
         seed: seed of the noise generator (numpy PCG64).
     """
 
     def __init__(self, n_samples: int, sigma: np.ndarray | float, limit: np.ndarray | float,
-                 temperature: float = 0.0, seed: int = 0) -> None:
+                 temperature: float = 0.0, seed: int = 0,
+                 constant_fraction: float = 0.0) -> None:
         if n_samples < 2:
             raise PhysicsError(f"n_samples must be >= 2; got {n_samples}", field="n_samples")
         if temperature < 0:
             raise PhysicsError(f"temperature must be >= 0; got {temperature}",
                                field="temperature")
+        if not 0.0 <= constant_fraction <= 1.0:
+            raise PhysicsError(f"constant_fraction must be in [0, 1]; got {constant_fraction}",
+                               field="constant_fraction")
         self.n_samples = int(n_samples)
+        self.n_constant = int(round(constant_fraction * (n_samples - 1)))
         self.sigma = np.asarray(sigma, dtype=np.float64)
         self.limit = np.asarray(limit, dtype=np.float64)
         self.temperature = float(temperature)
@@ -90,6 +105,7 @@ class Sampler:
     def sample(self, nominal: np.ndarray) -> np.ndarray:
         """(n, nu) nominal -> (N, n, nu) samples, sample 0 the nominal."""
         eps = self.rng.standard_normal((self.n_samples - 1,) + nominal.shape)
+        eps[:self.n_constant] = eps[:self.n_constant, :1]
         out = np.empty((self.n_samples,) + nominal.shape)
         out[0] = nominal
         out[1:] = np.clip(nominal + self.sigma * eps, -self.limit, self.limit)
