@@ -17,7 +17,9 @@ moderate strengths and a strong one), which should fail.
 Results go to a JSONL file one line per run as each finishes (a rerun skips
 runs already there), so the long run can go in the background::
 
-    nohup nice .venv/bin/python benchmarks/eval_tracking.py run &
+    nohup nice .venv/bin/python benchmarks/eval_tracking.py run --runs clean &
+    nohup nice .venv/bin/python benchmarks/eval_tracking.py run --runs corrupt \
+        --out out/eval_tracking_corrupt.jsonl &
     .venv/bin/python benchmarks/eval_tracking.py docs   # tables -> docs/plausibility.md
 
 ``docs`` writes the tables between the ``unassisted-tracking`` markers of
@@ -48,6 +50,7 @@ from simenv.retarget import retarget  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
 DEFAULT_OUT = REPO / "out" / "eval_tracking.jsonl"
+DEFAULT_RESULTS = (DEFAULT_OUT, REPO / "out" / "eval_tracking_corrupt.jsonl")
 DOCS = REPO / "docs" / "plausibility.md"
 BEGIN, END = "<!-- unassisted-tracking:begin -->", "<!-- unassisted-tracking:end -->"
 
@@ -223,7 +226,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("command", choices=("run", "docs"))
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
-    ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="results JSONL")
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="run: results JSONL")
+    ap.add_argument("--results", type=Path, nargs="+", default=list(DEFAULT_RESULTS),
+                    help="docs: the results JSONL files to tabulate")
     ap.add_argument("--seconds", type=float, default=4.0, help="simulated seconds per clip")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
@@ -235,7 +240,8 @@ def main() -> None:
     if args.command == "run":
         run(args)
     else:
-        records = [json.loads(x) for x in args.out.read_text().splitlines() if x.strip()]
+        records = [json.loads(x) for path in args.results if path.is_file()
+                   for x in path.read_text().splitlines() if x.strip()]
         write_docs(records)
 
 

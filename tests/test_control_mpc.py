@@ -79,6 +79,17 @@ def test_a_teleported_walk_fails_at_the_jump(walk_2s_retargeted) -> None:
     assert r.details["assist_force_mean"] == 0.0 and r.details["work_j"] > 0.0
 
 
+def test_a_teleport_corruption_fails_where_it_was_put(walk_2s) -> None:
+    from simenv.corrupt import teleport
+    from simenv.retarget import retarget
+
+    bad = teleport(walk_2s, 1.0, seed=0)  # 1-4 frames 1 m away, the seed picks where
+    start, _ = bad.metadata["corruptions"][-1]["frames"][0]
+    tr = track(retarget(bad), controller="mpc", mpc=QUICK)
+    assert not tr.success
+    assert tr.frames_tracked - 1 == pytest.approx(start, abs=1)
+
+
 def test_a_floating_walk_falls(walk_2s_retargeted) -> None:
     q = walk_2s_retargeted.qpos.copy()
     q[:, 2] += 1.0  # a body 1 m in the air cannot follow a walk up there

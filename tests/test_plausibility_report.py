@@ -54,6 +54,11 @@ def test_real_walk_is_plausible_with_every_metric(walk_report):
     assert person.basis["tracking"] == "simulation"
     assert person.metrics["tracking"].details["success"] == 1.0
     assert "unassisted_time_to_failure_s" in person.metrics["tracking"].details
+    # Judged unassisted by the MPC (no help at the root); the assisted PD run is a detail.
+    tracked = person.metrics["tracking"].details
+    assert tracked["mpc"] == 1.0 and tracked["assist_force_mean"] == 0.0
+    assert tracked["assisted_success"] == 1.0 and tracked["assisted_force_mean"] > 0.0
+    assert tracked["work_j"] > 0.0 and tracked["work_j_per_kg"] > 0.0
     for m in person.metrics.values():
         assert m.timeline.shape == (person.frames,)
 
