@@ -90,6 +90,11 @@ SWING_D = 0.1
 K_YAW = 1.0
 #: Keyframes along a weight shift (each solved with the feet planted).
 N_SUB = 4
+#: Shoulder abduction while stepping, rad: the arms hang at the sides, hands 0.26 m from
+#: the midline (the rest pose's A-pose holds them 0.56 m out, where they met the keyboard,
+#: the chair's back and the north wall while walking, measured: the wall's push on the
+#: right hand toppled the walk to the window).
+ARM_ABD = -0.5
 
 
 def _other(side: str) -> str:
@@ -446,6 +451,8 @@ class SteppingPlan:
         h = room.agent
         self._ik = leg_ik(h)
         self._upper = h.default_qpos()
+        for side in ("left", "right"):  # the arms hang at the sides (:data:`ARM_ABD`)
+            self._upper[h.hinge_qpos[h.joint_names.index(f"{side}_upper_arm_abd")]] = ARM_ABD
         self._height = float(self._upper[2]) - CROUCH_M
         m = h.model
         self._lead = -m.actuator_biasprm[:, 2] / m.actuator_gainprm[:, 0]
