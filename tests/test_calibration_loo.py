@@ -58,3 +58,28 @@ def test_no_clip_judges_itself(tmp_path: Path) -> None:
     assert all(not verdicts[f"{s}_01"] for s in (1, 2, 3, 4, 7))
     # Against the default threshold (10) every one of them fails.
     assert all(r["_fail_default"] for r in real)
+
+
+def test_depth_camera_profile_passes_a_real_kinect_clip_and_catches_a_slide(
+        shared_data: Path) -> None:
+    """MSR Action3D a01_s03_e02 (a real Kinect wave) fails five metrics at the motion
+    capture defaults; with its source's own calibration it is plausible, and its
+    feet slid 1 m/s are still caught."""
+    from simenv.corrupt import foot_slide
+    from simenv.io.loader import load
+    from simenv.plausibility.body_thresholds import SOURCE_BODY_THRESHOLDS
+    from simenv.plausibility.report import ScoreConfig, score
+    from simenv.plausibility.thresholds import SOURCE_THRESHOLDS
+
+    path = shared_data / "gestures" / "msr_action3d" / "a01_s03_e02_skeleton3D.txt"
+    if not path.exists():
+        pytest.skip(f"{path} not in the shared data")
+    clip = load(path)
+    clip = clip[0] if isinstance(clip, list) else clip
+    default = score(clip, config=ScoreConfig(tracking=False)).people[0]
+    assert {"bone_length", "foot_skate"} <= set(default.failed), default.failed
+    own = ScoreConfig(thresholds=SOURCE_THRESHOLDS["msr_action3d"],
+                      body=SOURCE_BODY_THRESHOLDS["msr_action3d"], tracking=False)
+    assert score(clip, config=own).people[0].verdict == "plausible"
+    slid = score(foot_slide(clip, 1.0, seed=0), config=own).people[0]
+    assert "foot_skate" in slid.failed, slid.failed

@@ -40,7 +40,7 @@ knee's passive rotation) and 103_charleston1 3.1 (elbow flexion 155).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 from simenv.errors import SimenvError
 
@@ -263,3 +263,21 @@ class BodyThresholds:
 
 #: The defaults, shared by every body-level metric when no thresholds are passed.
 DEFAULT_BODY_THRESHOLDS = BodyThresholds()
+
+
+#: Body-level thresholds of each depth-camera corpus, its own source calibration
+#: (see :data:`simenv.plausibility.thresholds.SOURCE_THRESHOLDS`, whose joint-level
+#: profiles go with these). ``joint_limit_max_deg`` = 60 = the probe's widening:
+#: on these skeletons the relaxed fit leaves most ranges by the whole probe, so
+#: joint limits are not judged. Florence has no body-level profile: no body is
+#: fitted to its 15 joints.
+SOURCE_BODY_THRESHOLDS: dict[str, BodyThresholds] = {
+    "msr_action3d": replace(DEFAULT_BODY_THRESHOLDS, geom_penetration_max_mm=91.9249,
+                            joint_limit_max_deg=60.0, self_penetration_max_mm=139.572,
+                            root_force_mean_max=0.3515, balance_margin_mm=183.374),
+    "utkinect": replace(DEFAULT_BODY_THRESHOLDS, geom_penetration_max_mm=563.294,
+                        geom_float_clearance_m=0.4315, joint_limit_max_deg=60.0,
+                        self_penetration_max_mm=151.532, root_force_mean_max=0.3646,
+                        balance_margin_mm=511.926),
+    "florence3d": DEFAULT_BODY_THRESHOLDS,
+}

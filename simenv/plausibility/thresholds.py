@@ -20,7 +20,7 @@ every clean CMU clip.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 from simenv.errors import SimenvError
 
@@ -196,3 +196,34 @@ class Thresholds:
 
 #: The defaults, shared by every metric when no thresholds are passed.
 DEFAULT_THRESHOLDS = Thresholds()
+
+
+#: Joint-level thresholds of each depth-camera corpus of the shared data, its own
+#: source calibration: the leave-clips-out rule of ``benchmarks/calibrate_loo.py``
+#: (``max(default, largest real value within Q3 + 3 IQR)``) on every real clip of
+#: the corpus, written as the fields that put each metric's pass level there
+#: (ratio metrics scale their fields). Kinect v1 skeletons (joint estimates from one
+#: depth image) keep neither bone lengths, foot heights nor speeds the way marker
+#: capture does; judged with the defaults 0-2 % of their real clips are plausible,
+#: leave-subjects-out with their own calibration 76 % (MSR Action3D, 506 people),
+#: 55 % (UTKinect, 20 sessions) and 81 % (Florence 3D, 215), see docs/calibration.md.
+#: Use with the body-level profile of the same name
+#: (:data:`simenv.plausibility.body_thresholds.SOURCE_BODY_THRESHOLDS`)::
+#:
+#:     ScoreConfig(thresholds=SOURCE_THRESHOLDS["msr_action3d"],
+#:                 body=SOURCE_BODY_THRESHOLDS["msr_action3d"])
+SOURCE_THRESHOLDS: dict[str, Thresholds] = {
+    "msr_action3d": replace(DEFAULT_THRESHOLDS, bone_length_rel_max=0.5191,
+                            bone_length_head_rel_max=1.5574, skate_ratio_max=0.2308),
+    "utkinect": replace(DEFAULT_THRESHOLDS, bone_length_rel_max=1.5062,
+                        bone_length_head_rel_max=4.5186, skate_ratio_max=0.082,
+                        speed_limit_trunk_mps=17.7591, speed_limit_limb_mps=28.4145,
+                        speed_limit_distal_mps=42.6218, teleport_distance_m=0.2131,
+                        teleport_accel_mps2=426.218),
+    # No body is fitted to Florence's 15 joints: ground and floating run on keypoints.
+    "florence3d": replace(DEFAULT_THRESHOLDS, bone_length_rel_max=0.9782,
+                          bone_length_head_rel_max=2.9346, penetration_max_mm=69.696,
+                          float_height_m=0.2709, speed_limit_trunk_mps=18.1308,
+                          speed_limit_limb_mps=29.0093, speed_limit_distal_mps=43.5139,
+                          teleport_distance_m=0.2176, teleport_accel_mps2=435.139),
+}
