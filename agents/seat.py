@@ -7,11 +7,12 @@ planned from the state the previous one left:
 1. ``turn_away`` (:func:`plan_turn_away`): a turn on the feet (:func:`plan_step`) from
    facing the object onto the heading that leaves towards the chair;
 2. ``walk_back`` (:func:`plan_walk_back`): :func:`simenv.agents.walk.plan_walk` from there
-   to :data:`ARRIVE_OFF_M` in front of the seat (wherever it rolled), arriving across the
-   desk's heading from the side the agent comes from, so that the path passes between the
-   chair's front and the desk instead of over the chair;
-3. ``turn_to_desk`` (:func:`plan_turn_to_desk`): steps onto :func:`chair_spot`, turning
-   onto the desk's heading, the seat now behind the agent;
+   to :data:`CLEAR_CHAIR_M` beside :func:`chair_spot` (where the chair is now) along the
+   desk's edge, on the side the agent comes from, arriving facing the desk: clear of the
+   chair, whose front legs stand where a path into the corridor between chair and desk
+   would pass;
+3. ``turn_to_desk`` (:func:`plan_turn_to_desk`): side-steps onto :func:`chair_spot`,
+   facing the desk, the seat now behind the agent;
 4. ``sit_down`` (:func:`simenv.agents.stand.plan_sit_down`) and ``settle``
    (:func:`plan_settle`): crouch onto the seat, then hold the seated pose; the settle's
    plan measures the result (:func:`seated_on_chair`) when it ends.
@@ -40,10 +41,6 @@ from simenv.room import Room
 #: Pelvis in front of the seat's centre along the desk's heading when the agent stands to
 #: sit, m (measured where standing up leaves it: 0.25-0.26 m).
 SEAT_STAND_OFF_M = 0.26
-#: The walk back arrives this far in front of the seat's centre (between the chair's
-#: front and the desk, clear of both), m; the last steps bring the pelvis to
-#: :data:`SEAT_STAND_OFF_M`.
-ARRIVE_OFF_M = 0.45
 #: Before turning to walk away, the agent side-steps this far along the desk's edge, out
 #: from between the desk and the rolled-back chair (turning there, its hand met the
 #: keyboard and its heels the chair's front legs, measured), m.
@@ -78,15 +75,6 @@ def chair_spot(room: Room, data: mujoco.MjData, off: float = SEAT_STAND_OFF_M
     return seat + off * np.array([np.cos(yaw), np.sin(yaw)])
 
 
-def _arrival_yaw(room: Room, data: mujoco.MjData) -> float:
-    """Heading of the walk's arrival at :func:`chair_spot`: across the desk's heading,
-    moving away from the side of the desk the agent is on."""
-    yaw = desk_heading(room)
-    rel = data.qpos[room.agent_qpos][:2] - chair_spot(room, data)
-    left = float(rel @ np.array([-np.sin(yaw), np.cos(yaw)]))
-    return _wrap(yaw - np.pi / 2 if left >= 0 else yaw + np.pi / 2)
-
-
 def plan_step(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
               ) -> SteppingPlan:
     """Plan for stepping the standing agent to ``goal`` (x, y, m, a short way) facing
@@ -101,9 +89,9 @@ def plan_step(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     check_standing(room, data, "step")
     q = data.qpos[room.agent_qpos]
     steps = turn_steps(leg_ik(room.agent), q[:2].copy(), _yaw(q[3:7]), goal_yaw,
-                       np.asarray(goal, float)[:2])
+                       np.array(goal, float)[:2])
     plan = plan_footsteps(room, data, steps)
-    plan.feedback = GaitMeter(room, plan.balance, np.asarray(goal, float)[:2])
+    plan.feedback = GaitMeter(room, plan.balance, np.array(goal, float)[:2])
     return plan
 
 
@@ -136,15 +124,19 @@ def plan_turn_away(room: Room, data: mujoco.MjData) -> SteppingPlan:
 
 
 def plan_walk_back(room: Room, data: mujoco.MjData) -> SteppingPlan:
-    """Plan for walking from where the agent stands (leaving along its heading) to
-    :func:`chair_spot`, arriving across the desk's heading (module docstring)."""
-    return plan_walk(room, data, chair_spot(room, data, ARRIVE_OFF_M),
-                     _arrival_yaw(room, data))
+    """Plan for walking from where the agent stands to :data:`CLEAR_CHAIR_M` beside
+    :func:`chair_spot` along the desk's edge, on the side the agent comes from, arriving
+    facing the desk (module docstring)."""
+    spot = chair_spot(room, data)
+    yaw = desk_heading(room)
+    across = np.array([-np.sin(yaw), np.cos(yaw)])
+    side = 1.0 if float((data.qpos[room.agent_qpos][:2] - spot) @ across) >= 0 else -1.0
+    return plan_walk(room, data, spot + side * CLEAR_CHAIR_M * across, yaw)
 
 
 def plan_turn_to_desk(room: Room, data: mujoco.MjData) -> SteppingPlan:
-    """Plan for the steps onto :func:`chair_spot` (where the chair is now), turning onto
-    the desk's heading (the seat behind)."""
+    """Plan for the side-steps onto :func:`chair_spot` (where the chair is now), facing
+    the desk (the seat behind)."""
     return plan_step(room, data, chair_spot(room, data), desk_heading(room))
 
 

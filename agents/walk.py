@@ -257,7 +257,7 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     check_standing(room, data, "walk")
     steps = walk_steps(room, data, goal, goal_yaw, start_yaw, side_to)
     plan = gait.plan_footsteps(room, data, steps)
-    plan.feedback = GaitMeter(room, plan.balance, np.asarray(goal, float)[:2])
+    plan.feedback = GaitMeter(room, plan.balance, np.array(goal, float)[:2])
     return plan
 
 
