@@ -159,7 +159,9 @@ def _fmt(x: float, spec: str = ".0f") -> str:
     return "-" if x is None or not np.isfinite(x) else format(x, spec)
 
 
-def tables(records: list[dict]) -> str:
+def tables(records: list[dict], expected: list[str] | None = None) -> str:
+    """Markdown tables of the runs; ``expected`` clip names missing from the clean
+    runs are listed as not evaluated."""
     clean = [r for r in records if r["corruption"] == "none"]
     bad = [r for r in records if r["corruption"] != "none"]
     lines = []
@@ -195,6 +197,9 @@ def tables(records: list[dict]) -> str:
                   f"mean body error of the tracked clips {_fmt(mean_err)}"
                   f" mm (goal 50 mm). Unassisted PD servos: {pd_ok} of {len(judged)}. Median "
                   f"cost {np.median([r['mpc']['realtime_ratio'] for r in clean]):.0f}x real time."]
+        missing = sorted(set(expected or []) - {r["clip"] for r in clean})
+        if missing:
+            lines += ["", f"Not evaluated (the run was stopped for time): {', '.join(missing)}."]
     if bad:
         lines += ["", "Corrupted copies (the same MPC; a corruption is caught when the body "
                   "error exceeds 0.5 m):", "",
@@ -215,11 +220,11 @@ def tables(records: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def write_docs(records: list[dict], path: Path = DOCS) -> None:
+def write_docs(records: list[dict], expected: list[str], path: Path = DOCS) -> None:
     text = path.read_text()
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
-    path.write_text(f"{head}{BEGIN}\n{tables(records)}\n{END}{tail}")
+    path.write_text(f"{head}{BEGIN}\n{tables(records, expected)}\n{END}{tail}")
 
 
 def main() -> None:
@@ -242,7 +247,7 @@ def main() -> None:
     else:
         records = [json.loads(x) for path in args.results if path.is_file()
                    for x in path.read_text().splitlines() if x.strip()]
-        write_docs(records)
+        write_docs(records, [p.name for p in clips(args.data)])
 
 
 if __name__ == "__main__":
