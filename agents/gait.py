@@ -57,6 +57,9 @@ HOLD_S = 1.0
 #: Swing foot's lift, m; the pelvis's drop below standing while stepping, m.
 LIFT_M = 0.1
 CROUCH_M = 0.08
+#: ... and at the end, standing (knees a little bent: a straight knee is the IK's
+#: singularity and the model's knee reaches 15 deg of hyperextension), m.
+STAND_DROP_M = 0.01
 #: The support centre of a foot is this far ahead of its ankle (the sole's box runs from
 #: 6 cm behind the ankle to 14 cm ahead of it, the toes to 20 cm), m.
 SUPPORT_AHEAD_M = 0.05
@@ -453,7 +456,7 @@ class SteppingPlan:
         self._upper = h.default_qpos()
         for side in ("left", "right"):  # the arms hang at the sides (:data:`ARM_ABD`)
             self._upper[h.hinge_qpos[h.joint_names.index(f"{side}_upper_arm_abd")]] = ARM_ABD
-        self._height = float(self._upper[2]) - CROUCH_M
+        self._rest = float(self._upper[2])
         m = h.model
         self._lead = -m.actuator_biasprm[:, 2] / m.actuator_gainprm[:, 0]
         pelvis = room.model.body("agent/pelvis").id
@@ -500,10 +503,10 @@ class SteppingPlan:
         guess = q
 
         def key(duration: float, poses: dict[str, tuple[np.ndarray, float]],
-                c: np.ndarray, lifted: str | None) -> None:
+                c: np.ndarray, lifted: str | None, drop: float = CROUCH_M) -> None:
             nonlocal guess
             yaw = _mean_yaw(feet["left"][1], feet["right"][1])
-            qk, err = balanced_pose(ik, self._upper, poses, c, yaw, self._height, guess)
+            qk, err = balanced_pose(ik, self._upper, poses, c, yaw, self._rest - drop, guess)
             if err > 0.02:
                 raise SimenvError(f"a step is out of the legs' reach ({err:.3f} m short)",
                                   field="step")
@@ -547,7 +550,9 @@ class SteppingPlan:
             key(PLACE_S / 2, planted(), centre, None)
         else:
             shift(0.5 * (support_centre(*feet["left"]) + support_centre(*feet["right"])))
-            key(HOLD_S, planted(), st.coms[-1], None)
+            # Rise out of the stepping crouch: standing, the hands reach as high as before
+            # the walk (crouched, the window's handle was 8 cm out of reach, measured).
+            key(HOLD_S, planted(), st.coms[-1], None, STAND_DROP_M)
         st.yaws = list(np.unwrap(st.yaws))
         st.segments = [LinearTrajectory(a, b, t1 - ta, self._lead) for a, b, ta, t1 in zip(
             targets[:-1], targets[1:], st.times[:-1], st.times[1:], strict=True)]

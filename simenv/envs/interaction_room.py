@@ -540,9 +540,10 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         entry["success"] = bool(done)
         if "stages" in entry:
             entry["assistance"] = _assistance_total(entry["stages"])
-            last = entry["stages"][-1]
-            if "outcome" in last:
-                entry["returned"] = bool(last["outcome"]["success"])
+            # Back on the chair: the chain ran to its seated check and it held (a walk's
+            # outcome, at a chain cut short, is not a return).
+            last = entry["stages"][-1].get("outcome") or {}
+            entry["returned"] = bool("seat_contact" in last and last["success"])
         return SUCCESS if entry["success"] else 0.0
 
     # -- reward ----------------------------------------------------------------
