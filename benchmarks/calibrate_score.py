@@ -9,6 +9,11 @@ percentile, maximum, threshold, clips failing) and every failing clip with
 its failing metrics; and ``docs/calibration.png``, each metric's values
 divided by its threshold, per corpus.
 
+``docs/calibration.md`` itself is written by ``benchmarks/calibrate_loo.py``
+(the leave-clips-out verdicts, with this module's :func:`summarise` as its
+appendix); this script writes its page under ``--docs`` (default
+``out/calibration``).
+
 Usage::
 
     .venv/bin/python benchmarks/calibrate_score.py [--data DIR] [--out RESULTS.jsonl]
@@ -160,7 +165,7 @@ def main() -> None:
     ap.add_argument("--only", choices=("cmu", "gestures", "other"))
     ap.add_argument("--report-only", action="store_true",
                     help="only rebuild the docs from the results file")
-    ap.add_argument("--docs", type=Path, default=REPO / "docs")
+    ap.add_argument("--docs", type=Path, default=REPO / "out" / "calibration")
     args = ap.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     roots = [args.data / args.only] if args.only else \
