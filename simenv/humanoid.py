@@ -202,7 +202,8 @@ JOINTS: dict[str, tuple[JointSpec, ...]] = {
     # Knee flexion > 0, hyperextension < 0.
     "shin": (JointSpec("flex", (0, 1, 0), (-15, 163), 500),),
     # Ankle + subtalar inversion / eversion + toe-out about the shin (the
-    # tibia's axial rotation when the knee is bent, plus forefoot abduction). flex > 0 is plantarflexion (toe down about +y;
+    # tibia's axial rotation when the knee is bent, plus forefoot abduction).
+    # flex > 0 is plantarflexion (toe down about +y;
     # 0 = shin perpendicular to the flat sole, the toe keypoint the fitted drop
     # below the ankle). Dorsiflexion is the weight-bearing range, not the
     # passive one: under body weight with the knee bent (squats, landings,
