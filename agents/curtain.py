@@ -30,7 +30,7 @@ from simenv.agents.reach import (
 )
 from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import held_grasp_stroke
+from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
 from simenv.agents.window import SPINE
 from simenv.errors import SimenvError
 from simenv.room import Room
@@ -107,9 +107,10 @@ def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
     low, _ = reach_pose(m, back, site, last + inward * BACK_OFF_M - [0.0, 0.0, LOWER_M],
                         joints, iterations=300)
     away, down = (pd_targets(h, p[room.agent_qpos], upper) for p in (back, low))
-    rest = pd_targets(h, h.default_qpos(), upper)
+    rest = standing_targets(room, data)
     return held_grasp_stroke(room, data, [(before, 1.2), (on, 0.6)], pulling,
-                             [(away, 0.6), (down, 0.6), (rest, 0.8)], HAND, "curtain")
+                             [(away, 0.6), (down, 0.6), (rest, REST_S)], HAND,
+                             "curtain")
 
 
 def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> SteppingPlan:

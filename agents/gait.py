@@ -148,7 +148,8 @@ def feet_now(room: Room, data: mujoco.MjData) -> dict[str, tuple[np.ndarray, flo
     return out
 
 
-def _legs(h: Humanoid) -> tuple[str, ...]:
+def leg_joints(h: Humanoid) -> tuple[str, ...]:
+    """The hinges of both legs, hips to ankles."""
     return tuple(n for n in h.joint_names if n.split("_")[1] in ("thigh", "shin", "foot"))
 
 
@@ -178,7 +179,7 @@ class LegIK:
         #: origin heading +x, and (2,) their height with the sole on the floor, m.
         self.offset = self.data.xpos[self.body, :2].copy()
         self.z = self.data.xpos[self.body, 2].copy()
-        legs = _legs(h)
+        legs = leg_joints(h)
         self.joints = [[m.joint(n).id for n in legs if n.startswith(s) and "toes" not in n]
                        for s in SIDES]
         self.qadr = [m.jnt_qposadr[j] for j in self.joints]
@@ -303,7 +304,8 @@ class StepBalance:
         room: the room. times: (N,) keyframe times, s into the plan. com: (N, 2) planned
             centre of mass at them, m. yaws: (N,) planned heading of the upright pelvis,
             rad. down: (N, 2) whether the left and right foot are planned on the floor
-            at them. k, d: ``K`` (1/s^2) and ``D`` (1/s).
+            at them. k, d: ``K`` (1/s^2) and ``D`` (1/s). f_max: the virtual force's
+            largest magnitude, body weights.
     """
 
     room: Room
@@ -313,6 +315,7 @@ class StepBalance:
     down: np.ndarray
     k: float = COM_K
     d: float = COM_D
+    f_max: float = F_MAX
 
     def __post_init__(self) -> None:
         #: The heading the lifted foot turns to, rad (set per step by the plan), or None.
@@ -320,7 +323,7 @@ class StepBalance:
         m, h = self.room.model, self.room.agent
         self._pelvis = m.body("agent/pelvis").id
         self._foot = [m.body(f"agent/{s}_foot").id for s in SIDES]
-        legs = _legs(h)
+        legs = leg_joints(h)
         self._act = [np.array([h.joint_names.index(n) for n in legs if n.startswith(s)])
                      for s in SIDES]
         self._dof = [np.array([m.joint(f"agent/{n}").dofadr[0] for n in legs
@@ -390,8 +393,8 @@ class StepBalance:
         # The virtual force on the centre of mass through the legs on the floor.
         force = -self._mass * (self.k * (c - ref) + self.d * cd)
         norm = float(np.linalg.norm(force))
-        if norm > F_MAX * weight:
-            force *= F_MAX * weight / norm
+        if norm > self.f_max * weight:
+            force *= self.f_max * weight / norm
         for j in np.flatnonzero(touch):
             point = data.xpos[self._foot[j]]
             mujoco.mj_jac(m, data, self._jf, self._jr, point, self._foot[j])
@@ -613,5 +616,5 @@ def stand_balance(room: Room, data: mujoco.MjData, duration: float) -> StepBalan
 
 
 __all__ = ["Footstep", "LegIK", "LinearTrajectory", "StepBalance", "SteppingPlan",
-           "balanced_pose", "feet_now", "leg_ik", "plan_footsteps", "stand_balance",
-           "support_centre"]
+           "balanced_pose", "feet_now", "leg_ik", "leg_joints", "plan_footsteps",
+           "stand_balance", "support_centre"]

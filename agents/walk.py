@@ -36,7 +36,7 @@ import numpy as np
 
 from simenv.agents import gait
 from simenv.agents.gait import Footstep, StepBalance
-from simenv.agents.reach import GraspEvent, PDPlan, PDTrajectory
+from simenv.agents.reach import GraspEvent, PDPlan, PDTrajectory, pd_targets, upper_body_joints
 from simenv.errors import SimenvError
 from simenv.room import Room
 
@@ -261,9 +261,31 @@ def plan_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     return plan
 
 
+def standing_targets(room: Room, data: mujoco.MjData) -> np.ndarray:
+    """(nu,) servo targets holding the standing agent where it stands: its leg hinges as
+    they are, the upper body upright with the arms hanging (:data:`gait.ARM_ABD`),
+    gravity fed forward on the upper body only (:func:`~simenv.agents.reach.pd_targets`).
+    Nominal targets: the servo targets in ``data.ctrl`` also carry the last balance
+    feedback, whose static leg torques the next stage's feedback would add a second time
+    (measured: after a standing act the body leant back and fell)."""
+    h = room.agent
+    q = h.default_qpos()
+    q[:7] = data.qpos[room.agent_qpos][:7]
+    legs = [h.hinge_qpos[h.joint_names.index(n)] for n in gait.leg_joints(h)]
+    q[legs] = data.qpos[room.agent_qpos][legs]
+    for side in ("left", "right"):
+        q[h.hinge_qpos[h.joint_names.index(f"{side}_upper_arm_abd")]] = gait.ARM_ABD
+    return pd_targets(h, q, upper_body_joints(h))
+
+
 #: Seconds per via-point of a grasped stroke, and the holds before and after it.
 STROKE_STEP_S = 0.4
 STROKE_HOLD_S = 0.3
+#: The arm back to its standing targets after an act, s, and then standing still, s (the
+#: arm swung down in 1 s and the body, leant back against its outstretched weight, rocked
+#: back and fell once the act ended, measured).
+REST_S = 2.5
+STAND_S = 1.5
 
 
 def held_grasp_stroke(room: Room, data: mujoco.MjData, approach: Sequence[tuple[np.ndarray,
@@ -274,10 +296,11 @@ def held_grasp_stroke(room: Room, data: mujoco.MjData, approach: Sequence[tuple[
     centre): PD targets through ``approach`` ((targets, seconds) pairs, the last one on
     the object), held :data:`STROKE_HOLD_S`, the proximity grasp of ``obj`` by ``hand``
     asked for, the ``strokes`` via-points (:data:`STROKE_STEP_S` each), a hold, the grasp
-    released, then ``leave`` ((targets, seconds) pairs). Grasp events fire 50 ms before
-    the end of each hold (so the hand is still and on its mark)."""
+    released, then ``leave`` ((targets, seconds) pairs), then :data:`STAND_S` standing
+    still. Grasp events fire 50 ms before the end of each hold (so the hand is still and
+    on its mark)."""
     check_standing(room, data, "act")
-    now = data.ctrl[room.agent_ctrl].copy()
+    now = standing_targets(room, data)
     segments, prev = [], now
     for target, seconds in approach:
         segments.append(PDTrajectory(prev, target, seconds))
@@ -292,11 +315,12 @@ def held_grasp_stroke(room: Room, data: mujoco.MjData, approach: Sequence[tuple[
     for target, seconds in leave:
         segments.append(PDTrajectory(prev, target, seconds))
         prev = target
+    segments.append(PDTrajectory(prev, prev, STAND_S))
     total = sum(s.duration for s in segments)
     meter = GaitMeter(room, gait.stand_balance(room, data, total))
     return PDPlan(segments, [GraspEvent(t_close, hand, obj, True),
                              GraspEvent(t_open, hand, obj, False)], feedback=meter)
 
 
-__all__ = ["GaitMeter", "held_grasp_stroke", "path_steps", "plan_walk", "turn_steps",
-           "walk_path", "walk_steps"]
+__all__ = ["GaitMeter", "held_grasp_stroke", "path_steps", "plan_walk", "standing_targets",
+           "turn_steps", "walk_path", "walk_steps"]

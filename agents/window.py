@@ -37,7 +37,7 @@ from simenv.agents.reach import (
 )
 from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import held_grasp_stroke
+from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
 from simenv.errors import SimenvError
 from simenv.room import Room
 
@@ -51,15 +51,20 @@ ALONG_M = 0.15
 OVERSHOOT_M = 0.0
 #: Via-points of the push along the wall (0.4 s each).
 PUSH_VIA = 8
-#: The palm comes in from this far in front of the handle, m.
+#: The palm comes in from this far in front of the handle, m, and backs off this far
+#: from it before lowering (lowered from 10 cm off, the hand swept down the wall and its
+#: push toppled the standing body backwards, measured).
 APPROACH_M = 0.10
+BACK_OFF_M = 0.25
 #: Distance of the palm's grip site from the handle's centre, on its opening side, m (the
 #: handle box is 1.5 cm half-wide; within the grasp radius).
 HANDLE_FACE_M = 0.025
 #: The palm comes onto the handle from this far to its opening side, m.
 SIDE_M = 0.06
 #: Spine hinges the reaching IK may use besides the arm.
-SPINE = ("lumbar_rot", "thorax_rot", "chest_rot", "lumbar_lat", "thorax_lat", "chest_lat")
+#: (Rotation only: bending sideways towards the far end of the push, the standing body
+#: leant past its feet and fell, measured; nothing holds the pelvis.)
+SPINE = ("lumbar_rot", "thorax_rot", "chest_rot")
 HAND = "right_hand"
 
 
@@ -104,7 +109,7 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
     beside = on - closing * SIDE_M
     goals = [beside + inward * APPROACH_M, beside, on]
     goals += [on + closing * travel * k / PUSH_VIA for k in range(1, PUSH_VIA + 1)]
-    goals.append(goals[-1] + inward * APPROACH_M)
+    goals.append(goals[-1] + inward * BACK_OFF_M)
     upper = upper_body_joints(h)
     pose = data.qpos.copy()
     targets = []
@@ -115,9 +120,9 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
                               f"({err:.3f} m short)", field="window")
         targets.append(pd_targets(h, pose[room.agent_qpos], upper))
     before, side, on, *pushing, after = targets
-    rest = pd_targets(h, h.default_qpos(), upper)
+    rest = standing_targets(room, data)
     return held_grasp_stroke(room, data, [(before, 1.2), (side, 0.5), (on, 0.4)], pushing,
-                             [(after, 0.6), (rest, 1.0)], HAND, "window")
+                             [(after, 0.6), (rest, REST_S)], HAND, "window")
 
 
 def plan_walk_to_window(room: Room, data: mujoco.MjData) -> SteppingPlan:

@@ -37,7 +37,7 @@ from simenv.agents.reach import (
 )
 from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import held_grasp_stroke
+from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
 from simenv.agents.window import SPINE
 from simenv.errors import SimenvError
 from simenv.room import Room
@@ -121,9 +121,9 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
                               f"({err:.3f} m short)", field="window")
         targets.append(pd_targets(h, pose[room.agent_qpos], upper))
     before, on_t, *pulling, after = targets
-    rest = pd_targets(h, h.default_qpos(), upper)
+    rest = standing_targets(room, data)
     return held_grasp_stroke(room, data, [(before, 1.2), (on_t, 0.6)], pulling,
-                             [(after, 0.6), (rest, 1.0)], HAND, "window")
+                             [(after, 0.6), (rest, REST_S)], HAND, "window")
 
 
 def plan_walk_to_open(room: Room, data: mujoco.MjData) -> SteppingPlan:
