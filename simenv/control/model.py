@@ -99,8 +99,3 @@ def keypoints_of(sensordata: np.ndarray, layout: SensorLayout) -> np.ndarray:
 def root_dofs(model: mujoco.MjModel) -> np.ndarray:
     """The free root joint's dof indices (6,)."""
     return np.arange(model.jnt_dofadr[0], model.jnt_dofadr[0] + 6)
-
-
-def hinge_torque_limits(model: mujoco.MjModel) -> np.ndarray:
-    """(nu, 2) actuator force limits, N m."""
-    return np.asarray(model.actuator_forcerange, dtype=np.float64).copy()

@@ -55,8 +55,8 @@ class MPCConfig:
         n_knots: spline knots over the horizon.
         n_samples: rollouts per replan, the nominal included.
         replan_steps: physics steps between replans.
-        noise_rad: knot noise standard deviation, radians (scaled per actuator
-            by ``sqrt(kp / kp_max)``... see :attr:`noise_scaling`).
+        noise_rad: knot noise standard deviation, radians (per actuator times
+            the ``noise_scaling`` factor).
         noise_scaling: scale each actuator's noise by its gain relative to the
             strongest one, ``(kp / kp_max) ** noise_scaling`` (0: uniform).
         sampled_parts: body parts (:data:`simenv.humanoid.JOINTS` keys) whose
@@ -202,7 +202,7 @@ class TrackingMPC:
     def _offsets(self, step: int) -> np.ndarray:
         """(nu,) the nominal's offset at physics step ``step``."""
         j = (step - self.plan_step) / self.config.timestep_factor
-        return (self.spline._hat(np.array([j])) @ self.knots)[0]
+        return (self.spline.weights(np.array([j])) @ self.knots)[0]
 
     def plan(self, data: mujoco.MjData, step: int) -> None:
         """Replan from ``data``'s state at physics step ``step`` (module docstring)."""

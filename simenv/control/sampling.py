@@ -52,9 +52,9 @@ class Spline:
         self.horizon = int(horizon)
         self.n_knots = int(n_knots)
         self.knot_steps = np.linspace(0.0, horizon - 1, n_knots)
-        self.basis = self._hat(np.arange(horizon, dtype=np.float64))
+        self.basis = self.weights(np.arange(horizon, dtype=np.float64))
 
-    def _hat(self, steps: np.ndarray) -> np.ndarray:
+    def weights(self, steps: np.ndarray) -> np.ndarray:
         """(len(steps), n) interpolation weights at ``steps``, held constant past the ends."""
         s = np.clip(steps, 0.0, self.horizon - 1)
         return np.stack([np.interp(s, self.knot_steps, np.eye(self.n_knots)[k])
@@ -67,7 +67,7 @@ class Spline:
     def shift(self, knots: np.ndarray, steps: int) -> np.ndarray:
         """The same curve started ``steps`` later: knots re-read at ``t_k + steps``,
         the last value held past the horizon. (n, nu) -> (n, nu)."""
-        return self._hat(self.knot_steps + steps) @ knots
+        return self.weights(self.knot_steps + steps) @ knots
 
 
 class Sampler:
