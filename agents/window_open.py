@@ -38,7 +38,7 @@ from simenv.agents.reach import (
 from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
 from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
-from simenv.agents.window import SPINE
+from simenv.agents.window import BACK_OFF_M, SPINE
 from simenv.errors import SimenvError
 from simenv.room import Room
 
@@ -109,7 +109,7 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
     travel = min(PULL_M, w.upper - now)
     goals = [on + opening * APPROACH_M / 2 + inward * APPROACH_M, on]
     goals += [on + opening * travel * k / PULL_VIA for k in range(1, PULL_VIA + 1)]
-    goals.append(goals[-1] + opening * APPROACH_M / 2 + inward * APPROACH_M)
+    goals.append(goals[-1] + opening * APPROACH_M / 2 + inward * BACK_OFF_M)
     upper = upper_body_joints(h)
     pose = data.qpos.copy()
     targets = []

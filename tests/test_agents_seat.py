@@ -18,13 +18,6 @@ from simenv.envs.interaction_room import InteractionRoomEnv
 from simenv.room import Room
 from simenv.session import PERCEPTION_FPS, GestureEvent
 
-#: Measured (docs/room.md, "Walking on its own legs"): the unassisted stepping gait falls
-#: on the way to the window or the curtain, so the chain stops at the walk (``fell``,
-#: ``failed_stage``). Strict: it must be turned back into a plain test once it passes.
-FALLS_ON_THE_WAY = pytest.mark.xfail(
-    strict=True, reason="measured: the unassisted stepping gait falls on the way to the "
-    "window/curtain (docs/room.md); the fall is reported as failed_stage")
-
 
 def _run(room: Room, data: mujoco.MjData, plan) -> dict[str, Any]:
     """Play a plan on the agent as the environment does (targets every physics step); its
@@ -84,7 +77,6 @@ def _assert_seated(env: InteractionRoomEnv, stages: dict[str, dict[str, Any]]) -
                if n in ("turn_away", "walk_back", "turn_to_desk"))  # standing throughout
 
 
-@FALLS_ON_THE_WAY
 @pytest.mark.parametrize(("label", "reaction", "act"), [("cold", "close_window", "push"),
                                                         ("bright", "close_curtain", "pull")])
 def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act: str):
@@ -97,7 +89,6 @@ def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act:
     _assert_seated(env, stages)
 
 
-@FALLS_ON_THE_WAY
 def test_real_msr_session_labelled_cold_closes_the_window_and_sits_back(shared_data):
     """The real MSR Action3D recording the rehearsal test labels ``cold``: close the
     window, walk back, sit."""

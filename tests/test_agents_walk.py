@@ -119,15 +119,6 @@ def test_walk_refuses_a_body_that_is_not_standing():
         plan_walk(room, data, np.array([-1.0, 1.5]), np.pi / 2)
 
 
-#: Measured (docs/room.md, "Walking on its own legs"): from between the desk and the
-#: rolled-back chair the stepping gait falls on the way to the window and the curtain, so
-#: the chain stops at the walk (``fell``, ``failed_stage``). Strict: these start passing
-#: (and must be turned back into plain tests) once the agent gets there on its own legs.
-FALLS_ON_THE_WAY = pytest.mark.xfail(
-    strict=True, reason="measured: the unassisted stepping gait falls on the way to the "
-    "window/curtain (docs/room.md); the fall is reported as failed_stage")
-
-
 def _react(label: str, reaction: str) -> tuple[InteractionRoomEnv, dict, dict]:
     short = simenv.load(asset_path(WALK)).slice(0, 60)  # the user stays far away
     env = InteractionRoomEnv(short, gestures=[GestureEvent(label, 0.2, 0.5)],
@@ -143,7 +134,6 @@ def _react(label: str, reaction: str) -> tuple[InteractionRoomEnv, dict, dict]:
     return env, entry, info
 
 
-@FALLS_ON_THE_WAY
 def test_cold_label_stands_walks_to_the_window_on_its_own_legs():
     from simenv.agents.window import window_spot
 
@@ -153,7 +143,10 @@ def test_cold_label_stands_walks_to_the_window_on_its_own_legs():
     assert "assistance" not in stages["stand_up"]  # standing up has no help to measure
     walk = stages["walk"]
     assert not walk["outcome"]["fell"], entry.get("failed_stage")
-    spot, _ = window_spot(env.room, env.data)
+    start = Room("discomfort")  # where the spot is with the window open, as at the start
+    d0 = start.make_data()
+    mujoco.mj_forward(start.model, d0)
+    spot, _ = window_spot(start, d0)
     assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
     a = walk["assistance"]
     assert a["steps"] > 0 and a["max_n"] == 0.0 and entry["assistance"]["max_n"] == 0.0
@@ -164,7 +157,6 @@ def test_cold_label_stands_walks_to_the_window_on_its_own_legs():
     assert env.room.assist_wrench(env.data) == (0.0, 0.0)
 
 
-@FALLS_ON_THE_WAY
 def test_bright_label_draws_the_curtain_through_the_grasp():
     """Discomfort scenario, "bright" on the real walk: stand up, walk to the curtain on
     its own legs, the palm's proximity grasp closes on its edge and the hand draws it."""

@@ -14,13 +14,6 @@ from simenv.errors import SimenvError
 from simenv.room import Room
 from simenv.session import PERCEPTION_FPS, GestureEvent
 
-#: Measured (docs/room.md, "Walking on its own legs"): the unassisted stepping gait falls
-#: on the way to the window or the curtain, so the chain stops at the walk (``fell``,
-#: ``failed_stage``). Strict: it must be turned back into a plain test once it passes.
-FALLS_ON_THE_WAY = pytest.mark.xfail(
-    strict=True, reason="measured: the unassisted stepping gait falls on the way to the "
-    "window/curtain (docs/room.md); the fall is reported as failed_stage")
-
 
 def _rehearse_hot(session, room_grasps: bool = True):
     """Run InteractionRoom-v0 on ``session`` labelled hot over its whole length in the
@@ -55,7 +48,6 @@ def real_clip(shared_data):
                              "a01_s01_e01_skeleton3D.txt")
 
 
-@FALLS_ON_THE_WAY
 def test_real_session_labelled_hot_opens_the_window_through_the_grasp(real_clip):
     """A real MSR Action3D recording labelled hot: stand up (unassisted), turn on the feet
     and walk to the window on its own legs (no help, measured), the palm's grasp closes on
@@ -85,7 +77,6 @@ def test_real_session_labelled_hot_opens_the_window_through_the_grasp(real_clip)
     assert env.room.assist_wrench(env.data) == (0.0, 0.0)
 
 
-@FALLS_ON_THE_WAY
 def test_without_the_grasp_the_hand_does_not_open_it(real_clip):
     """The same reaction with every grasp refused: the hand moving away from the handle's
     face cannot drag the pane, which stays closed (so it is the grasp that opens it)."""

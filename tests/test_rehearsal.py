@@ -17,13 +17,6 @@ from simenv.gestures import GESTURE15_JOINTS
 from simenv.rehearsal import rehearse
 from simenv.session import GestureEvent, Session
 
-#: Measured (docs/room.md, "Walking on its own legs"): the unassisted stepping gait falls
-#: on the way to the window or the curtain, so the chain stops at the walk (``fell``,
-#: ``failed_stage``). Strict: it must be turned back into a plain test once it passes.
-FALLS_ON_THE_WAY = pytest.mark.xfail(
-    strict=True, reason="measured: the unassisted stepping gait falls on the way to the "
-    "window/curtain (docs/room.md); the fall is reported as failed_stage")
-
 
 @pytest.fixture(scope="module")
 def short() -> simenv.Motion:
@@ -260,7 +253,6 @@ def test_reactions_not_started_are_not_reported(tmp_path: Path, short):
     assert reasons["open_door"] == "not implemented"
 
 
-@FALLS_ON_THE_WAY
 def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: Path,
                                                                        shared_data):
     """A real MSR Action3D recording labelled "cold" in the discomfort scenario (window
