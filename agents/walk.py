@@ -140,7 +140,8 @@ class GaitMeter:
     Attributes:
         room: the room. inner: the balance feedback. goal: (2,) where the pelvis should
             end, m, or None (standing in place). forces_n, torques_nm: per physics step,
-            N and N m. lowest_m: the lowest pelvis height so far, m.
+            N and N m. lowest_m: the lowest pelvis height so far, m. grasp_max_n: the
+            largest grasp force so far, N.
     """
 
     room: Room
@@ -149,19 +150,23 @@ class GaitMeter:
     forces_n: list[float] = field(default_factory=list)
     torques_nm: list[float] = field(default_factory=list)
     lowest_m: float = np.inf
+    grasp_max_n: float = 0.0
 
     def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
         f, tau = self.room.assist_wrench(data)
         self.forces_n.append(f)
         self.torques_nm.append(tau)
+        self.grasp_max_n = max(self.grasp_max_n, self.room.grasp_force(data))
         self.lowest_m = min(self.lowest_m, float(data.qpos[self.room.agent_qpos][2]))
         return self.inner(t, data, targets)
 
     def summary(self, steps_per_frame: int = 20) -> dict[str, float | int | list[float]]:
         """External help over the physics steps so far: ``mean_n``, ``p95_n``, ``max_n``
         (N), the same as fractions of body weight (``*_bw``), ``mean_torque_nm``,
-        ``max_torque_nm``, ``steps``, and ``per_frame_n``, the mean force (N) over each
-        ``steps_per_frame`` physics steps (one env step)."""
+        ``max_torque_nm``, ``steps``, ``per_frame_n``, the mean force (N) over each
+        ``steps_per_frame`` physics steps (one env step), and ``grasp_max_n``: the largest
+        force of a closed proximity grasp on the hand (holding, not help; reported so
+        that leaning on a handle shows, :meth:`simenv.room.Room.grasp_force`)."""
         f = np.asarray(self.forces_n) if self.forces_n else np.zeros(1)
         tq = np.asarray(self.torques_nm) if self.torques_nm else np.zeros(1)
         weight = float(self.room.agent.total_mass) * GRAVITY
@@ -173,6 +178,7 @@ class GaitMeter:
             out[f"{k}_bw"] = float(out[f"{k}_n"]) / weight
         chunks = range(0, len(self.forces_n), steps_per_frame)
         out["per_frame_n"] = [round(float(f[i:i + steps_per_frame].mean()), 1) for i in chunks]
+        out["grasp_max_n"] = self.grasp_max_n
         return out
 
     def fallen(self) -> bool:

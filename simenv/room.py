@@ -699,6 +699,21 @@ class Room:
             force = max(force, float(np.linalg.norm(data.efc_force[rows][:3])))
         return force, torque
 
+    def grasp_force(self, data: mujoco.MjData) -> float:
+        """The largest force (N) of the hands' active proximity grasps at the last step
+        (their constraint rows' ``efc_force``, translation): what a held handle pushes or
+        pulls on the hand with, 0 with no grasp closed. A grasp is the hand holding an
+        object, not help; it is measured so that a hand hanging on a handle shows."""
+        out = 0.0
+        for eq in self._grasp_eq.values():
+            if not data.eq_active[eq]:
+                continue
+            rows = np.flatnonzero(
+                (data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+                & (data.efc_id[:data.nefc] == eq))
+            out = max(out, float(np.linalg.norm(data.efc_force[rows][:3])))
+        return out
+
     # -- user ----------------------------------------------------------------
 
     def place_user(self, qpos: np.ndarray) -> np.ndarray:
