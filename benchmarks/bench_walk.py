@@ -108,6 +108,7 @@ def chains(out: Path) -> list[dict[str, Any]]:
             "returned": reaction.get("returned"),
             "stages": [{k: s.get(k) for k in ("stage", "duration_s", "pelvis_end", "outcome")}
                        | {"help_max_n": (s.get("assistance") or {}).get("max_n"),
+                          "grasp_max_n": (s.get("assistance") or {}).get("grasp_max_n"),
                           # measured stages run until they end or their body falls
                           "ran_s": (s["assistance"]["steps"] * TIMESTEP_S
                                     if "assistance" in s else s["duration_s"])}
@@ -134,8 +135,8 @@ def _section(walks: list[dict[str, Any]], runs: list[dict[str, Any]], command: s
     lines += ["", "Rehearsals (bundled CMU 02_01 walk's first 0.5 s, labelled 0.2-0.5 s, "
               "`labels` agent):", "",
               "| label | reaction | stage | planned s | ran s | fell | lowest pelvis m | "
-              "from the goal m | help max N |",
-              "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+              "from the goal m | help max N | grasp max N |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     def num(v: Any) -> str:
         return "-" if v is None else f"{v:.3f}" if isinstance(v, float) else str(v)
 
@@ -145,8 +146,11 @@ def _section(walks: list[dict[str, Any]], runs: list[dict[str, Any]], command: s
             lines.append(f"| {r['label']} | {r['reaction']} | {s['stage']} | "
                          f"{s['duration_s']:.1f} | {s['ran_s']:.1f} | {num(o.get('fell'))} | "
                          f"{num(o.get('lowest_pelvis_m'))} | {num(o.get('goal_error_m'))} | "
-                         f"{num(s['help_max_n'])} |")
-    lines += ["", "| label | object changed (success) | fell | failed stage | returned | "
+                         f"{num(s['help_max_n'])} | {num(s.get('grasp_max_n'))} |")
+    lines += ["", "(grasp: the largest force of a closed proximity grasp on the hand, N -- holding "
+              "a handle, not help; with every grasp refused the standing acts keep their "
+              "balance the same, measured.)", "",
+              "| label | object changed (success) | fell | failed stage | returned | "
               "log.jsonl lines | max assistance_bw | simulated s | loop wall s | cost "
               "(wall / simulated) |",
               "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -163,7 +167,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("out/bench_walk"))
     parser.add_argument("--docs", type=Path, default=Path("docs/room.md"))
-    parser.add_argument("--skip-open", action="store_true", help="only the rehearsals")
+    parser.add_argument("--skip-open", action="store_true",
+                        help="only the rehearsals (the open-floor rows of the last run kept)")
     parser.add_argument("--from-json", action="store_true",
                         help="rewrite the section from OUT/bench_walk.json, running nothing")
     args = parser.parse_args()
@@ -173,7 +178,9 @@ def main() -> int:
         measured = json.loads(stored.read_text())
         walks, runs = measured["open_floor"], measured["rehearsals"]
     else:
-        walks = [] if args.skip_open else open_floor()
+        # --skip-open keeps the open-floor rows of the last run
+        walks = (json.loads(stored.read_text())["open_floor"] if stored.exists() else []) \
+            if args.skip_open else open_floor()
         runs = chains(args.out)
         stored.write_text(json.dumps({"open_floor": walks, "rehearsals": runs}, indent=1,
                                      default=str))
