@@ -180,6 +180,9 @@ def tables(records: list[dict], expected: list[str] | None = None,
            data: Path = DEFAULT_DATA) -> str:
     """Markdown tables of the runs; ``expected`` clip names missing from the clean
     runs are listed as not evaluated."""
+    order = {p: i for i, p in enumerate(expected or [])}
+    records = sorted(records, key=lambda r: (order.get(r["clip"], len(order)), r["clip"],
+                                             r["corruption"], r["strength"]))
     clean = [r for r in records if r["corruption"] == "none"]
     bad = [r for r in records if r["corruption"] != "none"]
     lines = []
@@ -272,9 +275,14 @@ def main() -> None:
     if args.command == "run":
         run(args)
     else:
-        records = [json.loads(x) for path in args.results if path.is_file()
-                   for x in path.read_text().splitlines() if x.strip()]
-        write_docs(records, [p.name for p in clips(args.data)], args.data)
+        records: dict[tuple[str, str, float], dict] = {}
+        for path in args.results:
+            if path.is_file():
+                for line in filter(str.strip, path.read_text().splitlines()):
+                    r = json.loads(line)
+                    # A run repeated by a second process: the first one counts.
+                    records.setdefault((r["clip"], r["corruption"], r["strength"]), r)
+        write_docs(list(records.values()), [p.name for p in clips(args.data)], args.data)
 
 
 if __name__ == "__main__":
