@@ -39,11 +39,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from simenv.agents.reach import min_jerk, pd_targets, upper_body_joints
+from simenv.agents.reach import PDPlan, PDTrajectory, min_jerk, pd_targets, upper_body_joints
 from simenv.errors import SimenvError
 from simenv.humanoid import Humanoid
 from simenv.room import Room
@@ -615,6 +616,34 @@ def stand_balance(room: Room, data: mujoco.MjData, duration: float) -> StepBalan
                        np.array([yaw, yaw]), np.ones((2, 2), bool))
 
 
+def play(room: Room, data: mujoco.MjData, plan: Any) -> None:
+    """Play ``plan`` (``duration`` s, ``control(t, data)`` -> the agent's servo targets) as
+    the environment does: its targets at every physics step."""
+    dt = room.model.opt.timestep
+    for i in range(int(round(plan.duration / dt))):
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+
+
+def standing_agent(room: Room, xy: np.ndarray, yaw: float, settle_s: float = 1.0
+                   ) -> mujoco.MjData:
+    """New data of ``room`` with the agent standing in its rest pose at ``xy`` (m) facing
+    ``yaw`` (rad), its servos on the pose, balanced by :func:`stand_balance` for
+    ``settle_s`` s (the start of a walk in the open)."""
+    h = room.agent
+    data = room.make_data()
+    q = h.default_qpos()
+    q[:2] = xy
+    q[3:7] = _yaw_quat(yaw)
+    data.qpos[room.agent_qpos] = q
+    targets = pd_targets(h, q, upper_body_joints(h))
+    data.ctrl[room.agent_ctrl] = targets
+    mujoco.mj_forward(room.model, data)
+    play(room, data, PDPlan([PDTrajectory(targets, targets, settle_s)],
+                            feedback=stand_balance(room, data, settle_s)))
+    return data
+
+
 __all__ = ["Footstep", "LegIK", "LinearTrajectory", "StepBalance", "SteppingPlan",
-           "balanced_pose", "feet_now", "leg_ik", "leg_joints", "plan_footsteps",
-           "stand_balance", "support_centre"]
+           "balanced_pose", "feet_now", "leg_ik", "leg_joints", "plan_footsteps", "play",
+           "stand_balance", "standing_agent", "support_centre"]

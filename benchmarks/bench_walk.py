@@ -37,32 +37,19 @@ NORTH = np.pi / 2
 
 
 def _standing_in_the_open() -> tuple[Any, mujoco.MjData]:
-    from simenv.agents.gait import stand_balance
-    from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
+    from simenv.agents.gait import standing_agent
     from simenv.room import Room
 
     room = Room("discomfort")
-    h = room.agent
-    data = room.make_data()
-    q = h.default_qpos()
-    q[:2] = OPEN
-    q[3:7] = [np.cos(NORTH / 2), 0.0, 0.0, np.sin(NORTH / 2)]
-    data.qpos[room.agent_qpos] = q
-    targets = pd_targets(h, q, upper_body_joints(h))
-    data.ctrl[room.agent_ctrl] = targets
-    mujoco.mj_forward(room.model, data)
-    _play(room, data, PDPlan([PDTrajectory(targets, targets, 1.0)],
-                             feedback=stand_balance(room, data, 1.0)))
-    return room, data
+    return room, standing_agent(room, OPEN, NORTH)
 
 
 def _play(room: Any, data: mujoco.MjData, plan: Any) -> float:
     """Play ``plan``; wall seconds."""
+    from simenv.agents.gait import play
+
     t0 = time.perf_counter()
-    dt = room.model.opt.timestep
-    for i in range(int(round(plan.duration / dt))):
-        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
-        mujoco.mj_step(room.model, data)
+    play(room, data, plan)
     return time.perf_counter() - t0
 
 

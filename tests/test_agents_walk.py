@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import simenv
-from simenv.agents.gait import stand_balance
-from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
+from simenv.agents.gait import standing_agent
+from simenv.agents.reach import pd_targets, upper_body_joints
 from simenv.agents.walk import FALLEN_FRACTION, STEP_M, GaitMeter, plan_walk, walk_steps
 from simenv.assets import WALK, asset_path
 from simenv.envs.interaction_room import InteractionRoomEnv
@@ -23,23 +23,6 @@ from simenv.session import PERCEPTION_FPS, GestureEvent
 #: towards the north wall, 1.7 m away.
 OPEN = np.array([-0.4, 0.3])
 NORTH = np.pi / 2
-
-
-def _standing(room: Room) -> mujoco.MjData:
-    """The agent standing in its rest pose at :data:`OPEN` facing north, its servos on the
-    pose, balanced for 1 s."""
-    h, m = room.agent, room.model
-    data = room.make_data()
-    q = h.default_qpos()
-    q[:2] = OPEN
-    q[3:7] = [np.cos(NORTH / 2), 0.0, 0.0, np.sin(NORTH / 2)]
-    data.qpos[room.agent_qpos] = q
-    targets = pd_targets(h, q, upper_body_joints(h))
-    data.ctrl[room.agent_ctrl] = targets
-    mujoco.mj_forward(m, data)
-    _play(room, data, PDPlan([PDTrajectory(targets, targets, 1.0)],
-                             feedback=stand_balance(room, data, 1.0)))
-    return data
 
 
 def _play(room: Room, data: mujoco.MjData, plan, shove: tuple[float, float, np.ndarray] | None
@@ -57,7 +40,7 @@ def _play(room: Room, data: mujoco.MjData, plan, shove: tuple[float, float, np.n
 
 def test_walks_to_the_goal_upright_with_no_help():
     room = Room("discomfort")
-    data = _standing(room)
+    data = standing_agent(room, OPEN, NORTH)
     goal = OPEN + [0.0, 0.4]
     plan = plan_walk(room, data, goal, NORTH)
     assert isinstance(plan.feedback, GaitMeter)
@@ -84,7 +67,7 @@ def test_a_fall_is_detected_and_the_push_measured():
     """A shove on the pelvis in the middle of a step (an outside force the test applies)
     topples the body: the meter measures the force as help and reports the fall."""
     room = Room("discomfort")
-    data = _standing(room)
+    data = standing_agent(room, OPEN, NORTH)
     plan = plan_walk(room, data, OPEN + [0.0, 0.4], NORTH)
     _play(room, data, plan, shove=(2.0, 2.5, np.array([400.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
     out = plan.feedback.outcome(data)
@@ -98,7 +81,7 @@ def test_turn_on_the_spot_then_walk_footsteps():
     """A quarter turn on the spot comes first (pairs of 45 deg steps, the foot on the side
     of the turn first), then the path's steps, then the closing step beside the other."""
     room = Room("discomfort")
-    data = _standing(room)
+    data = standing_agent(room, OPEN, NORTH)
     steps = walk_steps(room, data, OPEN + [-0.6, 0.0], np.pi, start_yaw=np.pi)
     turn = steps[:4]
     assert [s.side for s in turn] == ["left", "right", "left", "right"]
@@ -178,7 +161,7 @@ def test_standing_act_keeps_its_balance_with_no_help():
     from simenv.agents.walk import held_grasp_stroke
 
     room = Room("discomfort")
-    data = _standing(room)
+    data = standing_agent(room, OPEN, NORTH)
     h = room.agent
     upper = upper_body_joints(h)
     q = data.qpos[room.agent_qpos].copy()
