@@ -604,7 +604,7 @@ def _joints(body: mujoco.MjsBody, part: str, side: str | None, prefix: str,
         actuated.append((j.name, js.kp))
 
 
-def _add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
+def add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
                 pos: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
     """Add one humanoid (bodies, joints, sites, exclusions, actuators) to ``spec``."""
     g = d.girth
@@ -746,7 +746,9 @@ def _exclude_neighbours(spec: mujoco.MjSpec, prefix: str) -> None:
                 e.bodyname1, e.bodyname2 = a, b
 
 
-def _new_spec(name: str) -> mujoco.MjSpec:
+def new_spec(name: str) -> mujoco.MjSpec:
+    """An empty scene named ``name``: the simulation options every body here is simulated
+    with (2 ms implicit-fast steps, radians) and the floor plane."""
     spec = mujoco.MjSpec()
     spec.modelname = name
     spec.option.timestep = 0.002
@@ -792,8 +794,8 @@ class Humanoid:
     def __init__(self, dims: BodyDimensions | None = None, name: str = "humanoid") -> None:
         self.dims = dims or DEFAULT
         self.name = name
-        self.spec = _new_spec(name)
-        _add_person(self.spec, self.dims, "")
+        self.spec = new_spec(name)
+        add_person(self.spec, self.dims, "")
         try:
             self.model = self.spec.compile()
         except ValueError as exc:  # MuJoCo compile errors are ValueError
@@ -900,9 +902,9 @@ def build_scene(humanoids: Sequence[Humanoid], names: Sequence[str] | None = Non
     if len(names) != len(humanoids) or len(set(names)) != len(names) or not humanoids:
         raise RetargetError(f"need one unique name per humanoid; got {list(names)} for "
                             f"{len(humanoids)} humanoid(s)")
-    spec = _new_spec("scene")
+    spec = new_spec("scene")
     for i, (h, n) in enumerate(zip(humanoids, names, strict=True)):
-        _add_person(spec, h.dims, f"{n}/", pos=(0.0, 1.0 * i, 0.0))
+        add_person(spec, h.dims, f"{n}/", pos=(0.0, 1.0 * i, 0.0))
     try:
         model = spec.compile()
     except ValueError as exc:

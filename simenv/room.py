@@ -73,8 +73,8 @@ from simenv.humanoid import (
     DEFAULT,
     BodyDimensions,
     Humanoid,
-    _add_person,
-    _new_spec,
+    add_person,
+    new_spec,
 )
 from simenv.scenario import (
     DOOR_SIZE,
@@ -282,7 +282,7 @@ class Room:
         self.agent = Humanoid(agent or _scaled_default(s.agent.height), name="agent")
         self.user = Humanoid(user or DEFAULT, name="user")
         self.seat_height = _seat_height(self.agent.dims)
-        spec = _new_spec(f"room-{s.name}")
+        spec = new_spec(f"room-{s.name}")
         spec.option.timestep = 0.002
         for g in spec.worldbody.geoms:  # the floor
             g.contype, g.conaffinity = _STATIC, _AFFINITY[_STATIC]
@@ -294,7 +294,7 @@ class Room:
             add_furniture(spec, item, contype=_STATIC, conaffinity=_AFFINITY[_STATIC],
                           source=s.source)
         self._build_cameras(spec)
-        _add_person(spec, self.agent.dims, "agent/", pos=(0.0, 0.0, 0.0))
+        add_person(spec, self.agent.dims, "agent/", pos=(0.0, 0.0, 0.0))
         for g in spec.geoms:
             if g.name.startswith("agent/"):
                 g.contype, g.conaffinity = _AGENT, _AFFINITY[_AGENT]
@@ -866,7 +866,7 @@ def _seated_pelvis_height(d: BodyDimensions) -> float:
 
 def _seat_height(d: BodyDimensions) -> float:
     """Chair seat top under the seated agent: the lower of the pelvis capsule and the
-    thigh capsules (radii as in :func:`simenv.humanoid._add_person`), m."""
+    thigh capsules (radii as in :func:`simenv.humanoid.add_person`), m."""
     hip_z = min(d.left_hip_offset[2], d.right_hip_offset[2])
     bottom = min(hip_z + 0.02 - 0.085 * d.girth, hip_z - 0.066 * d.girth)
     return _seated_pelvis_height(d) + bottom
