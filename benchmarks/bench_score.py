@@ -63,7 +63,7 @@ from simenv.io import bvh  # noqa: E402
 from simenv.motion import Motion  # noqa: E402
 from simenv.plausibility import kinematic_metrics, kinematic_metrics_batch  # noqa: E402
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS  # noqa: E402
-from simenv.plausibility.tracking import _assisted_model, track  # noqa: E402
+from simenv.plausibility.tracking import assisted_model, track  # noqa: E402
 from simenv.retarget import RetargetResult, retarget  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -258,7 +258,7 @@ def bench_tracking(walk: Motion, repeats: int) -> None:
         tr = track(result, assist=assist)
         call_s = best_seconds(lambda a=assist: track(result, assist=a), repeats, min_s=0.0)
         loop_s = min(track(result, assist=assist).wall_s for _ in range(repeats))
-        model = _assisted_model(h, DEFAULT_BODY_THRESHOLDS) if assist else copy.deepcopy(h.model)
+        model = assisted_model(h, DEFAULT_BODY_THRESHOLDS) if assist else copy.deepcopy(h.model)
         raw = raw_steps_per_s(model, result, tr.steps, repeats)
         call, loop = tr.steps / call_s, tr.steps / loop_s
         outcome = "tracked" if tr.success else f"fell at {tr.time_to_failure_s:.2f} s"

@@ -28,9 +28,9 @@ import numpy as np
 from simenv.plausibility.body import body_geoms, geom_support_points
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.dynamics import (
-    _pyramid,
     finite_differences,
     floor_forces,
+    friction_pyramid,
     inverse_dynamics,
     root_wrench,
 )
@@ -58,7 +58,7 @@ def feedforward_torques(result: RetargetResult,
     rw = root_wrench(result, thresholds)
     points = geom_support_points(model, rw.poses, body_geoms(model))
     bodies = _support_bodies(model)
-    edges = _pyramid(thresholds.friction)
+    edges = friction_pyramid(thresholds.friction)
     joints = model.actuator_trnid[:, 0]
     dofs = model.jnt_dofadr[joints]
     data = mujoco.MjData(model)

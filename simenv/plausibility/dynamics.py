@@ -131,7 +131,7 @@ def inverse_dynamics(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray,
     return out
 
 
-def _pyramid(friction: float) -> np.ndarray:
+def friction_pyramid(friction: float) -> np.ndarray:
     """(4, 3) unit edges of the linearised friction cone (normal +z)."""
     e = np.array([[friction, 0, 1], [-friction, 0, 1], [0, friction, 1], [0, -friction, 1]])
     return e / np.linalg.norm(e, axis=1, keepdims=True)
@@ -178,7 +178,7 @@ class RootWrench:
 
     def floor_columns(self, t: int) -> np.ndarray:
         """(6, 4 P_t) columns of the floor's friction-pyramid edges at the support points."""
-        return self.point_columns(t, self.support[t], _pyramid(self.friction))
+        return self.point_columns(t, self.support[t], friction_pyramid(self.friction))
 
     def residual_norms(self, r: np.ndarray) -> tuple[float, float]:
         """Force (body weights) and torque (metres: N m / m g) of a residual wrench (6,)."""

@@ -101,7 +101,7 @@ class TrackingResult:
     work_j_per_kg: float = 0.0
 
 
-def _assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
+def assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
     """The humanoid plus a mocap body welded to the pelvis by a soft
     equality constraint (MuJoCo's implicit, stable "hand of god"): moving the
     mocap body along the reference root pulls the body along, and the weld's
@@ -160,7 +160,7 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         planner: TrackingMPC | None = TrackingMPC(h, ref, mpc)
         model = planner.model
     else:
-        model = _assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
+        model = assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
         ref = TrackingReference.from_retarget(result, model, thresholds, max_seconds,
                                               feedforward=False)
         planner = None
