@@ -80,8 +80,8 @@ from simenv.plausibility.report import (
     VERDICT_PLAUSIBLE,
     PersonReport,
     PlausibilityReport,
-    _violations,  # the report's own violation ranges: page, video and JSON agree
     metric_score,
+    violation_ranges,  # the report's own violation ranges: page, video and JSON agree
 )
 from simenv.plausibility.timeline import MetricResult
 
@@ -262,7 +262,7 @@ def _header(report: PlausibilityReport) -> str:
                     f"{v['end_frame']})" for v in p.violations]
     if report.interaction is not None:
         failing += [f"pair: {v['metric']} (frames {v['start_frame']}-{v['end_frame']})"
-                    for v in _violations(report.interaction)]
+                    for v in violation_ranges(report.interaction)]
     fail_html = ("<p><b>Violations:</b> " + "; ".join(_e(f) for f in failing) + "</p>"
                  if failing else "<p>No violations.</p>")
     return (f"<h1>Plausibility report: {_e(Path(report.source).name)}</h1>"
@@ -339,7 +339,7 @@ def _pair_section(report: PlausibilityReport, out: Path) -> str:
     pair = report.interaction
     assert pair is not None
     fps = report.people[0].fps
-    violations = _violations(pair)
+    violations = violation_ranges(pair)
     failed = any(m.passed is False for m in pair.values())
     verdict = VERDICT_IMPLAUSIBLE if failed else VERDICT_PLAUSIBLE
     return (f"<h2>Interaction (pairwise metrics)</h2><p>verdict {_verdict_span(verdict)}</p>"
@@ -403,7 +403,7 @@ def _frame_labels(report: PlausibilityReport, n_frames: int) -> list[list[str]]:
     two = len(report.people) > 1
     groups = [(f"P{p.person} " if two else "", p.violations) for p in report.people]
     if report.interaction is not None:
-        groups.append(("pair ", _violations(report.interaction)))
+        groups.append(("pair ", violation_ranges(report.interaction)))
     for prefix, violations in groups:
         for v in violations:
             for t in range(v["start_frame"], min(v["end_frame"], n_frames - 1) + 1):

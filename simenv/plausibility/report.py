@@ -176,7 +176,9 @@ def _metric_record(result: MetricResult, basis: str) -> dict[str, Any]:
     return rec
 
 
-def _violations(metrics: Mapping[str, MetricResult]) -> list[dict[str, Any]]:
+def violation_ranges(metrics: Mapping[str, MetricResult]) -> list[dict[str, Any]]:
+    """Every failing metric's violating frame ranges, ``{metric, start_frame, end_frame,
+    worst_value}``, sorted by start frame: what the JSON, the page and the video show."""
     out = []
     for name, m in metrics.items():
         if m.passed is None:
@@ -239,7 +241,7 @@ class PersonReport:
     def violations(self) -> list[dict[str, Any]]:
         """``[{metric, start_frame, end_frame, worst_value}]`` of every failing metric,
         frames inclusive, sorted by start frame."""
-        return _violations(self.metrics)
+        return violation_ranges(self.metrics)
 
     @property
     def failed(self) -> list[str]:
@@ -288,7 +290,7 @@ class PlausibilityReport:
                 "verdict": _verdict(self.interaction),
                 "metrics": {n: _metric_record(m, self.interaction_basis.get(n, "geoms"))
                             for n, m in self.interaction.items()},
-                "violations": _violations(self.interaction),
+                "violations": violation_ranges(self.interaction),
             }
         records = []
         for p in self.people:
