@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 from calibrate_body import DEFAULT_DATA, load, single_person_clips
+from doc_sections import replace_section
 
 from simenv.humanoid import JOINTS, RANGE_SOURCES, ROM_REFERENCES, ROM_SPREAD_DEG
 from simenv.io import bvh
@@ -63,10 +64,7 @@ def range_table() -> str:
 
 def write_docs(path: Path) -> None:
     """Replace the text between the joint-range markers of ``path`` with :func:`range_table`."""
-    text = path.read_text()
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    path.write_text(f"{head}{BEGIN}\n{range_table()}\n{END}{tail}")
+    replace_section(path, BEGIN, END, range_table())
 
 
 def main() -> None:

@@ -39,6 +39,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from doc_sections import replace_section  # noqa: E402
 
 from simenv.control import MPCConfig  # noqa: E402
 from simenv.corrupt import CORRUPTIONS  # noqa: E402
@@ -249,10 +250,7 @@ def tables(records: list[dict], expected: list[str] | None = None,
 
 
 def write_docs(records: list[dict], expected: list[str], data: Path, path: Path = DOCS) -> None:
-    text = path.read_text()
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    path.write_text(f"{head}{BEGIN}\n{tables(records, expected, data)}\n{END}{tail}")
+    replace_section(path, BEGIN, END, tables(records, expected, data))
 
 
 def main() -> None:
