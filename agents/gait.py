@@ -114,7 +114,8 @@ def _yaw_quat(yaw: float) -> np.ndarray:
     return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
 
 
-def _wrap(angle: float) -> float:
+def wrap_angle(angle: float) -> float:
+    """``angle`` (rad) wrapped into [-pi, pi)."""
     return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
@@ -419,7 +420,7 @@ class StepBalance:
         for j in np.flatnonzero(~down):
             if self.swing_yaw is not None:
                 fwd = data.xmat[self._foot[j]].reshape(3, 3)[:2, 0]
-                rot = rot + [0.0, 0.0, K_YAW * _wrap(self.swing_yaw - np.arctan2(fwd[1],
+                rot = rot + [0.0, 0.0, K_YAW * wrap_angle(self.swing_yaw - np.arctan2(fwd[1],
                                                                                 fwd[0]))]
             u[self._hip[j]] += np.linalg.solve(data.xaxis[self._hipj[j]].T, rot)
         return u
@@ -646,4 +647,4 @@ def standing_agent(room: Room, xy: np.ndarray, yaw: float, settle_s: float = 1.0
 
 __all__ = ["Footstep", "LegIK", "LinearTrajectory", "StepBalance", "SteppingPlan",
            "balanced_pose", "feet_now", "leg_ik", "leg_joints", "plan_footsteps", "play",
-           "stand_balance", "standing_agent", "support_centre"]
+           "stand_balance", "standing_agent", "support_centre", "wrap_angle"]

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from simenv.agents.gait import SteppingPlan, leg_ik, plan_footsteps
+from simenv.agents.gait import SteppingPlan, leg_ik, plan_footsteps, wrap_angle
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
 from simenv.agents.stand import plan_sit_down
 from simenv.agents.walk import GaitMeter, check_standing, plan_walk, turn_steps
@@ -55,10 +55,6 @@ SETTLE_S = 1.5
 def _yaw(quat: np.ndarray) -> float:
     w, x, y, z = quat
     return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
-
-
-def _wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def desk_heading(room: Room) -> float:
@@ -120,7 +116,7 @@ def plan_turn_away(room: Room, data: mujoco.MjData) -> SteppingPlan:
     yaw = _yaw(q[3:7])
     to = chair_spot(room, data) - q[:2]
     side = np.sign(np.cos(yaw) * to[1] - np.sin(yaw) * to[0]) or 1.0  # left or right of it
-    return plan_step(room, data, q[:2], _wrap(yaw + side * np.pi / 2))
+    return plan_step(room, data, q[:2], wrap_angle(yaw + side * np.pi / 2))
 
 
 def plan_walk_back(room: Room, data: mujoco.MjData) -> SteppingPlan:

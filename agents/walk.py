@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from simenv.agents import gait
-from simenv.agents.gait import Footstep, StepBalance
+from simenv.agents.gait import Footstep, StepBalance, wrap_angle
 from simenv.agents.reach import GraspEvent, PDPlan, PDTrajectory, pd_targets, upper_body_joints
 from simenv.errors import SimenvError
 from simenv.room import Room
@@ -52,10 +52,6 @@ STEP_M = 0.2
 TURN_STEP_DEG = 45.0
 ALIGN_DEG = 10.0
 GRAVITY = 9.81
-
-
-def _wrap(angle: float) -> float:
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
 
 
 def _yaw(quat: np.ndarray) -> float:
@@ -89,7 +85,7 @@ def turn_steps(ik: gait.LegIK, pelvis: np.ndarray, yaw0: float, yaw1: float,
     """Footsteps turning on the spot about ``pelvis`` (2,) from heading ``yaw0`` to
     ``yaw1`` (rad) (module docstring, 1), the pelvis moving on to ``to`` (2,) on the way
     when given (a side-step out from between furniture)."""
-    turn = _wrap(yaw1 - yaw0)
+    turn = wrap_angle(yaw1 - yaw0)
     to = np.asarray(pelvis, float) if to is None else np.asarray(to, float)
     shift = float(np.linalg.norm(to - pelvis))
     k_pairs = max(int(np.ceil(abs(np.rad2deg(turn)) / TURN_STEP_DEG - 1e-9)),
@@ -230,14 +226,14 @@ def walk_steps(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: floa
     straight = start_yaw is None and far
     yaw1 = (float(np.arctan2(*(goal - pelvis)[::-1])) if straight else
             yaw0 if start_yaw is None else float(start_yaw))
-    if abs(np.rad2deg(_wrap(yaw1 - yaw0))) > ALIGN_DEG:
+    if abs(np.rad2deg(wrap_angle(yaw1 - yaw0))) > ALIGN_DEG:
         steps += turn_steps(ik, pelvis, yaw0, yaw1)
     if far:
         first = steps[-2].side if len(steps) > 1 else "left"
         arrive = yaw1 if straight else goal_yaw
         steps += path_steps(ik, pelvis, yaw1, goal, arrive, first)
         yaw1 = arrive
-    if abs(np.rad2deg(_wrap(goal_yaw - yaw1))) > ALIGN_DEG:
+    if abs(np.rad2deg(wrap_angle(goal_yaw - yaw1))) > ALIGN_DEG:
         steps += turn_steps(ik, goal, yaw1, goal_yaw)
     return steps
 
