@@ -32,8 +32,8 @@ from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
 from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
 from simenv.agents.window import SPINE
-from simenv.errors import SimenvError
-from simenv.room import Room
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
 
 #: Pelvis distance from the curtain's handle, across the wall, m (measured, the palm's grip
 #: site when the grasp is asked for: 12.5 cm from the handle standing 0.33 m off, 5.5-6.2

@@ -45,9 +45,9 @@ import mujoco
 import numpy as np
 
 from simenv.agents.reach import PDPlan, PDTrajectory, min_jerk, pd_targets, upper_body_joints
-from simenv.errors import SimenvError
-from simenv.humanoid import Humanoid
-from simenv.room import Room
+from simenv.body.humanoid import Humanoid
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
 
 #: Durations of a step's keyframes (module docstring), s.
 SHIFT_S = 1.6

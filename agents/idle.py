@@ -2,7 +2,7 @@
 
 The issue's agent sits "at the desk, idling (typing, glancing at the notebook)" until a
 gesture makes it react. :func:`plan_idle` is one idle cycle of PD targets around the seated
-pose (:meth:`simenv.room.Room.seated_pose`, upper body gravity-compensated as every seated
+pose (:meth:`simenv.room.room.Room.seated_pose`, upper body gravity-compensated as every seated
 plan here):
 
 1. settle onto the seated pose from wherever the targets are (:data:`SETTLE_S`);
@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
-from simenv.room import Room
+from simenv.room.room import Room
 
 #: Time to settle onto the seated pose at the start of a cycle, s.
 SETTLE_S = 1.0

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from simenv.errors import SimenvError
-from simenv.humanoid import Humanoid
+from simenv.body.humanoid import Humanoid
+from simenv.core.errors import SimenvError
 
 #: Hinges of one arm (side ``left`` or ``right``), shoulder girdle to wrist.
 ARM_PARTS = ("clavicle_protract", "clavicle_elevate", "upper_arm_flex", "upper_arm_abd",
@@ -132,7 +132,7 @@ def pd_targets(humanoid: Humanoid, qpos: np.ndarray, compensate: Sequence[str] =
 @dataclass(frozen=True)
 class GraspEvent:
     """At ``t`` s into a plan, ask for the proximity grasp of ``hand`` on object ``name``
-    to close (``close``) or open (:meth:`simenv.room.Room.set_grasp`: it closes only when
+    to close (``close``) or open (:meth:`simenv.room.room.Room.set_grasp`: it closes only when
     the hand is at the handle then)."""
 
     t: float

@@ -18,7 +18,7 @@ Implemented, all seated (:data:`PLANNERS`):
 * ``greet``: turn to the user (the chair's swivel turned by the planted feet, then the
   spine) and wave the user-side arm above the shoulder (:func:`plan_greet`);
 * ``bow_back``: the same turn, then a nod (:func:`plan_bow_back`; measured by
-  :class:`simenv.room.BowMeter`).
+  :class:`simenv.room.room.BowMeter`).
 
 Standing ones (stand up, walk with a measured root assistance, act) are chained stages:
 ``close_window`` (:mod:`simenv.agents.window`), ``open_window``
@@ -46,10 +46,10 @@ from simenv.agents.reach import (
 )
 from simenv.agents.window import plan_close_window
 from simenv.agents.window_open import plan_open_window
-from simenv.errors import SimenvError
-from simenv.humanoid import Humanoid
-from simenv.room import HANDS, Room
-from simenv.scenario import REACTIONS
+from simenv.body.humanoid import Humanoid
+from simenv.core.errors import SimenvError
+from simenv.room.room import HANDS, Room
+from simenv.room.scenario import REACTIONS
 
 #: Hand clearance above the desk / the cigarette on the way, m.
 LIFT_M = 0.12
@@ -280,7 +280,7 @@ def plan_greet(room: Room, data: mujoco.MjData) -> PDPlan:
     are, so the servos twist the seat round over the planted feet. The arm on the user's
     side rises above the shoulder (:data:`WAVE_POSE`) and waves, then everything returns
     to the seated pose (the legs untwist and turn the seat back). Whether the agent
-    faced the user is measured (:meth:`simenv.room.Room.greeting`), not assumed.
+    faced the user is measured (:meth:`simenv.room.room.Room.greeting`), not assumed.
 
     Returns:
         the plan of the agent's targets, 7.8 s long.
@@ -336,7 +336,7 @@ def plan_bow_back(room: Room, data: mujoco.MjData) -> PDPlan:
     :data:`BOW_SHORT` short of the user and the swivel takes it first), then the neck
     flexes forward (:data:`BOW_POSE`) with the trunk leaning away from the user's side
     (:data:`BOW_COUNTER_LEAN`), holds, comes back up, and the agent turns back to the
-    seated pose. Whether it bowed to the user is measured (:class:`simenv.room.BowMeter`:
+    seated pose. Whether it bowed to the user is measured (:class:`simenv.room.room.BowMeter`:
     the head pitched at least 15 deg below its start while the chest faced the user within
     30 deg, then came back up), not assumed.
 
@@ -398,7 +398,7 @@ PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
 def object_success(room: Room, before: dict[str, str], after: dict[str, str],
                    reaction: str) -> bool:
     """Whether ``reaction``'s object went to its target label between two
-    :meth:`~simenv.room.Room.object_labels` readings (False if it already was there)."""
+    :meth:`~simenv.room.room.Room.object_labels` readings (False if it already was there)."""
     r = REACTIONS[reaction]
     if r.object is None:
         raise SimenvError(f"reaction {reaction!r} acts on no object", field="reaction")

@@ -36,7 +36,7 @@ from simenv.agents.gait import SteppingPlan, leg_ik, plan_footsteps, wrap_angle
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
 from simenv.agents.stand import plan_sit_down
 from simenv.agents.walk import GaitMeter, check_standing, plan_walk, turn_steps
-from simenv.room import Room
+from simenv.room.room import Room
 
 #: Pelvis in front of the seat's centre along the desk's heading when the agent stands to
 #: sit, m (measured where standing up leaves it: 0.25-0.26 m).

@@ -37,9 +37,9 @@ import mujoco
 import numpy as np
 
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, reach_pose, upper_body_joints
-from simenv.errors import SimenvError
-from simenv.humanoid import Humanoid
-from simenv.room import Room
+from simenv.body.humanoid import Humanoid
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
 
 #: How far back the legs push the chair, m.
 ROLL_BACK_M = 0.30

@@ -37,8 +37,8 @@ import numpy as np
 from simenv.agents import gait
 from simenv.agents.gait import Footstep, StepBalance, wrap_angle
 from simenv.agents.reach import GraspEvent, PDPlan, PDTrajectory, pd_targets, upper_body_joints
-from simenv.errors import SimenvError
-from simenv.room import Room
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
 
 #: The walk starts only with the pelvis at least this fraction of its standing height;
 #: below :data:`FALLEN_FRACTION` of it the body has fallen.
@@ -128,7 +128,7 @@ def path_steps(ik: gait.LegIK, start: np.ndarray, start_yaw: float, goal: np.nda
 class GaitMeter:
     """A :data:`~simenv.agents.reach.Feedback` wrapping the gait's balance: it passes
     the targets through ``inner`` and measures, every physics step, the external help on
-    the agent (:meth:`simenv.room.Room.assist_wrench`: applied forces and torques, active
+    the agent (:meth:`simenv.room.room.Room.assist_wrench`: applied forces and torques, active
     equality constraints other than the hands' grasps; it must stay 0) and the pelvis's
     height; :meth:`summary` reports the help like the former root assistance, and
     :meth:`outcome` whether the body fell and where it ended.
@@ -162,7 +162,7 @@ class GaitMeter:
         ``max_torque_nm``, ``steps``, ``per_frame_n``, the mean force (N) over each
         ``steps_per_frame`` physics steps (one env step), and ``grasp_max_n``: the largest
         force of a closed proximity grasp on the hand (holding, not help; reported so
-        that leaning on a handle shows, :meth:`simenv.room.Room.grasp_force`)."""
+        that leaning on a handle shows, :meth:`simenv.room.room.Room.grasp_force`)."""
         f = np.asarray(self.forces_n) if self.forces_n else np.zeros(1)
         tq = np.asarray(self.torques_nm) if self.torques_nm else np.zeros(1)
         weight = float(self.room.agent.total_mass) * GRAVITY

@@ -38,8 +38,8 @@ from simenv.agents.reach import (
 from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
 from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
-from simenv.errors import SimenvError
-from simenv.room import Room
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
 
 #: Pelvis distance from the handle, across the wall, when the agent stands at the window, m.
 STAND_OFF_M = 0.38

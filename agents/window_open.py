@@ -39,8 +39,8 @@ from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
 from simenv.agents.stand import plan_stand_up
 from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
 from simenv.agents.window import BACK_OFF_M, SPINE
-from simenv.errors import SimenvError
-from simenv.room import Room
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
 
 #: Pelvis distance from the handle, across the wall, when the agent stands at the window, m.
 STAND_OFF_M = 0.40
@@ -82,7 +82,7 @@ def _palm_sites(goal: np.ndarray, into: np.ndarray, fingers: np.ndarray) -> np.n
     (unit vectors, world): the hand box's centre line lies 0.019 m behind the palm (half
     its thickness plus the site's 2 mm), the fingertip site 5.1 cm beyond the grip's level
     along it and the wrist 5 cm before (the hand's geometry, see
-    :meth:`simenv.room.Room._add_grips`)."""
+    :meth:`simenv.room.room.Room._add_grips`)."""
     centre = goal - into * 0.019
     return np.array([goal, centre + fingers * 0.051, centre - fingers * 0.05])
 

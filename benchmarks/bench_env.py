@@ -6,7 +6,7 @@ values; the env loop calls ``env.step`` with a constant action (the no-op of
 ``InteractionRoom``, the reset PD targets of ``HumanoidTrack``) and resets whenever an
 episode ends (reset time included). The ratio env/raw is the fraction of the simulator's
 speed the environment keeps (goal >= 0.5). Also the rehearsal pipeline's real-time factor
-with rendering off (simulated seconds per wall second of :func:`simenv.rehearsal.rehearse`
+with rendering off (simulated seconds per wall second of :func:`simenv.envs.rehearsal.rehearse`
 after a warm-up run, whole and for its simulation loop alone; goal >= 3): the
 bundled walk in the discomfort scenario with a labelled "smell" gesture, so the agent's
 cigarette_out plan runs. Single process, one core. Usage::
@@ -28,8 +28,8 @@ import simenv  # noqa: F401  (MUJOCO_GL before mujoco renders)
 from simenv.assets import WALK
 from simenv.envs.humanoid_track import HumanoidTrackEnv
 from simenv.envs.interaction_room import InteractionRoomEnv
-from simenv.rehearsal import rehearse
-from simenv.session import GestureEvent, Session
+from simenv.envs.rehearsal import rehearse
+from simenv.room.session import GestureEvent, Session
 
 
 def _raw(model: mujoco.MjModel, data: mujoco.MjData, frame_skip: int, steps: int) -> float:

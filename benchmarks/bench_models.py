@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from simenv import prediction_data as pdata
-from simenv.gestures import to_gesture_joints
+from simenv.data import prediction_data as pdata
+from simenv.data.gestures import to_gesture_joints
 from simenv.io import bvh
 from simenv.models import INTERACTION_MODELS, available, load
 

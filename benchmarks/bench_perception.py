@@ -1,6 +1,6 @@
 """Cost of one perception tick, the room's recogniser against the previous stack.
 
-A tick of :class:`simenv.perception.PerceptionLoop` on real keypoints (the bundled CMU
+A tick of :class:`simenv.perception.loop.PerceptionLoop` on real keypoints (the bundled CMU
 walk retargeted into the room, as the rehearsal gives them): the real stage alone, and the
 real + forecast stage (forced by a threshold of 1.1, so both stages always run). Stacks:
 
@@ -28,9 +28,9 @@ import torch  # noqa: E402
 import simenv  # noqa: E402
 import simenv.models  # noqa: E402
 from simenv.assets import WALK, asset_path  # noqa: E402
-from simenv.perception import PerceptionLoop, TrainedClassifier, load_predictor  # noqa: E402
-from simenv.scenario import load_scenario  # noqa: E402
-from simenv.session import Session, user_track  # noqa: E402
+from simenv.perception.loop import PerceptionLoop, TrainedClassifier, load_predictor  # noqa: E402
+from simenv.room.scenario import load_scenario  # noqa: E402
+from simenv.room.session import Session, user_track  # noqa: E402
 
 STACKS = {"room": ("gesture-tcn", "predictor-gesture-25-50"),
           "reference": ("gesture-classifier", "predictor-25-50")}

@@ -1,7 +1,7 @@
 """Retargeting benchmark: simenv's batched solver versus mink on the same clip and body.
 
 Both solve for the same 21 canonical keypoint sites of the same subject-fitted
-humanoid (:func:`simenv.humanoid.fit_humanoid`, built once, outside all timings)
+humanoid (:func:`simenv.body.humanoid.fit_humanoid`, built once, outside all timings)
 on a real CMU clip:
 
 * **mink**: one position-only ``FrameTask`` per keypoint site, QP solver
@@ -12,7 +12,7 @@ on a real CMU clip:
   Frame 0 starts from simenv's analytic initial guess (a favour to mink: a
   standing pose there would cost it many frames to converge). Timed: the
   per-frame solve loop (the Configuration and tasks are built before).
-* **simenv**: :func:`simenv.retarget.retarget_motion` on the same prebuilt
+* **simenv**: :func:`simenv.body.retarget.retarget_motion` on the same prebuilt
   humanoid with its default options. Timed: everything from the canonical
   keypoints to qpos and residuals. The first call in the process also loads
   the compiled kernels from numba's on-disk cache (or compiles them, once per
@@ -40,9 +40,9 @@ from rich.console import Console
 from rich.table import Table
 from tqdm import tqdm
 
-from simenv.humanoid import Humanoid, fit_humanoid
+from simenv.body.humanoid import Humanoid, fit_humanoid
+from simenv.body.retarget import RetargetOptions, _initial_guess, _Problem, retarget_motion
 from simenv.io import bvh
-from simenv.retarget import RetargetOptions, _initial_guess, _Problem, retarget_motion
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[1].parent / "shared/data/cmu/bvh/02_01.bvh"
 

@@ -59,12 +59,12 @@ from pathlib import Path  # noqa: E402
 import mujoco  # noqa: E402
 
 from simenv.assets import WALK, asset_path  # noqa: E402
+from simenv.body.retarget import RetargetResult, retarget  # noqa: E402
+from simenv.core.motion import Motion  # noqa: E402
 from simenv.io import bvh  # noqa: E402
-from simenv.motion import Motion  # noqa: E402
 from simenv.plausibility import kinematic_metrics, kinematic_metrics_batch  # noqa: E402
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS  # noqa: E402
 from simenv.plausibility.tracking import assisted_model, track  # noqa: E402
-from simenv.retarget import RetargetResult, retarget  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -42,10 +42,10 @@ import numpy as np  # noqa: E402
 from mujoco import rollout  # noqa: E402
 
 from simenv.assets import WALK, asset_path  # noqa: E402
+from simenv.body.retarget import RetargetResult, retarget  # noqa: E402
 from simenv.control import MPCConfig, TrackingMPC, TrackingReference  # noqa: E402
 from simenv.io import bvh  # noqa: E402
 from simenv.plausibility.tracking import track  # noqa: E402
-from simenv.retarget import RetargetResult, retarget  # noqa: E402
 
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 

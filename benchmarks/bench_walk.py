@@ -7,7 +7,7 @@ Runs (no rendering, 1 thread):
   north (:mod:`simenv.agents.walk`): straight 0.4 m and 1.2 m, and a quarter turn on the
   spot followed by 0.6 m;
 * the rehearsals of ``cold`` (``close_window``) and ``bright`` (``close_curtain``) on the
-  bundled CMU walk's first 0.5 s (:func:`simenv.rehearsal.rehearse`, the ``labels``
+  bundled CMU walk's first 0.5 s (:func:`simenv.envs.rehearsal.rehearse`, the ``labels``
   agent): every stage's record (duration, outcome: fell / lowest pelvis / distance from
   the goal / success, external help), the help on every ``log.jsonl`` line, and the cost
   as wall time over simulated time.
@@ -38,7 +38,7 @@ NORTH = np.pi / 2
 
 def _standing_in_the_open() -> tuple[Any, mujoco.MjData]:
     from simenv.agents.gait import standing_agent
-    from simenv.room import Room
+    from simenv.room.room import Room
 
     room = Room("discomfort")
     return room, standing_agent(room, OPEN, NORTH)
@@ -76,8 +76,8 @@ def chains(out: Path) -> list[dict[str, Any]]:
     """The ``cold`` and ``bright`` rehearsals (module docstring)."""
     import simenv
     from simenv.assets import WALK, asset_path
-    from simenv.rehearsal import rehearse
-    from simenv.session import GestureEvent, Session
+    from simenv.envs.rehearsal import rehearse
+    from simenv.room.session import GestureEvent, Session
 
     short = simenv.load(asset_path(WALK)).slice(0, 60)
     rows = []

@@ -25,8 +25,9 @@ from dataclasses import asdict
 from pathlib import Path
 
 import simenv
+from simenv.body.retarget import RetargetResult, retarget
+from simenv.core.motion import Interaction, Motion
 from simenv.io import asf_amc, bvh
-from simenv.motion import Interaction, Motion
 from simenv.plausibility.body import (
     body_floating,
     body_penetration,
@@ -39,7 +40,6 @@ from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.plausibility.dynamics import balance, root_residual
 from simenv.plausibility.timeline import MetricResult
 from simenv.plausibility.tracking import tracking
-from simenv.retarget import RetargetResult, retarget
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))

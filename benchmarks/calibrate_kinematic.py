@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 
 import simenv
+from simenv.core.motion import Motion
 from simenv.io import asf_amc, bvh
-from simenv.motion import Motion
 from simenv.plausibility import DEFAULT_THRESHOLDS, KINEMATIC_METRICS
 
 REPO = Path(__file__).resolve().parent.parent

@@ -39,7 +39,7 @@ there, so a killed run resumes):
     every real target scored by ``simenv.score(physics=True)`` (tracking by
     the root-assisted PD servos, :func:`score_config`) -> ``real.jsonl``.
 ``corrupt``
-    every corruption of :data:`simenv.corrupt.CORRUPTIONS` at its moderate
+    every corruption of :data:`simenv.plausibility.corrupt.CORRUPTIONS` at its moderate
     strength (seed 0) applied to every single-person CMU clip and to every
     ``--depth-every``-th depth-camera clip, scored alike -> ``corrupt.jsonl``.
 ``report``
@@ -70,11 +70,11 @@ from typing import Any
 import numpy as np
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
-from simenv.corrupt import CORRUPTIONS
-from simenv.errors import SimenvError
-from simenv.motion import Interaction, Motion
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion
+from simenv.plausibility.batch import ScoreJob, done_files, find_targets, score_batch
+from simenv.plausibility.corrupt import CORRUPTIONS
 from simenv.plausibility.report import PERSON_METRICS, ScoreConfig, score
-from simenv.scoring import ScoreJob, done_files, find_targets, score_batch
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -354,7 +354,8 @@ def markdown(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
         "root-assisted PD servos, the scorer's default when this ran); each person is",
         "then judged with thresholds set from the *other subjects* of its own source",
         "(leave-one-subject-out), by the rule `thr = max(prior, largest training value within",
-        "Q3 + 3 IQR)` per metric (`tracking` at its prior). Corrupted copies (`simenv.corrupt`,",
+        "Q3 + 3 IQR)` per metric (`tracking` at its prior). Corrupted copies "
+        "(`simenv.plausibility.corrupt`,",
         "moderate strength, seed 0) are judged with the thresholds of their clip's fold.",
         "Clips with a diagnosed capture defect (listed below with their frames) are judged",
         "like the others but train no threshold.",

@@ -31,13 +31,13 @@ from typing import Any
 
 from calibrate_body import DEFAULT_DATA, load, single_person_clips
 
+from simenv.body.retarget import retarget
 from simenv.control.mpc import MPCConfig
-from simenv.corrupt import CORRUPTIONS
-from simenv.motion import Motion
+from simenv.core.motion import Motion
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+from simenv.plausibility.corrupt import CORRUPTIONS
 from simenv.plausibility.dynamics import root_residual
 from simenv.plausibility.tracking import track
-from simenv.retarget import retarget
 
 REPO = Path(__file__).resolve().parents[1]
 #: The short real clips (seconds at 120 fps): runs 09_06 / 35_17 / 49_04 (its

@@ -11,7 +11,7 @@ its first ``--seconds``), retargeted onto its fitted humanoid:
   to failure, error, mean assistance force);
 
 and, on ``--corrupt-clips`` of them, the same MPC run on corrupted copies
-(:mod:`simenv.corrupt`: float, foot slide, teleport, time warp at their
+(:mod:`simenv.plausibility.corrupt`: float, foot slide, teleport, time warp at their
 moderate strengths and a strong one), which should fail.
 
 Results go to a JSONL file one line per run as each finishes (a rerun skips
@@ -41,12 +41,12 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from doc_sections import replace_section  # noqa: E402
 
+from simenv.body.retarget import retarget  # noqa: E402
 from simenv.control import MPCConfig  # noqa: E402
-from simenv.corrupt import CORRUPTIONS  # noqa: E402
+from simenv.core.motion import Motion  # noqa: E402
 from simenv.io.loader import load  # noqa: E402
-from simenv.motion import Motion  # noqa: E402
+from simenv.plausibility.corrupt import CORRUPTIONS  # noqa: E402
 from simenv.plausibility.tracking import TrackingResult, track  # noqa: E402
-from simenv.retarget import retarget  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -57,7 +57,7 @@ BEGIN, END = "<!-- unassisted-tracking:begin -->", "<!-- unassisted-tracking:end
 
 #: Clips reported apart from the success rate (the issue's "acrobatics").
 ACROBATICS = ("49_06",)
-#: (corruption, strength): the moderate strength of :data:`simenv.corrupt.CORRUPTIONS`
+#: (corruption, strength): the moderate strength of :data:`simenv.plausibility.corrupt.CORRUPTIONS`
 #: and a strong one.
 CORRUPT_RUNS: tuple[tuple[str, float], ...] = (
     ("float", 15.0), ("float", 50.0), ("foot_slide", 1.0), ("teleport", 0.3),

@@ -5,14 +5,14 @@ Every number in the two documents is computed here, from the shipped models in
 ``assets/models`` and the evaluation code, on every run:
 
 * each shipped predictor is evaluated on its own held-out clips with
-  :func:`simenv.train_predictor.run_evaluation` (what ``simenv eval predictor NAME``
+  :func:`simenv.learning.train_predictor.run_evaluation` (what ``simenv eval predictor NAME``
   runs), and the tables are the lines its model card uses
-  (:func:`simenv.train_predictor.results_lines`); for ``predictor-25-25`` also on every
+  (:func:`simenv.learning.train_predictor.results_lines`); for ``predictor-25-25`` also on every
   7th training window (rebuilt from the split and augmentation its checkpoint records),
   as the training run does;
 * the gesture classifier is evaluated with
-  :func:`simenv.train_classifier.run_evaluation` (what ``simenv eval classifier`` runs),
-  tables from :func:`simenv.train_classifier.results_markdown`;
+  :func:`simenv.learning.train_classifier.run_evaluation` (what ``simenv eval classifier`` runs),
+  tables from :func:`simenv.learning.train_classifier.results_markdown`;
 * the shipped DCT-MLP regression predictors (``predictor-dctmlp-25-25`` on the held-out
   windows of ``predictor-25-25``, or the checkpoint given with ``--regression``, with
   :func:`ensemble_ablation`; ``predictor-dctmlp-25-50`` on its own held-out clips), each
@@ -53,12 +53,12 @@ import numpy as np
 import torch
 from bench_models import measure
 
-from simenv import prediction_data as pdata
-from simenv import prediction_metrics as pm
-from simenv import srvf
-from simenv import train_classifier as tc
-from simenv import train_predictor as tp
-from simenv.gestures import GESTURE_LABELS, NORM_FRAMES, SHORT_FRAMES
+from simenv.core import srvf
+from simenv.data import prediction_data as pdata
+from simenv.data import prediction_metrics as pm
+from simenv.data.gestures import GESTURE_LABELS, NORM_FRAMES, SHORT_FRAMES
+from simenv.learning import train_classifier as tc
+from simenv.learning import train_predictor as tp
 from simenv.models import available, checkpoint_path, load
 from simenv.models.predictor import (
     GP_LAMBDA,
@@ -92,7 +92,7 @@ REGRESSION_MODEL, REGRESSION_ROOM_MODEL = "predictor-dctmlp-25-25", "predictor-d
 #: only number of the documents that is not computed here.
 THESIS_ACCURACY: dict[str, float] = {"3 s real": 63.6, "1 s real": 47.7,
                                      "1 s real + 2 s predicted": 60.2}
-#: Every n-th training window is evaluated, as in ``simenv.train_predictor.run``.
+#: Every n-th training window is evaluated, as in ``simenv.learning.train_predictor.run``.
 TRAIN_STRIDE = 7
 #: The files this script writes, relative to the repository.
 OUTPUTS: tuple[str, ...] = ("docs/prediction.md", "docs/prediction_error_curves.png",
@@ -151,7 +151,7 @@ def _same(infos: Sequence[dict], key: str) -> Any:
 def training_windows(model: PredictiveMAWGAN, shared: Path) -> pdata.PredictionWindows:
     """The training windows of a shipped predictor (its training clips without the
     validation clips), rebuilt from the split, speed factors and mirroring its
-    checkpoint records (as ``simenv.train_predictor.run`` builds them).
+    checkpoint records (as ``simenv.learning.train_predictor.run`` builds them).
 
     Raises:
         RuntimeError: the rebuilt set does not have the recorded size (the corpus or the
@@ -751,9 +751,9 @@ paper), each trained and evaluated on real CMU motion capture:
 
 Load with `simenv.models.load(name)` and call `predict(history)`: `history` has shape
 (N, 1 + P, 17, 3) (or longer), root-relative positions in metres on the 17-joint
-layout of `simenv.prediction_data` (H36M-like), the lead-in frame then the P observed frames;
+layout of `simenv.data.prediction_data` (H36M-like), the lead-in frame then the P observed frames;
 the result has shape (N, F, 17, 3). A history shorter than 1 + P frames, NaN frames, or the
-wrong joint count raise `simenv.errors.MotionError` naming the window, frame and joint.
+wrong joint count raise `simenv.core.errors.MotionError` naming the window, frame and joint.
 How the method works, and every way it differs from the papers, is in the docstring of
 `simenv.models.predictor`. Every model has a card next to its checkpoint in
 `assets/models/<name>.md`.
@@ -776,7 +776,7 @@ The sections below give the measurements and what we think causes this.
 * Sliding windows of 1 + P + F frames with stride 1. The split is by clip *group*: the
   two partners of one two-person trial form one group, and one trial read from BVH and
   from AMC is one clip. No group has windows on both sides
-  (`simenv.train_predictor.make_split`, test fraction 0.25 of the windows, seed
+  (`simenv.learning.train_predictor.make_split`, test fraction 0.25 of the windows, seed
   {_same(infos, 'seed')}). Clips shorter than a window are skipped. Because of this, and
   because the split balances *windows*, **each model has its own held-out clips**: its
   card lists them. Every comparison below is between methods on the same held-out windows.
@@ -799,7 +799,7 @@ The sections below give the measurements and what we think causes this.
 
 All errors are in mm over {len(tp.EVAL_JOINTS)} joints (the pelvis is left out because
 its root-relative error is 0 for every method), on held-out windows
-(`simenv.prediction_metrics`):
+(`simenv.data.prediction_metrics`):
 
 * **per-frame MPJPE at the horizon**: the mean joint error at the single future frame
   `round(h · {fps} / 1000)`. This is the usual form in the literature, and the issue's
@@ -825,8 +825,8 @@ its root-relative error is 0 for every method), on held-out windows
   the last frame-to-frame displacement).
 
 The tables below come from a fresh evaluation of each shipped checkpoint on its held-out
-clips (`simenv.train_predictor.run_evaluation`, what `simenv eval predictor NAME` runs),
-written by the same code as the model cards (`simenv.train_predictor.results_lines`).
+clips (`simenv.learning.train_predictor.run_evaluation`, what `simenv eval predictor NAME` runs),
+written by the same code as the model cards (`simenv.learning.train_predictor.results_lines`).
 Error curves: `docs/prediction_error_curves.png` ({GOAL_MODEL}: single-shot and
 recursive).
 
@@ -969,7 +969,8 @@ recognition doc for the numbers).
 
 def recognition_doc(metrics: dict[str, Any], speed: dict[str, dict[str, float]],
                     head: str) -> str:
-    """docs/recognition_transformer.md from :func:`simenv.train_classifier.run_evaluation` metrics
+    """docs/recognition_transformer.md from
+    :func:`simenv.learning.train_classifier.run_evaluation` metrics
     and :func:`bench_models.measure` rates."""
     model = load("gesture-classifier")
     cfg = model.config
@@ -991,8 +992,9 @@ def recognition_doc(metrics: dict[str, Any], speed: dict[str, dict[str, float]],
     else:
         predicted_headline = "Predicted frames do not help recognition here."
         predicted_reading = (
-            "The classifier is trained on 1-s windows with the rest masked or with the last "
-            "pose held (`simenv.train_classifier`), so it reads 1 s of real motion, and 1 s "
+            "The classifier is trained on 1-s windows with the rest masked or with the "
+            "last pose held (`simenv.learning.train_classifier`), so it reads 1 s of real "
+            "motion, and 1 s "
             "followed by a held pose (zero velocity), well; a moving continuation is a "
             "window it has not seen in training. The thesis's gain from a *learned* "
             "predictor (47.7 % -> 60.2 %) is not reproduced.")
@@ -1016,8 +1018,8 @@ Load it with `simenv.models.load("gesture-classifier")`. `classify_world(windows
 (N, {cfg.window}, J, 3) or ({cfg.window}, J, 3) world-frame windows (metres, Z up,
 {cfg.fps:g} fps) on the joints listed in `config.joint_names` and returns class
 probabilities. A window of the wrong length or joint count, or one with NaN frames, raises
-`simenv.errors.MotionError`. The architecture is in `simenv.models.gesture_classifier`,
-and the data, vocabulary and normalisation in `simenv.gestures`.
+`simenv.core.errors.MotionError`. The architecture is in `simenv.models.gesture_classifier`,
+and the data, vocabulary and normalisation in `simenv.data.gestures`.
 
 ## Data, vocabulary, split
 
@@ -1026,7 +1028,7 @@ and the data, vocabulary and normalisation in `simenv.gestures`.
   20 sessions) and Florence 3D. {metrics['clips']} clips in total. Skipped: {skipped}.
 * One vocabulary, shared with the room ({', '.join(GESTURE_LABELS)}).
   Every kind of waving hello is `wave`. The mapping from every dataset class is the table
-  in `simenv.gestures`.
+  in `simenv.data.gestures`.
 * The {len(cfg.joint_names)} joints of `{cfg.extra['joint_set']}` (the thesis's 9
   upper-body joints plus hips, knees and ankles), resampled to {cfg.fps:g} fps. Windows
   are {cfg.window / cfg.fps:g} s ({cfg.window} frames) and are normalised from their
@@ -1052,13 +1054,13 @@ Test windows are centre-cropped.
   shipped `{metrics['predictor']}`** (the room's configuration, trained on CMU mocap
   only). The Kinect joints are mapped to the predictor's 17 joints: the pelvis is the
   mid-hip point and the chest the midpoint of spine and neck. The predicted poses are put
-  on a constant-velocity root (`simenv.train_classifier.extrapolate_with_predictor`);
+  on a constant-velocity root (`simenv.learning.train_classifier.extrapolate_with_predictor`);
 * `real_1s_pred_2s_cv` / `real_1s_pred_2s_zv`: the first second continued by
   constant-velocity or zero-velocity extrapolation instead.
 
 The tables come from a fresh evaluation of the shipped checkpoint on the test subjects
-(`simenv.train_classifier.run_evaluation`, what `simenv eval classifier` runs), written by
-the same code as the model card (`simenv.train_classifier.results_markdown`).
+(`simenv.learning.train_classifier.run_evaluation`, what `simenv eval classifier` runs), written by
+the same code as the model card (`simenv.learning.train_classifier.results_markdown`).
 
 ### Test results
 

@@ -10,11 +10,11 @@ and with HumanML3D's floor (the clip's lowest joint), beside our own
 
 Part 2 measures :mod:`simenv.plausibility.reference` on the real Kinect
 recordings (``gestures/``: MSR Action3D, UTKinect-Action3D, Florence 3D;
-``simenv.gestures.load_gesture_clips``, each clip as its reader gives it):
+``simenv.data.gestures.load_gesture_clips``, each clip as its reader gives it):
 per dataset and pooled, the odd subjects are the reference (calibrated with
 the subjects as groups) and only the even subjects are judged, as real
 clips and as corrupted copies (every corruption of
-:data:`simenv.corrupt.CORRUPTIONS` at 1, 2 and 4 times its moderate
+:data:`simenv.plausibility.corrupt.CORRUPTIONS` at 1, 2 and 4 times its moderate
 strength, seeded by clip). Scoring is ``simenv.score(motion,
 physics=False)``. Nothing in the output is edited by hand.
 
@@ -34,11 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from simenv.corrupt import CORRUPTIONS, STRENGTH_UNITS
-from simenv.errors import SimenvError
-from simenv.gestures import GestureClip, load_gesture_clips, split_cross_subject
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Motion
+from simenv.data.gestures import GestureClip, load_gesture_clips, split_cross_subject
 from simenv.io import asf_amc, bvh
-from simenv.motion import Motion
+from simenv.plausibility.corrupt import CORRUPTIONS, STRENGTH_UNITS
 from simenv.plausibility.published import published_metrics
 from simenv.plausibility.reference import Reference, calibrate, compare
 from simenv.plausibility.report import score
@@ -180,7 +180,7 @@ reference (< 20 people per metric) and non-numeric values are
 
 Reference = the odd subjects of each dataset; judged = the even subjects
 only (no reference subject is ever judged), as real clips and as corrupted
-copies (`simenv.corrupt`, strength = factor x the moderate strength
+copies (`simenv.plausibility.corrupt`, strength = factor x the moderate strength
 calibrated on CMU mocap). "beyond p99" is the share of judged clips whose
 worst score is beyond the reference's 99th-percentile threshold (expected
 for real clips: about 1 %). The reference's folds are by subject, except in

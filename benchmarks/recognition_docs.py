@@ -2,12 +2,12 @@
 
 Inputs (every number in the documents comes from them; nothing is typed in by hand):
 
-* ``--train DIR``: the output of ``python -m simenv.train_recogniser train`` (its
+* ``--train DIR``: the output of ``python -m simenv.perception.train_recogniser train`` (its
   ``metrics.json``: the leave-subjects-out protocol, the loop, the shipped network);
-* ``--benchmark DIR``: the output of ``python -m simenv.train_recogniser benchmark``
+* ``--benchmark DIR``: the output of ``python -m simenv.perception.train_recogniser benchmark``
   (``<dataset>.json``);
 * ``--forecast FILE``: the gesture predictor's fold evaluation (``metrics`` JSON written by
-  ``python -m simenv.train_gesture_predictor --evaluate``), optional;
+  ``python -m simenv.learning.train_gesture_predictor --evaluate``), optional;
 * ``--ticks FILE``: ``benchmarks/bench_perception.py --json`` output, optional;
 * ``--eval DIR``: ``simenv eval classifier --data ... --out`` results, one sub-folder a
   dataset, optional (in-sample for the shipped network: stated in the document);
@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from simenv.train_recogniser import benchmark_table, protocol_table
+from simenv.perception.train_recogniser import benchmark_table, protocol_table
 
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- perception:begin (benchmarks/recognition_docs.py) -->", "<!-- perception:end -->"
@@ -93,7 +93,7 @@ def _recall_table(m: dict[str, Any]) -> str:
 
 def _forecast_text(forecast: dict[str, Any] | None) -> str:
     """The forecaster's pooled held-out numbers (``folds.json`` of
-    ``python -m simenv.train_gesture_predictor --evaluate``) as a table."""
+    ``python -m simenv.learning.train_gesture_predictor --evaluate``) as a table."""
     if not forecast:
         return "No forecaster evaluation was given to this script."
     pooled = forecast["pooled"]["all"]
@@ -166,7 +166,7 @@ simenv ships `gesture-tcn` (`simenv.models.load("gesture-tcn")`), the recogniser
 perceives with: a multi-stream skeleton temporal convolutional network
 (`simenv.models.skeleton_tcn`: joint, bone and motion streams of a body-centred,
 scale-normalised skeleton; masked pooling, so 1 s, 3 s or a whole clip can be classified;
-temperature-calibrated probabilities), trained by `simenv.recognition` with partial
+temperature-calibrated probabilities), trained by `simenv.learning.recognition` with partial
 windows (early recognition), "1 s real + 2 s forecast" windows and Kinect-noise
 augmentation (mirror, rotation and sensor tilt, scale, jitter, dropped joints, speed). The
 thesis's transformer (`gesture-classifier`) stays available; its evaluation is in
@@ -174,7 +174,7 @@ thesis's transformer (`gesture-classifier`) stays available; its evaluation is i
 
 ## Benchmarks, each dataset on its own classes with its standard protocol
 
-`python -m simenv.train_recogniser benchmark` (`simenv eval classifier --benchmark`):
+`python -m simenv.perception.train_recogniser benchmark` (`simenv eval classifier --benchmark`):
 MSR Action3D cross-subject on the 557-sequence list (our copy lacks subject 10: 4 test
 subjects instead of 5), UTKinect-Action3D and Florence 3D leave-one-subject-out. Whole
 sequences are classified. "Pooled" counts every test sequence once; "mean of folds"
@@ -216,7 +216,7 @@ Thesis (its own 7-gesture data): 63.6 % with 3 s real, 47.7 % with 1 s, 60.2 % w
 
 ## The loop
 
-The loop rows above are the room's path (`simenv.perception_protocol`): every MSR Action3D
+The loop rows above are the room's path (`simenv.perception.protocol`): every MSR Action3D
 and UTKinect clip of the held-out subjects retargeted onto the user's body in the room and
 read back as avatar keypoints, a tick every second with a random phase, thresholds chosen
 on the other folds (greetings on at most 2 % of their non-wave clips). Florence 3D has no
@@ -243,9 +243,10 @@ subject; the unseen-subject numbers are the protocol's above):
 ## Reproduce
 
 ```bash
-python -m simenv.train_gesture_predictor --fold K ...    # per-fold forecasters, --evaluate
-python -m simenv.train_recogniser train --forecasters out/gesture-predictor --out out/gesture-tcn
-python -m simenv.train_recogniser benchmark --out out/recognition-benchmark  # --members,
+python -m simenv.learning.train_gesture_predictor --fold K ...    # per-fold forecasters, --evaluate
+python -m simenv.perception.train_recogniser train --forecasters out/gesture-predictor \
+    --out out/gesture-tcn
+python -m simenv.perception.train_recogniser benchmark --out out/recognition-benchmark  # --members,
                                                  # --whole-sequences, --joints native
 python benchmarks/bench_perception.py --json out/ticks.json
 simenv eval classifier --data GESTURES/msr_action3d --out out/eval/msr_action3d  # per dataset

@@ -13,7 +13,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 
 __all__ = ["INTERACTION_MODELS", "available", "checkpoint_path", "interaction_model_class",
            "interaction_model_entry", "interaction_model_names", "load"]
@@ -23,7 +23,7 @@ __all__ = ["INTERACTION_MODELS", "available", "checkpoint_path", "interaction_mo
 #: :mod:`simenv.models.reaction_baselines`), ``interaction`` (``sample(labels)``: both
 #: people from a class label) or ``augmentation`` (``augment(actor, reactor, scales)``).
 #: Each module also has ``train(windows, config, seed=, progress=) -> (model, history)``
-#: and a ``<Class>Config`` dataclass (:mod:`simenv.train_interaction` drives them).
+#: and a ``<Class>Config`` dataclass (:mod:`simenv.learning.train_interaction` drives them).
 INTERACTION_MODELS: dict[str, tuple[str, str, str]] = {
     "interformer": ("simenv.models.interformer", "InterFormer", "reaction"),
     "reactive-gan": ("simenv.models.reactive_gan", "ReactiveGAN", "reaction"),

@@ -3,7 +3,7 @@
 Interface (:class:`Predictor`): ``predict(history) -> future`` where ``history`` is an
 (N, H, J, 3) array of root-relative positions in metres ending at the last observed
 frame (for the learned model H = 1 + P: the lead-in frame and the P observed frames,
-see :mod:`simenv.prediction_data`) and ``future`` is the (N, F, J, 3) float32 array of
+see :mod:`simenv.data.prediction_data`) and ``future`` is the (N, F, J, 3) float32 array of
 the F frames that follow it. A single (H, J, 3) history gives a single (F, J, 3) future.
 
 * zero-velocity: ``x̂_{T+k} = x_T`` (repeat the last observed pose);
@@ -17,7 +17,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
 
 
 @runtime_checkable
@@ -67,7 +67,7 @@ def check_history(history: np.ndarray, need: int, *, joints: int | None = None
     if joints is not None and h.shape[2] != joints:
         raise MotionError(
             f"history has {h.shape[2]} joints; this predictor expects {joints} "
-            "(the pred17 layout of simenv.prediction_data)",
+            "(the pred17 layout of simenv.data.prediction_data)",
             field="history",
         )
     bad = ~np.isfinite(h)

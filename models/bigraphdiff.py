@@ -2,7 +2,7 @@
 from a class label.
 
 The model generates the actor's and the reactor's 40-frame windows together, in the actor
-frame of :mod:`simenv.interaction_data` (metres, Z-up, the actor's pelvis on the floor at
+frame of :mod:`simenv.data.interaction_data` (metres, Z-up, the actor's pelvis on the floor at
 the origin at frame 0, facing +x). It is not a reaction generator: nothing is given but
 the class.
 
@@ -48,7 +48,7 @@ conditioning vector ``c = MLP(PE(k)) + e_label`` modulates every pre-norm LayerN
 ``blocks`` blocks applies, with residuals:
 
 1. :class:`SkeletonGraphConv`, the intra-skeleton graph of
-   :func:`~simenv.interaction_data.inter18_skeleton` within each person and frame:
+   :func:`~simenv.data.interaction_data.inter18_skeleton` within each person and frame:
    ``h_i <- W_s h_i + W_p h_{parent(i)} + W_c mean_{c ∈ children(i)} h_c`` (ST-GCN's
    spatial partition: self, centripetal, centrifugal).
 2. :class:`BipartiteGraph`, the complete bipartite graph between the two skeletons at
@@ -85,8 +85,8 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError, SimenvError
+from simenv.core.errors import MotionError, SimenvError
+from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-bigraphdiff-1"

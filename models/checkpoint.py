@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv.errors import FormatError, SimenvError
+from simenv.core.errors import FormatError, SimenvError
 
 #: Keys of a checkpoint that are not network parameters or extra arrays.
 RESERVED = ("format", "config", "metadata")

@@ -2,7 +2,7 @@
 
 The recognition network of the thesis's virtual-agent application (Chopin 2023, ch. 5;
 the spatial/temporal attention of InterFormer), on the windows of
-:mod:`simenv.gestures` (T = 75 frames at 25 fps, J gesture joints, normalised).
+:mod:`simenv.data.gestures` (T = 75 frames at 25 fps, J gesture joints, normalised).
 
 Math
 ----
@@ -41,7 +41,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
 from simenv.models.checkpoint import Checkpoint, CheckpointError, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-gesture-classifier"
@@ -143,7 +143,7 @@ class ClassifierConfig:
     """Architecture and data contract of a :class:`GestureClassifier`.
 
     Attributes:
-        joint_names: (J,) joint names of the input (a :mod:`simenv.gestures` joint set).
+        joint_names: (J,) joint names of the input (a :mod:`simenv.data.gestures` joint set).
         parents: (J,) parent indices defining the adjacency mask.
         labels: class names, index = class id.
         window: frames per window (T).
@@ -268,8 +268,8 @@ class GestureClassifier(CheckpointMixin, nn.Module):
                        ) -> np.ndarray:
         """Class probabilities of raw world-frame windows, metres, Z up, at ``fps``:
         (N, T, J, 3) or (T, J, 3) on ``config.joint_names``; normalised here with
-        :func:`simenv.gestures.normalise_windows`. Returns (N, C) or (C,)."""
-        from simenv.gestures import normalise_windows
+        :func:`simenv.data.gestures.normalise_windows`. Returns (N, C) or (C,)."""
+        from simenv.data.gestures import normalise_windows
 
         single = np.ndim(windows) == 3
         x = normalise_windows(windows, valid, joints=self.config.joint_names)

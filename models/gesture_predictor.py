@@ -4,8 +4,8 @@ The room's perception loop classifies "1 s real + 2 s predicted" frames. The CMU
 predictors (:mod:`simenv.models.predictor`, :mod:`simenv.models.predictor_regression`)
 work on the root-relative pred17 layout and were fitted on clean optical mocap; this one
 works directly on the classifier's ``gesture15`` joints
-(:data:`simenv.gestures.GESTURE15_JOINTS`) in the **world frame** and is trained on the
-real Kinect recordings of the gesture corpus (:mod:`simenv.train_gesture_predictor`).
+(:data:`simenv.data.gestures.GESTURE15_JOINTS`) in the **world frame** and is trained on the
+real Kinect recordings of the gesture corpus (:mod:`simenv.learning.train_gesture_predictor`).
 
 ``GesturePredictor.predict(history)``: (25, 15, 3) world positions, metres, Z up,
 25 fps -> (50, 15, 3) world positions of the next 50 frames.
@@ -21,8 +21,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv.errors import MotionError
-from simenv.gestures import GESTURE15_JOINTS, mirror_windows
+from simenv.core.errors import MotionError
+from simenv.data.gestures import GESTURE15_JOINTS, mirror_windows
 from simenv.models.baselines import check_history
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.predictor_regression import dct_matrix
@@ -102,7 +102,7 @@ def body_frame(history: np.ndarray, heading_frames: int = 3) -> tuple[np.ndarray
 
     Origin ``o`` = the spine of the last frame; heading ``θ`` such that ``R_z(-θ)`` turns
     the forward direction ``Z × (r_shoulder - l_shoulder)`` (mean over the last
-    ``heading_frames`` frames) onto +X, as :func:`simenv.gestures.normalise_windows`
+    ``heading_frames`` frames) onto +X, as :func:`simenv.data.gestures.normalise_windows`
     defines facing.
 
     Args:
@@ -197,7 +197,7 @@ class GesturePredictor(CheckpointMixin):
        ``a = r_shoulder - l_shoulder`` over the last ``heading_frames`` frames,
        ``θ = atan2(a_x, -a_y)``, so that ``R_z(-θ)`` maps the forward direction
        ``Z × a`` onto +X (left = +Y; the convention of
-       :func:`simenv.gestures.normalise_windows`). Every frame becomes
+       :func:`simenv.data.gestures.normalise_windows`). Every frame becomes
        ``b_t = U · R_z(-θ)(x_t - o)`` in decimetres (``U = 10``); the person stands at
        the origin facing +X at the last observed frame, height (Z) kept, no scaling.
     2. **Residual to the last pose.** ``r_t = b_t - b_H`` (H, D); ``b_H`` (D,) also
@@ -218,7 +218,7 @@ class GesturePredictor(CheckpointMixin):
        keeps the spine where it was (``d_k = 0``).
     7. **Back to the world:** ``x̂ = R_z(θ) b̂ / U + o``.
 
-    Training (:mod:`simenv.train_gesture_predictor`): per-joint Euclidean error of the
+    Training (:mod:`simenv.learning.train_gesture_predictor`): per-joint Euclidean error of the
     positions plus that of the frame-to-frame velocities (siMLPe's two terms), in the
     body frame, decimetres.
 
@@ -226,7 +226,7 @@ class GesturePredictor(CheckpointMixin):
         config: :class:`GesturePredictorConfig`. net: the torch network.
         name: registry name (``predictor-gesture-25-50`` when shipped).
         history_len, future_len, fps: from the config.
-        joint_names: :data:`simenv.gestures.GESTURE15_JOINTS`.
+        joint_names: :data:`simenv.data.gestures.GESTURE15_JOINTS`.
         metadata: provenance read from / written to the checkpoint (JSON).
     """
 
@@ -303,7 +303,7 @@ class GesturePredictor(CheckpointMixin):
         h, batched = check_history(history, self.history_len)
         if h.shape[2] != NUM_JOINTS:
             raise MotionError(f"history has {h.shape[2]} joints; this predictor expects "
-                              f"{NUM_JOINTS} (simenv.gestures.GESTURE15_JOINTS: "
+                              f"{NUM_JOINTS} (simenv.data.gestures.GESTURE15_JOINTS: "
                               f"{', '.join(JOINTS)})", field="history")
         if len(h) == 0:
             raise MotionError("history holds no window", field="history")

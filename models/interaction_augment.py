@@ -3,9 +3,10 @@ give a real two-person window new body proportions while keeping its contacts.
 
 ``augment(actor_window, reactor_window, scales=None, seed=0) -> (actor', reactor',
 scales)``: windows (T, 18, 3) or (N, T, 18, 3) metres in one Z-up frame (the actor frame
-of :mod:`simenv.interaction_data`), scales (17,) / (N, 17) per bone of
-:func:`~simenv.interaction_data.inter18_skeleton` (:data:`~simenv.augment_targets.BONE_NAMES`),
-drawn from the skeleton prior when None. Training targets: :mod:`simenv.augment_targets`.
+of :mod:`simenv.data.interaction_data`), scales (17,) / (N, 17) per bone of
+:func:`~simenv.data.interaction_data.inter18_skeleton`
+(:data:`~simenv.data.augment_targets.BONE_NAMES`),
+drawn from the skeleton prior when None. Training targets: :mod:`simenv.data.augment_targets`.
 
 Networks (math)
 ---------------
@@ -27,7 +28,7 @@ Networks (math)
   ``b̂'_root = b_root + o_root``, ``b̂'_j = b̂'_{p(j)} + s_j (b_j - b_{p(j)}) + o_j``.
 * **A-adaptation VAE** (the same :class:`GraphCVAE` on a 36-node two-person graph: the
   actor's 18 nodes, the new reactor's 18, each skeleton's bones and one edge per key
-  joint pair of :data:`~simenv.interaction_metrics.KEY_JOINT_PAIRS`), conditioned on the
+  joint pair of :data:`~simenv.data.interaction_metrics.KEY_JOINT_PAIRS`), conditioned on the
   new reactor B': actor nodes carry ``[a_{t,j}, a_{t,j} - a_{t,p(j)}, 0]``, reactor nodes
   ``[b'_{t,j}, b'_{t,j} - b_{t,j}, 1]``; the output of the actor nodes builds
   ``â'`` by forward kinematics from A's root and bones as above (scale 1).
@@ -52,7 +53,7 @@ DESIGN.md and the issue give the four weights without naming the terms; our assi
 
 Paper vs ours
 -------------
-* Targets: the paper's optimiser outputs are replaced by :mod:`simenv.augment_targets`
+* Targets: the paper's optimiser outputs are replaced by :mod:`simenv.data.augment_targets`
   (FK scaling of B, least-squares contact-preserving adaptation of A).
 * The prior is trained on the sampled scale vectors (uniform on the grid, left/right
   symmetric), not on a corpus of real body shapes (we have too few subjects).
@@ -84,10 +85,10 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from simenv import augment_targets as at
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
-from simenv.interaction_metrics import KEY_JOINT_PAIRS
+from simenv.core.errors import MotionError
+from simenv.data import augment_targets as at
+from simenv.data import interaction_data as idata
+from simenv.data.interaction_metrics import KEY_JOINT_PAIRS
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-interaction-augment-v1"
@@ -266,7 +267,7 @@ class InteractionAugmenterConfig:
         epochs: passes over the training samples (the two graph VAEs train side by side).
         batch: samples per step. lr: Adam learning rate.
         scales_per_window: augmentation samples built per training window
-            (:func:`simenv.augment_targets.build_targets`).
+            (:func:`simenv.data.augment_targets.build_targets`).
         symmetric_scales: left/right bones share a scale.
         rotate_augment: each epoch rotates every sample by a random angle about Z (both
             people, the same rigid motion: the task is rotation equivariant).
@@ -552,7 +553,8 @@ def fit(targets: at.AugmentTargets, config: InteractionAugmenterConfig | None = 
 
 def train(train: idata.InteractionWindows, config: InteractionAugmenterConfig | None = None,
           *, seed: int = 0, progress: bool = True) -> tuple[InteractionAugmenter, dict]:
-    """Build the augmentation targets of ``train`` (:func:`simenv.augment_targets.build_targets`,
+    """Build the augmentation targets of ``train``
+    (:func:`simenv.data.augment_targets.build_targets`,
     ``config.scales_per_window`` seeded scale vectors per window), train the two graph
     VAEs side by side (Adam, one summed loss, :func:`losses`), then the skeleton prior on
     the samples' scale vectors (:func:`fit_prior`).
@@ -590,7 +592,7 @@ def generalisation_splits(targets: at.AugmentTargets, windows: idata.Interaction
         scale_fraction: share of the samples with the most extreme mean bone scale
             ``|mean_k s_k - 1|`` that form the cross-scale test side.
         test_recordings: test recordings of the random split
-            (:func:`simenv.interaction_data.split_by_recording`).
+            (:func:`simenv.data.interaction_data.split_by_recording`).
 
     Raises:
         MotionError: unknown held-out label or a split side left empty.

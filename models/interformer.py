@@ -3,8 +3,8 @@
 Chopin et al., "Interaction Transformer for Human Reaction Generation" (IEEE TMM 2023):
 the actor's window ``a`` (T, J, 3) is translated into the reactor's window ``x``
 (T, J, 3), generated autoregressively from the reactor's given first frame ``x_0``.
-Joints are :data:`~simenv.interaction_data.INTER18_JOINTS`, positions in metres in the
-actor frame of :mod:`simenv.interaction_data` (actor pelvis on the floor at the origin,
+Joints are :data:`~simenv.data.interaction_data.INTER18_JOINTS`, positions in metres in the
+actor frame of :mod:`simenv.data.interaction_data` (actor pelvis on the floor at the origin,
 facing +x, Z up) at 25 fps.
 
 Math
@@ -58,7 +58,7 @@ autoregressive from the given ``x_0``: each generated frame is appended to the d
 input. **Long generation** (T beyond the trained window W): the sequence is generated in
 chunks of W frames; each new chunk starts ``chunk_context`` frames before the previous
 chunk's end, is re-normalised in the actor frame of its own first frame
-(:func:`~simenv.interaction_data.actor_frame`), takes those last generated frames as the
+(:func:`~simenv.data.interaction_data.actor_frame`), takes those last generated frames as the
 decoder's given prefix and generates the rest of the chunk autoregressively.
 
 Paper vs ours
@@ -67,7 +67,7 @@ Paper vs ours
   on GPU; ours is a small CPU configuration (d_model 64, 4 heads, 2 encoder + 2 decoder
   blocks, FFN 128, batch 16, 30 epochs; the defaults of :class:`InterFormerConfig`).
 * Data: the paper trains on SBU, K3HI and DuetDance; ours on the real two-person windows
-  of :mod:`simenv.interaction_data` (CMU pairs + NuiSI, 18 keypoints, 40-frame windows at
+  of :mod:`simenv.data.interaction_data` (CMU pairs + NuiSI, 18 keypoints, 40-frame windows at
   25 fps, split by recording).
 * Tokens: the authors' code uses the flattened pose itself (width 3J) as the token of a
   frame in temporal attention and splits it per joint in spatial attention; ours embeds
@@ -114,8 +114,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.gesture_classifier import adjacency_mask
 from simenv.models.reaction_baselines import check_inputs, mirror_index

@@ -1,7 +1,7 @@
 """PredictiveMA-WGAN: history SRVF -> future SRVF through a WGAN-GP in the tangent space.
 
 The model of the thesis (Chopin 2023, ch. 2) and the MA-GAN journal paper, on the
-geometry of :mod:`simenv.srvf` and the windows of :mod:`simenv.prediction_data`.
+geometry of :mod:`simenv.core.srvf` and the windows of :mod:`simenv.data.prediction_data`.
 
 Pipeline (one window; P observed frames, F to predict, 17 joints, D = 51)
 -------------------------------------------------------------------------
@@ -121,11 +121,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv import srvf
-from simenv.errors import MotionError
+from simenv.core import srvf
+from simenv.core.errors import MotionError
+from simenv.data.prediction_data import PRED17_JOINTS, PRED17_LAYOUT, PredictionWindows
 from simenv.models.baselines import check_history
 from simenv.models.checkpoint import Checkpoint, CheckpointError, CheckpointMixin
-from simenv.prediction_data import PRED17_JOINTS, PRED17_LAYOUT, PredictionWindows
 
 NUM_JOINTS = 17
 DIMS = 3 * NUM_JOINTS
@@ -185,7 +185,7 @@ def mirror(frames: np.ndarray) -> np.ndarray:
     return out
 
 
-# -- torch versions of the sphere maps (same inner product as simenv.srvf) ---------
+# -- torch versions of the sphere maps (same inner product as simenv.core.srvf) ---------
 
 
 def t_inner(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:

@@ -32,7 +32,7 @@ Math (one window; H = 1 + P history frames, F future frames, D = 51)
    networks, each trained with its own seed (``DCTRegressionPredictor(config, seed)``:
    network i starts from ``seed + i``) and either selected on validation clips or
    refitted on all training clips for a schedule chosen on them
-   (:func:`simenv.train_predictor.run`); with ``mirror_average`` each network's
+   (:func:`simenv.learning.train_predictor.run`); with ``mirror_average`` each network's
    prediction is ``½ (f(h) + M f(M h))``, ``M`` the left-right mirror
    (:func:`simenv.models.predictor.mirror`), which makes the predictor exactly
    mirror-equivariant, as the mirrored training data asks it to be.
@@ -52,7 +52,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
 from simenv.models.baselines import check_history
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.predictor import (

@@ -6,9 +6,9 @@ One interface (:class:`ReactionGenerator`)::
 
 ``actor_window`` is (T, J, 3) or (N, T, J, 3), ``reactor_first_frame`` (J, 3) or
 (N, J, 3), the result (T, J, 3) or (N, T, J, 3) float32, positions in metres in one frame
-shared by both people (the actor frame of :mod:`simenv.interaction_data` in our pipeline;
+shared by both people (the actor frame of :mod:`simenv.data.interaction_data` in our pipeline;
 every baseline here is equivariant to rotations about Z and translations, so any Z-up
-frame works). Joints are :data:`~simenv.interaction_data.INTER18_JOINTS` unless
+frame works). Joints are :data:`~simenv.data.interaction_data.INTER18_JOINTS` unless
 ``joint_names`` says otherwise. The reactor's first frame is given, as in InterFormer's
 autoregressive inference, but a baseline's frame 0 need not reproduce it (the
 evaluation scores frames 1..T-1, the generated ones).
@@ -16,7 +16,7 @@ evaluation scores frames 1..T-1, the generated ones).
 Baselines (math)
 ----------------
 Write ``F_t = (o_t, θ_t)`` for the actor's per-frame frame of
-:func:`~simenv.interaction_data.actor_frame` (pelvis on the floor, facing heading) and
+:func:`~simenv.data.interaction_data.actor_frame` (pelvis on the floor, facing heading) and
 ``N_F(x) = R_z(-θ)(x - o)`` for the map into it.
 
 * **zero_velocity**: ``x̂_t = b_0`` (the reactor holds its first frame).
@@ -46,8 +46,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from simenv.errors import MotionError
-from simenv.interaction_data import INTER18_JOINTS, actor_frame, denormalise, normalise
+from simenv.core.errors import MotionError
+from simenv.data.interaction_data import INTER18_JOINTS, actor_frame, denormalise, normalise
 
 
 @runtime_checkable

@@ -2,8 +2,8 @@
 and a class-aware BiLSTM discriminator (Men et al., "GAN-based reactive motion synthesis
 with class-aware discriminators for human-human interaction", 2022).
 
-Data: windows of :mod:`simenv.interaction_data` ((N, T, J, 3) metres in the actor's
-first-frame frame, J = 18 keypoints :data:`~simenv.interaction_data.INTER18_JOINTS`,
+Data: windows of :mod:`simenv.data.interaction_data` ((N, T, J, 3) metres in the actor's
+first-frame frame, J = 18 keypoints :data:`~simenv.data.interaction_data.INTER18_JOINTS`,
 25 fps). Interface: :class:`~simenv.models.reaction_baselines.ReactionGenerator`,
 ``generate(actor_window, reactor_first_frame) -> reactor_window``.
 
@@ -110,8 +110,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.reaction_baselines import check_inputs, mirror_index
 
@@ -373,7 +373,7 @@ class ReactiveGAN(CheckpointMixin):
     (N, J, 3) / (J, 3) reactor first frame, metres, one Z-up frame shared by both people ->
     float32 reactor of the actor's shape (frame 0 = the given first frame). Each chunk of
     at most ``config.window`` frames is mapped into the actor frame of its first actor
-    frame (:func:`~simenv.interaction_data.actor_frame`, as the training windows are),
+    frame (:func:`~simenv.data.interaction_data.actor_frame`, as the training windows are),
     generated there and mapped back; a chunk starts from the last generated frame of the
     previous one. Any ``T >= 2``.
     """

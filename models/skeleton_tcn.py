@@ -7,7 +7,7 @@ frames can be classified: a whole clip, 1 s of it, or 1 s real + a forecast.
 
 Math
 ----
-Input ``x`` (B, T, J, 3): windows normalised by :func:`simenv.gestures.normalise_windows`
+Input ``x`` (B, T, J, 3): windows normalised by :func:`simenv.data.gestures.normalise_windows`
 (origin at the spine, facing +X, arm size scaled to the reference adult; metres of that
 body, Z up), and a validity mask ``m`` (B, T). Per frame t the feature vector is
 
@@ -43,7 +43,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
@@ -185,8 +185,8 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
                        ) -> np.ndarray:
         """Probabilities of world-frame windows (metres, Z up, ``fps``): (N, T, J, 3) or
         (T, J, 3) on ``config.joint_names``, normalised here
-        (:func:`simenv.gestures.normalise_windows`). Returns (N, C) or (C,)."""
-        from simenv.gestures import normalise_windows
+        (:func:`simenv.data.gestures.normalise_windows`). Returns (N, C) or (C,)."""
+        from simenv.data.gestures import normalise_windows
 
         single = np.ndim(windows) == 3
         x = normalise_windows(windows, valid, joints=self.config.joint_names)

@@ -1,9 +1,9 @@
 """simenv: physics-backed simulation and evaluation of 3D human skeleton motion."""
 
-import simenv._glenv  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
-from simenv.errors import SimenvError
+import simenv.body.gl  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion, Skeleton
 from simenv.io.loader import load
-from simenv.motion import Interaction, Motion, Skeleton
 
 __all__ = ["Interaction", "Motion", "PlausibilityReport", "ScoreConfig", "SimenvError",
            "Skeleton", "load", "score"]

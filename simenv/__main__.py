@@ -1,5 +1,5 @@
 """``python -m simenv``: the same as the ``simenv`` command."""
 
-from simenv.cli import main
+from simenv.cli.main import main
 
 raise SystemExit(main())

@@ -37,6 +37,6 @@ def walk_2s():
 def walk_2s_retargeted(walk_2s):
     """:func:`walk_2s` retargeted onto its fitted humanoid, once per test session (the
     body, dynamics and tracking tests share it; none of them modifies it)."""
-    from simenv.retarget import retarget
+    from simenv.body.retarget import retarget
 
     return retarget(walk_2s)

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from simenv.assets import WALK, asset_path
+from simenv.core.motion import Motion, Skeleton
 from simenv.io import asf_amc, bvh
-from simenv.motion import Motion, Skeleton
 from simenv.plausibility import KINEMATIC_METRICS, MetricResult
 
 GOLDEN = Path(__file__).resolve().parent / "data" / "kinematic_golden.npz"

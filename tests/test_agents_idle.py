@@ -9,7 +9,7 @@ import numpy as np
 from simenv.agents.idle import GLANCE_TURN_S, SETTLE_S, TYPE_S, notebook_bearing, plan_idle
 from simenv.agents.seat import seated_on_chair
 from simenv.envs.interaction_room import InteractionRoomEnv
-from simenv.room import Room
+from simenv.room.room import Room
 
 
 def test_idle_cycle_types_glances_and_stays_seated():

@@ -28,9 +28,9 @@ from simenv.agents.scripted import (
     plan_hifi_down,
     user_bearing,
 )
-from simenv.errors import SimenvError
-from simenv.room import Room
-from simenv.scenario import load_scenario
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
+from simenv.room.scenario import load_scenario
 
 
 @pytest.fixture(scope="module")
@@ -306,9 +306,9 @@ def test_real_bow_is_bowed_back(shared_data):
     the agent, measured step by step with Room.bow_meter, turns to the user, nods and
     comes back up, seated."""
     import simenv.io.florence3d as florence3d
+    from simenv.core.motion import Motion, Skeleton
     from simenv.envs.interaction_room import InteractionRoomEnv
-    from simenv.motion import Motion, Skeleton
-    from simenv.session import PERCEPTION_FPS, GestureEvent
+    from simenv.room.session import PERCEPTION_FPS, GestureEvent
 
     clips = florence3d.read(shared_data / "gestures" / "florence3d" / "skeletal_data.mat")
     raw = clips[25]  # video id 26: subject 1's first bow (index.csv)

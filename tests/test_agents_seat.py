@@ -15,8 +15,8 @@ from simenv.agents.seat import RETURN_STAGES, plan_step, seated_on_chair
 from simenv.agents.stand import plan_stand_up, standing
 from simenv.assets import WALK, asset_path
 from simenv.envs.interaction_room import InteractionRoomEnv
-from simenv.room import Room
-from simenv.session import PERCEPTION_FPS, GestureEvent
+from simenv.room.room import Room
+from simenv.room.session import PERCEPTION_FPS, GestureEvent
 
 
 def _run(room: Room, data: mujoco.MjData, plan) -> dict[str, Any]:
@@ -93,7 +93,7 @@ def test_real_msr_session_labelled_cold_closes_the_window_and_sits_back(shared_d
     """The real MSR Action3D recording the rehearsal test labels ``cold``: close the
     window, walk back, sit."""
     from simenv.io import msr_action3d
-    from simenv.session import Session
+    from simenv.room.session import Session
 
     clip = msr_action3d.read(shared_data / "gestures" / "msr_action3d" /
                              "a01_s01_e01_skeleton3D.txt")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from simenv.agents.stand import ComBalance, plan_sit_down, plan_stand_up, seated, standing
-from simenv.room import Room
+from simenv.room.room import Room
 
 
 @pytest.fixture(scope="module")

@@ -14,10 +14,10 @@ from simenv.agents.gait import standing_agent
 from simenv.agents.reach import pd_targets, upper_body_joints
 from simenv.agents.walk import FALLEN_FRACTION, STEP_M, GaitMeter, plan_walk, walk_steps
 from simenv.assets import WALK, asset_path
+from simenv.core.errors import SimenvError
 from simenv.envs.interaction_room import InteractionRoomEnv
-from simenv.errors import SimenvError
-from simenv.room import Room
-from simenv.session import PERCEPTION_FPS, GestureEvent
+from simenv.room.room import Room
+from simenv.room.session import PERCEPTION_FPS, GestureEvent
 
 #: An open spot of the discomfort room (clear of the furniture and the user) and a heading
 #: towards the north wall, 1.7 m away.

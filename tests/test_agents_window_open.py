@@ -10,9 +10,9 @@ import pytest
 
 from simenv.agents.scripted import PLANNERS
 from simenv.agents.window_open import open_spot, plan_open_window, plan_window_pull
-from simenv.errors import SimenvError
-from simenv.room import Room
-from simenv.session import PERCEPTION_FPS, GestureEvent
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
+from simenv.room.session import PERCEPTION_FPS, GestureEvent
 
 
 def _rehearse_hot(session, room_grasps: bool = True):

@@ -1,13 +1,13 @@
-"""Training targets of interaction augmentation (simenv.augment_targets)."""
+"""Training targets of interaction augmentation (simenv.data.augment_targets)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from simenv import augment_targets as at
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import augment_targets as at
+from simenv.data import interaction_data as idata
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simenv import prediction_data as pdata
-from simenv import prediction_metrics as pm
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import prediction_data as pdata
+from simenv.data import prediction_metrics as pm
 from simenv.io import bvh
 from simenv.models.baselines import ConstantVelocity, Predictor, ZeroVelocity
 

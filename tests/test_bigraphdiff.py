@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError, SimenvError
+from simenv.core.errors import MotionError, SimenvError
+from simenv.data import interaction_data as idata
 from simenv.models import bigraphdiff as bg
 from simenv.models.predictor import CheckpointError
 

@@ -65,9 +65,9 @@ def test_depth_camera_profile_passes_a_real_kinect_clip_and_catches_a_slide(
     """MSR Action3D a01_s03_e02 (a real Kinect wave) fails five metrics at the motion
     capture defaults; with its source's own calibration it is plausible, and its
     feet slid 1 m/s are still caught."""
-    from simenv.corrupt import foot_slide
     from simenv.io.loader import load
     from simenv.plausibility.body_thresholds import SOURCE_BODY_THRESHOLDS
+    from simenv.plausibility.corrupt import foot_slide
     from simenv.plausibility.report import ScoreConfig, score
     from simenv.plausibility.thresholds import SOURCE_THRESHOLDS
 

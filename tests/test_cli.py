@@ -11,9 +11,9 @@ import cv2
 import numpy as np
 import pytest
 
-from simenv import cli
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.demo import check_links
+from simenv.cli.demo import check_links
+from simenv.cli.main import main as cli
 
 SUMMARY_KEYS = {
     "frames", "fps", "people", "mean_residual_m", "p95_residual_m", "max_residual_m", "seconds"

@@ -6,9 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from simenv.body.humanoid import Humanoid
 from simenv.control.model import keypoints_of, planning_model, root_dofs
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.core.errors import PhysicsError
 
 
 def test_sensors_read_the_keypoints_and_the_centre_of_mass() -> None:

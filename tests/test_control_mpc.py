@@ -14,7 +14,7 @@ import pytest
 
 from simenv.control import MPCConfig, TrackingMPC, TrackingReference
 from simenv.control.model import root_dofs
-from simenv.errors import PhysicsError
+from simenv.core.errors import PhysicsError
 from simenv.plausibility.tracking import track, tracking
 
 #: A cheaper planner than the scorer's default for the behavioural tests (the
@@ -80,8 +80,8 @@ def test_a_teleported_walk_fails_at_the_jump(walk_2s_retargeted) -> None:
 
 
 def test_a_teleport_corruption_fails_where_it_was_put(walk_2s) -> None:
-    from simenv.corrupt import teleport
-    from simenv.retarget import retarget
+    from simenv.body.retarget import retarget
+    from simenv.plausibility.corrupt import teleport
 
     bad = teleport(walk_2s, 1.0, seed=0)  # 1-4 frames 1 m away, the seed picks where
     start, _ = bad.metadata["corruptions"][-1]["frames"][0]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from simenv.control.reference import TrackingReference, actuated_indices, velocity_feedthrough
-from simenv.errors import PhysicsError
+from simenv.core.errors import PhysicsError
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from simenv.control.sampling import Sampler, Spline
-from simenv.errors import PhysicsError
+from simenv.core.errors import PhysicsError
 
 
 def test_spline_passes_through_its_knots_and_interpolates_linearly() -> None:

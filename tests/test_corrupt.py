@@ -11,10 +11,16 @@ import pytest
 
 import simenv
 from simenv.assets import WALK, asset_path
-from simenv.corrupt import CORRUPTIONS, MIN_FRAMES, STRENGTH_UNITS, bone_stretch, float_
-from simenv.errors import MotionError, SimenvError
-from simenv.motion import Motion
+from simenv.core.errors import MotionError, SimenvError
+from simenv.core.motion import Motion
 from simenv.plausibility import KINEMATIC_METRICS, floating, foot_skate
+from simenv.plausibility.corrupt import (
+    CORRUPTIONS,
+    MIN_FRAMES,
+    STRENGTH_UNITS,
+    bone_stretch,
+    float_,
+)
 
 #: Real clips (path under shared/data/cmu, frames kept): a walk, jumps and
 #: hops, a karate kata, a dance with pirouettes, a run. A few seconds each.

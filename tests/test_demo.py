@@ -1,4 +1,4 @@
-"""The demo's page (simenv.demo.write_page) and the report writers' links: every link is
+"""The demo's page (simenv.cli.demo.write_page) and the report writers' links: every link is
 relative and resolves after the folder is moved; a headless Chromium screenshot of the page
 is not blank and shows the video's poster (skipped when Chromium is absent: `make
 demo-check` installs it and checks the full demo's page)."""
@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from simenv.assets import WALK, asset_path
-from simenv.cli import main, save_npz, summary
-from simenv.demo import (
+from simenv.body.render import render_result
+from simenv.body.retarget import retarget
+from simenv.cli.demo import (
     _export,
     _poster,
     check_links,
@@ -25,12 +26,11 @@ from simenv.demo import (
     page_links,
     write_page,
 )
-from simenv.errors import SimenvError
+from simenv.cli.main import main, save_npz, summary
+from simenv.core.errors import SimenvError
 from simenv.io.loader import load
 from simenv.plausibility.html_report import write_report
 from simenv.plausibility.report import score
-from simenv.render import render_result
-from simenv.retarget import retarget
 
 needs_chromium = pytest.mark.skipif(find_chromium() is None, reason=(
     "no chromium (Debian: apt-get install chromium; `make demo-check` installs it)"))

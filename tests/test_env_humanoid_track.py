@@ -10,9 +10,9 @@ from gymnasium.utils.env_checker import check_env
 import simenv
 import simenv.envs  # noqa: F401  (registers the ids)
 from simenv.assets import WALK, asset_path
+from simenv.body.retarget import RetargetResult, retarget
+from simenv.core.errors import SimenvError
 from simenv.envs.humanoid_track import HumanoidTrackEnv
-from simenv.errors import SimenvError
-from simenv.retarget import RetargetResult, retarget
 
 
 @pytest.fixture(scope="module")

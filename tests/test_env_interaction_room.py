@@ -11,6 +11,7 @@ import simenv
 import simenv.envs  # noqa: F401  (registers the ids)
 import simenv.models
 from simenv.assets import WALK, asset_path
+from simenv.core.errors import SimenvError
 from simenv.envs.interaction_room import (
     FALSE_ALARM,
     GRACE_S,
@@ -21,8 +22,7 @@ from simenv.envs.interaction_room import (
     TIMELINESS_S,
     InteractionRoomEnv,
 )
-from simenv.errors import SimenvError
-from simenv.session import PERCEPTION_FPS, GestureEvent, Session
+from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session
 
 #: The bundled walk with a "wave" label on 0.4-1.0 s (the reward only reads labels).
 WAVE = GestureEvent("wave", 0.4, 1.0)
@@ -226,7 +226,7 @@ class _Counting:
 def test_forecast_is_made_every_predict_every_steps_and_held_between(every: int):
     """The forecast is refreshed at reset and every ``predict_every`` steps; between
     ticks the observation holds the latest one while the history moves on."""
-    from simenv.perception import load_predictor
+    from simenv.perception.loop import load_predictor
 
     counting = _Counting(load_predictor("constant-velocity-50"))
     env = InteractionRoomEnv(gestures=[WAVE], predictor=counting, predict_every=every)

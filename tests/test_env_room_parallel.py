@@ -8,8 +8,8 @@ from pettingzoo.test import parallel_api_test
 
 import simenv
 from simenv.assets import WALK, asset_path
+from simenv.core.errors import SimenvError
 from simenv.envs.room_parallel import AGENTS, RoomParallelEnv, parallel_env
-from simenv.errors import SimenvError
 
 
 @pytest.fixture(scope="module")

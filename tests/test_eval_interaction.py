@@ -1,4 +1,4 @@
-"""Tests for simenv.eval_interaction: the real reactions score zero error, the JSON
+"""Tests for simenv.learning.eval_interaction: the real reactions score zero error, the JSON
 contract, the generated report and the physics summary of one window."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import eval_interaction as ev
-from simenv import interaction_data as idata
-from simenv import interaction_metrics as im
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
+from simenv.data import interaction_data as idata
+from simenv.data import interaction_metrics as im
+from simenv.learning import eval_interaction as ev
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +85,7 @@ def test_shipped_reaction_generators_are_rows_of_the_same_run(shared_data, name)
 
 
 def test_interaction_generator_metrics_of_shipped_bigraphdiff(shared_data):
-    from simenv.interaction_recognition import InteractionRecognizer
+    from simenv.learning.interaction_recognition import InteractionRecognizer
     from simenv.models import load
 
     if "bigraphdiff" not in ev.shipped_models():

@@ -9,15 +9,9 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import gestures as g
-from simenv.errors import FormatError, MotionError
-from simenv.models.gesture_classifier import (
-    GestureClassifier,
-    MaskedAttention,
-    adjacency_mask,
-    adjacency_matrices,
-)
-from simenv.train_classifier import (
+from simenv.core.errors import FormatError, MotionError
+from simenv.data import gestures as g
+from simenv.learning.train_classifier import (
     TrainConfig,
     build_model,
     class_weights,
@@ -25,6 +19,12 @@ from simenv.train_classifier import (
     score,
     train_step,
     training_windows,
+)
+from simenv.models.gesture_classifier import (
+    GestureClassifier,
+    MaskedAttention,
+    adjacency_mask,
+    adjacency_matrices,
 )
 
 SHIPPED = Path(__file__).resolve().parent.parent / "assets" / "models" / "gesture-classifier.npz"

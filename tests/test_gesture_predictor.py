@@ -11,8 +11,8 @@ import pytest
 import torch
 
 import simenv.models
-from simenv.errors import MotionError
-from simenv.gestures import GESTURE_FPS, gesture_skeleton, to_gesture_joints
+from simenv.core.errors import MotionError
+from simenv.data.gestures import GESTURE_FPS, gesture_skeleton, to_gesture_joints
 from simenv.io import bvh
 from simenv.models.checkpoint import CheckpointError
 from simenv.models.gesture_predictor import (
@@ -149,7 +149,7 @@ def test_save_load_round_trip(tmp_path, walk15) -> None:
 
 @pytest.fixture(scope="module")
 def recordings(shared_data):
-    from simenv.train_gesture_predictor import load_sequences
+    from simenv.learning.train_gesture_predictor import load_sequences
 
     if not (shared_data / "gestures" / "utkinect").is_dir():
         pytest.skip(f"gesture corpus not found at {shared_data / 'gestures'}")
@@ -157,7 +157,7 @@ def recordings(shared_data):
 
 
 def test_folds_keep_held_out_subjects_out(recordings) -> None:
-    from simenv.train_gesture_predictor import eval_windows, split_fold
+    from simenv.learning.train_gesture_predictor import eval_windows, split_fold
 
     assert {r.dataset for r in recordings} == {"msr_action3d", "utkinect"}
     assert all(len(r.positions) >= 75 for r in recordings)
@@ -171,7 +171,7 @@ def test_folds_keep_held_out_subjects_out(recordings) -> None:
 
 
 def test_short_training_lowers_the_loss_and_evaluates(recordings) -> None:
-    from simenv.train_gesture_predictor import TrainConfig, eval_windows, evaluate, train
+    from simenv.learning.train_gesture_predictor import TrainConfig, eval_windows, evaluate, train
 
     train_recs = [r for r in recordings if r.fold != 0]
     model, history = train(train_recs, TrainConfig(steps=300, batch=64, seed=0),

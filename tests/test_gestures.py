@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import gestures as g
-from simenv.errors import MotionError, SimenvError, SkeletonError
-from simenv.motion import Motion, Skeleton
+from simenv.core.errors import MotionError, SimenvError, SkeletonError
+from simenv.core.motion import Motion, Skeleton
+from simenv.data import gestures as g
 
 
 @pytest.fixture(scope="module")

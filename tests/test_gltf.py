@@ -1,4 +1,4 @@
-"""glTF/GLB export (simenv.io.gltf, simenv.export, ``simenv export``): files re-read and
+"""glTF/GLB export (simenv.io.gltf, simenv.room.export, ``simenv export``): files re-read and
 checked (accessor counts, min/max, time order, unit quaternions, trimesh re-load), and the
 animation's node poses reproduce MuJoCo's geom positions frame by frame."""
 
@@ -13,9 +13,9 @@ import pytest
 import trimesh
 
 from simenv.assets import WALK, asset_path
-from simenv.cli import main
-from simenv.errors import SimenvError
-from simenv.humanoid import Humanoid
+from simenv.body.humanoid import Humanoid
+from simenv.cli.main import main
+from simenv.core.errors import SimenvError
 from simenv.io.gltf import Z_UP_TO_Y_UP, _split_glb, body_poses, check_gltf, write_gltf
 
 

@@ -1,4 +1,4 @@
-"""Tests of simenv.humanoid: the MjSpec body, its dimensions, fitting, scenes."""
+"""Tests of simenv.body.humanoid: the MjSpec body, its dimensions, fitting, scenes."""
 
 from __future__ import annotations
 
@@ -6,8 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from simenv.errors import RetargetError
-from simenv.humanoid import (
+from simenv.body.humanoid import (
     BONES,
     JOINTS,
     RANGE_SOURCES,
@@ -20,9 +19,10 @@ from simenv.humanoid import (
     fit_dimensions,
     fit_humanoid,
 )
+from simenv.core.errors import RetargetError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import CANONICAL_KEYPOINTS, canonical_skeleton
 from simenv.io import bvh
-from simenv.motion import Motion
-from simenv.skeletons import CANONICAL_KEYPOINTS, canonical_skeleton
 
 
 @pytest.fixture(scope="module")
@@ -267,9 +267,9 @@ def test_fit_with_missing_keypoints_falls_back_and_says_so(shared_data) -> None:
 
 
 def test_fit_without_a_chest_keypoint_keeps_the_trunk_length(shared_data) -> None:
-    from simenv import interaction_data as idata
+    from simenv.body.retarget import retarget
+    from simenv.data import interaction_data as idata
     from simenv.plausibility import body
-    from simenv.retarget import retarget
 
     walk = idata.to_layout(bvh.read(shared_data / "cmu/bvh/02_01.bvh")).slice(0, 240)
     assert "chest" not in walk.skeleton.joint_names

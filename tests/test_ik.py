@@ -1,4 +1,4 @@
-"""Tests of simenv.ik's compiled kinematics on a humanoid, against MuJoCo."""
+"""Tests of simenv.body.ik's compiled kinematics on a humanoid, against MuJoCo."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from simenv.humanoid import Humanoid
-from simenv.ik import (
+from simenv.body.humanoid import Humanoid
+from simenv.body.ik import (
     HingeTree,
     compose_hinges,
     euler_branches,

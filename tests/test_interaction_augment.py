@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import augment_targets as at
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import augment_targets as at
+from simenv.data import interaction_data as idata
 from simenv.models import interaction_augment as ia
 from simenv.models.predictor import CheckpointError
 

@@ -1,4 +1,4 @@
-"""Tests for simenv.interaction_data: real two-person recordings, windows, split by
+"""Tests for simenv.data.interaction_data: real two-person recordings, windows, split by
 recording, the reactive-GAN normalisation and its inverse, bad input."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError, SimenvError, SkeletonError
-from simenv.motion import Motion
+from simenv.core.errors import MotionError, SimenvError, SkeletonError
+from simenv.core.motion import Motion
+from simenv.data import interaction_data as idata
 
 J = list(idata.INTER18_JOINTS)
 

@@ -1,13 +1,13 @@
-"""Tests for simenv.interaction_metrics on toy inputs with known answers."""
+"""Tests for simenv.data.interaction_metrics on toy inputs with known answers."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from simenv import interaction_metrics as im
-from simenv.errors import MotionError
-from simenv.interaction_data import INTER18_JOINTS, inter18_skeleton
+from simenv.core.errors import MotionError
+from simenv.data import interaction_metrics as im
+from simenv.data.interaction_data import INTER18_JOINTS, inter18_skeleton
 
 J = list(INTER18_JOINTS)
 PARENTS = inter18_skeleton().parents
@@ -173,7 +173,7 @@ def test_pose_segment_features():
 def test_classifier_features_pad_and_mask():
     import torch
 
-    from simenv.gestures import GESTURE15_JOINTS, gesture_skeleton
+    from simenv.data.gestures import GESTURE15_JOINTS, gesture_skeleton
     from simenv.models.gesture_classifier import ClassifierConfig, GestureClassifier
 
     torch.set_num_threads(1)

@@ -1,4 +1,4 @@
-"""Tests for simenv.interaction_recognition: a known separable toy problem, reactor-only
+"""Tests for simenv.learning.interaction_recognition: a known separable toy problem, reactor-only
 features, untrained and bad input, and real held-out windows."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import interaction_data as idata
-from simenv import interaction_metrics as im
-from simenv.errors import MotionError
-from simenv.interaction_recognition import InteractionRecognizer
+from simenv.core.errors import MotionError
+from simenv.data import interaction_data as idata
+from simenv.data import interaction_metrics as im
+from simenv.learning.interaction_recognition import InteractionRecognizer
 
 
 def _mean_position(windows: np.ndarray) -> np.ndarray:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import interaction_data as idata
 from simenv.models.interformer import (
     Attention,
     InterFormer,

@@ -11,7 +11,7 @@ import pytest
 from conftest import SHARED_DATA
 from scipy.spatial.transform import Rotation
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
 from simenv.io import asf_amc, bvh
 from simenv.io._kinematics import CMU_UNIT_M, forward_kinematics
 

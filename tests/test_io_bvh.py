@@ -10,7 +10,7 @@ import pytest
 from conftest import SHARED_DATA
 from scipy.spatial.transform import Rotation
 
-from simenv.errors import FormatError, SimenvError, UnitsError
+from simenv.core.errors import FormatError, SimenvError, UnitsError
 from simenv.io import bvh
 from simenv.io._kinematics import CMU_UNIT_M, forward_kinematics
 

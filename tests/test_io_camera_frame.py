@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.core.skeletons import gesture9_skeleton, get_skeleton
 from simenv.io import msr_action3d, utkinect
 from simenv.io.camera_frame import KINECT_TO_ZUP, camera_to_world, estimate_floor
-from simenv.skeletons import gesture9_skeleton, get_skeleton
 
 UTK = "gestures/utkinect/joints"
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
 from simenv.io import florence3d
 
 MAT = "gestures/florence3d/skeletal_data.mat"

@@ -12,10 +12,10 @@ from conftest import SHARED_DATA
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion
 from simenv.io import asf_amc, bvh, npz
 from simenv.io.loader import load
-from simenv.motion import Interaction, Motion
 
 GARBAGE = [
     "nan",

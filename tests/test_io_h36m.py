@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import H36M_JOINTS, h36m_skeleton
 from simenv.io import h36m, utkinect
 from simenv.io.camera_frame import KINECT_TO_ZUP
-from simenv.motion import Motion
-from simenv.skeletons import H36M_JOINTS, h36m_skeleton
 
 UTK = "gestures/utkinect/joints/joints_s02_e01.txt"
 # H36M joint -> canonical keypoint of the Kinect clip (Head = head top, computed).

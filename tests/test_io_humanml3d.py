@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 import simenv
-from simenv import cli
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.errors import FormatError, MotionError, SkeletonError, UnitsError
+from simenv.cli.main import main as cli
+from simenv.core.errors import FormatError, MotionError, SkeletonError, UnitsError
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import SMPL22_JOINTS, SMPL22_PARENTS, get_skeleton
 from simenv.io import bvh, humanml3d, intergen, loader
 from simenv.io.humanml3d import to_smpl22, write_humanml3d, write_mdm_results
 from simenv.io.intergen import write_intergen
-from simenv.motion import Interaction, Motion
-from simenv.skeletons import SMPL22_JOINTS, SMPL22_PARENTS, get_skeleton
 
 # HumanML3D's t2m_kinematic_chain (github.com/EricGuo5513/HumanML3D, paramUtil.py).
 T2M_KINEMATIC_CHAIN = [[0, 2, 5, 8, 11], [0, 1, 4, 7, 10], [0, 3, 6, 9, 12, 15],
@@ -82,7 +82,7 @@ def test_smpl22_skeleton_follows_t2m_chain() -> None:
     assert skel.joint_names[:4] == ("pelvis", "left_hip", "right_hip", "spine1")
     assert get_skeleton("HumanML3D") is skel and get_skeleton("smpl-22") is skel
     # Everything retargeting uses except the hand ends, which SMPL-22 lacks.
-    assert set(skel.canonical) == set(simenv.skeletons.CANONICAL_KEYPOINTS) - {
+    assert set(skel.canonical) == set(simenv.core.skeletons.CANONICAL_KEYPOINTS) - {
         "left_hand", "right_hand"}
 
 
@@ -160,7 +160,7 @@ def test_writer_keeps_the_format_rate(tmp_path: Path) -> None:
 
 
 def test_retarget_and_score_a_read_clip(tmp_path: Path, walk20: Motion) -> None:
-    from simenv.retarget import retarget
+    from simenv.body.retarget import retarget
 
     m = simenv.load(write_humanml3d(walk20.slice(0, 40), tmp_path / "walk40.npy"))
     result = retarget(m)

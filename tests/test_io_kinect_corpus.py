@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 from conftest import SHARED_DATA
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.core.motion import Interaction, Motion
 from simenv.io import florence3d, h36m, msr_action3d, ntu, nuisi, sbu, utkinect
-from simenv.motion import Interaction, Motion
 
 READERS = (msr_action3d, utkinect, florence3d, sbu, nuisi, ntu, h36m)
 NOT_DATA = {"SOURCES.md", "MANIFEST.md5", "index.csv", "README.txt", "action_names.mat",

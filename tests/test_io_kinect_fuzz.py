@@ -13,7 +13,7 @@ import scipy.io
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 from simenv.io import florence3d, h36m, msr_action3d, ntu, nuisi, sbu, utkinect
 
 FUZZ = settings(max_examples=int(os.environ.get("SIMENV_FUZZ_EXAMPLES", "60")), deadline=None,

@@ -11,9 +11,9 @@ import pytest
 from conftest import SHARED_DATA
 
 import simenv
-from simenv.errors import FormatError, MotionError, UnknownFormatError
+from simenv.core.errors import FormatError, MotionError, UnknownFormatError
+from simenv.core.motion import Interaction, Motion
 from simenv.io import loader
-from simenv.motion import Interaction, Motion
 
 DOCS = {".md", ".tsv", ".csv", ".md5"}
 #: Companion files of the gesture sets (class names, label lists), not motion.

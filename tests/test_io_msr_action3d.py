@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
 from simenv.io import msr_action3d, nuisi, sbu, utkinect
 
 MSR = "gestures/msr_action3d"

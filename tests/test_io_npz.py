@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 import simenv
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Interaction, Motion
 from simenv.io import asf_amc, bvh
 from simenv.io.npz import VERSION, read, write_npz
-from simenv.motion import Interaction, Motion
 
 
 def _same_motion(a: Motion, b: Motion) -> None:

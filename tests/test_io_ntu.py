@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import kinect_v1_skeleton, kinect_v2_skeleton
 from simenv.io import msr_action3d, ntu
-from simenv.motion import Interaction, Motion
-from simenv.skeletons import kinect_v1_skeleton, kinect_v2_skeleton
 
 MSR = "gestures/msr_action3d"
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Interaction, Motion
 from simenv.io import nuisi
-from simenv.motion import Interaction, Motion
 
 NUISI = "other/nuisi"
 

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
+from simenv.core.motion import Interaction
 from simenv.io import sbu
-from simenv.motion import Interaction
 
 SBU = "other/sbu_kinect_sample"
 

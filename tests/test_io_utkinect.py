@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
 from simenv.io import utkinect
 
 UTK = "gestures/utkinect/joints"

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import train_classifier as tc
-from simenv.gestures import GESTURE_LABELS
+from simenv.data.gestures import GESTURE_LABELS
+from simenv.learning import train_classifier as tc
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import model_docs  # noqa: E402  (a script folder, not a package)
@@ -60,7 +60,7 @@ def test_header_names_the_command_and_forbids_hand_edits() -> None:
 
 
 def test_generator_diagnostics_on_real_windows(shared_data) -> None:
-    from simenv import prediction_data as pdata
+    from simenv.data import prediction_data as pdata
     from simenv.io import bvh
     from simenv.models import predictor as P
 
@@ -80,7 +80,7 @@ def test_generator_diagnostics_on_real_windows(shared_data) -> None:
 
 
 def test_generator_diagnostics_of_an_untrained_prior_model(shared_data) -> None:
-    from simenv import prediction_data as pdata
+    from simenv.data import prediction_data as pdata
     from simenv.io import bvh
     from simenv.models import predictor as P
 
@@ -117,8 +117,8 @@ def test_variant_and_regression_text_come_from_the_metrics() -> None:
 def test_ensemble_ablation_scores_each_member_and_the_ensemble(shared_data) -> None:
     import torch
 
-    from simenv import prediction_data as pdata
-    from simenv import prediction_metrics as pm
+    from simenv.data import prediction_data as pdata
+    from simenv.data import prediction_metrics as pm
     from simenv.io import bvh
     from simenv.models import predictor_regression as R
 

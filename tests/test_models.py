@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import cli
-from simenv import prediction_data as pdata
-from simenv import train_predictor as tp
-from simenv.errors import MotionError, SimenvError
-from simenv.gestures import GESTURE_LABELS, normalise_windows, to_gesture_joints
+from simenv.cli.main import main as cli
+from simenv.core.errors import MotionError, SimenvError
+from simenv.core.motion import Motion
+from simenv.data import prediction_data as pdata
+from simenv.data.gestures import GESTURE_LABELS, normalise_windows, to_gesture_joints
 from simenv.io import bvh
+from simenv.learning import train_predictor as tp
 from simenv.models import available, checkpoint_path, load
-from simenv.motion import Motion
 
 torch.set_num_threads(1)
 
@@ -195,8 +195,8 @@ def test_config_file_sets_defaults_that_options_override(tmp_path: Path) -> None
 
 def test_recognition_condition_with_the_shipped_predictor(shared_data: Path) -> None:
     _require("predictor-25-50")
-    from simenv import gestures as g
-    from simenv.train_classifier import extrapolate_with_predictor
+    from simenv.data import gestures as g
+    from simenv.learning.train_classifier import extrapolate_with_predictor
 
     root = shared_data / "gestures"
     if not (root / "florence3d" / "skeletal_data.mat").is_file():
@@ -295,7 +295,7 @@ def test_shipped_two_person_models_have_cards_within_budget() -> None:
                                   "interaction-augment"])
 def test_shipped_two_person_model_loads_by_name_and_generates(name: str,
                                                               shared_data: Path) -> None:
-    from simenv import interaction_data as idata
+    from simenv.data import interaction_data as idata
 
     _require(name)
     model = load(name)

@@ -1,13 +1,13 @@
-"""Tests for simenv.motion: validation and explicit transformations."""
+"""Tests for simenv.core.motion: validation and explicit transformations."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from simenv.errors import MotionError, SkeletonError, UnitsError
-from simenv.motion import Interaction, Motion, Skeleton, interpolate_gaps
-from simenv.skeletons import canonical_skeleton
+from simenv.core.errors import MotionError, SkeletonError, UnitsError
+from simenv.core.motion import Interaction, Motion, Skeleton, interpolate_gaps
+from simenv.core.skeletons import canonical_skeleton
 
 
 def _walk(frames: int = 20, fps: float = 30.0) -> Motion:

@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 
 import simenv.models
-from simenv.errors import SimenvError
-from simenv.gestures import GESTURE15_JOINTS, load_gesture_clips, split_cross_subject
+from simenv.core.errors import SimenvError
+from simenv.core.skeletons import CANONICAL_KEYPOINTS
+from simenv.data.gestures import GESTURE15_JOINTS, load_gesture_clips, split_cross_subject
 from simenv.models.baselines import ConstantVelocity, ZeroVelocity
-from simenv.perception import (
+from simenv.perception.loop import (
     CanonicalPredictor,
     GestureModel,
     PerceptionLoop,
     TemplateClassifier,
 )
-from simenv.scenario import load_scenario
-from simenv.skeletons import CANONICAL_KEYPOINTS
+from simenv.room.scenario import load_scenario
 
 K = len(CANONICAL_KEYPOINTS)
 
@@ -157,8 +157,8 @@ shipped = pytest.mark.skipif(
 
 
 def test_vocabulary_map_reads_labels_in_a_scenario():
-    from simenv.gestures import GESTURE_LABELS
-    from simenv.perception import vocabulary_map
+    from simenv.data.gestures import GESTURE_LABELS
+    from simenv.perception.loop import vocabulary_map
 
     default = vocabulary_map(GESTURE_LABELS, load_scenario("default").behaviour.vocabulary)
     assert all(k == v for k, v in default.items())
@@ -172,8 +172,8 @@ def test_trained_classifier_adapter_pads_truncates_and_maps(shared_data):
     """On a real MSR Action3D wave: the adapter's probabilities are the network's on the
     window padded to 75 frames (padding invalid), or on the last 75 frames of a longer
     one; mapped onto the discomfort vocabulary they sum onto hello / idle."""
-    from simenv.gestures import load_gesture_clips
-    from simenv.perception import TrainedClassifier
+    from simenv.data.gestures import load_gesture_clips
+    from simenv.perception.loop import TrainedClassifier
 
     clips = load_gesture_clips(shared_data / "gestures", datasets=("msr_action3d",))
     wave = next(c for c in clips if c.label == "wave" and c.num_frames >= 40)
@@ -203,7 +203,7 @@ def test_trained_classifier_adapter_pads_truncates_and_maps(shared_data):
 
 @shipped
 def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
-    from simenv.perception import (
+    from simenv.perception.loop import (
         TrainedClassifier,
         default_classifier,
         load_predictor,
@@ -235,7 +235,7 @@ def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
 
 
 def test_template_fallback_without_shipped_classifier(monkeypatch, shared_data):
-    from simenv.perception import default_classifier
+    from simenv.perception.loop import default_classifier
 
     monkeypatch.setattr(simenv.models, "available", lambda: [])
     vocab = load_scenario("discomfort").behaviour.vocabulary
@@ -250,8 +250,8 @@ def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
     shipped classifier, predictor and threshold: the 1 s of real motion of its waveHands
     segment reads wave and the loop greets on the real stage; its idle stretches (near
     still, unlabelled) read idle on both stages, and nothing is greeted."""
-    from simenv.gestures import load_gesture_clips
-    from simenv.perception import TrainedClassifier, load_predictor, loop_readings
+    from simenv.data.gestures import load_gesture_clips
+    from simenv.perception.loop import TrainedClassifier, load_predictor, loop_readings
 
     clips = load_gesture_clips(shared_data / "gestures", datasets=("utkinect",), idle=True)
     s02 = [c for c in clips if c.name.startswith("joints_s02_e01")
@@ -267,7 +267,7 @@ def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
         assert top_real == top_pred == r.label
         assert r.p_real.max() >= loop.threshold  # decided on real motion
     wave = next(c for c in s02 if c.label == "wave")
-    from simenv.session import Session, user_track
+    from simenv.room.session import Session, user_track
 
     kp = user_track(Session(wave.source)).keypoints.astype(np.float32)
     tick = loop.perceive(1.04, kp[:26])
@@ -278,7 +278,7 @@ def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
 
 
 def _reading(label: str, p_real, p_pred):
-    from simenv.perception import LoopReading
+    from simenv.perception.loop import LoopReading
 
     return LoopReading(f"clip-{label}", label, "x/s01", np.array(p_real), np.array(p_pred))
 
@@ -286,7 +286,7 @@ def _reading(label: str, p_real, p_pred):
 def test_loop_decisions_and_threshold_choice_on_known_readings():
     """Three readings whose decisions at each threshold are known by hand: the real stage
     wins when confident, else the predicted stage, else nothing."""
-    from simenv.perception import choose_threshold, loop_decisions
+    from simenv.perception.loop import choose_threshold, loop_decisions
 
     labels = ("wave", "other", "idle")
     readings = [_reading("wave", [0.2, 0.5, 0.3], [0.6, 0.2, 0.2]),
@@ -314,8 +314,8 @@ def test_loop_readings_on_real_clips(shared_data):
     """Real MSR clips of a training subject (a wave and an idle lead-in) retargeted into
     the room: each gives both stages' probabilities; a Florence clip (no pelvis keypoint)
     is skipped with the reason."""
-    from simenv.gestures import load_gesture_clips
-    from simenv.perception import TrainedClassifier, load_predictor, loop_readings
+    from simenv.data.gestures import load_gesture_clips
+    from simenv.perception.loop import TrainedClassifier, load_predictor, loop_readings
 
     root = shared_data / "gestures"
     msr = load_gesture_clips(root, datasets=("msr_action3d",), idle=True)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simenv.gestures import GESTURE15_JOINTS, GESTURE_LABELS, subject_fold
-from simenv.perception_protocol import (
+from simenv.data.gestures import GESTURE15_JOINTS, GESTURE_LABELS, subject_fold
+from simenv.perception.protocol import (
     TICK_FRAMES,
     StreamReading,
     choose_threshold,
@@ -81,7 +81,7 @@ def test_cross_fitting_never_uses_the_held_out_fold():
 
 @pytest.fixture(scope="module")
 def utk_clips(shared_data):
-    from simenv.gestures import load_gesture_clips
+    from simenv.data.gestures import load_gesture_clips
 
     root = shared_data / "gestures"
     if not (root / "utkinect").is_dir():
@@ -94,9 +94,9 @@ def test_avatar_clips_and_stream_readings_on_real_sessions(utk_clips):
     avatar, then one reading per clip with a tick per second past its end."""
     import torch
 
-    from simenv.gestures import gesture_skeleton
+    from simenv.data.gestures import gesture_skeleton
     from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
-    from simenv.perception_protocol import avatar_clips, stream_readings
+    from simenv.perception.protocol import avatar_clips, stream_readings
 
     wave = next(c for c in utk_clips if c.label == "wave")
     walk = next(c for c in utk_clips if c.label == "walk")

@@ -9,8 +9,9 @@ import pytest
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, asset_path
-from simenv.errors import MotionError, PhysicsError
-from simenv.motion import Interaction
+from simenv.body.retarget import retarget
+from simenv.core.errors import MotionError, PhysicsError
+from simenv.core.motion import Interaction
 from simenv.plausibility.body import (
     body_floating,
     body_penetration,
@@ -24,7 +25,6 @@ from simenv.plausibility.body import (
     self_contact_pairs,
     self_penetration,
 )
-from simenv.retarget import retarget
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from simenv.core.motion import Motion
 from simenv.io import bvh
-from simenv.motion import Motion
 from simenv.plausibility import floating, foot_contacts, foot_skate, ground_penetration
 from simenv.plausibility.contact import ballistic_residual
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 import simenv
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import retarget
+from simenv.core.errors import PhysicsError
 from simenv.plausibility.body import body_penetration
 from simenv.plausibility.dynamics import (
     balance,
@@ -18,7 +19,6 @@ from simenv.plausibility.dynamics import (
     root_residual,
     root_residual_wrench,
 )
-from simenv.retarget import retarget
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 
@@ -154,7 +154,7 @@ def test_clip_end_cut_mid_stride_needs_no_help_but_a_dead_stop_does(walk_2s_reta
 def test_131_04_opening_balance_hinges_on_the_fitted_sole(shared_data) -> None:
     # CMU 131_04 (docs/plausibility.md, calibration findings): this subject's ball
     # keypoints sit 3-5 cm higher over the ankles in the quiet stances than in the single
-    # stances. The body fit (simenv.humanoid.fit_dimensions) measures the foot's drop on
+    # stances. The body fit (simenv.body.humanoid.fit_dimensions) measures the foot's drop on
     # the planted frames and places the one sole between the lowest balls and the lowest
     # ankles: the opening stance's forefeet then carry the body and nothing sinks.
     motion = simenv.load(shared_data / "cmu" / "asf_amc" / "131_04.amc")

@@ -13,7 +13,7 @@ import pytest
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 from simenv.plausibility.html_report import (
     INDEX_PAGE,
     REPORT_PAGE,

@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.humanoid import Humanoid
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import retarget
+from simenv.core.motion import Motion
 from simenv.io import asf_amc, bvh
-from simenv.motion import Motion
 from simenv.plausibility.body import (
     hinge_keypoints,
     joint_limit_clamp_cost,
@@ -30,7 +31,6 @@ from simenv.plausibility.body import (
     sustained_max,
 )
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
-from simenv.retarget import retarget
 
 THR = DEFAULT_BODY_THRESHOLDS.joint_limit_max_deg
 

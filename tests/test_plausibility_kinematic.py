@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from simenv.errors import MotionError, SimenvError
+from simenv.core.errors import MotionError, SimenvError
+from simenv.core.motion import Motion
 from simenv.io import bvh
-from simenv.motion import Motion
 from simenv.plausibility import (
     Thresholds,
     bone_length,

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from kinematic_cases import GOLDEN, cases, summary
 
-from simenv.motion import Motion
+from simenv.core.motion import Motion
 from simenv.plausibility import (
     KINEMATIC_METRICS,
     MetricResult,

@@ -9,6 +9,7 @@ import pytest
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, asset_path
+from simenv.body.retarget import retarget
 from simenv.plausibility.body_thresholds import BodyThresholds
 from simenv.plausibility.dynamics import root_residual
 from simenv.plausibility.pair_dynamics import (
@@ -17,7 +18,6 @@ from simenv.plausibility.pair_dynamics import (
     pair_root_residual_wrench,
 )
 from simenv.plausibility.report import ScoreConfig
-from simenv.retarget import retarget
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 

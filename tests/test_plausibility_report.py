@@ -10,8 +10,8 @@ import pytest
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.errors import SimenvError
-from simenv.motion import Interaction
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction
 from simenv.plausibility.report import (
     PAIR_METRICS,
     PERSON_METRICS,

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
 from simenv.io import bvh
 from simenv.plausibility import velocity
 from simenv.plausibility.timeline import MetricResult, find_violations

@@ -7,10 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import RetargetResult
+from simenv.core.errors import PhysicsError
 from simenv.plausibility.tracking import track, tracking
-from simenv.retarget import RetargetResult
 
 
 def _lifted(result: RetargetResult, dz: float, start: int = 0) -> RetargetResult:

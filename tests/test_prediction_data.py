@@ -1,4 +1,4 @@
-"""Tests for simenv.prediction_data on real CMU clips: layout, windows, split by clip."""
+"""Tests for simenv.data.prediction_data on real CMU clips: layout, windows, split by clip."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from simenv import prediction_data as pdata
-from simenv import srvf
-from simenv.errors import MotionError, SkeletonError
+from simenv.core import srvf
+from simenv.core.errors import MotionError, SkeletonError
+from simenv.core.skeletons import canonical_skeleton, h36m_skeleton
+from simenv.data import prediction_data as pdata
 from simenv.io import asf_amc, bvh
-from simenv.skeletons import canonical_skeleton, h36m_skeleton
 
 
 def _clip(shared_data: Path, stem: str, **kw) -> object:

@@ -1,13 +1,13 @@
-"""Tests for simenv.prediction_metrics on toy inputs with known answers and real clips."""
+"""Tests for simenv.data.prediction_metrics on toy inputs with known answers and real clips."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from simenv import prediction_data as pdata
-from simenv import prediction_metrics as pm
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import prediction_data as pdata
+from simenv.data import prediction_metrics as pm
 from simenv.io import bvh
 
 PARENTS = pdata.pred17_skeleton().parents

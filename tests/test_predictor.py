@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import prediction_data as pdata
-from simenv import srvf
-from simenv.errors import MotionError, SimenvError
+from simenv.core import srvf
+from simenv.core.errors import MotionError, SimenvError
+from simenv.data import prediction_data as pdata
 from simenv.io import bvh
 from simenv.models import load
 from simenv.models import predictor as P

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import prediction_data as pdata
-from simenv import train_predictor as tp
-from simenv.errors import MotionError, SimenvError
-from simenv.interaction_data import DEFAULT_TEST_RECORDINGS
+from simenv.core.errors import MotionError, SimenvError
+from simenv.data import prediction_data as pdata
+from simenv.data.interaction_data import DEFAULT_TEST_RECORDINGS
 from simenv.io import bvh
+from simenv.learning import train_predictor as tp
 from simenv.models import predictor as P
 from simenv.models import predictor_regression as R
 from simenv.models.baselines import ZeroVelocity

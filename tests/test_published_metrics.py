@@ -11,16 +11,16 @@ import pytest
 from scipy.ndimage import uniform_filter1d
 
 import simenv
-from simenv.corrupt import foot_slide
-from simenv.errors import MotionError, SkeletonError
+from simenv.core.errors import MotionError, SkeletonError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import SMPL22_JOINTS, gesture9_skeleton, smpl22_skeleton
 from simenv.io.humanml3d import Y_UP_TO_Z_UP, to_smpl22
-from simenv.motion import Motion
+from simenv.plausibility.corrupt import foot_slide
 from simenv.plausibility.published import (
     PUBLISHED_METRICS,
     published_metrics,
     published_record,
 )
-from simenv.skeletons import SMPL22_JOINTS, gesture9_skeleton, smpl22_skeleton
 
 LEFT_FOOT, RIGHT_FOOT = SMPL22_JOINTS.index("left_foot"), SMPL22_JOINTS.index("right_foot")
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import interaction_data as idata
 from simenv.models import reaction_baselines as rb
 
 J = list(idata.INTER18_JOINTS)

@@ -1,4 +1,4 @@
-"""Tests for simenv.reaction_rehearsal: where the agent starts, the generated reaction
+"""Tests for simenv.envs.reaction_rehearsal: where the agent starts, the generated reaction
 tracked and scored on simulated bodies, the command, bad input."""
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import cli
-from simenv import interaction_data as idata
-from simenv import reaction_rehearsal as rr
-from simenv.errors import SimenvError
+from simenv.cli.main import main as cli
+from simenv.core.errors import SimenvError
+from simenv.data import interaction_data as idata
+from simenv.envs import reaction_rehearsal as rr
 from simenv.models import available
 from simenv.models.reaction_baselines import MirrorActor
 

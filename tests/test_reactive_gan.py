@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import torch
 
-from simenv import interaction_data as idata
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
+from simenv.data import interaction_data as idata
 from simenv.models import reactive_gan as rg
 from simenv.models.predictor import CheckpointError
 from simenv.models.reaction_baselines import ReactionGenerator, ZeroVelocity

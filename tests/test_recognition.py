@@ -7,9 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import SimenvError
-from simenv.gestures import GESTURE15_JOINTS, GESTURE_LABELS, gesture_skeleton, load_gesture_clips
-from simenv.recognition import (
+from simenv.core.errors import SimenvError
+from simenv.data.gestures import (
+    GESTURE15_JOINTS,
+    GESTURE_LABELS,
+    gesture_skeleton,
+    load_gesture_clips,
+)
+from simenv.learning.recognition import (
     SHORT_FRAMES,
     RecognitionConfig,
     continue_windows,
@@ -96,7 +101,7 @@ def test_short_training_lowers_the_loss_and_beats_chance(clips):
     config = RecognitionConfig(epochs=8, width=32, seed=0)
     model, history = train_recogniser(clips, labels, lambda c: c.label, config, progress=False)
     assert history["epoch_loss"][-1] < history["epoch_loss"][0]
-    from simenv.gestures import make_windows
+    from simenv.data.gestures import make_windows
 
     w = make_windows(clips, crop="centre")
     acc = (logits_of(model, w.x, w.valid).argmax(1) ==

@@ -7,15 +7,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import SimenvError, SkeletonError
-from simenv.gestures import (
+from simenv.core.errors import SimenvError, SkeletonError
+from simenv.data.gestures import (
     GESTURE15_JOINTS,
     load_gesture_clips,
     split_subject_folds,
     subject_fold,
 )
-from simenv.recognition import RecognitionConfig, clip_skeleton, logits_of, train_recogniser
-from simenv.recognition_protocols import (
+from simenv.learning.recognition import (
+    RecognitionConfig,
+    clip_skeleton,
+    logits_of,
+    train_recogniser,
+)
+from simenv.learning.recognition_protocols import (
     benchmark_folds,
     classification_scores,
     condition_windows,

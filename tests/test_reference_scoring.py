@@ -14,9 +14,9 @@ from urllib.parse import unquote
 import numpy as np
 import pytest
 
-from simenv.cli import main
-from simenv.corrupt import foot_slide, teleport
-from simenv.errors import ReferenceDataError, SimenvError
+from simenv.cli.main import main
+from simenv.core.errors import ReferenceDataError, SimenvError
+from simenv.plausibility.corrupt import foot_slide, teleport
 from simenv.plausibility.reference import (
     VERDICT_INSIDE,
     VERDICT_OUTSIDE,
@@ -128,7 +128,7 @@ def test_mismatched_fps_names_the_file_and_field() -> None:
 def utkinect(shared_data: Path) -> dict[str, Any]:
     """UTKinect-Action3D scored without physics: odd subjects as reference,
     even subjects real and with feet slid at 1 m/s / joints teleported 0.3 m."""
-    from simenv.gestures import load_gesture_clips, split_cross_subject
+    from simenv.data.gestures import load_gesture_clips, split_cross_subject
 
     clips = load_gesture_clips(shared_data / "gestures", datasets=["utkinect"])
     train, test = split_cross_subject(clips)

@@ -10,12 +10,12 @@ import pytest
 
 import simenv
 import simenv.models
-import simenv.scenario
+import simenv.room.scenario
 from simenv.assets import WALK, asset_path
-from simenv.errors import SimenvError
-from simenv.gestures import GESTURE15_JOINTS
-from simenv.rehearsal import rehearse
-from simenv.session import GestureEvent, Session
+from simenv.core.errors import SimenvError
+from simenv.data.gestures import GESTURE15_JOINTS
+from simenv.envs.rehearsal import rehearse
+from simenv.room.session import GestureEvent, Session
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,7 @@ def _frames(path: Path) -> list[np.ndarray]:
 
 
 def test_video_size_is_validated(tmp_path: Path, short):
-    from simenv.rehearsal import main
+    from simenv.envs.rehearsal import main
 
     for size, field in (({"width": 0}, "width"), ({"height": -360}, "height"),
                         ({"width": 100_000}, "width"), ({"height": 360.5}, "height"),
@@ -110,8 +110,8 @@ def test_camera_sees_the_user_and_the_agents_face_and_hands(short):
     seated agent's head and both hands are in view, and the eye is in front of both."""
     import mujoco
 
+    from simenv.body.render import make_renderer
     from simenv.envs.interaction_room import InteractionRoomEnv
-    from simenv.render import make_renderer
 
     env = InteractionRoomEnv(Session(short, ()), scenario="discomfort", width=160,
                              height=120)
@@ -187,7 +187,7 @@ def test_scripted_agent_runs_on_shipped_models_without_the_corpus(tmp_path: Path
 
 
 def test_module_command(tmp_path: Path, capsys):
-    from simenv.rehearsal import main
+    from simenv.envs.rehearsal import main
 
     code = main([WALK, "--out", str(tmp_path), "--scenario", "discomfort", "--gesture",
                  "smell:0.2:1.0", "--no-render"])
@@ -238,7 +238,7 @@ def test_reactions_not_started_are_not_reported(tmp_path: Path, short):
     """The hi-fi across the room (out of seated reach) and a bow answered by opening the
     door (no planner): both decisions are logged with the reason, and the summary's
     reactions list stays empty."""
-    text = Path(simenv.scenario.load_scenario("default").source).read_text()
+    text = Path(simenv.room.scenario.load_scenario("default").source).read_text()
     far = tmp_path / "far.toml"
     far.write_text(text.replace("position = [0.75, -0.3]", "position = [-1.8, 1.6]")
                    .replace("yaw_deg = 90.0 ", "yaw_deg = -90.0 ")
@@ -288,8 +288,8 @@ def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: 
 
 
 def test_recipe_without_the_corpus_names_the_file_and_the_option(tmp_path: Path, capsys):
-    from simenv.rehearsal import main
-    from simenv.session import session_recipes
+    from simenv.envs.rehearsal import main
+    from simenv.room.session import session_recipes
 
     names = session_recipes()
     assert len(names) >= 3
@@ -312,7 +312,7 @@ def test_recipes_cut_labelled_waves_of_different_subjects(shared_data):
     import csv
 
     from simenv.io import utkinect
-    from simenv.session import session_recipes
+    from simenv.room.session import session_recipes
 
     index = {(r["file"], r["class_name"].strip()): r for r in
              csv.DictReader((shared_data / "gestures" / "index.csv").open())}
@@ -342,7 +342,7 @@ def test_recipes_cut_labelled_waves_of_different_subjects(shared_data):
 def recipe_rehearsals(tmp_path_factory, shared_data):
     """Every bundled recipe (UTKinect subjects 2, 4, 6, 10: test subjects of the
     classifier) rehearsed with the scripted agent on the shipped models, by name."""
-    from simenv.session import session_recipes
+    from simenv.room.session import session_recipes
 
     if not {"gesture-tcn", "predictor-gesture-25-50"} <= set(simenv.models.available()):
         pytest.skip("shipped gesture-tcn / predictor-gesture-25-50 absent")

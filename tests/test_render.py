@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 
 from simenv.assets import WALK, asset_path
-from simenv.errors import SimenvError
-from simenv.io import bvh
-from simenv.render import (
+from simenv.body.render import (
     CAPTION_BAND_ALPHA,
     CAPTION_LINE_FRACTION,
     caption_frame,
     render_frames,
     write_video,
 )
+from simenv.core.errors import SimenvError
+from simenv.io import bvh
 
 N_FRAMES = 6  # rendering costs ~0.05-0.1 s a frame on a CPU: keep videos short
 
@@ -160,7 +160,7 @@ def test_missing_opengl_is_a_clear_error(tmp_path: Path):
     """With a backend that cannot work here (GLFW without a display) the error says what to do."""
     code = (
         "import simenv, mujoco\n"
-        "from simenv.render import make_renderer\n"
+        "from simenv.body.render import make_renderer\n"
         "model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\".1\"/>"
         "</worldbody></mujoco>')\n"
         "try:\n"
@@ -181,7 +181,7 @@ def test_import_simenv_picks_a_headless_backend(tmp_path: Path):
     """Without MUJOCO_GL and DISPLAY, `import simenv` chooses a backend whose library exists."""
     code = (
         "import ctypes.util, os, simenv, mujoco\n"
-        "from simenv.render import make_renderer\n"
+        "from simenv.body.render import make_renderer\n"
         "backend = os.environ.get('MUJOCO_GL')\n"
         "lib = {'osmesa': 'OSMesa', 'egl': 'EGL'}[backend]\n"
         "assert ctypes.util.find_library(lib), lib\n"

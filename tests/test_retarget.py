@@ -1,4 +1,4 @@
-"""Tests of simenv.retarget on motions with a known answer and on real CMU clips."""
+"""Tests of simenv.body.retarget on motions with a known answer and on real CMU clips."""
 
 from __future__ import annotations
 
@@ -9,18 +9,18 @@ import mujoco
 import numpy as np
 import pytest
 
-from simenv.errors import RetargetError
-from simenv.humanoid import BONES, BodyDimensions, Humanoid, fit_humanoid
-from simenv.io import bvh, loader
-from simenv.motion import Interaction, Motion
-from simenv.retarget import (
+from simenv.body.humanoid import BONES, BodyDimensions, Humanoid, fit_humanoid
+from simenv.body.retarget import (
     InteractionRetargetResult,
     RetargetResult,
     _floor_levels,
     _Problem,
     retarget,
 )
-from simenv.skeletons import canonical_skeleton
+from simenv.core.errors import RetargetError
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import canonical_skeleton
+from simenv.io import bvh, loader
 
 #: Retargeting accuracy goals (metres).
 MEAN_GOAL, P95_GOAL = 0.015, 0.03

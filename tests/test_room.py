@@ -9,9 +9,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from simenv.errors import ScenarioError, SimenvError
-from simenv.room import GRASP_RADIUS, Room
-from simenv.scenario import REACTIONS, list_scenarios, load_scenario
+from simenv.core.errors import ScenarioError, SimenvError
+from simenv.room.room import GRASP_RADIUS, Room
+from simenv.room.scenario import REACTIONS, list_scenarios, load_scenario
 
 OBJECTS = ("window", "curtain", "hifi", "cigarette", "door")
 

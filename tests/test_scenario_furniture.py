@@ -1,5 +1,5 @@
-"""User furniture meshes in scenario TOML files (simenv.scenario ``[[furniture]]``,
-simenv.furniture): real mesh files made with trimesh primitives (OBJ, STL, GLB), the
+"""User furniture meshes in scenario TOML files (simenv.room.scenario ``[[furniture]]``,
+simenv.room.furniture): real mesh files made with trimesh primitives (OBJ, STL, GLB), the
 collision geometry measured by dropping a box on a chair, and clear errors for missing,
 unreadable, empty and millimetre files."""
 
@@ -13,11 +13,11 @@ import pytest
 import trimesh
 from trimesh.creation import box
 
-from simenv.errors import ScenarioError
-from simenv.furniture import COLLISION_GROUP, add_furniture, prepare
+from simenv.core.errors import ScenarioError
 from simenv.io.gltf import check_gltf, write_gltf
-from simenv.room import Room
-from simenv.scenario import load_scenario, scenario_path
+from simenv.room.furniture import COLLISION_GROUP, add_furniture, prepare
+from simenv.room.room import Room
+from simenv.room.scenario import load_scenario, scenario_path
 
 #: Seat top and back of the test chairs (m): seat 45 x 45 cm, back 4 cm thick at -x.
 SEAT_TOP, BACK_FRONT, BACK_TOP = 0.47, -0.185, 0.97

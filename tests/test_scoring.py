@@ -1,4 +1,4 @@
-"""Batch scoring (simenv.scoring): walking folders, incremental JSONL, workers, Ray."""
+"""Batch scoring (simenv.plausibility.batch): walking folders, incremental JSONL, workers, Ray."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 from simenv.io.loader import load
 from simenv.io.npz import write_npz
-from simenv.scoring import (
+from simenv.plausibility.batch import (
     ScoreJob,
     done_files,
     find_targets,

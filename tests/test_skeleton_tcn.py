@@ -11,8 +11,8 @@ import torch
 import simenv
 import simenv.models
 from simenv.assets import WALK, asset_path
-from simenv.errors import MotionError
-from simenv.gestures import GESTURE15_JOINTS, gesture_skeleton, to_gesture_joints
+from simenv.core.errors import MotionError
+from simenv.data.gestures import GESTURE15_JOINTS, gesture_skeleton, to_gesture_joints
 from simenv.models.checkpoint import CheckpointError
 from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig, fit_temperature
 
@@ -20,7 +20,7 @@ from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig, fit_temperature
 @pytest.fixture(scope="module")
 def walk_windows() -> np.ndarray:
     """Two normalised 3-s windows of the bundled CMU walk on gesture15 (real mocap)."""
-    from simenv.gestures import normalise_windows
+    from simenv.data.gestures import normalise_windows
 
     m = simenv.load(asset_path(WALK)).resample(25.0)
     p = to_gesture_joints(m)

@@ -8,9 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.errors import SkeletonError
-from simenv.io import florence3d, msr_action3d, nuisi, sbu, utkinect
-from simenv.skeletons import (
+from simenv.core.errors import SkeletonError
+from simenv.core.skeletons import (
     CANONICAL_KEYPOINTS,
     CANONICAL_TREE,
     KINECT_V2_SDK_JOINTS,
@@ -18,6 +17,7 @@ from simenv.skeletons import (
     get_skeleton,
     skeleton_names,
 )
+from simenv.io import florence3d, msr_action3d, nuisi, sbu, utkinect
 
 EXPECTED = {
     "canonical": 21, "kinect_v1_20": 20, "kinect_v2_25": 25, "sbu15": 15, "florence15": 15,

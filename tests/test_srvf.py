@@ -1,4 +1,4 @@
-"""Tests for simenv.srvf: exact discrete SRVF, hypersphere maps, Karcher mean.
+"""Tests for simenv.core.srvf: exact discrete SRVF, hypersphere maps, Karcher mean.
 
 Property tests (hypothesis) check the identities the module documents; the real-data
 tests run the same identities on CMU motion capture.
@@ -14,10 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from simenv import srvf
-from simenv.errors import MotionError
+from simenv.core import srvf
+from simenv.core.errors import MotionError
+from simenv.core.srvf import GeometryError
 from simenv.io import bvh
-from simenv.srvf import GeometryError
 
 SETTINGS = settings(max_examples=150, deadline=None)
 

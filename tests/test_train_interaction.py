@@ -1,4 +1,4 @@
-"""Tests for simenv.train_interaction: configuration from files, clear errors, and one
+"""Tests for simenv.learning.train_interaction: configuration from files, clear errors, and one
 short real training run through the command that writes checkpoint, card and plot."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv import cli
-from simenv import train_interaction as ti
-from simenv.errors import SimenvError
+from simenv.cli.main import main as cli
+from simenv.core.errors import SimenvError
+from simenv.learning import train_interaction as ti
 from simenv.models import INTERACTION_MODELS, interaction_model_class
 
 

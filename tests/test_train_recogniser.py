@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 import simenv.models
-from simenv import cli
-from simenv.train_recogniser import benchmark_table
+from simenv.cli.main import main as cli
+from simenv.perception.train_recogniser import benchmark_table
 
 shipped = pytest.mark.skipif(
     not {"gesture-tcn", "predictor-gesture-25-50"} <= set(simenv.models.available()),

@@ -25,6 +25,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from simenv.body.retarget import RetargetResult
 from simenv.plausibility.body import body_geoms, geom_support_points
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.dynamics import (
@@ -34,7 +35,6 @@ from simenv.plausibility.dynamics import (
     inverse_dynamics,
     root_wrench,
 )
-from simenv.retarget import RetargetResult
 
 
 def _support_bodies(model: mujoco.MjModel) -> np.ndarray:

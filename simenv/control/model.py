@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.body.humanoid import Humanoid
+from simenv.core.errors import PhysicsError
 
 
 @dataclass(frozen=True)

@@ -36,12 +36,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from simenv.body.humanoid import Humanoid
 from simenv.control.costs import CostWeights, TrackingCost
 from simenv.control.model import SensorLayout, planning_model
 from simenv.control.reference import TrackingReference, actuated_indices
 from simenv.control.sampling import Sampler, Spline
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.core.errors import PhysicsError
 
 _STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -59,7 +59,7 @@ class MPCConfig:
             the ``noise_scaling`` factor).
         noise_scaling: scale each actuator's noise by its gain relative to the
             strongest one, ``(kp / kp_max) ** noise_scaling`` (0: uniform).
-        sampled_parts: body parts (:data:`simenv.humanoid.JOINTS` keys) whose
+        sampled_parts: body parts (:data:`simenv.body.humanoid.JOINTS` keys) whose
             hinges get sampled offsets; the others follow the reference
             servo targets. Empty: every hinge.
         limit_rad: largest knot offset, radians.

@@ -1,6 +1,6 @@
 """The tracking reference resampled to the physics timestep.
 
-A retargeted clip (:class:`~simenv.retarget.RetargetResult`) holds one
+A retargeted clip (:class:`~simenv.body.retarget.RetargetResult`) holds one
 configuration per motion-capture frame (``fps`` Hz); the controller steps
 the physics every ``dt`` seconds (2 ms). :class:`TrackingReference` holds,
 per physics step ``s`` (time ``s dt`` from the clip's first frame), the
@@ -30,13 +30,13 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import RetargetResult
 from simenv.control.feedforward import feedforward_torques
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.core.errors import PhysicsError
 from simenv.plausibility.body import check_qpos
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.dynamics import finite_differences
-from simenv.retarget import RetargetResult
 
 #: The keypoints whose floor contact the planner tracks (heels are the ankles).
 FOOT_KEYPOINTS: tuple[str, ...] = ("left_ankle", "left_toe", "right_ankle", "right_toe")

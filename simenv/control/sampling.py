@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simenv.errors import PhysicsError
+from simenv.core.errors import PhysicsError
 
 
 class Spline:

@@ -1,13 +1,13 @@
 """``simenv/HumanoidTrack-v0``: track a reference motion with PD targets (DeepMimic-style).
 
-The body is a :class:`~simenv.humanoid.Humanoid` fitted to the reference's subject; the
-reference is the motion retargeted onto it (:func:`simenv.retarget.retarget`), sampled at
+The body is a :class:`~simenv.body.humanoid.Humanoid` fitted to the reference's subject; the
+reference is the motion retargeted onto it (:func:`simenv.body.retarget.retarget`), sampled at
 the control rate ``1 / (frame_skip * timestep)`` (33.3 Hz by default, DeepMimic's 30 Hz).
 
 Action
     ``Box(nu,)``: the target angle (rad) of every hinge's position actuator, within the
     joint's range. Each actuator applies ``kp (target - q) - kv qd`` (gains of
-    :data:`simenv.humanoid.JOINTS`), clipped to its force limit. No root forces: the body
+    :data:`simenv.body.humanoid.JOINTS`), clipped to its force limit. No root forces: the body
     balances on its feet.
 
 Observation
@@ -35,9 +35,9 @@ Episode
     and velocity. *Terminated* when the mean keypoint error exceeds
     ``termination_distance`` (0.5 m, PHC's failure rule, as in
     :mod:`simenv.plausibility.tracking`). *Truncated* at the end of the reference, or when
-    the physics diverges or MuJoCo warns (:mod:`simenv.divergence`), with
+    the physics diverges or MuJoCo warns (:mod:`simenv.body.divergence`), with
     ``info["truncation_reason"]``. Stepping before ``reset``, after the episode ended, or
-    with an action of the wrong shape raises :class:`~simenv.errors.SimenvError`.
+    with an action of the wrong shape raises :class:`~simenv.core.errors.SimenvError`.
 """
 
 from __future__ import annotations
@@ -53,13 +53,13 @@ import numpy as np
 from gymnasium import spaces
 
 from simenv.assets import WALK, asset_path, list_assets
-from simenv.divergence import physics_problem, warning_counts
-from simenv.errors import SimenvError
-from simenv.humanoid import Humanoid
+from simenv.body.divergence import physics_problem, warning_counts
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import RetargetResult, retarget
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion
 from simenv.io.loader import load
-from simenv.motion import Interaction, Motion
 from simenv.plausibility.dynamics import finite_differences
-from simenv.retarget import RetargetResult, retarget
 
 #: Keypoints whose positions enter the end-effector term (DeepMimic: hands and feet).
 END_EFFECTORS = ("left_hand", "right_hand", "left_toe", "right_toe")
@@ -168,8 +168,8 @@ class HumanoidTrackEnv(gym.Env[np.ndarray, np.ndarray]):
 
     Args:
         motion: a motion file, a bundled asset name (default: the CMU walk), a
-            :class:`~simenv.motion.Motion`, an :class:`~simenv.motion.Interaction` with
-            ``person``, or a :class:`~simenv.retarget.RetargetResult`.
+            :class:`~simenv.core.motion.Motion`, an :class:`~simenv.core.motion.Interaction` with
+            ``person``, or a :class:`~simenv.body.retarget.RetargetResult`.
         frame_skip: physics steps (2 ms) per control step.
         termination_distance: mean keypoint error (m) that ends the episode.
         random_start: draw the start frame uniformly (else frame 0).
@@ -197,7 +197,7 @@ class HumanoidTrackEnv(gym.Env[np.ndarray, np.ndarray]):
         self.random_start = bool(random_start)
         self.render_mode = render_mode
         self._size = (int(width), int(height))
-        timestep = 0.002  # simenv.humanoid's integrator step
+        timestep = 0.002  # simenv.body.humanoid's integrator step
         self.control_dt = self.frame_skip * timestep
         self.humanoid, self.reference = make_reference(motion, 1.0 / self.control_dt, person)
         self.model = self.humanoid.model
@@ -282,7 +282,7 @@ class HumanoidTrackEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            from simenv.render import make_renderer
+            from simenv.body.render import make_renderer
 
             self._renderer = make_renderer(self.model, *self._size)
             self._camera = mujoco.MjvCamera()

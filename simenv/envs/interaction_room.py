@@ -1,7 +1,7 @@
 """``simenv/InteractionRoom-v0``: decide the agent's reaction to the user's gestures.
 
-The room of a scenario (:class:`simenv.room.Room`) with the user's avatar replaying a
-session (:class:`simenv.session.Session`, retargeted onto a body fitted to the subject) at
+The room of a scenario (:class:`simenv.room.room.Room`) with the user's avatar replaying a
+session (:class:`simenv.room.session.Session`, retargeted onto a body fitted to the subject) at
 the perception rate, 25 fps; one environment step is one user frame (0.04 s, 20 physics
 steps of 2 ms). The agent sits at the desk, its PD servos holding the seated pose.
 
@@ -9,20 +9,20 @@ Observation (``Dict``, float32)
     ``user_history`` (H, K, 3): the user's last H = 25 frames (1 s) of canonical keypoints
     in the room frame, m (frames before the session start repeat its first frame);
     ``user_future`` (F, K, 3): the predictor's F frames ahead of the history as it was at
-    the latest prediction (default :func:`simenv.perception.load_predictor`: the shipped
+    the latest prediction (default :func:`simenv.perception.loop.load_predictor`: the shipped
     gesture-domain forecaster ``predictor-gesture-25-50``, 2 s, run on the keypoints through
-    :class:`~simenv.perception.CanonicalPredictor`; the constant-velocity baseline
+    :class:`~simenv.perception.loop.CanonicalPredictor`; the constant-velocity baseline
     ``constant-velocity-50`` when it is not shipped). It predicts at the perception loop's
     rate, every ``predict_every`` = 25 steps (1 s) and at reset, and holds the forecast in
     between: the WGAN takes ~14 ms a call on one core, more than the 25 steps' physics;
     ``predict_every=1`` forecasts at every step); ``agent``
     (nq_a - 2 + nv_a,): the agent's
     ``qpos[2:]`` and ``qvel``; ``objects`` (5,): each object's state as a fraction of its
-    joint range (order :data:`OBJECTS`; see :mod:`simenv.room` for thresholds).
+    joint range (order :data:`OBJECTS`; see :mod:`simenv.room.room` for thresholds).
 
 Action (``Discrete(1 + R)``)
     0 = no-op (keep doing what the agent does), ``1..R`` = the scenario's reactions other
-    than ``keep``, in the order of :data:`simenv.scenario.REACTIONS` (:attr:`reactions`).
+    than ``keep``, in the order of :data:`simenv.room.scenario.REACTIONS` (:attr:`reactions`).
 
 Reward (per step, documented constants below)
     * a decision during a labelled gesture (from its onset to :data:`GRACE_S` after its end)
@@ -35,8 +35,8 @@ Reward (per step, documented constants below)
     * a started reaction that succeeded in simulation by the end of its plan: its object
       reached its target state (:func:`simenv.agents.scripted.object_success`), or, for
       ``greet``, the agent faced the user within 30 degrees with a hand above its shoulder
-      at some step (:meth:`simenv.room.Room.greeting`), for ``bow_back``, facing the user
-      its head dipped and came back up (:meth:`simenv.room.Room.bow_meter`): ``+SUCCESS``;
+      at some step (:meth:`simenv.room.room.Room.greeting`), for ``bow_back``, facing the user
+      its head dipped and came back up (:meth:`simenv.room.room.Room.bow_meter`): ``+SUCCESS``;
     * implausible agent motion: ``-PLAUSIBILITY_WEIGHT`` per centimetre by which the agent's
       deepest contact with the floor, the furniture, the objects or itself penetrates beyond
       :data:`PENETRATION_TOLERANCE_M` (contacts with the kinematic user, who pushes with
@@ -46,7 +46,7 @@ Episode
     Truncated :data:`TAIL_S` after the session ends (the user holding the last pose; later
     while a reaction still runs, at most :data:`MAX_TAIL_S`), or when the physics diverges,
     with ``info["truncation_reason"]``. Stepping before ``reset``, after the end, or with an
-    action outside the space raises :class:`~simenv.errors.SimenvError`.
+    action outside the space raises :class:`~simenv.core.errors.SimenvError`.
 
 Execution
     A decision whose reaction has a planner in :data:`simenv.agents.scripted.PLANNERS`
@@ -70,7 +70,7 @@ Execution
     from the state it left, then the return stages after it; its entry lists ``stages``
     (``stage``, ``duration_s``, ``pelvis_end``; for a stage on the feet, ``assistance``: the
     external help on the agent per physics step -- applied forces and torques, equality
-    constraints other than the hands' grasps, :meth:`simenv.room.Room.assist_wrench`; there
+    constraints other than the hands' grasps, :meth:`simenv.room.room.Room.assist_wrench`; there
     is no assistance mechanism, so it measures 0 -- summarised in N and body weights with
     ``per_frame_n`` per env step, and ``outcome``: ``fell``, ``lowest_pelvis_m``,
     ``goal_error_m``, ``success``), the total ``assistance``, ``fell`` (True when a stage's
@@ -93,13 +93,13 @@ from simenv.agents.idle import plan_idle
 from simenv.agents.reach import PDPlan, PlanChain
 from simenv.agents.scripted import PLANNERS, object_success
 from simenv.assets import WALK
-from simenv.divergence import physics_problem, warning_counts
-from simenv.errors import SimenvError
-from simenv.motion import Motion
-from simenv.perception import load_predictor
-from simenv.room import CHAIR_OFFSET
-from simenv.scenario import REACTIONS, Scenario, load_scenario
-from simenv.session import PERCEPTION_FPS, GestureEvent, Session, user_track
+from simenv.body.divergence import physics_problem, warning_counts
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Motion
+from simenv.perception.loop import load_predictor
+from simenv.room.room import CHAIR_OFFSET
+from simenv.room.scenario import REACTIONS, Scenario, load_scenario
+from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, user_track
 
 #: What an agent's contact is with, in :meth:`InteractionRoomEnv.agent_penetration`.
 _CONTACT_KINDS = ("floor", "furniture", "object", "self", "user")
@@ -163,22 +163,22 @@ class InteractionRoomEnv(gym.Env[dict, int]):
     """Choose the agent's reactions to a recorded user (see the module docstring).
 
     Args:
-        session: a :class:`~simenv.session.Session`, a motion file, a bundled asset name,
+        session: a :class:`~simenv.room.session.Session`, a motion file, a bundled asset name,
             a session recipe (``.toml`` or a bundled recipe name) or a Motion (default: the
             bundled CMU walk, which holds no gesture).
         gestures: labelled gestures of the session when ``session`` is not a Session.
-        scenario: a :class:`~simenv.scenario.Scenario`, a bundled name or a TOML path.
+        scenario: a :class:`~simenv.room.scenario.Scenario`, a bundled name or a TOML path.
         history_frames: H, frames of user history observed.
         predictor: ``"auto"`` (the shipped ``predictor-gesture-25-50`` when present, else
             ``constant-velocity-50``), a ``simenv.models.load`` name (shipped
             ``predictor-*`` models are run on the keypoints through
-            :class:`~simenv.perception.CanonicalPredictor`) or an object with
+            :class:`~simenv.perception.loop.CanonicalPredictor`) or an object with
             ``predict(history)`` ((H, K, 3) -> (F, K, 3)), ``history_len`` and
-            ``future_len`` (:func:`simenv.perception.load_predictor`).
+            ``future_len`` (:func:`simenv.perception.loop.load_predictor`).
         predict_every: steps between forecasts of ``user_future`` (25: the perception
             loop's 1 s; 1: every step).
         data: root of the shared corpus for a session recipe
-            (:func:`simenv.session.shared_data_root`).
+            (:func:`simenv.core.config.shared_data_root`).
         render_mode: None or ``"rgb_array"`` (the room camera). width, height: pixels.
     """
 
@@ -327,7 +327,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            from simenv.render import make_renderer
+            from simenv.body.render import make_renderer
 
             self._renderer = make_renderer(self.model, *self._size)
             self._camera = self.camera()
@@ -584,7 +584,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
 
     def agent_assistance_n(self) -> float:
         """Largest external force (N) acting now on the agent from outside its own servos
-        and contacts (:meth:`simenv.room.Room.assist_wrench`: ``xfrc_applied`` on its
+        and contacts (:meth:`simenv.room.room.Room.assist_wrench`: ``xfrc_applied`` on its
         bodies, ``qfrc_applied`` on its free joint, equality constraints other than the
         hands' grasps); nothing in the room applies one, so 0 unless someone adds it."""
         return self.room.assist_wrench(self.data)[0]

@@ -22,8 +22,8 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from simenv.core.errors import SimenvError
 from simenv.envs.interaction_room import OBJECTS, InteractionRoomEnv
-from simenv.errors import SimenvError
 
 AGENTS = ("user", "agent")
 

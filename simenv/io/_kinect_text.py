@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
 from simenv.io._text import parse_float_rows, read_text, split_lines
 
 

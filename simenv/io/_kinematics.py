@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from simenv.errors import UnitsError
+from simenv.core.errors import UnitsError
 
 #: One CMU skeleton unit in metres: ASF ``:units length 0.45`` of inches.
 CMU_UNIT_M = 0.0254 / 0.45

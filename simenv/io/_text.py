@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
 
 
 def read_text(path: Path) -> str:

@@ -32,7 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
+from simenv.core.motion import Motion, Skeleton
+from simenv.core.skeletons import cmu_canonical_map
 from simenv.io._kinematics import (
     PLAUSIBLE_HEIGHT_M,
     Y_UP_TO_Z_UP,
@@ -43,8 +45,6 @@ from simenv.io._kinematics import (
     rest_extent,
 )
 from simenv.io._text import parse_float, parse_float_rows, read_text, split_lines
-from simenv.motion import Motion, Skeleton
-from simenv.skeletons import cmu_canonical_map
 
 FORMAT = "asf_amc"
 EXTENSIONS = (".amc", ".asf")

@@ -40,7 +40,9 @@ from typing import Any
 
 import numpy as np
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
+from simenv.core.motion import Motion, Skeleton
+from simenv.core.skeletons import cmu_canonical_map, is_poser_template, poser_canonical_map
 from simenv.io._kinematics import (
     CMU_UNIT_M,
     Y_UP_TO_Z_UP,
@@ -52,8 +54,6 @@ from simenv.io._kinematics import (
     rest_extent,
 )
 from simenv.io._text import parse_float, parse_float_rows, read_text, split_lines
-from simenv.motion import Motion, Skeleton
-from simenv.skeletons import cmu_canonical_map, is_poser_template, poser_canonical_map
 
 FORMAT = "bvh"
 EXTENSIONS = (".bvh",)
@@ -437,7 +437,7 @@ def _avoid_coincident(
     apart from the canonical parent (``Neck1``, ``LeftHandIndex1``); with no
     such chain it is declared missing. Returns the map and quirk notes.
     """
-    from simenv.skeletons import CANONICAL_TREE
+    from simenv.core.skeletons import CANONICAL_TREE
 
     index = {n: i for i, n in enumerate(names)}
     children: dict[int, list[int]] = {}

@@ -8,7 +8,7 @@ come from ``action_names.mat`` next to it (else ``"action <k>"``). The other
 field, ``joint_locations``, is a template-normalised skeleton and is ignored.
 
 Joints are the README order (OpenNI 15: Head, Neck, Spine, shoulders, elbows,
-wrists, hips, knees, ankles), :func:`simenv.skeletons.florence_skeleton`.
+wrists, hips, knees, ankles), :func:`simenv.core.skeletons.florence_skeleton`.
 Frame rate: 20 fps (the dataset's AVI headers: 50 000 us/frame, frame counts
 equal to the skeleton's; see ``gestures/SOURCES.md``).
 
@@ -39,10 +39,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import florence_skeleton
 from simenv.io.camera_frame import FloorEstimate, estimate_floor
-from simenv.motion import Motion
-from simenv.skeletons import florence_skeleton
 
 #: Extensions this reader claims when no sniffer accepts a file.
 EXTENSIONS = (".mat",)

@@ -39,7 +39,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 
 #: Geom groups exported (MuJoCo's renderer shows 0-2 by default; 3+ hold hidden collision
 #: geometry such as the convex parts of a furniture mesh).

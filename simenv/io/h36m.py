@@ -1,7 +1,7 @@
 """Human3.6M 17-joint position arrays: a (T, 17, 3) array (or (T, 51)) in
 memory, ``.npy``, or ``.npz`` holding one such array.
 
-Joint order: :data:`simenv.skeletons.H36M_JOINTS` (the 17-joint subset used by
+Joint order: :data:`simenv.core.skeletons.H36M_JOINTS` (the 17-joint subset used by
 VideoPose3D and most 3D-pose papers). Two coordinate frames are accepted:
 
 * ``frame="world"`` (default): H36M's world frame, **Z up**, floor at z ~ 0
@@ -31,10 +31,10 @@ from typing import Literal
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import h36m_skeleton
 from simenv.io.camera_frame import world_motion
-from simenv.motion import Motion
-from simenv.skeletons import h36m_skeleton
 
 #: Extensions this reader claims when no sniffer accepts a file (so a broken
 #: ``.npy`` gets this reader's precise error). ``.npz`` is shared with

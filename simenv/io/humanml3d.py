@@ -8,7 +8,7 @@ Layouts, as verified against their sources:
   per file, a plain (T, 22, 3) array of joint positions in **metres**,
   **Y up** (floor at y = 0), 20 fps (README: "Motions are downsampled into
   20 fps"; ``raw_pose_processing.ipynb``: ``ex_fps = 20``). Joints in SMPL order
-  (:data:`simenv.skeletons.SMPL22_JOINTS`), parents from
+  (:data:`simenv.core.skeletons.SMPL22_JOINTS`), parents from
   ``t2m_kinematic_chain`` (``src/humanml3d/skeletons.py``). The frame is
   right-handed: HumanML3D maps AMASS's Z-up world by swapping y and z *and*
   negating x (``raw_pose_processing.ipynb``: ``trans_matrix`` then
@@ -51,9 +51,9 @@ from typing import Any, Literal
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError, SimenvError, SkeletonError, UnitsError
-from simenv.motion import MAX_PERSON_EXTENT_M, MIN_PERSON_EXTENT_M, Motion
-from simenv.skeletons import SMPL22_JOINTS, smpl22_skeleton
+from simenv.core.errors import FormatError, MotionError, SimenvError, SkeletonError, UnitsError
+from simenv.core.motion import MAX_PERSON_EXTENT_M, MIN_PERSON_EXTENT_M, Motion
+from simenv.core.skeletons import SMPL22_JOINTS, smpl22_skeleton
 
 FORMAT = "humanml3d"
 #: Claimed so that a ``.npy`` no sniffer accepts gets this reader's located error

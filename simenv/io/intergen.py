@@ -36,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Interaction, Motion
 from simenv.io.humanml3d import (
     N_JOINTS,
     Units,
@@ -46,7 +47,6 @@ from simenv.io.humanml3d import (
     load_plain_npy,
     npy_header,
 )
-from simenv.motion import Interaction, Motion
 
 FORMAT = "intergen"
 EXTENSIONS = (".npy",)

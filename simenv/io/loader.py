@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from simenv.errors import MotionError, SimenvError, UnknownFormatError
-from simenv.motion import Interaction, Motion
+from simenv.core.errors import MotionError, SimenvError, UnknownFormatError
+from simenv.core.motion import Interaction, Motion
 
 #: Reader modules of :mod:`simenv.io`, in detection priority order.
 READERS: tuple[str, ...] = (

@@ -4,13 +4,13 @@ Format (see ``gestures/SOURCES.md``): plain text, 4 numbers per line ``x y z c``
 (metres in the Kinect camera frame, ``c`` a per-joint confidence in [0, 1]),
 20 lines per frame in MSR's own joint order, frames back to back, no header.
 The reader reorders the joints to the Kinect SDK v1 order
-(:func:`simenv.skeletons.kinect_v1_skeleton`) with :data:`MSR_TO_SDK`.
+(:func:`simenv.core.skeletons.kinect_v1_skeleton`) with :data:`MSR_TO_SDK`.
 
 Quirks handled:
 
 * **Dropouts.** A frame written as 20 lines of ``0 0 0 0`` is a tracking
   dropout. Dropouts between tracked frames are filled by linear interpolation
-  (:func:`simenv.motion.interpolate_gaps`); leading and trailing dropouts are
+  (:func:`simenv.core.motion.interpolate_gaps`); leading and trailing dropouts are
   trimmed instead (holding a pose still for seconds would invent motion:
   ``a13_s09_e03`` has 740 such frames around 196 tracked ones). Both are
   listed in ``metadata["repairs"]`` and ``metadata["trimmed"]`` gives the
@@ -35,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Motion, interpolate_gaps
+from simenv.core.skeletons import kinect_v1_skeleton
 from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
 from simenv.io.camera_frame import world_motion
-from simenv.motion import Motion, interpolate_gaps
-from simenv.skeletons import kinect_v1_skeleton
 
 #: Nominal frame rate of MSR Action3D, frames/s.
 MSR_FPS = 15.0

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from simenv.errors import FormatError, SimenvError
-from simenv.motion import Interaction, Motion, Skeleton
+from simenv.core.errors import FormatError, SimenvError
+from simenv.core.motion import Interaction, Motion, Skeleton
 
 FORMAT = "npz"
 EXTENSIONS = (".npz",)

@@ -13,8 +13,8 @@ Format (the dataset's ``read_skeleton_file.m``), whitespace-separated lines:
 ``x y z`` are Kinect v2 camera-space metres (x toward the sensor's left, y
 up, z forward; right-handed), so the common camera -> world conversion
 applies (:mod:`simenv.io.camera_frame`). Joints are reordered to
-:func:`simenv.skeletons.kinect_v2_skeleton` with
-:data:`~simenv.skeletons.KINECT_V2_SDK_ORDER`. NTU is captured at 30 fps.
+:func:`simenv.core.skeletons.kinect_v2_skeleton` with
+:data:`~simenv.core.skeletons.KINECT_V2_SDK_ORDER`. NTU is captured at 30 fps.
 
 Bodies are tracked by ``bodyID``. ``read`` keeps the body seen in the most
 frames and, when a second body is present in at least
@@ -33,12 +33,12 @@ from pathlib import Path
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Interaction, Motion, interpolate_gaps
+from simenv.core.skeletons import KINECT_V2_SDK_ORDER, kinect_v2_skeleton
 from simenv.io._kinect_text import head_text, is_number
 from simenv.io._text import read_text, split_lines
 from simenv.io.camera_frame import estimate_floor
-from simenv.motion import Interaction, Motion, interpolate_gaps
-from simenv.skeletons import KINECT_V2_SDK_ORDER, kinect_v2_skeleton
 
 #: Extensions this reader claims when no sniffer accepts a file.
 EXTENSIONS = (".skeleton",)
@@ -186,7 +186,7 @@ def write(path: Path, bodies: Sequence[np.ndarray]) -> None:
     Args:
         path: output file.
         bodies: one (T, 25, 3) array per body, metres, Kinect camera frame,
-            joints in :func:`~simenv.skeletons.kinect_v2_skeleton` order. A
+            joints in :func:`~simenv.core.skeletons.kinect_v2_skeleton` order. A
             frame where a body's positions are NaN is written without that
             body (it was not seen). Fields NTU stores but we do not
             have (2D projections, orientations, hand states) are written as 0;

@@ -6,7 +6,7 @@ Format (``other/SOURCES.md``; the dataset's ``read_nuisi.py``): per line
 ``joint_id, confidence, proj_x, proj_y, proj_z, x, y, z`` (203 values); lines
 with ``n_joints == 0`` (3 values) are tracking dropouts. Joint ids are
 Nuitrack's (0 = none, 1 head ... 24 right foot;
-:func:`simenv.skeletons.nuitrack_skeleton`); ``x, y, z`` are real-world
+:func:`simenv.core.skeletons.nuitrack_skeleton`); ``x, y, z`` are real-world
 millimetres in Nuitrack's sensor frame, which is **left-handed** (x to the
 sensor's right, y up, z away): a subject facing the sensor has its left
 shoulder at larger x, and the dataset's own preprocessing maps
@@ -52,11 +52,11 @@ from typing import Literal
 
 import numpy as np
 
-from simenv.errors import FormatError, MotionError
+from simenv.core.errors import FormatError, MotionError
+from simenv.core.motion import Interaction, Motion, Skeleton
+from simenv.core.skeletons import nuitrack_skeleton
 from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
 from simenv.io.camera_frame import estimate_floor
-from simenv.motion import Interaction, Motion, Skeleton
-from simenv.skeletons import nuitrack_skeleton
 
 NUISI_FPS = 30.0
 N_JOINTS = 25

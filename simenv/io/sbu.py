@@ -3,7 +3,7 @@
 Format (dataset README, v2.0): one row per frame,
 ``frame#, PA(1..15), PB(1..15)`` with ``P(i) = x, y, z`` — 91 comma-separated
 values; person A is the one on the left of the image, B on the right. Joint
-order: :data:`simenv.skeletons.SBU_JOINTS`. Coordinates are *normalised*:
+order: :data:`simenv.core.skeletons.SBU_JOINTS`. Coordinates are *normalised*:
 x, y in [0, 1] and z in [0, 7.8125]. The README gives the inverse:
 
     original_X = 1280 - (normalized_X .* 2560);
@@ -33,11 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import sbu_skeleton
 from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
 from simenv.io.camera_frame import estimate_floor
-from simenv.motion import Interaction, Motion
-from simenv.skeletons import sbu_skeleton
 
 SBU_FPS = 15.0
 VALUES_PER_ROW = 1 + 2 * 15 * 3

@@ -37,12 +37,12 @@ from typing import Literal
 
 import numpy as np
 
-from simenv.errors import FormatError
+from simenv.core.errors import FormatError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import kinect_v1_skeleton
 from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
 from simenv.io._text import read_text, split_lines
 from simenv.io.camera_frame import world_motion
-from simenv.motion import Motion
-from simenv.skeletons import kinect_v1_skeleton
 
 #: Units of the frame-number column per second (see module docstring).
 FRAME_CLOCK_HZ = 60.0

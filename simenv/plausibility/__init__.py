@@ -27,8 +27,8 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from simenv.errors import SimenvError
-from simenv.motion import Motion
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Motion
 from simenv.plausibility.clips import ClipBatch, Plan, Scores, batches, run
 from simenv.plausibility.contact import (
     floating,

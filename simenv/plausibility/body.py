@@ -3,7 +3,7 @@
 Where :mod:`simenv.plausibility.contact` looks at keypoints (joint centres),
 these metrics look at the body's collision geoms (capsules and boxes that
 stand for the skin) posed by a retargeted qpos trajectory
-(:func:`simenv.retarget.retarget`). World Z-up, floor = plane z = 0, metres
+(:func:`simenv.body.retarget.retarget`). World Z-up, floor = plane z = 0, metres
 internally, millimetres and degrees in the results.
 
 =================== ================================================= =============
@@ -32,13 +32,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from simenv.errors import MotionError, PhysicsError
-from simenv.humanoid import Humanoid
-from simenv.motion import Interaction, Motion
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import InteractionRetargetResult, RetargetResult, retarget
+from simenv.core.errors import MotionError, PhysicsError
+from simenv.core.motion import Interaction, Motion
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.contact import ballistic_residual
 from simenv.plausibility.timeline import MetricResult
-from simenv.retarget import InteractionRetargetResult, RetargetResult, retarget
 
 _PLANE, _HFIELD = int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD)
 _SPHERE, _CAPSULE = int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE)
@@ -573,7 +573,7 @@ def joint_limits(source: Motion | RetargetResult,
                  fitted: RetargetResult | None = None) -> MetricResult:
     """Anatomical joint-angle violations.
 
-    A trajectory from :func:`simenv.retarget.retarget` respects the limits by
+    A trajectory from :func:`simenv.body.retarget.retarget` respects the limits by
     construction (the solver projects onto them), so a :class:`Motion` is
     retargeted twice, onto its fitted body and onto :func:`relaxed_humanoid`
     (ranges widened by ``joint_limit_probe_deg``), and a hinge's excess in
@@ -698,7 +698,7 @@ def self_penetration(result: RetargetResult,
     """Penetration between non-neighbouring geoms of one retargeted body.
 
     Pairs of bodies at tree distance 1 (parent-child, filtered by MuJoCo) and
-    2 (siblings, grandparents: excluded by :mod:`simenv.humanoid`) overlap at
+    2 (siblings, grandparents: excluded by :mod:`simenv.body.humanoid`) overlap at
     the joints by construction and are not counted; everything else (an arm
     in the torso, a hand in the head, thigh in thigh) is. Timeline: deepest
     penetration (mm) per frame (``mj_collision`` contact distance); value:

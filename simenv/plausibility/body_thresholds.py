@@ -21,7 +21,7 @@ without a diagnosed capture defect are all plausible, the 6 with one (16_15,
 ``docs/calibration.md``) are all caught.
 
 Joint limits on the real CMU clips with the sourced ranges of
-:data:`simenv.humanoid.JOINTS` (``benchmarks/calibrate_loo.py`` records;
+:data:`simenv.body.humanoid.JOINTS` (``benchmarks/calibrate_loo.py`` records;
 degrees the motion demands beyond the range, held 25 ms / peak frame)::
 
     clip                      held   peak   worst hinge
@@ -42,7 +42,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,7 @@ class BodyThresholds:
             are widened by this much on both sides, so the fit may leave the
             anatomical range where the motion demands it; the violation is
             measured against the anatomical range (AAOS normal ranges plus
-            margins, see :mod:`simenv.humanoid`).
+            margins, see :mod:`simenv.body.humanoid`).
         joint_limit_cost_m: 0.01. A hinge's violation counts on a frame
             when (a) over the keypoints that hinge moves, the limited fit's
             worst residual exceeds the relaxed fit's by more than this, and
@@ -145,7 +145,7 @@ class BodyThresholds:
             height: with the sole fitted from the lowest balls alone, CMU
             131_04's opening stance failed ``balance`` on frames 0-8 with its
             forefoot corners at 5.0-5.4 cm; the fit's two-anchor sole
-            (:func:`simenv.humanoid.fit_dimensions`) passes it, at 49.96 mm of
+            (:func:`simenv.body.humanoid.fit_dimensions`) passes it, at 49.96 mm of
             the 50 mm margin (docs/plausibility.md, calibration findings).
         root_force_mean_max: 0.15. Largest allowed mean (over frames) of the
             residual root force, as a fraction of body weight m g: the

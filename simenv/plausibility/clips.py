@@ -33,11 +33,11 @@ import numpy as np
 from numba import types
 from numba.typed import List
 
-from simenv.errors import MotionError
-from simenv.motion import MIN_PERSON_EXTENT_M, Motion, Skeleton
+from simenv.core.errors import MotionError
+from simenv.core.motion import MIN_PERSON_EXTENT_M, Motion, Skeleton
+from simenv.core.skeletons import canonical_skeleton
 from simenv.plausibility import kernels
 from simenv.plausibility.timeline import MetricResult
-from simenv.skeletons import canonical_skeleton
 
 #: numba type of one clip of a several-clip batch (any strides: windows cut
 #: from a longer clip are views).

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from simenv.motion import Motion
+from simenv.core.motion import Motion
 from simenv.plausibility import kernels
 from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score
 from simenv.plausibility.kinematic import canonical_or_reason, keypoint_indices

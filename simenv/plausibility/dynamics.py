@@ -47,7 +47,8 @@ from scipy.optimize import nnls
 from scipy.signal import butter, filtfilt
 from scipy.spatial import ConvexHull, QhullError
 
-from simenv.errors import PhysicsError
+from simenv.body.retarget import RetargetResult
+from simenv.core.errors import PhysicsError
 from simenv.plausibility.body import (
     BodyPoses,
     body_geoms,
@@ -57,7 +58,6 @@ from simenv.plausibility.body import (
 )
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.timeline import MetricResult
-from simenv.retarget import RetargetResult
 
 
 def lowpass(x: np.ndarray, fps: float, cutoff_hz: float) -> np.ndarray:

@@ -74,7 +74,7 @@ from urllib.parse import quote
 
 import numpy as np
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 from simenv.plausibility.report import (
     VERDICT_IMPLAUSIBLE,
     VERDICT_PLAUSIBLE,
@@ -437,7 +437,7 @@ def _video_scene(report: PlausibilityReport
     """(MjModel, qpos (T, nq), ghost keypoints [(T, K, 3)] per person, the K keypoint
     names) of the video, or None when no person has a retargeted body. Two fitted
     people share one scene; if it cannot be built the video shows person 0."""
-    from simenv.humanoid import build_scene
+    from simenv.body.humanoid import build_scene
 
     fitted = [p.retargeted for p in report.people if p.retargeted is not None]
     if not fitted:
@@ -460,7 +460,7 @@ def _video_scene(report: PlausibilityReport
 
 def _video_section(report: PlausibilityReport, out: Path, max_frames: int) -> str:
     """Render the videos and return their HTML (or a note saying why there is none)."""
-    from simenv.render import keypoint_edges, render_frames, write_video
+    from simenv.body.render import keypoint_edges, render_frames, write_video
 
     scene = _video_scene(report)
     if scene is None:

@@ -712,7 +712,7 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
         resample: bring the clip to ``fa`` first: analysis frame k is
             ``(1 - weight[k]) * p[src[k]] + weight[k] * p[src[k] + 1]`` in
             float32, as :meth:`Motion.resample`. src: (N,) int64, weight:
-            (N,) float32 (:func:`simenv.motion.resample_weights`); without
+            (N,) float32 (:func:`simenv.core.motion.resample_weights`); without
             resampling N = T and they are unused.
         fa: analysis frame rate. w: window, frames at ``fa`` (>= 4, <= N).
         eps: path-length floor. limit: normalized-jerk limit.

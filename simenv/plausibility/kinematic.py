@@ -10,7 +10,7 @@ computed (too few frames for its finite differences, no keypoints it needs)
 does not raise; it returns ``MetricResult.not_available`` with ``passed=None``
 and a ``reason`` naming what is missing, so a report can still show the other
 metrics. Invalid *arguments* (a malformed reference skeleton) raise
-:class:`~simenv.errors.MotionError`.
+:class:`~simenv.core.errors.MotionError`.
 """
 
 from __future__ import annotations
@@ -20,13 +20,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from simenv.errors import MotionError
-from simenv.motion import Motion, resample_weights
+from simenv.core.errors import MotionError
+from simenv.core.motion import Motion, resample_weights
+from simenv.core.skeletons import CANONICAL_TREE
 from simenv.plausibility import kernels
 from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
-from simenv.skeletons import CANONICAL_TREE
 
 #: Keypoint groups for the speed limits (see :class:`Thresholds`).
 TRUNK_KEYPOINTS: tuple[str, ...] = (

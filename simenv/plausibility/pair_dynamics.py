@@ -73,6 +73,7 @@ import mujoco
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from simenv.body.retarget import InteractionRetargetResult
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.dynamics import (
     RootResidual,
@@ -82,7 +83,6 @@ from simenv.plausibility.dynamics import (
     root_wrench,
 )
 from simenv.plausibility.timeline import MetricResult
-from simenv.retarget import InteractionRetargetResult
 
 _AXES = np.eye(3)
 

@@ -41,7 +41,7 @@ Common conventions
       how a real mocap clip (whose joint centres stand a few centimetres
       above its z = 0 floor) compares with a paper's "Real" row.
     * A clip at another rate than 20 fps is first resampled to 20 fps
-      (:meth:`~simenv.motion.Motion.resample`, linear), because Skate (mm
+      (:meth:`~simenv.core.motion.Motion.resample`, linear), because Skate (mm
       per frame) and GMD's window (5 frames) are defined per 20 fps frame.
     * Points are the motion's canonical keypoints (joint centres), not the
       SMPL mesh vertices PhysDiff uses for Penetrate and Float: a joint
@@ -60,8 +60,8 @@ from typing import Any, Literal
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from simenv.errors import MotionError, SimenvError, SkeletonError
-from simenv.motion import Motion
+from simenv.core.errors import MotionError, SimenvError, SkeletonError
+from simenv.core.motion import Motion
 
 #: Frame rate the published metrics are defined at (HumanML3D's rate).
 PUBLISHED_FPS = 20.0

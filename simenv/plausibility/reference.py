@@ -77,7 +77,7 @@ from urllib.parse import quote
 import numpy as np
 from scipy.stats import betabinom
 
-from simenv.errors import ReferenceDataError
+from simenv.core.errors import ReferenceDataError
 
 #: Fewest reference people a metric needs to be calibrated (with fewer, the
 #: 99th percentile is the maximum of a handful of values).
@@ -379,7 +379,7 @@ def calibrate(records: Iterable[Mapping[str, Any]], *,
 
     Args:
         records: score records of the real clips (``simenv score --json``
-            lines, :func:`simenv.scoring.score_batch`); error records are
+            lines, :func:`simenv.plausibility.batch.score_batch`); error records are
             skipped and listed.
         groups: one group key per record (e.g. the subject), error records
             included; people of one group share a fold of the out-of-sample

@@ -1,7 +1,7 @@
 """The plausibility scorer: every metric of a motion, a verdict and a score.
 
-:func:`score` takes a :class:`~simenv.motion.Motion`, an
-:class:`~simenv.motion.Interaction` or a path, and returns a
+:func:`score` takes a :class:`~simenv.core.motion.Motion`, an
+:class:`~simenv.core.motion.Interaction` or a path, and returns a
 :class:`PlausibilityReport`: per person the metrics under their stable names
 (:data:`PERSON_METRICS`), for two people also the pairwise ones
 (:data:`PAIR_METRICS`).
@@ -70,9 +70,10 @@ from typing import Any
 
 import numpy as np
 
+from simenv.body.retarget import InteractionRetargetResult, RetargetResult, retarget
 from simenv.control.mpc import MPCConfig
-from simenv.errors import SimenvError
-from simenv.motion import Interaction, Motion
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion
 from simenv.plausibility.body import (
     DEFAULT_CONTACT_PAIRS,
     body_floating,
@@ -91,7 +92,6 @@ from simenv.plausibility.published import published_record
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 from simenv.plausibility.tracking import tracking
-from simenv.retarget import InteractionRetargetResult, RetargetResult, retarget
 
 #: Per-person metric names, in report order (stable: part of the JSON contract).
 PERSON_METRICS: tuple[str, ...] = (

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from simenv.errors import MotionError
+from simenv.core.errors import MotionError
 
 #: One violation: (first frame, last frame inclusive, worst timeline value).
 Violation = tuple[int, int, float]

@@ -2,7 +2,7 @@
 
 The humanoid's own position actuators (one PD servo per hinge, torque
 ``kp (q_ref - q) - kv qd`` with the gains and force limits of
-:data:`simenv.humanoid.JOINTS`) follow the retargeted hinge angles in forward
+:data:`simenv.body.humanoid.JOINTS`) follow the retargeted hinge angles in forward
 simulation (``mj_step``, the model's 2 ms implicit-fast integrator), starting
 from the first reference pose and velocity. No learning, no feed-forward
 torques: this is the baseline a learned tracker (PHC, ProtoMotions) improves
@@ -27,9 +27,9 @@ compared with the reference body's keypoints:
   mm/frame^2.
 
 Blow-ups never raise: a non-finite state, an acceleration beyond
-:data:`simenv.divergence.MAX_QACC` or a MuJoCo warning (bad qacc, constraint arena overflow)
+:data:`simenv.body.divergence.MAX_QACC` or a MuJoCo warning (bad qacc, constraint arena overflow)
 stops the simulation, marks the result failed and records a
-:class:`~simenv.errors.PhysicsError` message naming the frame.
+:class:`~simenv.core.errors.PhysicsError` message naming the frame.
 """
 
 from __future__ import annotations
@@ -42,15 +42,15 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
+from simenv.body.divergence import physics_problem, warning_counts
+from simenv.body.humanoid import Humanoid
+from simenv.body.retarget import RetargetResult
 from simenv.control.mpc import MPCConfig, TrackingMPC
 from simenv.control.reference import TrackingReference
-from simenv.divergence import physics_problem, warning_counts
-from simenv.errors import PhysicsError
-from simenv.humanoid import Humanoid
+from simenv.core.errors import PhysicsError
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.clips import norm3
 from simenv.plausibility.timeline import MetricResult
-from simenv.retarget import RetargetResult
 
 #: The tracking controllers :func:`track` runs.
 CONTROLLERS: tuple[str, ...] = ("pd", "mpc")

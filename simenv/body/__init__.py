@@ -1,0 +1,2 @@
+"""The simulated body: the subject-fitted humanoid, inverse kinematics, retargeting and
+rendering."""

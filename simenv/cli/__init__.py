@@ -1,0 +1,1 @@
+"""The `simenv` command: one entry per subcommand, and the demo."""

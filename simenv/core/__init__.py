@@ -1,0 +1,1 @@
+"""The data model: motions, skeletons, errors, configuration and the SRVF representation."""

@@ -1,0 +1,1 @@
+"""The learning datasets: windows, joint sets, splits and the measures computed on them."""

@@ -1,0 +1,498 @@
+"""Offline interaction rehearsal: replay a session in the room and record how the agent reacts.
+
+:func:`rehearse` runs :class:`~simenv.envs.interaction_room.InteractionRoomEnv` on a session
+with one of the agents below, and writes to ``out``:
+
+* ``rehearsal.mp4`` (unless ``render=False``): the room seen from the camera of
+  :meth:`~simenv.envs.interaction_room.InteractionRoomEnv.camera` (the user's front, the
+  agent's face and hands), 25 fps, one frame per ``log.jsonl`` line (the state at the end of
+  that step), each captioned (:func:`simenv.body.render.caption_frame`) with what the agent
+  perceived: the time and labelled gesture, the last perception tick's three most probable
+  classes and its stage, the last decision and the reaction executing, and each object's
+  state label and level (% of its joint's range). H.264 when this OpenCV build can encode
+  it, else ``mp4v``, with then the same frames in VP8 in ``rehearsal.webm`` for browsers
+  (:class:`simenv.body.render.WebVideo`);
+* ``log.jsonl``: one JSON line per step, flushed as it goes: ``t``, the labelled ``gesture``,
+  the last perception's ``probabilities``, ``stage`` and ``predicted_motion_m``, the
+  ``decision``, the reaction ``executing``, ``objects`` (states, m or rad), ``levels``
+  (fractions of each joint's range), ``labels``, and the external help on the agent at
+  the step, ``assistance_n`` (N) and ``assistance_bw`` (body weights): applied forces and
+  torques on its bodies and free joint and equality constraints other than the hands'
+  grasps (:meth:`simenv.room.room.Room.assist_wrench`). The room has no assistance mechanism
+  (the agent walks on its own legs), so it reads 0 on every line;
+* ``summary.json``: ``session``, ``gestures`` (the labelled ones), ``reactions`` (only those
+  the agent started: ``gesture``, ``t_onset``,
+  ``t_decision``, ``t_object_changed``, ``object``, ``reaction``, ``success``,
+  ``t_success``; ``facing_deg_min`` for a greeting, ``grasped`` for a grasping reaction,
+  ``stages`` -- each with its ``assistance`` and, for the stages on the feet, its
+  ``outcome`` (``fell``, ``lowest_pelvis_m``, ``goal_error_m``, ``success``) -- the total
+  ``assistance``, ``fell`` and ``failed_stage`` (a stage whose body fell ends the chain)
+  for a chained reaction such as ``close_window``),
+  ``decisions`` (every decision, with ``not_started``: why it was not carried out, and for
+  the scripted agent the perception ``stage`` that took it: ``real`` or ``predicted``),
+  ``decision_latency_s``
+  (statistics of decision time - gesture onset over labelled gestures),
+  ``agent_plausibility`` (joint-level metrics of the agent's keypoints,
+  :func:`simenv.plausibility.kinematic_metrics`: foot skate, ground penetration, jitter,
+  ...), ``agent_physics`` (the agent's simulated contacts: deepest penetration into the
+  floor, the furniture, the objects, itself and the user, and the largest assistance
+  force on its bodies -- the residual force of a simulated agent, measured),
+  ``perception_compute_s``, ``timing_s`` (wall time of the preparation -- retargeting,
+  room --, the simulation loop -- rendering included when on -- and the outputs, and the
+  loop's real-time factor), and with the video ``video``: ``file``, ``codec`` (FourCC),
+  ``webm`` (the WebM copy's file or None), ``width`` and ``height`` (pixels), ``frames``;
+* ``report.html``: the video (``<video>`` with relative sources ``rehearsal.webm`` and
+  ``rehearsal.mp4``: keep the files together),
+  a timeline of gestures, decisions and object states, the reactions started, and the
+  agent's plausibility table, in the style of the plausibility reports
+  (:func:`simenv.plausibility.html_report.html_page`).
+
+Agents: ``"scripted"`` decides with a :class:`~simenv.perception.loop.PerceptionLoop` (predict,
+classify, decide every second; by default the shipped ``gesture-tcn`` and
+``predictor-gesture-25-50``, falling back to templates from the gesture corpus and constant
+velocity, :func:`simenv.perception.loop.default_classifier` /
+:func:`~simenv.perception.loop.load_predictor`; ``summary.json`` names them under
+``perception`` and gives each decision's ``stage``; it perceives while the recording plays,
+no tick whose 1-s window lies wholly in the pose the user holds after it), ``"labels"``
+decides the scenario's
+reaction on the first frame of each labelled gesture (an oracle that rehearses execution
+without perception errors or latency), ``"random"`` decides a seeded random
+reaction at each perception tick.
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import html
+import io
+import json
+import os
+import time
+from collections.abc import Sequence
+from contextlib import nullcontext
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Motion
+from simenv.core.skeletons import canonical_skeleton
+from simenv.envs.interaction_room import OBJECTS, PENETRATION_TOLERANCE_M, InteractionRoomEnv
+from simenv.perception.loop import (
+    FALLBACK_PREDICTOR,
+    GestureModel,
+    Perception,
+    PerceptionLoop,
+    TemplateClassifier,
+    TrainedClassifier,
+    default_classifier,
+    load_predictor,
+    vocabulary_map,
+)
+from simenv.plausibility.html_report import html_page
+from simenv.room.scenario import REACTIONS, Scenario, load_scenario
+from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, session_recipes
+
+AGENTS = ("scripted", "labels", "random")
+#: Accepted video width and height, pixels: room for the scene under the five caption lines
+#: (at least 10 px each), and within the offscreen buffers OpenGL drivers provide.
+VIDEO_SIZE_RANGE = (96, 4096)
+
+
+def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.PathLike[str],
+             *, scenario: Scenario | str = "default", agent: str = "scripted",
+             classifier: GestureModel | None = None, predictor: Any = "auto",
+             render: bool = True, width: int = 480, height: int = 360,
+             seed: int = 0, data: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """Rehearse ``session`` and write the outputs (module docstring) to ``out``.
+
+    Args:
+        session: a Session, motion file, bundled asset or recipe name, or a Motion.
+        out: output folder.
+        scenario: bundled scenario name or TOML file.
+        agent: one of :data:`AGENTS`.
+        classifier: the scripted agent's :class:`~simenv.perception.loop.GestureModel`
+            (default :func:`~simenv.perception.loop.default_classifier` for the scenario's
+            vocabulary).
+        predictor: the perception loop's predictor,
+            :func:`~simenv.perception.loop.load_predictor` (``"auto"``: the shipped
+            ``predictor-gesture-25-50`` when present, else constant velocity). It runs at the
+            perception ticks only: the environment's own ``user_future`` observation,
+            which none of these agents reads, is the constant-velocity baseline's (the
+            WGAN on every step would cost ~14 ms of each 40 ms frame).
+        render, width, height: the video and its size, pixels (integers in
+            :data:`VIDEO_SIZE_RANGE`; 640 x 480 for a larger view).
+        seed: seed of the environment and the random agent.
+        data: root of the shared corpus (session recipes, the template fallback).
+
+    Returns:
+        the summary (as written to ``summary.json``).
+
+    Raises:
+        SimenvError: unknown agent, video size outside :data:`VIDEO_SIZE_RANGE`, and the
+            errors of the environment and the perception.
+    """
+    if agent not in AGENTS:
+        raise SimenvError(f"unknown agent {agent!r}; expected one of {list(AGENTS)}",
+                          field="agent")
+    low, high = VIDEO_SIZE_RANGE
+    for name, size in (("width", width), ("height", height)):
+        if not isinstance(size, int | np.integer) or isinstance(size, bool) \
+                or not low <= size <= high:
+            raise SimenvError(f"video {name} {size!r}; expected a whole number of pixels "
+                              f"from {low} to {high}", field=name)
+    out = Path(out)
+    clock = [time.perf_counter()]
+    ahead = load_predictor(predictor) if agent == "scripted" else None
+    env = InteractionRoomEnv(session, scenario=scenario, predictor=FALLBACK_PREDICTOR,
+                             # 3 s: the longest real window a recogniser's loop classifies
+                             history_frames=max(75, 0 if ahead is None else ahead.history_len),
+                             render_mode="rgb_array" if render else None,
+                             width=width, height=height, data=data)
+    loop = None
+    if agent == "scripted":
+        if classifier is None:
+            classifier = default_classifier(env.scenario.behaviour.vocabulary, data)
+        loop = PerceptionLoop(env.scenario.behaviour, classifier, ahead)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    clock.append(time.perf_counter())
+    agent_kp, perceptions, depths, assistance = [], [], [], 0.0
+    weight = env.room.agent.total_mass * 9.81  # N, for assistance as a fraction of it
+    last: Perception | None = None
+    decided: tuple[str, float] | None = None  # the last decision and its time, s
+    answered: set[int] = set()
+    step, done = 0, False
+    video = None
+    if render:
+        from simenv.body.render import WebVideo, caption_frame
+
+        # Written as it goes: a long session's frames would not fit in memory.
+        video = WebVideo(out / "rehearsal.mp4", PERCEPTION_FPS)
+    with (out / "log.jsonl").open("w", encoding="utf-8") as log, video or nullcontext():
+        while not done:
+            t = step / PERCEPTION_FPS
+            action = 0
+            tick = (step + 1) % 25 == 0 and step + 1 >= 25
+            # Perceive while the 1-s window holds recorded frames: the pose held after the
+            # recording is not the user's motion.
+            if loop is not None and tick and step - loop.real_frames < env.n_frames - 1:
+                last = loop.perceive(t, env.user_keypoints())
+                perceptions.append(last)
+                if last.reaction in env.reactions:
+                    action = env.reactions.index(last.reaction)
+            elif agent == "labels":
+                action = _oracle(env, t, answered)
+            elif agent == "random" and tick:
+                action = int(rng.integers(0, env.action_space.n))
+            obs, _, _, truncated, info = env.step(action)
+            if action:
+                decided = (env.reactions[action], t)
+            done = truncated
+            step += 1
+            agent_kp.append(env.room.agent_keypoints(env.data))
+            depths.append(list(env.agent_penetration().values()))
+            help_n = env.agent_assistance_n()
+            assistance = max(assistance, help_n)
+            row = {
+                "t": round(t, 4), "gesture": info.get("gesture"),
+                "probabilities": None if last is None else last.probabilities,
+                "stage": None if last is None else last.stage,
+                "predicted_motion_m": None if last is None else last.predicted_motion_m,
+                "decision": env.reactions[action], "executing": info.get("executing"),
+                "objects": env.room.object_states(env.data),
+                "levels": dict(zip(OBJECTS, map(float, env.object_levels()), strict=True)),
+                "labels": info.get("object_labels"),
+                "assistance_n": help_n, "assistance_bw": help_n / weight,
+            }
+            log.write(json.dumps(row) + "\n")
+            log.flush()
+            if video is not None:
+                video.write(caption_frame(env.render(), _caption(row, decided)))
+    clock.append(time.perf_counter())
+    env.close()
+    summary = _summary(env, np.array(agent_kp), perceptions)
+    if video is not None:
+        summary["video"] = {"file": video.mp4.path.name, "codec": video.mp4.codec,
+                            "webm": None if video.webm is None else video.webm.path.name,
+                            "width": width, "height": height, "frames": video.mp4.count}
+    if loop is not None:
+        summary["perception"] = {
+            "classifier": getattr(classifier, "name", type(classifier).__name__),
+            "predictor": getattr(ahead, "name", type(ahead).__name__),
+            "real_frames": loop.real_frames, "period": loop.period,
+            "threshold": loop.threshold, "cooldown_s": loop.cooldown_s}
+    summary["agent_physics"] = _physics(np.array(depths), assistance)
+    _report(out, summary)
+    clock.append(time.perf_counter())
+    prep, loop_s, outputs = np.diff(clock)
+    summary["timing_s"] = {"preparation": prep, "loop": loop_s, "outputs": outputs,
+                           "loop_real_time_factor": summary["duration_s"] / loop_s}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+    return summary
+
+
+def _caption(row: dict[str, Any], decided: tuple[str, float] | None) -> list[str]:
+    """The caption lines of the video frame of ``log.jsonl`` line ``row``: time (s) and
+    labelled gesture; the last perception tick's three most probable classes with their
+    probabilities and its stage; the last decision ``decided`` (reaction, time in s) and
+    the reaction executing; each object's state label and level (% of its joint's range)."""
+    best = sorted((row["probabilities"] or {}).items(), key=lambda kv: -kv[1])[:3]
+    perceived = "  ".join(f"{label} {p:.2f}" for label, p in best) or "-"
+    stage = f" ({row['stage']})" if row["stage"] else ""
+    decision = "-" if decided is None else f"{decided[0]} at {decided[1]:.2f} s"
+    labels = row["labels"] or {}  # None on a step whose physics diverged
+    objects = [f"{name} {labels.get(name, '?')} {100 * row['levels'][name]:.0f}%"
+               for name in OBJECTS]
+    return [f"t {row['t']:.2f} s   labelled gesture: {row['gesture'] or '-'}",
+            f"perceived{stage}: {perceived}",
+            f"decision: {decision}   executing: {row['executing'] or '-'}",
+            "   ".join(objects[:3]), "   ".join(objects[3:])]
+
+
+def _oracle(env: InteractionRoomEnv, t: float, answered: set[int]) -> int:
+    """The scenario's reaction to the first unanswered labelled gesture under way."""
+    for i, g in enumerate(env.session.gestures):
+        if i not in answered and g.onset_s <= t <= g.end_s:
+            answered.add(i)
+            reaction = env.scenario.behaviour.reaction_for(g.label).name
+            return env.reactions.index(reaction) if reaction in env.reactions else 0
+    return 0
+
+
+def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
+             perceptions: list[Perception]) -> dict[str, Any]:
+    from simenv.plausibility import kinematic_metrics
+
+    reactions, latencies = [], []
+    for entry in env.log:
+        if not entry["started"]:
+            continue
+        onset = next((g.onset_s for g in env.session.gestures
+                      if g.label == entry["gesture"] and g.onset_s <= entry["t_decision"]),
+                     None)
+        if onset is not None:
+            latencies.append(entry["t_decision"] - onset)
+        reaction = {"gesture": entry["gesture"], "t_onset": onset,
+                    "t_decision": entry["t_decision"],
+                    "t_object_changed": entry["t_object_changed"],
+                    "object": REACTIONS[entry["reaction"]].object,
+                    "reaction": entry["reaction"], "success": entry["success"],
+                    "t_success": entry["t_success"]}
+        # greeting / grasping / chained (stand, walk, act; measured help, falls) reactions
+        for key in ("facing_deg_min", "dip_max_deg", "grasped", "stages", "assistance",
+                    "returned", "fell", "failed_stage"):
+            if key in entry:
+                reaction[key] = entry[key]
+        reactions.append(reaction)
+    lat = np.array(latencies)
+    motion = Motion(agent_kp.astype(np.float32), PERCEPTION_FPS, canonical_skeleton(),
+                    name="agent")
+    metrics = kinematic_metrics(motion) if len(agent_kp) >= 3 else {}
+    compute = np.array([p.compute_s for p in perceptions])
+    # The tick whose reaction became the decision (steps are 1/25 s: match to the step).
+    stage = {round(p.t_s * PERCEPTION_FPS): p.stage for p in perceptions if p.reaction}
+    return {
+        "session": env.session.motion.name, "scenario": env.scenario.name,
+        "duration_s": len(agent_kp) / PERCEPTION_FPS,
+        "gestures": [{"label": g.label, "onset_s": g.onset_s, "end_s": g.end_s}
+                     for g in env.session.gestures],
+        "reactions": reactions,
+        "decisions": [{"t_decision": e["t_decision"], "reaction": e["reaction"],
+                       "started": e["started"], "not_started": e["not_started"],
+                       **({"stage": stage.get(round(e["t_decision"] * PERCEPTION_FPS))}
+                          if perceptions else {})}
+                      for e in env.log],
+        "decision_latency_s": {"n": int(lat.size),
+                               **({"mean": float(lat.mean()), "median": float(np.median(lat)),
+                                   "max": float(lat.max())} if lat.size else {})},
+        "agent_plausibility": {name: {"value": float(m.value), "unit": m.unit,
+                                      "passed": m.passed} for name, m in metrics.items()},
+        "perception_compute_s": {"n": int(compute.size),
+                                 **({"mean": float(compute.mean()),
+                                     "max": float(compute.max())} if compute.size else {})},
+    }
+
+
+def _physics(depths: np.ndarray, assistance: float) -> dict[str, Any]:
+    """The agent's simulated contacts over the session: per kind of contact (columns of
+    ``depths`` (T, 5), m, in :meth:`InteractionRoomEnv.agent_penetration` order) the
+    deepest penetration and the 95th percentile over steps, and the steps deeper than
+    :data:`PENETRATION_TOLERANCE_M`; and the largest assistance force, N (external force
+    on the agent's bodies: the residual force a simulated agent needs; none here)."""
+    kinds = ("floor", "furniture", "object", "self", "user")
+    d = depths.reshape(-1, len(kinds))
+    return {
+        "penetration_m": {k: {"max": float(d[:, i].max(initial=0.0)),
+                              "p95": float(np.percentile(d[:, i], 95)) if len(d) else 0.0,
+                              "steps_over_tolerance": int((d[:, i]
+                                                           > PENETRATION_TOLERANCE_M).sum())}
+                          for i, k in enumerate(kinds)},
+        "tolerance_m": PENETRATION_TOLERANCE_M,
+        "assistance_max_n": float(assistance),
+    }
+
+
+def _report(out: Path, summary: dict[str, Any]) -> None:
+    """``report.html``: the video, the timeline (from ``log.jsonl``), the reactions and
+    the plausibility table."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    t = np.array([r["t"] for r in rows])
+    fig, axes = plt.subplots(2, 1, figsize=(9, 4.5), sharex=True)
+    gestures = sorted({r["gesture"] for r in rows if r["gesture"]})
+    for k, g in enumerate(gestures):
+        on = np.array([r["gesture"] == g for r in rows])
+        axes[0].fill_between(t, k, k + 0.8, where=on, step="post", alpha=0.5)
+        axes[0].text(t[np.argmax(on)], k + 0.3, g, fontsize=8)
+    for d in summary["decisions"]:
+        axes[0].axvline(d["t_decision"], color="k" if d["started"] else "grey", lw=1)
+        axes[0].text(d["t_decision"], len(gestures) + 0.1, d["reaction"], fontsize=7,
+                     rotation=60)
+    axes[0].set_yticks([])
+    axes[0].set_title("gestures (bands) and decisions (lines; black = started)")
+    for name in OBJECTS:
+        axes[1].plot(t, [r["levels"][name] for r in rows], label=name)
+    axes[1].set_xlabel("time (s)")
+    axes[1].set_ylabel("object state (fraction of range)")
+    axes[1].set_ylim(-0.05, 1.05)
+    axes[1].legend(fontsize=7, ncol=5)
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    image = base64.b64encode(buf.getvalue()).decode()
+    e = html.escape
+
+    def verdict(passed: bool | str | None) -> str:
+        if passed is None or isinstance(passed, str):  # not available, or not judged
+            return f"<td class='na'>{e(passed or 'n/a')}</td>"
+        return f"<td class='{'pass' if passed else 'fail'}'>{'pass' if passed else 'fail'}</td>"
+
+    table = "".join(
+        f"<tr><td>{e(k)}</td><td class='num'>{v['value']:.4g} {e(v['unit'])}</td>"
+        f"{verdict(v['passed'])}</tr>" for k, v in summary["agent_plausibility"].items())
+    phys = summary.get("agent_physics")
+    if phys is not None:
+        table += "".join(
+            f"<tr><td>penetration into {e(k)} (max / p95)</td>"
+            f"<td class='num'>{1000 * v['max']:.1f} / {1000 * v['p95']:.1f} mm</td>"
+            + verdict(v["steps_over_tolerance"] == 0 if k != "user" else "n/a (user pushes)")
+            + "</tr>" for k, v in phys["penetration_m"].items())
+        table += (f"<tr><td>assistance force (max)</td><td class='num'>"
+                  f"{phys['assistance_max_n']:.3g} N</td>"
+                  f"{verdict(phys['assistance_max_n'] == 0)}</tr>")
+    def cell(value: Any) -> str:
+        if value is None:  # not applicable, or never happened
+            return "<td class='na'>&ndash;</td>"
+        if isinstance(value, float):  # a time, s
+            return f"<td class='num'>{value:.2f}</td>"
+        return f"<td>{e(str(value))}</td>"
+
+    reactions = "".join(
+        "<tr>" + "".join(cell(r[c]) for c in (
+            "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
+            "t_success")) + verdict(r["success"]) + "</tr>"
+        for r in summary["reactions"])
+    video = summary.get("video")
+    if video is None:
+        film = "<p class='na'>No video (rendering was off).</p>"
+    else:
+        # Relative sources, the browser's pick first (it plays H.264 and VP8, not mp4v):
+        # the folder can be moved or served as is.
+        sources = [(video["file"], "video/mp4"), (video["webm"], "video/webm")]
+        if video["codec"] != "avc1":
+            sources.reverse()
+        film = ("<video controls muted width='{}' height='{}'>{}</video>".format(
+                    video["width"], video["height"],
+                    "".join(f"<source src='{e(src)}' type='{kind}'>" for src, kind in sources
+                            if src))
+                + "<p class='small'>The room as the agent sees it; captions: the time, the "
+                "labelled gesture, the last perception tick's three most probable classes "
+                "and its stage (real or predicted frames), the last decision, the reaction "
+                "executing, and the objects' states. "
+                f"<a href='{e(video['file'])}'>Download the MP4</a> "
+                f"({e(video['codec'])}).</p>")
+    title = f"simenv rehearsal: {summary['session']}"
+    (out / "report.html").write_text(html_page(title, f"""
+<h1>Rehearsal of {e(summary['session'])} ({e(summary['scenario'])})</h1>
+<h2>Video</h2>{film}
+<h2>Timeline</h2><img class="timeline" src="data:image/png;base64,{image}" alt="timeline">
+<h2>Reactions started</h2><table><tr><th>gesture</th><th>onset (s)</th>
+<th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
+<th>success measured (s)</th><th>success</th></tr>{reactions}</table>
+<h2>Agent plausibility</h2><table><tr><th>metric</th><th>value</th><th>verdict</th>
+</tr>{table}</table>
+"""), encoding="utf-8")
+
+
+def _gesture(text: str) -> GestureEvent:
+    try:
+        label, onset, end = text.split(":")
+        return GestureEvent(label, float(onset), float(end))
+    except ValueError:
+        raise SimenvError(f"--gesture {text!r}: expected LABEL:ONSET_S:END_S",
+                          field="gesture") from None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m simenv.envs.rehearsal SESSION --out DIR [...]`` (``--help`` lists options)."""
+    parser = argparse.ArgumentParser(prog="python -m simenv.envs.rehearsal",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("session", help="motion file, bundled asset name, or session recipe "
+                        "(.toml or a bundled recipe name: "
+                        f"{', '.join(session_recipes()) or 'none'})")
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--agent", choices=AGENTS, default="labels")
+    parser.add_argument("--scenario", default="default", help="bundled name or TOML file")
+    parser.add_argument("--gesture", action="append", type=_gesture, default=[],
+                        metavar="LABEL:ONSET_S:END_S", help="a labelled gesture (repeatable)")
+    parser.add_argument("--data", help="root of the shared corpus (session recipes, "
+                        "templates); default $SIMENV_SHARED_DATA or ../shared/data")
+    parser.add_argument("--predictor", default="auto", help="perception predictor: a shipped "
+                        "predictor-* name or constant-velocity-50 (default: "
+                        "predictor-gesture-25-50 when shipped)")
+    parser.add_argument("--classifier", help="shipped classifier name for the scripted agent "
+                        "(default: gesture-tcn when shipped, else templates)")
+    parser.add_argument("--templates", help="gesture recordings folder (msr_action3d/, "
+                        "utkinect/, florence3d/): the scripted agent classifies with "
+                        "nearest-neighbour templates from it instead")
+    parser.add_argument("--no-render", action="store_true", help="skip the video")
+    parser.add_argument("--width", type=int, default=480, help="video width, pixels "
+                        "(default 480; e.g. 640 with --height 480)")
+    parser.add_argument("--height", type=int, default=360, help="video height, pixels "
+                        "(default 360)")
+    args = parser.parse_args(argv)
+    scenario = load_scenario(args.scenario)
+    vocabulary = scenario.behaviour.vocabulary
+    classifier = None
+    if args.templates:
+        from simenv.data.gestures import GESTURE_LABELS, load_gesture_clips
+
+        classifier = TemplateClassifier.from_clips(load_gesture_clips(args.templates),
+                                                   vocabulary_map(GESTURE_LABELS, vocabulary))
+    elif args.classifier:
+        classifier = TrainedClassifier.shipped(args.classifier, vocabulary)
+    session = Session.load(args.session, args.gesture, data=args.data)
+    summary = rehearse(session, args.out, scenario=scenario, agent=args.agent,
+                       classifier=classifier, predictor=args.predictor,
+                       render=not args.no_render, width=args.width,
+                       height=args.height, data=args.data)
+    started = len(summary["reactions"])
+    done = sum(bool(r["success"]) for r in summary["reactions"])
+    print(f"{started} reaction(s) started, {done} succeeded; outputs in {args.out}")
+    return 0
+
+
+__all__ = ["AGENTS", "VIDEO_SIZE_RANGE", "main", "rehearse"]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,409 @@
+"""Recognition measured the field's way: per-dataset benchmarks and the room's vocabulary on
+people the network never saw.
+
+Benchmarks (:func:`run_benchmark`), each dataset on its own classes with its standard
+protocol, next to published figures (:data:`PUBLISHED`):
+
+* **MSR Action3D, cross-subject**: the 20 classes, odd subjects train, even subjects test
+  (Li et al. 2010; the sequences of ``files_used_in_cvpr12_paper.txt``, the common list of
+  Wang et al. 2012). Subject 10 is held out of our corpus, so the test side has 4
+  subjects instead of 5.
+* **UTKinect-Action3D, leave-one-subject-out**: the 10 classes, 10 folds.
+* **Florence 3D, leave-one-subject-out**: the 9 classes, 10 folds.
+
+Whole sequences are classified (the network takes any length); training windows are
+random crops of up to :data:`BENCHMARK_FRAMES` frames (``whole_sequences``: up to the
+longest clip, i.e. whole sequences), never partial (the benchmarks classify segmented
+actions); ``members`` networks of consecutive seeds can be averaged (logits).
+
+Joints (``joints``): ``gesture15`` (default; the room's joint set, measured by all three
+datasets) or ``native``, each dataset's own skeleton as its reader gives it
+(:func:`native_clips`: MSR Action3D and UTKinect the 20 Kinect v1 joints, hands, feet and
+hip centre included; Florence its 15 OpenNI joints), the joints renamed to their canonical
+keypoint names (so the normalisation finds spine, shoulders, elbows, wrists), the tree
+kept, resampled to 25 fps like the gesture clips. The mirror augmentation of
+:func:`simenv.learning.recognition.kinect_noise` swaps only the left/right pairs it knows (not the
+Kinect hands and feet), so when a native skeleton has others the benchmark mirrors clips
+instead: each training clip and its mirror image (:func:`mirror_clip`), half the epochs
+(the same number of optimisation steps, half the windows mirrored, as with ``mirror``).
+
+The room's vocabulary (:func:`run_room_protocol`): every subject of the gesture corpus,
+leave-subjects-out in :data:`~simenv.data.gestures.SUBJECT_FOLDS` folds
+(:func:`simenv.data.gestures.split_subject_folds`; idle clips included), one network per fold,
+evaluated on the held-out subjects in the thesis's conditions (windows centre-cropped):
+``real_3s``, ``real_1s`` (the first second of that window), ``real_1s_pred_2s`` (that
+second continued by the fold's forecaster, trained without the held-out subjects), and
+the zero- and constant-velocity continuations. The temperature of each fold is fitted on
+the out-of-fold logits of the *other* folds (cross-fitting), so no held-out label
+calibrates the probabilities it is judged with.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from tqdm import tqdm
+
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Skeleton
+from simenv.data.gestures import (
+    GESTURE_FPS,
+    GESTURE_LABELS,
+    IDLE_LABEL,
+    WINDOW_FRAMES,
+    GestureClip,
+    cut_window,
+    load_gesture_clips,
+    make_windows,
+    mirror_windows,
+    normalise_windows,
+    room_reaction,
+    split_subject_folds,
+)
+from simenv.learning.recognition import (
+    SHORT_FRAMES,
+    Forecaster,
+    RecognitionConfig,
+    clip_skeleton,
+    continue_windows,
+    logits_of,
+    train_recogniser,
+)
+from simenv.models.skeleton_tcn import SkeletonTCN, fit_temperature
+
+#: Published accuracies (%) of each benchmark: method -> figure, as the papers report them.
+PUBLISHED: dict[str, dict[str, float]] = {
+    "msr_action3d": {"Lie group (Vemulapalli et al. 2014)": 89.48,
+                     "HBRNN (Du et al. 2015)": 94.49},
+    "utkinect": {"Lie group (Vemulapalli et al. 2014)": 97.08},
+    "florence3d": {"Lie group (Vemulapalli et al. 2014)": 90.88},
+}
+#: Longest training crop of the benchmarks, frames at 25 fps (5 s).
+BENCHMARK_FRAMES = 125
+#: Joint sets of the benchmarks (module docstring, *Joints*).
+BENCHMARK_JOINTS: tuple[str, ...] = ("gesture15", "native")
+BenchmarkJoints = Literal["gesture15", "native"]
+#: Conditions of the room protocol, in table order.
+ROOM_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s",
+                                    "real_1s_pred_2s_zv", "real_1s_pred_2s_cv")
+
+
+def classification_scores(y: np.ndarray, pred: np.ndarray, labels: Sequence[str],
+            datasets: Sequence[str] | None = None) -> dict[str, Any]:
+    """Accuracy, balanced accuracy (mean recall over present classes), per-class recall,
+    confusion (rows true), and per-dataset accuracy."""
+    c = len(labels)
+    confusion = np.zeros((c, c), np.int64)
+    np.add.at(confusion, (y, pred), 1)
+    support = confusion.sum(1)
+    recall = {labels[k]: round(float(confusion[k, k] / support[k]), 4)
+              for k in range(c) if support[k]}
+    out: dict[str, Any] = {
+        "n": int(len(y)), "accuracy": round(float((y == pred).mean()), 4),
+        "balanced_accuracy": round(float(np.mean(list(recall.values()))), 4),
+        "per_class_recall": recall, "confusion": confusion.tolist()}
+    if datasets is not None:
+        ds = np.asarray(datasets)
+        out["per_dataset_accuracy"] = {d: round(float((y[ds == d] == pred[ds == d]).mean()), 4)
+                                       for d in sorted(set(datasets))}
+    return out
+
+
+# -- benchmarks -------------------------------------------------------------------------
+
+
+def _msr_protocol_stems(root: Path) -> set[str] | None:
+    listing = root / "msr_action3d" / "files_used_in_cvpr12_paper.txt"
+    if not listing.is_file():
+        return None
+    return {line.strip() for line in listing.read_text().split() if line.strip()}
+
+
+@dataclass(frozen=True, eq=False)
+class NativeClip(GestureClip):
+    """A gesture clip on its dataset's own skeleton (:func:`native_clips`), which it
+    carries so that :func:`simenv.learning.recognition.clip_skeleton` finds it.
+
+    Attributes:
+        skeleton: the joints of ``positions`` (canonical keypoint names) and their tree.
+    """
+
+    skeleton: Skeleton = field(kw_only=True)
+
+
+def native_skeleton(skeleton: Skeleton) -> Skeleton:
+    """``skeleton`` with each joint renamed to its canonical keypoint name (joints without
+    one keep their name); same order and parents."""
+    key_of = {joint: key for key, joint in skeleton.canonical.items()}
+    names = tuple(key_of.get(j, j) for j in skeleton.joint_names)
+    return Skeleton(f"{skeleton.name}_native", names, skeleton.parents,
+                    {key: key for key in key_of.values()})
+
+
+def native_clips(clips: Sequence[GestureClip]) -> list[NativeClip]:
+    """``clips`` on their recordings' own skeletons (:func:`native_skeleton` of
+    ``clip.source``), resampled to :data:`~simenv.data.gestures.GESTURE_FPS` as the gesture
+    clips are (same frames; the joints shared with ``gesture15`` equal the clip's).
+
+    Raises:
+        SimenvError: a clip without its source recording.
+    """
+    out = []
+    for c in clips:
+        if c.source is None:
+            raise SimenvError(f"clip {c.name!r} has no source recording; cannot put it on "
+                              "its native skeleton", field="joints")
+        skel = native_skeleton(c.source.skeleton)
+        m = c.source.on_layout(skel, "the native benchmark skeleton")
+        if m.num_frames >= 2:
+            m = m.resample(GESTURE_FPS)
+        out.append(NativeClip(np.ascontiguousarray(m.positions, dtype=np.float32), c.label,
+                              c.source_label, c.dataset, c.subject, c.name, c.source,
+                              skeleton=skel))
+    return out
+
+
+def _mirror_perm(names: Sequence[str]) -> list[int]:
+    """Joint order of the mirror image: every ``left_*`` / ``right_*`` pair swapped."""
+    index = {n: k for k, n in enumerate(names)}
+    perm = list(range(len(names)))
+    for n, k in index.items():
+        for a, b in (("left_", "right_"), ("right_", "left_")):
+            if n.startswith(a) and b + n[len(a):] in index:
+                perm[k] = index[b + n[len(a):]]
+    return perm
+
+
+def window_mirror_complete(skeleton: Skeleton) -> bool:
+    """Whether :func:`simenv.data.gestures.mirror_windows` (the training mirror) swaps every
+    left/right pair of ``skeleton`` (True for gesture15/gesture9 and Florence; False for
+    the Kinect hands and feet)."""
+    names = skeleton.joint_names
+    probe = np.zeros((len(names), 3), np.float32)
+    probe[:, 0] = np.arange(len(names))
+    return mirror_windows(probe, names)[:, 0].astype(int).tolist() == _mirror_perm(names)
+
+
+def mirror_clip(clip: GestureClip, skeleton: Skeleton) -> GestureClip:
+    """The mirror image of ``clip`` (world Y negated, left/right joints of ``skeleton``
+    swapped), named ``<name>_mirror``; normalised, it is the training mirror of the clip's
+    normalised windows."""
+    positions = np.array(clip.positions[:, _mirror_perm(skeleton.joint_names)], np.float32)
+    positions[..., 1] *= -1
+    return replace(clip, positions=positions, name=f"{clip.name}_mirror", source=None)
+
+
+def benchmark_folds(dataset: str, clips: Sequence[GestureClip]
+                    ) -> list[tuple[str, list[GestureClip], list[GestureClip]]]:
+    """(fold name, train, test) of ``dataset``'s standard protocol (module docstring)."""
+    if dataset == "msr_action3d":
+        return [("cross-subject", [c for c in clips if c.subject % 2 == 1],
+                 [c for c in clips if c.subject % 2 == 0])]
+    subjects = sorted({c.subject for c in clips})
+    return [(f"s{s:02d}", [c for c in clips if c.subject != s],
+             [c for c in clips if c.subject == s]) for s in subjects]
+
+
+def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]:
+    """Every clip whole, padded to the longest and normalised: ((N, T, J, 3), (N, T))."""
+    length = max(c.num_frames for c in clips)
+    cut = [cut_window(c.positions, length=length) for c in clips]
+    valid = np.stack([v for _, v in cut])
+    joints = clip_skeleton(clips).joint_names
+    return normalise_windows(np.stack([w for w, _ in cut]), valid, joints=joints), valid
+
+
+def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
+                  *, members: int = 1, whole_sequences: bool = False,
+                  joints: BenchmarkJoints = "gesture15",
+                  progress: bool = True) -> dict[str, Any]:
+    """Train and test ``dataset`` (``msr_action3d``, ``utkinect`` or ``florence3d``) on its
+    own classes with its standard protocol, on ``joints`` (``gesture15`` or ``native``,
+    module docstring); returns accuracy (pooled over folds), the mean of per-fold
+    accuracies, per-fold numbers, training CPU time and the published figures.
+
+    Raises:
+        SimenvError: unknown dataset or joint set, or no clips.
+    """
+    if dataset not in PUBLISHED:
+        raise SimenvError(f"unknown benchmark {dataset!r}; expected one of "
+                          f"{', '.join(PUBLISHED)}", field="dataset")
+    if joints not in BENCHMARK_JOINTS:
+        raise SimenvError(f"unknown joint set {joints!r}; expected one of "
+                          f"{', '.join(BENCHMARK_JOINTS)}", field="joints")
+    if members < 1:
+        raise SimenvError(f"members must be >= 1; got {members}", field="members")
+    root = Path(root)
+    config = config or RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES,
+                                         epochs=60)
+    clips = load_gesture_clips(root, datasets=(dataset,))
+    excluded: list[str] = []
+    stems = _msr_protocol_stems(root) if dataset == "msr_action3d" else None
+    if stems is not None:
+        # Listed as "a01_s01_e01"; our clip names keep the file's "_skeleton3D".
+        stem = {c.name: c.name.removesuffix("_skeleton3D") for c in clips}
+        excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
+        clips = [c for c in clips if stem[c.name] in stems]
+    if joints == "native":
+        clips = native_clips(clips)
+    skeleton = clip_skeleton(clips)
+    labels = sorted({c.source_label for c in clips})
+    if whole_sequences:
+        config = replace(config, max_frames=max(c.num_frames for c in clips))
+    # The training mirror must swap every left/right pair; otherwise mirror the clips.
+    mirror_copies = config.mirror and not window_mirror_complete(skeleton)
+    train_config = (replace(config, mirror=False, epochs=max(1, round(config.epochs / 2)))
+                    if mirror_copies else config)
+    folds = benchmark_folds(dataset, clips)
+    y_all, p_all, per_fold, cpu = [], [], [], 0.0
+    for name, train, test in tqdm(folds, desc=f"benchmark {dataset}", disable=not progress):
+        x, valid = whole_windows(test)
+        logits = 0.0
+        fold_cpu = 0.0
+        if mirror_copies:
+            train = list(train) + [mirror_clip(c, skeleton) for c in train]
+        for member in range(members):
+            model, history = train_recogniser(
+                train, labels, lambda c: c.source_label,
+                replace(train_config, seed=config.seed + member), progress=False,
+                extra={"benchmark": dataset, "joints": joints})
+            logits = logits + logits_of(model, x, valid) / members
+            fold_cpu += history["train_cpu_s"]
+        pred = np.asarray(logits).argmax(1)
+        y = np.array([labels.index(c.source_label) for c in test])
+        per_fold.append({"fold": name, "n": len(test),
+                         "accuracy": round(float((pred == y).mean()), 4),
+                         "train_cpu_s": round(fold_cpu, 1)})
+        cpu += fold_cpu
+        y_all.append(y)
+        p_all.append(pred)
+    y, pred = np.concatenate(y_all), np.concatenate(p_all)
+    return {"dataset": dataset, "protocol": "cross-subject (odd train, even test)"
+            if dataset == "msr_action3d" else "leave-one-subject-out",
+            "classes": labels, "clips": len(clips), "excluded": excluded,
+            "scores": classification_scores(y, pred, labels),
+            "mean_fold_accuracy": round(float(np.mean([f["accuracy"] for f in per_fold])), 4),
+            "folds": per_fold, "train_cpu_s": round(cpu, 1), "members": members,
+            "whole_sequences": whole_sequences, "joints": joints,
+            "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},
+            "mirror": ("clips (each training clip and its mirror image, half the epochs)"
+                       if mirror_copies else "windows" if config.mirror else "none"),
+            "config": asdict(config), "train_config": asdict(train_config),
+            "published": PUBLISHED[dataset]}
+
+
+# -- the room's vocabulary --------------------------------------------------------------
+
+
+def condition_windows(clips: Sequence[GestureClip], forecast: Forecaster | None
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The room protocol's conditions (module docstring) of ``clips``:
+    name -> (normalised windows (N, 75, J, 3), valid (N, 75))."""
+    joints = clip_skeleton(clips).joint_names
+    full = make_windows(clips, crop="centre", joints=joints)
+    short = make_windows(clips, crop="centre", real_frames=SHORT_FRAMES, joints=joints)
+    out = {"real_3s": (full.x, full.valid), "real_1s": (short.x, short.valid)}
+    rows = np.flatnonzero(short.valid.sum(1) < WINDOW_FRAMES)
+    if forecast is not None:
+        out["real_1s_pred_2s"] = continue_windows(short.x, short.valid, rows, forecast)
+    out["real_1s_pred_2s_zv"] = continue_windows(
+        short.x, short.valid, rows, lambda h: np.repeat(h[:, -1:], WINDOW_FRAMES, axis=1))
+    out["real_1s_pred_2s_cv"] = continue_windows(
+        short.x, short.valid, rows, lambda h: h[:, -1:] + (h[:, -1:] - h[:, -2:-1])
+        * np.arange(1, WINDOW_FRAMES + 1, dtype=np.float32)[None, :, None, None])
+    return out
+
+
+def run_room_protocol(clips: Sequence[GestureClip], config: RecognitionConfig, *,
+                      forecaster_for_fold: Callable[[int], Forecaster | None] | None = None,
+                      folds: int | None = None, progress: bool = True,
+                      keep_models: bool = False) -> dict[str, Any]:
+    """The room vocabulary, leave-subjects-out (module docstring).
+
+    Args:
+        clips: the corpus' clips (labelled and idle), gesture15.
+        config: training options (``forecast_prob`` only acts when the fold has a
+            forecaster).
+        forecaster_for_fold: fold index -> forecaster trained without that fold's
+            subjects (None: no ``real_1s_pred_2s`` condition).
+        folds: number of folds (default :data:`~simenv.data.gestures.SUBJECT_FOLDS`).
+        progress: progress bar over folds.
+        keep_models: also return the fold networks (``"models"``, not JSON).
+
+    Returns:
+        ``conditions``: per condition the pooled scores over every held-out clip
+        (accuracy, balanced accuracy, per-class recall, confusion, per dataset, room-
+        reaction accuracy); ``folds``: per fold its test subjects, clips, accuracies,
+        temperature and CPU time; ``oof``: the out-of-fold logits per condition, labels,
+        names, subjects, datasets (for calibration and the loop's threshold).
+    """
+    labels = list(GESTURE_LABELS)
+    split = split_subject_folds(clips, **({} if folds is None else {"folds": folds}))
+    logits: dict[str, list[np.ndarray]] = {}
+    order: list[GestureClip] = []
+    fold_of: list[int] = []
+    per_fold, models = [], []
+    for k, (train, test) in enumerate(tqdm(split, desc="room protocol folds",
+                                           disable=not progress)):
+        forecast = forecaster_for_fold(k) if forecaster_for_fold else None
+        model, history = train_recogniser(
+            train, labels, lambda c: c.label,
+            config if forecast is not None else replace(config, forecast_prob=0.0),
+            forecast=forecast, progress=progress, extra={"protocol": f"fold {k}"})
+        models.append(model)
+        conds = condition_windows(test, forecast)
+        row: dict[str, Any] = {"fold": k, "test_subjects": sorted({c.subject_key for c in test}),
+                               "clips": len(test), "train_cpu_s": history["train_cpu_s"]}
+        y = np.array([labels.index(c.label) for c in test])
+        for name, (x, valid) in conds.items():
+            z = logits_of(model, x, valid)
+            logits.setdefault(name, []).append(z)
+            row[name] = round(float((z.argmax(1) == y).mean()), 4)
+        per_fold.append(row)
+        order += test
+        fold_of += [k] * len(test)
+    y = np.array([labels.index(c.label) for c in order])
+    fold_arr = np.array(fold_of)
+    datasets = [c.dataset for c in order]
+    z_all = {name: np.concatenate(parts) for name, parts in logits.items()}
+    # Cross-fitted temperature of each fold, from the other folds' held-out real windows.
+    calib = np.concatenate([z_all["real_3s"], z_all["real_1s"]])
+    calib_y, calib_f = np.concatenate([y, y]), np.concatenate([fold_arr, fold_arr])
+    for row in per_fold:
+        others = calib_f != row["fold"]
+        row["temperature"] = fit_temperature(calib[others], calib_y[others])
+    react = np.array([room_reaction(label) for label in labels])
+    conditions = {}
+    for name, z in z_all.items():
+        pred = z.argmax(1)
+        s = classification_scores(y, pred, labels, datasets)
+        s["room_reaction_accuracy"] = round(float((react[y] == react[pred]).mean()), 4)
+        labelled = y != labels.index(IDLE_LABEL)
+        s["accuracy_labelled"] = round(float((y == pred)[labelled].mean()), 4)
+        conditions[name] = s
+    out = {"labels": labels, "clips": len(order), "conditions": conditions,
+           "folds": per_fold,
+           "temperature_all": fit_temperature(calib, calib_y),
+           "oof": {"logits": {k: v.tolist() for k, v in z_all.items()}, "y": y.tolist(),
+                   "fold": fold_arr.tolist(), "names": [c.name for c in order],
+                   "subjects": [c.subject_key for c in order], "datasets": datasets}}
+    if keep_models:
+        out["models"] = models
+    return out
+
+
+def calibrated(model: SkeletonTCN, temperature: float) -> SkeletonTCN:
+    """``model`` with its softmax temperature set (in place; returned for chaining)."""
+    model.config.temperature = float(temperature)
+    return model
+
+
+__all__ = ["BENCHMARK_FRAMES", "BENCHMARK_JOINTS", "PUBLISHED", "ROOM_CONDITIONS",
+           "BenchmarkJoints", "NativeClip", "benchmark_folds", "classification_scores",
+           "calibrated", "condition_windows", "mirror_clip", "native_clips",
+           "native_skeleton", "run_benchmark", "run_room_protocol", "whole_windows",
+           "window_mirror_complete"]

@@ -1,0 +1,681 @@
+"""The room's perception loop: predict ahead, classify real + predicted motion, decide.
+
+Every :attr:`PerceptionLoop.period` frames (25 = 1 s at 25 fps, the thesis's rate) the loop
+takes the user's last frames of canonical keypoints and
+
+1. **classifies the real frames alone**; when the top label's probability reaches
+   ``threshold`` the decision is taken on real motion (stage ``"real"``);
+2. otherwise **predicts ahead** (:attr:`predictor`, e.g. the constant-velocity baseline or
+   the PredictiveMA-WGAN) and classifies real + predicted frames; a confident label there is
+   a decision anticipated from prediction (stage ``"predicted"``);
+3. **decides** the scenario's reaction to the label
+   (:meth:`simenv.room.scenario.Behaviour.reaction_for`), with a refractory period
+   (``cooldown_s``) per label so one gesture triggers once.
+
+Each stage is an interface: any object with ``predict(history) -> future``, ``history_len``
+and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
+:mod:`simenv.models.baselines` directly; the PredictiveMA-WGAN and the DCT-MLP, which work
+on the root-relative pred17 layout, through :class:`CanonicalPredictor`); any
+:class:`GestureModel` classifies.
+
+Defaults (:func:`load_predictor`, :func:`default_classifier`): the shipped models when they
+are present -- the gesture-domain forecaster ``predictor-gesture-25-50``
+(:data:`DEFAULT_PREDICTOR`; any other shipped ``predictor-*`` can be named, e.g. the
+thesis's PredictiveMA-WGAN ``predictor-25-50``) and the skeleton TCN ``gesture-tcn``
+(:data:`DEFAULT_CLASSIFIER`; the thesis's transformer ``gesture-classifier`` by name)
+through :class:`TrainedClassifier`, with the threshold, real windows and use of the
+forecast stage its training chose on held-out subjects -- and otherwise the
+constant-velocity baseline and the nearest-neighbour :class:`TemplateClassifier` built from
+the labelled real clips of the gesture corpus.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from simenv.core.errors import SimenvError
+from simenv.core.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE
+from simenv.data.gestures import (
+    GESTURE15_JOINTS,
+    GESTURE_LABELS,
+    WINDOW_FRAMES,
+    GestureClip,
+    cut_window,
+    normalise_windows,
+)
+from simenv.data.prediction_data import PRED17_JOINTS
+from simenv.room.scenario import Behaviour
+
+
+@runtime_checkable
+class GestureModel(Protocol):
+    """A gesture classifier on world-frame windows (metres, Z up, 25 fps)."""
+
+    labels: tuple[str, ...]
+    joint_names: tuple[str, ...]
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """(T, J, 3) window on :attr:`joint_names`, (T,) valid mask -> (C,) probabilities."""
+        ...
+
+
+def _one_torch_thread() -> None:
+    """In a process forked after torch ran multi-threaded (gymnasium's AsyncVectorEnv
+    forks its workers), the inherited OpenMP pool deadlocks the first parallel operation
+    (measured: a matmul hangs in the child); one intra-op thread there avoids it."""
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
+
+
+os.register_at_fork(after_in_child=_one_torch_thread)
+
+
+def _resample(x: np.ndarray, n: int) -> np.ndarray:
+    """(T, ...) -> (n, ...) by linear interpolation over normalised time."""
+    if len(x) == 1:
+        return np.repeat(x, n, axis=0)
+    s = np.linspace(0.0, len(x) - 1, n)
+    i0 = np.minimum(np.floor(s).astype(int), len(x) - 2)
+    a = (s - i0).reshape(-1, *([1] * (x.ndim - 1)))
+    return (1 - a) * x[i0] + a * x[i0 + 1]
+
+
+class TemplateClassifier:
+    """Nearest-neighbour gesture classifier over labelled template windows.
+
+    A window and every template are normalised (:func:`simenv.data.gestures.normalise_windows`:
+    root at the origin, facing +x, reference size) and their valid frames resampled to
+    ``length`` frames of normalised time (a gesture performed faster or slower still
+    matches). The distance is the mean per-frame, per-joint Euclidean distance (m of the
+    reference body); a class's distance is that of its nearest template, and the
+    probabilities are ``softmax(-d_c / temperature)``.
+
+    Args:
+        templates: (N, T, J, 3) world-frame windows, m. valid: (N, T) masks.
+        labels: (N,) label of each template.
+        joint_names: the J joints.
+        length: frames of normalised time compared.
+        temperature: softmax temperature, m.
+    """
+
+    def __init__(self, templates: np.ndarray, valid: np.ndarray, labels: Sequence[str],
+                 joint_names: Sequence[str] = GESTURE15_JOINTS, length: int = 25,
+                 temperature: float = 0.03) -> None:
+        if len(templates) == 0 or len(templates) != len(labels):
+            raise SimenvError(f"need one label per template; got {len(templates)} templates "
+                              f"and {len(labels)} labels", field="templates")
+        self.joint_names = tuple(joint_names)
+        self.labels = tuple(sorted(set(labels), key=lambda x: (
+            GESTURE_LABELS.index(x) if x in GESTURE_LABELS else len(GESTURE_LABELS), x)))
+        self.length, self.temperature = int(length), float(temperature)
+        valid = np.asarray(valid, dtype=bool)
+        normed = normalise_windows(np.asarray(templates, np.float32), valid,
+                                   joints=self.joint_names)
+        self._templates = np.stack([_resample(t[v], self.length)
+                                    for t, v in zip(normed, valid, strict=True)])
+        self._class = np.array([self.labels.index(label) for label in labels])
+
+    #: What the rehearsal summary calls it.
+    name = "templates"
+
+    @classmethod
+    def from_clips(cls, clips: Sequence[GestureClip], label_map: dict[str, str] | None = None,
+                   **kwargs: Any) -> TemplateClassifier:
+        """Templates from the centre 3 s of each labelled clip (at most; shorter clips
+        whole), on the gesture joint set; ``label_map`` renames the clips' labels (e.g.
+        :func:`vocabulary_map` onto a scenario's vocabulary)."""
+        if not clips:
+            raise SimenvError("no clips to build templates from", field="clips")
+        label_map = label_map or {}
+        cuts = [cut_window(c.positions, offset=max(c.num_frames - WINDOW_FRAMES, 0) // 2)
+                for c in clips]
+        return cls(np.stack([w for w, _ in cuts]), np.stack([v for _, v in cuts]),
+                   [label_map.get(c.label, c.label) for c in clips], GESTURE15_JOINTS,
+                   **kwargs)
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        valid = np.asarray(valid, dtype=bool)
+        if not valid.any():
+            raise SimenvError("window has no valid frame", field="valid")
+        x = normalise_windows(np.asarray(window, np.float32)[None], valid[None],
+                              joints=self.joint_names)[0]
+        q = _resample(x[valid], self.length)
+        d = np.linalg.norm(self._templates - q[None], axis=-1).mean(axis=(1, 2))
+        best = np.full(len(self.labels), np.inf)
+        np.minimum.at(best, self._class, d)
+        z = -(best - best.min()) / self.temperature
+        p = np.exp(z)
+        return p / p.sum()
+
+
+def vocabulary_map(labels: Sequence[str], vocabulary: Sequence[str]) -> dict[str, str]:
+    """How a classifier's labels read in a scenario's vocabulary.
+
+    A label of the vocabulary keeps its name; ``wave`` becomes ``hello`` when the
+    vocabulary has ``hello`` but no ``wave`` (the discomfort scenario: waving hello); any
+    other label becomes ``idle`` when the vocabulary has it (nothing to react to), and is
+    kept otherwise (a label outside the vocabulary never triggers).
+    """
+    vocab = set(vocabulary)
+    out = {}
+    for label in labels:
+        if label in vocab:
+            out[label] = label
+        elif label == "wave" and "hello" in vocab:
+            out[label] = "hello"
+        else:
+            out[label] = "idle" if "idle" in vocab else label
+    return out
+
+
+class TrainedClassifier:
+    """A trained :class:`~simenv.models.gesture_classifier.GestureClassifier` as a
+    :class:`GestureModel`.
+
+    The network classifies fixed windows of ``W`` frames (75 = 3 s at 25 fps). A shorter
+    window (the loop's 1 s of real motion, or 1 s real + F predicted frames) is padded to
+    ``W`` by holding its last frame, the padded frames marked invalid (the network masks
+    them out of attention and pooling: the thesis's "1 s real" condition); a longer one
+    keeps its last ``W`` frames. The network's class probabilities ``p_c`` are summed onto
+    the room's labels through ``label_map`` (``P_l = sum_{c -> l} p_c``).
+
+    Args:
+        model: the trained classifier (e.g. ``simenv.models.load("gesture-classifier")``).
+        label_map: network label -> room label (default: identity). Unmapped labels keep
+            their name.
+        name: what the rehearsal summary calls it.
+    """
+
+    #: Decision threshold suggested to :class:`PerceptionLoop` for the shipped network:
+    #: its probabilities are flat (12 classes, label smoothing; median top 0.25-0.29 at a
+    #: wave's tick), so 0.6 is rarely reached. Chosen on the classifier's *training*
+    #: subjects only (488 MSR and UTKinect clips, 97 of them idle, retargeted into the
+    #: room, through the loop: ``python -m simenv.perception.loop --subjects train``) by
+    #: :func:`choose_threshold` on the grid 0.10, 0.15, ..., 0.60: Youden's J of greeting
+    #: 10/55 - 20/433 = 0.136 at 0.10 and 0.15 (0.134 at 0.20, 0.113 at 0.25, 0.018 at
+    #: 0.30, 0 from 0.35; with the predictor-25-50 of 2026-12-02); the tie goes to the
+    #: higher. Test-subject numbers in docs/room.md.
+    threshold = 0.15
+
+    def __init__(self, model: Any, label_map: dict[str, str] | None = None,
+                 name: str = "gesture-classifier") -> None:
+        config = model.config
+        source = tuple(config.labels)
+        label_map = dict(label_map or {})
+        unknown = sorted(set(label_map) - set(source))
+        if unknown:
+            raise SimenvError(f"label_map names labels {unknown} that the classifier does "
+                              f"not have; its labels: {list(source)}", field="label_map")
+        mapped = [label_map.get(label, label) for label in source]
+        self.model, self.name = model, name
+        self.joint_names = tuple(config.joint_names)
+        # A network with a fixed window (the transformer) is padded to it; one that takes
+        # any length (the TCN) classifies the frames it is given.
+        self.window = int(config.window) if hasattr(config, "window") else None
+        # A checkpoint that records its loop threshold (chosen on held-out subjects by
+        # its training) overrides the class default.
+        metadata = getattr(model, "metadata", {})
+        self.threshold = float(metadata.get("loop_threshold", type(self).threshold))
+        self.uses_forecast = bool(metadata.get("loop_uses_forecast", True))
+        #: Real windows (frames) its loop threshold was chosen with.
+        self.loop_windows = tuple(int(w) for w in metadata.get("loop_windows", (25,)))
+        self.labels: tuple[str, ...] = tuple(dict.fromkeys(mapped))
+        self._to = np.array([self.labels.index(m) for m in mapped])
+
+    @classmethod
+    def shipped(cls, name: str | None = None,
+                vocabulary: Sequence[str] | None = None) -> TrainedClassifier:
+        """The shipped checkpoint ``name`` (None: :data:`DEFAULT_CLASSIFIER`), its labels
+        mapped onto ``vocabulary`` (:func:`vocabulary_map`; None: the network's own)."""
+        import simenv.models
+
+        name = name or DEFAULT_CLASSIFIER
+        model = simenv.models.load(name)
+        mapping = None if vocabulary is None else vocabulary_map(model.config.labels,
+                                                                 vocabulary)
+        return cls(model, mapping, name)
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        """(T, J, 3) world-frame window on :attr:`joint_names` (m, Z up, 25 fps), (T,)
+        valid mask -> (len(labels),) probabilities."""
+        x = np.asarray(window, dtype=np.float32)
+        v = np.asarray(valid, dtype=bool)
+        if x.ndim != 3 or x.shape[1:] != (len(self.joint_names), 3) or v.shape != x.shape[:1]:
+            raise SimenvError(f"window must be (T, {len(self.joint_names)}, 3) with a (T,) "
+                              f"valid mask; got {x.shape} and {v.shape}", field="window")
+        if not v.any():
+            raise SimenvError("window has no valid frame", field="valid")
+        if self.window is None:
+            return np.bincount(self._to, weights=self.model.classify_world(x, v),
+                               minlength=len(self.labels))
+        x, v = x[-self.window:], v[-self.window:]
+        pad = self.window - len(x)
+        if pad:
+            x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
+            v = np.concatenate([v, np.zeros(pad, bool)])
+        p = self.model.classify_world(x, v)
+        return np.bincount(self._to, weights=p, minlength=len(self.labels))
+
+
+class CanonicalPredictor:
+    """A predictor of a canonical-keypoint subset, run on all 21 canonical keypoints.
+
+    The history is cut to the predictor's joints (made root-relative -- minus each frame's
+    pelvis -- when the predictor works that way, as the PredictiveMA-WGAN's pred17 layout
+    does); the forecast is put back at the last observed pelvis (the predictor forecasts
+    the body's shape, not its root), and each keypoint the predictor lacks (toes, hands)
+    keeps its last offset from its canonical parent.
+
+    Args:
+        predictor: ``predict(history (H, J, 3)) -> (F, J, 3)``, ``history_len``,
+            ``future_len``.
+        joints: the predictor's J joints, canonical keypoint names.
+        root_relative: whether the predictor takes pelvis-relative positions.
+        name: what the rehearsal summary calls it (default: the predictor's class).
+    """
+
+    def __init__(self, predictor: Any, joints: Sequence[str] = PRED17_JOINTS,
+                 root_relative: bool = True, name: str | None = None) -> None:
+        missing = [j for j in joints if j not in CANONICAL_KEYPOINTS]
+        if missing:
+            raise SimenvError(f"predictor joints {missing} are not canonical keypoints",
+                              field="joints")
+        self.predictor, self.root_relative = predictor, bool(root_relative)
+        self.name = name or type(predictor).__name__
+        self.history_len = int(predictor.history_len)
+        self.future_len = int(predictor.future_len)
+        self._idx = [CANONICAL_KEYPOINTS.index(j) for j in joints]
+        self._pelvis = CANONICAL_KEYPOINTS.index("pelvis")
+        # Keypoints the predictor lacks, parents first (CANONICAL_KEYPOINTS is tree-ordered).
+        self._carried = [(k, CANONICAL_KEYPOINTS.index(CANONICAL_TREE[name]))
+                         for k, name in enumerate(CANONICAL_KEYPOINTS)
+                         if k not in self._idx and CANONICAL_TREE[name] is not None]
+
+    def predict(self, history: np.ndarray) -> np.ndarray:
+        """(H, 21, 3) canonical keypoints, m -> (F, 21, 3) float32."""
+        h = np.asarray(history, dtype=np.float32)
+        sub = h[:, self._idx]
+        root = h[-1, self._pelvis]
+        if self.root_relative:
+            sub = sub - h[:, self._pelvis][:, None]
+        future = np.asarray(self.predictor.predict(sub), dtype=np.float32)
+        if self.root_relative:
+            future = future + root
+        out = np.repeat(h[-1:], len(future), axis=0)
+        out[:, self._idx] = future
+        for k, parent in self._carried:
+            out[:, k] = out[:, parent] + (h[-1, k] - h[-1, parent])
+        return out
+
+
+#: The shipped predictor the room uses by default (1 s observed -> 2 s ahead): the
+#: gesture-domain forecaster, trained on Kinect recordings of people gesturing.
+DEFAULT_PREDICTOR = "predictor-gesture-25-50"
+#: The fallback when no learned predictor is shipped: the 2-s constant-velocity baseline.
+FALLBACK_PREDICTOR = "constant-velocity-50"
+#: The shipped classifier the room uses by default: the skeleton TCN, measured on
+#: subjects it never saw (docs/recognition.md); ``gesture-classifier`` is the thesis's
+#: transformer.
+DEFAULT_CLASSIFIER = "gesture-tcn"
+
+
+def load_predictor(spec: Any = None) -> Any:
+    """A predictor on the 21 canonical keypoints.
+
+    Args:
+        spec: None or ``"auto"`` (:data:`DEFAULT_PREDICTOR` when shipped, otherwise
+            :data:`FALLBACK_PREDICTOR`); a ``simenv.models.load`` name -- a shipped
+            ``predictor-*`` (PredictiveMA-WGAN, ``predictor-dctmlp-*``: run through
+            :class:`CanonicalPredictor`) or a baseline ``zero-velocity-<F>`` /
+            ``constant-velocity-<F>`` (directly); or a predictor object (returned as is).
+
+    Returns:
+        an object with ``predict``, ``history_len`` and ``future_len`` (and ``name``
+        when built from a name).
+    """
+    import simenv.models
+
+    if spec is None or spec == "auto":
+        spec = (DEFAULT_PREDICTOR if DEFAULT_PREDICTOR in simenv.models.available()
+                else FALLBACK_PREDICTOR)
+    if not isinstance(spec, str):
+        return spec
+    model = simenv.models.load(spec)
+    if spec.startswith("predictor-gesture-"):
+        # World-frame gesture15 forecaster: its own root motion, no pred17 layout.
+        return CanonicalPredictor(model, joints=GESTURE15_JOINTS, root_relative=False,
+                                  name=spec)
+    if spec.startswith("predictor-"):
+        return CanonicalPredictor(model, name=spec)
+    model.name = spec  # a baseline: on any joints, the canonical keypoints included
+    return model
+
+
+def default_classifier(vocabulary: Sequence[str], data: str | os.PathLike[str] | None = None
+                       ) -> GestureModel:
+    """The room's classifier for a scenario's ``vocabulary``: the shipped
+    :data:`DEFAULT_CLASSIFIER` (:class:`TrainedClassifier`) when present, otherwise a
+    :class:`TemplateClassifier` from every labelled clip of the gesture corpus
+    (``data``/gestures; ``data`` default :func:`simenv.core.config.shared_data_root`), labels
+    mapped by :func:`vocabulary_map`.
+
+    Raises:
+        SimenvError: no shipped classifier and no gesture corpus.
+    """
+    import simenv.models
+    from simenv.core.config import shared_data_root
+    from simenv.data.gestures import load_gesture_clips
+
+    if DEFAULT_CLASSIFIER in simenv.models.available():
+        return TrainedClassifier.shipped(DEFAULT_CLASSIFIER, vocabulary)
+    root = shared_data_root(data) / "gestures"
+    if not root.is_dir():
+        raise SimenvError(f"no shipped {DEFAULT_CLASSIFIER!r} checkpoint and no gesture "
+                          f"corpus at {root} for the template classifier (set "
+                          "SIMENV_SHARED_DATA or pass --data)", field="classifier")
+    clips = load_gesture_clips(root)
+    return TemplateClassifier.from_clips(clips, vocabulary_map(GESTURE_LABELS, vocabulary))
+
+
+@dataclass(frozen=True)
+class Perception:
+    """One perception tick.
+
+    Attributes:
+        t_s: time of the last observed frame, s.
+        probabilities: label -> probability of the stage that decided (or of the
+            real + predicted stage when nothing was decided).
+        stage: ``"real"``, ``"predicted"`` or None (no confident label).
+        label, reaction: the decided gesture and reaction (None: no decision, or the
+            reaction is ``keep`` or in its cooldown).
+        predicted_motion_m: mean displacement of the predicted frames' joints from the last
+            observed pose, m (a summary of the prediction).
+        compute_s: wall time of the tick, s.
+    """
+
+    t_s: float
+    probabilities: dict[str, float]
+    stage: str | None
+    label: str | None
+    reaction: str | None
+    predicted_motion_m: float
+    compute_s: float = field(compare=False)
+
+
+class PerceptionLoop:
+    """Predict -> classify -> decide every ``period`` frames (see the module docstring).
+
+    Args:
+        behaviour: the scenario's gesture -> reaction map.
+        classifier: a :class:`GestureModel`; its labels outside the scenario vocabulary
+            never trigger.
+        predictor: forecaster on canonical-keypoint windows (None: real frames only).
+        real_frames: frames of real motion classified (25 = 1 s).
+        context_frames: longer windows of real motion also classified at each tick, frames
+            (None: the classifier's ``loop_windows`` beyond ``real_frames`` if it has
+            them, else none); the most confident window speaks for the real stage. A
+            history shorter than a window gives it what there is.
+        period: frames between ticks.
+        threshold: probability at which a label is decided (None: the classifier's
+            ``threshold`` attribute if it has one, else 0.6).
+        cooldown_s: a decided label does not trigger again within this time, s.
+        fps: frame rate of the keypoints, Hz.
+        use_forecast: run the real + predicted stage (None: the classifier's
+            ``uses_forecast`` attribute if it has one -- a trained recogniser records
+            whether its loop greeted better with it on held-out subjects --, else True).
+    """
+
+    def __init__(self, behaviour: Behaviour, classifier: GestureModel, predictor: Any = None,
+                 *, real_frames: int = 25, period: int = 25, threshold: float | None = None,
+                 cooldown_s: float = 3.0, fps: float = 25.0,
+                 use_forecast: bool | None = None,
+                 context_frames: Sequence[int] | None = None) -> None:
+        missing = [j for j in classifier.joint_names if j not in CANONICAL_KEYPOINTS]
+        if missing:
+            raise SimenvError(f"classifier joints {missing} are not canonical keypoints",
+                              field="classifier")
+        self.behaviour, self.classifier, self.predictor = behaviour, classifier, predictor
+        self.real_frames, self.period = int(real_frames), int(period)
+        if threshold is None:
+            threshold = getattr(classifier, "threshold", 0.6)
+        self.threshold, self.cooldown_s, self.fps = float(threshold), float(cooldown_s), fps
+        if use_forecast is None:
+            use_forecast = bool(getattr(classifier, "uses_forecast", True))
+        self.use_forecast = use_forecast
+        if context_frames is None:
+            context_frames = [w for w in getattr(classifier, "loop_windows", ())
+                              if w > self.real_frames]
+        self.context_frames = tuple(sorted(int(w) for w in context_frames))
+        self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
+        self._last: dict[str, float] = {}
+
+    def reset(self) -> None:
+        """Forget the cooldowns (a new session)."""
+        self._last.clear()
+
+    def due(self, frame: int) -> bool:
+        """Whether frame index ``frame`` (0-based) ends a perception period."""
+        return frame + 1 >= self.real_frames and (frame + 1) % self.period == 0
+
+    def perceive(self, t_s: float, history: np.ndarray) -> Perception:
+        """Run one tick on ``history`` (H >= real_frames, K = 21 canonical keypoints, 3)
+        ending at time ``t_s``."""
+        start = time.perf_counter()
+        h = np.asarray(history, dtype=np.float32)
+        if h.ndim != 3 or h.shape[1:] != (len(CANONICAL_KEYPOINTS), 3) or len(h) < self.real_frames:
+            raise SimenvError(f"history must be (H >= {self.real_frames}, "
+                              f"{len(CANONICAL_KEYPOINTS)}, 3) canonical keypoints; got "
+                              f"{h.shape}", field="history")
+        real = h[-self.real_frames:][:, self._joints]
+        p_real = self.classifier.classify(real, np.ones(len(real), bool))
+        for w in self.context_frames:
+            longer = h[-w:][:, self._joints]
+            p = self.classifier.classify(longer, np.ones(len(longer), bool))
+            if p.max() > p_real.max():
+                p_real = p
+        stage, probs, motion = None, p_real, 0.0
+        if p_real.max() >= self.threshold:
+            stage = "real"
+        elif self.predictor is not None and self.use_forecast:
+            future = np.asarray(self.predictor.predict(h[-int(self.predictor.history_len):]),
+                                dtype=np.float32)
+            motion = float(np.linalg.norm(future - h[-1][None], axis=-1).mean())
+            both = np.concatenate([real, future[:, self._joints]])
+            probs = self.classifier.classify(both, np.ones(len(both), bool))
+            stage = "predicted" if probs.max() >= self.threshold else None
+        label = self.classifier.labels[int(np.argmax(probs))] if stage else None
+        reaction = None
+        if label is not None and label in self.behaviour.vocabulary:
+            cooling = t_s - self._last.get(label, -np.inf) < self.cooldown_s
+            r = self.behaviour.reaction_for(label).name
+            if not cooling and r != "keep":
+                reaction = r
+                self._last[label] = t_s
+        return Perception(t_s, dict(zip(self.classifier.labels, map(float, probs),
+                                        strict=True)), stage, label, reaction, motion,
+                          time.perf_counter() - start)
+
+
+# -- the loop measured on labelled clips --------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LoopReading:
+    """Both stages of one perception tick on one clip, before any threshold.
+
+    Attributes:
+        name, label, subject: the clip's name, true label and subject key.
+        p_real: (C,) probabilities on the 1 s of real motion.
+        p_pred: (C,) probabilities on the 1 s real + the predicted frames.
+    """
+
+    name: str
+    label: str
+    subject: str
+    p_real: np.ndarray
+    p_pred: np.ndarray
+
+
+def loop_readings(clips: Sequence[GestureClip], classifier: GestureModel, predictor: Any,
+                  *, scenario: str = "default", real_frames: int = 25,
+                  progress: bool = False) -> tuple[list[LoopReading], list[str]]:
+    """The loop's stages on each clip, the room's way.
+
+    Each clip's recording (``clip.source``) is retargeted onto the user in ``scenario``
+    (:func:`simenv.room.session.user_track`) and the avatar's canonical keypoints are read at
+    the tick ending ``real_frames`` into the clip's centre 3-s window (the frames a short
+    clip lacks before it repeat its first, as when a session starts).
+
+    Returns:
+        (one reading per clip that could be retargeted, the skipped clips with the
+        reason: no source motion, or no pelvis keypoint as in Florence 3D).
+    """
+    from tqdm import tqdm
+
+    from simenv.room.session import Session, user_track
+
+    need = max(real_frames, int(getattr(predictor, "history_len", real_frames)))
+    readings, skipped = [], []
+    joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
+    for clip in tqdm(clips, desc="loop readings", disable=not progress):
+        if clip.source is None:
+            skipped.append(f"{clip.name}: no source motion")
+            continue
+        try:
+            kp = user_track(Session(clip.source), scenario).keypoints.astype(np.float32)
+        except SimenvError as exc:
+            skipped.append(f"{clip.name}: {exc.detail}")
+            continue
+        end = min(max(len(kp) - WINDOW_FRAMES, 0) // 2 + real_frames, len(kp))
+        h = kp[max(end - need, 0):end]
+        h = np.concatenate([np.repeat(h[:1], need - len(h), axis=0), h])
+        real = h[-real_frames:][:, joints]
+        p_real = classifier.classify(real, np.ones(len(real), bool))
+        future = np.asarray(predictor.predict(h[-int(predictor.history_len):]), np.float32)
+        both = np.concatenate([real, future[:, joints]])
+        p_pred = classifier.classify(both, np.ones(len(both), bool))
+        readings.append(LoopReading(clip.name, clip.label, clip.subject_key,
+                                    np.asarray(p_real), np.asarray(p_pred)))
+    return readings, skipped
+
+
+def loop_decisions(readings: Sequence[LoopReading], labels: Sequence[str], threshold: float,
+                   greet: str = "wave") -> dict[str, Any]:
+    """What :class:`PerceptionLoop` decides on each reading at ``threshold`` (real stage
+    first, then real + predicted), summed up: clips decided, decided label right, greet
+    (label ``greet`` decided) on ``greet`` clips / on the others / on ``idle`` clips, as
+    ``[k, n]``, and decisions per stage."""
+    decided = right = 0
+    greets = {"greet_clips": [0, 0], "other_clips": [0, 0], "idle_clips": [0, 0]}
+    stages = {"real": 0, "predicted": 0}
+    for r in readings:
+        if r.p_real.max() >= threshold:
+            stage, p = "real", r.p_real
+        elif r.p_pred.max() >= threshold:
+            stage, p = "predicted", r.p_pred
+        else:
+            stage, p = None, None
+        label = labels[int(np.argmax(p))] if p is not None else None
+        groups = ["greet_clips" if r.label == greet else "other_clips"]
+        if r.label == "idle":
+            groups.append("idle_clips")
+        for g in groups:
+            greets[g][1] += 1
+            greets[g][0] += int(label == greet)
+        if stage is not None:
+            decided += 1
+            right += int(label == r.label)
+            stages[stage] += 1
+    n = max(len(readings), 1)
+    return {"threshold": threshold, "clips": len(readings), "decided": round(decided / n, 4),
+            "decided_right": round(right / max(decided, 1), 4), **greets, "stages": stages}
+
+
+def choose_threshold(readings: Sequence[LoopReading], labels: Sequence[str],
+                     grid: Sequence[float] = (0.10, 0.15, 0.20, 0.25, 0.30, 0.35, 0.40,
+                                              0.45, 0.50, 0.55, 0.60),
+                     greet: str = "wave") -> tuple[float, list[dict[str, Any]]]:
+    """The grid value maximising Youden's J of greeting, ``greets on greet clips / their
+    number - greets on the others / their number`` (ties: the highest threshold, the one
+    deciding least); returns (threshold, :func:`loop_decisions` at every grid value)."""
+    rows = [loop_decisions(readings, labels, t, greet) for t in grid]
+
+    def j(row: dict[str, Any]) -> float:
+        (a, n), (b, m) = row["greet_clips"], row["other_clips"]
+        return a / max(n, 1) - b / max(m, 1)
+
+    best = max(range(len(rows)), key=lambda k: (round(j(rows[k]), 9), grid[k]))
+    for row in rows:
+        row["youden_j"] = round(j(row), 4)
+    return float(grid[best]), rows
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m simenv.perception.loop --subjects train|test``: the loop's decisions on the
+    MSR Action3D and UTKinect clips (labelled and ``idle``) of the classifier's training
+    or test subjects at every threshold of the grid, and the threshold
+    :func:`choose_threshold` picks, as JSON (``--out``) and a table."""
+    import argparse
+    import json
+
+    from simenv.core.config import shared_data_root
+    from simenv.data.gestures import load_gesture_clips, split_cross_subject
+
+    parser = argparse.ArgumentParser(prog="python -m simenv.perception.loop",
+                                     description=main.__doc__.splitlines()[0])
+    parser.add_argument("--subjects", choices=("train", "test"), required=True)
+    parser.add_argument("--classifier", default=DEFAULT_CLASSIFIER)
+    parser.add_argument("--predictor", default="auto")
+    parser.add_argument("--data", help="corpus root (default: SIMENV_SHARED_DATA or "
+                        "../shared/data)")
+    parser.add_argument("--out", help="JSON file for the readings' decisions")
+    args = parser.parse_args(argv)
+    try:
+        clips = load_gesture_clips(shared_data_root(args.data) / "gestures",
+                                   datasets=("msr_action3d", "utkinect"), idle=True)
+        train, test = split_cross_subject(clips)
+        classifier = TrainedClassifier.shipped(args.classifier)
+        predictor = load_predictor(args.predictor)
+        readings, skipped = loop_readings(train if args.subjects == "train" else test,
+                                          classifier, predictor, progress=True)
+    except SimenvError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    best, rows = choose_threshold(readings, classifier.labels)
+    print("| threshold | decided | decided right | greet on wave | greet on others | "
+          "greet on idle | real / predicted | J |")
+    for r in rows:
+        (a, n), (b, m), (c, k) = r["greet_clips"], r["other_clips"], r["idle_clips"]
+        print(f"| {r['threshold']:.2f} | {r['decided']:.3f} | {r['decided_right']:.3f} | "
+              f"{a}/{n} | {b}/{m} | {c}/{k} | {r['stages']['real']} / "
+              f"{r['stages']['predicted']} | {r['youden_j']:.3f} |")
+    print(f"chosen threshold (max J): {best:.2f}; skipped {len(skipped)} clips")
+    if args.out:
+        Path(args.out).write_text(json.dumps({
+            "subjects": args.subjects, "classifier": args.classifier,
+            "predictor": getattr(predictor, "name", str(args.predictor)),
+            "chosen_threshold": best, "rows": rows, "skipped": skipped,
+            "readings": [{"name": r.name, "label": r.label, "subject": r.subject,
+                          "p_real": r.p_real.round(4).tolist(),
+                          "p_pred": r.p_pred.round(4).tolist()} for r in readings],
+            "labels": list(classifier.labels)}, indent=1))
+    return 0
+
+
+__all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR",
+           "CanonicalPredictor", "GestureModel", "LoopReading", "Perception", "PerceptionLoop",
+           "TemplateClassifier", "TrainedClassifier", "choose_threshold", "default_classifier",
+           "loop_decisions", "load_predictor", "loop_readings",
+           "vocabulary_map"]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

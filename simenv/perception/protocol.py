@@ -1,0 +1,290 @@
+"""The room's perception loop measured on people it never saw, as the room runs it.
+
+What the loop sees (:func:`avatar_clips`): each recording is retargeted onto the user's
+fitted body and placed in the room (:func:`simenv.room.session.user_track`, the
+rehearsal's path), and the avatar's keypoints are read on the gesture joints -- not the
+raw Kinect joints, which the agent never sees. Florence 3D has no pelvis and cannot be
+retargeted; its clips are left out and listed.
+
+Streaming (:func:`stream_readings`): a clip plays from its first frame (before it, the
+person holds the first pose); the loop ticks every :data:`TICK_FRAMES` frames with a
+seeded random phase relative to the gesture's onset (a real user does not start in step
+with the loop). At each tick it computes both of its stages
+(:class:`simenv.perception.loop.PerceptionLoop`): the classifier on the last seconds of real
+motion -- the thesis's 1 s, and optionally longer windows ending at the tick
+(``real_windows``) --, and on the last second continued by the forecaster's 2 s. Ticks
+continue until the tick whose second holds the clip's last frame.
+
+Decisions (:func:`loop_outcomes`), the loop's rule: a tick decides when the top class of
+the real stage (its most confident window) reaches the threshold, else when that of the
+real + predicted stage does;
+a clip is *greeted* when any of its ticks decides ``wave``. Reported: waves greeted,
+other labelled clips greeted, idle clips greeted, the decision's time after the gesture's
+onset (median, p90) and the share of greeted waves decided before the gesture ended.
+
+The threshold (:func:`choose_threshold`) is the lowest grid value whose greetings on
+non-wave clips stay at or below :data:`FALSE_GREET_TARGET` on *calibration* readings: for
+a held-out fold, the readings of the other folds (cross-fitting), never its own.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from simenv.core.errors import SimenvError
+from simenv.data.gestures import GESTURE15_JOINTS, GestureClip, normalise_windows
+from simenv.learning.recognition import SHORT_FRAMES, Forecaster, logits_of
+
+#: Frames between perception ticks (1 s at 25 fps, the thesis's rate).
+TICK_FRAMES = 25
+#: Largest share of non-wave clips a chosen threshold may greet on calibration readings.
+FALSE_GREET_TARGET = 0.02
+#: Thresholds tried by :func:`choose_threshold`.
+THRESHOLD_GRID: tuple[float, ...] = tuple(np.round(np.arange(0.30, 0.96, 0.025), 3))
+GREET_LABEL = "wave"
+
+
+def avatar_clips(clips: Sequence[GestureClip], scenario: str = "default", *,
+                 progress: bool = True) -> tuple[list[GestureClip], list[str]]:
+    """The clips as the room's agent sees them (module docstring): the same labels and
+    names, positions (T, 15, 3) of the avatar's keypoints on ``gesture15``, metres, Z up,
+    25 fps. Returns (clips, skipped clips with the reason)."""
+    from simenv.core.skeletons import CANONICAL_KEYPOINTS
+    from simenv.room.session import Session, user_track
+
+    cols = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]
+    out, skipped = [], []
+    for clip in tqdm(clips, desc="retarget onto the avatar", disable=not progress):
+        if clip.source is None:
+            skipped.append(f"{clip.name}: no source motion")
+            continue
+        try:
+            kp = user_track(Session(clip.source), scenario).keypoints
+        except SimenvError as exc:
+            skipped.append(f"{clip.name}: {exc.detail}")
+            continue
+        out.append(GestureClip(kp[:, cols].astype(np.float32), clip.label, clip.source_label,
+                               clip.dataset, clip.subject, clip.name, clip.source))
+    return out, skipped
+
+
+@dataclass(frozen=True)
+class StreamReading:
+    """Both stages of every tick of one clip, before any threshold.
+
+    Attributes:
+        name, label, subject, dataset: the clip's.
+        duration_s: the clip's length, s.
+        ticks_s: (K,) time of each tick after the clip's first frame, s.
+        logits_real: (K, W, C) classifier logits on the last ``real_windows[w]`` frames of
+            real motion (W = 1: the thesis's 1 s).
+        logits_pred: (K, C) on 1 s real + forecast (NaN without a forecaster).
+    """
+
+    name: str
+    label: str
+    subject: str
+    dataset: str
+    duration_s: float
+    ticks_s: np.ndarray
+    logits_real: np.ndarray
+    logits_pred: np.ndarray
+
+
+def tick_frames(length: int, phase: int) -> np.ndarray:
+    """End frames (exclusive) of the ticks on a clip of ``length`` frames whose loop
+    phase is ``phase`` in [0, TICK_FRAMES): ``phase + 1 + k TICK_FRAMES``, k = 0, 1, ...
+    up to the first tick at or after the clip's last frame."""
+    return np.arange(phase + 1, length + TICK_FRAMES, TICK_FRAMES)
+
+
+def stream_readings(clips: Sequence[GestureClip], model: Any,
+                    forecast: Forecaster | None = None, *, seed: int = 0,
+                    real_windows: Sequence[int] = (SHORT_FRAMES,)) -> list[StreamReading]:
+    """The loop's two stages at every tick of every clip (module docstring).
+
+    Args:
+        clips: gesture15 clips (e.g. :func:`avatar_clips`), 25 fps.
+        model: a :class:`~simenv.models.skeleton_tcn.SkeletonTCN`.
+        forecast: world-frame forecaster (N, 25, 15, 3) -> (N, F, 15, 3), or None.
+        seed: seed of the ticks' phases.
+        real_windows: lengths (frames) of the real windows classified at each tick.
+    """
+    longest = max(max(real_windows), SHORT_FRAMES)
+    rng = np.random.default_rng(seed)
+    histories, owner, ends = [], [], []
+    for i, clip in enumerate(clips):
+        p = clip.positions
+        lead = np.concatenate([np.repeat(p[:1], longest, axis=0), p])
+        for end in tick_frames(len(p), int(rng.integers(0, TICK_FRAMES))):
+            # A tick after the clip's end sees its last second (what follows a gesture
+            # is not in the recording); its time stays the tick's own.
+            stop = min(int(end), len(p)) + longest
+            histories.append(lead[stop - longest:stop])
+            owner.append(i)
+            ends.append(int(end))
+    full = np.stack(histories).astype(np.float32)
+    z_real = np.stack([logits_of(model, normalise_windows(full[:, -w:], ones), ones)
+                       for w in real_windows
+                       for ones in [np.ones((len(full), w), bool)]], axis=1)
+    h = full[:, -SHORT_FRAMES:]
+    if forecast is not None:
+        both = np.concatenate([h, np.asarray(forecast(h), np.float32)], axis=1)
+        v = np.ones(both.shape[:2], bool)
+        # Normalised from the real second's first frames, as a window of the loop is.
+        z_pred = logits_of(model, normalise_windows(both, v), v)
+    else:
+        z_pred = np.full_like(z_real[:, 0], np.nan)
+    owner_arr, ends_arr = np.array(owner), np.array(ends)
+    out = []
+    for i, clip in enumerate(clips):
+        rows = np.flatnonzero(owner_arr == i)
+        out.append(StreamReading(clip.name, clip.label, clip.subject_key, clip.dataset,
+                                 clip.num_frames / 25.0, ends_arr[rows] / 25.0,
+                                 z_real[rows], z_pred[rows]))
+    return out
+
+
+def _softmax(z: np.ndarray, temperature: float) -> np.ndarray:
+    e = np.exp((z - z.max(axis=-1, keepdims=True)) / temperature)
+    return e / e.sum(axis=-1, keepdims=True)
+
+
+_GROUPS = ("greet_clips", "other_clips", "idle_clips")
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What the loop did on one reading: its group, its first greeting (time, stage) and
+    whether its first decision named its own label (None: nothing decided)."""
+
+    group: str
+    greet: tuple[float, str] | None
+    first_right: bool | None
+    duration_s: float
+
+
+def _probabilities(readings: Sequence[StreamReading], temperature: float,
+                   use_forecast: bool) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Each reading's (real (K, W, C), real + forecast (K, C) or None) probabilities."""
+    out = []
+    for r in readings:
+        p_pred = _softmax(r.logits_pred, temperature) if use_forecast and \
+            np.isfinite(r.logits_pred).all() else None
+        out.append((_softmax(r.logits_real, temperature), p_pred))
+    return out
+
+
+def _outcomes(readings: Sequence[StreamReading],
+              probabilities: Sequence[tuple[np.ndarray, np.ndarray | None]],
+              labels: Sequence[str], threshold: float, greet: str) -> list[_Outcome]:
+    """The loop's rule (module docstring) on each reading at ``threshold``."""
+    k = labels.index(greet)
+    out = []
+    for r, (p_real, p_pred) in zip(readings, probabilities, strict=True):
+        decided = []
+        for t in range(len(r.ticks_s)):
+            # The most confident of the tick's real windows speaks for the real stage.
+            w = int(p_real[t].max(axis=-1).argmax())
+            if p_real[t, w].max() >= threshold:
+                decided.append((int(p_real[t, w].argmax()), "real", r.ticks_s[t]))
+            elif p_pred is not None and p_pred[t].max() >= threshold:
+                decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
+        greets = [(float(t), stage) for c, stage, t in decided if c == k]
+        group = "greet_clips" if r.label == greet else \
+            "idle_clips" if r.label == "idle" else "other_clips"
+        out.append(_Outcome(group, greets[0] if greets else None,
+                            labels[decided[0][0]] == r.label if decided else None,
+                            r.duration_s))
+    return out
+
+
+def _summary(outcomes: Sequence[_Outcome]) -> dict[str, Any]:
+    """Counts, rates and timing of :func:`loop_outcomes` from per-reading outcomes."""
+    counts = {g: [sum(o.group == g and o.greet is not None for o in outcomes),
+                  sum(o.group == g for o in outcomes)] for g in _GROUPS}
+    waves = [o for o in outcomes if o.group == "greet_clips" and o.greet is not None]
+    delays = [o.greet[0] for o in waves]
+    stages = {"real": 0, "predicted": 0}
+    for o in waves:
+        stages[o.greet[1]] += 1
+    decided = [o.first_right for o in outcomes if o.first_right is not None]
+    (a, n), (b, m), (c, q) = (counts[g] for g in _GROUPS)
+    return {**counts,
+            "greeted_rate": round(a / max(n, 1), 4),
+            "other_greet_rate": round(b / max(m, 1), 4),
+            "idle_greet_rate": round(c / max(q, 1), 4),
+            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
+            "decision_after_onset_s": {
+                "median": round(float(np.median(delays)), 3) if delays else None,
+                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
+            "decided_before_end": round(sum(o.greet[0] < o.duration_s for o in waves)
+                                        / max(len(waves), 1), 4),
+            "stages": stages,
+            "decided_right": round(sum(decided) / max(len(decided), 1), 4)}
+
+
+def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], threshold: float,
+                  temperature: float = 1.0, *, use_forecast: bool = True,
+                  greet: str = GREET_LABEL) -> dict[str, Any]:
+    """What the loop decides on ``readings`` at ``threshold`` (module docstring).
+
+    Returns:
+        ``greet_clips`` / ``other_clips`` / ``idle_clips``: [greeted, clips];
+        ``greeted_rate``, ``false_greet_rate`` (other + idle), ``decision_after_onset_s``
+        (median, p90 over greeted waves), ``decided_before_end`` (share of greeted waves),
+        ``stages`` (which stage took the greetings of waves), ``decided_right`` (share of
+        clips whose first decision is their own label).
+    """
+    probabilities = _probabilities(readings, temperature, use_forecast)
+    return {"threshold": float(threshold), "temperature": float(temperature),
+            "use_forecast": use_forecast,
+            **_summary(_outcomes(readings, probabilities, labels, threshold, greet))}
+
+
+def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
+                     temperature: float = 1.0, *, use_forecast: bool = True,
+                     grid: Sequence[float] = THRESHOLD_GRID,
+                     target: float = FALSE_GREET_TARGET) -> float:
+    """The lowest grid threshold whose false-greeting rate on ``readings`` is at most
+    ``target`` (the highest grid value when none is)."""
+    probabilities = _probabilities(readings, temperature, use_forecast)
+    for t in sorted(grid):
+        outcomes = _outcomes(readings, probabilities, labels, t, GREET_LABEL)
+        if _summary(outcomes)["false_greet_rate"] <= target:
+            return float(t)
+    return float(max(grid))
+
+
+def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[str], int],
+                          labels: Sequence[str], temperatures: Sequence[float], *,
+                          use_forecast: bool = True) -> dict[str, Any]:
+    """Loop outcomes on every held-out fold, each with the threshold chosen on the other
+    folds' readings (``fold_of(subject_key)``) and its own cross-fitted temperature;
+    pooled over folds, with each fold's threshold."""
+    pooled: list[_Outcome] = []
+    per_fold = []
+    for k in sorted({fold_of(r.subject) for r in readings}):
+        held = [r for r in readings if fold_of(r.subject) == k]
+        calib = [r for r in readings if fold_of(r.subject) != k]
+        t = choose_threshold(calib, labels, temperatures[k], use_forecast=use_forecast)
+        outcomes = _outcomes(held, _probabilities(held, temperatures[k], use_forecast),
+                             labels, t, GREET_LABEL)
+        pooled += outcomes
+        row = _summary(outcomes)
+        per_fold.append({"fold": k, "threshold": t, **{g: row[g] for g in _GROUPS}})
+    summary = _summary(pooled)
+    return {"use_forecast": use_forecast, "folds": per_fold,
+            **{key: summary[key] for key in (*_GROUPS, "greeted_rate", "other_greet_rate",
+                                             "idle_greet_rate", "decision_after_onset_s",
+                                             "decided_before_end", "stages")}}
+
+
+__all__ = ["FALSE_GREET_TARGET", "GREET_LABEL", "THRESHOLD_GRID", "TICK_FRAMES",
+           "StreamReading", "avatar_clips", "choose_threshold", "cross_fitted_outcomes",
+           "loop_outcomes", "stream_readings", "tick_frames"]

@@ -1,0 +1,1 @@
+"""The virtual room: its physical world, scenarios, furniture and recorded sessions."""
