@@ -11,7 +11,7 @@ import os
 from importlib.resources import files
 from pathlib import Path
 
-from simenv.errors import SimenvError
+from simenv.core.errors import SimenvError
 
 #: A single person walking (CMU 02_01, BVH, 120 fps).
 WALK = "cmu_02_01_walk.bvh"
