@@ -424,7 +424,8 @@ def parse_scenario(raw: Mapping[str, Any], source: str = "<scenario>") -> Scenar
 
 def _behaviour(t: _Table) -> Behaviour:
     vocab_raw = t._get("vocabulary")
-    if vocab_raw == "simenv.data.gestures":
+    # "simenv.gestures" is the module's name before the package layout: older files still load.
+    if vocab_raw in ("simenv.data.gestures", "simenv.gestures"):
         vocabulary = tuple(VOCABULARY)
     elif (isinstance(vocab_raw, list) and vocab_raw
           and all(isinstance(v, str) and v for v in vocab_raw)):
