@@ -2,7 +2,8 @@
 
 import simenv.body.gl  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from simenv.core.errors import SimenvError
-from simenv.core.motion import Interaction, Motion, Skeleton
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import Skeleton
 from simenv.io.loader import load
 
 __all__ = ["Interaction", "Motion", "PlausibilityReport", "ScoreConfig", "SimenvError",

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from simenv.assets import WALK, asset_path
-from simenv.core.motion import Motion, Skeleton
+from simenv.core.motion import Motion
+from simenv.core.skeletons import Skeleton
 from simenv.io import asf_amc, bvh
 from simenv.plausibility import KINEMATIC_METRICS, MetricResult
 

@@ -306,7 +306,8 @@ def test_real_bow_is_bowed_back(shared_data):
     the agent, measured step by step with Room.bow_meter, turns to the user, nods and
     comes back up, seated."""
     import simenv.io.florence3d as florence3d
-    from simenv.core.motion import Motion, Skeleton
+    from simenv.core.motion import Motion
+    from simenv.core.skeletons import Skeleton
     from simenv.envs.interaction_room import InteractionRoomEnv
     from simenv.room.session import PERCEPTION_FPS, GestureEvent
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from simenv.core.errors import MotionError, SimenvError, SkeletonError
-from simenv.core.motion import Motion, Skeleton
+from simenv.core.motion import Motion
+from simenv.core.skeletons import Skeleton
 from simenv.data import gestures as g
 
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from simenv.core.errors import MotionError, SkeletonError, UnitsError
-from simenv.core.motion import Interaction, Motion, Skeleton, interpolate_gaps
-from simenv.core.skeletons import canonical_skeleton
+from simenv.core.motion import Interaction, Motion, interpolate_gaps
+from simenv.core.skeletons import Skeleton, canonical_skeleton
 
 
 def _walk(frames: int = 20, fps: float = 30.0) -> Motion:

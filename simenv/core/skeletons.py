@@ -26,11 +26,117 @@ left/right_hand      end of the hand (knuckles / hand centre)
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from functools import cache
 
 from simenv.core.errors import SkeletonError
-from simenv.core.motion import Skeleton
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """A kinematic tree of named joints.
+
+    Attributes:
+        name: identifier of the layout, e.g. ``"cmu31"``, ``"h36m17"``.
+        joint_names: (J,) unique joint names.
+        parents: (J,) parent index of each joint, ``-1`` for roots. A parent
+            always precedes its child (topological order).
+        canonical: map from canonical keypoint name (see
+            :data:`CANONICAL_KEYPOINTS`) to this skeleton's
+            joint name. Keypoints the skeleton lacks are simply absent.
+    """
+
+    name: str
+    joint_names: tuple[str, ...]
+    parents: tuple[int, ...]
+    canonical: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "joint_names", tuple(self.joint_names))
+        object.__setattr__(self, "parents", tuple(int(p) for p in self.parents))
+        object.__setattr__(self, "canonical", dict(self.canonical))
+        names, parents = self.joint_names, self.parents
+        if not names:
+            raise SkeletonError(f"skeleton {self.name!r} has no joints")
+        if len(names) != len(parents):
+            raise SkeletonError(
+                f"skeleton {self.name!r}: {len(names)} joint names but {len(parents)} parents"
+            )
+        seen: set[str] = set()
+        for name in names:
+            if name in seen:
+                raise SkeletonError(
+                    f"skeleton {self.name!r}: duplicate joint name (names must be unique)",
+                    field=name,
+                )
+            seen.add(name)
+        for j, p in enumerate(parents):
+            if not -1 <= p < j:
+                raise SkeletonError(
+                    f"skeleton {self.name!r}: joint {j} has parent {p}; expected -1 or an "
+                    f"index below {j} (parents must precede children)",
+                    field=names[j],
+                )
+        for key, joint in self.canonical.items():
+            if joint not in seen:
+                raise SkeletonError(
+                    f"skeleton {self.name!r}: canonical keypoint {key!r} maps to unknown "
+                    f"joint {joint!r}",
+                    field=key,
+                )
+
+    def __hash__(self) -> int:
+        return hash((self.name, self.joint_names, self.parents))
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Skeleton):
+            return NotImplemented
+        return (
+            self.name == other.name
+            and self.joint_names == other.joint_names
+            and self.parents == other.parents
+            and dict(self.canonical) == dict(other.canonical)
+        )
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def bones(self) -> list[tuple[int, int]]:
+        """(parent, child) index pairs, one per non-root joint."""
+        return [(p, j) for j, p in enumerate(self.parents) if p >= 0]
+
+    def index(self, name: str) -> int:
+        """Index of joint ``name``; raises :class:`SkeletonError` if absent."""
+        try:
+            return self.joint_names.index(name)
+        except ValueError:
+            raise SkeletonError(
+                f"skeleton {self.name!r} has no joint {name!r}; joints are "
+                f"{', '.join(self.joint_names)}"
+            ) from None
+
+    def children(self, j: int) -> list[int]:
+        return [c for c, p in enumerate(self.parents) if p == j]
+
+    def subset(self, names: Sequence[str], name: str | None = None) -> Skeleton:
+        """Skeleton restricted to ``names``; each joint's parent becomes its
+        nearest kept ancestor. Canonical entries of dropped joints are dropped."""
+        keep = [self.index(n) for n in names]
+        keep_sorted = sorted(keep)
+        new_index = {old: new for new, old in enumerate(keep_sorted)}
+        parents = []
+        for old in keep_sorted:
+            p = self.parents[old]
+            while p >= 0 and p not in new_index:
+                p = self.parents[p]
+            parents.append(new_index[p] if p >= 0 else -1)
+        kept_names = [self.joint_names[i] for i in keep_sorted]
+        canonical = {k: v for k, v in self.canonical.items() if v in kept_names}
+        return Skeleton(name or f"{self.name}_subset", tuple(kept_names), tuple(parents), canonical)
+
 
 #: Canonical keypoints with their parent keypoint (None for the root).
 CANONICAL_TREE: dict[str, str | None] = {

@@ -98,8 +98,8 @@ from typing import Literal
 import numpy as np
 
 from simenv.core.errors import MotionError, SimenvError, SkeletonError
-from simenv.core.motion import Motion, Skeleton
-from simenv.core.skeletons import GESTURE9_JOINTS, gesture9_skeleton
+from simenv.core.motion import Motion
+from simenv.core.skeletons import GESTURE9_JOINTS, Skeleton, gesture9_skeleton
 
 #: Gesture label -> what it means.
 VOCABULARY: dict[str, str] = {

@@ -87,8 +87,8 @@ from typing import Any
 import numpy as np
 
 from simenv.core.errors import MotionError, SimenvError, SkeletonError
-from simenv.core.motion import Interaction, Motion, Skeleton
-from simenv.core.skeletons import canonical_skeleton
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import Skeleton, canonical_skeleton
 from simenv.data.prediction_data import ClipSplit, split_by_clip
 
 #: Frame rate of interaction windows, Hz (see the module docstring for why 25).

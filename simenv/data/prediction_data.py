@@ -53,7 +53,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from simenv.core.errors import MotionError, SkeletonError
-from simenv.core.motion import Motion, Skeleton
+from simenv.core.motion import Motion
+from simenv.core.skeletons import Skeleton
 
 #: Default frame rate of prediction windows (the MA-GAN paper's 25 fps).
 TARGET_FPS = 25.0

@@ -41,8 +41,13 @@ from typing import Any
 import numpy as np
 
 from simenv.core.errors import FormatError
-from simenv.core.motion import Motion, Skeleton
-from simenv.core.skeletons import cmu_canonical_map, is_poser_template, poser_canonical_map
+from simenv.core.motion import Motion
+from simenv.core.skeletons import (
+    Skeleton,
+    cmu_canonical_map,
+    is_poser_template,
+    poser_canonical_map,
+)
 from simenv.io._kinematics import (
     CMU_UNIT_M,
     Y_UP_TO_Z_UP,

@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 
 from simenv.core.errors import MotionError
-from simenv.core.motion import Motion, Skeleton
+from simenv.core.motion import Motion
+from simenv.core.skeletons import Skeleton
 
 #: Camera (x left, y up, z forward) -> Z-up axes: ``p_zup = KINECT_TO_ZUP @ p_cam``.
 KINECT_TO_ZUP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

@@ -33,7 +33,8 @@ from typing import Any
 import numpy as np
 
 from simenv.core.errors import FormatError, SimenvError
-from simenv.core.motion import Interaction, Motion, Skeleton
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import Skeleton
 
 FORMAT = "npz"
 EXTENSIONS = (".npz",)

@@ -53,8 +53,8 @@ from typing import Literal
 import numpy as np
 
 from simenv.core.errors import FormatError, MotionError
-from simenv.core.motion import Interaction, Motion, Skeleton
-from simenv.core.skeletons import nuitrack_skeleton
+from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import Skeleton, nuitrack_skeleton
 from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
 from simenv.io.camera_frame import estimate_floor
 

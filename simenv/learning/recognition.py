@@ -44,7 +44,7 @@ from tqdm import tqdm
 
 from simenv.core.config import dataclass_from_file
 from simenv.core.errors import SimenvError, SkeletonError
-from simenv.core.motion import Skeleton
+from simenv.core.skeletons import Skeleton
 from simenv.data.gestures import (
     GESTURE_FPS,
     GestureClip,

@@ -49,7 +49,7 @@ import numpy as np
 from tqdm import tqdm
 
 from simenv.core.errors import SimenvError
-from simenv.core.motion import Skeleton
+from simenv.core.skeletons import Skeleton
 from simenv.data.gestures import (
     GESTURE_FPS,
     GESTURE_LABELS,

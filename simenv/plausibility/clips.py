@@ -34,8 +34,8 @@ from numba import types
 from numba.typed import List
 
 from simenv.core.errors import MotionError
-from simenv.core.motion import MIN_PERSON_EXTENT_M, Motion, Skeleton
-from simenv.core.skeletons import canonical_skeleton
+from simenv.core.motion import MIN_PERSON_EXTENT_M, Motion
+from simenv.core.skeletons import Skeleton, canonical_skeleton
 from simenv.plausibility import kernels
 from simenv.plausibility.timeline import MetricResult
 
