@@ -1,10 +1,11 @@
 """User-supplied furniture meshes (OBJ, STL, glTF/GLB, PLY, OFF) in the room.
 
-A scenario lists them as ``[[furniture]]`` tables (:class:`simenv.room.scenario.FurnitureMesh`,
-fields documented in ``assets/scenarios/default.toml``). Each file is read with
-:mod:`trimesh`, turned Z-up (``up = "y"``: glTF's convention and that of most OBJ
-exports), scaled to metres (``scale``), and placed by the centre of its footprint at
-``position`` with its lowest point at ``elevation`` (m), turned by ``yaw_deg``.
+A scenario lists them as ``[[furniture]]`` tables (:class:`FurnitureMesh`, read by
+:func:`simenv.room.scenario.load_scenario`; fields documented in
+``assets/scenarios/default.toml``). Each file is read with :mod:`trimesh`, turned Z-up
+(``up = "y"``: glTF's convention and that of most OBJ exports), scaled to metres
+(``scale``), and placed by the centre of its footprint at ``position`` with its lowest
+point at ``elevation`` (m), turned by ``yaw_deg``.
 
 Collision. MuJoCo collides a mesh geom as its convex hull, so a chair given as one mesh
 would collide as a solid block filling the space between its seat and its back. The
@@ -44,13 +45,12 @@ from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import mujoco
 import numpy as np
 
 from simenv.core.errors import ScenarioError
 
 if TYPE_CHECKING:
-    from simenv.room.scenario import FurnitureMesh
+    import mujoco
 
 log = logging.getLogger(__name__)
 
@@ -75,6 +75,39 @@ DEFAULT_RGBA = (0.6, 0.5, 0.4, 1.0)
 #: Pieces smaller than this (m^3 hull volume, or fewer than 4 vertices) are not given a
 #: collision hull: MuJoCo cannot build one for a flat or degenerate piece.
 MIN_PART_VOLUME = 1e-9
+
+
+@dataclass(frozen=True)
+class FurnitureMesh:
+    """``[[furniture]]``: a user-supplied mesh placed in the room.
+
+    Attributes:
+        name: unique name; the MuJoCo body is ``furniture/<name>``.
+        mesh: the mesh file (a path in the TOML is relative to the TOML's folder).
+        position: floor position (x, y) of the centre of its footprint, m.
+        yaw_deg: turn about the vertical from the file's orientation, degrees.
+        elevation: height of its lowest point above the floor, m.
+        scale: file units -> metres (0.001 for a file in millimetres).
+        up: the file's up axis, ``"y"`` (default for glTF/GLB and OBJ) or ``"z"`` (STL).
+        collision: ``parts`` / ``voxels`` / ``hull`` / ``none`` (:data:`COLLISIONS`).
+        voxel: voxel size for ``collision = "voxels"``, m.
+        rgba: colour (0-1), or None for the file's own (else a wood brown).
+        size: measured bounding box (x, y, z) in the room, m, before ``yaw_deg``.
+        field: the table's name in errors (``furniture[0]``).
+    """
+
+    name: str
+    mesh: Path
+    position: tuple[float, float]
+    yaw_deg: float
+    elevation: float
+    scale: float
+    up: str
+    collision: str
+    voxel: float
+    rgba: tuple[float, float, float, float] | None
+    size: tuple[float, float, float]
+    field: str
 
 
 @dataclass(frozen=True)
@@ -324,6 +357,9 @@ def add_furniture(spec: mujoco.MjSpec, item: FurnitureMesh, *, contype: int,
     the drawn mesh (no collision) and its collision pieces (geom group
     :data:`COLLISION_GROUP`, the given collision bits, mesh geoms MuJoCo collides as the
     pieces' own convex hulls)."""
+    # mujoco here only: reading a scenario (which reads its meshes) stays light.
+    import mujoco
+
     prepared = prepare(item, source)
     yaw = np.deg2rad(item.yaw_deg)
     body = spec.worldbody.add_body()
@@ -354,5 +390,5 @@ def add_furniture(spec: mujoco.MjSpec, item: FurnitureMesh, *, contype: int,
     return prepared
 
 
-__all__ = ["COLLISIONS", "MAX_SIZE_M", "MESH_SUFFIXES", "PreparedFurniture", "add_furniture",
-           "prepare", "read_mesh"]
+__all__ = ["COLLISIONS", "MAX_SIZE_M", "MESH_SUFFIXES", "FurnitureMesh", "PreparedFurniture",
+           "add_furniture", "prepare", "read_mesh"]

@@ -10,9 +10,9 @@ outside the room and overlapping wall openings are each a :class:`~simenv.core.e
 naming the file and the dotted field (``window.offset``).
 
 Optional ``[[furniture]]`` tables add user-supplied meshes (OBJ, STL, glTF/GLB, ...) to the
-room (:class:`FurnitureMesh`; reading, placement and collision geometry in
-:mod:`simenv.room.furniture`); each file is read while the scenario loads, so a missing or
-unreadable file, an empty mesh or one in the wrong units (larger than 10 m) is a
+room (:class:`simenv.room.furniture.FurnitureMesh`; reading, placement and collision
+geometry in :mod:`simenv.room.furniture`); each file is read while the scenario loads, so a
+missing or unreadable file, an empty mesh or one in the wrong units (larger than 10 m) is a
 :class:`~simenv.core.errors.ScenarioError` naming ``furniture[i].mesh``.
 
 Conventions: metres and degrees in the file (radians inside simenv). The room is centred on
@@ -36,6 +36,7 @@ import numpy as np
 
 from simenv.core.errors import ScenarioError
 from simenv.data.gestures import VOCABULARY
+from simenv.room.furniture import COLLISIONS, FurnitureMesh, read_mesh
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -179,40 +180,6 @@ class UserLayout:
     position: tuple[float, float]
     yaw_deg: float
     appearance: str
-
-
-@dataclass(frozen=True)
-class FurnitureMesh:
-    """``[[furniture]]``: a user-supplied mesh placed in the room (:mod:`simenv.room.furniture`).
-
-    Attributes:
-        name: unique name; the MuJoCo body is ``furniture/<name>``.
-        mesh: the mesh file (a path in the TOML is relative to the TOML's folder).
-        position: floor position (x, y) of the centre of its footprint, m.
-        yaw_deg: turn about the vertical from the file's orientation, degrees.
-        elevation: height of its lowest point above the floor, m.
-        scale: file units -> metres (0.001 for a file in millimetres).
-        up: the file's up axis, ``"y"`` (default for glTF/GLB and OBJ) or ``"z"`` (STL).
-        collision: ``parts`` / ``voxels`` / ``hull`` / ``none``
-            (:data:`simenv.room.furniture.COLLISIONS`).
-        voxel: voxel size for ``collision = "voxels"``, m.
-        rgba: colour (0-1), or None for the file's own (else a wood brown).
-        size: measured bounding box (x, y, z) in the room, m, before ``yaw_deg``.
-        field: the table's name in errors (``furniture[0]``).
-    """
-
-    name: str
-    mesh: Path
-    position: tuple[float, float]
-    yaw_deg: float
-    elevation: float
-    scale: float
-    up: str
-    collision: str
-    voxel: float
-    rgba: tuple[float, float, float, float] | None
-    size: tuple[float, float, float]
-    field: str
 
 
 @dataclass(frozen=True)
@@ -454,8 +421,6 @@ _Y_UP_SUFFIXES = (".glb", ".gltf", ".obj")
 
 def _furniture(top: _Table) -> tuple[FurnitureMesh, ...]:
     """The ``[[furniture]]`` array: each table's fields, its mesh read and measured."""
-    from simenv.room.furniture import COLLISIONS, read_mesh
-
     items = top._get("furniture")
     if not isinstance(items, list):
         top.fail("furniture", "expected [[furniture]] tables (an array of tables), got "
@@ -592,5 +557,5 @@ def wall_length(room: RoomLayout, wall: str) -> float:
     return room.size[0] if wall in ("north", "south") else room.size[1]
 
 
-__all__ = ["REACTIONS", "WALLS", "Behaviour", "FurnitureMesh", "Reaction", "Scenario",
+__all__ = ["REACTIONS", "WALLS", "Behaviour", "Reaction", "Scenario",
            "list_scenarios", "load_scenario", "parse_scenario", "scenario_path", "wall_length"]
