@@ -40,13 +40,13 @@ knee's passive rotation) and 103_charleston1 3.1 (elbow flexion 155).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
-from simenv.core.errors import SimenvError
+from simenv.plausibility.thresholds import PositiveThresholds
 
 
 @dataclass(frozen=True)
-class BodyThresholds:
+class BodyThresholds(PositiveThresholds):
     """Thresholds of the body-level plausibility metrics (SI units).
 
     Geoms against the floor (plane z = 0)
@@ -249,16 +249,6 @@ class BodyThresholds:
     assist_timeconst_s: float = 0.02
 
     gravity_mps2: float = 9.81
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if not isinstance(value, (int, float)) or not value > 0 or value != value:
-                raise SimenvError(
-                    f"threshold {f.name} must be a positive number; got {value!r}",
-                    field=f.name,
-                )
-            object.__setattr__(self, f.name, float(value))
 
 
 #: The defaults, shared by every body-level metric when no thresholds are passed.

@@ -27,7 +27,29 @@ from simenv.core.errors import SimenvError
 
 
 @dataclass(frozen=True)
-class Thresholds:
+class PositiveThresholds:
+    """Base of a set of named thresholds (:class:`Thresholds`,
+    :class:`~simenv.plausibility.body_thresholds.BodyThresholds`): every field is a
+    positive number (NaN refused, infinity allowed), stored as a float.
+
+    Raises:
+        SimenvError: on construction, a field that is not a positive number (``field``
+            names it).
+    """
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (int, float)) or not value > 0 or value != value:
+                raise SimenvError(
+                    f"threshold {f.name} must be a positive number; got {value!r}",
+                    field=f.name,
+                )
+            object.__setattr__(self, f.name, float(value))
+
+
+@dataclass(frozen=True)
+class Thresholds(PositiveThresholds):
     """Thresholds of the joint-level plausibility metrics (SI units).
 
     Bone length
@@ -183,16 +205,6 @@ class Thresholds:
     speed_limit_distal_mps: float = 30.0
     teleport_distance_m: float = 0.15
     teleport_accel_mps2: float = 300.0
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if not isinstance(value, (int, float)) or not value > 0 or value != value:
-                raise SimenvError(
-                    f"threshold {f.name} must be a positive number; got {value!r}",
-                    field=f.name,
-                )
-            object.__setattr__(self, f.name, float(value))
 
 
 #: The defaults, shared by every metric when no thresholds are passed.
