@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import pytest
 
+from simenv.body.foot_contact import foot_contacts, foot_keypoints
 from simenv.core.motion import Motion
 from simenv.io import bvh
-from simenv.plausibility import floating, foot_contacts, foot_skate, ground_penetration
+from simenv.plausibility import floating, foot_skate, ground_penetration
 from simenv.plausibility.contact import ballistic_residual
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
 
 
 @pytest.fixture(scope="module")
@@ -25,6 +29,15 @@ def jumps(shared_data) -> Motion:
 
 def _shift(m: Motion, dz: float) -> Motion:
     return m.with_positions(m.positions + np.array([0, 0, dz], dtype=np.float32))
+
+
+def test_foot_contact_defaults_are_the_joint_level_thresholds() -> None:
+    contacts = inspect.signature(foot_contacts).parameters
+    feet = inspect.signature(foot_keypoints).parameters
+    for name, field in (("toe_height_m", "contact_height_m"),
+                        ("ankle_height_m", "contact_height_ankle_m")):
+        assert contacts[name].default == feet[name].default == getattr(DEFAULT_THRESHOLDS, field)
+    assert contacts["speed_mps"].default == DEFAULT_THRESHOLDS.contact_speed_mps
 
 
 def test_clean_walk_has_planted_feet_and_no_ground_violation(walk) -> None:

@@ -38,6 +38,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from simenv.body.foot_contact import foot_contacts
 from simenv.core.errors import RetargetError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE
@@ -980,7 +981,7 @@ def _foot_heights(motion: Motion, kp: Mapping[str, np.ndarray],
     its ankle keypoint ``drop`` above its toe keypoint, so:
 
     * ``drop`` is measured within frames, as the median of ``z_ankle - z_toe``
-      over the frames a foot is planted (:func:`simenv.plausibility.contact.foot_contacts`:
+      over the frames a foot is planted (:func:`simenv.body.foot_contact.foot_contacts`:
       low and slow): a loaded foot is flat for most of its stance, the
       assumption a gait lab's static calibration makes ("foot flat").
     * The sole offset then has two estimates, one per keypoint: the 2nd
@@ -1010,9 +1011,6 @@ def _foot_heights(motion: Motion, kp: Mapping[str, np.ndarray],
     if low["ankle"] is None:
         return float(np.clip(low["toe"], 0.6 * toe_default,
                              toe_default + SHOD_TOE_ALLOWANCE)), ankle_default - toe_default
-    # Imported here: the contact detector lives in the scorer, which builds on this module.
-    from simenv.plausibility.contact import foot_contacts
-
     feet, planted = foot_contacts(motion)
     drops = [kp[f"{s}_ankle"][planted[:, feet.index(f"{s}_toe")], 2]
              - kp[f"{s}_toe"][planted[:, feet.index(f"{s}_toe")], 2]

@@ -33,7 +33,6 @@ from simenv.plausibility.clips import ClipBatch, Plan, Scores, batches, run
 from simenv.plausibility.contact import (
     floating,
     floating_spec,
-    foot_contacts,
     foot_skate,
     foot_skate_spec,
     ground_penetration,
@@ -193,7 +192,6 @@ __all__ = [
     "bone_lengths",
     "find_violations",
     "floating",
-    "foot_contacts",
     "foot_skate",
     "ground_penetration",
     "jitter",

@@ -1,5 +1,5 @@
-"""Joint-level ground metrics: foot contact, foot skating, ground penetration
-and floating, on keypoint heights (not body geoms).
+"""Joint-level ground metrics: foot skating, ground penetration and floating,
+on keypoint heights (not body geoms).
 
 Frame: world Z-up, the floor is the plane z = 0, metres. Keypoints are joint
 centres, which sit a few centimetres above the skin; thresholds account for
@@ -9,21 +9,20 @@ Feet: each side uses its toe keypoint; a side without a toe keypoint falls
 back to its ankle, whose height is measured from the ankles' own lowest level
 with the ankle height threshold. The ankle fallback is a coarser test: the
 ankle rises and travels at heel strike and heel-off (see
-:class:`~simenv.plausibility.thresholds.Thresholds`). Short clips and missing
+:class:`~simenv.plausibility.thresholds.Thresholds`); the planted-foot
+detection is :mod:`simenv.body.foot_contact`. Short clips and missing
 keypoints give ``MetricResult.not_available`` with a reason, as in
 :mod:`simenv.plausibility.kinematic`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
+from simenv.body.foot_contact import foot_keypoints
 from simenv.core.motion import Motion
 from simenv.plausibility import kernels
-from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score
-from simenv.plausibility.kinematic import canonical_or_reason, keypoint_indices
+from simenv.plausibility.clips import ClipBatch, MetricSpec, score
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 
@@ -38,105 +37,23 @@ COM_KEYPOINTS: tuple[str, ...] = (
 HAND_KEYPOINTS: tuple[str, ...] = ("left_wrist", "right_wrist", "left_hand", "right_hand")
 
 
-def foot_keypoints(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                   ) -> tuple[list[str], np.ndarray]:
-    """Foot keypoints of a canonical ``motion`` and their contact heights.
-
-    Returns:
-        (names, heights): per side the toe keypoint, or the ankle when the
-        toe is missing; ``heights`` (F,) metres are ``contact_height_m`` for
-        toes and ``contact_height_ankle_m`` for ankles.
-    """
-    return _foot_keypoints(motion.skeleton.joint_names, thresholds)
-
-
-def _foot_keypoints(keypoints: Sequence[str], thresholds: Thresholds
-                    ) -> tuple[list[str], np.ndarray]:
-    present = set(keypoints)
-    names, heights = [], []
-    for side in ("left", "right"):
-        if f"{side}_toe" in present:
-            names.append(f"{side}_toe")
-            heights.append(thresholds.contact_height_m)
-        elif f"{side}_ankle" in present:
-            names.append(f"{side}_ankle")
-            heights.append(thresholds.contact_height_ankle_m)
-    return names, np.array(heights)
-
-
-def foot_floor(positions: np.ndarray) -> float:
-    """Height (metres) taken as the floor for contact tests: the 1st
-    percentile over frames of the lowest keypoint.
-
-    As in HumanML3D / InterGen / GMD, contact heights are measured from the
-    clip's own lowest point rather than z = 0, so a skeleton whose toe joint
-    centres sit 7 cm above the sole, or a clip with a constant floor offset,
-    still gets contacts (floor offsets are judged by
-    :func:`ground_penetration` and :func:`floating`). The percentile ignores
-    a few stray frames.
-    """
-    return float(np.percentile(positions[..., 2].min(axis=1), 1))
-
-
-def _foot_heights(canon: Motion, feet: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """(T, F, 3) foot positions and (T, F) heights above each foot's floor:
-    toes from :func:`foot_floor`, ankles (toe-less sides) from the ankles'
-    own lowest level."""
-    pos = canon.positions.astype(np.float64)
-    foot_pos = pos[:, keypoint_indices(canon, feet)]
-    ankles = np.array([f.endswith("_ankle") for f in feet])
-    floors = np.full(len(feet), foot_floor(pos))
-    if ankles.any():
-        floors[ankles] = np.percentile(foot_pos[:, ankles, 2].min(axis=1), 1)
-    return foot_pos, foot_pos[..., 2] - floors
-
-
-def foot_contacts(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                  ) -> tuple[list[str], np.ndarray]:
-    """Planted-foot detection from height and speed (InterGen style).
-
-    Foot f is in contact at frame t when its height above the clip's foot
-    floor (:func:`foot_floor`; ankles: their own lowest level) is below its
-    contact height (5 cm) and its 3-D speed to the next frame is below
-    ``contact_speed_mps`` (InterGen's 0.001 m^2 per frame at 30 fps, as a
-    speed). The last frame reuses the previous speed; a one-frame clip uses
-    the height test alone.
-
-    Returns:
-        (foot keypoint names, contacts (T, F) bool); F may be 0 when the
-        skeleton has neither toes nor ankles.
-    """
-    canon, _ = canonical_or_reason(motion)
-    if canon is None:
-        return [], np.zeros((motion.num_frames, 0), dtype=bool)
-    feet, heights = foot_keypoints(canon, thresholds)
-    if not feet:
-        return feet, np.zeros((motion.num_frames, 0), dtype=bool)
-    foot_pos, rel = _foot_heights(canon, feet)
-    low = rel < heights
-    if motion.num_frames < 2:
-        return feet, low
-    speed = norm3(np.diff(foot_pos, axis=0)) * motion.fps
-    speed = np.concatenate([speed, speed[-1:]])
-    return feet, low & (speed < thresholds.contact_speed_mps)
-
-
 def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
     """Foot skating: sustained sliding of a foot at floor height.
 
     Let ``v_f(t)`` be the horizontal speed of foot f between frames t-1 and t.
     The foot is *low* over that pair when its height above the clip's foot
-    floor (:func:`foot_floor`; ankles: their own lowest level) is below its
-    contact height (5 cm) at both frames, and it *slides* when also ``v_f(t) >
-    skate_speed_mps`` (0.5 m/s): the GMD / OmniControl skating test. Only
-    sliding runs lasting at least ``skate_min_duration_s`` count as skating:
-    on joint-centre mocap the toe keypoint stays within 5 cm of the floor for
-    the first 20-100 ms of every swing while already moving fast, which the
-    published test (with its 0.25 s moving average) counts as skating; a
-    planted foot that really slides does so for a good part of its stance.
-    A low foot sliding while the other foot is planted and lower (by more
-    than ``skate_support_margin_m``) is unloaded -- the weight is on the
-    other foot -- and does not count either.
+    floor (:func:`simenv.body.foot_contact.foot_floor`; ankles: their own
+    lowest level) is below its contact height (5 cm) at both frames, and it
+    *slides* when also ``v_f(t) > skate_speed_mps`` (0.5 m/s): the GMD /
+    OmniControl skating test. Only sliding runs lasting at least
+    ``skate_min_duration_s`` count as skating: on joint-centre mocap the toe
+    keypoint stays within 5 cm of the floor for the first 20-100 ms of every
+    swing while already moving fast, which the published test (with its
+    0.25 s moving average) counts as skating; a planted foot that really
+    slides does so for a good part of its stance. A low foot sliding while
+    the other foot is planted and lower (by more than
+    ``skate_support_margin_m``) is unloaded -- the weight is on the other
+    foot -- and does not count either.
 
     Timeline: ``max_f v_f(t)`` over skating feet (0 when none) in **mm per
     frame at 20 fps** (``speed * 1000 / skate_reference_fps``, PhysDiff's
@@ -149,9 +66,10 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     speeds both exceed 0.5 m/s, for comparison with papers),
     ``physdiff_skate_mm`` (PhysDiff "skate": over frame pairs, the mean
     horizontal displacement of the feet planted at both frames by
-    :func:`foot_contacts` (height and speed), 0 when none, in mm per frame at
-    20 fps), ``max_slide_mm`` and ``contact_fraction`` (frames with a planted
-    foot). Needs two frames and a toe or ankle keypoint.
+    :func:`simenv.body.foot_contact.foot_contacts` (height and speed), 0 when
+    none, in mm per frame at 20 fps), ``max_slide_mm`` and
+    ``contact_fraction`` (frames with a planted foot). Needs two frames and a
+    toe or ankle keypoint.
     """
     return foot_skate_batch(ClipBatch([motion]), thresholds)[0]
 
@@ -167,7 +85,8 @@ def foot_skate_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLD
     """:func:`foot_skate` as :func:`~simenv.plausibility.clips.score` runs it."""
     ref = thresholds.skate_reference_fps
     frames, fps = batch.num_frames, batch.fps
-    feet, heights = _foot_keypoints(batch.names, thresholds)
+    feet, heights = foot_keypoints(batch.names, thresholds.contact_height_m,
+                                   thresholds.contact_height_ankle_m)
     ankles = np.array([f.endswith("_ankle") for f in feet], dtype=np.bool_)
     args, reason = None, ""
     if batch.skeleton is None:

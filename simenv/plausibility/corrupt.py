@@ -38,9 +38,9 @@ from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
+from simenv.body.foot_contact import foot_contacts
 from simenv.core.errors import MotionError, SimenvError
 from simenv.core.motion import Motion
-from simenv.plausibility.contact import foot_contacts
 
 #: Fewest frames a corruption accepts: its segment, ramps and finite
 #: differences need a few frames to be meaningful.
@@ -158,7 +158,7 @@ def _horizontal_direction(rng: np.random.Generator) -> np.ndarray:
 def foot_slide(motion: Motion, strength: float, *, seed: int = 0) -> Motion:
     """Drift the whole body horizontally while a foot is planted.
 
-    On every frame where a foot is in contact (:func:`~simenv.plausibility.
+    On every frame where a foot is in contact (:func:`~simenv.body.foot_contact.
     foot_contacts` on the input: low and slow), the root and with it every
     joint advances by ``strength / fps`` metres in one seeded horizontal
     direction; the offset is held (not undone) while airborne. Planted feet
