@@ -12,6 +12,7 @@ from simenv.core.errors import SimenvError
 from simenv.data import interaction_data as idata
 from simenv.data import interaction_metrics as im
 from simenv.learning import eval_interaction as ev
+from simenv.learning.interaction_features import default_feature_extractor
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +99,7 @@ def test_interaction_generator_metrics_of_shipped_bigraphdiff(shared_data):
                                              list(model.labels)))[::10])
     # A few sampling steps keep the test short; the evaluation uses the full schedule.
     actor, reactor = model.sample(list(sub.window_labels.astype(str)), seed=0, steps=10)
-    extractor, _ = im.default_feature_extractor()
+    extractor, _ = default_feature_extractor()
     rec = InteractionRecognizer(extractor).fit(train.actor, train.reactor, train.label)
     gen = ev.generation_metrics(sub, actor, reactor, extractor, rec)
     real = ev.generation_metrics(sub, sub.actor, sub.reactor, extractor, rec)

@@ -8,6 +8,7 @@ import pytest
 from simenv.core.errors import MotionError
 from simenv.data import interaction_metrics as im
 from simenv.data.interaction_data import INTER18_JOINTS, inter18_skeleton
+from simenv.learning.interaction_features import default_feature_extractor
 
 J = list(INTER18_JOINTS)
 PARENTS = inter18_skeleton().parents
@@ -192,7 +193,7 @@ def test_classifier_features_pad_and_mask():
 
 
 def test_default_extractor_labels_what_it_is():
-    ext, reason = im.default_feature_extractor()
+    ext, reason = default_feature_extractor()
     if reason is None:
         assert "gesture-classifier" in ext.name
     else:

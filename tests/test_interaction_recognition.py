@@ -10,7 +10,7 @@ import pytest
 
 from simenv.core.errors import MotionError
 from simenv.data import interaction_data as idata
-from simenv.data import interaction_metrics as im
+from simenv.learning.interaction_features import default_feature_extractor
 from simenv.learning.interaction_recognition import InteractionRecognizer
 
 
@@ -68,7 +68,7 @@ def test_real_held_out_windows_are_recognised_above_chance(shared_data: Path) ->
     windows = idata.make_windows(idata.load_recordings(shared_data))
     split = idata.split_by_recording(windows)
     train, test = windows.subset(split.train), windows.subset(split.test)
-    extractor, _ = im.default_feature_extractor()
+    extractor, _ = default_feature_extractor()
     for use_actor in (True, False):
         rec = InteractionRecognizer(extractor, use_actor=use_actor)
         rec.fit(train.actor, train.reactor, train.label)

@@ -27,8 +27,9 @@ Error metrics
 Distribution metrics (Chopin 2023; Guo et al. 2020, action-conditioned generation)
 -----------------------------------------------------------------------------------
 Features ``v = φ(window)`` come from a pluggable :class:`FeatureExtractor`:
-:func:`default_feature_extractor` gives the shipped gesture classifier's penultimate
-features when that checkpoint loads, else the labelled fallback :class:`PoseSegmentFeatures`.
+:func:`simenv.learning.interaction_features.default_feature_extractor` gives the shipped
+gesture classifier's penultimate features when that checkpoint loads, else the labelled
+fallback :class:`PoseSegmentFeatures`.
 
 * **Fréchet distance** of Gaussian fits ``N(μ_1, Σ_1)``, ``N(μ_2, Σ_2)``:
   ``||μ_1 - μ_2||² + Tr(Σ_1 + Σ_2 - 2 (Σ_1^{1/2} Σ_2 Σ_1^{1/2})^{1/2})``
@@ -62,7 +63,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from simenv.core.errors import MotionError, SimenvError
+from simenv.core.errors import MotionError
+from simenv.data.gestures import normalise_windows
 from simenv.data.interaction_data import INTER18_JOINTS, TARGET_FPS
 from simenv.data.prediction_metrics import bone_lengths
 
@@ -362,9 +364,7 @@ class ClassifierFeatures:
                      f"{len(config.joint_names)} joints)")
 
     def __call__(self, windows: np.ndarray) -> np.ndarray:
-        import torch
-
-        from simenv.data.gestures import normalise_windows
+        import torch  # heavy, and only needed when a classifier is given
 
         x = _windows(windows, "windows")[:, :, self.index]
         length = self.model.config.window  # type: ignore[attr-defined]
@@ -379,22 +379,6 @@ class ClassifierFeatures:
             feats = self.model.features(torch.as_tensor(norm),  # type: ignore[attr-defined]
                                         torch.as_tensor(valid))
         return feats.numpy().astype(np.float64)
-
-
-def default_feature_extractor() -> tuple[FeatureExtractor, str | None]:
-    """The shipped gesture classifier's features if the checkpoint loads, else
-    :class:`PoseSegmentFeatures`.
-
-    Returns:
-        ``(extractor, reason)``: ``reason`` is None for the classifier, or why the
-        fallback is used.
-    """
-    try:
-        from simenv.models import load
-
-        return ClassifierFeatures(load("gesture-classifier")), None
-    except (SimenvError, ImportError) as exc:
-        return PoseSegmentFeatures(), f"gesture classifier unavailable: {exc}"
 
 
 def pose_features(windows: np.ndarray) -> np.ndarray:

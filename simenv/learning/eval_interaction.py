@@ -56,6 +56,7 @@ from simenv.core.config import repo_root, shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.data import interaction_data as idata
 from simenv.data import interaction_metrics as im
+from simenv.learning.interaction_features import default_feature_extractor
 
 #: Default root of the shared corpus (``SIMENV_SHARED_DATA`` overrides).
 SHARED = shared_data_root()
@@ -322,7 +323,7 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
             d = im.joint_pair_distances(test.actor[sel], test.reactor[sel])
             closest[rec] = {f"A:{a}-B:{b}": float(d[..., k].min())
                             for k, (a, b) in enumerate(im.KEY_JOINT_PAIRS)}
-    extractor, fallback = im.default_feature_extractor()
+    extractor, fallback = default_feature_extractor()
     recognizer = InteractionRecognizer(extractor).fit(train.actor, train.reactor,
                                                       train.label)
     reactor_recognizer = InteractionRecognizer(extractor, use_actor=False).fit(

@@ -8,8 +8,8 @@ convex problem solved by L-BFGS):
 
 * features ``φ(a, b) = [f(a), f(b)]`` (or ``f(b)`` alone with ``use_actor=False``: is
   the class recognisable from the reaction by itself?), ``f`` the window feature
-  extractor of FVD (:func:`simenv.data.interaction_metrics.default_feature_extractor`: the
-  gesture classifier's penultimate features), standardised with the training mean and
+  extractor of FVD (:func:`simenv.learning.interaction_features.default_feature_extractor`:
+  the gesture classifier's penultimate features), standardised with the training mean and
   deviation;
 * class scores ``s = x W + c``; ``W, c`` minimise the mean cross-entropy of
   ``softmax(s)`` plus ``λ/2 ||W||²`` (the bias is not regularised), ``λ`` = :data:`RIDGE`.

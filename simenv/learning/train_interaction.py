@@ -39,6 +39,7 @@ from simenv.core.errors import SimenvError
 from simenv.data import interaction_data as idata
 from simenv.data import interaction_metrics as im
 from simenv.learning.eval_interaction import SHARED, reaction_metrics
+from simenv.learning.interaction_features import default_feature_extractor
 from simenv.models import INTERACTION_MODELS, interaction_model_entry
 
 #: Held-out metrics reported on the card of a reaction generator: (key, label, format).
@@ -101,7 +102,7 @@ def held_out_metrics(name: str, model: Any, test: idata.InteractionWindows,
     from simenv.models.reaction_baselines import ZeroVelocity
 
     kind = interaction_model_entry(name)[2]
-    extractor, _ = im.default_feature_extractor()
+    extractor, _ = default_feature_extractor()
     if kind == "reaction":
         out = {}
         for key, gen in (("model", model), ("zero_velocity", ZeroVelocity())):
