@@ -9,14 +9,13 @@ import pytest
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, asset_path
+from simenv.body.geometry import body_poses, check_qpos
 from simenv.body.retarget import retarget
 from simenv.core.errors import MotionError, PhysicsError
 from simenv.core.motion import Interaction
 from simenv.plausibility.body import (
     body_floating,
     body_penetration,
-    body_poses,
-    check_qpos,
     contact,
     inter_penetration,
     joint_limit_excess,

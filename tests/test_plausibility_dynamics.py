@@ -8,19 +8,25 @@ import numpy as np
 import pytest
 
 import simenv
+from simenv.body.dynamics import DEFAULT_DYNAMICS, finite_differences
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import retarget
 from simenv.core.errors import PhysicsError
 from simenv.plausibility.body import body_penetration
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.plausibility.dynamics import (
     balance,
     distance_outside,
-    finite_differences,
+    dynamics_settings,
     root_residual,
     root_residual_wrench,
 )
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
+
+
+def test_dynamics_defaults_are_the_body_thresholds() -> None:
+    assert dynamics_settings(DEFAULT_BODY_THRESHOLDS) == DEFAULT_DYNAMICS
 
 
 def test_real_walk_needs_no_invisible_help(walk_2s_retargeted) -> None:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simenv.body.geometry import lowest_box_z
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import retarget
 from simenv.core.motion import Motion
@@ -25,7 +26,6 @@ from simenv.plausibility.body import (
     joint_limit_excess,
     joint_limit_least_excess,
     joint_limits,
-    lowest_box_z,
     observed_hinges,
     relaxed_humanoid,
     sustained_max,

@@ -9,7 +9,7 @@ reference motion needs are known up front. Per reference frame ``t``, with
 floor must supply the root's part of ``tau_id``: the contact forces
 ``lambda >= 0`` on the friction-pyramid edges of the body's points near the
 floor that best reproduce the root wrench
-(:func:`simenv.plausibility.dynamics.floor_forces`, non-negative least
+(:func:`simenv.body.dynamics.floor_forces`, non-negative least
 squares). The hinges supply the rest::
 
     tau_ff = tau_id,hinge - sum_p (J_p^T f_p)_hinge,   f_p = sum_d lambda_pd e_d
@@ -25,47 +25,40 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from simenv.body.retarget import RetargetResult
-from simenv.plausibility.body import body_geoms, geom_support_points
-from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
-from simenv.plausibility.dynamics import (
+from simenv.body.dynamics import (
+    DEFAULT_DYNAMICS,
+    DynamicsSettings,
     finite_differences,
     floor_forces,
     friction_pyramid,
     inverse_dynamics,
     root_wrench,
 )
-
-
-def _support_bodies(model: mujoco.MjModel) -> np.ndarray:
-    """Body id of every point :func:`geom_support_points` returns, in its order
-    (boxes give 8 corners, other geoms one point)."""
-    out = []
-    for g in body_geoms(model):
-        n = 8 if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX else 1
-        out.extend([int(model.geom_bodyid[g])] * n)
-    return np.array(out, dtype=int)
+from simenv.body.geometry import body_geoms, geom_support_points, support_point_bodies
+from simenv.body.retarget import RetargetResult
 
 
 def feedforward_torques(result: RetargetResult,
-                        thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> np.ndarray:
+                        settings: DynamicsSettings = DEFAULT_DYNAMICS) -> np.ndarray:
     """``tau_ff`` per reference frame and actuator (module docstring), (T, nu) N m,
-    clipped to the actuator force ranges of ``result.humanoid.model``."""
+    clipped to the actuator force ranges of ``result.humanoid.model``. ``settings``:
+    the velocity filter, the floor's friction and which points may carry load."""
     model = result.humanoid.model
     q = result.qpos
-    qvel, qacc = finite_differences(model, q, result.fps, thresholds.filter_cutoff_hz)
+    qvel, qacc = finite_differences(model, q, result.fps, settings.cutoff_hz)
     tau = inverse_dynamics(model, q, qvel, qacc)
-    rw = root_wrench(result, thresholds)
-    points = geom_support_points(model, rw.poses, body_geoms(model))
-    bodies = _support_bodies(model)
-    edges = friction_pyramid(thresholds.friction)
+    rw = root_wrench(result, settings)
+    geoms = body_geoms(model)
+    points = geom_support_points(model, rw.poses, geoms)
+    bodies = support_point_bodies(model, geoms)
+    edges = friction_pyramid(settings.friction)
     joints = model.actuator_trnid[:, 0]
     dofs = model.jnt_dofadr[joints]
     data = mujoco.MjData(model)
     jacp = np.empty((3, model.nv))
     out = tau[:, dofs].copy()
     for t in range(len(q)):
-        near = points[t, :, 2] < thresholds.support_height_m
+        near = points[t, :, 2] < settings.support_height_m
         if not near.any():
             continue
         lam = floor_forces(rw, t).reshape(-1, len(edges))

@@ -30,13 +30,12 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from simenv.body.dynamics import DEFAULT_DYNAMICS, DynamicsSettings, finite_differences
+from simenv.body.geometry import check_qpos
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult
 from simenv.control.feedforward import feedforward_torques
 from simenv.core.errors import PhysicsError
-from simenv.plausibility.body import check_qpos
-from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
-from simenv.plausibility.dynamics import finite_differences
 
 #: The keypoints whose floor contact the planner tracks (heels are the ankles).
 FOOT_KEYPOINTS: tuple[str, ...] = ("left_ankle", "left_toe", "right_ankle", "right_toe")
@@ -100,8 +99,8 @@ class TrackingReference:
 
     @classmethod
     def from_retarget(cls, result: RetargetResult, model: mujoco.MjModel | None = None,
-                      thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
-                      max_seconds: float | None = None,
+                      settings: DynamicsSettings = DEFAULT_DYNAMICS,
+                      max_seconds: float = 20.0,
                       contact_height_m: float = 0.05,
                       feedforward: bool = True) -> TrackingReference:
         """Resample ``result`` to ``model``'s timestep.
@@ -110,9 +109,11 @@ class TrackingReference:
             result: the retargeted clip (T >= 2 frames, finite).
             model: the simulated model (default ``result.humanoid.model``); it
                 must share the humanoid's joints and actuators.
-            thresholds: ``filter_cutoff_hz`` of the reference velocities and the
-                default length cap ``tracking_max_seconds``.
-            max_seconds: keep at most this much of the clip.
+            settings: the reference velocities' filter cutoff, and the floor
+                the feed-forward torques assume
+                (:func:`~simenv.control.feedforward.feedforward_torques`).
+            max_seconds: keep at most this much of the clip, seconds (the
+                default is the tracking metric's ``tracking_max_seconds``).
             contact_height_m: a foot keypoint below this height (above its
                 rest height over the floor) counts as planted.
             feedforward: compute the feed-forward torques (else zeros).
@@ -129,13 +130,13 @@ class TrackingReference:
         fps = float(result.fps)
         if not np.isfinite(fps) or fps <= 0:
             raise PhysicsError(f"frame rate must be positive; got {fps}", field="fps")
-        limit = thresholds.tracking_max_seconds if max_seconds is None else float(max_seconds)
+        limit = float(max_seconds)
         if not limit > 0:
             raise PhysicsError(f"max_seconds must be positive; got {limit}", field="max_seconds")
         n_frames = min(len(q), int(np.floor(limit * fps)) + 1)
         q = q[:n_frames]
         dt = float(model.opt.timestep)
-        qvel, _ = finite_differences(model, q, fps, thresholds.filter_cutoff_hz)
+        qvel, _ = finite_differences(model, q, fps, settings.cutoff_hz)
         kp = h.keypoints(q)
         data = mujoco.MjData(model)
         com = np.empty((n_frames, 3))
@@ -147,7 +148,7 @@ class TrackingReference:
         com_vel = np.gradient(com, 1.0 / fps, axis=0)
         act_q, act_v = actuated_indices(model)
         ctrl = q[:, act_q] + velocity_feedthrough(model) * qvel[:, act_v]
-        torque = (feedforward_torques(replace(result, qpos=q), thresholds) if feedforward
+        torque = (feedforward_torques(replace(result, qpos=q), settings) if feedforward
                   else np.zeros_like(ctrl))
 
         frame_step = np.round(np.arange(n_frames) / fps / dt).astype(int)

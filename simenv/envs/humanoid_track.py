@@ -54,12 +54,12 @@ from gymnasium import spaces
 
 from simenv.assets import WALK, asset_path, list_assets
 from simenv.body.divergence import physics_problem, warning_counts
+from simenv.body.dynamics import finite_differences
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult, retarget
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
 from simenv.io.loader import load
-from simenv.plausibility.dynamics import finite_differences
 
 #: Keypoints whose positions enter the end-effector term (DeepMimic: hands and feet).
 END_EFFECTORS = ("left_hand", "right_hand", "left_toe", "right_toe")

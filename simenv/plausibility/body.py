@@ -17,8 +17,9 @@ inter_penetration   depth between the geoms of two people             interactio
 contact             key joint-pair distances (JPD) and their contacts interaction result
 =================== ================================================= =============
 
-Poses are computed once per trajectory (:func:`body_poses`: ``mj_kinematics``
-per frame, then every geometric quantity vectorised over frames). Each metric
+Poses are computed once per trajectory
+(:func:`simenv.body.geometry.body_poses`: ``mj_kinematics`` per frame, then
+every geometric quantity vectorised over frames). Each metric
 returns a :class:`~simenv.plausibility.timeline.MetricResult` with a per-frame
 timeline; thresholds are in
 :class:`~simenv.plausibility.body_thresholds.BodyThresholds`.
@@ -27,23 +28,28 @@ timeline; thresholds are in
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from simenv.body.geometry import (
+    BOX_CORNERS,
+    BodyPoses,
+    body_boxes,
+    body_geoms,
+    body_poses,
+    check_qpos,
+    contact_depths,
+    geom_lowest_z,
+    lowest_box_z,
+)
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import InteractionRetargetResult, RetargetResult, retarget
-from simenv.core.errors import MotionError, PhysicsError
+from simenv.core.errors import MotionError
 from simenv.core.motion import Interaction, Motion
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.contact import ballistic_residual
 from simenv.plausibility.timeline import MetricResult
-
-_PLANE, _HFIELD = int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD)
-_SPHERE, _CAPSULE = int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE)
-_ELLIPSOID, _CYLINDER = int(mujoco.mjtGeom.mjGEOM_ELLIPSOID), int(mujoco.mjtGeom.mjGEOM_CYLINDER)
-_BOX = int(mujoco.mjtGeom.mjGEOM_BOX)
 
 #: Key joint pairs (person A keypoint, person B keypoint) of an interaction:
 #: the handshake pair and the interaction-augmentation seed's A right hand -
@@ -53,119 +59,6 @@ DEFAULT_CONTACT_PAIRS: tuple[tuple[str, str], ...] = (
     ("right_hand", "spine"),
     ("spine", "right_hand"),
 )
-
-
-# -- poses -----------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class BodyPoses:
-    """World poses of every geom, body and site over a qpos trajectory.
-
-    Attributes:
-        geom_xpos: (T, G, 3) geom centres, metres.
-        geom_xmat: (T, G, 3, 3) geom orientations (columns = local axes).
-        site_xpos: (T, S, 3) site positions, metres.
-        xipos: (T, B, 3) body centres of mass, metres.
-        com: (T, 3) whole-model centre of mass, metres.
-    """
-
-    geom_xpos: np.ndarray
-    geom_xmat: np.ndarray
-    site_xpos: np.ndarray
-    xipos: np.ndarray
-    com: np.ndarray
-
-
-def check_qpos(model: mujoco.MjModel, qpos: np.ndarray, what: str = "qpos") -> np.ndarray:
-    """``qpos`` as a (T, nq) float64 array, or :class:`PhysicsError` naming the
-    first bad frame (NaN/inf) or the expected shape."""
-    q = np.asarray(qpos, dtype=np.float64)
-    if q.ndim != 2 or q.shape[1] != model.nq or q.shape[0] == 0:
-        raise PhysicsError(f"{what} has shape {q.shape}; expected (T >= 1, {model.nq})",
-                           field=what)
-    bad = ~np.isfinite(q).all(axis=1)
-    if bad.any():
-        raise PhysicsError(f"{what} contains NaN/inf; refusing to pass it to MuJoCo",
-                           frame=int(np.flatnonzero(bad)[0]), field=what)
-    return q
-
-
-def body_poses(model: mujoco.MjModel, qpos: np.ndarray) -> BodyPoses:
-    """Forward kinematics (``mj_kinematics``) of every frame of ``qpos`` (T, nq)."""
-    q = check_qpos(model, qpos)
-    data = mujoco.MjData(model)
-    T = len(q)
-    gx = np.empty((T, model.ngeom, 3))
-    gm = np.empty((T, model.ngeom, 9))
-    sx = np.empty((T, model.nsite, 3))
-    xi = np.empty((T, model.nbody, 3))
-    for t in range(T):
-        data.qpos[:] = q[t]
-        mujoco.mj_kinematics(model, data)
-        gx[t], gm[t], sx[t], xi[t] = data.geom_xpos, data.geom_xmat, data.site_xpos, data.xipos
-    mass = model.body_mass
-    com = (xi * mass[None, :, None]).sum(axis=1) / mass.sum()
-    return BodyPoses(gx, gm.reshape(T, model.ngeom, 3, 3), sx, xi, com)
-
-
-def body_geoms(model: mujoco.MjModel) -> np.ndarray:
-    """Ids of the geoms attached to a moving body (not the world: floor, props)."""
-    return np.flatnonzero(model.geom_bodyid > 0)
-
-
-def geom_lowest_z(model: mujoco.MjModel, poses: BodyPoses, geoms: np.ndarray) -> np.ndarray:
-    """Exact height of the lowest point of each geom, (T, len(geoms)) metres.
-
-    With ``R`` the geom's orientation, ``u_i = R[2, i]`` the vertical component
-    of its local axis i and ``s`` its MuJoCo size: sphere ``z - s0``; capsule
-    ``z - |u_2| s1 - s0``; cylinder ``z - |u_2| s1 - s0 sqrt(1 - u_2^2)``; box
-    ``z - sum_i |u_i| s_i``; ellipsoid ``z - sqrt(sum_i (u_i s_i)^2)``; other
-    types (meshes) ``z - rbound`` (bounding sphere, conservative).
-    """
-    z = poses.geom_xpos[:, geoms, 2]
-    u = poses.geom_xmat[:, geoms, 2, :]  # (T, G, 3): z components of the local axes
-    size = model.geom_size[geoms]
-    kind = model.geom_type[geoms]
-    drop = np.broadcast_to(model.geom_rbound[geoms], z.shape).copy()
-    a2 = np.abs(u[..., 2])
-    drop[:, kind == _SPHERE] = size[kind == _SPHERE, 0]
-    for k, expr in (
-        (_CAPSULE, lambda s: a2 * s[:, 1] + s[:, 0]),
-        (_CYLINDER, lambda s: a2 * s[:, 1] + s[:, 0] * np.sqrt(np.maximum(1 - a2**2, 0))),
-        (_BOX, lambda s: (np.abs(u) * s[None]).sum(axis=-1)),
-        (_ELLIPSOID, lambda s: np.sqrt(((u * s[None]) ** 2).sum(axis=-1))),
-    ):
-        sel = kind == k
-        if sel.any():
-            drop[:, sel] = expr(size)[:, sel]
-    return z - drop
-
-
-def geom_support_points(model: mujoco.MjModel, poses: BodyPoses,
-                        geoms: np.ndarray) -> np.ndarray:
-    """Points of the geoms that can touch the floor, (T, P, 3) metres.
-
-    Boxes (the feet) give their 8 corners, so a flat sole yields a support
-    polygon; every other geom gives its lowest point (a capsule's lowest
-    end-cap point, a sphere's bottom).
-    """
-    T = poses.geom_xpos.shape[0]
-    pts = []
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
-                     dtype=float)
-    low = geom_lowest_z(model, poses, geoms)
-    for i, g in enumerate(geoms):
-        c, R, s = poses.geom_xpos[:, g], poses.geom_xmat[:, g], model.geom_size[g]
-        if model.geom_type[g] == _BOX:
-            pts.append(c[:, None] + np.einsum("tij,pj->tpi", R, signs * s))
-        elif model.geom_type[g] == _CAPSULE:
-            axis = R[:, :, 2]
-            end = c - np.sign(axis[:, 2:3]) * axis * s[1]
-            pts.append(np.concatenate([end[:, :2], low[:, i:i + 1]], axis=1)[:, None])
-        else:
-            pts.append(np.concatenate([c[:, :2], low[:, i:i + 1]], axis=1)[:, None])
-    return np.concatenate(pts, axis=1) if pts else np.zeros((T, 0, 3))
 
 
 # -- ground ----------------------------------------------------------------------
@@ -182,7 +75,7 @@ def body_penetration(result: RetargetResult,
     """Depth of the body's lowest geom point below the floor.
 
     Timeline: ``max(0, -min_g z_low,g(t)) * 1000`` mm over every body geom
-    (:func:`geom_lowest_z`: exact for capsules and boxes), so a sinking foot,
+    (:func:`~simenv.body.geometry.geom_lowest_z`: exact for capsules and boxes), so a sinking foot,
     knee or hand counts. Value: the maximum over frames; passes when at most
     ``geom_penetration_max_mm``. Details: ``mean_mm`` (PhysDiff's
     "penetrate", here on geoms instead of mesh vertices) and
@@ -413,8 +306,7 @@ def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.n
     observed = observed_hinges(humanoid, keypoints)
     weight, deg = 1e4, float(np.rad2deg(1.0))
     jac = np.zeros((3, m.nv))
-    boxes = np.flatnonzero((m.geom_type == _BOX) & (m.geom_bodyid > 0))
-    signs = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], dtype=float)
+    boxes = body_boxes(m)
 
     def subtree(bodies: np.ndarray) -> np.ndarray:
         inside = np.isin(np.arange(m.nbody), bodies)
@@ -437,7 +329,7 @@ def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.n
         ex = excess(q)[free]
         corners = (d.geom_xpos[soles, None] + np.einsum(
             "gij,gpj->gpi", d.geom_xmat[soles].reshape(-1, 3, 3),
-            signs * m.geom_size[soles, None])).reshape(-1, 3)
+            BOX_CORNERS * m.geom_size[soles, None])).reshape(-1, 3)
         sink = (floor[t] - corners[:, 2]) if floor is not None else np.zeros(0)
         r = np.concatenate([weight * np.maximum(over, 0.0), weight * np.maximum(sink, 0.0),
                             deg * ex])
@@ -485,13 +377,6 @@ def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.n
                 best_cost, best_q = cost, q
         out[n] = deg * excess(best_q)
     return out
-
-
-def lowest_box_z(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
-    """Height of the lowest point of the body's box geoms (soles, toes, hands)
-    on each frame of ``qpos`` (T, nq): (T,) metres."""
-    boxes = np.flatnonzero((model.geom_type == _BOX) & (model.geom_bodyid > 0))
-    return geom_lowest_z(model, body_poses(model, qpos), boxes).min(axis=1)
 
 
 def joint_limit_demand(motion: Motion, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
@@ -641,46 +526,6 @@ def sustained_max(timeline: np.ndarray, frames: int) -> float:
 
 
 # -- penetration between geoms ---------------------------------------------------
-
-
-def contact_depths(model: mujoco.MjModel, qpos: np.ndarray,
-                   keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Deepest geom-geom penetration per frame among the selected geom pairs.
-
-    Runs ``mj_kinematics`` and ``mj_collision`` on every frame; MuJoCo's own
-    filters apply (contype/conaffinity, parent-child pairs, the model's
-    ``<exclude>`` pairs).
-
-    Args:
-        model: the model.
-        qpos: (T, nq).
-        keep: (ngeom, ngeom) bool, which geom pairs count.
-
-    Returns:
-        depth (T,) metres (0 without contact) and pair (T, 2) int geom ids of
-        the deepest counted contact (-1 without contact).
-    """
-    q = check_qpos(model, qpos)
-    data = mujoco.MjData(model)
-    depth = np.zeros(len(q))
-    pair = np.full((len(q), 2), -1)
-    for t in range(len(q)):
-        data.qpos[:] = q[t]
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
-        n = data.ncon
-        if n == 0:
-            continue
-        g = data.contact.geom[:n]
-        ok = keep[g[:, 0], g[:, 1]]
-        if not ok.any():
-            continue
-        d = -data.contact.dist[:n]
-        d[~ok] = -np.inf
-        i = int(np.argmax(d))
-        if d[i] > 0:
-            depth[t], pair[t] = d[i], g[i]
-    return depth, pair
 
 
 def _penetration_result(name: str, depth: np.ndarray, pair: np.ndarray, thr: float

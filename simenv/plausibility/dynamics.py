@@ -1,28 +1,18 @@
 """Dynamic plausibility of a retargeted trajectory: inverse dynamics and balance.
 
 Root residual ("invisible help")
-    The retargeted qpos trajectory is differentiated (:func:`finite_differences`)
-    and ``mj_inverse`` (constraints disabled) gives the generalized force
-    ``tau = M(q) qdd + c(q, qd) - tau_passive`` that would produce it. The six
-    entries of the free joint are the net external wrench the body needs:
-    force ``F`` and torque ``N`` about the root. Only the floor may provide it,
-    through contact forces at the geom points near the floor
-    (:func:`simenv.plausibility.body.geom_support_points`), each inside a
-    linearised friction cone (4-edge pyramid, unilateral). The best such
-    forces are found by non-negative least squares per frame::
-
-        min_{lambda >= 0} || A lambda - [F; N / L] ||,
-        A = [e_k ; (p_i - x_root) x e_k / L]   for support point i, edge k
-
-    (``L`` = the body's hip height, so torque and force rows weigh alike).
-    What remains is the residual wrench no floor contact can explain; its
-    force, divided by the body weight ``m g``, is the timeline. A real walk
-    needs almost none; a walk lifted 30 cm needs about one body weight all the
-    time (nothing touches the floor), which is the "residual force" of
-    residual-force control (Yuan & Kitani 2020) that a simulated character
-    would need to perform the motion. :class:`RootWrench` holds the per-frame
-    problem (wrench and floor columns), so that
-    :mod:`simenv.plausibility.pair_dynamics` can add a partner's hand forces.
+    The retargeted qpos trajectory's inverse dynamics give the net external
+    wrench the body needs at its root, and the best floor contact forces
+    (friction pyramids at the geom points near the floor) explain what they
+    can of it (:mod:`simenv.body.dynamics`: :func:`~simenv.body.dynamics.root_wrench`,
+    :func:`~simenv.body.dynamics.floor_residual`). What remains is the
+    residual wrench no floor contact can explain; its force, divided by the
+    body weight ``m g``, is the timeline. A real walk needs almost none; a
+    walk lifted 30 cm needs about one body weight all the time (nothing
+    touches the floor), which is the "residual force" of residual-force
+    control (Yuan & Kitani 2020) that a simulated character would need to
+    perform the motion. :mod:`simenv.plausibility.pair_dynamics` adds a
+    partner's hand forces to the same per-frame problem.
 
     The derivatives are one-sided at a clip's ends; a trajectory cut mid-stride
     needs no help on its last frames (the real walk cut at 1, 1.3 or 1.7 s:
@@ -38,194 +28,32 @@ Balance
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
-from scipy.optimize import nnls
-from scipy.signal import butter, filtfilt
 from scipy.spatial import ConvexHull, QhullError
 
+from simenv.body.dynamics import (
+    DynamicsSettings,
+    RootWrench,
+    floor_residual,
+    lowpass,
+    root_wrench,
+)
+from simenv.body.geometry import BodyPoses, body_geoms, body_poses, geom_support_points
 from simenv.body.retarget import RetargetResult
 from simenv.core.errors import PhysicsError
-from simenv.plausibility.body import (
-    BodyPoses,
-    body_geoms,
-    body_poses,
-    check_qpos,
-    geom_support_points,
-)
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.timeline import MetricResult
 
 
-def lowpass(x: np.ndarray, fps: float, cutoff_hz: float) -> np.ndarray:
-    """Zero-phase 4th-order Butterworth low-pass along axis 0.
-
-    Returned unchanged when the cutoff is at or above 0.9 x Nyquist (nothing
-    to remove) or the signal is too short for ``filtfilt``'s padding.
-    """
-    nyq = fps / 2.0
-    if cutoff_hz >= 0.9 * nyq or len(x) <= 15:
-        return x
-    b, a = butter(4, cutoff_hz / nyq)
-    return filtfilt(b, a, x, axis=0)
-
-
-def finite_differences(model: mujoco.MjModel, qpos: np.ndarray, fps: float,
-                       cutoff_hz: float = DEFAULT_BODY_THRESHOLDS.filter_cutoff_hz
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Generalized velocities and accelerations of a qpos trajectory.
-
-    ``qvel_t`` is the central difference ``mj_differentiatePos(q_{t-1},
-    q_{t+1}) / (2 dt)`` (one-sided at the ends), which handles the free
-    joint's quaternion (its angular velocity is in the body frame). ``qvel``
-    is low-pass filtered (:func:`lowpass`, ``cutoff_hz``) and ``qacc`` is its
-    central difference: body-frame angular velocity differentiates to
-    body-frame angular acceleration (``omega x omega = 0``), so every
-    coordinate is differentiated alike.
-
-    Args:
-        model: the model of ``qpos``.
-        qpos: (T, nq), T >= 2.
-        fps: frames per second.
-
-    Returns:
-        qvel, qacc: (T, nv) float64 in MuJoCo's conventions (m/s, rad/s;
-        m/s^2, rad/s^2).
-    """
-    q = check_qpos(model, qpos)
-    T = len(q)
-    if T < 2:
-        raise PhysicsError(f"velocities need at least 2 frames; got {T}", field="qpos")
-    dt = 1.0 / fps
-    qvel = np.empty((T, model.nv))
-    v = np.empty(model.nv)
-    for t in range(T):
-        a, b = max(t - 1, 0), min(t + 1, T - 1)
-        mujoco.mj_differentiatePos(model, v, (b - a) * dt, q[a], q[b])
-        qvel[t] = v
-    qvel = lowpass(qvel, fps, cutoff_hz)
-    return qvel, np.gradient(qvel, dt, axis=0)
-
-
-def inverse_dynamics(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray,
-                     qacc: np.ndarray) -> np.ndarray:
-    """``mj_inverse`` of every frame with all constraints (contacts, limits)
-    disabled: the generalized force (T, nv) that produces ``qacc`` from
-    gravity, inertia and passive forces alone (N for the free joint's
-    translation, world frame; N m for its rotation, body frame)."""
-    m = copy.deepcopy(model)
-    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
-    d = mujoco.MjData(m)
-    out = np.empty_like(qvel)
-    for t in range(len(qpos)):
-        d.qpos[:], d.qvel[:], d.qacc[:] = qpos[t], qvel[t], qacc[t]
-        mujoco.mj_inverse(m, d)
-        out[t] = d.qfrc_inverse
-    bad = ~np.isfinite(out).all(axis=1)
-    if bad.any():
-        raise PhysicsError("inverse dynamics produced NaN/inf (degenerate configuration)",
-                           frame=int(np.flatnonzero(bad)[0]))
-    return out
-
-
-def friction_pyramid(friction: float) -> np.ndarray:
-    """(4, 3) unit edges of the linearised friction cone (normal +z)."""
-    e = np.array([[friction, 0, 1], [-friction, 0, 1], [0, friction, 1], [0, -friction, 1]])
-    return e / np.linalg.norm(e, axis=1, keepdims=True)
-
-
-@dataclass(frozen=True)
-class RootWrench:
-    """The external wrench a trajectory needs at its root, and where the floor may act.
-
-    Per frame ``t`` the target is ``w_t = [F_t; N_t / L]`` (newtons): the free
-    joint's inverse-dynamics force ``F`` (world frame) and torque ``N`` about
-    the root (rotated to the world frame), the torque divided by the lever
-    ``L`` (hip height) so torque and force rows weigh alike. An external force
-    ``f`` applied at a world point ``p`` contributes the column
-    ``[f; (p - x_root) x f / L]``.
-
-    Attributes:
-        wrench: (T, 6) ``w_t``, N.
-        root: (T, 3) root (pelvis frame origin) positions, metres.
-        support: per frame, (P_t, 3) geom points lower than ``support_height_m``
-            (floor contact candidates), metres.
-        weight: body weight ``m g``, N.
-        lever: ``L``, metres.
-        friction: Coulomb coefficient of the floor's friction pyramids.
-        poses: the forward kinematics used.
-        com_accel: (T, 3) centre-of-mass acceleration, m/s^2 (filtered).
-    """
-
-    wrench: np.ndarray
-    root: np.ndarray
-    support: list[np.ndarray]
-    weight: float
-    lever: float
-    friction: float
-    poses: BodyPoses
-    com_accel: np.ndarray
-
-    def point_columns(self, t: int, points: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(6, P * D) wrench columns of unit forces along ``directions`` (D, 3)
-        applied at each of ``points`` (P, 3) on frame ``t`` (point-major order)."""
-        cols_f = np.tile(directions, (len(points), 1))
-        arm = np.repeat(points - self.root[t], len(directions), axis=0)
-        return np.concatenate([cols_f, np.cross(arm, cols_f) / self.lever], axis=1).T
-
-    def floor_columns(self, t: int) -> np.ndarray:
-        """(6, 4 P_t) columns of the floor's friction-pyramid edges at the support points."""
-        return self.point_columns(t, self.support[t], friction_pyramid(self.friction))
-
-    def residual_norms(self, r: np.ndarray) -> tuple[float, float]:
-        """Force (body weights) and torque (metres: N m / m g) of a residual wrench (6,)."""
-        return (float(np.linalg.norm(r[:3]) / self.weight),
-                float(np.linalg.norm(r[3:]) * self.lever / self.weight))
-
-
-def root_wrench(result: RetargetResult,
-                thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> RootWrench:
-    """Inverse dynamics of ``result`` as a :class:`RootWrench` (module docstring)."""
-    h = result.humanoid
-    model = h.model
-    q = check_qpos(model, result.qpos)
-    qvel, qacc = finite_differences(model, q, result.fps, thresholds.filter_cutoff_hz)
-    tau = inverse_dynamics(model, q, qvel, qacc)
-    poses = body_poses(model, q)
-    lever = h.dims.hip_height
-    rot = np.empty((len(q), 9))
-    for t in range(len(q)):
-        mujoco.mju_quat2Mat(rot[t], q[t, 3:7])
-    torque = np.einsum("tij,tj->ti", rot.reshape(-1, 3, 3), tau[:, 3:6])
-    points = geom_support_points(model, poses, body_geoms(model))
-    support = [p[p[:, 2] < thresholds.support_height_m] for p in points]
-    com_acc = np.gradient(np.gradient(lowpass(poses.com, result.fps,
-                                              thresholds.filter_cutoff_hz),
-                                      1 / result.fps, axis=0), 1 / result.fps, axis=0)
-    return RootWrench(np.concatenate([tau[:, 0:3], torque / lever], axis=1),
-                      q[:, 0:3].copy(), support, h.total_mass * thresholds.gravity_mps2,
-                      lever, thresholds.friction, poses, com_acc)
-
-
-def floor_forces(rw: RootWrench, t: int) -> np.ndarray:
-    """The best floor forces of frame ``t``: ``lambda = argmin_{lambda >= 0}
-    ||A lambda - w_t||`` (non-negative least squares over the friction-pyramid
-    edges of :meth:`RootWrench.floor_columns`), (4 P_t,) newtons."""
-    if len(rw.support[t]) == 0:
-        return np.zeros(0)
-    lam, _ = nnls(rw.floor_columns(t), rw.wrench[t], maxiter=200)
-    return lam
-
-
-def floor_residual(rw: RootWrench, t: int) -> np.ndarray:
-    """Residual wrench (6,) of frame ``t`` after the best floor forces,
-    ``w_t - A lambda`` (:func:`floor_forces`)."""
-    if len(rw.support[t]) == 0:
-        return rw.wrench[t].copy()
-    return rw.wrench[t] - rw.floor_columns(t) @ floor_forces(rw, t)
+def dynamics_settings(thresholds: BodyThresholds) -> DynamicsSettings:
+    """The inverse-dynamics settings of ``thresholds`` (filter cutoff, floor
+    friction, support height, gravity)."""
+    return DynamicsSettings(cutoff_hz=thresholds.filter_cutoff_hz,
+                            friction=thresholds.friction,
+                            support_height_m=thresholds.support_height_m,
+                            gravity_mps2=thresholds.gravity_mps2)
 
 
 @dataclass(frozen=True)
@@ -242,7 +70,8 @@ class RootResidual:
             to carry load.
         com_accel: (T, 3) centre-of-mass acceleration, m/s^2 (filtered).
         poses: the forward kinematics used.
-        residual: (T, 6) residual wrench ``[F; N / L]``, N (see :class:`RootWrench`).
+        residual: (T, 6) residual wrench ``[F; N / L]``, N (see
+            :class:`~simenv.body.dynamics.RootWrench`).
     """
 
     force: np.ndarray
@@ -257,11 +86,12 @@ class RootResidual:
 def root_residual_wrench(result: RetargetResult,
                          thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> RootResidual:
     """The root's residual wrench per frame (see the module docstring)."""
-    return residual_of(root_wrench(result, thresholds))
+    return residual_of(root_wrench(result, dynamics_settings(thresholds)))
 
 
 def residual_of(rw: RootWrench) -> RootResidual:
-    """:class:`RootResidual` of a :class:`RootWrench` (floor forces only)."""
+    """:class:`RootResidual` of a :class:`~simenv.body.dynamics.RootWrench`
+    (floor forces only)."""
     T = len(rw.wrench)
     res = np.stack([floor_residual(rw, t) for t in range(T)]) if T else np.zeros((0, 6))
     norms = np.array([rw.residual_norms(r) for r in res]).reshape(T, 2)

@@ -17,7 +17,7 @@ Forces
     Contact ``c`` carries one force ``f_c`` (3,), acting ``+f_c`` on the actor
     and ``-f_c`` on the reactor (Newton's third law) at ``p_c``. With each
     person's floor friction-pyramid forces ``lambda_A, lambda_B >= 0`` (as in
-    the single-person residual, :class:`~simenv.plausibility.dynamics.RootWrench`)
+    the single-person residual, :class:`~simenv.body.dynamics.RootWrench`)
     the frame's problem is one bounded least squares::
 
         min  || (w_A - A_A lambda_A - sum_c G_A,c f_c) / (m_A g) ||^2
@@ -73,15 +73,10 @@ import mujoco
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from simenv.body.dynamics import RootWrench, floor_forces, root_wrench
 from simenv.body.retarget import InteractionRetargetResult
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
-from simenv.plausibility.dynamics import (
-    RootResidual,
-    RootWrench,
-    floor_forces,
-    residual_of,
-    root_wrench,
-)
+from simenv.plausibility.dynamics import RootResidual, dynamics_settings, residual_of
 from simenv.plausibility.timeline import MetricResult
 
 _AXES = np.eye(3)
@@ -200,7 +195,8 @@ def pair_root_residual_wrench(result: InteractionRetargetResult,
                               thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
                               contacts: HandContacts | None = None) -> PairResidual:
     """Both people's root residuals with the best hand-contact forces (module docstring)."""
-    rw = (root_wrench(result.people[0], thresholds), root_wrench(result.people[1], thresholds))
+    settings = dynamics_settings(thresholds)
+    rw = (root_wrench(result.people[0], settings), root_wrench(result.people[1], settings))
     single = (residual_of(rw[0]), residual_of(rw[1]))
     contacts = contacts if contacts is not None else hand_contacts(result, thresholds)
     force = np.stack([s.force for s in single])

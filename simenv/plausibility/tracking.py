@@ -50,6 +50,7 @@ from simenv.control.reference import TrackingReference
 from simenv.core.errors import PhysicsError
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.clips import norm3
+from simenv.plausibility.dynamics import dynamics_settings
 from simenv.plausibility.timeline import MetricResult
 
 #: The tracking controllers :func:`track` runs.
@@ -155,13 +156,15 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         raise PhysicsError("root assistance is a PD-tracker option; the MPC is never assisted",
                            field="assist")
     h = result.humanoid
+    settings = dynamics_settings(thresholds)
+    limit = thresholds.tracking_max_seconds if max_seconds is None else max_seconds
     if controller == "mpc":
-        ref = TrackingReference.from_retarget(result, h.model, thresholds, max_seconds)
+        ref = TrackingReference.from_retarget(result, h.model, settings, limit)
         planner: TrackingMPC | None = TrackingMPC(h, ref, mpc)
         model = planner.model
     else:
         model = assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
-        ref = TrackingReference.from_retarget(result, model, thresholds, max_seconds,
+        ref = TrackingReference.from_retarget(result, model, settings, limit,
                                               feedforward=False)
         planner = None
     T = len(result.qpos)
