@@ -20,10 +20,11 @@ Implemented, all seated (:data:`PLANNERS`):
 * ``bow_back``: the same turn, then a nod (:func:`plan_bow_back`; measured by
   :class:`simenv.room.room.BowMeter`).
 
-Standing ones (stand up, walk with a measured root assistance, act) are chained stages:
-``close_window`` (:mod:`simenv.agents.window`), ``open_window``
-(:mod:`simenv.agents.window_open`) and ``close_curtain`` (:mod:`simenv.agents.curtain`).
-The door and a hi-fi across the room are not done.
+Standing ones (stand up, walk on the agent's own legs, act, walk back and sit down) are
+chained stages, each an :class:`~simenv.agents.object_task.ObjectTask`: ``close_window``
+(:mod:`simenv.agents.window`), ``open_window`` (:mod:`simenv.agents.window_open`) and
+``close_curtain`` (:mod:`simenv.agents.curtain`). The door and a hi-fi across the room are
+not done.
 """
 
 from __future__ import annotations
@@ -381,8 +382,9 @@ def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 #: Reaction name -> planner (room, data) -> PDPlan, or a PlanChain of stages planned one
-#: after the other (``close_window`` / ``open_window`` / ``close_curtain``: stand up, walk,
-#: push / pull; :mod:`simenv.agents.window`, :mod:`simenv.agents.window_open`,
+#: after the other (the :class:`~simenv.agents.object_task.ObjectTask` planners
+#: ``close_window`` / ``open_window`` / ``close_curtain``: stand up, walk, push / pull, walk
+#: back, sit down; :mod:`simenv.agents.window`, :mod:`simenv.agents.window_open`,
 #: :mod:`simenv.agents.curtain`).
 PLANNERS: dict[str, Callable[[Room, mujoco.MjData], PDPlan | PlanChain]] = {
     "bow_back": plan_bow_back,

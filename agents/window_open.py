@@ -1,24 +1,21 @@
-"""Opening the window: stand up, walk to it, take the pane's handle and slide it open.
+"""Opening the window: stand up, walk to it, take the pane's handle and slide it open,
+then back to the chair.
 
-``open_window`` (:func:`plan_open_window`) is a :class:`~simenv.agents.reach.PlanChain`
-like ``close_window`` (:mod:`simenv.agents.window`), each stage planned from the state the
-previous one left: three stages, then the return to the chair
-(:data:`simenv.agents.seat.RETURN_STAGES`):
+``open_window`` (:data:`plan_open_window`) is an
+:class:`~simenv.agents.object_task.ObjectTask` like ``close_window``
+(:mod:`simenv.agents.window`), specified by:
 
-1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
-2. :func:`plan_walk_to_open`: a stepping turn onto the heading towards the wall, then
-   :func:`simenv.agents.walk.plan_walk` to a spot :data:`STAND_OFF_M` in front of the
-   wall and :data:`ALONG_M` along the pane's opening direction from its handle, facing the
-   wall (on the agent's own legs, :mod:`simenv.agents.gait`);
-3. :func:`plan_window_pull`: the right hand comes to the handle's side in the opening
-   direction, fingers pointing into the wall and palm facing the handle (a handshake
-   posture; IK on the palm's ``grip`` site together with the fingertip and wrist sites, so
-   the palm, not the hand's edge, meets the handle), the proximity grasp is asked for
-   there (it closes only if the grip site is within the grasp radius), the hand moves
-   along the wall in the opening direction by :data:`PULL_M` in :data:`PULL_VIA` IK
-   via-points, lets go, backs off and comes back to rest. Moving away from the handle's
-   face, the hand can drag the pane only through the grasp. The body stands balanced on
-   both feet where the walk left it (no external help).
+* the approach pose, :func:`open_spot`: :data:`STAND_OFF_M` in front of the wall and
+  :data:`ALONG_M` along the pane's opening direction from its handle, facing the wall;
+* the act ``pull``, :func:`plan_window_pull`: the right hand comes to the handle's side in
+  the opening direction, fingers pointing into the wall and palm facing the handle (a
+  handshake posture; IK on the palm's ``grip`` site together with the fingertip and wrist
+  sites, so the palm, not the hand's edge, meets the handle), the proximity grasp is
+  asked for there (it closes only if the grip site is within the grasp radius), the hand
+  moves along the wall in the opening direction by :data:`PULL_M` in :data:`PULL_VIA` IK
+  via-points, lets go, backs off and comes back to rest. Moving away from the handle's
+  face, the hand can drag the pane only through the grasp. The body stands balanced on
+  both feet where the walk left it (no external help).
 """
 
 from __future__ import annotations
@@ -26,20 +23,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from simenv.agents.gait import SteppingPlan
-from simenv.agents.reach import (
-    PDPlan,
-    PlanChain,
-    arm_joints,
-    pd_targets,
-    reach_pose,
-    upper_body_joints,
-)
-from simenv.agents.seat import RETURN_STAGES, plan_turn_then_walk
-from simenv.agents.stand import plan_stand_up
-from simenv.agents.walk import REST_S, held_grasp_stroke, standing_targets
-from simenv.agents.window import BACK_OFF_M, SPINE
-from simenv.core.errors import SimenvError
+from simenv.agents import object_task as task
+from simenv.agents.reach import PDPlan
 from simenv.room.room import Room
 
 #: Pelvis distance from the handle, across the wall, when the agent stands at the window, m.
@@ -51,8 +36,6 @@ ALONG_M = 0.10
 PULL_M = 0.35
 #: Via-points of the pull along the wall (0.4 s each).
 PULL_VIA = 8
-#: The palm comes in from this far in front of the handle, and backs off as far, m.
-APPROACH_M = 0.10
 #: How far into the handle's side face the grip site aims, m: the servos stop short of a
 #: target they cannot reach, so aiming into the handle lays the palm on it (aiming 2 cm
 #: in, the palm pushed the handle away and the grasp failed at 8.4 cm, measured).
@@ -63,7 +46,6 @@ PRESS_M = 0.01
 #: behind, 1.9-3.3 cm aiming 1 cm behind, 2.6-5.5 cm aiming at the centre (at the 6 cm
 #: grasp radius), 5.8 cm aiming 2 cm in front of it.
 DEPTH_M = 0.02
-HAND = "right_hand"
 
 
 def open_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
@@ -71,9 +53,7 @@ def open_spot(room: Room, data: mujoco.MjData) -> tuple[np.ndarray, float]:
     opening direction from the handle and :data:`STAND_OFF_M` into the room, and the
     heading facing the wall, rad."""
     handle, opening, inward, _ = room.wall_slide_frame(data, "window")  # opens along +axis
-    spot = handle + opening * ALONG_M + inward * STAND_OFF_M
-    face = -inward
-    return spot[:2], float(np.arctan2(face[1], face[0]))
+    return task.facing_wall(handle + opening * ALONG_M, inward, STAND_OFF_M)
 
 
 def _palm_sites(goal: np.ndarray, into: np.ndarray, fingers: np.ndarray) -> np.ndarray:
@@ -95,57 +75,27 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
         SimenvError: the window is already open, or the handle or the end of the pull is
             out of the standing agent's reach (IK more than 3 cm short).
     """
-    m, h, w = room.model, room.agent, room.objects["window"]
+    task.check_not_done(room, data, "open_window")
     handle, opening, inward, now = room.wall_slide_frame(data, "window")
-    if now > w.threshold:
-        raise SimenvError("the window is already open", field="window")
-    side = HAND.split("_")[0]
-    joints = [f"agent/{j}" for j in (*arm_joints(side), f"{side}_hand_flex",
-                                       f"{side}_hand_dev", *SPINE)]
-    sites = [f"agent/{HAND}_grip", f"agent/{HAND}_tip", f"agent/{side}_wrist"]
-    half_width = float(m.geom("window/handle").size[0])
+    sites = [task.GRIP, f"agent/{task.HAND}_tip", f"agent/{task.SIDE}_wrist"]
+    half_width = float(room.model.geom("window/handle").size[0])
     # The palm on the handle's face that looks along the opening direction.
     on = handle + opening * (half_width + 0.002 - PRESS_M) - inward * DEPTH_M
-    travel = min(PULL_M, w.upper - now)
-    goals = [on + opening * APPROACH_M / 2 + inward * APPROACH_M, on]
+    travel = min(PULL_M, room.objects["window"].upper - now)
+    goals = [on + opening * task.APPROACH_M / 2 + inward * task.APPROACH_M, on]
     goals += [on + opening * travel * k / PULL_VIA for k in range(1, PULL_VIA + 1)]
-    goals.append(goals[-1] + opening * APPROACH_M / 2 + inward * BACK_OFF_M)
-    upper = upper_body_joints(h)
-    pose = data.qpos.copy()
-    targets = []
-    for goal in goals:
-        pose, err = reach_pose(m, pose, sites, _palm_sites(goal, -opening, -inward), joints,
-                               iterations=400)
-        if err > 0.03:
-            raise SimenvError(f"the window's handle is out of the standing agent's reach "
-                              f"({err:.3f} m short)", field="window")
-        targets.append(pd_targets(h, pose[room.agent_qpos], upper))
+    goals.append(goals[-1] + opening * task.APPROACH_M / 2 + inward * task.BACK_OFF_M)
+    palms = [_palm_sites(goal, -opening, -inward) for goal in goals]
+    targets, _ = task.reach_via_points(room, data, sites, palms, task.hand_joints(wrist=True),
+                                       "window", iterations=400)
     before, on_t, *pulling, after = targets
-    rest = standing_targets(room, data)
-    return held_grasp_stroke(room, data, [(before, 1.2), (on_t, 0.6)], pulling,
-                             [(after, 0.6), (rest, REST_S)], HAND, "window")
+    return task.grasp_stroke(room, data, "window", [(before, 1.2), (on_t, 0.6)], pulling,
+                             [(after, 0.6)])
 
 
-def plan_walk_to_open(room: Room, data: mujoco.MjData) -> SteppingPlan:
-    """Plan for walking to :func:`open_spot` on the agent's own legs, as
-    :func:`simenv.agents.window.plan_walk_to_window` does
-    (:func:`simenv.agents.seat.plan_turn_then_walk`)."""
-    spot, face = open_spot(room, data)
-    return plan_turn_then_walk(room, data, spot, face)
+#: ``open_window``: stand up, walk to :func:`open_spot`, :func:`plan_window_pull`, go back
+#: to the chair and sit down.
+plan_open_window = task.ObjectTask("open_window", "pull", open_spot, plan_window_pull)
 
 
-def plan_open_window(room: Room, data: mujoco.MjData) -> PlanChain:
-    """``open_window``: stand up, walk to the window, slide it open, then go back to the
-    chair and sit down (:data:`simenv.agents.seat.RETURN_STAGES`, as ``close_window``).
-
-    Raises:
-        SimenvError: the window is already open.
-    """
-    w = room.objects["window"]
-    if float(data.qpos[w.qpos_adr]) > w.threshold:
-        raise SimenvError("the window is already open", field="window")
-    return PlanChain((("stand_up", plan_stand_up), ("walk", plan_walk_to_open),
-                      ("pull", plan_window_pull), *RETURN_STAGES))
-
-
-__all__ = ["open_spot", "plan_open_window", "plan_walk_to_open", "plan_window_pull"]
+__all__ = ["open_spot", "plan_open_window", "plan_window_pull"]
