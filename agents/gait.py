@@ -44,7 +44,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from simenv.agents.reach import PDPlan, PDTrajectory, min_jerk, pd_targets, upper_body_joints
+from simenv.agents.reach import (
+    PDPlan,
+    PDTrajectory,
+    hinge_adr,
+    min_jerk,
+    pd_targets,
+    upper_body_joints,
+)
 from simenv.body.humanoid import Humanoid
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
@@ -112,6 +119,12 @@ def _rot(yaw: float) -> np.ndarray:
 
 def _yaw_quat(yaw: float) -> np.ndarray:
     return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def quat_yaw(quat: np.ndarray) -> float:
+    """Heading (rad) of a wxyz quaternion: the body x axis on the floor."""
+    w, x, y, z = quat
+    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 def wrap_angle(angle: float) -> float:
@@ -460,7 +473,7 @@ class SteppingPlan:
         self._ik = leg_ik(h)
         self._upper = h.default_qpos()
         for side in ("left", "right"):  # the arms hang at the sides (:data:`ARM_ABD`)
-            self._upper[h.hinge_qpos[h.joint_names.index(f"{side}_upper_arm_abd")]] = ARM_ABD
+            self._upper[hinge_adr(h, f"{side}_upper_arm_abd")] = ARM_ABD
         self._rest = float(self._upper[2])
         m = h.model
         self._lead = -m.actuator_biasprm[:, 2] / m.actuator_gainprm[:, 0]
@@ -647,4 +660,4 @@ def standing_agent(room: Room, xy: np.ndarray, yaw: float, settle_s: float = 1.0
 
 __all__ = ["Footstep", "LegIK", "LinearTrajectory", "StepBalance", "SteppingPlan",
            "balanced_pose", "feet_now", "leg_ik", "leg_joints", "plan_footsteps", "play",
-           "stand_balance", "standing_agent", "support_centre", "wrap_angle"]
+           "quat_yaw", "stand_balance", "standing_agent", "support_centre", "wrap_angle"]

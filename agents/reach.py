@@ -42,6 +42,11 @@ def upper_body_joints(humanoid: Humanoid) -> tuple[str, ...]:
         for p in upper))
 
 
+def hinge_adr(humanoid: Humanoid, name: str) -> int:
+    """Address in the humanoid's own qpos of its hinge ``name``."""
+    return int(humanoid.hinge_qpos[humanoid.joint_names.index(name)])
+
+
 def arm_joints(side: str) -> tuple[str, ...]:
     """Hinge names of the ``side`` arm (the wrist is left neutral)."""
     if side not in ("left", "right"):
@@ -208,4 +213,4 @@ class PDTrajectory:
 
 
 __all__ = ["ARM_PARTS", "Feedback", "GraspEvent", "PDPlan", "PDTrajectory", "PlanChain",
-           "arm_joints", "min_jerk", "pd_targets", "reach_pose", "upper_body_joints"]
+           "arm_joints", "hinge_adr", "min_jerk", "pd_targets", "reach_pose", "upper_body_joints"]

@@ -41,13 +41,13 @@ from simenv.agents.reach import (
     PDTrajectory,
     PlanChain,
     arm_joints,
+    hinge_adr,
     pd_targets,
     reach_pose,
     upper_body_joints,
 )
 from simenv.agents.window import plan_close_window
 from simenv.agents.window_open import plan_open_window
-from simenv.body.humanoid import Humanoid
 from simenv.core.errors import SimenvError
 from simenv.room.room import HANDS, Room
 from simenv.room.scenario import REACTIONS
@@ -266,7 +266,7 @@ def _turn_to_user(room: Room, data: mujoco.MjData, short: float | None = None
     # the pelvis works against the feet and the seat turns less.
     twisted = turned.copy()
     for name in SPINE_ROT:
-        turned[_adr(h, name)] = spine * SPINE_SHARE * limits[name][1 if sign > 0 else 0]
+        turned[hinge_adr(h, name)] = spine * SPINE_SHARE * limits[name][1 if sign > 0 else 0]
     return side, plant, twisted, turned
 
 
@@ -290,13 +290,13 @@ def plan_greet(room: Room, data: mujoco.MjData) -> PDPlan:
     side, plant, twisted, turned = _turn_to_user(room, data)
     raised = turned.copy()
     for part, angle in WAVE_POSE.items():
-        raised[_adr(h, f"{side}_{part}")] = angle
+        raised[hinge_adr(h, f"{side}_{part}")] = angle
     upper = upper_body_joints(h)
 
     def targets(pose: np.ndarray) -> np.ndarray:
         return pd_targets(h, pose, upper)
 
-    abd = _adr(h, f"{side}_upper_arm_abd")
+    abd = hinge_adr(h, f"{side}_upper_arm_abd")
     swings = []
     for k in range(2 * WAVE_CYCLES):
         pose = raised.copy()
@@ -349,9 +349,9 @@ def plan_bow_back(room: Room, data: mujoco.MjData) -> PDPlan:
     side, plant, twisted, turned = _turn_to_user(room, data, BOW_SHORT)
     bowed = turned.copy()
     for name, angle in BOW_POSE.items():
-        bowed[_adr(h, name)] += angle
+        bowed[hinge_adr(h, name)] += angle
     # Positive lateral flexion leans to the right: lean away from the user's side.
-    bowed[_adr(h, "lumbar_lat")] += BOW_COUNTER_LEAN * (1.0 if side == "left" else -1.0)
+    bowed[hinge_adr(h, "lumbar_lat")] += BOW_COUNTER_LEAN * (1.0 if side == "left" else -1.0)
     upper = upper_body_joints(h)
     now = data.ctrl[room.agent_ctrl].copy()
     t_plant, t_twist, t_turn, t_bow = (pd_targets(h, pose, upper)
@@ -362,10 +362,6 @@ def plan_bow_back(room: Room, data: mujoco.MjData) -> PDPlan:
                    PDTrajectory(t_bow, t_bow, BOW_HOLD_S), PDTrajectory(t_bow, t_turn, BOW_UP_S),
                    PDTrajectory(t_turn, t_twist, 1.0), PDTrajectory(t_twist, t_plant, 1.5),
                    PDTrajectory(t_plant, rest, 0.5)])
-
-
-def _adr(h: Humanoid, joint: str) -> int:
-    return int(h.hinge_qpos[h.joint_names.index(joint)])
 
 
 def _swivelled(q: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:

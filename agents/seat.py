@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from simenv.agents.gait import SteppingPlan, leg_ik, plan_footsteps, wrap_angle
+from simenv.agents.gait import SteppingPlan, leg_ik, plan_footsteps, quat_yaw, wrap_angle
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
 from simenv.agents.stand import plan_sit_down
 from simenv.agents.walk import GaitMeter, check_standing, plan_walk, turn_steps
@@ -50,11 +50,6 @@ CLEAR_CHAIR_M = 0.5
 CLEAR_AHEAD_M = 0.12
 #: Seated hold after sitting down, s.
 SETTLE_S = 1.5
-
-
-def _yaw(quat: np.ndarray) -> float:
-    w, x, y, z = quat
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 def desk_heading(room: Room) -> float:
@@ -84,7 +79,7 @@ def plan_step(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float
     """
     check_standing(room, data, "step")
     q = data.qpos[room.agent_qpos]
-    steps = turn_steps(leg_ik(room.agent), q[:2].copy(), _yaw(q[3:7]), goal_yaw,
+    steps = turn_steps(leg_ik(room.agent), q[:2].copy(), quat_yaw(q[3:7]), goal_yaw,
                        np.array(goal, float)[:2])
     plan = plan_footsteps(room, data, steps)
     plan.feedback = GaitMeter(room, plan.balance, np.array(goal, float)[:2])
@@ -113,7 +108,7 @@ def plan_turn_away(room: Room, data: mujoco.MjData) -> SteppingPlan:
     towards the chair: a quarter turn from the current heading, to the side of
     :func:`chair_spot`."""
     q = data.qpos[room.agent_qpos]
-    yaw = _yaw(q[3:7])
+    yaw = quat_yaw(q[3:7])
     to = chair_spot(room, data) - q[:2]
     side = np.sign(np.cos(yaw) * to[1] - np.sin(yaw) * to[0]) or 1.0  # left or right of it
     return plan_step(room, data, q[:2], wrap_angle(yaw + side * np.pi / 2))

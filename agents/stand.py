@@ -32,11 +32,19 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from functools import partial
 
 import mujoco
 import numpy as np
 
-from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, reach_pose, upper_body_joints
+from simenv.agents.reach import (
+    PDPlan,
+    PDTrajectory,
+    hinge_adr,
+    pd_targets,
+    reach_pose,
+    upper_body_joints,
+)
 from simenv.body.humanoid import Humanoid
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
@@ -159,10 +167,7 @@ def plan_stand_up(room: Room, data: mujoco.MjData, balance: bool = True) -> PDPl
         raise SimenvError(f"the seated agent cannot push its chair back ({err:.3f} m short)",
                           field="stand_up")
     pushed[:7] = q[:7]  # the legs' targets only: the chair rolls if the physics rolls it
-
-    def adr(name: str) -> int:
-        return int(h.hinge_qpos[h.joint_names.index(name)])
-
+    adr = partial(hinge_adr, h)
     drawn = q.copy()
     for side in ("left", "right"):
         drawn[adr(f"{side}_shin_flex")] = KNEE_DRAWN
@@ -203,10 +208,7 @@ def plan_sit_down(room: Room, data: mujoco.MjData) -> PDPlan:
         the plan (``sum(SIT_PHASES_S)`` = 5.5 s).
     """
     h = room.agent
-
-    def adr(name: str) -> int:
-        return int(h.hinge_qpos[h.joint_names.index(name)])
-
+    adr = partial(hinge_adr, h)
     crouch = h.default_qpos()
     for side in ("left", "right"):
         crouch[adr(f"{side}_shin_flex")] = KNEE_CROUCH

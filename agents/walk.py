@@ -35,8 +35,15 @@ import mujoco
 import numpy as np
 
 from simenv.agents import gait
-from simenv.agents.gait import Footstep, StepBalance, wrap_angle
-from simenv.agents.reach import GraspEvent, PDPlan, PDTrajectory, pd_targets, upper_body_joints
+from simenv.agents.gait import Footstep, StepBalance, quat_yaw, wrap_angle
+from simenv.agents.reach import (
+    GraspEvent,
+    PDPlan,
+    PDTrajectory,
+    hinge_adr,
+    pd_targets,
+    upper_body_joints,
+)
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
 
@@ -52,12 +59,6 @@ STEP_M = 0.2
 TURN_STEP_DEG = 45.0
 ALIGN_DEG = 10.0
 GRAVITY = 9.81
-
-
-def _yaw(quat: np.ndarray) -> float:
-    """Heading (rad) of a wxyz quaternion: the body x axis on the floor."""
-    w, x, y, z = quat
-    return float(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
 def _bezier(p: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -215,7 +216,7 @@ def walk_steps(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: floa
     """
     ik = gait.leg_ik(room.agent)
     q = data.qpos[room.agent_qpos]
-    yaw0 = _yaw(q[3:7])
+    yaw0 = quat_yaw(q[3:7])
     pelvis = q[:2].copy()
     goal = np.asarray(goal, float)[:2]
     steps = []
@@ -273,10 +274,10 @@ def standing_targets(room: Room, data: mujoco.MjData) -> np.ndarray:
     h = room.agent
     q = h.default_qpos()
     q[:7] = data.qpos[room.agent_qpos][:7]
-    legs = [h.hinge_qpos[h.joint_names.index(n)] for n in gait.leg_joints(h)]
+    legs = [hinge_adr(h, n) for n in gait.leg_joints(h)]
     q[legs] = data.qpos[room.agent_qpos][legs]
     for side in ("left", "right"):
-        q[h.hinge_qpos[h.joint_names.index(f"{side}_upper_arm_abd")]] = gait.ARM_ABD
+        q[hinge_adr(h, f"{side}_upper_arm_abd")] = gait.ARM_ABD
     return pd_targets(h, q, upper_body_joints(h))
 
 
