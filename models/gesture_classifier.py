@@ -175,7 +175,9 @@ class ClassifierConfig:
             raise ValueError("joint_names and parents differ in length")
 
 
-def _time_encoding(length: int, dim: int) -> torch.Tensor:
+def time_encoding(length: int, dim: int) -> torch.Tensor:
+    """(length, dim) sinusoidal encoding ``PE(t, 2i) = sin(t / 10000^(2i/dim))``,
+    ``PE(t, 2i+1) = cos(...)``."""
     pos = torch.arange(length, dtype=torch.float32)[:, None]
     freq = torch.exp(torch.arange(0, dim, 2, dtype=torch.float32) * (-math.log(1e4) / dim))
     pe = torch.zeros(length, dim)
@@ -198,7 +200,7 @@ class GestureClassifier(CheckpointMixin, nn.Module):
         c = config
         joints = len(c.joint_names)
         self.register_buffer("adjacency", adjacency_mask(c.parents), persistent=False)
-        self.register_buffer("time_pe", _time_encoding(c.window, c.dim), persistent=False)
+        self.register_buffer("time_pe", time_encoding(c.window, c.dim), persistent=False)
         self.embed = nn.Linear(6, c.dim)
         self.joint_embed = nn.Parameter(torch.randn(joints, c.dim) * 0.02)
         self.blocks = nn.ModuleList(SpatioTemporalBlock(c.dim, c.heads, c.ffn)

@@ -117,7 +117,7 @@ from torch import nn
 from simenv.core.errors import MotionError
 from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
-from simenv.models.gesture_classifier import adjacency_mask
+from simenv.models.gesture_classifier import adjacency_mask, time_encoding
 from simenv.models.reaction_baselines import check_inputs, mirror_index
 
 CHECKPOINT_FORMAT = "simenv-interformer-1"
@@ -184,17 +184,6 @@ class InterFormerConfig:
         if self.d_model % self.heads:
             raise MotionError(f"d_model {self.d_model} is not divisible by heads "
                               f"{self.heads}", field="heads")
-
-
-def time_encoding(length: int, dim: int) -> torch.Tensor:
-    """(length, dim) sinusoidal encoding ``PE(t, 2i) = sin(t / 10000^(2i/dim))``,
-    ``PE(t, 2i+1) = cos(...)``."""
-    pos = torch.arange(length, dtype=torch.float32)[:, None]
-    freq = torch.exp(torch.arange(0, dim, 2, dtype=torch.float32) * (-math.log(1e4) / dim))
-    pe = torch.zeros(length, dim)
-    pe[:, 0::2] = torch.sin(pos * freq)
-    pe[:, 1::2] = torch.cos(pos * freq)
-    return pe
 
 
 def interaction_distance_bias(reactor: torch.Tensor, actor: torch.Tensor,
