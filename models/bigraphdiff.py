@@ -75,7 +75,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -88,6 +87,7 @@ from tqdm import tqdm
 from simenv.core.errors import MotionError, SimenvError
 from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
+from simenv.models.training import CpuBudget, cosine_schedule, seeded
 
 CHECKPOINT_FORMAT = "simenv-bigraphdiff-1"
 
@@ -589,17 +589,8 @@ def train(train: idata.InteractionWindows, config: BiGraphDiffConfig | None = No
     if tuple(train.joint_names) != idata.INTER18_JOINTS:
         raise MotionError("training windows must be on the 18-joint layout "
                           "(interaction_data.INTER18_JOINTS)", field="joint_names")
-    torch.set_num_threads(1)
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    present = sorted(set(train.label.tolist()))
-    labels = tuple(train.labels[i] for i in present)
-    actor, reactor = train.actor, train.reactor
-    y = np.array([labels.index(train.labels[i]) for i in train.label], dtype=np.int64)
-    if config.mirror:
-        actor, reactor = np.concatenate([actor, _mirror(actor)]), np.concatenate(
-            [reactor, _mirror(reactor)])
-        y = np.concatenate([y, y])
+    rng = seeded(seed)
+    labels, actor, reactor, y = _training_set(train, config.mirror)
     mean, std = fit_standardisation(actor, reactor, config.std_floor)
     model = BiGraphDiff(config, labels, mean, std, train.window)
     x0_all = torch.as_tensor(model.standardise(actor, reactor))
@@ -611,21 +602,13 @@ def train(train: idata.InteractionWindows, config: BiGraphDiffConfig | None = No
     optimizer = torch.optim.AdamW(online.parameters(), lr=config.lr,
                                   weight_decay=config.weight_decay)
     per_epoch = math.ceil(len(x0_all) / config.batch_size)
-    total = per_epoch * config.epochs
-
-    def lr_at(step: int) -> float:
-        if step < config.warmup_steps:
-            return (step + 1) / config.warmup_steps
-        return 0.5 * (1 + math.cos(math.pi * min(step / max(total, 1), 1.0)))
-
-    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lr_at)
+    scheduler = cosine_schedule(optimizer, per_epoch * config.epochs,
+                                warmup_steps=config.warmup_steps)
     gen = torch.Generator().manual_seed(seed)
-    alpha_bar = torch.as_tensor(model.schedule.alpha_bar, dtype=torch.float32)
-    scale = torch.as_tensor(model.std, dtype=torch.float32)
     history: dict[str, Any] = {"loss": [], "eps_mse": [], "stopped_early": False,
                                "windows": len(x0_all)}
     steps = 0
-    start = time.process_time()
+    budget = CpuBudget(config.max_cpu_minutes)
     online.train()
     bar = tqdm(range(config.epochs), desc="train bigraphdiff", disable=not progress)
     for _ in bar:
@@ -633,21 +616,7 @@ def train(train: idata.InteractionWindows, config: BiGraphDiffConfig | None = No
         losses, eps_losses = [], []
         for b in range(per_epoch):
             idx = order[b * config.batch_size:(b + 1) * config.batch_size]
-            x0, yb = x0_all[idx], y_all[idx].clone()
-            drop = torch.rand(len(yb), generator=gen) < config.label_dropout
-            yb[drop] = model.null_label
-            k = torch.randint(0, config.diffusion_steps, (len(x0),), generator=gen)
-            noise = torch.randn(x0.shape, generator=gen)
-            xk = model.schedule.q_sample(x0, k, noise)
-            eps = online(xk, k, yb)
-            eps_mse = ((eps - noise) ** 2).mean()
-            loss = eps_mse
-            if config.bone_weight > 0:
-                ab = alpha_bar[k]
-                shape = (-1,) + (1,) * (x0.ndim - 1)
-                x0_hat = (xk - (1 - ab).sqrt().reshape(shape) * eps) / ab.sqrt().reshape(shape)
-                loss = loss + config.bone_weight * bone_loss(x0_hat, x0, ab, scale,
-                                                             model.parents)
+            loss, eps_mse = denoising_loss(model, online, x0_all[idx], y_all[idx], gen)
             optimizer.zero_grad()
             loss.backward()
             nn.utils.clip_grad_norm_(online.parameters(), config.grad_clip)
@@ -662,12 +631,61 @@ def train(train: idata.InteractionWindows, config: BiGraphDiffConfig | None = No
         history["loss"].append(round(float(np.mean(losses)), 5))
         history["eps_mse"].append(round(float(np.mean(eps_losses)), 5))
         bar.set_postfix(loss=history["loss"][-1])
-        limit = config.max_cpu_minutes
-        if limit is not None and time.process_time() - start > 60 * limit:
+        if budget.exceeded():
             history["stopped_early"] = True
             break
     history["steps"] = steps
     history["epochs_run"] = len(history["loss"])
-    history["cpu_seconds"] = round(time.process_time() - start, 1)
+    history["cpu_seconds"] = round(budget.seconds(), 1)
     model.denoiser = ema.eval()
     return model, history
+
+
+def _training_set(train: idata.InteractionWindows, mirror: bool
+                  ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray]:
+    """The classes present in ``train`` and its (N, T, J, 3) actor and reactor windows
+    with their (N,) class indices, doubled by their mirror images when ``mirror``."""
+    present = sorted(set(train.label.tolist()))
+    labels = tuple(train.labels[i] for i in present)
+    actor, reactor = train.actor, train.reactor
+    y = np.array([labels.index(train.labels[i]) for i in train.label], dtype=np.int64)
+    if mirror:
+        actor, reactor = np.concatenate([actor, _mirror(actor)]), np.concatenate(
+            [reactor, _mirror(reactor)])
+        y = np.concatenate([y, y])
+    return labels, actor, reactor, y
+
+
+def denoising_loss(model: BiGraphDiff, denoiser: Denoiser, x0: torch.Tensor,
+                   labels: torch.Tensor, gen: torch.Generator
+                   ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Training loss of ``denoiser`` on a batch: the label dropped to the null label with
+    probability ``label_dropout``, a random step k and noise ε, then the ε MSE plus, with
+    ``bone_weight`` > 0, λ_b times :func:`bone_loss` of the implied x̂_0.
+
+    Args:
+        model: the model (schedule, config, standardisation, parents).
+        denoiser: the network being trained (the model's online denoiser).
+        x0: (B, 2, T, J, 3) standardised windows. labels: (B,) class indices.
+        gen: generator of the dropout, steps and noise.
+
+    Returns:
+        (loss, ε MSE), scalars.
+    """
+    config = model.config
+    yb = labels.clone()
+    drop = torch.rand(len(yb), generator=gen) < config.label_dropout
+    yb[drop] = model.null_label
+    k = torch.randint(0, config.diffusion_steps, (len(x0),), generator=gen)
+    noise = torch.randn(x0.shape, generator=gen)
+    xk = model.schedule.q_sample(x0, k, noise)
+    eps = denoiser(xk, k, yb)
+    eps_mse = ((eps - noise) ** 2).mean()
+    if config.bone_weight <= 0:
+        return eps_mse, eps_mse
+    ab = torch.as_tensor(model.schedule.alpha_bar, dtype=torch.float32)[k]
+    shape = (-1,) + (1,) * (x0.ndim - 1)
+    x0_hat = (xk - (1 - ab).sqrt().reshape(shape) * eps) / ab.sqrt().reshape(shape)
+    scale = torch.as_tensor(model.std, dtype=torch.float32)
+    bone = bone_loss(x0_hat, x0, ab, scale, model.parents)
+    return eps_mse + config.bone_weight * bone, eps_mse

@@ -90,6 +90,7 @@ from simenv.data import augment_targets as at
 from simenv.data import interaction_data as idata
 from simenv.data.interaction_metrics import KEY_JOINT_PAIRS
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
+from simenv.models.training import CpuBudget, seeded
 
 CHECKPOINT_FORMAT = "simenv-interaction-augment-v1"
 J = len(at.PARENTS)
@@ -513,16 +514,14 @@ def fit(targets: at.AugmentTargets, config: InteractionAugmenterConfig | None = 
     config = config or InteractionAugmenterConfig()
     if len(targets) == 0:
         raise MotionError("no augmentation samples to train on", field="targets")
-    torch.set_num_threads(1)
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
+    rng = seeded(seed)
     model = InteractionAugmenter(config)
     params = [p for net in (model.retarget, model.adapt) for p in net.parameters()]
     opt = torch.optim.Adam(params, lr=config.lr)
     data = _tensors(targets)
     positions = ("actor", "reactor", "actor_target", "reactor_target")
     history: dict[str, Any] = {"loss": []}
-    start = time.process_time()
+    budget = CpuBudget()
     for _ in tqdm(range(config.epochs), desc="train interaction-augment",
                   disable=not progress):
         for net in model.nets.values():
@@ -546,7 +545,7 @@ def fit(targets: at.AugmentTargets, config: InteractionAugmenterConfig | None = 
         for key, v in sums.items():
             history.setdefault(key, []).append(v / len(targets))
     history.update(fit_prior(model, targets.scales, seed=seed))
-    history["cpu_seconds"] = round(time.process_time() - start, 1)
+    history["cpu_seconds"] = round(budget.seconds(), 1)
     model.metadata = {"samples": len(targets), "target_info": targets.info}
     return model, history
 
@@ -565,13 +564,13 @@ def train(train: idata.InteractionWindows, config: InteractionAugmenterConfig | 
     """
     config = config or InteractionAugmenterConfig()
     torch.set_num_threads(1)
-    t0 = time.process_time()
+    budget = CpuBudget()
     targets = at.build_targets(train, config.scales_per_window, seed=seed,
                                symmetric=config.symmetric_scales)
-    target_seconds = time.process_time() - t0
+    target_seconds = budget.seconds()
     model, history = fit(targets, config, seed=seed, progress=progress)
     history["target_seconds"] = round(target_seconds, 1)
-    history["cpu_seconds"] = round(time.process_time() - t0, 1)
+    history["cpu_seconds"] = round(budget.seconds(), 1)
     return model, history
 
 

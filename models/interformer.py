@@ -106,19 +106,20 @@ Paper vs ours
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
+from tqdm import tqdm
 
 from simenv.core.errors import MotionError
 from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.gesture_classifier import adjacency_mask, time_encoding
 from simenv.models.reaction_baselines import check_inputs, mirror_index
+from simenv.models.training import CpuBudget, cosine_schedule, seeded
 
 CHECKPOINT_FORMAT = "simenv-interformer-1"
 #: Positions are multiplied by this inside the loss (metres -> decimetres).
@@ -495,8 +496,6 @@ def train(train: idata.InteractionWindows, config: InterFormerConfig | None = No
         MotionError: fewer than 3 frames per window, joints that differ from the
             config's, or no windows.
     """
-    from tqdm import tqdm
-
     c = config or InterFormerConfig()
     if len(train) == 0:
         raise MotionError("no training windows", field="train")
@@ -508,10 +507,8 @@ def train(train: idata.InteractionWindows, config: InterFormerConfig | None = No
                           field="train")
     c = replace(c, window=train.window, chunk_context=min(c.chunk_context,
                                                           train.window - 1))
-    cpu0 = time.process_time()
-    torch.set_num_threads(1)
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
+    budget = CpuBudget()
+    rng = seeded(seed)
     model = InterFormer(c)
     actor = torch.as_tensor(train.actor, dtype=torch.float32)
     reactor = torch.as_tensor(train.reactor, dtype=torch.float32)
@@ -519,8 +516,7 @@ def train(train: idata.InteractionWindows, config: InterFormerConfig | None = No
     per_epoch = math.ceil(n / c.batch_size)
     steps = per_epoch * c.epochs
     opt = torch.optim.AdamW(model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
-    sched = torch.optim.lr_scheduler.LambdaLR(
-        opt, lambda s: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(s / steps, 1.0))))
+    sched = cosine_schedule(opt, steps, floor=0.05)
     history: dict[str, Any] = {"loss": [], "mse": [], "velocity": []}
     model.train()
     for _ in tqdm(range(c.epochs), desc="interformer", disable=not progress):
@@ -542,7 +538,7 @@ def train(train: idata.InteractionWindows, config: InterFormerConfig | None = No
             sums += (float(total.detach()), terms["mse"], terms["velocity"])
         for key, value in zip(("loss", "mse", "velocity"), sums / per_epoch, strict=True):
             history[key].append(float(value))
-    history["cpu_seconds"] = time.process_time() - cpu0
+    history["cpu_seconds"] = budget.seconds()
     history["steps"] = steps
     model.metadata = {"train_windows": n, "seed": seed, "epochs": c.epochs,
                       "final_loss": history["loss"][-1],

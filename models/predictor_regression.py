@@ -44,7 +44,6 @@ optionally weighted towards the late frames (:func:`regression_loss`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -332,9 +331,3 @@ def check_lengths(model: DCTRegressionPredictor, past_len: int, future_len: int)
     if (past_len, future_len) != (model.past_len, model.future_len):
         raise MotionError(f"windows are {past_len}->{future_len}; the model is "
                           f"{model.past_len}->{model.future_len}", field="windows")
-
-
-def cosine_lr(base: float, step: int, total: int) -> float:
-    """Cosine decay from ``base`` to ``base / 100`` over ``total`` steps."""
-    t = min(step / max(total, 1), 1.0)
-    return base * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * t)))

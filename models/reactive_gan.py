@@ -100,7 +100,6 @@ Paper vs ours
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -109,11 +108,13 @@ import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
+from tqdm import tqdm
 
 from simenv.core.errors import MotionError
 from simenv.data import interaction_data as idata
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.reaction_baselines import check_inputs, mirror_index
+from simenv.models.training import CpuBudget, seeded
 
 #: Checkpoint format tag.
 CHECKPOINT_FORMAT = "simenv-reactive-gan-1"
@@ -452,6 +453,11 @@ def mirror_windows(x: np.ndarray) -> np.ndarray:
     return out
 
 
+#: The loss terms :func:`gan_step` returns, in the order of the training history.
+LOSS_TERMS: tuple[str, ...] = ("loss", "d_loss", "l1", "bone", "continuity", "g_unsup",
+                               "g_sup", "d_unsup", "d_sup")
+
+
 def _check_windows(windows: idata.InteractionWindows, window: int) -> None:
     if len(windows) == 0:
         raise MotionError("no training windows", field="train")
@@ -488,8 +494,6 @@ def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = No
         ``"windows"`` (after augmentation); with ``validation`` also
         ``"val_joint_error_mm"``, the per-epoch mean joint error of frames 1..T-1 (z = 0).
     """
-    from tqdm import tqdm
-
     config = config or ReactiveGANConfig()
     if not config.labels:
         config = ReactiveGANConfig(**{**asdict(config), "labels": tuple(train.labels)})
@@ -497,69 +501,29 @@ def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = No
         raise MotionError(f"training labels {train.labels} are not among the config's "
                           f"{config.labels}", field="labels")
     _check_windows(train, config.window)
-    torch.set_num_threads(1)
-    torch.manual_seed(seed)
-    rng = np.random.default_rng(seed)
-    label_map = np.array([config.labels.index(name) for name in train.labels])
-    actor, reactor = train.actor[:, :config.window], train.reactor[:, :config.window]
-    labels = label_map[train.label]
-    if config.mirror:
-        actor = np.concatenate([actor, mirror_windows(actor)])
-        reactor = np.concatenate([reactor, mirror_windows(reactor)])
-        labels = np.concatenate([labels, labels])
-    a_all = torch.as_tensor(actor, dtype=torch.float32)
-    b_all = torch.as_tensor(reactor, dtype=torch.float32)
-    y_all = torch.as_tensor(labels, dtype=torch.int64)
-
+    rng = seeded(seed)
+    a_all, b_all, y_all = _training_tensors(train, config)
     model = ReactiveGAN(config)
     g, d = model.generator, model.discriminator
     opt_g = torch.optim.Adam(g.parameters(), lr=config.lr_g, betas=(0.5, 0.999))
     opt_d = torch.optim.Adam(d.parameters(), lr=config.lr_d, betas=(0.5, 0.999))
-    keys = ("loss", "d_loss", "l1", "bone", "continuity", "g_unsup", "g_sup", "d_unsup",
-            "d_sup")
-    history: dict[str, Any] = {k: [] for k in keys}
+    history: dict[str, Any] = {k: [] for k in LOSS_TERMS}
     if validation is not None:
         history["val_joint_error_mm"] = []
-    start = time.process_time()
+    budget = CpuBudget(config.max_minutes)
     bar = tqdm(range(config.epochs), desc="train reactive-gan", disable=not progress)
     for _ in bar:
         g.train()
         d.train()
-        sums = dict.fromkeys(keys, 0.0)
+        sums = dict.fromkeys(LOSS_TERMS, 0.0)
         order = rng.permutation(len(a_all))
         batches = [order[i:i + config.batch_size]
                    for i in range(0, len(order), config.batch_size)]
         for idx in batches:
-            a, b, y = a_all[idx], b_all[idx], y_all[idx]
-            z = torch.randn(len(idx), config.noise_dim)
-            fake = g(a, b[:, 0], z)
-
-            real_rf, real_cls = d(b)
-            fake_rf, fake_cls = d(fake.detach())
-            d_unsup = unsupervised_d_loss(real_rf, fake_rf, config.real_label)
-            d_sup = supervised_d_loss(real_cls, fake_cls, y)
-            opt_d.zero_grad()
-            (d_unsup + d_sup).backward()
-            opt_d.step()
-
-            fake_rf, fake_cls = d(fake)
-            g_unsup = unsupervised_g_loss(fake_rf)
-            g_sup = supervised_g_loss(fake_cls, y)
-            fake_u, real_u = LOSS_UNIT * fake, LOSS_UNIT * b
-            l1 = l1_loss(fake_u[:, 1:], real_u[:, 1:])
-            bone = bone_length_loss(fake_u[:, 1:], real_u[:, 0])
-            cont = continuity_loss(fake_u, config.continuity_dt, config.continuity_k)
-            g_loss = (config.adv_weight * (g_unsup + g_sup) + config.l1_weight * l1
-                      + config.bone_weight * bone + config.continuity_weight * cont)
-            opt_g.zero_grad()
-            g_loss.backward()
-            opt_g.step()
-
-            for key, value in (("loss", g_loss), ("d_loss", d_unsup + d_sup), ("l1", l1),
-                               ("bone", bone), ("continuity", cont), ("g_unsup", g_unsup),
-                               ("g_sup", g_sup), ("d_unsup", d_unsup), ("d_sup", d_sup)):
+            terms = gan_step(model, opt_g, opt_d, a_all[idx], b_all[idx], y_all[idx])
+            for key, value in terms.items():
                 sums[key] += float(value.detach()) * len(idx)
-        for key in keys:
+        for key in LOSS_TERMS:
             history[key].append(sums[key] / len(a_all))
         if validation is not None:
             pred = model.generate(validation.actor, validation.reactor[:, 0])
@@ -567,12 +531,71 @@ def train(train: idata.InteractionWindows, config: ReactiveGANConfig | None = No
             history["val_joint_error_mm"].append(float(1000.0 * err))
         bar.set_postfix(g=f"{history['loss'][-1]:.3f}", l1=f"{history['l1'][-1]:.3f}",
                         d=f"{history['d_loss'][-1]:.3f}")
-        if config.max_minutes is not None and \
-                time.process_time() - start > 60 * config.max_minutes:
+        if budget.exceeded():
             break
-    history["cpu_seconds"] = round(time.process_time() - start, 1)
+    history["cpu_seconds"] = round(budget.seconds(), 1)
     history["epochs"] = len(history["loss"])
     history["windows"] = len(a_all)
     g.eval()
     d.eval()
     return model, history
+
+
+def _training_tensors(train: idata.InteractionWindows, config: ReactiveGANConfig
+                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(N, T, J, 3) actor and reactor windows cut to ``config.window`` frames and their
+    (N,) class indices in ``config.labels``, doubled by the mirror images when
+    ``config.mirror``."""
+    label_map = np.array([config.labels.index(name) for name in train.labels])
+    actor, reactor = train.actor[:, :config.window], train.reactor[:, :config.window]
+    labels = label_map[train.label]
+    if config.mirror:
+        actor = np.concatenate([actor, mirror_windows(actor)])
+        reactor = np.concatenate([reactor, mirror_windows(reactor)])
+        labels = np.concatenate([labels, labels])
+    return (torch.as_tensor(actor, dtype=torch.float32),
+            torch.as_tensor(reactor, dtype=torch.float32),
+            torch.as_tensor(labels, dtype=torch.int64))
+
+
+def gan_step(model: ReactiveGAN, opt_g: torch.optim.Optimizer, opt_d: torch.optim.Optimizer,
+             a: torch.Tensor, b: torch.Tensor, y: torch.Tensor) -> dict[str, torch.Tensor]:
+    """One discriminator step, then one generator step, on a batch (module docstring).
+
+    Args:
+        model: the GAN being trained. opt_g, opt_d: the generator's and discriminator's
+            optimisers.
+        a, b: (B, T, J, 3) actor and reactor windows, metres. y: (B,) class indices.
+
+    Returns:
+        Every term of :data:`LOSS_TERMS` (``loss``: the generator's total; position terms
+        in decimetres), scalars.
+    """
+    config = model.config
+    g, d = model.generator, model.discriminator
+    z = torch.randn(len(a), config.noise_dim)
+    fake = g(a, b[:, 0], z)
+
+    real_rf, real_cls = d(b)
+    fake_rf, fake_cls = d(fake.detach())
+    d_unsup = unsupervised_d_loss(real_rf, fake_rf, config.real_label)
+    d_sup = supervised_d_loss(real_cls, fake_cls, y)
+    opt_d.zero_grad()
+    (d_unsup + d_sup).backward()
+    opt_d.step()
+
+    fake_rf, fake_cls = d(fake)
+    g_unsup = unsupervised_g_loss(fake_rf)
+    g_sup = supervised_g_loss(fake_cls, y)
+    fake_u, real_u = LOSS_UNIT * fake, LOSS_UNIT * b
+    l1 = l1_loss(fake_u[:, 1:], real_u[:, 1:])
+    bone = bone_length_loss(fake_u[:, 1:], real_u[:, 0])
+    cont = continuity_loss(fake_u, config.continuity_dt, config.continuity_k)
+    g_loss = (config.adv_weight * (g_unsup + g_sup) + config.l1_weight * l1
+              + config.bone_weight * bone + config.continuity_weight * cont)
+    opt_g.zero_grad()
+    g_loss.backward()
+    opt_g.step()
+    return {"loss": g_loss, "d_loss": d_unsup + d_sup, "l1": l1, "bone": bone,
+            "continuity": cont, "g_unsup": g_unsup, "g_sup": g_sup, "d_unsup": d_unsup,
+            "d_sup": d_sup}

@@ -32,7 +32,6 @@ on logits of subjects the network did not train on (out-of-fold in the protocols
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +53,7 @@ from simenv.data.gestures import (
     normalise_windows,
 )
 from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
+from simenv.models.training import CpuBudget, seeded
 
 #: Frames of real motion in the short condition and the loop's tick (1 s at 25 fps).
 SHORT_FRAMES = 25
@@ -312,9 +312,7 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
         y.append(labels.index(name))
     y_all = np.array(y)
     skel = clip_skeleton(clips)
-    torch.set_num_threads(1)
-    rng = np.random.default_rng(config.seed)
-    torch.manual_seed(config.seed)
+    rng = seeded(config.seed)
     model = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, tuple(labels),
                                   fps=GESTURE_FPS, width=config.width, dropout=config.dropout,
                                   extra=dict(extra or {})))
@@ -324,7 +322,7 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
                                   weight_decay=config.weight_decay)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, config.lr, total_steps=steps)
     history: dict[str, Any] = {"epoch_loss": [], "stopped_early": False}
-    start = time.process_time()
+    budget = CpuBudget(config.max_minutes)
     bar = tqdm(range(config.epochs), desc="train recogniser", disable=not progress,
                leave=False)
     for _ in bar:
@@ -346,11 +344,11 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
             losses.append(loss.item())
         history["epoch_loss"].append(round(float(np.mean(losses)), 4))
         bar.set_postfix(loss=history["epoch_loss"][-1])
-        if time.process_time() - start > config.max_minutes * 60:
+        if budget.exceeded():
             history["stopped_early"] = True
             break
     history["epochs_run"] = len(history["epoch_loss"])
-    history["train_cpu_s"] = round(time.process_time() - start, 1)
+    history["train_cpu_s"] = round(budget.seconds(), 1)
     return model.eval(), history
 
 

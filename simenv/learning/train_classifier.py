@@ -57,7 +57,6 @@ import argparse
 import json
 import math
 import sys
-import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -90,6 +89,7 @@ from simenv.data.gestures import (
 )
 from simenv.learning.recognition import class_weights
 from simenv.models.gesture_classifier import ClassifierConfig, GestureClassifier
+from simenv.models.training import CpuBudget, cosine_schedule, seeded
 
 #: Default location of the gesture corpus (``SIMENV_SHARED_DATA`` overrides the root).
 DEFAULT_DATA = shared_data_root() / "gestures"
@@ -236,26 +236,19 @@ def train(config: TrainConfig, train_clips: Sequence[GestureClip], *, progress: 
     """Train a classifier on ``train_clips``; returns (model in eval mode, history)."""
     if not train_clips:
         raise SimenvError("no training clips: the data folder gave no usable recording")
-    torch.set_num_threads(1)
-    rng = np.random.default_rng(config.seed)
+    rng = seeded(config.seed)
     model = build_model(config)
     joints = model.config.joint_names
     y_all = np.array([GESTURE_LABELS.index(c.label) for c in train_clips])
     weights = class_weights(y_all, len(GESTURE_LABELS))
     steps_per_epoch = math.ceil(len(train_clips) / config.batch_size)
-    total = steps_per_epoch * config.epochs
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr,
                                   weight_decay=config.weight_decay)
-
-    def lr_at(step: int) -> float:
-        if step < config.warmup_steps:
-            return (step + 1) / config.warmup_steps
-        return 0.5 * (1 + math.cos(math.pi * min(step / max(total, 1), 1.0)))
-
-    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lr_at)
+    scheduler = cosine_schedule(optimizer, steps_per_epoch * config.epochs,
+                                warmup_steps=config.warmup_steps)
     # epoch_train_acc: on the augmented crops, in training mode (dropout on).
     history: dict[str, Any] = {"epoch_loss": [], "epoch_train_acc": [], "stopped_early": False}
-    start = time.process_time()
+    budget = CpuBudget(config.max_minutes)
     bar = tqdm(range(config.epochs), desc="train gesture classifier", disable=not progress)
     for _ in bar:
         windows = training_windows(train_clips, rng, config, joints)
@@ -271,11 +264,11 @@ def train(config: TrainConfig, train_clips: Sequence[GestureClip], *, progress: 
         history["epoch_loss"].append(round(float(np.mean(losses)), 4))
         history["epoch_train_acc"].append(round(correct / len(x), 4))
         bar.set_postfix(loss=history["epoch_loss"][-1], acc=history["epoch_train_acc"][-1])
-        if time.process_time() - start > config.max_minutes * 60:
+        if budget.exceeded():
             history["stopped_early"] = True
             break
     history["epochs_run"] = len(history["epoch_loss"])
-    history["train_seconds"] = round(time.process_time() - start, 1)
+    history["train_seconds"] = round(budget.seconds(), 1)
     return model.eval(), history
 
 

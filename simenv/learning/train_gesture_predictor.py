@@ -92,7 +92,7 @@ from simenv.models.gesture_predictor import (
     position_velocity_loss,
     to_body,
 )
-from simenv.models.predictor_regression import cosine_lr
+from simenv.models.training import cosine_lr
 
 #: Where fold checkpoints go (git-ignored).
 OUT = Path("out/gesture-predictor")

@@ -43,7 +43,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -76,11 +75,11 @@ from simenv.models.predictor_regression import (
     DCTRegressionPredictor,
     RegressionConfig,
     check_lengths,
-    cosine_lr,
     regression_loss,
     root_targets,
     targets,
 )
+from simenv.models.training import CpuBudget, cosine_lr
 
 #: Default root of the shared corpus (``SIMENV_SHARED_DATA`` overrides).
 SHARED = shared_data_root()
@@ -339,7 +338,7 @@ def train(
     bs = min(batch_size, len(data))
     log: list[dict[str, float]] = []
     best = _Best(validation, (model.generator, model.amplitude))
-    t0 = time.process_time()
+    budget = CpuBudget(minutes)
     bar = tqdm(range(iterations), disable=not progress, desc="train", unit="it")
 
     def sample():
@@ -369,10 +368,10 @@ def train(
             opt_a.zero_grad()
             loss_a.backward()
             opt_a.step()
-        done = minutes is not None and time.process_time() - t0 > 60 * minutes
+        done = budget.exceeded()
         if it % 50 == 0 or it == iterations - 1 or done:
             entry = {"iteration": it, **info_c, **info_g, "amplitude": loss_a.item(),
-                     "seconds": time.process_time() - t0}
+                     "seconds": budget.seconds()}
             if it % validate_every == 0 or it == iterations - 1 or done:
                 entry |= best.check(model, it)
                 for net in (model.generator, model.amplitude):
@@ -474,7 +473,7 @@ def train_regression(
         p = w / w.sum()
     log: list[dict[str, float]] = []
     best = _Best(validation, (model.net,))
-    t0 = time.process_time()
+    budget = CpuBudget(minutes)
     for it in tqdm(range(iterations), disable=not progress, desc="train", unit="it"):
         for group in opt.param_groups:
             group["lr"] = cosine_lr(lr, it, iterations)
@@ -486,10 +485,9 @@ def train_regression(
         opt.zero_grad()
         loss.backward()
         opt.step()
-        done = minutes is not None and time.process_time() - t0 > 60 * minutes
+        done = budget.exceeded()
         if it % 50 == 0 or it == iterations - 1 or done:
-            entry = {"iteration": it, "loss": loss.item(),
-                     "seconds": time.process_time() - t0}
+            entry = {"iteration": it, "loss": loss.item(), "seconds": budget.seconds()}
             if it % validate_every == 0 or it == iterations - 1 or done:
                 entry |= best.check(model, it)
             log.append(entry)
