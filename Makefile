@@ -32,7 +32,7 @@ help:
 	@echo "make demo   - set up and run the demo (writes $(DEMO_OUT)/, open $(DEMO_OUT)/index.html)"
 	@echo "make demo-check - check the demo's page in headless Chromium (installs it as root)"
 	@echo "make test   - set up and run the test suite"
-	@echo "make lint   - ruff check"
+	@echo "make lint   - ruff check and the import rules (docs/architecture.md)"
 	@echo "make bench  - retargeting benchmark (simenv vs mink)"
 	@echo "make clean  - remove build artefacts and outputs (distclean also removes .venv)"
 
@@ -85,8 +85,10 @@ demo-check: $(STAMP)
 test: $(STAMP)
 	$(RUN_ENV) $(BIN)/pytest
 
+# ruff, then the import rules of docs/architecture.md (import-linter contracts and AST scans).
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/pytest -q -p no:cacheprovider tests/test_architecture.py
 
 bench: $(STAMP)
 	$(RUN_ENV) $(BIN)/python benchmarks/bench_retarget.py
