@@ -71,8 +71,9 @@ import os
 import time
 from collections.abc import Sequence
 from contextlib import nullcontext
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -94,6 +95,9 @@ from simenv.perception.loop import (
 from simenv.plausibility.html_report import html_page
 from simenv.room.scenario import REACTIONS, Scenario, load_scenario
 from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, session_recipes
+
+if TYPE_CHECKING:
+    from simenv.body.render import WebVideo
 
 AGENTS = ("scripted", "labels", "random")
 #: Accepted video width and height, pixels: room for the scene under the five caption lines
@@ -134,15 +138,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
         SimenvError: unknown agent, video size outside :data:`VIDEO_SIZE_RANGE`, and the
             errors of the environment and the perception.
     """
-    if agent not in AGENTS:
-        raise SimenvError(f"unknown agent {agent!r}; expected one of {list(AGENTS)}",
-                          field="agent")
-    low, high = VIDEO_SIZE_RANGE
-    for name, size in (("width", width), ("height", height)):
-        if not isinstance(size, int | np.integer) or isinstance(size, bool) \
-                or not low <= size <= high:
-            raise SimenvError(f"video {name} {size!r}; expected a whole number of pixels "
-                              f"from {low} to {high}", field=name)
+    _check_options(agent, width, height)
     out = Path(out)
     clock = [time.perf_counter()]
     ahead = load_predictor(predictor) if agent == "scripted" else None
@@ -157,64 +153,13 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             classifier = default_classifier(env.scenario.behaviour.vocabulary, data)
         loop = PerceptionLoop(env.scenario.behaviour, classifier, ahead)
     out.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    obs, _ = env.reset(seed=seed)
+    episode = _Episode(env, agent, loop, np.random.default_rng(seed))
+    env.reset(seed=seed)
     clock.append(time.perf_counter())
-    agent_kp, perceptions, depths, assistance = [], [], [], 0.0
-    weight = env.room.agent.total_mass * 9.81  # N, for assistance as a fraction of it
-    last: Perception | None = None
-    decided: tuple[str, float] | None = None  # the last decision and its time, s
-    answered: set[int] = set()
-    step, done = 0, False
-    video = None
-    if render:
-        from simenv.body.render import WebVideo, caption_frame
-
-        # Written as it goes: a long session's frames would not fit in memory.
-        video = WebVideo(out / "rehearsal.mp4", PERCEPTION_FPS)
-    with (out / "log.jsonl").open("w", encoding="utf-8") as log, video or nullcontext():
-        while not done:
-            t = step / PERCEPTION_FPS
-            action = 0
-            tick = (step + 1) % 25 == 0 and step + 1 >= 25
-            # Perceive while the 1-s window holds recorded frames: the pose held after the
-            # recording is not the user's motion.
-            if loop is not None and tick and step - loop.real_frames < env.n_frames - 1:
-                last = loop.perceive(t, env.user_keypoints())
-                perceptions.append(last)
-                if last.reaction in env.reactions:
-                    action = env.reactions.index(last.reaction)
-            elif agent == "labels":
-                action = _oracle(env, t, answered)
-            elif agent == "random" and tick:
-                action = int(rng.integers(0, env.action_space.n))
-            obs, _, _, truncated, info = env.step(action)
-            if action:
-                decided = (env.reactions[action], t)
-            done = truncated
-            step += 1
-            agent_kp.append(env.room.agent_keypoints(env.data))
-            depths.append(list(env.agent_penetration().values()))
-            help_n = env.agent_assistance_n()
-            assistance = max(assistance, help_n)
-            row = {
-                "t": round(t, 4), "gesture": info.get("gesture"),
-                "probabilities": None if last is None else last.probabilities,
-                "stage": None if last is None else last.stage,
-                "predicted_motion_m": None if last is None else last.predicted_motion_m,
-                "decision": env.reactions[action], "executing": info.get("executing"),
-                "objects": env.room.object_states(env.data),
-                "levels": dict(zip(OBJECTS, map(float, env.object_levels()), strict=True)),
-                "labels": info.get("object_labels"),
-                "assistance_n": help_n, "assistance_bw": help_n / weight,
-            }
-            log.write(json.dumps(row) + "\n")
-            log.flush()
-            if video is not None:
-                video.write(caption_frame(env.render(), _caption(row, decided)))
+    video = episode.play(out, render)
     clock.append(time.perf_counter())
     env.close()
-    summary = _summary(env, np.array(agent_kp), perceptions)
+    summary = _summary(env, np.array(episode.agent_kp), episode.perceptions)
     if video is not None:
         summary["video"] = {"file": video.mp4.path.name, "codec": video.mp4.codec,
                             "webm": None if video.webm is None else video.webm.path.name,
@@ -225,7 +170,7 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
             "predictor": getattr(ahead, "name", type(ahead).__name__),
             "real_frames": loop.real_frames, "period": loop.period,
             "threshold": loop.threshold, "cooldown_s": loop.cooldown_s}
-    summary["agent_physics"] = _physics(np.array(depths), assistance)
+    summary["agent_physics"] = _physics(np.array(episode.depths), episode.assistance)
     _report(out, summary)
     clock.append(time.perf_counter())
     prep, loop_s, outputs = np.diff(clock)
@@ -233,6 +178,108 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
                            "loop_real_time_factor": summary["duration_s"] / loop_s}
     (out / "summary.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     return summary
+
+
+def _check_options(agent: str, width: int, height: int) -> None:
+    """Refuse an unknown agent or a video size outside :data:`VIDEO_SIZE_RANGE`."""
+    if agent not in AGENTS:
+        raise SimenvError(f"unknown agent {agent!r}; expected one of {list(AGENTS)}",
+                          field="agent")
+    low, high = VIDEO_SIZE_RANGE
+    for name, size in (("width", width), ("height", height)):
+        if not isinstance(size, int | np.integer) or isinstance(size, bool) \
+                or not low <= size <= high:
+            raise SimenvError(f"video {name} {size!r}; expected a whole number of pixels "
+                              f"from {low} to {high}", field=name)
+
+
+@dataclass
+class _Episode:
+    """The simulation loop of a rehearsal: each step the agent decides (:meth:`decide`),
+    the environment steps, and what happened is measured and written (:meth:`record`,
+    :meth:`play`); the measurements the summary needs are kept here."""
+
+    env: InteractionRoomEnv
+    agent: str
+    loop: PerceptionLoop | None
+    rng: np.random.Generator
+    #: The last perception tick, and the last decision with its time, s.
+    last: Perception | None = None
+    decided: tuple[str, float] | None = None
+    #: Labelled gestures the oracle answered (indexes into the session's gestures).
+    answered: set[int] = field(default_factory=set)
+    #: Per step: the agent's keypoints (K, 3), m, and its penetration depths (5,), m; every
+    #: perception tick; the largest assistance force on the agent, N.
+    agent_kp: list[np.ndarray] = field(default_factory=list)
+    depths: list[list[float]] = field(default_factory=list)
+    perceptions: list[Perception] = field(default_factory=list)
+    assistance: float = 0.0
+
+    def decide(self, step: int) -> int:
+        """The action index at ``step`` (0: none): the scripted agent's perception at its
+        ticks (while the 1-s window holds recorded frames: the pose held after the
+        recording is not the user's motion), the oracle's answer to a labelled gesture, or
+        the random agent's draw at a tick."""
+        env, t = self.env, step / PERCEPTION_FPS
+        tick = (step + 1) % 25 == 0 and step + 1 >= 25
+        if self.loop is not None and tick and step - self.loop.real_frames < env.n_frames - 1:
+            self.last = self.loop.perceive(t, env.user_keypoints())
+            self.perceptions.append(self.last)
+            if self.last.reaction in env.reactions:
+                return env.reactions.index(self.last.reaction)
+        elif self.agent == "labels":
+            return _oracle(env, t, self.answered)
+        elif self.agent == "random" and tick:
+            return int(self.rng.integers(0, env.action_space.n))
+        return 0
+
+    def record(self, t: float, action: int, info: dict[str, Any]) -> dict[str, Any]:
+        """Measure the step just taken at time ``t`` (s) and return its ``log.jsonl`` line
+        (module docstring)."""
+        env, last = self.env, self.last
+        self.agent_kp.append(env.room.agent_keypoints(env.data))
+        self.depths.append(list(env.agent_penetration().values()))
+        help_n = env.agent_assistance_n()
+        self.assistance = max(self.assistance, help_n)
+        weight = env.room.agent.total_mass * 9.81  # N, for assistance as a fraction of it
+        return {
+            "t": round(t, 4), "gesture": info.get("gesture"),
+            "probabilities": None if last is None else last.probabilities,
+            "stage": None if last is None else last.stage,
+            "predicted_motion_m": None if last is None else last.predicted_motion_m,
+            "decision": env.reactions[action], "executing": info.get("executing"),
+            "objects": env.room.object_states(env.data),
+            "levels": dict(zip(OBJECTS, map(float, env.object_levels()), strict=True)),
+            "labels": info.get("object_labels"),
+            "assistance_n": help_n, "assistance_bw": help_n / weight,
+        }
+
+    def play(self, out: Path, render: bool) -> WebVideo | None:
+        """Run the (reset) environment to its end, writing ``log.jsonl`` and with
+        ``render`` the captioned video in ``out``; the video writer
+        (:class:`simenv.body.render.WebVideo`, closed) or None."""
+        env, video = self.env, None
+        if render:
+            # The video writer loads OpenCV: only a rendered rehearsal needs it.
+            from simenv.body.render import WebVideo, caption_frame
+
+            # Written as it goes: a long session's frames would not fit in memory.
+            video = WebVideo(out / "rehearsal.mp4", PERCEPTION_FPS)
+        step, done = 0, False
+        with (out / "log.jsonl").open("w", encoding="utf-8") as log, video or nullcontext():
+            while not done:
+                t = step / PERCEPTION_FPS
+                action = self.decide(step)
+                _, _, _, done, info = env.step(action)
+                if action:
+                    self.decided = (env.reactions[action], t)
+                step += 1
+                row = self.record(t, action, info)
+                log.write(json.dumps(row) + "\n")
+                log.flush()
+                if video is not None:
+                    video.write(caption_frame(env.render(), _caption(row, self.decided)))
+        return video
 
 
 def _caption(row: dict[str, Any], decided: tuple[str, float] | None) -> list[str]:
@@ -339,12 +386,36 @@ def _physics(depths: np.ndarray, assistance: float) -> dict[str, Any]:
 def _report(out: Path, summary: dict[str, Any]) -> None:
     """``report.html``: the video, the timeline (from ``log.jsonl``), the reactions and
     the plausibility table."""
-    import matplotlib
+    e = html.escape
+    rows = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    image = _timeline_png(rows, summary["decisions"])
+    reactions = "".join(
+        "<tr>" + "".join(_cell(r[c]) for c in (
+            "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
+            "t_success")) + _verdict(r["success"]) + "</tr>"
+        for r in summary["reactions"])
+    title = f"simenv rehearsal: {summary['session']}"
+    (out / "report.html").write_text(html_page(title, f"""
+<h1>Rehearsal of {e(summary['session'])} ({e(summary['scenario'])})</h1>
+<h2>Video</h2>{_film(summary.get('video'))}
+<h2>Timeline</h2><img class="timeline" src="data:image/png;base64,{image}" alt="timeline">
+<h2>Reactions started</h2><table><tr><th>gesture</th><th>onset (s)</th>
+<th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
+<th>success measured (s)</th><th>success</th></tr>{reactions}</table>
+<h2>Agent plausibility</h2><table><tr><th>metric</th><th>value</th><th>verdict</th>
+</tr>{_plausibility_rows(summary)}</table>
+"""), encoding="utf-8")
+
+
+def _timeline_png(rows: list[dict[str, Any]], decisions: list[dict[str, Any]]) -> str:
+    """The report's timeline figure, base64 PNG: the labelled gestures as bands and the
+    decisions as lines (black when started) over the ``log.jsonl`` lines ``rows``, and
+    each object's level (fraction of its joint's range) below."""
+    import matplotlib  # heavy, and only the report's figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
     t = np.array([r["t"] for r in rows])
     fig, axes = plt.subplots(2, 1, figsize=(9, 4.5), sharex=True)
     gestures = sorted({r["gesture"] for r in rows if r["gesture"]})
@@ -352,7 +423,7 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
         on = np.array([r["gesture"] == g for r in rows])
         axes[0].fill_between(t, k, k + 0.8, where=on, step="post", alpha=0.5)
         axes[0].text(t[np.argmax(on)], k + 0.3, g, fontsize=8)
-    for d in summary["decisions"]:
+    for d in decisions:
         axes[0].axvline(d["t_decision"], color="k" if d["started"] else "grey", lw=1)
         axes[0].text(d["t_decision"], len(gestures) + 0.1, d["reaction"], fontsize=7,
                      rotation=60)
@@ -368,69 +439,66 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
     fig.tight_layout()
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
-    image = base64.b64encode(buf.getvalue()).decode()
+    return base64.b64encode(buf.getvalue()).decode()
+
+
+def _verdict(passed: bool | str | None) -> str:
+    """A verdict cell: pass / fail, or a reason it is not judged (``n/a`` for None)."""
     e = html.escape
+    if passed is None or isinstance(passed, str):  # not available, or not judged
+        return f"<td class='na'>{e(passed or 'n/a')}</td>"
+    return f"<td class='{'pass' if passed else 'fail'}'>{'pass' if passed else 'fail'}</td>"
 
-    def verdict(passed: bool | str | None) -> str:
-        if passed is None or isinstance(passed, str):  # not available, or not judged
-            return f"<td class='na'>{e(passed or 'n/a')}</td>"
-        return f"<td class='{'pass' if passed else 'fail'}'>{'pass' if passed else 'fail'}</td>"
 
+def _cell(value: Any) -> str:
+    """A table cell of the reactions: a dash for None, a time (s) for a float, else text."""
+    if value is None:  # not applicable, or never happened
+        return "<td class='na'>&ndash;</td>"
+    if isinstance(value, float):  # a time, s
+        return f"<td class='num'>{value:.2f}</td>"
+    return f"<td>{html.escape(str(value))}</td>"
+
+
+def _plausibility_rows(summary: dict[str, Any]) -> str:
+    """The plausibility table's rows: the joint-level metrics, then the agent's physics
+    (penetration per kind of contact, the largest assistance force) when measured."""
+    e = html.escape
     table = "".join(
         f"<tr><td>{e(k)}</td><td class='num'>{v['value']:.4g} {e(v['unit'])}</td>"
-        f"{verdict(v['passed'])}</tr>" for k, v in summary["agent_plausibility"].items())
+        f"{_verdict(v['passed'])}</tr>" for k, v in summary["agent_plausibility"].items())
     phys = summary.get("agent_physics")
     if phys is not None:
         table += "".join(
             f"<tr><td>penetration into {e(k)} (max / p95)</td>"
             f"<td class='num'>{1000 * v['max']:.1f} / {1000 * v['p95']:.1f} mm</td>"
-            + verdict(v["steps_over_tolerance"] == 0 if k != "user" else "n/a (user pushes)")
+            + _verdict(v["steps_over_tolerance"] == 0 if k != "user" else "n/a (user pushes)")
             + "</tr>" for k, v in phys["penetration_m"].items())
         table += (f"<tr><td>assistance force (max)</td><td class='num'>"
                   f"{phys['assistance_max_n']:.3g} N</td>"
-                  f"{verdict(phys['assistance_max_n'] == 0)}</tr>")
-    def cell(value: Any) -> str:
-        if value is None:  # not applicable, or never happened
-            return "<td class='na'>&ndash;</td>"
-        if isinstance(value, float):  # a time, s
-            return f"<td class='num'>{value:.2f}</td>"
-        return f"<td>{e(str(value))}</td>"
+                  f"{_verdict(phys['assistance_max_n'] == 0)}</tr>")
+    return table
 
-    reactions = "".join(
-        "<tr>" + "".join(cell(r[c]) for c in (
-            "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
-            "t_success")) + verdict(r["success"]) + "</tr>"
-        for r in summary["reactions"])
-    video = summary.get("video")
+
+def _film(video: dict[str, Any] | None) -> str:
+    """The report's video section for the summary's ``video`` entry (None: not rendered)."""
+    e = html.escape
     if video is None:
-        film = "<p class='na'>No video (rendering was off).</p>"
-    else:
-        # Relative sources, the browser's pick first (it plays H.264 and VP8, not mp4v):
-        # the folder can be moved or served as is.
-        sources = [(video["file"], "video/mp4"), (video["webm"], "video/webm")]
-        if video["codec"] != "avc1":
-            sources.reverse()
-        film = ("<video controls muted width='{}' height='{}'>{}</video>".format(
-                    video["width"], video["height"],
-                    "".join(f"<source src='{e(src)}' type='{kind}'>" for src, kind in sources
-                            if src))
-                + "<p class='small'>The room as the agent sees it; captions: the time, the "
-                "labelled gesture, the last perception tick's three most probable classes "
-                "and its stage (real or predicted frames), the last decision, the reaction "
-                "executing, and the objects' states. "
-                f"<a href='{e(video['file'])}'>Download the MP4</a> "
-                f"({e(video['codec'])}).</p>")
-    title = f"simenv rehearsal: {summary['session']}"
-    (out / "report.html").write_text(html_page(title, f"""
-<h1>Rehearsal of {e(summary['session'])} ({e(summary['scenario'])})</h1>
-<h2>Video</h2>{film}
-<h2>Timeline</h2><img class="timeline" src="data:image/png;base64,{image}" alt="timeline">
-<h2>Reactions started</h2><table><tr><th>gesture</th><th>onset (s)</th>
-<th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
-<th>success measured (s)</th><th>success</th></tr>{reactions}</table>
-<h2>Agent plausibility</h2><table><tr><th>metric</th><th>value</th><th>verdict</th>
-</tr>{table}</table>
-"""), encoding="utf-8")
+        return "<p class='na'>No video (rendering was off).</p>"
+    # Relative sources, the browser's pick first (it plays H.264 and VP8, not mp4v):
+    # the folder can be moved or served as is.
+    sources = [(video["file"], "video/mp4"), (video["webm"], "video/webm")]
+    if video["codec"] != "avc1":
+        sources.reverse()
+    return ("<video controls muted width='{}' height='{}'>{}</video>".format(
+                video["width"], video["height"],
+                "".join(f"<source src='{e(src)}' type='{kind}'>" for src, kind in sources
+                        if src))
+            + "<p class='small'>The room as the agent sees it; captions: the time, the "
+            "labelled gesture, the last perception tick's three most probable classes "
+            "and its stage (real or predicted frames), the last decision, the reaction "
+            "executing, and the objects' states. "
+            f"<a href='{e(video['file'])}'>Download the MP4</a> "
+            f"({e(video['codec'])}).</p>")
 
 
 def _gesture(text: str) -> GestureEvent:
