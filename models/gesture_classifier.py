@@ -139,13 +139,37 @@ class SpatioTemporalBlock(nn.Module):
 
 
 @dataclass
-class ClassifierConfig:
-    """Architecture and data contract of a :class:`GestureClassifier`.
+class SkeletonClasses:
+    """The data contract of a skeleton classifier's config: input joints and classes.
 
     Attributes:
-        joint_names: (J,) joint names of the input (a :mod:`simenv.data.gestures` joint set).
-        parents: (J,) parent indices defining the adjacency mask.
+        joint_names: (J,) joint names of the input (e.g. a :mod:`simenv.data.gestures`
+            joint set).
+        parents: (J,) parent index of each joint (-1: a root).
         labels: class names, index = class id.
+
+    Raises:
+        ValueError: ``joint_names`` and ``parents`` of different lengths.
+    """
+
+    joint_names: tuple[str, ...]
+    parents: tuple[int, ...]
+    labels: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        self.joint_names = tuple(self.joint_names)
+        self.parents = tuple(int(p) for p in self.parents)
+        self.labels = tuple(self.labels)
+        if len(self.joint_names) != len(self.parents):
+            raise ValueError("joint_names and parents differ in length")
+
+
+@dataclass
+class ClassifierConfig(SkeletonClasses):
+    """Architecture and data contract (:class:`SkeletonClasses`; the parents define the
+    adjacency mask) of a :class:`GestureClassifier`.
+
+    Attributes:
         window: frames per window (T).
         fps: frame rate of the windows, frames/s.
         dim, heads, layers, ffn: transformer width, heads, blocks, feed-forward width.
@@ -154,9 +178,6 @@ class ClassifierConfig:
             the blocks: on CPU it costs more than it regularises here.)
     """
 
-    joint_names: tuple[str, ...]
-    parents: tuple[int, ...]
-    labels: tuple[str, ...]
     window: int = 75
     fps: float = 25.0
     dim: int = 64
@@ -166,13 +187,6 @@ class ClassifierConfig:
     feature_dim: int = 128
     dropout: float = 0.1
     extra: dict[str, Any] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self.joint_names = tuple(self.joint_names)
-        self.parents = tuple(int(p) for p in self.parents)
-        self.labels = tuple(self.labels)
-        if len(self.joint_names) != len(self.parents):
-            raise ValueError("joint_names and parents differ in length")
 
 
 def time_encoding(length: int, dim: int) -> torch.Tensor:

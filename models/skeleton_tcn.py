@@ -45,6 +45,7 @@ from torch import nn
 
 from simenv.core.errors import MotionError
 from simenv.models.checkpoint import Checkpoint, CheckpointMixin
+from simenv.models.gesture_classifier import SkeletonClasses
 
 CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
 #: Dilations of the residual blocks (receptive field 1 + 4 (1 + 2 + 4 + 1) = 33 frames).
@@ -53,13 +54,11 @@ KERNEL = 5
 
 
 @dataclass
-class TCNConfig:
-    """Architecture and data contract of a :class:`SkeletonTCN`.
+class TCNConfig(SkeletonClasses):
+    """Architecture and data contract (:class:`SkeletonClasses`, with exactly one root)
+    of a :class:`SkeletonTCN`.
 
     Attributes:
-        joint_names: (J,) input joints; parents: (J,) parent index (-1: root, the joint
-            of index ``root``).
-        labels: class names, index = class id.
         fps: frame rate of the windows, frames/s.
         width: channels D of the blocks.
         dropout: dropout before the output layer and inside the blocks, in training.
@@ -67,9 +66,6 @@ class TCNConfig:
         extra: JSON-able provenance (joint set, dataset, protocol).
     """
 
-    joint_names: tuple[str, ...]
-    parents: tuple[int, ...]
-    labels: tuple[str, ...]
     fps: float = 25.0
     width: int = 128
     dropout: float = 0.2
@@ -77,11 +73,7 @@ class TCNConfig:
     extra: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.joint_names = tuple(self.joint_names)
-        self.parents = tuple(int(p) for p in self.parents)
-        self.labels = tuple(self.labels)
-        if len(self.joint_names) != len(self.parents):
-            raise ValueError("joint_names and parents differ in length")
+        super().__post_init__()
         if sum(p < 0 for p in self.parents) != 1:
             raise ValueError("the skeleton needs exactly one root (parent -1)")
         if not self.temperature > 0:
