@@ -126,14 +126,17 @@ class CheckpointMixin:
     ``metadata`` dict, and implements three hooks: :meth:`checkpoint_nets` (its networks
     by name), :meth:`checkpoint_arrays` (extra arrays, default none) and
     :meth:`from_checkpoint` (the model built, untrained, from a checkpoint's config and
-    arrays). ``load`` then puts the weights in, restores ``metadata`` and sets every
-    network to eval mode.
+    arrays; by default ``cls(CONFIG(**config))``). ``load`` then puts the weights in,
+    restores ``metadata`` and sets every network to eval mode.
     """
 
     #: Version tag written to and required from the checkpoint.
     CHECKPOINT_FORMAT: ClassVar[str]
     #: Networks a checkpoint may leave out (e.g. a GAN's critic, not needed to predict).
     OPTIONAL_NETS: ClassVar[tuple[str, ...]] = ()
+    #: The config dataclass of a model built from its config alone (the default
+    #: :meth:`from_checkpoint`).
+    CONFIG: ClassVar[type]
 
     config: Any
     metadata: dict[str, Any]
@@ -150,8 +153,9 @@ class CheckpointMixin:
     def from_checkpoint(cls, checkpoint: Checkpoint) -> Self:
         """The model with fresh weights, built from ``checkpoint.config`` and arrays.
         May raise KeyError, TypeError, ValueError or :class:`SimenvError` for a config
-        or array that does not fit; :meth:`load` names the file."""
-        raise NotImplementedError
+        or array that does not fit; :meth:`load` names the file. The default builds
+        ``cls(CONFIG(**checkpoint.config))``."""
+        return cls(cls.CONFIG(**checkpoint.config))
 
     def save(self, path: str | Path, metadata: Mapping[str, Any] | None = None, *,
              leave_out: Sequence[str] = ()) -> Path:

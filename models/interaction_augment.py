@@ -89,7 +89,7 @@ from simenv.core.errors import MotionError
 from simenv.data import augment_targets as at
 from simenv.data import interaction_data as idata
 from simenv.data.interaction_metrics import KEY_JOINT_PAIRS
-from simenv.models.checkpoint import Checkpoint, CheckpointMixin
+from simenv.models.checkpoint import CheckpointMixin
 from simenv.models.training import CpuBudget, seeded
 
 CHECKPOINT_FORMAT = "simenv-interaction-augment-v1"
@@ -399,6 +399,7 @@ class InteractionAugmenter(CheckpointMixin):
     # -- checkpoints ------------------------------------------------------------------------
 
     CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+    CONFIG = InteractionAugmenterConfig
 
     def save(self, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
         """The checkpoint (:class:`~simenv.models.checkpoint.CheckpointMixin`) with the
@@ -407,10 +408,6 @@ class InteractionAugmenter(CheckpointMixin):
 
     def checkpoint_nets(self) -> dict[str, nn.Module]:
         return dict(self.nets)
-
-    @classmethod
-    def from_checkpoint(cls, checkpoint: Checkpoint) -> InteractionAugmenter:
-        return cls(InteractionAugmenterConfig(**checkpoint.config))
 
 
 # -- training ------------------------------------------------------------------------------

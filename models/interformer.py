@@ -116,7 +116,7 @@ from tqdm import tqdm
 
 from simenv.core.errors import MotionError
 from simenv.data import interaction_data as idata
-from simenv.models.checkpoint import Checkpoint, CheckpointMixin
+from simenv.models.checkpoint import CheckpointMixin
 from simenv.models.gesture_classifier import adjacency_mask, time_encoding
 from simenv.models.reaction_baselines import check_inputs, mirror_index
 from simenv.models.training import CpuBudget, cosine_schedule, seeded
@@ -468,13 +468,10 @@ class InterFormer(CheckpointMixin, nn.Module):
     # -- checkpoints --------------------------------------------------------------------
 
     CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+    CONFIG = InterFormerConfig
 
     def checkpoint_nets(self) -> dict[str, nn.Module]:
         return {"weights": self}
-
-    @classmethod
-    def from_checkpoint(cls, checkpoint: Checkpoint) -> InterFormer:
-        return cls(InterFormerConfig(**checkpoint.config))
 
 
 def train(train: idata.InteractionWindows, config: InterFormerConfig | None = None, *,

@@ -44,7 +44,7 @@ import torch
 from torch import nn
 
 from simenv.core.errors import MotionError
-from simenv.models.checkpoint import Checkpoint, CheckpointMixin
+from simenv.models.checkpoint import CheckpointMixin
 from simenv.models.gesture_classifier import SkeletonClasses
 
 CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
@@ -189,13 +189,10 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
         return p[0] if single else p
 
     CHECKPOINT_FORMAT = CHECKPOINT_FORMAT
+    CONFIG = TCNConfig
 
     def checkpoint_nets(self) -> dict[str, nn.Module]:
         return {"net": self}
-
-    @classmethod
-    def from_checkpoint(cls, checkpoint: Checkpoint) -> SkeletonTCN:
-        return cls(TCNConfig(**checkpoint.config))
 
 
 def fit_temperature(logits: np.ndarray, y: np.ndarray,
