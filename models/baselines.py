@@ -78,10 +78,15 @@ def check_history(history: np.ndarray, need: int, *, joints: int | None = None
     return h, batched
 
 
-class ZeroVelocity:
-    """Repeat the last observed pose for ``future_len`` frames."""
+class Extrapolator:
+    """Base of the closed-form baselines: ``future_len`` frames at ``fps`` from the last
+    ``history_len`` observed frames (a :class:`Predictor`).
 
-    history_len = 1
+    Raises:
+        MotionError: ``future_len`` not a positive integer.
+    """
+
+    history_len: int
 
     def __init__(self, future_len: int, fps: float = 25.0) -> None:
         if int(future_len) != future_len or future_len < 1:
@@ -89,6 +94,12 @@ class ZeroVelocity:
                               field="future_len")
         self.future_len = int(future_len)
         self.fps = float(fps)
+
+
+class ZeroVelocity(Extrapolator):
+    """Repeat the last observed pose for ``future_len`` frames."""
+
+    history_len = 1
 
     def predict(self, history: np.ndarray) -> np.ndarray:
         h, batched = check_history(history, self.history_len)
@@ -96,17 +107,10 @@ class ZeroVelocity:
         return out if batched else out[0]
 
 
-class ConstantVelocity:
+class ConstantVelocity(Extrapolator):
     """Continue the last frame-to-frame displacement: ``x_T + k (x_T - x_{T-1})``."""
 
     history_len = 2
-
-    def __init__(self, future_len: int, fps: float = 25.0) -> None:
-        if int(future_len) != future_len or future_len < 1:
-            raise MotionError(f"future_len must be a positive integer; got {future_len!r}",
-                              field="future_len")
-        self.future_len = int(future_len)
-        self.fps = float(fps)
 
     def predict(self, history: np.ndarray) -> np.ndarray:
         h, batched = check_history(history, self.history_len)
