@@ -22,7 +22,7 @@ error is 0 for every method and would only dilute the mean).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -84,13 +84,17 @@ def per_frame_mpjpe_mm(pred: np.ndarray, target: np.ndarray,
     return 1000.0 * joint_errors(pred, target, joints).mean(axis=(0, 2))
 
 
-def mpjpe_at_horizons_mm(
-    pred: np.ndarray,
-    target: np.ndarray,
-    fps: float,
-    horizons_ms: Sequence[float] = HORIZONS_MS,
-    joints: Sequence[int] | None = None,
-) -> dict[float, float]:
+def _at_horizons(horizons_ms: Sequence[float], fps: float, frames: int,
+                 value: Callable[[int], float]) -> dict[float, float]:
+    """``{horizon_ms: value(k)}`` for each horizon of k frames within the ``frames``
+    predicted ones (longer horizons are left out, not extrapolated)."""
+    return {h: value(k) for h, k in zip(horizons_ms, horizon_frames(horizons_ms, fps),
+                                        strict=True) if k <= frames}
+
+
+def mpjpe_at_horizons_mm(pred: np.ndarray, target: np.ndarray, fps: float,
+                         horizons_ms: Sequence[float] = HORIZONS_MS,
+                         joints: Sequence[int] | None = None) -> dict[float, float]:
     """Per-frame MPJPE at each horizon (the usual form), mm.
 
     Returns:
@@ -98,31 +102,20 @@ def mpjpe_at_horizons_mm(
         frames (longer horizons are left out, not extrapolated).
     """
     curve = per_frame_mpjpe_mm(pred, target, joints)
-    out: dict[float, float] = {}
-    for h, k in zip(horizons_ms, horizon_frames(horizons_ms, fps), strict=True):
-        if k <= len(curve):
-            out[h] = float(curve[k - 1])
-    return out
+    return _at_horizons(horizons_ms, fps, len(curve), lambda k: float(curve[k - 1]))
 
 
-def rms_mpjpe_up_to_horizons_mm(
-    pred: np.ndarray,
-    target: np.ndarray,
-    fps: float,
-    horizons_ms: Sequence[float] = HORIZONS_MS,
-    joints: Sequence[int] | None = None,
-) -> dict[float, float]:
+def rms_mpjpe_up_to_horizons_mm(pred: np.ndarray, target: np.ndarray, fps: float,
+                                horizons_ms: Sequence[float] = HORIZONS_MS,
+                                joints: Sequence[int] | None = None) -> dict[float, float]:
     """The thesis's form: RMS of joint errors over all future frames up to each horizon, mm.
 
     Returns:
         ``{horizon_ms: error_mm}`` for the horizons inside the F predicted frames.
     """
     sq = joint_errors(pred, target, joints) ** 2
-    out: dict[float, float] = {}
-    for h, k in zip(horizons_ms, horizon_frames(horizons_ms, fps), strict=True):
-        if k <= sq.shape[1]:
-            out[h] = float(1000.0 * np.sqrt(sq[:, :k].mean()))
-    return out
+    return _at_horizons(horizons_ms, fps, sq.shape[1],
+                        lambda k: float(1000.0 * np.sqrt(sq[:, :k].mean())))
 
 
 def mean_per_joint_speed(frames: np.ndarray, fps: float,
