@@ -74,7 +74,9 @@ from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
 from simenv.plausibility.batch import ScoreJob, done_files, find_targets, score_batch
 from simenv.plausibility.corrupt import CORRUPTIONS
-from simenv.plausibility.report import PERSON_METRICS, ScoreConfig, score
+from simenv.plausibility.metric import ScoreConfig
+from simenv.plausibility.metric_registry import PERSON_METRICS
+from simenv.plausibility.report import score
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))

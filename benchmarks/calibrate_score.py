@@ -32,7 +32,7 @@ import numpy as np
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.plausibility.batch import ScoreJob, find_targets, score_batch
-from simenv.plausibility.report import PAIR_METRICS, PERSON_METRICS
+from simenv.plausibility.metric_registry import PAIR_METRICS, PERSON_METRICS
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -1,5 +1,7 @@
 """simenv: physics-backed simulation and evaluation of 3D human skeleton motion."""
 
+from importlib import import_module
+
 import simenv.body.gl  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
@@ -10,13 +12,12 @@ __all__ = ["Interaction", "Motion", "PlausibilityReport", "ScoreConfig", "Simenv
            "Skeleton", "load", "score"]
 __version__ = "0.1.0"
 
-_LAZY = {"score", "PlausibilityReport", "ScoreConfig"}
+#: Names imported on first use, and their modules.
+_LAZY = {"score": "report", "PlausibilityReport": "report", "ScoreConfig": "metric"}
 
 
 def __getattr__(name: str):
     # The scorer pulls in MuJoCo and the retargeting; import it only when used.
     if name in _LAZY:
-        from simenv.plausibility import report
-
-        return getattr(report, name)
+        return getattr(import_module(f"simenv.plausibility.{_LAZY[name]}"), name)
     raise AttributeError(f"module 'simenv' has no attribute {name!r}")

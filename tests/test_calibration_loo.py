@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import calibrate_loo  # noqa: E402
 
-from simenv.plausibility.report import PERSON_METRICS  # noqa: E402
+from simenv.plausibility.metric_registry import PERSON_METRICS  # noqa: E402
 
 
 def test_threshold_rule() -> None:
@@ -68,7 +68,8 @@ def test_depth_camera_profile_passes_a_real_kinect_clip_and_catches_a_slide(
     from simenv.io.loader import load
     from simenv.plausibility.body_thresholds import SOURCE_BODY_THRESHOLDS
     from simenv.plausibility.corrupt import foot_slide
-    from simenv.plausibility.report import ScoreConfig, score
+    from simenv.plausibility.metric import ScoreConfig
+    from simenv.plausibility.report import score
     from simenv.plausibility.thresholds import SOURCE_THRESHOLDS
 
     path = shared_data / "gestures" / "msr_action3d" / "a01_s03_e02_skeleton3D.txt"

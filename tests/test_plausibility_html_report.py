@@ -21,7 +21,7 @@ from simenv.plausibility.html_report import (
     write_index,
     write_report,
 )
-from simenv.plausibility.report import PAIR_METRICS, PERSON_METRICS
+from simenv.plausibility.metric_registry import PAIR_METRICS, PERSON_METRICS
 
 FRAMES = 120  # 1 s of the 120-fps walk
 VIDEO_FRAMES = 6  # rendering costs ~0.1-0.8 s a frame on a shared CPU

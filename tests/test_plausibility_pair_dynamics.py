@@ -12,12 +12,12 @@ from simenv.assets import HANDSHAKE_PAIR, asset_path
 from simenv.body.retarget import retarget
 from simenv.plausibility.body_thresholds import BodyThresholds
 from simenv.plausibility.dynamics import root_residual
+from simenv.plausibility.metric import ScoreConfig
 from simenv.plausibility.pair_dynamics import (
     hand_contacts,
     pair_root_residual,
     pair_root_residual_wrench,
 )
-from simenv.plausibility.report import ScoreConfig
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 

@@ -12,13 +12,9 @@ import simenv
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction
-from simenv.plausibility.report import (
-    PAIR_METRICS,
-    PERSON_METRICS,
-    ScoreConfig,
-    metric_score,
-    score,
-)
+from simenv.plausibility.metric import ScoreConfig
+from simenv.plausibility.metric_registry import PAIR_METRICS, PERSON_METRICS
+from simenv.plausibility.report import metric_score, score
 from simenv.plausibility.timeline import MetricResult
 
 RECORD_KEYS = {"file", "person", "name", "frames", "fps", "verdict", "score", "physics",

@@ -194,15 +194,17 @@ class RootWrench:
                 float(np.linalg.norm(r[3:]) * self.lever / self.weight))
 
 
-def root_wrench(result: RetargetResult,
-                settings: DynamicsSettings = DEFAULT_DYNAMICS) -> RootWrench:
-    """Inverse dynamics of ``result`` as a :class:`RootWrench` (module docstring)."""
+def root_wrench(result: RetargetResult, settings: DynamicsSettings = DEFAULT_DYNAMICS, *,
+                poses: BodyPoses | None = None) -> RootWrench:
+    """Inverse dynamics of ``result`` as a :class:`RootWrench` (module docstring);
+    ``poses``: ``result``'s forward kinematics when the caller has them."""
     h = result.humanoid
     model = h.model
     q = check_qpos(model, result.qpos)
     qvel, qacc = finite_differences(model, q, result.fps, settings.cutoff_hz)
     tau = inverse_dynamics(model, q, qvel, qacc)
-    poses = body_poses(model, q)
+    if poses is None:
+        poses = body_poses(model, q)
     lever = h.dims.hip_height
     rot = np.empty((len(q), 9))
     for t in range(len(q)):

@@ -29,8 +29,8 @@ from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction
 
 if TYPE_CHECKING:  # the scorer pulls in MuJoCo; workers import it when they score
+    from simenv.plausibility.metric import ScoreConfig
     from simenv.plausibility.reference import Reference
-    from simenv.plausibility.report import ScoreConfig
 
 BACKENDS = ("local", "ray")
 
@@ -91,7 +91,7 @@ class ScoreJob:
     Attributes:
         physics: run the body-level metrics (see :func:`simenv.score`).
         report_dir: write an HTML report per target under this folder, or None.
-        config: a :class:`~simenv.plausibility.report.ScoreConfig`, or None for
+        config: a :class:`~simenv.plausibility.metric.ScoreConfig`, or None for
             the defaults.
         restore_collapsed_bones: read BVH targets (files, and folders of BVH
             pairs) with the reader's repair of the CMU conversions' collapsed

@@ -84,9 +84,11 @@ class RootResidual:
 
 
 def root_residual_wrench(result: RetargetResult,
-                         thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> RootResidual:
-    """The root's residual wrench per frame (see the module docstring)."""
-    return residual_of(root_wrench(result, dynamics_settings(thresholds)))
+                         thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
+                         poses: BodyPoses | None = None) -> RootResidual:
+    """The root's residual wrench per frame (see the module docstring);
+    ``poses``: ``result``'s forward kinematics when the caller has them."""
+    return residual_of(root_wrench(result, dynamics_settings(thresholds), poses=poses))
 
 
 def residual_of(rw: RootWrench) -> RootResidual:
@@ -103,7 +105,8 @@ def residual_of(rw: RootWrench) -> RootResidual:
 
 def root_residual(result: RetargetResult,
                   thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
-                  tracked_error: np.ndarray | None = None) -> MetricResult:
+                  tracked_error: np.ndarray | None = None,
+                  poses: BodyPoses | None = None) -> MetricResult:
     """Residual root force: the help from nowhere the motion needs.
 
     Inferred (``tracked_error`` None): per frame, the residual force of the
@@ -136,7 +139,8 @@ def root_residual(result: RetargetResult,
     (mean total external force needed, body weights),
     ``unsupported_fraction`` (frames without any geom near the floor),
     ``inferred_mean`` (the inferred value) and ``measured_fraction`` (frames
-    the controller tracked; 0 when inferred). Needs 3 frames.
+    the controller tracked; 0 when inferred). Needs 3 frames. ``poses``:
+    ``result``'s forward kinematics when the caller has them.
     """
     thr = thresholds.root_force_mean_max
     T = result.num_frames
@@ -145,7 +149,7 @@ def root_residual(result: RetargetResult,
             "root_residual", T, "body weight", thr,
             f"needs at least 3 frames for accelerations; the motion has {T}",
             frame_threshold=thresholds.root_force_frame_max)
-    rr = root_residual_wrench(result, thresholds)
+    rr = root_residual_wrench(result, thresholds, poses=poses)
     f = rr.force
     tracked = np.zeros(T, dtype=bool)
     if tracked_error is not None:
@@ -201,7 +205,8 @@ def _point_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
 
 
 def balance(result: RetargetResult,
-            thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+            thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
+            poses: BodyPoses | None = None) -> MetricResult:
     """Static balance: centre of mass over the support polygon when quasi-static.
 
     A frame is judged when it is quasi-static -- the centre of mass (6 Hz
@@ -217,6 +222,7 @@ def balance(result: RetargetResult,
     maximum over judged frames (0 when none); passes when at most
     ``balance_margin_mm``. Details: ``judged_fraction``, ``outside_fraction``
     (judged frames with the centre of mass outside by more than the margin).
+    ``poses``: ``result``'s forward kinematics when the caller has them.
     """
     thr = thresholds.balance_margin_mm
     T = result.num_frames
@@ -224,7 +230,8 @@ def balance(result: RetargetResult,
         return MetricResult.not_available(
             "balance", T, "mm", thr, f"needs at least 3 frames for accelerations; got {T}")
     model = result.humanoid.model
-    poses = body_poses(model, result.qpos)
+    if poses is None:
+        poses = body_poses(model, result.qpos)
     com = lowpass(poses.com, result.fps, thresholds.filter_cutoff_hz)
     dt = 1.0 / result.fps
     vel = np.gradient(com, dt, axis=0)

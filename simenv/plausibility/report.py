@@ -3,8 +3,11 @@
 :func:`score` takes a :class:`~simenv.core.motion.Motion`, an
 :class:`~simenv.core.motion.Interaction` or a path, and returns a
 :class:`PlausibilityReport`: per person the metrics under their stable names
-(:data:`PERSON_METRICS`), for two people also the pairwise ones
-(:data:`PAIR_METRICS`).
+(:data:`~simenv.plausibility.metric_registry.PERSON_METRICS`), for two
+people also the pairwise ones
+(:data:`~simenv.plausibility.metric_registry.PAIR_METRICS`). Each name is one
+:class:`~simenv.plausibility.metric.Metric` of the registry
+(:mod:`simenv.plausibility.metric_registry`), whose docstring gives its math.
 
 Which computation stands behind each name
     =================== ============================== ==========================
@@ -64,91 +67,34 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from simenv.body.retarget import InteractionRetargetResult, RetargetResult, retarget
-from simenv.control.mpc import MPCConfig
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
-from simenv.plausibility.body import (
-    DEFAULT_CONTACT_PAIRS,
-    body_floating,
-    body_penetration,
-    contact,
-    inter_penetration,
-    joint_limits,
-    self_penetration,
+from simenv.io.loader import load
+from simenv.plausibility.metric import (
+    DEFAULT_SCORE_CONFIG,
+    Metric,
+    PairInputs,
+    PersonInputs,
+    ScoreConfig,
+    not_available,
 )
-from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
-from simenv.plausibility.contact import floating, foot_skate, ground_penetration
-from simenv.plausibility.dynamics import balance, root_residual
-from simenv.plausibility.kinematic import bone_length, jitter, velocity
-from simenv.plausibility.pair_dynamics import pair_root_residual
+from simenv.plausibility.metric_registry import (
+    PAIR_REGISTRY,
+    PERSON_REGISTRY,
+    alternatives,
+)
 from simenv.plausibility.published import published_record
-from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
-from simenv.plausibility.tracking import tracking
-
-#: Per-person metric names, in report order (stable: part of the JSON contract).
-PERSON_METRICS: tuple[str, ...] = (
-    "bone_length", "foot_skate", "ground_penetration", "floating", "jitter", "velocity",
-    "joint_limits", "self_penetration", "root_residual", "balance", "tracking",
-)
-#: Pairwise metric names of a two-person motion.
-PAIR_METRICS: tuple[str, ...] = ("inter_penetration", "contact", "pair_root_residual")
 
 VERDICT_PLAUSIBLE = "plausible"
 VERDICT_IMPLAUSIBLE = "implausible"
-
-
-@dataclass(frozen=True)
-class ScoreConfig:
-    """What :func:`score` runs and against which limits.
-
-    Attributes:
-        thresholds: joint-level thresholds (:class:`Thresholds`).
-        body: body-level thresholds (:class:`BodyThresholds`).
-        tracking: run the PD physics-tracking simulation (up to
-            ``body.tracking_max_seconds`` of simulated time per person).
-        tracking_assist: judge tracking with the PD servos and the root
-            assistance on (:func:`simenv.plausibility.tracking.track`,
-            ``assist=True``; the unassisted ``tracking_controller`` run is then
-            reported in the details as ``unassisted_*``). Default False: the
-            verdict asks whether the body can perform the motion with its own
-            muscles -- the unassisted model-predictive controller
-            (:mod:`simenv.control`) tracks it, nothing acts on the root. A PD
-            controller alone cannot balance real locomotion (on the bundled
-            CMU walk 02_01 the unassisted PD body falls after 0.87 s, on 01_01
-            jumps after 1.19 s, on the 49_06 cartwheel after 1.5 s).
-        tracking_controller: ``"mpc"`` (default) or ``"pd"``: the controller
-            of the unassisted run.
-        tracking_assisted_detail: also run the assisted PD tracker (about 1x
-            real time) and report it in the details (``assisted_success``,
-            ``assisted_time_to_failure_s``, ``assisted_mpjpe_mm``,
-            ``assisted_force_mean``) when the judged run is unassisted.
-        mpc: settings of the MPC (:class:`simenv.control.MPCConfig`).
-        joint_limits: run the joint-limit probe (one extra retargeting onto a
-            body with widened ranges).
-        contact_pairs: key joint pairs (person A keypoint, person B keypoint)
-            of the pairwise ``contact`` metric, canonical names.
-    """
-
-    thresholds: Thresholds = DEFAULT_THRESHOLDS
-    body: BodyThresholds = DEFAULT_BODY_THRESHOLDS
-    tracking: bool = True
-    tracking_assist: bool = False
-    tracking_controller: str = "mpc"
-    tracking_assisted_detail: bool = True
-    mpc: MPCConfig = field(default_factory=MPCConfig)
-    joint_limits: bool = True
-    contact_pairs: tuple[tuple[str, str], ...] = DEFAULT_CONTACT_PAIRS
-
-
-DEFAULT_SCORE_CONFIG = ScoreConfig()
 
 
 def metric_score(result: MetricResult) -> float | None:
@@ -209,7 +155,8 @@ class PersonReport:
         name: the motion's name.
         frames: number of frames T; fps: frames per second.
         metrics: name -> :class:`MetricResult` for every name of
-            :data:`PERSON_METRICS`; each timeline has T values.
+            :data:`~simenv.plausibility.metric_registry.PERSON_METRICS`; each
+            timeline has T values.
         basis: name -> which computation produced it (module docstring).
         retargeted: the retargeting used by the body metrics, or None when
             physics was off or the body could not be fitted.
@@ -311,102 +258,32 @@ class PlausibilityReport:
 # -- scoring ---------------------------------------------------------------------
 
 
-_BODY_UNITS = {
-    "joint_limits": ("deg", "joint_limit_max_deg"),
-    "self_penetration": ("mm", "self_penetration_max_mm"),
-    "root_residual": ("body weight", "root_force_mean_max"),
-    "balance": ("mm", "balance_margin_mm"),
-    "tracking": ("m", "tracking_fail_m"),
-}
-
-
-def _unavailable_body(names: Sequence[str], frames: int, body: BodyThresholds,
-                      reason: str) -> dict[str, MetricResult]:
-    return {n: MetricResult.not_available(n, frames, _BODY_UNITS[n][0],
-                                          getattr(body, _BODY_UNITS[n][1]), reason)
-            for n in names}
-
-
-def _score_person(motion: Motion, fitted: RetargetResult | None, physics_reason: str | None,
-                  config: ScoreConfig, person: int,
-                  root: MetricResult | None = None) -> PersonReport:
-    th, body = config.thresholds, config.body
-    T = motion.num_frames
+def _measure(registry: Sequence[Metric], inputs: PersonInputs | PairInputs
+             ) -> tuple[dict[str, MetricResult], dict[str, str]]:
+    """Every metric of ``registry`` on ``inputs``, keyed by report name in
+    registry order, and the basis each ran on: per name the first metric
+    whose input is there, or the first one reported not available with the
+    reason the input is missing."""
     metrics: dict[str, MetricResult] = {}
     basis: dict[str, str] = {}
-    for name, fn in (("bone_length", bone_length), ("foot_skate", foot_skate)):
-        metrics[name], basis[name] = fn(motion, th), "keypoints"
-    if fitted is not None:
-        # The geom versions keep their module names; the report uses the stable ones.
-        metrics["ground_penetration"] = replace(body_penetration(fitted, body),
-                                                name="ground_penetration")
-        metrics["floating"] = replace(body_floating(fitted, body), name="floating")
-        basis["ground_penetration"] = basis["floating"] = "geoms"
-    else:
-        metrics["ground_penetration"] = ground_penetration(motion, th)
-        metrics["floating"] = floating(motion, th)
-        basis["ground_penetration"] = basis["floating"] = "keypoints"
-    for name, fn in (("jitter", jitter), ("velocity", velocity)):
-        metrics[name], basis[name] = fn(motion, th), "keypoints"
-
-    body_names = ("joint_limits", "self_penetration", "root_residual", "balance", "tracking")
-    if fitted is None:
-        metrics.update(_unavailable_body(body_names, T, body, physics_reason or "physics off"))
-    else:
-        if config.joint_limits:
-            metrics["joint_limits"] = joint_limits(motion, body, fitted=fitted)
+    for name, options in alternatives(registry).items():
+        metric = next((m for m in options if inputs.has(m.needs)), None)
+        if metric is None:
+            metric = options[0]
+            metrics[name] = not_available(metric, inputs.frames, inputs.config,
+                                          inputs.missing or "physics off")
         else:
-            metrics.update(_unavailable_body(["joint_limits"], T, body,
-                                             "joint-limit probe disabled in the config"))
-        metrics["self_penetration"] = self_penetration(fitted, body)
-        metrics["balance"] = balance(fitted, body)
-        if config.tracking and T >= 2:
-            metrics["tracking"] = _tracking(fitted, config)
-        else:
-            why = ("physics tracking disabled in the config" if not config.tracking
-                   else f"needs at least 2 frames; the motion has {T}")
-            metrics.update(_unavailable_body(["tracking"], T, body, why))
-        # Measured by the unassisted controller where it ran (no help on the frames it
-        # followed), inferred elsewhere; two people: the partner-explained residual.
-        free = metrics["tracking"]
-        tracked = free.timeline if free.available and not config.tracking_assist else None
-        metrics["root_residual"] = root if root is not None else root_residual(
-            fitted, body, tracked_error=tracked)
-    basis.update({"joint_limits": "geoms", "self_penetration": "geoms",
-                  "root_residual": "dynamics", "balance": "dynamics",
-                  "tracking": "simulation"})
-    ordered = {n: metrics[n] for n in PERSON_METRICS}
-    return PersonReport(person=person, name=motion.name, frames=T, fps=motion.fps,
-                        metrics=ordered, basis={n: basis[n] for n in PERSON_METRICS},
-                        retargeted=fitted, published=published_record(motion))
+            metrics[name] = inputs.measure(metric)
+        basis[name] = metric.basis
+    return metrics, basis
 
 
-def _tracking(fitted: RetargetResult, config: ScoreConfig) -> MetricResult:
-    """Tracking judged as configured, with the other run's outcome in the details."""
-    body = config.body
-
-    def run(assist: bool) -> MetricResult:
-        return tracking(fitted, body, assist=assist,
-                        max_seconds=body.tracking_max_seconds,
-                        controller="pd" if assist else config.tracking_controller,
-                        mpc=config.mpc)
-
-    judged = run(config.tracking_assist)
-    if config.tracking_assist:
-        free = run(False)
-    else:
-        free = judged
-    details = {**judged.details,
-               "unassisted_success": free.details["success"],
-               "unassisted_time_to_failure_s": free.details["time_to_failure_s"],
-               "unassisted_mpjpe_mm": free.details["mpjpe_mm"]}
-    if not config.tracking_assist and config.tracking_assisted_detail:
-        helped = run(True)
-        details.update({"assisted_success": helped.details["success"],
-                        "assisted_time_to_failure_s": helped.details["time_to_failure_s"],
-                        "assisted_mpjpe_mm": helped.details["mpjpe_mm"],
-                        "assisted_force_mean": helped.details["assist_force_mean"]})
-    return replace(judged, details=details)
+def _score_person(inputs: PersonInputs) -> PersonReport:
+    metrics, basis = _measure(PERSON_REGISTRY, inputs)
+    motion = inputs.motion
+    return PersonReport(person=inputs.person, name=motion.name, frames=motion.num_frames,
+                        fps=motion.fps, metrics=metrics, basis=basis,
+                        retargeted=inputs.fitted, published=published_record(motion))
 
 
 def _fit(clip: Motion | Interaction) -> tuple[Any, str | None]:
@@ -419,8 +296,6 @@ def _fit(clip: Motion | Interaction) -> tuple[Any, str | None]:
 
 
 def _load_clip(path: str | Path) -> Motion | Interaction:
-    from simenv.io.loader import load
-
     loaded = load(path)
     if isinstance(loaded, list):
         if len(loaded) != 1:
@@ -432,7 +307,14 @@ def _load_clip(path: str | Path) -> Motion | Interaction:
 
 def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = True,
           config: ScoreConfig | None = None) -> PlausibilityReport:
-    """Score a motion's physical plausibility.
+    """Score a motion's physical plausibility: load, retarget once, every metric.
+
+    The clip is retargeted once (both people into one scene for two); each
+    person's metrics (:data:`~simenv.plausibility.metric_registry.PERSON_REGISTRY`)
+    then share that fit and the intermediates computed from it once
+    (:class:`~simenv.plausibility.metric.PersonInputs`: the keypoint pass, the
+    body's forward kinematics, the tracking run), and the pairwise metrics
+    share the pair's (:class:`~simenv.plausibility.metric.PairInputs`).
 
     Args:
         motion_or_path: a :class:`Motion` (positions (T, J, 3) metres, Z-up), an
@@ -461,41 +343,17 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
     else:
         raise SimenvError(f"score expects a Motion, an Interaction or a path; got "
                           f"{type(motion_or_path).__name__}")
-    fitted, reason = _fit(clip) if physics else (None, "physics=False")
+    fitted, missing = _fit(clip) if physics else (None, "physics=False")
     if isinstance(clip, Interaction):
-        results = fitted.people if fitted is not None else (None, None)
-        pair_rr = pair_root_residual(fitted, config.body) if fitted is not None else None
-        people = [_score_person(m, r, reason, config, i,
-                                root=None if pair_rr is None else pair_rr[1][i])
-                  for i, (m, r) in enumerate(zip(clip.people, results, strict=True))]
-        interaction, pair_basis = _pair_metrics(clip, fitted, reason, config,
-                                                None if pair_rr is None else pair_rr[0])
+        pair = PairInputs(clip, fitted, missing, config)
+        bodies: Sequence[RetargetResult | None] = (
+            fitted.people if isinstance(fitted, InteractionRetargetResult) else (None, None))
+        people = [_score_person(PersonInputs(m, r, missing, config, pair=pair, person=i))
+                  for i, (m, r) in enumerate(zip(clip.people, bodies, strict=True))]
+        interaction, pair_basis = _measure(PAIR_REGISTRY, pair)
     else:
-        people = [_score_person(clip, fitted, reason, config, 0)]
+        people = [_score_person(PersonInputs(clip, fitted, missing, config))]
         interaction, pair_basis = None, {}
     return PlausibilityReport(source=source, people=people, interaction=interaction,
                               physics=physics, seconds=time.perf_counter() - t0,
                               interaction_basis=pair_basis)
-
-
-def _pair_metrics(clip: Interaction, fitted: InteractionRetargetResult | None,
-                  reason: str | None, config: ScoreConfig,
-                  pair_rr: MetricResult | None = None
-                  ) -> tuple[dict[str, MetricResult], dict[str, str]]:
-    body, T = config.body, clip.num_frames
-    basis = {"inter_penetration": "geoms", "contact": "geoms", "pair_root_residual": "dynamics"}
-    if fitted is None or pair_rr is None:
-        why = reason or "physics off"
-        return {
-            "inter_penetration": MetricResult.not_available(
-                "inter_penetration", T, "mm", body.inter_penetration_max_mm, why),
-            "contact": MetricResult.not_available("contact", T, "mm", body.jpd_max_mm, why),
-            "pair_root_residual": MetricResult.not_available(
-                "pair_root_residual", T, "body weight", body.root_force_mean_max, why,
-                frame_threshold=body.root_force_frame_max),
-        }, basis
-    return {
-        "inter_penetration": inter_penetration(fitted, body),
-        "contact": contact(fitted, pairs=config.contact_pairs, thresholds=body),
-        "pair_root_residual": pair_rr,
-    }, basis

@@ -1,0 +1,222 @@
+"""What a plausibility metric is, what it reads, and under which settings.
+
+Every metric of the scorer (:func:`simenv.plausibility.report.score`) is one
+object of the :class:`Metric` protocol: its stable ``name`` in the report,
+the ``family`` (module) that holds its math, the input it ``needs``
+(:class:`Needs`), the ``basis`` its record names, its ``unit``, its
+``thresholds`` under a :class:`ScoreConfig`, and ``compute``. The metrics are
+listed once, in report order, in :mod:`simenv.plausibility.metric_registry`.
+
+``compute`` reads shared inputs (:class:`PersonInputs`, :class:`PairInputs`)
+that hold each intermediate the metrics have in common and compute it on
+first use, once: the joint-level metrics' one compiled pass over the
+keypoints, the body's forward kinematics (geom, site and centre-of-mass poses
+of every frame), the tracking simulation, and for two people the
+partner-explained inverse dynamics. The retargeting itself is done before,
+once per clip, by the caller that builds the inputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from functools import cached_property
+from typing import Protocol, TypeVar, runtime_checkable
+
+from simenv.body.geometry import BodyPoses, body_poses
+from simenv.body.retarget import InteractionRetargetResult, RetargetResult
+from simenv.control.mpc import MPCConfig
+from simenv.core.motion import Interaction, Motion
+from simenv.plausibility import kinematic_metrics
+from simenv.plausibility.body import DEFAULT_CONTACT_PAIRS
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
+from simenv.plausibility.pair_dynamics import pair_root_residual
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
+from simenv.plausibility.timeline import MetricResult
+
+
+@dataclass(frozen=True)
+class ScoreConfig:
+    """What :func:`~simenv.plausibility.report.score` runs and against which limits.
+
+    Attributes:
+        thresholds: joint-level thresholds (:class:`Thresholds`).
+        body: body-level thresholds (:class:`BodyThresholds`).
+        tracking: run the PD physics-tracking simulation (up to
+            ``body.tracking_max_seconds`` of simulated time per person).
+        tracking_assist: judge tracking with the PD servos and the root
+            assistance on (:func:`simenv.plausibility.tracking.track`,
+            ``assist=True``; the unassisted ``tracking_controller`` run is then
+            reported in the details as ``unassisted_*``). Default False: the
+            verdict asks whether the body can perform the motion with its own
+            muscles -- the unassisted model-predictive controller
+            (:mod:`simenv.control`) tracks it, nothing acts on the root. A PD
+            controller alone cannot balance real locomotion (on the bundled
+            CMU walk 02_01 the unassisted PD body falls after 0.87 s, on 01_01
+            jumps after 1.19 s, on the 49_06 cartwheel after 1.5 s).
+        tracking_controller: ``"mpc"`` (default) or ``"pd"``: the controller
+            of the unassisted run.
+        tracking_assisted_detail: also run the assisted PD tracker (about 1x
+            real time) and report it in the details (``assisted_success``,
+            ``assisted_time_to_failure_s``, ``assisted_mpjpe_mm``,
+            ``assisted_force_mean``) when the judged run is unassisted.
+        mpc: settings of the MPC (:class:`simenv.control.MPCConfig`).
+        joint_limits: run the joint-limit probe (one extra retargeting onto a
+            body with widened ranges).
+        contact_pairs: key joint pairs (person A keypoint, person B keypoint)
+            of the pairwise ``contact`` metric, canonical names.
+    """
+
+    thresholds: Thresholds = DEFAULT_THRESHOLDS
+    body: BodyThresholds = DEFAULT_BODY_THRESHOLDS
+    tracking: bool = True
+    tracking_assist: bool = False
+    tracking_controller: str = "mpc"
+    tracking_assisted_detail: bool = True
+    mpc: MPCConfig = field(default_factory=MPCConfig)
+    joint_limits: bool = True
+    contact_pairs: tuple[tuple[str, str], ...] = DEFAULT_CONTACT_PAIRS
+
+
+DEFAULT_SCORE_CONFIG = ScoreConfig()
+
+
+class Needs(Enum):
+    """The input a metric reads."""
+
+    #: The motion's joint positions (canonical keypoints, metres).
+    MOTION = "motion"
+    #: One person's body retargeted onto a fitted MuJoCo humanoid.
+    BODY = "body"
+    #: Two people's bodies retargeted into one scene.
+    PAIR = "pair"
+
+
+class _Memo:
+    """Results of the metrics computed on one set of inputs, each once."""
+
+    def __init__(self) -> None:
+        self._results: dict[int, MetricResult] = {}
+
+    def measure(self, metric: Metric) -> MetricResult:
+        """``metric.compute(self)``, computed on the first call only: a metric
+        may read another's result (the root residual reads the tracking run)."""
+        key = id(metric)
+        if key not in self._results:
+            self._results[key] = metric.compute(self)
+        return self._results[key]
+
+
+class PairInputs(_Memo):
+    """What the pairwise metrics of a two-person clip read.
+
+    Attributes:
+        clip: the two people.
+        fitted: both retargeted into one scene, or None when physics is off
+            or no body could be fitted.
+        missing: why ``fitted`` is None (None when it is not).
+        config: the scorer's settings.
+    """
+
+    def __init__(self, clip: Interaction, fitted: InteractionRetargetResult | None,
+                 missing: str | None, config: ScoreConfig) -> None:
+        super().__init__()
+        self.clip, self.fitted, self.missing, self.config = clip, fitted, missing, config
+
+    @property
+    def frames(self) -> int:
+        return self.clip.num_frames
+
+    def has(self, needs: Needs) -> bool:
+        """Whether the input ``needs`` names is there."""
+        return needs is Needs.PAIR and self.fitted is not None
+
+    @cached_property
+    def partner_explained(self) -> tuple[MetricResult, tuple[MetricResult, MetricResult]]:
+        """The pairwise ``pair_root_residual`` and each person's partner-explained
+        ``root_residual`` (:func:`simenv.plausibility.pair_dynamics.pair_root_residual`),
+        solved once for both."""
+        assert self.fitted is not None
+        return pair_root_residual(self.fitted, self.config.body)
+
+
+class PersonInputs(_Memo):
+    """What the metrics of one person read.
+
+    Attributes:
+        motion: the person's motion (positions (T, J, 3) metres, Z-up).
+        fitted: the motion retargeted onto its fitted humanoid, or None when
+            physics is off or no body could be fitted.
+        missing: why ``fitted`` is None (None when it is not).
+        config: the scorer's settings.
+        pair: the pair's inputs when the person is one of two, else None.
+        person: index of the person in the clip (0, or 0/1 for two).
+    """
+
+    def __init__(self, motion: Motion, fitted: RetargetResult | None, missing: str | None,
+                 config: ScoreConfig, pair: PairInputs | None = None, person: int = 0) -> None:
+        super().__init__()
+        self.motion, self.fitted, self.missing, self.config = motion, fitted, missing, config
+        self.pair, self.person = pair, person
+
+    @property
+    def frames(self) -> int:
+        return self.motion.num_frames
+
+    def has(self, needs: Needs) -> bool:
+        """Whether the input ``needs`` names is there."""
+        return needs is Needs.MOTION or (needs is Needs.BODY and self.fitted is not None)
+
+    @cached_property
+    def keypoint_metrics(self) -> dict[str, MetricResult]:
+        """Every joint-level metric of the motion, in one compiled pass over its
+        keypoints (:func:`simenv.plausibility.kinematic_metrics`)."""
+        return kinematic_metrics(self.motion, self.config.thresholds)
+
+    @cached_property
+    def poses(self) -> BodyPoses:
+        """Forward kinematics of every frame of the fitted body
+        (:func:`simenv.body.geometry.body_poses`)."""
+        assert self.fitted is not None
+        return body_poses(self.fitted.humanoid.model, self.fitted.qpos)
+
+
+Inputs = TypeVar("Inputs", PersonInputs, PairInputs, contravariant=True)
+
+
+@runtime_checkable
+class Metric(Protocol[Inputs]):
+    """One plausibility metric.
+
+    Attributes:
+        name: stable name in the report (part of the JSON contract).
+        family: the module of its math: ``kinematic``, ``contact``, ``body``,
+            ``dynamics`` or ``tracking``.
+        needs: the input it reads (:class:`Needs`).
+        basis: what its record says it ran on: ``keypoints``, ``geoms``,
+            ``dynamics`` or ``simulation``.
+        unit: unit of its value and threshold.
+    """
+
+    name: str
+    family: str
+    needs: Needs
+    basis: str
+    unit: str
+
+    def thresholds(self, config: ScoreConfig) -> tuple[float, float]:
+        """(limit on the value, per-frame limit on the timeline) under ``config``."""
+        ...
+
+    def compute(self, inputs: Inputs) -> MetricResult:
+        """The metric on ``inputs``, whose ``needs`` input is there."""
+        ...
+
+
+def not_available(metric: Metric, frames: int, config: ScoreConfig,
+                  reason: str) -> MetricResult:
+    """``metric``'s result when it cannot run: NaN value and timeline of
+    ``frames`` frames, its thresholds under ``config``, and ``reason``."""
+    threshold, frame_threshold = metric.thresholds(config)
+    return MetricResult.not_available(metric.name, frames, metric.unit, threshold, reason,
+                                      frame_threshold=frame_threshold)
