@@ -27,7 +27,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from operator import itemgetter
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 from numba import types
@@ -431,6 +431,18 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[Met
     """
     scores = run(batch, specs)
     return [scores.metric(i) for i in range(len(scores.plan.specs))]
+
+
+Settings = TypeVar("Settings")
+
+
+def score_clip(motion: Motion, spec: Callable[[ClipBatch, Settings], MetricSpec],
+               thresholds: Settings) -> MetricResult:
+    """One joint-level metric of one motion: ``spec(batch, thresholds)`` of the
+    motion's one-clip batch, run by :func:`score` (the per-metric functions of
+    :mod:`simenv.plausibility.kinematic` and :mod:`simenv.plausibility.contact`)."""
+    batch = ClipBatch([motion])
+    return score(batch, [spec(batch, thresholds)])[0][0]
 
 
 def _result(spec: MetricSpec, layout: _Layout, v: float, row: list[float],

@@ -22,7 +22,7 @@ import numpy as np
 from simenv.body.foot_contact import foot_keypoints
 from simenv.core.motion import Motion
 from simenv.plausibility import kernels
-from simenv.plausibility.clips import ClipBatch, MetricSpec, score
+from simenv.plausibility.clips import ClipBatch, MetricSpec, score_clip
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 
@@ -71,13 +71,7 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     ``contact_fraction`` (frames with a planted foot). Needs two frames and a
     toe or ankle keypoint.
     """
-    return foot_skate_batch(ClipBatch([motion]), thresholds)[0]
-
-
-def foot_skate_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                     ) -> list[MetricResult]:
-    """:func:`foot_skate` of every clip of ``batch``."""
-    return score(batch, [foot_skate_spec(batch, thresholds)])[0]
+    return score_clip(motion, foot_skate_spec, thresholds)
 
 
 def foot_skate_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -121,13 +115,7 @@ def ground_penetration(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOL
     ``mean_mm`` (PhysDiff's per-clip mean over frames) and
     ``frames_below_floor`` (fraction). Works on a single frame.
     """
-    return ground_penetration_batch(ClipBatch([motion]), thresholds)[0]
-
-
-def ground_penetration_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                             ) -> list[MetricResult]:
-    """:func:`ground_penetration` of every clip of ``batch``."""
-    return score(batch, [ground_penetration_spec(batch, thresholds)])[0]
+    return score_clip(motion, ground_penetration_spec, thresholds)
 
 
 def ground_penetration_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -180,13 +168,7 @@ def floating(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
     Assumes the floor is the only support (no chairs, props or partners:
     those need the body-level metrics). Needs three frames.
     """
-    return floating_batch(ClipBatch([motion]), thresholds)[0]
-
-
-def floating_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                   ) -> list[MetricResult]:
-    """:func:`floating` of every clip of ``batch``."""
-    return score(batch, [floating_spec(batch, thresholds)])[0]
+    return score_clip(motion, floating_spec, thresholds)
 
 
 def floating_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricSpec:

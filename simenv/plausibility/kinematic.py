@@ -24,7 +24,7 @@ from simenv.core.errors import MotionError
 from simenv.core.motion import Motion, resample_weights
 from simenv.core.skeletons import CANONICAL_TREE
 from simenv.plausibility import kernels
-from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score
+from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score_clip
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 
@@ -108,13 +108,7 @@ def bone_length(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> 
     (MA-GAN's bone-length loss, the reactive GAN's bone constraint); works on
     one frame (the value is then 0).
     """
-    return bone_length_batch(ClipBatch([motion]), thresholds)[0]
-
-
-def bone_length_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                      ) -> list[MetricResult]:
-    """:func:`bone_length` of every clip of ``batch``."""
-    return score(batch, [bone_length_spec(batch, thresholds)])[0]
+    return score_clip(motion, bone_length_spec, thresholds)
 
 
 def bone_length_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -270,13 +264,7 @@ def jitter(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Metri
     (ProtoMotions' ``normalized_jerk_mean``: mean over keypoints and windows)
     and ``analysis_fps``. Not available for clips shorter than one window.
     """
-    return jitter_batch(ClipBatch([motion]), thresholds)[0]
-
-
-def jitter_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                 ) -> list[MetricResult]:
-    """:func:`jitter` of every clip of ``batch``."""
-    return score(batch, [jitter_spec(batch, thresholds)])[0]
+    return score_clip(motion, jitter_spec, thresholds)
 
 
 def jitter_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricSpec:
@@ -374,13 +362,7 @@ def velocity(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
     ``max_speed_ratio``, ``max_jump_m``, ``teleport_frames``. Needs two frames
     (teleports need three; with two only speeds are checked).
     """
-    return velocity_batch(ClipBatch([motion]), thresholds)[0]
-
-
-def velocity_batch(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
-                   ) -> list[MetricResult]:
-    """:func:`velocity` of every clip of ``batch``."""
-    return score(batch, [velocity_spec(batch, thresholds)])[0]
+    return score_clip(motion, velocity_spec, thresholds)
 
 
 def velocity_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
