@@ -2,10 +2,13 @@
 
 Retargets every real single-person CMU clip of the shared corpus
 (``cmu/bvh/*.bvh`` and ``cmu/asf_amc/*.amc``) onto its fitted MuJoCo humanoid
-and runs every body-level metric: geom ground penetration and floating,
-joint limits (relaxed refit), self-penetration, root residual, balance, and
-PD physics tracking without and with root assistance. Also runs the pairwise
-metrics (inter-person penetration, contact JPD) on the real two-person pairs.
+and runs every body-level metric of the scorer's registry
+(:data:`simenv.plausibility.metric_registry.PERSON_REGISTRY`) on the shared
+fit and poses: geom ground penetration and floating, joint limits (relaxed
+refit), self-penetration, root residual (inferred: no tracking run), balance;
+then PD physics tracking without and with root assistance. Also runs the
+pairwise geom metrics (inter-person penetration, contact JPD) on the real
+two-person pairs. Metrics are keyed by their report names.
 Prints a table (``!`` marks a failed metric) and writes values, verdicts,
 details and violations as JSON.
 
@@ -22,42 +25,36 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict
+from functools import partial
 from pathlib import Path
 
 import simenv
 from simenv.body.retarget import RetargetResult, retarget
 from simenv.core.motion import Interaction, Motion
 from simenv.io import asf_amc, bvh
-from simenv.plausibility.body import (
-    body_floating,
-    body_penetration,
-    contact,
-    inter_penetration,
-    joint_limits,
-    self_penetration,
-)
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
-from simenv.plausibility.dynamics import balance, root_residual
+from simenv.plausibility.metric import Needs, PairInputs, PersonInputs, ScoreConfig
+from simenv.plausibility.metric_registry import PAIR_REGISTRY, PERSON_REGISTRY
 from simenv.plausibility.timeline import MetricResult
 from simenv.plausibility.tracking import tracking
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
 
-#: Single-person metrics on a retargeted clip, in table order.
-METRICS: dict[str, Callable[[RetargetResult], MetricResult]] = {
-    "body_penetration": body_penetration,
-    "body_floating": body_floating,
-    "self_penetration": self_penetration,
-    "root_residual": root_residual,
-    "balance": balance,
+#: The registry's body metrics, without the scorer's tracking run (the root
+#: residual is then the inferred one).
+BODY_ONLY = ScoreConfig(tracking=False)
+#: The body metrics of one retargeted clip, in report order.
+BODY_METRICS = [m for m in PERSON_REGISTRY if m.needs is Needs.BODY and m.name != "tracking"]
+#: PD physics tracking, calibrated without and with the root assistance.
+TRACKERS: dict[str, Callable[[RetargetResult], MetricResult]] = {
     "tracking": tracking,
     "tracking_assisted": lambda r: tracking(r, assist=True),
 }
 #: Table cells: (metric, detail or None for the value, header).
 COLUMNS = (
-    ("body_penetration", None, "pen mm"),
-    ("body_floating", None, "float mm"),
+    ("ground_penetration", None, "pen mm"),
+    ("floating", None, "float mm"),
     ("joint_limits", None, "jlim deg"),
     ("self_penetration", None, "self mm"),
     ("root_residual", None, "root BW"),
@@ -87,11 +84,14 @@ def score_clip(motion: Motion) -> dict:
     t_ret = time.perf_counter() - t0
     metrics: dict[str, dict] = {}
     seconds: dict[str, float] = {"retarget": t_ret}
-    for name, fn in {**METRICS, "joint_limits": None}.items():
+    inputs = PersonInputs(motion, result, None, BODY_ONLY)
+    runs: dict[str, Callable[[], MetricResult]] = {
+        m.name: partial(inputs.measure, m) for m in BODY_METRICS}
+    runs.update({name: partial(fn, result) for name, fn in TRACKERS.items()})
+    for name, run in runs.items():
         t = time.perf_counter()
-        r = joint_limits(motion) if name == "joint_limits" else fn(result)
+        metrics[name] = run().to_dict()
         seconds[name] = time.perf_counter() - t
-        metrics[name] = r.to_dict()
     return {"frames": motion.num_frames, "fps": motion.fps,
             "mean_residual_m": result.mean_residual, "mass_kg": result.humanoid.total_mass,
             "height_m": result.humanoid.dims.height, "seconds": seconds, "metrics": metrics}
@@ -99,9 +99,8 @@ def score_clip(motion: Motion) -> dict:
 
 def score_pair(pair: Interaction) -> dict:
     result = retarget(pair)
-    out = {}
-    for r in (inter_penetration(result), contact(result)):
-        out[r.name] = r.to_dict()
+    inputs = PairInputs(pair, result, None, BODY_ONLY)
+    out = {m.name: inputs.measure(m).to_dict() for m in PAIR_REGISTRY if m.basis == "geoms"}
     return {"frames": int(result.qpos.shape[0]), "metrics": out}
 
 
