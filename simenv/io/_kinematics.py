@@ -127,6 +127,35 @@ def forward_kinematics(
     return pos, rot
 
 
+def to_z_up_metres(positions: np.ndarray, local_rotations: np.ndarray, offsets: np.ndarray,
+                   up: str, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Forward-kinematics results in file axes and file units -> simenv's Z-up metres.
+
+    Args:
+        positions: (T, J, 3) joint positions; local_rotations: (T, J, 3, 3); offsets:
+            (J, 3), in the file's axes and units.
+        up: the file's up axis, ``"y"`` (mapped by :data:`Y_UP_TO_Z_UP`) or ``"z"``.
+        scale: metres per file unit.
+
+    Returns:
+        positions (T, J, 3) and offsets (J, 3) in metres, and the local rotations
+        ``C R C^T`` (C the axis change), so that FK with the converted offsets reproduces
+        the converted positions.
+    """
+    conv = Y_UP_TO_Z_UP if up.lower() == "y" else np.eye(3)
+    return ((positions @ conv.T) * scale, conv @ local_rotations @ conv.T,
+            (offsets @ conv.T) * scale)
+
+
+def units_metadata(fmt: str, stem: str, units: str, reason: str, scale: float,
+                   up: str) -> dict[str, str | float]:
+    """The metadata entries both mocap readers write about the file and its units:
+    ``format``, ``subject`` (the file stem up to its first ``_``), ``units``,
+    ``units_reason``, ``scale_m_per_unit`` and ``up_axis_in_file``."""
+    return {"format": fmt, "subject": stem.split("_")[0], "units": units,
+            "units_reason": reason, "scale_m_per_unit": scale, "up_axis_in_file": up.upper()}
+
+
 def detect_units(
     height: float, *, source: Path, units: str | None = None, scale: float | None = None
 ) -> tuple[str, float, str, list[str]]:

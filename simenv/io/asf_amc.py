@@ -37,12 +37,13 @@ from simenv.core.motion import Motion
 from simenv.core.skeletons import Skeleton, cmu_canonical_map
 from simenv.io._kinematics import (
     PLAUSIBLE_HEIGHT_M,
-    Y_UP_TO_Z_UP,
     detect_units,
     euler_to_matrices,
     forward_kinematics,
     matrices_to_quaternions,
     rest_extent,
+    to_z_up_metres,
+    units_metadata,
 )
 from simenv.io._text import parse_float, parse_float_rows, read_text, split_lines
 
@@ -601,67 +602,17 @@ def _to_motion(
     with np.errstate(all="ignore"):
         offsets, frames = _rest_geometry(asf)
         height = rest_extent(asf.parents, offsets)
-        quirks: list[str] = []
-        if scale is None and units is None:
-            s_asf = 0.0254 / asf.length_unit
-            lo, hi = PLAUSIBLE_HEIGHT_M
-            if lo <= height * s_asf <= hi:
-                unit_name, s = (
-                    ("cmu" if abs(asf.length_unit - 0.45) < 1e-9 else f"inch/{asf.length_unit:g}"),
-                    s_asf,
-                )
-                reason = (
-                    f"ASF ':units length {asf.length_unit:g}' = inches x "
-                    f"{asf.length_unit:g}, so 1 unit = {s_asf:.5f} m; rest-pose size "
-                    f"{height:.4g} units = {height * s_asf:.3f} m, plausible"
-                )
-            else:
-                unit_name, s, reason, quirks = detect_units(height, source=path)
-        else:
-            unit_name, s, reason, quirks = detect_units(
-                height, source=path, units=units, scale=scale
-            )
-        t = values.shape[0]
-        n = len(asf.order)
-        local = np.empty((t, n, 3, 3))
-        translations: dict[int, np.ndarray] = {}
-        col = 0
-        for k, bname in enumerate(asf.order):
-            bone = asf.bones[bname]
-            block = values[:, col : col + len(bone.dofs)]
-            col += len(bone.dofs)
-            rot_axes = "".join(d[1] for d in bone.dofs if d[0] == "r")
-            rot_vals = block[:, [i for i, d in enumerate(bone.dofs) if d[0] == "r"]]
-            if not degrees:
-                rot_vals = np.degrees(rot_vals)
-            m = euler_to_matrices(rot_vals, rot_axes, intrinsic=False)
-            c = frames[k]
-            local[:, k] = c @ m @ c.T
-            tr_idx = [(i, "xyz".index(d[1])) for i, d in enumerate(bone.dofs) if d[0] == "t"]
-            if tr_idx or bname == "root":
-                tr = np.zeros((t, 3))
-                for i, axis in tr_idx:
-                    tr[:, axis] = block[:, i]
-                if bname == "root":
-                    tr += asf.root_position
-                translations[k] = tr
+        unit_name, s, reason, quirks = _units(asf, height, path, units, scale)
+        local, translations = _local_rotations(asf, values, degrees, frames)
         pos, _ = forward_kinematics(asf.parents, offsets, local, translations)
-        conv = Y_UP_TO_Z_UP if up.lower() == "y" else np.eye(3)
-        pos = (pos @ conv.T) * s
-        local = conv @ local @ conv.T
-        offsets_m = (offsets @ conv.T) * s
+        pos, local, offsets_m = to_z_up_metres(pos, local, offsets, up, s)
         quats = matrices_to_quaternions(local)
     rate = DEFAULT_AMC_FPS if fps is None else float(fps)
     stem = path.stem
     meta: dict[str, Any] = {
         "source": str(path),
         "asf": str(asf.path),
-        "format": FORMAT,
-        "subject": stem.split("_")[0],
-        "units": unit_name,
-        "units_reason": reason,
-        "scale_m_per_unit": s,
-        "up_axis_in_file": up.upper(),
+        **units_metadata(FORMAT, stem, unit_name, reason, s, up),
         "fps_source": "AMC has no rate field; CMU capture rate assumed"
         if fps is None
         else "given by the caller",
@@ -673,3 +624,56 @@ def _to_motion(
     return Motion(
         pos.astype(np.float32), rate, skeleton, name or stem, meta, quats.astype(np.float32)
     )
+
+
+def _units(asf: Asf, height: float, path: Path, units: str | None, scale: float | None
+           ) -> tuple[str, float, str, list[str]]:
+    """(unit name, metres per unit, reason, quirks) of the file: the ASF's own
+    ``:units length`` (inches times it) when the rest pose is then of a plausible height
+    and the caller gave neither ``units`` nor ``scale``; otherwise
+    :func:`~simenv.io._kinematics.detect_units`."""
+    if scale is not None or units is not None:
+        return detect_units(height, source=path, units=units, scale=scale)
+    s_asf = 0.0254 / asf.length_unit
+    lo, hi = PLAUSIBLE_HEIGHT_M
+    if not lo <= height * s_asf <= hi:
+        return detect_units(height, source=path)
+    unit_name = "cmu" if abs(asf.length_unit - 0.45) < 1e-9 else f"inch/{asf.length_unit:g}"
+    reason = (
+        f"ASF ':units length {asf.length_unit:g}' = inches x "
+        f"{asf.length_unit:g}, so 1 unit = {s_asf:.5f} m; rest-pose size "
+        f"{height:.4g} units = {height * s_asf:.3f} m, plausible"
+    )
+    return unit_name, s_asf, reason, []
+
+
+def _local_rotations(asf: Asf, values: np.ndarray, degrees: bool, frames: np.ndarray
+                     ) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """(T, J, 3, 3) local rotations of the bones (each bone's DOF rotations, extrinsic,
+    expressed in its parent's frame through the bone's ``frames``) and the per-frame
+    translations of the bones with translation DOFs and of the root (its ASF position
+    added), from the (T, C) AMC ``values``."""
+    t = values.shape[0]
+    local = np.empty((t, len(asf.order), 3, 3))
+    translations: dict[int, np.ndarray] = {}
+    col = 0
+    for k, bname in enumerate(asf.order):
+        bone = asf.bones[bname]
+        block = values[:, col : col + len(bone.dofs)]
+        col += len(bone.dofs)
+        rot_axes = "".join(d[1] for d in bone.dofs if d[0] == "r")
+        rot_vals = block[:, [i for i, d in enumerate(bone.dofs) if d[0] == "r"]]
+        if not degrees:
+            rot_vals = np.degrees(rot_vals)
+        m = euler_to_matrices(rot_vals, rot_axes, intrinsic=False)
+        c = frames[k]
+        local[:, k] = c @ m @ c.T
+        tr_idx = [(i, "xyz".index(d[1])) for i, d in enumerate(bone.dofs) if d[0] == "t"]
+        if tr_idx or bname == "root":
+            tr = np.zeros((t, 3))
+            for i, axis in tr_idx:
+                tr[:, axis] = block[:, i]
+            if bname == "root":
+                tr += asf.root_position
+            translations[k] = tr
+    return local, translations

@@ -50,13 +50,14 @@ from simenv.core.skeletons import (
 )
 from simenv.io._kinematics import (
     CMU_UNIT_M,
-    Y_UP_TO_Z_UP,
     detect_units,
     euler_to_matrices,
     forward_kinematics,
     is_tpose_frame0,
     matrices_to_quaternions,
     rest_extent,
+    to_z_up_metres,
+    units_metadata,
 )
 from simenv.io._text import parse_float, parse_float_rows, read_text, split_lines
 
@@ -142,7 +143,7 @@ def parse(path: Path) -> BvhFile:
         raise FormatError(
             "no MOTION section; expected a line 'MOTION' after the hierarchy", source=path
         )
-    joints = _parse_hierarchy(lines[:motion_line], path)
+    joints = _Hierarchy(lines[:motion_line], path).parse()
     frame_time, data_start, n_frames = _parse_motion_header(lines, motion_line, path)
     names = [j.name for j in joints]
     field_names = [f"{j.name}.{c}" for j in joints for c in j.channels]
@@ -185,173 +186,153 @@ def parse(path: Path) -> BvhFile:
     )
 
 
-def _parse_hierarchy(lines: list[str], path: Path) -> list[_Joint]:
-    toks = [(tok, i + 1) for i, text in enumerate(lines) for tok in text.split()]
-    if not toks or toks[0][0].lstrip("\ufeff").upper() != "HIERARCHY":
-        raise FormatError(
-            "expected the file to start with 'HIERARCHY'",
-            source=path,
-            line=toks[0][1] if toks else 1,
-        )
-    joints: list[_Joint] = []
-    seen: dict[str, int] = {}
-    stack: list[int] = []
-    i, n = 1, len(toks)
+class _Hierarchy:
+    """Parser of the HIERARCHY section, token by token: one method per keyword (ROOT or
+    JOINT, End Site, OFFSET, CHANNELS, the closing brace) on a stack of open joints.
+    ``i`` is the index of the next token; every error names the file and line."""
 
-    def need(k: int, what: str) -> tuple[str, int]:
-        if k >= n:
-            raise FormatError(
-                f"hierarchy ends early; expected {what} (truncated file?)",
-                source=path,
-                line=toks[-1][1],
-            )
-        return toks[k]
+    def __init__(self, lines: list[str], path: Path) -> None:
+        self.toks = [(tok, i + 1) for i, text in enumerate(lines) for tok in text.split()]
+        self.path = path
+        self.joints: list[_Joint] = []
+        self.seen: dict[str, int] = {}
+        self.stack: list[int] = []
+        self.i = 1
 
-    def add(name: str, line: int, end_site: bool) -> None:
-        if name in seen:
-            raise FormatError(
-                f"duplicate joint name {name!r} (first defined on line {seen[name]}); "
-                "joint names must be unique",
-                source=path,
-                line=line,
-                field=name,
-            )
-        seen[name] = line
-        joints.append(_Joint(name, stack[-1] if stack else -1, line, end_site))
-        stack.append(len(joints) - 1)
+    def error(self, message: str, line: int, **where: Any) -> FormatError:
+        return FormatError(message, source=self.path, line=line, **where)
 
-    while i < n:
-        tok, line = toks[i]
+    def parse(self) -> list[_Joint]:
+        toks = self.toks
+        if not toks or toks[0][0].lstrip("\ufeff").upper() != "HIERARCHY":
+            raise self.error("expected the file to start with 'HIERARCHY'",
+                             toks[0][1] if toks else 1)
+        keywords = {"ROOT": self.joint, "JOINT": self.joint, "END": self.end_site,
+                    "OFFSET": self.offset, "CHANNELS": self.channels}
+        while self.i < len(toks):
+            tok, line = toks[self.i]
+            if tok.upper() in keywords:
+                keywords[tok.upper()](tok, line)
+            elif tok == "}":
+                self.close(line)
+            else:
+                raise self.error(
+                    f"unexpected token {tok[:40]!r} in hierarchy; expected ROOT, JOINT, "
+                    "End Site, OFFSET, CHANNELS or a brace", line)
+        if self.stack:
+            last = self.joints[self.stack[-1]]
+            raise self.error(f"joint {last.name!r} is not closed by '}}' before "
+                             "MOTION (truncated hierarchy?)", last.line)
+        if not self.joints:
+            raise self.error("hierarchy defines no joints; expected a ROOT", toks[0][1])
+        return self.joints
+
+    def need(self, k: int, what: str) -> tuple[str, int]:
+        """Token ``k``; an error when the hierarchy ends before it."""
+        if k >= len(self.toks):
+            raise self.error(f"hierarchy ends early; expected {what} (truncated file?)",
+                             self.toks[-1][1])
+        return self.toks[k]
+
+    def open(self, name: str, line: int, end_site: bool) -> None:
+        """A new joint, child of the innermost open one, now open itself."""
+        if name in self.seen:
+            raise self.error(f"duplicate joint name {name!r} (first defined on line "
+                             f"{self.seen[name]}); joint names must be unique", line,
+                             field=name)
+        self.seen[name] = line
+        self.joints.append(_Joint(name, self.stack[-1] if self.stack else -1, line, end_site))
+        self.stack.append(len(self.joints) - 1)
+
+    def brace(self, k: int, after: str) -> None:
+        """Token ``k`` must open the block just declared."""
+        brace, bline = self.need(k, "'{'")
+        if brace != "{":
+            raise self.error(f"expected '{{' after {after}, found {brace[:40]!r}", bline)
+
+    def current(self, keyword: str, line: int) -> _Joint:
+        """The innermost open joint, which ``keyword`` describes."""
+        if not self.stack:
+            raise self.error(f"{keyword} outside a joint", line)
+        return self.joints[self.stack[-1]]
+
+    def joint(self, tok: str, line: int) -> None:
         key = tok.upper()
-        if key in ("ROOT", "JOINT"):
-            if key == "JOINT" and not stack:
-                raise FormatError("JOINT outside any ROOT block", source=path, line=line)
-            if key == "ROOT" and stack:
-                raise FormatError("ROOT inside another joint; missing '}'?", source=path, line=line)
-            k = i + 1
-            name_parts = []
-            while k < n and toks[k][1] == line and toks[k][0] != "{":
-                name_parts.append(toks[k][0])
-                k += 1
-            if not name_parts:
-                raise FormatError(f"{tok} without a name", source=path, line=line)
-            if stack and joints[stack[-1]].end_site:
-                raise FormatError("joint inside an End Site", source=path, line=line)
-            add(" ".join(name_parts), line, False)
-            brace, bline = need(k, "'{'")
-            if brace != "{":
-                raise FormatError(
-                    f"expected '{{' after {tok} {' '.join(name_parts)}, found {brace[:40]!r}",
-                    source=path,
-                    line=bline,
-                )
-            i = k + 1
-        elif key == "END":
-            site, sline = need(i + 1, "'Site'")
-            if site.upper() != "SITE":
-                raise FormatError(
-                    f"expected 'End Site', found 'End {site[:40]}'", source=path, line=sline
-                )
-            if not stack or joints[stack[-1]].end_site:
-                raise FormatError("End Site outside a joint", source=path, line=line)
-            name = f"{joints[stack[-1]].name}_end"
-            while name in seen:
-                name += "_"
-            add(name, line, True)
-            brace, bline = need(i + 2, "'{'")
-            if brace != "{":
-                raise FormatError(
-                    f"expected '{{' after End Site, found {brace[:40]!r}", source=path, line=bline
-                )
-            i += 3
-        elif key == "OFFSET":
-            if not stack:
-                raise FormatError("OFFSET outside a joint", source=path, line=line)
-            joint = joints[stack[-1]]
-            if joint.offset is not None:
-                raise FormatError(
-                    f"second OFFSET for joint {joint.name!r}",
-                    source=path,
-                    line=line,
-                    field=joint.name,
-                )
-            vals = []
-            for k in range(3):
-                t, tl = need(i + 1 + k, "3 OFFSET values")
-                vals.append(parse_float(t, source=path, line=tl, field=f"{joint.name} OFFSET"))
-            joint.offset = np.array(vals)
-            i += 4
-        elif key == "CHANNELS":
-            if not stack:
-                raise FormatError("CHANNELS outside a joint", source=path, line=line)
-            joint = joints[stack[-1]]
-            count_tok, cline = need(i + 1, "a channel count")
-            if not count_tok.isdecimal() or int(count_tok) > 6:
-                raise FormatError(
-                    f"expected a channel count 0-6, found {count_tok[:40]!r}",
-                    source=path,
-                    line=cline,
-                    field=joint.name,
-                )
-            count = int(count_tok)
-            if joint.end_site and count:
-                raise FormatError("End Site cannot have channels", source=path, line=line)
-            if joint.channels:
-                raise FormatError(
-                    f"second CHANNELS for joint {joint.name!r}",
-                    source=path,
-                    line=line,
-                    field=joint.name,
-                )
-            chans = []
-            for k in range(count):
-                c, cl = need(i + 2 + k, f"{count} channel names")
-                if c.lower() not in _CHANNELS:
-                    raise FormatError(
-                        f"CHANNELS {count} declares {count} channels but found {c[:40]!r} "
-                        f"among them; expected names like Xposition or Zrotation",
-                        source=path,
-                        line=cl,
-                        field=joint.name,
-                    )
-                if c.lower() in (x.lower() for x in chans):
-                    raise FormatError(
-                        f"channel {c} repeated", source=path, line=cl, field=joint.name
-                    )
-                chans.append(c)
-            joint.channels = chans
-            i += 2 + count
-        elif tok == "}":
-            if not stack:
-                raise FormatError("unbalanced '}'", source=path, line=line)
-            joint = joints[stack.pop()]
-            if joint.offset is None:
-                raise FormatError(
-                    f"joint {joint.name!r} has no OFFSET",
-                    source=path,
-                    line=joint.line,
-                    field=joint.name,
-                )
-            i += 1
-        else:
-            raise FormatError(
-                f"unexpected token {tok[:40]!r} in hierarchy; expected ROOT, JOINT, End Site, "
-                "OFFSET, CHANNELS or a brace",
-                source=path,
-                line=line,
-            )
-    if stack:
-        raise FormatError(
-            f"joint {joints[stack[-1]].name!r} is not closed by '}}' before "
-            "MOTION (truncated hierarchy?)",
-            source=path,
-            line=joints[stack[-1]].line,
-        )
-    if not joints:
-        raise FormatError(
-            "hierarchy defines no joints; expected a ROOT", source=path, line=toks[0][1]
-        )
-    return joints
+        if key == "JOINT" and not self.stack:
+            raise self.error("JOINT outside any ROOT block", line)
+        if key == "ROOT" and self.stack:
+            raise self.error("ROOT inside another joint; missing '}'?", line)
+        k = self.i + 1
+        name_parts = []
+        while k < len(self.toks) and self.toks[k][1] == line and self.toks[k][0] != "{":
+            name_parts.append(self.toks[k][0])
+            k += 1
+        if not name_parts:
+            raise self.error(f"{tok} without a name", line)
+        if self.stack and self.joints[self.stack[-1]].end_site:
+            raise self.error("joint inside an End Site", line)
+        self.open(" ".join(name_parts), line, False)
+        self.brace(k, f"{tok} {' '.join(name_parts)}")
+        self.i = k + 1
+
+    def end_site(self, tok: str, line: int) -> None:
+        site, sline = self.need(self.i + 1, "'Site'")
+        if site.upper() != "SITE":
+            raise self.error(f"expected 'End Site', found 'End {site[:40]}'", sline)
+        if not self.stack or self.joints[self.stack[-1]].end_site:
+            raise self.error("End Site outside a joint", line)
+        name = f"{self.joints[self.stack[-1]].name}_end"
+        while name in self.seen:
+            name += "_"
+        self.open(name, line, True)
+        self.brace(self.i + 2, "End Site")
+        self.i += 3
+
+    def offset(self, tok: str, line: int) -> None:
+        joint = self.current("OFFSET", line)
+        if joint.offset is not None:
+            raise self.error(f"second OFFSET for joint {joint.name!r}", line, field=joint.name)
+        vals = []
+        for k in range(3):
+            t, tl = self.need(self.i + 1 + k, "3 OFFSET values")
+            vals.append(parse_float(t, source=self.path, line=tl,
+                                    field=f"{joint.name} OFFSET"))
+        joint.offset = np.array(vals)
+        self.i += 4
+
+    def channels(self, tok: str, line: int) -> None:
+        joint = self.current("CHANNELS", line)
+        count_tok, cline = self.need(self.i + 1, "a channel count")
+        if not count_tok.isdecimal() or int(count_tok) > 6:
+            raise self.error(f"expected a channel count 0-6, found {count_tok[:40]!r}", cline,
+                             field=joint.name)
+        count = int(count_tok)
+        if joint.end_site and count:
+            raise self.error("End Site cannot have channels", line)
+        if joint.channels:
+            raise self.error(f"second CHANNELS for joint {joint.name!r}", line,
+                             field=joint.name)
+        chans: list[str] = []
+        for k in range(count):
+            c, cl = self.need(self.i + 2 + k, f"{count} channel names")
+            if c.lower() not in _CHANNELS:
+                raise self.error(
+                    f"CHANNELS {count} declares {count} channels but found {c[:40]!r} "
+                    f"among them; expected names like Xposition or Zrotation", cl,
+                    field=joint.name)
+            if c.lower() in (x.lower() for x in chans):
+                raise self.error(f"channel {c} repeated", cl, field=joint.name)
+            chans.append(c)
+        joint.channels = chans
+        self.i += 2 + count
+
+    def close(self, line: int) -> None:
+        if not self.stack:
+            raise self.error("unbalanced '}'", line)
+        joint = self.joints[self.stack.pop()]
+        if joint.offset is None:
+            raise self.error(f"joint {joint.name!r} has no OFFSET", joint.line, field=joint.name)
+        self.i += 1
 
 
 def _parse_motion_header(lines: list[str], motion_line: int, path: Path) -> tuple[float, int, int]:
@@ -673,13 +654,72 @@ def _to_motion(
     unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units, scale=scale)
     quirks += unit_quirks
 
-    t, j = bvh.data.shape[0], len(bvh.joints)
-    local = np.empty((t, j, 3, 3))
     repairs: list[str] | None = None
     file_offsets = bvh.offsets
     if restore_collapsed_bones:
         file_offsets, repairs, skipped = _restore_collapsed(bvh, s)
         quirks += skipped
+    local, offsets, translations = _local_rotations(bvh, file_offsets)
+    pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
+    pos, local, offsets_m = to_z_up_metres(pos, local, file_offsets, up, s)
+
+    idx = [k for k in range(len(bvh.joints)) if keep[k]]
+    remap = {old: new for new, old in enumerate(idx)}
+    names = [bvh.joints[k] for k in idx]
+    parents = [remap[bvh.parents[k]] if bvh.parents[k] >= 0 else -1 for k in idx]
+    pos, local, offsets_m = pos[:, idx], local[:, idx], offsets_m[idx]
+
+    pos, local, tpose = _tpose_frame0(pos, local, drop_tpose, quirks)
+    rest_pos, _ = forward_kinematics(
+        parents, offsets_m, np.broadcast_to(np.eye(3), (1, len(idx), 3, 3))
+    )
+    canon, canon_notes = _avoid_coincident(
+        {k: v for k, v in all_canon.items() if v in names}, names, parents, rest_pos[0]
+    )
+    quirks += canon_notes
+    variant = skeleton_variant(names)
+    if variant == "poser":
+        quirks.append(
+            "template skeleton (Poser/Second-Life layout, outworldz conversion): bone lengths "
+            "are the template's, not the performer's proportions"
+            + (f"; {height * s:.2f} m tall" if height * s < 1.5 else "")
+        )
+    file_fps = header_fps(bvh.frame_time)
+    rate = _frame_rate(file_fps, fps, bvh.frame_time, quirks)
+
+    stem = path.stem
+    meta: dict[str, Any] = {
+        "source": str(path),
+        **units_metadata(FORMAT, stem, unit_name, reason, s, up),
+        "header_fps": file_fps,
+        "frames_in_file": int(bvh.data.shape[0]),
+        "tpose_frame0": bool(tpose),
+        "offsets_m": offsets_m.round(6).tolist(),
+        "quirks": quirks,
+    }
+    if repairs is not None:
+        meta["repairs"] = repairs
+    if unit_name == "cmu":
+        meta["units_note"] = f"CMU skeleton units: 1 unit = 0.0254/0.45 m = {CMU_UNIT_M:.5f} m"
+    skeleton = Skeleton(f"{variant}{len(names)}", tuple(names), tuple(parents), canon)
+    return Motion(
+        positions=pos.astype(np.float32),
+        fps=rate,
+        skeleton=skeleton,
+        name=name or stem,
+        metadata=meta,
+        rotations=matrices_to_quaternions(local).astype(np.float32),
+    )
+
+
+def _local_rotations(bvh: BvhFile, file_offsets: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, dict[int, np.ndarray]]:
+    """The FK inputs of the channels, file units and axes: (T, J, 3, 3) local rotations
+    (each joint's rotation channels, intrinsic in listed order), the (J, 3) offsets with
+    the components its position channels replace set to zero, and joint -> (T, 3) those
+    position channels' values."""
+    t, j = bvh.data.shape[0], len(bvh.joints)
+    local = np.empty((t, j, 3, 3))
     offsets = file_offsets.copy()
     translations: dict[int, np.ndarray] = {}
     col = 0
@@ -699,20 +739,16 @@ def _to_motion(
                 offsets[k, axis] = 0.0
                 tr[:, axis] = bvh.data[:, c]
             translations[k] = tr
-    pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
-    conv = Y_UP_TO_Z_UP if up == "y" else np.eye(3)
-    pos = (pos @ conv.T) * s
-    local = conv @ local @ conv.T
-    offsets_m = (file_offsets @ conv.T) * s
+    return local, offsets, translations
 
-    idx = [k for k in range(j) if keep[k]]
-    remap = {old: new for new, old in enumerate(idx)}
-    names = [bvh.joints[k] for k in idx]
-    parents = [remap[bvh.parents[k]] if bvh.parents[k] >= 0 else -1 for k in idx]
-    pos, local, offsets_m = pos[:, idx], local[:, idx], offsets_m[idx]
 
+def _tpose_frame0(pos: np.ndarray, local: np.ndarray, drop: bool, quirks: list[str]
+                  ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(T, J, 3) positions and (T, J, 3, 3) rotations without the converter's T-pose
+    frame 0 when there is one and ``drop`` (noted in ``quirks`` either way), and whether
+    there was one."""
     tpose, tpose_note = is_tpose_frame0(pos)
-    if tpose and drop_tpose:
+    if tpose and drop:
         pos, local = pos[1:], local[1:]
         quirks.append(
             f"dropped T-pose frame 0 ({tpose_note}); frame k of this motion is "
@@ -720,57 +756,19 @@ def _to_motion(
         )
     elif tpose:
         quirks.append(f"frame 0 is a T-pose ({tpose_note}); kept because drop_tpose=False")
+    return pos, local, tpose
 
-    rest_pos, _ = forward_kinematics(
-        parents, offsets_m, np.broadcast_to(np.eye(3), (1, len(idx), 3, 3))
-    )
-    canon, canon_notes = _avoid_coincident(
-        {k: v for k, v in all_canon.items() if v in names}, names, parents, rest_pos[0]
-    )
-    quirks += canon_notes
-    variant = skeleton_variant(names)
-    if variant == "poser":
+
+def _frame_rate(file_fps: float, fps: float | None, frame_time: float, quirks: list[str]
+                ) -> float:
+    """The motion's frame rate: the header's, or the caller's ``fps`` (a quirk noted in
+    ``quirks`` when they differ)."""
+    if fps is None:
+        return file_fps
+    rate = float(fps)
+    if abs(rate - file_fps) > 1e-6 * rate:
         quirks.append(
-            "template skeleton (Poser/Second-Life layout, outworldz conversion): bone lengths "
-            "are the template's, not the performer's proportions"
-            + (f"; {height * s:.2f} m tall" if height * s < 1.5 else "")
+            f"frame rate set to {rate:g} fps by the caller; the header says "
+            f"{file_fps:g} fps (Frame Time {frame_time:g} s)"
         )
-
-    file_fps = header_fps(bvh.frame_time)
-    rate = file_fps
-    if fps is not None:
-        rate = float(fps)
-        if abs(rate - file_fps) > 1e-6 * rate:
-            quirks.append(
-                f"frame rate set to {rate:g} fps by the caller; the header says "
-                f"{file_fps:g} fps (Frame Time {bvh.frame_time:g} s)"
-            )
-
-    stem = path.stem
-    meta: dict[str, Any] = {
-        "source": str(path),
-        "format": FORMAT,
-        "subject": stem.split("_")[0],
-        "units": unit_name,
-        "units_reason": reason,
-        "scale_m_per_unit": s,
-        "up_axis_in_file": up.upper(),
-        "header_fps": file_fps,
-        "frames_in_file": int(t),
-        "tpose_frame0": bool(tpose),
-        "offsets_m": offsets_m.round(6).tolist(),
-        "quirks": quirks,
-    }
-    if repairs is not None:
-        meta["repairs"] = repairs
-    if unit_name == "cmu":
-        meta["units_note"] = f"CMU skeleton units: 1 unit = 0.0254/0.45 m = {CMU_UNIT_M:.5f} m"
-    skeleton = Skeleton(f"{variant}{len(names)}", tuple(names), tuple(parents), canon)
-    return Motion(
-        positions=pos.astype(np.float32),
-        fps=rate,
-        skeleton=skeleton,
-        name=name or stem,
-        metadata=meta,
-        rotations=matrices_to_quaternions(local).astype(np.float32),
-    )
+    return rate
