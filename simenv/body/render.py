@@ -25,9 +25,11 @@ from typing import Any
 import cv2
 import mujoco
 import numpy as np
+from tqdm import tqdm
 
 from simenv.body import gl
 from simenv.core.errors import SimenvError
+from simenv.core.skeletons import CANONICAL_TREE
 
 log = logging.getLogger(__name__)
 
@@ -507,8 +509,6 @@ def keypoint_edges(names: Sequence[str]) -> list[tuple[int, int]]:
 
     A keypoint whose canonical parent is absent is joined to its nearest present ancestor.
     """
-    from simenv.core.skeletons import CANONICAL_TREE
-
     index = {name: i for i, name in enumerate(names)}
     edges = []
     for name, i in index.items():
@@ -569,8 +569,6 @@ def render_result(
     Returns:
         The path written (the MP4).
     """
-    from tqdm import tqdm
-
     model, qpos, ghosts, names = _result_parts(result)
     edges = keypoint_edges(names) if names else []
     fps = float(result.fps)

@@ -150,7 +150,7 @@ def forward_kinematics(root: np.ndarray, bones: np.ndarray) -> np.ndarray:
         joints.append(joints[PARENTS[j]] + bones[..., j - 1, :])
     if isinstance(root, np.ndarray):
         return np.stack(joints, axis=-2)
-    import torch
+    import torch  # heavy: only tensor callers (the augmentation model) get here, with it loaded
 
     return torch.stack(joints, dim=-2)
 
@@ -237,7 +237,7 @@ def adapt_actor(actor: np.ndarray, reactor: np.ndarray, new_reactor: np.ndarray,
         frames of A' and of the naive A' = A against ``new_reactor``, mm; None without
         contacts).
     """
-    import torch
+    import torch  # heavy, and the targets themselves are NumPy: only this optimiser needs it
 
     a = _positions(actor, "actor")
     b = _positions(reactor, "reactor")

@@ -100,6 +100,7 @@ import numpy as np
 from simenv.core.errors import MotionError, SimenvError, SkeletonError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import GESTURE9_JOINTS, Skeleton, gesture9_skeleton
+from simenv.io import florence3d, msr_action3d, utkinect
 
 #: Gesture label -> what it means.
 VOCABULARY: dict[str, str] = {
@@ -573,8 +574,6 @@ FLORENCE_FILE = "skeletal_data.mat"
 def _dataset_clips(dataset: str, files: Sequence[Path], joints: JointSet, report: LoadReport,
                    idle: bool) -> list[GestureClip]:
     """The labelled clips (and idle clips) of one dataset's recording files."""
-    from simenv.io import florence3d, msr_action3d, utkinect
-
     clips: list[GestureClip] = []
     for path in files:
         if dataset == "msr_action3d":

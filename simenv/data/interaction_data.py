@@ -90,6 +90,8 @@ from simenv.core.errors import MotionError, SimenvError, SkeletonError
 from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import Skeleton, canonical_skeleton
 from simenv.data.prediction_data import ClipSplit, split_by_clip
+from simenv.io.loader import load
+from simenv.io.nuisi import read_pair
 
 #: Frame rate of interaction windows, Hz (see the module docstring for why 25).
 TARGET_FPS = 25.0
@@ -271,8 +273,6 @@ def load_interaction(path: str | Path | Sequence[str | Path], *, label: str | No
     Raises:
         MotionError: the path holds one person only, or several clips.
     """
-    from simenv.io.loader import load
-
     loaded = load(path)
     where = str(path if isinstance(path, (str, Path)) else path[0])
     if isinstance(loaded, list):
@@ -312,8 +312,6 @@ def nuisi_repetitions(
     Raises:
         MotionError: a repetition outside the tracked span of both people.
     """
-    from simenv.io.nuisi import read_pair
-
     whole = read_pair(Path(p1), Path(p2), fps=fps)
     times = _nuisi_line_times(Path(p1))
     t0 = times[0] + whole.actor.metadata["time_span_s"][0]
@@ -344,8 +342,6 @@ def load_recordings(root: str | Path, *, fps: float = TARGET_FPS) -> list[Intera
     Args:
         root: the ``shared/data`` folder (with ``cmu/two_person`` and ``other/nuisi``).
     """
-    from simenv.io.loader import load
-
     root = Path(root)
     out = []
     for folder in CMU_PAIRS:

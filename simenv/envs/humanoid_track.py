@@ -282,6 +282,7 @@ class HumanoidTrackEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
+            # The renderer's module loads OpenCV (video): only rgb_array rendering needs it.
             from simenv.body.render import make_renderer
 
             self._renderer = make_renderer(self.model, *self._size)

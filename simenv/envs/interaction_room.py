@@ -327,6 +327,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
+            # The renderer's module loads OpenCV (video): only rgb_array rendering needs it.
             from simenv.body.render import make_renderer
 
             self._renderer = make_renderer(self.model, *self._size)

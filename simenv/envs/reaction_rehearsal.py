@@ -47,6 +47,12 @@ import numpy as np
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
 from simenv.data import interaction_data as idata
+from simenv.learning.eval_interaction import SHARED
+from simenv.models import interaction_model_entry, load
+from simenv.models.reaction_baselines import MirrorActor
+from simenv.plausibility.html_report import write_report
+from simenv.plausibility.report import score
+from simenv.room.session import Session
 
 #: Distance of the fallback start pose in front of the user, metres (a handshake's reach).
 FALLBACK_DISTANCE_M = 1.0
@@ -58,8 +64,6 @@ def user_motion(session: str | os.PathLike[str] | Motion) -> Motion:
     Raises:
         SimenvError: no such file or asset, a two-person file, too few frames.
     """
-    from simenv.room.session import Session
-
     motion = Session.load(session).motion
     motion = idata.to_layout(motion)
     motion.require_frames(2, "a reaction rehearsal")
@@ -85,8 +89,6 @@ def start_pose(user_first: np.ndarray, train: idata.InteractionWindows | None
         return train.reactor[k, 0].astype(np.float64), {
             "method": "nearest training window", "recording": rec,
             "start_frame": int(train.start[k]), "pose_distance_m": float(d[k])}
-    from simenv.models.reaction_baselines import MirrorActor
-
     # The mirror geometry needs a reactor frame: the user's pose turned to face it from
     # FALLBACK_DISTANCE_M ahead (+x is the actor's facing in its own frame).
     facing = user_first * np.array([-1.0, -1.0, 1.0]) + np.array([FALLBACK_DISTANCE_M, 0, 0])
@@ -150,10 +152,6 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
         SimenvError: unknown model or a model that is not a reaction generator, bad
             session, ``seconds`` not positive.
     """
-    import simenv
-    from simenv.learning.eval_interaction import SHARED
-    from simenv.models import interaction_model_entry, load
-
     t0 = time.perf_counter()
     if isinstance(model, str):
         interaction_model_entry(model, ("reaction",), field="agent")
@@ -170,7 +168,7 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
     np.savez_compressed(out / "reaction.npz", user=inter.actor.positions,
                         agent=inter.reactor.positions, fps=np.float64(user.fps),
                         joints=np.array(idata.INTER18_JOINTS))
-    scored = simenv.score(inter, physics=True)
+    scored = score(inter, physics=True)
     agent = scored.people[1]
     pair = scored.interaction or {}
     summary = {
@@ -187,8 +185,6 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
         "seconds": time.perf_counter() - t0,
     }
     if report:
-        from simenv.plausibility.html_report import write_report
-
         summary["report"] = str(write_report(scored, out / "report", video=video))
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=_json) + "\n")
     return summary
@@ -213,7 +209,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--shared", help="corpus root for the start pose")
     ap.add_argument("--no-render", action="store_true", help="no video in the report")
     args = ap.parse_args(argv)
-    import torch
+    import torch  # heavy; the generator loaded later imports it anyway, here it gets 1 thread
 
     torch.set_num_threads(1)
     try:

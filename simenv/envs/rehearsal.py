@@ -80,6 +80,7 @@ import numpy as np
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import canonical_skeleton
+from simenv.data.gestures import GESTURE_LABELS, load_gesture_clips
 from simenv.envs.interaction_room import OBJECTS, PENETRATION_TOLERANCE_M, InteractionRoomEnv
 from simenv.perception.loop import (
     FALLBACK_PREDICTOR,
@@ -92,6 +93,7 @@ from simenv.perception.loop import (
     load_predictor,
     vocabulary_map,
 )
+from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.html_report import html_page
 from simenv.room.scenario import REACTIONS, Scenario, load_scenario
 from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, session_recipes
@@ -312,8 +314,6 @@ def _oracle(env: InteractionRoomEnv, t: float, answered: set[int]) -> int:
 
 def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
              perceptions: list[Perception]) -> dict[str, Any]:
-    from simenv.plausibility import kinematic_metrics
-
     reactions, latencies = [], []
     for entry in env.log:
         if not entry["started"]:
@@ -542,8 +542,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     vocabulary = scenario.behaviour.vocabulary
     classifier = None
     if args.templates:
-        from simenv.data.gestures import GESTURE_LABELS, load_gesture_clips
-
         classifier = TemplateClassifier.from_clips(load_gesture_clips(args.templates),
                                                    vocabulary_map(GESTURE_LABELS, vocabulary))
     elif args.classifier:

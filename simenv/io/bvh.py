@@ -43,6 +43,7 @@ import numpy as np
 from simenv.core.errors import FormatError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import (
+    CANONICAL_TREE,
     Skeleton,
     cmu_canonical_map,
     is_poser_template,
@@ -423,8 +424,6 @@ def _avoid_coincident(
     apart from the canonical parent (``Neck1``, ``LeftHandIndex1``); with no
     such chain it is declared missing. Returns the map and quirk notes.
     """
-    from simenv.core.skeletons import CANONICAL_TREE
-
     index = {n: i for i, n in enumerate(names)}
     children: dict[int, list[int]] = {}
     for k, p in enumerate(parents):

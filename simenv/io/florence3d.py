@@ -88,6 +88,7 @@ def _check_mat(path: Path) -> None:
 
 
 def _loadmat(path: Path, **kwargs: Any) -> dict[str, Any]:
+    # scipy.io (0.3 s) only for MAT-files: format detection imports every reader module.
     from scipy.io import loadmat
 
     try:
@@ -108,7 +109,7 @@ def sniff(path: Path, head: bytes) -> bool:
     """A MATLAB 5 ``.mat`` holding a ``skeletal_data`` variable."""
     if path.suffix.lower() != ".mat" or not head.startswith(_MAT_MAGIC):
         return False
-    from scipy.io import whosmat
+    from scipy.io import whosmat  # lazy, as in _loadmat
 
     try:
         _check_mat(path)

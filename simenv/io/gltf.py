@@ -38,6 +38,8 @@ from typing import Any
 
 import mujoco
 import numpy as np
+import trimesh
+from trimesh.creation import box, capsule, cylinder, icosphere
 
 from simenv.core.errors import SimenvError
 
@@ -117,8 +119,6 @@ def write_gltf(model: mujoco.MjModel, path: str | os.PathLike[str], *,
     Raises:
         SimenvError: bad suffix, shapes or fps, or a model with no visible geometry.
     """
-    import trimesh
-
     path = Path(path)
     if path.suffix.lower() not in (".glb", ".gltf"):
         raise SimenvError(f"glTF output must end with .glb or .gltf; got {path.name!r}",
@@ -198,8 +198,6 @@ def check_gltf(path: str | os.PathLike[str]) -> dict[str, Any]:
     Raises:
         SimenvError: naming the first check that fails.
     """
-    import trimesh
-
     path = Path(path)
     raw = path.read_bytes()
     if path.suffix.lower() == ".glb":
@@ -273,9 +271,6 @@ def _rgba(model: mujoco.MjModel, g: int) -> np.ndarray:
 def _geom_mesh(model: mujoco.MjModel, g: int, plane_half: float) -> Any:
     """The geom's surface as a trimesh in the geom's own frame, coloured; None for types
     without a surface (height fields, SDFs are not exported)."""
-    import trimesh
-    from trimesh.creation import box, capsule, cylinder, icosphere
-
     kind, size = int(model.geom_type[g]), model.geom_size[g]
     G = mujoco.mjtGeom
     if kind == G.mjGEOM_SPHERE:
@@ -325,8 +320,6 @@ def _xyzw(wxyz: np.ndarray) -> np.ndarray:
 
 
 def _matrix(pos: np.ndarray, quat_wxyz: np.ndarray) -> np.ndarray:
-    import trimesh
-
     m = trimesh.transformations.quaternion_matrix(np.asarray(quat_wxyz, dtype=float))
     m[:3, 3] = pos
     return m

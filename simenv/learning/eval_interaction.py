@@ -51,12 +51,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from simenv.core.config import repo_root, shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.data import interaction_data as idata
 from simenv.data import interaction_metrics as im
 from simenv.learning.interaction_features import default_feature_extractor
+from simenv.learning.interaction_recognition import InteractionRecognizer
+from simenv.models import available, interaction_model_entry, interaction_model_names, load
+from simenv.models.reaction_baselines import BASELINE_NAMES, make_baseline
 
 #: Default root of the shared corpus (``SIMENV_SHARED_DATA`` overrides).
 SHARED = shared_data_root()
@@ -188,9 +192,8 @@ def physics_of(windows: idata.InteractionWindows, index: Sequence[int],
         (scorer's body-vs-keypoint JPD, mean), ``contact_retention`` (scorer's, mean over
         pairs and windows), ``reactor_failed`` (metric -> count), ``records``).
     """
-    from tqdm import tqdm
-
-    import simenv
+    # The scorer pulls in MuJoCo and the retargeting; only the physics pass needs it.
+    from simenv.plausibility.report import score
 
     out: dict[str, dict[str, Any]] = {}
     jobs = [(name, n) for name in reactions for n in index]
@@ -202,7 +205,7 @@ def physics_of(windows: idata.InteractionWindows, index: Sequence[int],
                                     actor=None if actor is None else actor[n],
                                     name=f"{name}:"
                                     f"{windows.recording_names[windows.recording[n]]}")
-        report = simenv.score(inter, physics=True)
+        report = score(inter, physics=True)
         pen, con = report.interaction["inter_penetration"], report.interaction["contact"]
         retention = [v for k, v in con.details.items() if k.startswith("retention_")]
         per[name].append({
@@ -245,8 +248,6 @@ def _within(path: Path, given: Path) -> bool:
 def shipped_models() -> list[str]:
     """The shipped two-person generators that this evaluation runs by default (reaction
     and interaction kinds of :data:`simenv.models.INTERACTION_MODELS`)."""
-    from simenv.models import available, interaction_model_names
-
     shipped = set(available())
     return [n for n in interaction_model_names(*GENERATOR_KINDS) if n in shipped]
 
@@ -286,12 +287,6 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
             of :data:`simenv.models.INTERACTION_MODELS`; None: every shipped one,
             :func:`shipped_models`).
     """
-    from tqdm import tqdm
-
-    from simenv.learning.interaction_recognition import InteractionRecognizer
-    from simenv.models import interaction_model_entry, load
-    from simenv.models.reaction_baselines import BASELINE_NAMES, make_baseline
-
     models = shipped_models() if models is None else list(models)
     kinds = {name: interaction_model_entry(name, GENERATOR_KINDS)[2] for name in models}
 
@@ -551,7 +546,7 @@ def render_markdown(res: Mapping[str, Any]) -> str:
 
 def plot(res: Mapping[str, Any], path: Path) -> Path:
     """Bar charts of the headline metrics per method (and physics if present)."""
-    import matplotlib
+    import matplotlib  # heavy, and only the report's figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -604,7 +599,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print the JSON results")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     args = ap.parse_args(argv)
-    import torch
+    import torch  # heavy; the models loaded later import it anyway, here it gets 1 thread
 
     torch.set_num_threads(1)
     try:

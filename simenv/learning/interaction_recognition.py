@@ -86,6 +86,7 @@ class InteractionRecognizer:
             value = -(onehot * logp).sum() / len(z) + 0.5 * self.ridge * (decay * w * w).sum()
             return float(value), grad.ravel()
 
+        # scipy.optimize takes ~1 s to import; only fitting needs it.
         from scipy.optimize import minimize
 
         res = minimize(loss, np.zeros(np.prod(shape)), jac=True, method="L-BFGS-B",

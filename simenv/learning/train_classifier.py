@@ -87,8 +87,11 @@ from simenv.data.gestures import (
     room_reaction,
     split_cross_subject,
 )
+from simenv.data.prediction_data import DERIVED_KEYPOINTS, PRED17_JOINTS
 from simenv.learning.recognition import class_weights
+from simenv.models import available, checkpoint_path, load
 from simenv.models.gesture_classifier import ClassifierConfig, GestureClassifier
+from simenv.models.predictor import rollout
 from simenv.models.training import CpuBudget, cosine_schedule, seeded
 
 #: Default location of the gesture corpus (``SIMENV_SHARED_DATA`` overrides the root).
@@ -303,9 +306,6 @@ def extrapolate_with_predictor(windows: GestureWindows, predictor: Any) -> Gestu
     Raises:
         MotionError: the windows are not on the gesture15 joints.
     """
-    from simenv.data.prediction_data import DERIVED_KEYPOINTS, PRED17_JOINTS
-    from simenv.models.predictor import rollout
-
     names = list(windows.joints)
     if set(names) != set(GESTURE15_JOINTS):
         raise MotionError("the predicted condition needs gesture15 windows (legs for the "
@@ -349,8 +349,6 @@ def condition_windows(clips: Sequence[GestureClip], joints: Sequence[str],
 
 def shipped_predictor() -> Any | None:
     """The shipped :data:`PREDICTOR`, or None when it is not shipped."""
-    from simenv.models import available, load
-
     return load(PREDICTOR) if PREDICTOR in available() else None
 
 
@@ -394,7 +392,7 @@ def evaluate(model: GestureClassifier, clips: Sequence[GestureClip],
 
 def plot_confusions(results: dict[str, Any], path: Path) -> Path:
     """One row-normalised confusion matrix per condition, as a PNG."""
-    import matplotlib
+    import matplotlib  # heavy, and only the report's figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -634,8 +632,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                       else TrainConfig(**overrides))
             metrics = run_training(config, Path(args.out))
         else:
-            from simenv.models import checkpoint_path
-
             checkpoint = Path(args.checkpoint) if args.checkpoint else \
                 checkpoint_path(args.model)
             metrics = run_evaluation(checkpoint, Path(args.data), Path(args.out))

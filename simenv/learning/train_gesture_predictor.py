@@ -69,6 +69,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from simenv.core.config import repo_root, shared_data_root
 from simenv.core.errors import SimenvError
@@ -82,6 +83,7 @@ from simenv.data.gestures import (
     to_gesture_joints,
 )
 from simenv.data.prediction_metrics import mean_per_joint_speed, per_frame_mpjpe_mm
+from simenv.io import load, utkinect
 from simenv.models.gesture_predictor import (
     ROOT_MODES,
     UNIT,
@@ -148,8 +150,6 @@ def load_sequences(data: str | os.PathLike[str], *, min_frames: int = 75, cmu: b
     Raises:
         SimenvError: no gesture corpus under ``data``.
     """
-    from simenv.io import load, utkinect
-
     data = Path(data)
     root = data / "gestures"
     skipped = skipped if skipped is not None else []
@@ -313,8 +313,6 @@ def train(recordings: Sequence[Recording], config: TrainConfig | None = None, *,
         (model, history) with history ``{"loss": [...] every 50 steps, "cpu_s": ...,
         "wall_s": ..., "windows": {dataset: recordings}}``.
     """
-    from tqdm import tqdm
-
     config = config or TrainConfig()
     torch.manual_seed(config.seed)
     model = GesturePredictor(GesturePredictorConfig(**config.model), seed=config.seed)

@@ -38,9 +38,11 @@ from simenv.core.config import read_options
 from simenv.core.errors import SimenvError
 from simenv.data import interaction_data as idata
 from simenv.data import interaction_metrics as im
+from simenv.data.augment_targets import build_targets
 from simenv.learning.eval_interaction import SHARED, reaction_metrics
 from simenv.learning.interaction_features import default_feature_extractor
 from simenv.models import INTERACTION_MODELS, interaction_model_entry
+from simenv.models.reaction_baselines import ZeroVelocity
 
 #: Held-out metrics reported on the card of a reaction generator: (key, label, format).
 CARD_METRICS: tuple[tuple[str, str, str], ...] = (
@@ -99,8 +101,6 @@ def held_out_metrics(name: str, model: Any, test: idata.InteractionWindows,
     knows against the real test windows (both people); for an augmentation model, its
     errors and the naive baseline's on targets built from the test windows
     (:func:`simenv.models.interaction_augment.evaluate`, 4 scale vectors per window)."""
-    from simenv.models.reaction_baselines import ZeroVelocity
-
     kind = interaction_model_entry(name)[2]
     extractor, _ = default_feature_extractor()
     if kind == "reaction":
@@ -129,7 +129,7 @@ def held_out_metrics(name: str, model: Any, test: idata.InteractionWindows,
             }
         out["windows"] = len(sub)
         return out
-    from simenv.data.augment_targets import build_targets
+    # The augmentation model's module imports torch; only this kind needs it.
     from simenv.models.interaction_augment import evaluate
 
     return evaluate(model, build_targets(test, 4, seed=seed + 1), seed=seed)
@@ -180,7 +180,7 @@ def render_card(name: str, config: Any, history: Mapping[str, Any],
 
 def plot_history(history: Mapping[str, Any], path: Path) -> Path:
     """Per-epoch loss curves (every list-valued history entry) as a PNG."""
-    import matplotlib
+    import matplotlib  # heavy, and only the report's figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -239,7 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
     args = ap.parse_args(argv)
-    import torch
+    import torch  # heavy; the model trained later imports it anyway, here it gets 1 thread
 
     torch.set_num_threads(1)
     try:

@@ -49,13 +49,16 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from simenv.core.config import read_options, shared_data_root
 from simenv.core.errors import MotionError, SimenvError, SkeletonError, UnitsError
 from simenv.core.motion import Interaction, Motion
+from simenv.data import interaction_data as idata
 from simenv.data import prediction_data as pdata
 from simenv.data import prediction_metrics as pm
-from simenv.io import load
+from simenv.io import load, msr_action3d, utkinect
+from simenv.models import load as load_model
 from simenv.models.baselines import ConstantVelocity, ZeroVelocity
 from simenv.models.predictor import (
     AMPLITUDE_TARGETS,
@@ -186,9 +189,6 @@ def extra_motions(shared: Path, sources: Sequence[str]) -> tuple[list[Motion], l
     Raises:
         SimenvError: an unknown source name.
     """
-    from simenv.data import interaction_data as idata
-    from simenv.io import msr_action3d, utkinect
-
     unknown = sorted(set(sources) - set(EXTRA_SOURCES))
     if unknown:
         raise SimenvError(f"unknown extra data source(s) {', '.join(unknown)}; expected "
@@ -317,8 +317,6 @@ def train(
     Returns:
         A log: one dict of losses every 50 iterations (and the last).
     """
-    from tqdm import tqdm
-
     torch.manual_seed(seed)
     weights = LOSS_WEIGHTS | {"adv": adv_weight}
     rng = np.random.default_rng(seed)
@@ -451,8 +449,6 @@ def train_regression(
     Returns:
         A log: one dict every 50 iterations (and the last).
     """
-    from tqdm import tqdm
-
     check_lengths(model, windows.past_len, windows.future_len)
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
@@ -546,6 +542,7 @@ def plausibility(preds: dict[str, np.ndarray], windows: pdata.PredictionWindows,
         ``{"windows": n, "stride": stride, "pass_rate": {method: {metric: fraction}},
         "not_a_body": {method: fraction}}``.
     """
+    # The kinematic metrics load numba kernels; only this report needs them.
     from simenv.plausibility import KINEMATIC_METRICS, kinematic_metrics_batch
 
     sel = np.arange(0, len(windows), stride)
@@ -615,7 +612,7 @@ def evaluate_recursive(model: PredictiveMAWGAN, motions: Sequence[Motion],
 
 def plot_curves(metrics: dict, path: Path) -> None:
     """Error curves (per-frame MPJPE vs time) of every method, single-shot and recursive."""
-    import matplotlib
+    import matplotlib  # heavy, and only the report's figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -1178,10 +1175,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parse_args(argv)
         if args.evaluate:
-            from simenv.models import load
-
             torch.set_num_threads(args.threads)
-            model = load(args.evaluate)
+            model = load_model(args.evaluate)
             args.out = args.out or f"out/eval-{args.evaluate}"
             metrics = run_evaluation(model, eval_motions(model, args.data, args.shared),
                                      args.out)

@@ -31,6 +31,8 @@ the labelled real clips of the gesture corpus.
 
 from __future__ import annotations
 
+import argparse
+import json
 import os
 import sys
 import time
@@ -40,7 +42,10 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+from tqdm import tqdm
 
+import simenv.models
+from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.core.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE
 from simenv.data.gestures import (
@@ -49,7 +54,9 @@ from simenv.data.gestures import (
     WINDOW_FRAMES,
     GestureClip,
     cut_window,
+    load_gesture_clips,
     normalise_windows,
+    split_cross_subject,
 )
 from simenv.data.prediction_data import PRED17_JOINTS
 from simenv.room.scenario import Behaviour
@@ -235,8 +242,6 @@ class TrainedClassifier:
                 vocabulary: Sequence[str] | None = None) -> TrainedClassifier:
         """The shipped checkpoint ``name`` (None: :data:`DEFAULT_CLASSIFIER`), its labels
         mapped onto ``vocabulary`` (:func:`vocabulary_map`; None: the network's own)."""
-        import simenv.models
-
         name = name or DEFAULT_CLASSIFIER
         model = simenv.models.load(name)
         mapping = None if vocabulary is None else vocabulary_map(model.config.labels,
@@ -341,8 +346,6 @@ def load_predictor(spec: Any = None) -> Any:
         an object with ``predict``, ``history_len`` and ``future_len`` (and ``name``
         when built from a name).
     """
-    import simenv.models
-
     if spec is None or spec == "auto":
         spec = (DEFAULT_PREDICTOR if DEFAULT_PREDICTOR in simenv.models.available()
                 else FALLBACK_PREDICTOR)
@@ -370,10 +373,6 @@ def default_classifier(vocabulary: Sequence[str], data: str | os.PathLike[str] |
     Raises:
         SimenvError: no shipped classifier and no gesture corpus.
     """
-    import simenv.models
-    from simenv.core.config import shared_data_root
-    from simenv.data.gestures import load_gesture_clips
-
     if DEFAULT_CLASSIFIER in simenv.models.available():
         return TrainedClassifier.shipped(DEFAULT_CLASSIFIER, vocabulary)
     root = shared_data_root(data) / "gestures"
@@ -538,8 +537,7 @@ def loop_readings(clips: Sequence[GestureClip], classifier: GestureModel, predic
         (one reading per clip that could be retargeted, the skipped clips with the
         reason: no source motion, or no pelvis keypoint as in Florence 3D).
     """
-    from tqdm import tqdm
-
+    # The session retargets onto the room's user: MuJoCo and the solver, needed here only.
     from simenv.room.session import Session, user_track
 
     need = max(real_frames, int(getattr(predictor, "history_len", real_frames)))
@@ -623,12 +621,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     MSR Action3D and UTKinect clips (labelled and ``idle``) of the classifier's training
     or test subjects at every threshold of the grid, and the threshold
     :func:`choose_threshold` picks, as JSON (``--out``) and a table."""
-    import argparse
-    import json
-
-    from simenv.core.config import shared_data_root
-    from simenv.data.gestures import load_gesture_clips, split_cross_subject
-
     parser = argparse.ArgumentParser(prog="python -m simenv.perception.loop",
                                      description=main.__doc__.splitlines()[0])
     parser.add_argument("--subjects", choices=("train", "test"), required=True)

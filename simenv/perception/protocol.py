@@ -37,6 +37,7 @@ import numpy as np
 from tqdm import tqdm
 
 from simenv.core.errors import SimenvError
+from simenv.core.skeletons import CANONICAL_KEYPOINTS
 from simenv.data.gestures import GESTURE15_JOINTS, GestureClip, normalise_windows
 from simenv.learning.recognition import SHORT_FRAMES, Forecaster, logits_of
 
@@ -54,7 +55,7 @@ def avatar_clips(clips: Sequence[GestureClip], scenario: str = "default", *,
     """The clips as the room's agent sees them (module docstring): the same labels and
     names, positions (T, 15, 3) of the avatar's keypoints on ``gesture15``, metres, Z up,
     25 fps. Returns (clips, skipped clips with the reason)."""
-    from simenv.core.skeletons import CANONICAL_KEYPOINTS
+    # The session retargets onto the room's user: MuJoCo and the solver, needed here only.
     from simenv.room.session import Session, user_track
 
     cols = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]

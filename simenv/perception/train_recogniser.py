@@ -41,6 +41,8 @@ from typing import Any
 
 import numpy as np
 
+import simenv.models
+from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.data.gestures import (
     GESTURE_LABELS,
@@ -60,6 +62,14 @@ from simenv.learning.recognition_protocols import (
     run_benchmark,
     run_room_protocol,
 )
+from simenv.models.gesture_predictor import GesturePredictor
+from simenv.models.skeleton_tcn import SkeletonTCN
+from simenv.perception.protocol import (
+    avatar_clips,
+    choose_threshold,
+    cross_fitted_outcomes,
+    stream_readings,
+)
 
 #: Registry name of the shipped recogniser and of its forecaster.
 MODEL_NAME = "gesture-tcn"
@@ -73,15 +83,11 @@ EVAL_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s")
 
 
 def _default_data() -> Path:
-    from simenv.core.config import shared_data_root
-
     return shared_data_root(None) / "gestures"
 
 
 def shipped_forecaster() -> Forecaster | None:
     """``predict_batch`` of the shipped :data:`FORECASTER`, or None when not shipped."""
-    import simenv.models
-
     if FORECASTER not in simenv.models.available():
         return None
     return simenv.models.load(FORECASTER).predict_batch
@@ -95,8 +101,6 @@ def fold_forecasters(folder: Path | None, folds: int) -> list[Forecaster] | None
     """
     if folder is None:
         return None
-    from simenv.models.gesture_predictor import GesturePredictor
-
     out = []
     for k in range(folds):
         path = Path(folder) / f"fold{k}" / "model.npz"
@@ -109,7 +113,7 @@ def fold_forecasters(folder: Path | None, folds: int) -> list[Forecaster] | None
 
 def plot_confusions(conditions: dict[str, Any], labels: Sequence[str], path: Path) -> Path:
     """Row-normalised confusion matrix of each condition, one PNG."""
-    import matplotlib
+    import matplotlib  # heavy, and only the report's figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -133,8 +137,6 @@ def _loop(protocol: dict[str, Any], clips: Sequence[Any], forecasters: list[Fore
     """Step 2 of ``train``: the loop on held-out avatar clips with the shipped windows
     (:data:`LOOP_WINDOWS`) and with the thesis's 1 s alone, each with and without the
     forecast stage; ``readings`` are the shipped windows' (for the shipped threshold)."""
-    from simenv.perception.protocol import avatar_clips, cross_fitted_outcomes, stream_readings
-
     avatars, skipped = avatar_clips(clips, progress=progress)
     readings = []
     for k, model in enumerate(protocol["models"]):
@@ -158,8 +160,6 @@ def _loop(protocol: dict[str, Any], clips: Sequence[Any], forecasters: list[Fore
 def run_train(config: RecognitionConfig, out: Path, *, data: Path,
               forecasters_dir: Path | None, progress: bool = True) -> dict[str, Any]:
     """``train`` (module docstring); writes into ``out`` and returns the metrics."""
-    from simenv.perception.protocol import choose_threshold
-
     start = time.process_time()
     report = LoadReport()
     clips = load_gesture_clips(data, idle=True, report=report)
@@ -285,9 +285,6 @@ def run_eval(paths: Sequence[str], *, checkpoint: str | None = None,
              model_name: str = MODEL_NAME, predictor: str | None = FORECASTER
              ) -> dict[str, Any]:
     """``eval`` (module docstring): scores of each condition on the clips of ``paths``."""
-    import simenv.models
-    from simenv.models.skeleton_tcn import SkeletonTCN
-
     model = SkeletonTCN.load(checkpoint) if checkpoint else simenv.models.load(model_name)
     report = LoadReport()
     clips = load_labelled(paths, report=report)

@@ -21,10 +21,14 @@ from typing import Any
 
 import numpy as np
 
+from simenv.body.retarget import retarget
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
 from simenv.io.gltf import body_poses, write_gltf
 from simenv.io.loader import load_one
+from simenv.room.room import Room
+from simenv.room.scenario import load_scenario
+from simenv.room.session import PERCEPTION_FPS
 
 
 def export_result(result: Any, path: str | os.PathLike[str], *, stride: int = 1) -> Path:
@@ -54,17 +58,11 @@ def export_room(scenario: Any, path: str | os.PathLike[str], motion: Motion | No
         motion: the user's motion, or None for the static room in its initial state.
         stride: keep every ``stride``-th frame of the retargeted motion.
     """
-    from simenv.room.room import Room
-    from simenv.room.scenario import load_scenario
-
     scenario = scenario if not isinstance(scenario, (str, os.PathLike)) \
         else load_scenario(scenario)
     if motion is None:
         room = Room(scenario)
         return write_gltf(room.model, path, data=room.make_data(), name=scenario.name)
-    from simenv.body.retarget import retarget
-    from simenv.room.session import PERCEPTION_FPS
-
     clip = motion.resample(PERCEPTION_FPS) if motion.fps != PERCEPTION_FPS else motion
     result = retarget(clip)
     room = Room(scenario, user=result.humanoid.dims)
@@ -94,8 +92,6 @@ def export(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str],
         return export_room(scenario, out, stride=stride)
     clip = load_one(paths)
     if scenario is None:
-        from simenv.body.retarget import retarget
-
         return export_result(retarget(clip), out, stride=stride)
     if isinstance(clip, Interaction):
         raise SimenvError("the room has one user: give a single-person motion with "

@@ -53,6 +53,7 @@ from simenv.body.retarget import RetargetResult, retarget
 from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
+from simenv.io import utkinect
 from simenv.io.loader import load
 from simenv.room.room import Room, place_on_floor
 from simenv.room.scenario import Scenario, load_scenario
@@ -163,8 +164,6 @@ class Session:
                 "(or pass data= / --data) to the folder holding the corpus (its SOURCES.md)",
                 source=path, field="session.source")
         if fmt == "utkinect":
-            from simenv.io import utkinect
-
             motion = utkinect.read(file, labels=False, fps=fps)
         else:
             motion = load(file)
