@@ -41,7 +41,7 @@ from rich.table import Table
 from tqdm import tqdm
 
 from simenv.body.humanoid import Humanoid, fit_humanoid
-from simenv.body.retarget import RetargetOptions, _initial_guess, _Problem, retarget_motion
+from simenv.body.retarget import RetargetOptions, retarget_motion
 from simenv.io import bvh
 
 DEFAULT_CLIP = Path(__file__).resolve().parents[1].parent / "shared/data/cmu/bvh/02_01.bvh"
@@ -103,10 +103,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     ours = min(runs, key=lambda r: r.seconds)
     res_ours = site_residuals(h, ours.qpos, targets, names)
 
-    prob = _Problem(h)
-    tg = {k: targets[:, i] for i, k in enumerate(names)}
-    rp, rr, th = (a[:1] for a in _initial_guess(prob, {k: v[:1] for k, v in tg.items()}, 1))
-    q0 = prob.tree.join_qpos(rp, rr, th)[0]
+    # Frame 0's analytic initial guess: the solver with no iterations and no floor stage.
+    q0 = retarget_motion(motion.slice(0, 1), h,
+                         RetargetOptions(iterations=0, floor=False)).qpos[0]
     T = len(targets)
     fps_ours = T / ours.seconds
     summary: dict[str, float | int | str] = {

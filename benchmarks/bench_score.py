@@ -19,6 +19,10 @@
    ``mujoco.mj_step`` loop on the same model from the same state, in the
    same run, as a ratio (goal: 0.5). Both the whole ``track`` call and its
    stepping loop alone are reported.
+3. The whole scorer: wall and CPU seconds of one :func:`simenv.score` call
+   on the bundled walk (load excluded): physics off, physics without the
+   tracking run, and the default (retargeting, every body metric, MPC
+   tracking with the assisted PD run as a detail).
 
 Every timing is the best of a few repeats (the machine may be shared); the
 load average is printed for context, and the kinematic rates are also given
@@ -31,12 +35,13 @@ to 1 before anything is imported.
 Usage::
 
     .venv/bin/python benchmarks/bench_score.py [--data DIR] [--window-s 2] [--repeats 5]
-        [--kinematic-only] [--baseline DIR [--rounds 3]]
+        [--kinematic-only | --scorer-only] [--baseline DIR [--rounds 3]]
 
 ``--baseline DIR`` compares before and after in the same run: DIR holds an
 older ``simenv`` package (``git archive REV simenv | tar -x -C DIR``); the
-two trees' kinematic cases are timed in fresh processes that alternate for
-``--rounds`` rounds, best per case.
+two trees' kinematic cases (unless ``--scorer-only``) and scorer cases
+(unless ``--kinematic-only``) are timed in fresh processes that alternate
+for ``--rounds`` rounds, best per case.
 """
 
 from __future__ import annotations
@@ -58,6 +63,7 @@ from pathlib import Path  # noqa: E402
 
 import mujoco  # noqa: E402
 
+import simenv  # noqa: E402
 from simenv.assets import WALK, asset_path  # noqa: E402
 from simenv.body.retarget import RetargetResult, retarget  # noqa: E402
 from simenv.core.motion import Motion  # noqa: E402
@@ -199,11 +205,12 @@ def bench_kinematic(clips: list[Motion], walk: Motion, window_s: float, repeats:
               f"  {_rates(case)}")
 
 
-def compare_kinematic(baseline: Path, args: argparse.Namespace) -> None:
-    """This tree's kinematic rates against those of the ``simenv`` package in
-    ``baseline`` (e.g. ``git archive REV simenv | tar -x -C DIR``), each
-    timed in a fresh process, the two alternating for ``args.rounds``
-    rounds (best per case), so that both see the same machine load."""
+def alternating(baseline: Path, args: argparse.Namespace, part: str) -> dict[str, list[dict]]:
+    """The cases of ``part`` (``kinematic`` or ``scorer``) of this tree and of the
+    ``simenv`` package in ``baseline`` (e.g. ``git archive REV simenv | tar -x -C
+    DIR``), each timed in a fresh process, the two alternating for
+    ``args.rounds`` rounds so that both see the same machine load: per tree,
+    the best of every timing key of each case."""
     if not (baseline / "simenv" / "__init__.py").is_file():
         raise SystemExit(f"--baseline {baseline}: expected a directory holding simenv/")
     best: dict[str, list[dict]] = {}
@@ -212,7 +219,7 @@ def compare_kinematic(baseline: Path, args: argparse.Namespace) -> None:
             env = dict(os.environ, PYTHONPATH=os.pathsep.join(
                 [str(root), os.environ.get("PYTHONPATH", "")]))
             out = subprocess.run(
-                [sys.executable, __file__, "--kinematic-json", "--data", str(args.data),
+                [sys.executable, __file__, f"--{part}-json", "--data", str(args.data),
                  "--window-s", str(args.window_s), "--repeats", str(args.repeats)],
                 env=env, check=True, capture_output=True, text=True).stdout
             cases = json.loads(out.splitlines()[-1])
@@ -220,7 +227,14 @@ def compare_kinematic(baseline: Path, args: argparse.Namespace) -> None:
                 best[name] = cases
             for old, new in zip(best[name], cases, strict=True):
                 for key in ("wall", "cpu", "cpu_call"):
-                    old[key] = min(old[key], new[key])
+                    if key in old:
+                        old[key] = min(old[key], new[key])
+    return best
+
+
+def compare_kinematic(baseline: Path, args: argparse.Namespace) -> None:
+    """This tree's kinematic rates against those of ``baseline`` (:func:`alternating`)."""
+    best = alternating(baseline, args, "kinematic")
     print(f"{_HEADER}; best of {args.rounds} alternating rounds, load average now "
           f"{os.getloadavg()[0]:.1f}; baseline: {baseline}")
     for base, cur in zip(best["baseline"], best["current"], strict=True):
@@ -268,26 +282,94 @@ def bench_tracking(walk: Motion, repeats: int) -> None:
               f" ratio {loop / raw:.2f}  (goal {GOAL_RATIO})")
 
 
+#: The scorer's cases on the bundled walk: label, physics, ScoreConfig keywords.
+SCORER_CASES: tuple[tuple[str, bool, dict], ...] = (
+    ("physics off", False, {}),
+    ("physics, no tracking run", True, {"tracking": False}),
+    ("default (MPC + assisted PD)", True, {}),
+)
+
+
+def time_scorer(walk: Motion, repeats: int) -> list[dict]:
+    """Least wall and CPU seconds of one :func:`simenv.score` call on ``walk``
+    per case of :data:`SCORER_CASES` over ``repeats`` calls (one for a case
+    that runs the tracking simulation: a minute of CPU), after a warm-up
+    (the kernels' cache and the retargeting's first call)."""
+    simenv.score(walk.slice(0, 30), config=simenv.ScoreConfig(tracking=False))
+    out = []
+    for label, physics, options in SCORER_CASES:
+        config = simenv.ScoreConfig(**options)
+        wall = cpu = float("inf")
+        simulates = physics and config.tracking
+        for _ in range(1 if simulates else repeats):
+            w, c = time.perf_counter(), time.process_time()
+            simenv.score(walk, physics=physics, config=config)
+            wall = min(wall, time.perf_counter() - w)
+            cpu = min(cpu, time.process_time() - c)
+        out.append({"label": label, "frames": walk.num_frames, "wall": wall, "cpu": cpu})
+    return out
+
+
+_SCORER_HEADER = "whole scorer, simenv.score on the bundled walk"
+
+
+def _scorer_line(case: dict) -> str:
+    return f"wall {case['wall']:8.3f} s | CPU {case['cpu']:8.3f} s"
+
+
+def bench_scorer(walk: Motion, repeats: int) -> None:
+    print(f"{_SCORER_HEADER} ({walk.num_frames} frames)")
+    for case in time_scorer(walk, repeats):
+        print(f"  {case['label']:28s} {_scorer_line(case)}")
+
+
+def compare_scorer(baseline: Path, args: argparse.Namespace) -> None:
+    """This tree's scorer times against those of ``baseline`` (:func:`alternating`)."""
+    best = alternating(baseline, args, "scorer")
+    print(f"{_SCORER_HEADER}; best of {args.rounds} alternating rounds, load average now "
+          f"{os.getloadavg()[0]:.1f}; baseline: {baseline}")
+    for base, cur in zip(best["baseline"], best["current"], strict=True):
+        print(f"  {cur['label']:28s} ({cur['frames']} frames)")
+        print(f"    baseline {_scorer_line(base)}")
+        print(f"    current  {_scorer_line(cur)}")
+        print(f"    speed-up wall {base['wall'] / cur['wall']:.2f} x, "
+              f"CPU {base['cpu'] / cur['cpu']:.2f} x")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
     parser.add_argument("--window-s", type=float, default=2.0,
                         help="length of the batched windows, seconds")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--kinematic-only", action="store_true",
-                        help="skip the compile-time and physics-tracking parts")
+    parts = parser.add_mutually_exclusive_group()
+    parts.add_argument("--kinematic-only", action="store_true",
+                       help="skip the compile-time, physics-tracking and scorer parts")
+    parts.add_argument("--scorer-only", action="store_true",
+                       help="time the whole scorer only")
     parser.add_argument("--baseline", type=Path,
-                        help="also time the kinematic metrics of the simenv package in this "
-                             "directory (an older revision), alternating with this tree's")
+                        help="also time the kinematic metrics and the scorer of the simenv "
+                             "package in this directory (an older revision), alternating "
+                             "with this tree's")
     parser.add_argument("--rounds", type=int, default=3,
                         help="alternating rounds of --baseline")
     parser.add_argument("--kinematic-json", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--scorer-json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if "torch" in sys.modules:
-        import torch
+        import torch  # only to limit its threads when something already loaded it
 
         torch.set_num_threads(1)
     walk = bvh.read(asset_path(WALK))
+    if args.scorer_json:
+        print(json.dumps(time_scorer(walk, args.repeats)))
+        return
+    if args.scorer_only:
+        if args.baseline is not None:
+            compare_scorer(args.baseline, args)
+        else:
+            bench_scorer(walk, args.repeats)
+        return
     clips = [bvh.read(p) for p in sorted((args.data / "cmu" / "bvh").glob("*.bvh"))]
     clips = [c for c in clips if c.num_joints == 31 and c.fps == walk.fps] or [walk]
     if args.kinematic_json:
@@ -303,6 +385,10 @@ def main() -> None:
         bench_kinematic(clips, walk, args.window_s, args.repeats)
     if not args.kinematic_only:
         bench_tracking(walk, args.repeats)
+        if args.baseline is not None:
+            compare_scorer(args.baseline, args)
+        else:
+            bench_scorer(walk, args.repeats)
 
 
 if __name__ == "__main__":

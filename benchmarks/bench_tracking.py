@@ -108,7 +108,7 @@ def rollout_seconds(model: mujoco.MjModel, x0: np.ndarray, controls: np.ndarray,
 def mjx_seconds(model: mujoco.MjModel, x0: np.ndarray, controls: np.ndarray,
                 repeats: int) -> tuple[float, float] | str:
     """(seconds per batched rollout, compile seconds) with MJX on the CPU, or why not."""
-    try:
+    try:  # optional: MJX (and jax) are not among simenv's dependencies
         import jax
         from mujoco import mjx
     except ImportError as exc:

@@ -28,6 +28,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
+import simenv
+from simenv.agents.gait import play, standing_agent
+from simenv.agents.walk import plan_walk
+from simenv.assets import WALK, asset_path
+from simenv.envs.rehearsal import rehearse
+from simenv.room.room import Room
+from simenv.room.session import GestureEvent, Session
+
 BEGIN = "<!-- walking:begin (benchmarks/bench_walk.py) -->"
 END = "<!-- walking:end -->"
 OPEN = np.array([-0.4, 0.3])
@@ -36,18 +44,13 @@ TIMESTEP_S = 0.002
 NORTH = np.pi / 2
 
 
-def _standing_in_the_open() -> tuple[Any, mujoco.MjData]:
-    from simenv.agents.gait import standing_agent
-    from simenv.room.room import Room
-
+def _standing_in_the_open() -> tuple[Room, mujoco.MjData]:
     room = Room("discomfort")
     return room, standing_agent(room, OPEN, NORTH)
 
 
-def _play(room: Any, data: mujoco.MjData, plan: Any) -> float:
+def _play(room: Room, data: mujoco.MjData, plan: Any) -> float:
     """Play ``plan``; wall seconds."""
-    from simenv.agents.gait import play
-
     t0 = time.perf_counter()
     play(room, data, plan)
     return time.perf_counter() - t0
@@ -55,8 +58,6 @@ def _play(room: Any, data: mujoco.MjData, plan: Any) -> float:
 
 def open_floor() -> list[dict[str, Any]]:
     """The open-floor walks (module docstring)."""
-    from simenv.agents.walk import plan_walk
-
     rows = []
     for name, goal, yaw, start in (("straight 0.4 m", OPEN + [0.0, 0.4], NORTH, None),
                                    ("straight 1.2 m", OPEN + [0.0, 1.2], NORTH, None),
@@ -74,11 +75,6 @@ def open_floor() -> list[dict[str, Any]]:
 
 def chains(out: Path) -> list[dict[str, Any]]:
     """The ``cold`` and ``bright`` rehearsals (module docstring)."""
-    import simenv
-    from simenv.assets import WALK, asset_path
-    from simenv.envs.rehearsal import rehearse
-    from simenv.room.session import GestureEvent, Session
-
     short = simenv.load(asset_path(WALK)).slice(0, 60)
     rows = []
     for label in ("cold", "bright"):

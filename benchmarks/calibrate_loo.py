@@ -68,15 +68,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from calibrate_residual import table as residual_table
+from calibrate_score import summarise
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
+from simenv.io.loader import load
 from simenv.plausibility.batch import ScoreJob, done_files, find_targets, score_batch
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.plausibility.corrupt import CORRUPTIONS
 from simenv.plausibility.metric import ScoreConfig
 from simenv.plausibility.metric_registry import PERSON_METRICS
 from simenv.plausibility.report import score
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -205,8 +210,6 @@ def corruption_inputs(data: Path, depth_every: int, only: str | None = None
     """``(file, clip index, motion)`` of the clips the corruptions are applied to:
     every single-person CMU clip and every ``depth_every``-th depth-camera clip
     (in file order, over the clips of each source); ``only``: one source."""
-    from simenv.io.loader import load
-
     counter: Counter[str] = Counter()
     for target in real_targets(data):
         src = source_of(str(target), data)
@@ -478,9 +481,6 @@ def threshold_fields(thr: dict[str, float], prior: dict[str, float], keypoints: 
     (threshold 1) scale their fields by ``thr / prior``; the others take
     ``thr`` in the field's unit (``floating``: mm -> m). ``keypoints``: the
     source's ground and floating metrics ran on keypoints (no body fitted)."""
-    from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
-    from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
-
     defaults = {"thresholds": DEFAULT_THRESHOLDS, "body": DEFAULT_BODY_THRESHOLDS}
     out: dict[str, dict[str, float]] = {"thresholds": {}, "body": {}}
     table = {**FIELDS, **KEYPOINT_FIELDS} if keypoints else FIELDS
@@ -562,8 +562,6 @@ def main() -> None:
     if "corrupt" in args.stages:
         run_corruptions(args.data, corrupt_path, args.depth_every, args.only)
     if "report" in args.stages:
-        from calibrate_score import summarise
-
         # Keyed by person, so a target scored by two runs counts once.
         real_all = list({(r["file"], r.get("clip", 0), r.get("person", 0)): r
                          for p in sorted(args.out.glob("real*.jsonl"))
@@ -574,8 +572,6 @@ def main() -> None:
         text = markdown(real, corrupt, th, args.data)
         residual = _read_jsonl(args.out / "residual.jsonl")
         if residual:
-            from calibrate_residual import table as residual_table
-
             text += RESIDUAL_HEAD + residual_table(residual) + "\n"
         text += "\n" + summarise(real_all, args.data).replace(
             "# Calibration of the plausibility scorer on real motion capture",

@@ -125,7 +125,7 @@ def summarise(records: list[dict], data: Path) -> str:
 
 def plot(records: list[dict], data: Path, path: Path) -> None:
     """Per metric, value / threshold of every person, one colour per corpus."""
-    import matplotlib
+    import matplotlib  # heavy, and only the figure needs it
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
