@@ -122,114 +122,132 @@ def parse_asf(path: Path) -> Asf:
             keywords in a bone, non-numeric values, duplicate bones, bones
             missing from or repeated in the hierarchy.
     """
-    path = Path(path)
-    lines = split_lines(read_text(path))
-    section = None
-    length_unit, angle_unit = 1.0, "deg"
-    root = Bone("root", np.zeros(3), 0.0, np.zeros(3), "XYZ", line=1)
-    root_order: list[str] = []
-    root_position = np.zeros(3)
-    bones: dict[str, Bone] = {}
-    current: dict[str, Any] | None = None
-    hierarchy: list[tuple[str, list[str], int]] = []
-    seen_sections: set[str] = set()
-    for i, raw in enumerate(lines):
-        ln = i + 1
-        toks = raw.split()
-        if not toks or toks[0].startswith("#"):
-            continue
-        key = toks[0].lower()
-        if key.startswith(":"):
-            section = key
-            seen_sections.add(key)
-            if key in (
-                ":version",
-                ":name",
-                ":documentation",
-                ":units",
-                ":root",
-                ":bonedata",
-                ":hierarchy",
-                ":skin",
-            ):
+    return _AsfParser(Path(path)).parse()
+
+
+#: The sections of an ASF file.
+_ASF_SECTIONS = (":version", ":name", ":documentation", ":units", ":root", ":bonedata",
+                 ":hierarchy", ":skin")
+
+
+class _AsfParser:
+    """Line-by-line parser of an ASF file: the ``:keyword`` lines switch the section, one
+    method reads a line of each section that carries data (units, root, bone data,
+    hierarchy); the others are skipped."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.length_unit, self.angle_unit = 1.0, "deg"
+        self.root = Bone("root", np.zeros(3), 0.0, np.zeros(3), "XYZ", line=1)
+        self.root_order: list[str] = []
+        self.root_position = np.zeros(3)
+        self.bones: dict[str, Bone] = {}
+        self.current: dict[str, Any] | None = None
+        self.hierarchy: list[tuple[str, list[str], int]] = []
+
+    def parse(self) -> Asf:
+        path = self.path
+        section = None
+        seen_sections: set[str] = set()
+        readers = {":units": self.units, ":root": self.root_line,
+                   ":bonedata": self.bonedata, ":hierarchy": self.hierarchy_line}
+        for i, raw in enumerate(split_lines(read_text(path))):
+            ln = i + 1
+            toks = raw.split()
+            if not toks or toks[0].startswith("#"):
                 continue
-            raise FormatError(f"unknown ASF section {toks[0][:40]!r}", source=path, line=ln)
-        if section == ":units":
-            if len(toks) < 2:
-                raise FormatError(f"expected '{toks[0]} <value>'", source=path, line=ln)
-            if key == "length":
-                length_unit = parse_float(toks[1], source=path, line=ln, field="units length")
-                if length_unit <= 0:
-                    raise FormatError(
-                        "units length must be positive", source=path, line=ln, field="units length"
-                    )
-            elif key == "angle":
-                angle_unit = toks[1].lower()[:3]
-                if angle_unit not in ("deg", "rad"):
-                    raise FormatError(
-                        f"expected angle deg or rad, found {toks[1][:40]!r}",
-                        source=path,
-                        line=ln,
-                        field="units angle",
-                    )
-        elif section == ":root":
-            if key == "order":
-                root_order = [t.lower() for t in toks[1:]]
-                bad = [t for t in root_order if t not in _DOFS]
-                if bad or len(set(root_order)) != len(root_order):
-                    raise FormatError(
-                        f"root order must list distinct TX TY TZ RX RY RZ, found "
-                        f"{' '.join(toks[1:])[:60]!r}",
-                        source=path,
-                        line=ln,
-                    )
-            elif key == "axis":
-                root.axis_order = _axis_order(toks[1:2], path, ln)
-            elif key == "position":
-                root_position = _floats(toks[1:], 3, path, ln, "root position")
-            elif key == "orientation":
-                root.axis = _floats(toks[1:], 3, path, ln, "root orientation")
-        elif section == ":bonedata":
-            if key == "begin":
-                if current is not None:
-                    raise FormatError(
-                        "'begin' inside a bone block; missing 'end'", source=path, line=ln
-                    )
-                current = {"line": ln}
-            elif key == "end":
-                if current is None:
-                    raise FormatError("'end' without 'begin'", source=path, line=ln)
-                bone = _make_bone(current, path)
-                if bone.name in bones or bone.name == "root":
-                    raise FormatError(
-                        f"duplicate bone name {bone.name!r}; names must be unique",
-                        source=path,
-                        line=current["line"],
-                        field=bone.name,
-                    )
-                bones[bone.name] = bone
-                current = None
-            elif current is None:
+            key = toks[0].lower()
+            if key.startswith(":"):
+                section = key
+                seen_sections.add(key)
+                if key not in _ASF_SECTIONS:
+                    raise FormatError(f"unknown ASF section {toks[0][:40]!r}", source=path,
+                                      line=ln)
+            elif section in readers:
+                readers[section](key, toks, ln)
+        if self.current is not None:
+            raise FormatError("bone block not closed by 'end' (truncated file?)", source=path,
+                              line=self.current["line"])
+        for needed in (":bonedata", ":hierarchy"):
+            if needed not in seen_sections:
+                raise FormatError(f"no {needed} section; expected an ASF skeleton file",
+                                  source=path)
+        self.root.dofs = self.root_order or ["tx", "ty", "tz", "rx", "ry", "rz"]
+        bones = {"root": self.root, **self.bones}
+        order, parents = _topological(bones, self.hierarchy, path)
+        return Asf(bones, order, parents, self.length_unit, self.angle_unit,
+                   self.root_position, path)
+
+    def units(self, key: str, toks: list[str], ln: int) -> None:
+        path = self.path
+        if len(toks) < 2:
+            raise FormatError(f"expected '{toks[0]} <value>'", source=path, line=ln)
+        if key == "length":
+            self.length_unit = parse_float(toks[1], source=path, line=ln, field="units length")
+            if self.length_unit <= 0:
                 raise FormatError(
-                    f"{toks[0][:40]!r} outside a begin/end bone block", source=path, line=ln
+                    "units length must be positive", source=path, line=ln, field="units length"
                 )
-            else:
-                _bone_field(current, key, toks, path, ln)
-        elif section == ":hierarchy":
-            if key in ("begin", "end"):
-                continue
-            hierarchy.append((toks[0], toks[1:], ln))
-    if current is not None:
-        raise FormatError(
-            "bone block not closed by 'end' (truncated file?)", source=path, line=current["line"]
-        )
-    for needed in (":bonedata", ":hierarchy"):
-        if needed not in seen_sections:
-            raise FormatError(f"no {needed} section; expected an ASF skeleton file", source=path)
-    root.dofs = root_order or ["tx", "ty", "tz", "rx", "ry", "rz"]
-    bones = {"root": root, **bones}
-    order, parents = _topological(bones, hierarchy, path)
-    return Asf(bones, order, parents, length_unit, angle_unit, root_position, path)
+        elif key == "angle":
+            self.angle_unit = toks[1].lower()[:3]
+            if self.angle_unit not in ("deg", "rad"):
+                raise FormatError(
+                    f"expected angle deg or rad, found {toks[1][:40]!r}",
+                    source=path,
+                    line=ln,
+                    field="units angle",
+                )
+
+    def root_line(self, key: str, toks: list[str], ln: int) -> None:
+        path = self.path
+        if key == "order":
+            self.root_order = [t.lower() for t in toks[1:]]
+            bad = [t for t in self.root_order if t not in _DOFS]
+            if bad or len(set(self.root_order)) != len(self.root_order):
+                raise FormatError(
+                    f"root order must list distinct TX TY TZ RX RY RZ, found "
+                    f"{' '.join(toks[1:])[:60]!r}",
+                    source=path,
+                    line=ln,
+                )
+        elif key == "axis":
+            self.root.axis_order = _axis_order(toks[1:2], path, ln)
+        elif key == "position":
+            self.root_position = _floats(toks[1:], 3, path, ln, "root position")
+        elif key == "orientation":
+            self.root.axis = _floats(toks[1:], 3, path, ln, "root orientation")
+
+    def bonedata(self, key: str, toks: list[str], ln: int) -> None:
+        path = self.path
+        if key == "begin":
+            if self.current is not None:
+                raise FormatError(
+                    "'begin' inside a bone block; missing 'end'", source=path, line=ln
+                )
+            self.current = {"line": ln}
+        elif key == "end":
+            if self.current is None:
+                raise FormatError("'end' without 'begin'", source=path, line=ln)
+            bone = _make_bone(self.current, path)
+            if bone.name in self.bones or bone.name == "root":
+                raise FormatError(
+                    f"duplicate bone name {bone.name!r}; names must be unique",
+                    source=path,
+                    line=self.current["line"],
+                    field=bone.name,
+                )
+            self.bones[bone.name] = bone
+            self.current = None
+        elif self.current is None:
+            raise FormatError(
+                f"{toks[0][:40]!r} outside a begin/end bone block", source=path, line=ln
+            )
+        else:
+            _bone_field(self.current, key, toks, path, ln)
+
+    def hierarchy_line(self, key: str, toks: list[str], ln: int) -> None:
+        if key not in ("begin", "end"):
+            self.hierarchy.append((toks[0], toks[1:], ln))
 
 
 def _floats(toks: list[str], n: int, path: Path, line: int, what: str) -> np.ndarray:
@@ -371,106 +389,110 @@ def parse_amc(path: Path, asf: Asf) -> tuple[np.ndarray, list[str], bool]:
         FormatError: non-contiguous frame numbers, unknown bones, wrong DOF
             counts, bones missing from a frame, non-numeric values, no frames.
     """
-    path = Path(path)
-    lines = split_lines(read_text(path))
-    dof_bones = [b for b in asf.order if asf.bones[b].dofs]
-    expected = {b: len(asf.bones[b].dofs) for b in dof_bones}
-    tokens: dict[str, list[list[str]]] = {b: [] for b in dof_bones}
-    lines_of: dict[str, list[int]] = {b: [] for b in dof_bones}
-    degrees = asf.angle_unit == "deg"
-    frame_no: int | None = None
-    frame_line = 0
-    in_frame: set[str] = set()
-    n_frames = 0
+    return _AmcParser(Path(path), asf).parse()
 
-    def close_frame() -> None:
-        if frame_no is not None and len(in_frame) != len(dof_bones):
-            missing = [b for b in dof_bones if b not in in_frame]
+
+class _AmcParser:
+    """Line-by-line parser of an AMC file against its skeleton: header keywords, then
+    frames (a frame number, then one line per bone with DOFs); the value tokens are
+    collected per bone and parsed to floats at the end."""
+
+    def __init__(self, path: Path, asf: Asf) -> None:
+        self.path, self.asf = path, asf
+        self.dof_bones = [b for b in asf.order if asf.bones[b].dofs]
+        self.expected = {b: len(asf.bones[b].dofs) for b in self.dof_bones}
+        self.tokens: dict[str, list[list[str]]] = {b: [] for b in self.dof_bones}
+        self.lines_of: dict[str, list[int]] = {b: [] for b in self.dof_bones}
+        self.degrees = asf.angle_unit == "deg"
+        self.frame_no: int | None = None
+        self.frame_line = 0
+        self.in_frame: set[str] = set()
+        self.n_frames = 0
+
+    def parse(self) -> tuple[np.ndarray, list[str], bool]:
+        path = self.path
+        for i, raw in enumerate(split_lines(read_text(path))):
+            ln = i + 1
+            toks = raw.split()
+            if not toks or toks[0].startswith("#"):
+                continue
+            if toks[0].startswith(":"):
+                self.keyword(toks[0], ln)
+            elif len(toks) == 1 and toks[0].isdecimal():
+                self.frame(int(toks[0]), ln)
+            else:
+                self.bone(toks, ln)
+        if self.n_frames == 0:
+            raise FormatError("AMC file has no frames; expected at least 1", source=path)
+        self.close_frame()
+        cols = []
+        labels = []
+        for b in self.dof_bones:
+            names = [f"{b}.{d}" for d in self.asf.bones[b].dofs]
+            cols.append(parse_float_rows(self.tokens[b], source=path, lines=self.lines_of[b],
+                                         field_names=names))
+            labels += names
+        values = np.concatenate(cols, axis=1) if cols else np.zeros((self.n_frames, 0))
+        return values, labels, self.degrees
+
+    def keyword(self, tok: str, ln: int) -> None:
+        if self.n_frames:
+            raise FormatError(f"keyword {tok[:40]!r} after motion data", source=self.path,
+                              line=ln)
+        key = tok.upper()
+        if key == ":DEGREES":
+            self.degrees = True
+        elif key == ":RADIANS":
+            self.degrees = False
+
+    def close_frame(self) -> None:
+        if self.frame_no is not None and len(self.in_frame) != len(self.dof_bones):
+            missing = [b for b in self.dof_bones if b not in self.in_frame]
             raise FormatError(
-                f"frame {frame_no} lacks bone(s) {', '.join(missing[:5])}; every "
+                f"frame {self.frame_no} lacks bone(s) {', '.join(missing[:5])}; every "
                 "frame must list every bone that has DOFs",
-                source=path,
-                line=frame_line,
-                frame=n_frames - 1,
+                source=self.path,
+                line=self.frame_line,
+                frame=self.n_frames - 1,
                 field=missing[0],
             )
 
-    for i, raw in enumerate(lines):
-        ln = i + 1
-        toks = raw.split()
-        if not toks or toks[0].startswith("#"):
-            continue
-        if toks[0].startswith(":"):
-            key = toks[0].upper()
-            if n_frames:
-                raise FormatError(
-                    f"keyword {toks[0][:40]!r} after motion data", source=path, line=ln
-                )
-            if key == ":DEGREES":
-                degrees = True
-            elif key == ":RADIANS":
-                degrees = False
-            continue
-        if len(toks) == 1 and toks[0].isdecimal():
-            close_frame()
-            num = int(toks[0])
-            if frame_no is not None and num != frame_no + 1:
-                raise FormatError(
-                    f"frame number {num} follows {frame_no}; expected "
-                    f"{frame_no + 1} (frame numbers must be contiguous)",
-                    source=path,
-                    line=ln,
-                    frame=n_frames,
-                )
-            frame_no, frame_line = num, ln
-            in_frame = set()
-            n_frames += 1
-            continue
-        if frame_no is None:
+    def frame(self, num: int, ln: int) -> None:
+        self.close_frame()
+        if self.frame_no is not None and num != self.frame_no + 1:
+            raise FormatError(
+                f"frame number {num} follows {self.frame_no}; expected "
+                f"{self.frame_no + 1} (frame numbers must be contiguous)",
+                source=self.path,
+                line=ln,
+                frame=self.n_frames,
+            )
+        self.frame_no, self.frame_line = num, ln
+        self.in_frame = set()
+        self.n_frames += 1
+
+    def bone(self, toks: list[str], ln: int) -> None:
+        path, frame = self.path, self.n_frames - 1
+        if self.frame_no is None:
             raise FormatError(
                 f"expected a frame number before {toks[0][:40]!r}", source=path, line=ln
             )
         bone = toks[0]
-        if bone not in expected:
-            known = "has no DOFs" if bone in asf.bones else "is not in the ASF"
+        if bone not in self.expected:
+            known = "has no DOFs" if bone in self.asf.bones else "is not in the ASF"
+            raise FormatError(f"bone {bone[:40]!r} {known}", source=path, line=ln, frame=frame,
+                              field=bone[:40])
+        if bone in self.in_frame:
+            raise FormatError(f"bone {bone!r} listed twice in frame {self.frame_no}",
+                              source=path, line=ln, frame=frame, field=bone)
+        if len(toks) - 1 != self.expected[bone]:
             raise FormatError(
-                f"bone {bone[:40]!r} {known}",
-                source=path,
-                line=ln,
-                frame=n_frames - 1,
-                field=bone[:40],
-            )
-        if bone in in_frame:
-            raise FormatError(
-                f"bone {bone!r} listed twice in frame {frame_no}",
-                source=path,
-                line=ln,
-                frame=n_frames - 1,
-                field=bone,
-            )
-        if len(toks) - 1 != expected[bone]:
-            raise FormatError(
-                f"expected {expected[bone]} values for {bone} "
-                f"({' '.join(asf.bones[bone].dofs)}), found {len(toks) - 1}",
-                source=path,
-                line=ln,
-                frame=n_frames - 1,
-                field=bone,
-            )
-        in_frame.add(bone)
-        tokens[bone].append(toks[1:])
-        lines_of[bone].append(ln)
-    if n_frames == 0:
-        raise FormatError("AMC file has no frames; expected at least 1", source=path)
-    close_frame()
-    cols = []
-    labels = []
-    for b in dof_bones:
-        names = [f"{b}.{d}" for d in asf.bones[b].dofs]
-        cols.append(parse_float_rows(tokens[b], source=path, lines=lines_of[b], field_names=names))
-        labels += names
-    values = np.concatenate(cols, axis=1) if cols else np.zeros((n_frames, 0))
-    return values, labels, degrees
+                f"expected {self.expected[bone]} values for {bone} "
+                f"({' '.join(self.asf.bones[bone].dofs)}), found {len(toks) - 1}",
+                source=path, line=ln, frame=frame, field=bone)
+        self.in_frame.add(bone)
+        self.tokens[bone].append(toks[1:])
+        self.lines_of[bone].append(ln)
 
 
 def find_asf(amc: Path) -> Path:
