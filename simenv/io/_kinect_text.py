@@ -3,6 +3,7 @@ UTKinect, SBU, NuiSI, NTU): every bad line is reported with file and line."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +61,20 @@ def head_text(head: bytes) -> list[str]:
     if len(head) >= 4096:
         lines = lines[:-1]
     return [ln for ln in lines if ln.strip()]
+
+
+def sniff_rows(path: Path, head: bytes, *, suffix: str, lines: int, sep: str | None,
+               counts: tuple[int, ...],
+               accept: Callable[[list[str]], bool] | None = None) -> bool:
+    """True when ``path`` ends in ``suffix`` and each of the first ``lines`` complete
+    lines of its ``head`` (at least one) splits (on ``sep``; None: whitespace) into a
+    count in ``counts`` of numbers that ``accept`` (when given) accepts."""
+    if path.suffix.lower() != suffix:
+        return False
+    rows = [ln.split(sep) for ln in head_text(head)[:lines]]
+    return bool(rows) and all(
+        len(t) in counts and all(is_number(v) for v in t) and (accept is None or accept(t))
+        for t in rows)
 
 
 def is_number(token: str) -> bool:

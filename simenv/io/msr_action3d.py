@@ -38,7 +38,7 @@ import numpy as np
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Motion, interpolate_gaps
 from simenv.core.skeletons import kinect_v1_skeleton
-from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
+from simenv.io._kinect_text import check_counts, sniff_rows, table_lines, to_floats
 from simenv.io.camera_frame import world_motion
 
 #: Nominal frame rate of MSR Action3D, frames/s.
@@ -61,12 +61,7 @@ _NAME = re.compile(r"a(\d+)_s(\d+)_e(\d+)", re.IGNORECASE)
 
 def sniff(path: Path, head: bytes) -> bool:
     """A ``.txt`` whose lines hold exactly 4 numbers (``x y z c``)."""
-    if path.suffix.lower() != ".txt":
-        return False
-    lines = head_text(head)[:40]
-    return bool(lines) and all(
-        len(t := ln.split()) == 4 and all(is_number(v) for v in t) for ln in lines
-    )
+    return sniff_rows(path, head, suffix=".txt", lines=40, sep=None, counts=(4,))
 
 
 def labels_from_name(path: Path) -> dict[str, object]:

@@ -55,7 +55,7 @@ import numpy as np
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import Skeleton, nuitrack_skeleton
-from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
+from simenv.io._kinect_text import check_counts, sniff_rows, table_lines, to_floats
 from simenv.io.camera_frame import estimate_floor
 
 NUISI_FPS = 30.0
@@ -69,18 +69,9 @@ _PAIR = re.compile(r"^(?P<stem>.*)_p(?P<who>[12])$", re.IGNORECASE)
 def sniff(path: Path, head: bytes) -> bool:
     """A ``.txt`` of comma-separated lines with 3 or 203 numbers and a third
     value (joint count) of 0 or 25."""
-    if path.suffix.lower() != ".txt":
-        return False
-    lines = head_text(head)[:20]
-    if not lines:
-        return False
-    for ln in lines:
-        t = ln.split(",")
-        if len(t) not in (3, 3 + 8 * N_JOINTS) or not all(is_number(v) for v in t):
-            return False
-        if t[2].strip() not in ("0", str(N_JOINTS)):
-            return False
-    return True
+    return sniff_rows(path, head, suffix=".txt", lines=20, sep=",",
+                      counts=(3, 3 + 8 * N_JOINTS),
+                      accept=lambda t: t[2].strip() in ("0", str(N_JOINTS)))
 
 
 def _parse(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

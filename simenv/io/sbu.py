@@ -36,7 +36,7 @@ import numpy as np
 from simenv.core.errors import FormatError
 from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import sbu_skeleton
-from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
+from simenv.io._kinect_text import check_counts, sniff_rows, table_lines, to_floats
 from simenv.io.camera_frame import estimate_floor
 
 SBU_FPS = 15.0
@@ -50,12 +50,7 @@ SBU_CLASSES: tuple[str, ...] = (
 
 def sniff(path: Path, head: bytes) -> bool:
     """A ``.txt`` of comma-separated rows of 91 numbers (frame + 2 x 15 x 3)."""
-    if path.suffix.lower() != ".txt":
-        return False
-    lines = head_text(head)[:3]
-    return bool(lines) and all(
-        len(t := ln.split(",")) == VALUES_PER_ROW and all(is_number(v) for v in t) for ln in lines
-    )
+    return sniff_rows(path, head, suffix=".txt", lines=3, sep=",", counts=(VALUES_PER_ROW,))
 
 
 def denormalise(norm: np.ndarray) -> np.ndarray:

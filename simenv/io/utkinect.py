@@ -40,7 +40,7 @@ import numpy as np
 from simenv.core.errors import FormatError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import kinect_v1_skeleton
-from simenv.io._kinect_text import check_counts, head_text, is_number, table_lines, to_floats
+from simenv.io._kinect_text import check_counts, sniff_rows, table_lines, to_floats
 from simenv.io._text import read_text, split_lines
 from simenv.io.camera_frame import world_motion
 
@@ -57,18 +57,8 @@ _SESSION = re.compile(r"(s\d+_e\d+)", re.IGNORECASE)
 
 def sniff(path: Path, head: bytes) -> bool:
     """A ``.txt`` whose rows hold 61 numbers, the first an integer frame number."""
-    if path.suffix.lower() != ".txt":
-        return False
-    lines = head_text(head)[:3]
-    if not lines:
-        return False
-    for ln in lines:
-        t = ln.split()
-        if len(t) != VALUES_PER_ROW or not all(is_number(v) for v in t):
-            return False
-        if not float(t[0]).is_integer():
-            return False
-    return True
+    return sniff_rows(path, head, suffix=".txt", lines=3, sep=None, counts=(VALUES_PER_ROW,),
+                      accept=lambda t: float(t[0]).is_integer())
 
 
 def read_labels(path: Path) -> dict[str, list[tuple[str, float, float]]]:
