@@ -605,20 +605,21 @@ def _joints(body: mujoco.MjsBody, part: str, side: str | None, prefix: str,
         actuated.append((j.name, js.kp))
 
 
-def add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
-                pos: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
-    """Add one humanoid (bodies, joints, sites, exclusions, actuators) to ``spec``."""
+def _child(parent: mujoco.MjsBody, name: str, at: Sequence[float]) -> mujoco.MjsBody:
+    """A new body ``name`` in ``parent`` at offset ``at`` (metres, parent frame)."""
+    b = parent.add_body()
+    b.name = name
+    b.pos = list(np.asarray(at, float))
+    return b
+
+
+def _add_trunk(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str, pos: Sequence[float],
+               actuated: list[tuple[str, float]]) -> tuple[mujoco.MjsBody, mujoco.MjsBody]:
+    """Pelvis (free joint) to head; returns ``(pelvis, chest)``, where the legs
+    and the clavicles attach."""
     g = d.girth
-    actuated: list[tuple[str, float]] = []
-    wb = spec.worldbody
-
-    def body(parent: mujoco.MjsBody, name: str, at: Sequence[float]) -> mujoco.MjsBody:
-        b = parent.add_body()
-        b.name = prefix + name
-        b.pos = list(np.asarray(at, float))
-        return b
-
-    pelvis = body(wb, "pelvis", np.asarray(pos, float) + [0, 0, d.hip_height])
+    pelvis = _child(spec.worldbody, prefix + "pelvis",
+                    np.asarray(pos, float) + [0, 0, d.hip_height])
     fj = pelvis.add_freejoint()
     fj.name = prefix + "root"
     _site(pelvis, prefix + "pelvis", (0, 0, 0))
@@ -627,86 +628,98 @@ def add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
     for s in _SIDES:
         _site(pelvis, f"{prefix}{s}_hip", getattr(d, f"{s}_hip_offset"))
 
-    lumbar = body(pelvis, "lumbar", (0, 0, 0))
+    lumbar = _child(pelvis, prefix + "lumbar", (0, 0, 0))
     _joints(lumbar, "lumbar", None, prefix, actuated)
     _capsule(lumbar, (0, 0, 0.03 * g), (0, 0, d.lumbar), 0.09 * g, prefix + "lumbar")
     _site(lumbar, prefix + "spine", (0, 0, d.lumbar))
-    thorax = body(lumbar, "thorax", (0, 0, d.lumbar))
+    thorax = _child(lumbar, prefix + "thorax", (0, 0, d.lumbar))
     _joints(thorax, "thorax", None, prefix, actuated)
     _capsule(thorax, (0, 0, 0), (0, 0, d.thorax), 0.1 * g, prefix + "thorax")
     _site(thorax, prefix + "chest", (0, 0, d.thorax))
-    chest = body(thorax, "chest", (0, 0, d.thorax))
+    chest = _child(thorax, prefix + "chest", (0, 0, d.thorax))
     _joints(chest, "chest", None, prefix, actuated)
     cw = 0.55 * min(d.left_clavicle, d.right_clavicle)
     cz = max(d.clavicle_pivot - 0.07 * g, 0.04 * g)
     _capsule(chest, (0, cw, cz), (0, -cw, cz), 0.11 * g, prefix + "chest")
     _site(chest, prefix + "neck", (0, 0, d.upper_chest))
-    neck = body(chest, "neck", (0, 0, d.upper_chest))
+    neck = _child(chest, prefix + "neck", (0, 0, d.upper_chest))
     _joints(neck, "neck", None, prefix, actuated)
     _capsule(neck, (0, 0, 0), (0, 0, d.neck), 0.045 * g, prefix + "neck", _SKIN)
     _site(neck, prefix + "head", (0, 0, d.neck))
-    head = body(neck, "head", (0, 0, d.neck))
+    head = _child(neck, prefix + "head", (0, 0, d.neck))
     _capsule(head, (0.02 * g, 0, 0.07 * g), (0.02 * g, 0, 0.07 * g), d.head_radius,
              prefix + "head", _SKIN)
+    return pelvis, chest
 
-    for s in _SIDES:
-        sy = 1.0 if s == "left" else -1.0
-        clav = body(chest, f"{s}_clavicle", (0, 0, d.clavicle_pivot))
-        _joints(clav, "clavicle", s, prefix, actuated)
-        cl = getattr(d, f"{s}_clavicle")
-        _capsule(clav, (0, sy * 0.3 * cl, 0), (0, sy * 0.85 * cl, 0), 0.045 * g,
-                 f"{prefix}{s}_clavicle")
-        _site(clav, f"{prefix}{s}_shoulder", _clavicle_dir(s) * cl)
-        ua = body(clav, f"{s}_upper_arm", _clavicle_dir(s) * cl)
-        ua.quat = _arm_quat(s)
-        _joints(ua, "upper_arm", s, prefix, actuated)
-        lu = getattr(d, f"{s}_upper_arm")
-        _capsule(ua, (0, 0, -0.05 * lu), (0, 0, -lu), 0.042 * g, f"{prefix}{s}_upper_arm")
-        _site(ua, f"{prefix}{s}_elbow", (0, 0, -lu))
-        fa = body(ua, f"{s}_forearm", (0, 0, -lu))
-        _joints(fa, "forearm", s, prefix, actuated)
-        lf = getattr(d, f"{s}_forearm")
-        _capsule(fa, (0, 0, 0), (0, 0, -lf), 0.034 * g, f"{prefix}{s}_forearm", _SKIN)
-        _site(fa, f"{prefix}{s}_wrist", (0, 0, -lf))
-        hand = body(fa, f"{s}_hand", (0, 0, -lf))
-        _joints(hand, "hand", s, prefix, actuated)
-        lh = getattr(d, f"{s}_hand")
-        hl_geo = max(lh, 0.09 * d.scale)
-        _box(hand, (0, 0, -0.55 * hl_geo), (0.045 * g, 0.017 * g, 0.55 * hl_geo),
-             f"{prefix}{s}_hand", _SKIN)
-        _site(hand, f"{prefix}{s}_hand", (0, 0, -lh))
 
-        hip = np.asarray(getattr(d, f"{s}_hip_offset"))
-        thigh = body(pelvis, f"{s}_thigh", hip)
-        _joints(thigh, "thigh", s, prefix, actuated)
-        lt = getattr(d, f"{s}_thigh")
-        _capsule(thigh, (0, 0, -0.08 * lt), (0, 0, -lt), 0.066 * g, f"{prefix}{s}_thigh")
-        _site(thigh, f"{prefix}{s}_knee", (0, 0, -lt))
-        shin = body(thigh, f"{s}_shin", (0, 0, -lt))
-        _joints(shin, "shin", s, prefix, actuated)
-        ls = getattr(d, f"{s}_shin")
-        _capsule(shin, (0, 0, -0.02), (0, 0, -ls + 0.04 * g), 0.045 * g, f"{prefix}{s}_shin")
-        _site(shin, f"{prefix}{s}_ankle", (0, 0, -ls))
-        foot = body(shin, f"{s}_foot", (0, 0, -ls))
-        _joints(foot, "foot", s, prefix, actuated)
-        toe = _foot_vector(d, s)
-        sole = -d.ankle_height
-        top = min(0.0, sole + 0.06 * g)
-        half_w = d.foot_width / 2
-        x0, x1 = -d.heel_length, toe[0]
-        _box(foot, ((x0 + x1) / 2, 0, (sole + top) / 2), ((x1 - x0) / 2, half_w, (top - sole) / 2),
-             f"{prefix}{s}_foot")
-        _site(foot, f"{prefix}{s}_toe", toe)
-        toes = body(foot, f"{s}_toes", toe)
-        _joints(toes, "toes", s, prefix, actuated)
-        tsole = -d.toe_height
-        ttop = tsole + 0.025 * g
-        _box(toes, (d.toes_length / 2, 0, (tsole + ttop) / 2),
-             (d.toes_length / 2, half_w, (ttop - tsole) / 2), f"{prefix}{s}_toes")
+def _add_arm(chest: mujoco.MjsBody, d: BodyDimensions, s: str, prefix: str,
+             actuated: list[tuple[str, float]]) -> None:
+    """Clavicle, upper arm, forearm and hand of side ``s``."""
+    g = d.girth
+    p = f"{prefix}{s}_"
+    sy = 1.0 if s == "left" else -1.0
+    clav = _child(chest, p + "clavicle", (0, 0, d.clavicle_pivot))
+    _joints(clav, "clavicle", s, prefix, actuated)
+    cl = getattr(d, f"{s}_clavicle")
+    _capsule(clav, (0, sy * 0.3 * cl, 0), (0, sy * 0.85 * cl, 0), 0.045 * g, p + "clavicle")
+    _site(clav, p + "shoulder", _clavicle_dir(s) * cl)
+    ua = _child(clav, p + "upper_arm", _clavicle_dir(s) * cl)
+    ua.quat = _arm_quat(s)
+    _joints(ua, "upper_arm", s, prefix, actuated)
+    lu = getattr(d, f"{s}_upper_arm")
+    _capsule(ua, (0, 0, -0.05 * lu), (0, 0, -lu), 0.042 * g, p + "upper_arm")
+    _site(ua, p + "elbow", (0, 0, -lu))
+    fa = _child(ua, p + "forearm", (0, 0, -lu))
+    _joints(fa, "forearm", s, prefix, actuated)
+    lf = getattr(d, f"{s}_forearm")
+    _capsule(fa, (0, 0, 0), (0, 0, -lf), 0.034 * g, p + "forearm", _SKIN)
+    _site(fa, p + "wrist", (0, 0, -lf))
+    hand = _child(fa, p + "hand", (0, 0, -lf))
+    _joints(hand, "hand", s, prefix, actuated)
+    lh = getattr(d, f"{s}_hand")
+    hl_geo = max(lh, 0.09 * d.scale)
+    _box(hand, (0, 0, -0.55 * hl_geo), (0.045 * g, 0.017 * g, 0.55 * hl_geo), p + "hand", _SKIN)
+    _site(hand, p + "hand", (0, 0, -lh))
 
-    _exclude_neighbours(spec, prefix)
-    # Actuators in the compiled joint order (depth-first over bodies), so that
-    # ctrl[i] drives the i-th hinge of the person.
+
+def _add_leg(pelvis: mujoco.MjsBody, d: BodyDimensions, s: str, prefix: str,
+             actuated: list[tuple[str, float]]) -> None:
+    """Thigh, shin, foot and toes of side ``s``."""
+    g = d.girth
+    p = f"{prefix}{s}_"
+    thigh = _child(pelvis, p + "thigh", np.asarray(getattr(d, f"{s}_hip_offset")))
+    _joints(thigh, "thigh", s, prefix, actuated)
+    lt = getattr(d, f"{s}_thigh")
+    _capsule(thigh, (0, 0, -0.08 * lt), (0, 0, -lt), 0.066 * g, p + "thigh")
+    _site(thigh, p + "knee", (0, 0, -lt))
+    shin = _child(thigh, p + "shin", (0, 0, -lt))
+    _joints(shin, "shin", s, prefix, actuated)
+    ls = getattr(d, f"{s}_shin")
+    _capsule(shin, (0, 0, -0.02), (0, 0, -ls + 0.04 * g), 0.045 * g, p + "shin")
+    _site(shin, p + "ankle", (0, 0, -ls))
+    foot = _child(shin, p + "foot", (0, 0, -ls))
+    _joints(foot, "foot", s, prefix, actuated)
+    toe = _foot_vector(d, s)
+    sole = -d.ankle_height
+    top = min(0.0, sole + 0.06 * g)
+    half_w = d.foot_width / 2
+    x0, x1 = -d.heel_length, toe[0]
+    _box(foot, ((x0 + x1) / 2, 0, (sole + top) / 2), ((x1 - x0) / 2, half_w, (top - sole) / 2),
+         p + "foot")
+    _site(foot, p + "toe", toe)
+    toes = _child(foot, p + "toes", toe)
+    _joints(toes, "toes", s, prefix, actuated)
+    tsole = -d.toe_height
+    ttop = tsole + 0.025 * g
+    _box(toes, (d.toes_length / 2, 0, (tsole + ttop) / 2),
+         (d.toes_length / 2, half_w, (ttop - tsole) / 2), p + "toes")
+
+
+def _add_actuators(spec: mujoco.MjSpec, pelvis: mujoco.MjsBody,
+                   actuated: list[tuple[str, float]]) -> None:
+    """One position servo per hinge of ``actuated`` (name, kp), in the compiled
+    joint order (depth-first over the bodies below ``pelvis``), so that
+    ctrl[i] drives the i-th hinge of the person."""
     rank: dict[str, int] = {}
 
     def visit(b: mujoco.MjsBody) -> None:
@@ -716,8 +729,7 @@ def add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
 
     visit(pelvis)
     body_of = {j.name: j.parent.name for j in spec.joints}
-    actuated.sort(key=lambda item: rank[body_of[item[0]]])
-    for jname, kp in actuated:
+    for jname, kp in sorted(actuated, key=lambda item: rank[body_of[item[0]]]):
         a = spec.add_actuator()
         a.name = jname
         a.target = jname
@@ -725,6 +737,18 @@ def add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
         a.set_to_position(kp=kp, kv=0.1 * kp, inheritrange=1.0)
         a.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
         a.forcerange = [-2.0 * kp, 2.0 * kp]
+
+
+def add_person(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str,
+               pos: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+    """Add one humanoid (bodies, joints, sites, exclusions, actuators) to ``spec``."""
+    actuated: list[tuple[str, float]] = []
+    pelvis, chest = _add_trunk(spec, d, prefix, pos, actuated)
+    for s in _SIDES:  # arm then leg per side: the order the bodies are added in
+        _add_arm(chest, d, s, prefix, actuated)
+        _add_leg(pelvis, d, s, prefix, actuated)
+    _exclude_neighbours(spec, prefix)
+    _add_actuators(spec, pelvis, actuated)
 
 
 def _exclude_neighbours(spec: mujoco.MjSpec, prefix: str) -> None:
@@ -1022,6 +1046,145 @@ def _foot_heights(motion: Motion, kp: Mapping[str, np.ndarray],
     return float(np.clip(toe_h, 0.6 * toe_default, toe_default + SHOD_TOE_ALLOWANCE)), drop
 
 
+#: Body dimension -> the two keypoints whose median distance measures it.
+_BONE_KEYPOINTS: dict[str, tuple[str, str]] = {
+    "lumbar": ("pelvis", "spine"), "thorax": ("spine", "chest"),
+    "upper_chest": ("chest", "neck"), "neck": ("neck", "head"),
+    **{k: v for s in _SIDES for k, v in {
+        f"{s}_upper_arm": (f"{s}_shoulder", f"{s}_elbow"),
+        f"{s}_forearm": (f"{s}_elbow", f"{s}_wrist"),
+        f"{s}_hand": (f"{s}_wrist", f"{s}_hand"),
+        f"{s}_thigh": (f"{s}_hip", f"{s}_knee"),
+        f"{s}_shin": (f"{s}_knee", f"{s}_ankle"),
+        f"{s}_foot": (f"{s}_ankle", f"{s}_toe")}.items()},
+}
+
+
+def _median_distance(kp: Mapping[str, np.ndarray], a: str, b: str) -> float | None:
+    """Median over frames of the distance between keypoints ``a`` and ``b``
+    (metres), None when either is missing."""
+    if a in kp and b in kp:
+        return float(np.median(np.linalg.norm(kp[a] - kp[b], axis=-1)))
+    return None
+
+
+def _hip_offsets(kp: Mapping[str, np.ndarray]) -> dict[str, tuple[float, float, float]]:
+    """``left_hip_offset`` / ``right_hip_offset``: median hip positions in the
+    pelvis frame, rotated about the hip axis so that the median spine
+    direction is +z (metres)."""
+    R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
+    tilt = 0.0
+    if "spine" in kp:
+        s_loc = np.einsum("tji,tj->ti", R, kp["spine"] - kp["pelvis"])
+        tilt = float(np.arctan2(np.median(s_loc[:, 0]), np.median(s_loc[:, 2])))
+    R = R @ _rot_y(tilt)
+    return {f"{s}_hip_offset": _v(np.median(np.einsum("tji,tj->ti", R,
+                                                       kp[f"{s}_hip"] - kp["pelvis"]), axis=0))
+            for s in _SIDES}
+
+
+def _derive_chest(kp: dict[str, np.ndarray], measured: dict[str, float]) -> bool:
+    """Layouts without a chest keypoint (H36M-like, Kinect, our 18-keypoint
+    two-person layout): split the measured spine->neck distance into thorax
+    and upper chest in the default proportion, and add the chest keypoint
+    there to ``kp``. Scaling both from other bones instead gives a trunk that
+    is too long or short, and the solver then bends the chest joints to their
+    limits to reach the neck and shoulders (60 deg on the CMU walk 02_01).
+    Returns whether the chest was derived."""
+    if "chest" in kp or not {"spine", "neck"} <= kp.keys():
+        return False
+    total = _median_distance(kp, "spine", "neck")
+    part = DEFAULT.thorax / (DEFAULT.thorax + DEFAULT.upper_chest)
+    measured["thorax"], measured["upper_chest"] = part * total, (1 - part) * total
+    kp["chest"] = kp["spine"] + part * (kp["neck"] - kp["spine"])
+    return True
+
+
+def _clavicle_fraction(kp: Mapping[str, np.ndarray]) -> float:
+    """Where on the chest->neck segment (0-1) the shoulder distances vary least."""
+    seg = kp["neck"] - kp["chest"]
+
+    def spread(a: float) -> float:
+        piv = kp["chest"] + a * seg
+        return float(np.std(np.linalg.norm(kp["left_shoulder"] - piv, axis=-1))
+                     + np.std(np.linalg.norm(kp["right_shoulder"] - piv, axis=-1)))
+
+    grid = np.linspace(0.0, 1.0, 21)
+    a = float(grid[np.argmin([spread(g) - 1e-6 * (g > 0) for g in grid])])
+    for step in (0.025, 0.00125):  # two finer passes around the best
+        fine = np.clip(a + step * np.arange(-20, 21), 0.0, 1.0)
+        a = float(fine[np.argmin([spread(g) for g in fine])])
+    return a
+
+
+def _measure_clavicles(kp: Mapping[str, np.ndarray], measured: dict[str, float],
+                       derived_chest: bool) -> None:
+    """``clavicle_pivot`` and the clavicle lengths into ``measured``: the pivot
+    on the chest->neck segment where the shoulder distances vary least
+    (:func:`_clavicle_fraction`), or at the default fraction when the chest
+    keypoint was derived (nothing to search along)."""
+    if not {"chest", "neck", "left_shoulder", "right_shoulder"} <= kp.keys():
+        return
+    if derived_chest:
+        a = DEFAULT.clavicle_pivot / DEFAULT.upper_chest
+    else:
+        a = _clavicle_fraction(kp)
+    piv = kp["chest"] + a * (kp["neck"] - kp["chest"])
+    measured["clavicle_pivot"] = a * measured["upper_chest"]
+    for s in _SIDES:
+        measured[f"{s}_clavicle"] = float(np.median(
+            np.linalg.norm(kp[f"{s}_shoulder"] - piv, axis=-1)))
+
+
+def _body_scale(measured: Mapping[str, float], hips: Mapping[str, object]) -> float:
+    """Median ratio of the measured bones (and hip width) to the default
+    adult's, within 0.5-1.5."""
+    ratios = [measured[k] / getattr(DEFAULT, k) for k in measured
+              if getattr(DEFAULT, k) > 0.05 and measured[k] > 0.02]
+    hip_w = np.linalg.norm(np.subtract(hips["left_hip_offset"], hips["right_hip_offset"]))
+    ratios.append(hip_w / np.linalg.norm(np.subtract(DEFAULT.left_hip_offset,
+                                                      DEFAULT.right_hip_offset)))
+    return float(np.clip(np.median(ratios), 0.5, 1.5))
+
+
+def _lengths_or_default(measured: Mapping[str, float], scale: float
+                        ) -> tuple[dict[str, float], list[str]]:
+    """Every length of :class:`BodyDimensions` (not the offsets, girth or foot
+    heights): measured, or the default adult's times ``scale``; and the names
+    of the keypoint-measured lengths that fell back."""
+    out, fallback = {}, []
+    for f in fields(BodyDimensions):
+        if f.name in ("notes", "girth") or f.name.endswith("_offset"):
+            continue
+        if f.name in measured:
+            out[f.name] = measured[f.name]
+        elif f.name not in ("ankle_height", "toe_height"):
+            out[f.name] = getattr(DEFAULT, f.name) * scale
+            if (f.name in _BONE_KEYPOINTS or f.name.endswith("clavicle")
+                    or f.name == "clavicle_pivot"):
+                fallback.append(f.name)
+    return out, fallback
+
+
+def _fit_notes(motion: Motion, num_frames: int, measured: Mapping[str, float],
+               fallback: Sequence[str], scale: float, derived_chest: bool) -> tuple[str, ...]:
+    """The fit's provenance and every fallback, for :attr:`BodyDimensions.notes`."""
+    notes = [f"fitted to {motion.name!r} ({num_frames} frames, median over frames)"]
+    if fallback:
+        notes.append(f"missing keypoints: {', '.join(fallback)} from the default adult scaled "
+                     f"by {scale:.3f} (median measured/default bone ratio)")
+    for s in _SIDES:
+        if measured.get(f"{s}_hand", 1.0) < 0.01:
+            notes.append(f"{s}_hand coincides with {s}_wrist in the source skeleton")
+    if derived_chest:
+        notes.append("no chest keypoint: thorax and upper chest split from the spine->neck "
+                     "distance in the default proportion, clavicles measured from the "
+                     "default pivot")
+    if measured.get("upper_chest", 1.0) < 0.01:
+        notes.append("neck coincides with chest in the source skeleton")
+    return tuple(notes)
+
+
 def fit_dimensions(motion: Motion) -> BodyDimensions:
     """Measure a subject's :class:`BodyDimensions` from its canonical keypoints.
 
@@ -1044,111 +1207,18 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
                             f"{missing}; the pelvis and both hips are required", source=src)
     P = canon.positions.astype(np.float64)
     kp = {k: P[:, i] for i, k in enumerate(names)}
-    have = set(names)
-
-    def dist(a: str, b: str) -> float | None:
-        if a in have and b in have:
-            return float(np.median(np.linalg.norm(kp[a] - kp[b], axis=-1)))
-        return None
-
-    R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
-    tilt = 0.0
-    if "spine" in have:
-        s_loc = np.einsum("tji,tj->ti", R, kp["spine"] - kp["pelvis"])
-        tilt = float(np.arctan2(np.median(s_loc[:, 0]), np.median(s_loc[:, 2])))
-    R = R @ _rot_y(tilt)
-    ch: dict[str, object] = {}
-    for s in _SIDES:
-        off = np.einsum("tji,tj->ti", R, kp[f"{s}_hip"] - kp["pelvis"])
-        ch[f"{s}_hip_offset"] = _v(np.median(off, axis=0))
-    measured: dict[str, float] = {}
-    chain = {"lumbar": ("pelvis", "spine"), "thorax": ("spine", "chest"),
-             "upper_chest": ("chest", "neck"), "neck": ("neck", "head")}
-    for s in _SIDES:
-        chain.update({f"{s}_upper_arm": (f"{s}_shoulder", f"{s}_elbow"),
-                      f"{s}_forearm": (f"{s}_elbow", f"{s}_wrist"),
-                      f"{s}_hand": (f"{s}_wrist", f"{s}_hand"),
-                      f"{s}_thigh": (f"{s}_hip", f"{s}_knee"),
-                      f"{s}_shin": (f"{s}_knee", f"{s}_ankle"),
-                      f"{s}_foot": (f"{s}_ankle", f"{s}_toe")})
-    for f_name, (a, b) in chain.items():
-        v = dist(a, b)
-        if v is not None:
-            measured[f_name] = v
-    if "chest" not in have and {"spine", "neck"} <= have:
-        # Layouts without a chest keypoint (H36M-like, Kinect, our 18-keypoint two-person
-        # layout): the measured spine->neck distance is split into thorax and upper chest
-        # in the default proportion. Scaling both from other bones instead gives a trunk
-        # that is too long or short, and the solver then bends the chest joints to their
-        # limits to reach the neck and shoulders (60 deg on the CMU walk 02_01).
-        total = dist("spine", "neck")
-        part = DEFAULT.thorax / (DEFAULT.thorax + DEFAULT.upper_chest)
-        measured["thorax"], measured["upper_chest"] = part * total, (1 - part) * total
-        kp["chest"] = kp["spine"] + part * (kp["neck"] - kp["spine"])
-        derived_chest = True
-    else:
-        derived_chest = False
-    # Clavicle pivot: on the chest->neck segment, where shoulder distances vary least.
-    if derived_chest and {"left_shoulder", "right_shoulder"} <= have:
-        # No chest keypoint to search along: the default pivot fraction, and clavicles
-        # measured from it.
-        a = DEFAULT.clavicle_pivot / DEFAULT.upper_chest
-        piv = kp["chest"] + a * (kp["neck"] - kp["chest"])
-        measured["clavicle_pivot"] = a * measured["upper_chest"]
-        for s in _SIDES:
-            measured[f"{s}_clavicle"] = float(np.median(
-                np.linalg.norm(kp[f"{s}_shoulder"] - piv, axis=-1)))
-    elif {"chest", "neck", "left_shoulder", "right_shoulder"} <= have:
-        seg = kp["neck"] - kp["chest"]
-
-        def spread(a: float) -> float:
-            piv = kp["chest"] + a * seg
-            return float(np.std(np.linalg.norm(kp["left_shoulder"] - piv, axis=-1))
-                         + np.std(np.linalg.norm(kp["right_shoulder"] - piv, axis=-1)))
-
-        grid = np.linspace(0.0, 1.0, 21)
-        a = float(grid[np.argmin([spread(g) - 1e-6 * (g > 0) for g in grid])])
-        for step in (0.025, 0.00125):  # two finer passes around the best
-            fine = np.clip(a + step * np.arange(-20, 21), 0.0, 1.0)
-            a = float(fine[np.argmin([spread(g) for g in fine])])
-        piv = kp["chest"] + a * seg
-        measured["clavicle_pivot"] = a * measured["upper_chest"]
-        for s in _SIDES:
-            measured[f"{s}_clavicle"] = float(np.median(
-                np.linalg.norm(kp[f"{s}_shoulder"] - piv, axis=-1)))
-    ratios = [measured[k] / getattr(DEFAULT, k) for k in measured
-              if getattr(DEFAULT, k) > 0.05 and measured[k] > 0.02]
-    hip_w = np.linalg.norm(np.subtract(ch["left_hip_offset"], ch["right_hip_offset"]))
-    ratios.append(hip_w / np.linalg.norm(np.subtract(DEFAULT.left_hip_offset,
-                                                      DEFAULT.right_hip_offset)))
-    scale = float(np.clip(np.median(ratios), 0.5, 1.5))
-    notes = [f"fitted to {motion.name!r} ({canon.num_frames} frames, median over frames)"]
-    fallback = []
-    for f in fields(BodyDimensions):
-        if f.name in ("notes", "girth") or f.name.endswith("_offset"):
-            continue
-        if f.name in measured:
-            ch[f.name] = measured[f.name]
-        elif f.name not in ("ankle_height", "toe_height"):
-            ch[f.name] = getattr(DEFAULT, f.name) * scale
-            if f.name in chain or f.name.endswith("clavicle") or f.name == "clavicle_pivot":
-                fallback.append(f.name)
+    ch: dict[str, object] = dict(_hip_offsets(kp))
+    measured = {name: v for name, (a, b) in _BONE_KEYPOINTS.items()
+                if (v := _median_distance(kp, a, b)) is not None}
+    derived_chest = _derive_chest(kp, measured)
+    _measure_clavicles(kp, measured, derived_chest)
+    scale = _body_scale(measured, ch)
+    lengths, fallback = _lengths_or_default(measured, scale)
+    ch.update(lengths)
     toe_h, drop = _foot_heights(motion, kp, scale)
     ch["toe_height"], ch["ankle_height"] = toe_h, toe_h + drop
     ch["girth"] = float(np.clip(scale, 0.6, 1.4))
-    if fallback:
-        notes.append(f"missing keypoints: {', '.join(fallback)} from the default adult scaled "
-                     f"by {scale:.3f} (median measured/default bone ratio)")
-    for s in _SIDES:
-        if measured.get(f"{s}_hand", 1.0) < 0.01:
-            notes.append(f"{s}_hand coincides with {s}_wrist in the source skeleton")
-    if derived_chest:
-        notes.append("no chest keypoint: thorax and upper chest split from the spine->neck "
-                     "distance in the default proportion, clavicles measured from the "
-                     "default pivot")
-    if measured.get("upper_chest", 1.0) < 0.01:
-        notes.append("neck coincides with chest in the source skeleton")
-    ch["notes"] = tuple(notes)
+    ch["notes"] = _fit_notes(motion, canon.num_frames, measured, fallback, scale, derived_chest)
     try:
         return replace(DEFAULT, **ch)
     except RetargetError as exc:

@@ -498,12 +498,169 @@ def _frame_cost(pts, rp, th, x, w, K, use_floor, f, nbr_pos, nbr_th, reg, smooth
 
 
 @_jit
+def _moving_points(col_map, anc_ptr, anc_idx, P):
+    """(P,) bool: the points some moving coordinate (``col_map >= 0``) moves;
+    the others add nothing to the step."""
+    moves = np.zeros(P, dtype=np.bool_)
+    for q in range(P):
+        for d in range(6):
+            moves[q] = moves[q] or col_map[d] >= 0
+        for m in range(anc_ptr[q], anc_ptr[q + 1]):
+            moves[q] = moves[q] or col_map[6 + anc_idx[m]] >= 0
+    return moves
+
+
+@_jit
+def _normal_equations(rp, x, f, pts, axes, anchors, arrays, moves, weights, K, use_floor, fw,
+                      col_map, Jl, cols, A, g):
+    """``A = J^T W J`` and ``g = J^T W r`` of one frame's keypoint and floor
+    residuals over the reduced coordinates, into A (nd, nd) and g (nd,)
+    (upper triangle accumulated, then mirrored)."""
+    anc_ptr, anc_idx = arrays[8], arrays[9]
+    nd = g.shape[0]
+    A[:, :] = 0.0
+    g[:] = 0.0
+    for q in range(pts.shape[0]):
+        if not moves[q]:
+            continue
+        floor_row = q >= K
+        if floor_row:  # floor points: only the height row, only below the floor
+            if not use_floor:
+                break
+            r2 = pts[q, 2] - f
+            if r2 >= 0.0:
+                continue
+            wq, r0, r1 = fw, 0.0, 0.0
+        else:
+            wq = weights[q]
+            if wq == 0.0:
+                continue
+            r0, r1, r2 = pts[q, 0] - x[q, 0], pts[q, 1] - x[q, 1], pts[q, 2] - x[q, 2]
+        m = _point_columns(q, rp, axes, anchors, pts, arrays, Jl)
+        for c in range(m):
+            cols[c] = col_map[c] if c < 6 else col_map[6 + anc_idx[anc_ptr[q] + c - 6]]
+        for a in range(m):
+            ia = cols[a]
+            if ia < 0:
+                continue
+            j0, j1, j2 = Jl[0, a], Jl[1, a], Jl[2, a]
+            if floor_row:
+                j0, j1 = 0.0, 0.0
+            g[ia] += wq * (j0 * r0 + j1 * r1 + j2 * r2)
+            for b in range(m):
+                ib = cols[b]
+                if ib >= ia:
+                    A[ia, ib] += wq * (j0 * Jl[0, b] + j1 * Jl[1, b] + j2 * Jl[2, b])
+    for a in range(nd):
+        for b in range(a):
+            A[a, b] = A[b, a]
+
+
+@_jit
+def _regularise(A, g, rp, th, nbr_pos, nbr_theta, mu, lower, upper, col_map, reg, smooth):
+    """Add the smoothness and hinge regularisers and the Levenberg-Marquardt
+    damping ``mu`` to A, g; then freeze (identity row, zero gradient) the
+    hinges at a bound whose gradient pushes outwards (active set)."""
+    nv, nd = col_map.shape[0], g.shape[0]
+    for d in range(nv):
+        i = col_map[d]
+        if i < 0:
+            continue
+        if d < 3:
+            A[i, i] += smooth
+            g[i] += smooth * (rp[d] - nbr_pos[d])
+        elif d >= 6:
+            j = d - 6
+            A[i, i] += reg + smooth
+            g[i] += reg * th[j] + smooth * (th[j] - nbr_theta[j])
+    for i in range(nd):
+        A[i, i] += mu * (A[i, i] + 1e-6)
+    for d in range(6, nv):
+        i = col_map[d]
+        if i < 0:
+            continue
+        j = d - 6
+        if (th[j] <= lower[j] + 1e-9 and g[i] > 0) or (th[j] >= upper[j] - 1e-9 and g[i] < 0):
+            for k in range(nd):
+                A[i, k] = 0.0
+                A[k, i] = 0.0
+            A[i, i] = 1.0
+            g[i] = 0.0
+
+
+@_jit
+def _cholesky_step(A, g):
+    """In place: Cholesky ``A = L L^T`` (lower triangle of A), then g <- -A^-1 g.
+    A matrix that is not positive definite gives NaN (the step is rejected)."""
+    nd = g.shape[0]
+    for j in range(nd):
+        s = A[j, j]
+        for k in range(j):
+            s -= A[j, k] * A[j, k]
+        if not s > 0.0:
+            s = np.nan
+        A[j, j] = np.sqrt(s)
+        for i in range(j + 1, nd):
+            s2 = A[i, j]
+            for k in range(j):
+                s2 -= A[i, k] * A[j, k]
+            A[i, j] = s2 / A[j, j]
+    for i in range(nd):
+        s = -g[i]
+        for k in range(i):
+            s -= A[i, k] * g[k]
+        g[i] = s / A[i, i]
+    for i in range(nd - 1, -1, -1):
+        s = g[i]
+        for k in range(i + 1, nd):
+            s -= A[k, i] * g[k]
+        g[i] = s / A[i, i]
+
+
+@_jit
+def _limited_step(g, col_map, max_step, delta):
+    """delta (nv,) <- the reduced step g on the full coordinates (0 where not
+    moving), scaled so no rotation or hinge moves more than ``max_step``
+    radians. Returns (all finite, largest entry after scaling)."""
+    nv = col_map.shape[0]
+    big = 0.0
+    finite = True
+    for d in range(nv):
+        delta[d] = g[col_map[d]] if col_map[d] >= 0 else 0.0
+        finite = finite and np.isfinite(delta[d])
+        if d >= 3 and abs(delta[d]) > big:
+            big = abs(delta[d])
+    scale = min(1.0, max_step / max(big, 1e-12))
+    largest = 0.0
+    for d in range(nv):
+        delta[d] *= scale
+        largest = max(largest, abs(delta[d]))
+    return finite, largest
+
+
+@_jit
+def _trial_pose(rp, rr, th, delta, lower, upper, rp2, rr2, th2, Rw):
+    """Trial point rp2, rr2, th2 = x + dx, exp([dw]x) R, clip(theta + dtheta)."""
+    for i in range(3):
+        rp2[i] = rp[i] + delta[i]
+    wx, wy, wz = delta[3], delta[4], delta[5]
+    ang = np.sqrt(wx * wx + wy * wy + wz * wz)
+    inv = 1.0 / max(ang, 1e-12)
+    _rodrigues(wx * inv, wy * inv, wz * inv, ang, Rw)
+    for i in range(3):
+        for k in range(3):
+            rr2[i, k] = Rw[i, 0] * rr[0, k] + Rw[i, 1] * rr[1, k] + Rw[i, 2] * rr[2, k]
+    for j in range(th.shape[0]):
+        th2[j] = min(max(th[j] + delta[6 + j], lower[j]), upper[j])
+
+
+@_jit
 def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, active, targets,
                    weights, K, floor, use_floor, col_map, arrays, reg, smooth, fw, max_step,
                    tol, step_tol):
     """See :meth:`HingeTree.fit_iteration`."""
     parent, hinge_axis, point_body = arrays[0], arrays[4], arrays[6]
-    anc_ptr, anc_idx, lower, upper = arrays[8], arrays[9], arrays[10], arrays[11]
+    lower, upper = arrays[10], arrays[11]
     nbody, H, P = parent.shape[0], hinge_axis.shape[0], point_body.shape[0]
     nv = 6 + H
     nd = 0
@@ -520,13 +677,7 @@ def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, ac
     delta = np.empty(nv)
     rp2, rr2, th2 = np.empty(3), np.empty((3, 3)), np.empty(H)
     Rw = np.empty((3, 3))
-    # Points that none of the moving coordinates moves add nothing to the step.
-    moves = np.zeros(P, dtype=np.bool_)
-    for q in range(P):
-        for d in range(6):
-            moves[q] = moves[q] or col_map[d] >= 0
-        for m in range(anc_ptr[q], anc_ptr[q + 1]):
-            moves[q] = moves[q] or col_map[6 + anc_idx[m]] >= 0
+    moves = _moving_points(col_map, arrays[8], arrays[9], P)
     for n in range(frames.shape[0]):
         t = frames[n]
         rp, rr, th = root_pos[t], root_rot[t], theta[t]
@@ -534,115 +685,13 @@ def _fit_iteration(frames, root_pos, root_rot, theta, nbr_pos, nbr_theta, mu, ac
         _forward_frame(rp, rr, th, arrays, Rb, xb, axes, anchors, pts)
         c0 = _frame_cost(pts, rp, th, x, weights, K, use_floor, f, nbr_pos[n], nbr_theta[n],
                          reg, smooth, fw)
-        # Normal equations over the reduced coordinates (upper triangle, then mirrored).
-        A[:, :] = 0.0
-        g[:] = 0.0
-        for q in range(P):
-            if not moves[q]:
-                continue
-            floor_row = q >= K
-            if floor_row:  # floor points: only the height row, only below the floor
-                if not use_floor:
-                    break
-                r2 = pts[q, 2] - f
-                if r2 >= 0.0:
-                    continue
-                wq, r0, r1 = fw, 0.0, 0.0
-            else:
-                wq = weights[q]
-                if wq == 0.0:
-                    continue
-                r0, r1, r2 = pts[q, 0] - x[q, 0], pts[q, 1] - x[q, 1], pts[q, 2] - x[q, 2]
-            m = _point_columns(q, rp, axes, anchors, pts, arrays, Jl)
-            for c in range(m):
-                cols[c] = col_map[c] if c < 6 else col_map[6 + anc_idx[anc_ptr[q] + c - 6]]
-            for a in range(m):
-                ia = cols[a]
-                if ia < 0:
-                    continue
-                j0, j1, j2 = Jl[0, a], Jl[1, a], Jl[2, a]
-                if floor_row:
-                    j0, j1 = 0.0, 0.0
-                g[ia] += wq * (j0 * r0 + j1 * r1 + j2 * r2)
-                for b in range(m):
-                    ib = cols[b]
-                    if ib >= ia:
-                        A[ia, ib] += wq * (j0 * Jl[0, b] + j1 * Jl[1, b] + j2 * Jl[2, b])
-        for a in range(nd):
-            for b in range(a):
-                A[a, b] = A[b, a]
-        for d in range(nv):
-            i = col_map[d]
-            if i < 0:
-                continue
-            if d < 3:
-                A[i, i] += smooth
-                g[i] += smooth * (rp[d] - nbr_pos[n, d])
-            elif d >= 6:
-                j = d - 6
-                A[i, i] += reg + smooth
-                g[i] += reg * th[j] + smooth * (th[j] - nbr_theta[n, j])
-        for i in range(nd):
-            A[i, i] += mu[t] * (A[i, i] + 1e-6)
-        # Active set: hinges at a bound whose gradient pushes outwards are frozen.
-        for d in range(6, nv):
-            i = col_map[d]
-            if i < 0:
-                continue
-            j = d - 6
-            if (th[j] <= lower[j] + 1e-9 and g[i] > 0) or (th[j] >= upper[j] - 1e-9 and g[i] < 0):
-                for k in range(nd):
-                    A[i, k] = 0.0
-                    A[k, i] = 0.0
-                A[i, i] = 1.0
-                g[i] = 0.0
-        # Cholesky A = L L^T in place (lower triangle), then delta = -A^-1 g.
-        for j in range(nd):
-            s = A[j, j]
-            for k in range(j):
-                s -= A[j, k] * A[j, k]
-            if not s > 0.0:
-                s = np.nan  # not positive definite: the step is rejected below
-            A[j, j] = np.sqrt(s)
-            for i in range(j + 1, nd):
-                s2 = A[i, j]
-                for k in range(j):
-                    s2 -= A[i, k] * A[j, k]
-                A[i, j] = s2 / A[j, j]
-        for i in range(nd):
-            s = -g[i]
-            for k in range(i):
-                s -= A[i, k] * g[k]
-            g[i] = s / A[i, i]
-        for i in range(nd - 1, -1, -1):
-            s = g[i]
-            for k in range(i + 1, nd):
-                s -= A[k, i] * g[k]
-            g[i] = s / A[i, i]
-        big = 0.0
-        finite = True
-        for d in range(nv):
-            delta[d] = g[col_map[d]] if col_map[d] >= 0 else 0.0
-            finite = finite and np.isfinite(delta[d])
-            if d >= 3 and abs(delta[d]) > big:
-                big = abs(delta[d])
-        scale = min(1.0, max_step / max(big, 1e-12))
-        largest = 0.0
-        for d in range(nv):
-            delta[d] *= scale
-            largest = max(largest, abs(delta[d]))
-        # Trial point: x + dx, exp([dw]x) R, clip(theta + dtheta).
-        for i in range(3):
-            rp2[i] = rp[i] + delta[i]
-        wx, wy, wz = delta[3], delta[4], delta[5]
-        ang = np.sqrt(wx * wx + wy * wy + wz * wz)
-        inv = 1.0 / max(ang, 1e-12)
-        _rodrigues(wx * inv, wy * inv, wz * inv, ang, Rw)
-        for i in range(3):
-            for k in range(3):
-                rr2[i, k] = Rw[i, 0] * rr[0, k] + Rw[i, 1] * rr[1, k] + Rw[i, 2] * rr[2, k]
-        for j in range(H):
-            th2[j] = min(max(th[j] + delta[6 + j], lower[j]), upper[j])
+        _normal_equations(rp, x, f, pts, axes, anchors, arrays, moves, weights, K, use_floor,
+                          fw, col_map, Jl, cols, A, g)
+        _regularise(A, g, rp, th, nbr_pos[n], nbr_theta[n], mu[t], lower, upper, col_map,
+                    reg, smooth)
+        _cholesky_step(A, g)
+        finite, largest = _limited_step(g, col_map, max_step, delta)
+        _trial_pose(rp, rr, th, delta, lower, upper, rp2, rr2, th2, Rw)
         _forward_frame(rp2, rr2, th2, arrays, Rb, xb, axes, anchors, pts2)
         c1 = _frame_cost(pts2, rp2, th2, x, weights, K, use_floor, f, nbr_pos[n], nbr_theta[n],
                          reg, smooth, fw)

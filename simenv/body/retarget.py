@@ -100,8 +100,26 @@ class RetargetOptions:
     floor: bool = True
 
 
+class _ResidualStats:
+    """Mean, 95th percentile and maximum of a result's ``residuals`` (metres)."""
+
+    residuals: np.ndarray
+
+    @property
+    def mean_residual(self) -> float:
+        return float(self.residuals.mean())
+
+    @property
+    def p95_residual(self) -> float:
+        return float(np.percentile(self.residuals, 95))
+
+    @property
+    def max_residual(self) -> float:
+        return float(self.residuals.max())
+
+
 @dataclass(eq=False)
-class RetargetResult:
+class RetargetResult(_ResidualStats):
     """Retargeted trajectory of one person.
 
     Attributes:
@@ -133,18 +151,6 @@ class RetargetResult:
         return int(self.qpos.shape[0])
 
     @property
-    def mean_residual(self) -> float:
-        return float(self.residuals.mean())
-
-    @property
-    def p95_residual(self) -> float:
-        return float(np.percentile(self.residuals, 95))
-
-    @property
-    def max_residual(self) -> float:
-        return float(self.residuals.max())
-
-    @property
     def frames_per_second(self) -> float:
         return self.num_frames / max(self.seconds, 1e-9)
 
@@ -169,7 +175,7 @@ class RetargetResult:
 
 
 @dataclass(eq=False)
-class InteractionRetargetResult:
+class InteractionRetargetResult(_ResidualStats):
     """Both people of an :class:`Interaction`, each on its own fitted body, in one scene.
 
     Attributes:
@@ -194,18 +200,6 @@ class InteractionRetargetResult:
     @property
     def residuals(self) -> np.ndarray:
         return np.concatenate([p.residuals for p in self.people], axis=1)
-
-    @property
-    def mean_residual(self) -> float:
-        return float(self.residuals.mean())
-
-    @property
-    def p95_residual(self) -> float:
-        return float(np.percentile(self.residuals, 95))
-
-    @property
-    def max_residual(self) -> float:
-        return float(self.residuals.max())
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -27,7 +27,8 @@ timeline; thresholds are in
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
 
 import mujoco
 import numpy as np
@@ -245,6 +246,105 @@ def joint_limit_clamp_cost(humanoid: Humanoid, qpos: np.ndarray, targets: np.nda
     return cost
 
 
+class _LeastExcess:
+    """The per-frame least-squares problem of :func:`joint_limit_least_excess`:
+    residuals and Jacobians over the hinges of the bodies allowed to move."""
+
+    #: Weight per metre of a keypoint beyond its tolerance or a corner below the floor.
+    WEIGHT = 1e4
+    #: Degrees per radian: the hinge excess terms are in degrees.
+    DEG = float(np.rad2deg(1.0))
+
+    def __init__(self, humanoid: Humanoid, keypoints: Sequence[str], targets: np.ndarray,
+                 tolerance: np.ndarray, floor: np.ndarray | None) -> None:
+        m = humanoid.model
+        self.model, self.data = m, mujoco.MjData(m)
+        index = dict(zip(humanoid.keypoint_names, humanoid.site_ids, strict=True))
+        self.sites = np.array([index[k] for k in keypoints])
+        self.lo, self.hi = humanoid.joint_limits[:, 0], humanoid.joint_limits[:, 1]
+        self.hq = humanoid.hinge_qpos
+        hinge_ids = np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
+        self.hv, self.hbody = m.jnt_dofadr[hinge_ids], m.jnt_bodyid[hinge_ids]
+        self.observed = observed_hinges(humanoid, keypoints)
+        self.targets, self.tolerance, self.floor = targets, tolerance, floor
+        self.jac = np.zeros((3, m.nv))
+        self.boxes = body_boxes(m)
+
+    def soles(self, free: np.ndarray) -> np.ndarray:
+        """The box geoms on the bodies the ``free`` hinges move (their bodies'
+        subtrees)."""
+        m = self.model
+        inside = np.isin(np.arange(m.nbody), self.hbody[free])
+        for b in range(1, m.nbody):  # parents precede children
+            inside[b] |= inside[m.body_parentid[b]]
+        return self.boxes[inside[m.geom_bodyid[self.boxes]]]
+
+    def excess(self, q: np.ndarray) -> np.ndarray:
+        """(H,) radians beyond the range of each observed hinge of ``q``."""
+        lo, hi, hq = self.lo, self.hi, self.hq
+        return np.where(self.observed,
+                        np.maximum(lo - q[hq], 0.0) + np.maximum(q[hq] - hi, 0.0), 0.0)
+
+    def residual(self, q: np.ndarray, t: int, free: np.ndarray,
+                 soles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residuals (keypoints beyond tolerance, sole corners below the floor,
+        hinge excess) of ``q`` on frame ``t`` and their Jacobian over the
+        ``free`` hinges."""
+        m, d, jac, sites, weight, deg = (self.model, self.data, self.jac, self.sites,
+                                         self.WEIGHT, self.DEG)
+        hv, hq, hi, floor = self.hv, self.hq, self.hi, self.floor
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)  # mj_jacSite / mj_jac read the com-based frames
+        diff = d.site_xpos[sites] - self.targets[t]
+        dist = np.linalg.norm(diff, axis=1)
+        over = dist - self.tolerance[t]
+        ex = self.excess(q)[free]
+        corners = (d.geom_xpos[soles, None] + np.einsum(
+            "gij,gpj->gpi", d.geom_xmat[soles].reshape(-1, 3, 3),
+            BOX_CORNERS * m.geom_size[soles, None])).reshape(-1, 3)
+        sink = (floor[t] - corners[:, 2]) if floor is not None else np.zeros(0)
+        r = np.concatenate([weight * np.maximum(over, 0.0), weight * np.maximum(sink, 0.0),
+                            deg * ex])
+        J = np.zeros((len(r), len(free)))
+        for k in np.flatnonzero(over > 0):
+            mujoco.mj_jacSite(m, d, jac, None, int(sites[k]))
+            J[k] = weight * (diff[k] / max(dist[k], 1e-9)) @ jac[:, hv[free]]
+        for c in np.flatnonzero(sink > 0):
+            mujoco.mj_jac(m, d, jac, None, corners[c], int(m.geom_bodyid[soles[c // 8]]))
+            J[len(sites) + c] = -weight * jac[2, hv[free]]
+        h = np.flatnonzero(ex > 0)
+        J[len(sites) + len(sink) + h, h] = np.where(q[hq[free[h]]] > hi[free[h]], deg, -deg)
+        return r, J
+
+
+def _levenberg_marquardt(residual: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+                         q: np.ndarray, coords: np.ndarray, iterations: int
+                         ) -> tuple[float, np.ndarray]:
+    """Minimise ``|residual(q)|^2`` over ``q[coords]`` from ``q`` (Marquardt's
+    diagonal damping); returns the final cost and ``q``."""
+    r, J = residual(q)
+    cost, lam = float(r @ r), 1e-3
+    for _ in range(iterations):
+        H = J.T @ J
+        step = -np.linalg.solve(H + lam * (np.diag(np.diag(H)) + 1e-6 * np.eye(len(coords))),
+                                J.T @ r)
+        trial = q.copy()
+        trial[coords] += step
+        rt, Jt = residual(trial)
+        ct = float(rt @ rt)
+        if ct < cost:
+            done = cost - ct < 1e-6 * cost + 1e-9
+            q, r, J, cost, lam = trial, rt, Jt, ct, lam * 0.3
+            if done:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e8:
+                break
+    return cost, q
+
+
 def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.ndarray,
                              keypoints: Sequence[str], frames: np.ndarray,
                              flagged: np.ndarray, tolerance: np.ndarray,
@@ -296,86 +396,22 @@ def joint_limit_least_excess(humanoid: Humanoid, qpos: np.ndarray, targets: np.n
         (N, H) degrees, the excess of each hinge in the solution (0 on the
         hinges no keypoint observes), :attr:`Humanoid.joint_names` order.
     """
-    m, d = humanoid.model, mujoco.MjData(humanoid.model)
-    index = dict(zip(humanoid.keypoint_names, humanoid.site_ids, strict=True))
-    sites = np.array([index[k] for k in keypoints])
-    lo, hi = humanoid.joint_limits[:, 0], humanoid.joint_limits[:, 1]
-    hq = humanoid.hinge_qpos
-    hinge_ids = np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
-    hv, hbody = m.jnt_dofadr[hinge_ids], m.jnt_bodyid[hinge_ids]
-    observed = observed_hinges(humanoid, keypoints)
-    weight, deg = 1e4, float(np.rad2deg(1.0))
-    jac = np.zeros((3, m.nv))
-    boxes = body_boxes(m)
-
-    def subtree(bodies: np.ndarray) -> np.ndarray:
-        inside = np.isin(np.arange(m.nbody), bodies)
-        for b in range(1, m.nbody):  # parents precede children
-            inside[b] |= inside[m.body_parentid[b]]
-        return inside
-
-    def excess(q: np.ndarray) -> np.ndarray:
-        return np.where(observed, np.maximum(lo - q[hq], 0.0) + np.maximum(q[hq] - hi, 0.0),
-                        0.0)
-
-    def residual(q: np.ndarray, t: int, free: np.ndarray,
-                 soles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d.qpos[:] = q
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)  # mj_jacSite / mj_jac read the com-based frames
-        diff = d.site_xpos[sites] - targets[t]
-        dist = np.linalg.norm(diff, axis=1)
-        over = dist - tolerance[t]
-        ex = excess(q)[free]
-        corners = (d.geom_xpos[soles, None] + np.einsum(
-            "gij,gpj->gpi", d.geom_xmat[soles].reshape(-1, 3, 3),
-            BOX_CORNERS * m.geom_size[soles, None])).reshape(-1, 3)
-        sink = (floor[t] - corners[:, 2]) if floor is not None else np.zeros(0)
-        r = np.concatenate([weight * np.maximum(over, 0.0), weight * np.maximum(sink, 0.0),
-                            deg * ex])
-        J = np.zeros((len(r), len(free)))
-        for k in np.flatnonzero(over > 0):
-            mujoco.mj_jacSite(m, d, jac, None, int(sites[k]))
-            J[k] = weight * (diff[k] / max(dist[k], 1e-9)) @ jac[:, hv[free]]
-        for c in np.flatnonzero(sink > 0):
-            mujoco.mj_jac(m, d, jac, None, corners[c], int(m.geom_bodyid[soles[c // 8]]))
-            J[len(sites) + c] = -weight * jac[2, hv[free]]
-        h = np.flatnonzero(ex > 0)
-        J[len(sites) + len(sink) + h, h] = np.where(q[hq[free[h]]] > hi[free[h]], deg, -deg)
-        return r, J
-
+    problem = _LeastExcess(humanoid, keypoints, targets, tolerance, floor)
+    hq, hbody = problem.hq, problem.hbody
     out = np.zeros((len(frames), len(hq)))
     for n, t in enumerate(np.asarray(frames, dtype=int)):
         free = np.flatnonzero(np.isin(hbody, hbody[flagged[n]]))
-        soles = boxes[subtree(hbody[free])[m.geom_bodyid[boxes]]]
+        frame_residual = partial(problem.residual, t=t, free=free, soles=problem.soles(free))
         starts = [np.array(qpos[t], dtype=np.float64)]
         if alternative is not None:
             starts.append(starts[0].copy())
             starts[1][hq[free]] = alternative[t, hq[free]]
         best_cost, best_q = np.inf, starts[0]
-        for q in starts:
-            r, J = residual(q, t, free, soles)
-            cost, lam = float(r @ r), 1e-3
-            for _ in range(iterations):
-                H = J.T @ J
-                step = -np.linalg.solve(H + lam * (np.diag(np.diag(H)) + 1e-6 * np.eye(len(free))),
-                                        J.T @ r)
-                trial = q.copy()
-                trial[hq[free]] += step
-                rt, Jt = residual(trial, t, free, soles)
-                ct = float(rt @ rt)
-                if ct < cost:
-                    done = cost - ct < 1e-6 * cost + 1e-9
-                    q, r, J, cost, lam = trial, rt, Jt, ct, lam * 0.3
-                    if done:
-                        break
-                else:
-                    lam *= 10.0
-                    if lam > 1e8:
-                        break
+        for start in starts:
+            cost, q = _levenberg_marquardt(frame_residual, start, hq[free], iterations)
             if cost < best_cost:
                 best_cost, best_q = cost, q
-        out[n] = deg * excess(best_q)
+        out[n] = problem.DEG * problem.excess(best_q)
     return out
 
 

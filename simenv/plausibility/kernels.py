@@ -699,6 +699,62 @@ def _column_medians(a: np.ndarray, network: np.ndarray, med: np.ndarray, top: np
 
 
 @njit(cache=True)
+def _keypoint_series(p: np.ndarray, j: int, resample: bool, src: np.ndarray,
+                     weight: np.ndarray, series: np.ndarray) -> None:
+    """series (3, N) <- keypoint ``j`` of the (3, J, T) planes ``p``, resampled
+    as in :func:`jitter` when ``resample`` (else N = T and a plain copy)."""
+    one = np.float32(1.0)
+    for c in range(3):
+        row = p[c, j]
+        if resample:
+            for k in range(series.shape[1]):
+                wk = weight[k]
+                series[c, k] = ((one - wk) * np.float32(row[src[k]])
+                                + wk * np.float32(row[src[k] + 1]))
+        else:
+            series[c, :] = row
+
+
+@njit(cache=True)
+def _window_jerk(series: np.ndarray, w: int, dt: float, dt3: float, fa3: float, eps: float,
+                 duration5: float, step: np.ndarray, jerk_sq: np.ndarray, cs_step: np.ndarray,
+                 cs_jerk: np.ndarray, nj_row: np.ndarray, jerk_row: np.ndarray) -> None:
+    """Normalized jerk of one keypoint's (3, N) ``series`` per window of ``w``
+    frames into nj_row (N - w + 1,), and its |jerk| (m/s^3) per frame into
+    jerk_row (N - 3,); step, jerk_sq, cs_step, cs_jerk are scratch (see
+    :func:`jitter` for the other arguments)."""
+    n = series.shape[1]
+    x, y, z = series[0], series[1], series[2]
+    # |v| dt and squared jerk dt per frame, with np.diff's differences
+    # and the same divisions by dt, in loops free of loop-carried
+    # dependencies (so the divisions and roots vectorise) ...
+    for k in range(n - 1):
+        vx, vy, vz = (x[k + 1] - x[k]) / dt, (y[k + 1] - y[k]) / dt, (z[k + 1] - z[k]) / dt
+        step[k] = np.sqrt((vx * vx + vy * vy) + vz * vz) * dt
+    for k in range(n - 3):
+        d3x = (((x[k + 3] - x[k + 2]) - (x[k + 2] - x[k + 1]))
+               - ((x[k + 2] - x[k + 1]) - (x[k + 1] - x[k])))
+        d3y = (((y[k + 3] - y[k + 2]) - (y[k + 2] - y[k + 1]))
+               - ((y[k + 2] - y[k + 1]) - (y[k + 1] - y[k])))
+        d3z = (((z[k + 3] - z[k + 2]) - (z[k + 2] - z[k + 1]))
+               - ((z[k + 2] - z[k + 1]) - (z[k + 1] - z[k])))
+        jx, jy, jz = d3x / dt3, d3y / dt3, d3z / dt3
+        jerk_sq[k] = ((jx * jx + jy * jy) + jz * jz) * dt
+        jerk_row[k] = np.sqrt((d3x * d3x + d3y * d3y) + d3z * d3z) * fa3
+    # ... then the running sums (sequential, as np.cumsum) ...
+    cs_step[0] = 0.0
+    for k in range(n - 1):
+        cs_step[k + 1] = cs_step[k] + step[k]
+    cs_jerk[0] = 0.0
+    for k in range(n - 3):
+        cs_jerk[k + 1] = cs_jerk[k] + jerk_sq[k]
+    # ... and the window sums from them.
+    for i in range(nj_row.shape[0]):
+        path = max(cs_step[w - 1 + i] - cs_step[i], eps)
+        nj_row[i] = duration5 * (cs_jerk[w - 3 + i] - cs_jerk[i]) / (path * path + eps)
+
+
+@njit(cache=True)
 def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, fps: float,
            fa: float, w: int, eps: float, limit: float, dt3: float, duration5: float,
            fa3: float, network: np.ndarray, timeline: np.ndarray, details: np.ndarray
@@ -746,46 +802,11 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
     centres = np.empty(windows)
     for i in range(windows):
         centres[i] = (i + (w - 1) / 2.0) / fa
-    one = np.float32(1.0)
     for j in range(j_count):
         nj_row = njt[j]
-        for c in range(3):
-            row = p[c, j]
-            if resample:
-                for k in range(n):
-                    wk = weight[k]
-                    series[c, k] = ((one - wk) * np.float32(row[src[k]])
-                                    + wk * np.float32(row[src[k] + 1]))
-            else:
-                series[c, :] = row
-        x, y, z = series[0], series[1], series[2]
-        # |v| dt and squared jerk dt per frame, with np.diff's differences
-        # and the same divisions by dt, in loops free of loop-carried
-        # dependencies (so the divisions and roots vectorise) ...
-        for k in range(n - 1):
-            vx, vy, vz = (x[k + 1] - x[k]) / dt, (y[k + 1] - y[k]) / dt, (z[k + 1] - z[k]) / dt
-            step[k] = np.sqrt((vx * vx + vy * vy) + vz * vz) * dt
-        for k in range(n - 3):
-            d3x = (((x[k + 3] - x[k + 2]) - (x[k + 2] - x[k + 1]))
-                   - ((x[k + 2] - x[k + 1]) - (x[k + 1] - x[k])))
-            d3y = (((y[k + 3] - y[k + 2]) - (y[k + 2] - y[k + 1]))
-                   - ((y[k + 2] - y[k + 1]) - (y[k + 1] - y[k])))
-            d3z = (((z[k + 3] - z[k + 2]) - (z[k + 2] - z[k + 1]))
-                   - ((z[k + 2] - z[k + 1]) - (z[k + 1] - z[k])))
-            jx, jy, jz = d3x / dt3, d3y / dt3, d3z / dt3
-            jerk_sq[k] = ((jx * jx + jy * jy) + jz * jz) * dt
-            jerk_row[k] = np.sqrt((d3x * d3x + d3y * d3y) + d3z * d3z) * fa3
-        # ... then the running sums (sequential, as np.cumsum) ...
-        cs_step[0] = 0.0
-        for k in range(n - 1):
-            cs_step[k + 1] = cs_step[k] + step[k]
-        cs_jerk[0] = 0.0
-        for k in range(n - 3):
-            cs_jerk[k + 1] = cs_jerk[k] + jerk_sq[k]
-        # ... and the window sums from them.
-        for i in range(windows):
-            path = max(cs_step[w - 1 + i] - cs_step[i], eps)
-            nj_row[i] = duration5 * (cs_jerk[w - 3 + i] - cs_jerk[i]) / (path * path + eps)
+        _keypoint_series(p, j, resample, src, weight, series)
+        _window_jerk(series, w, dt, dt3, fa3, eps, duration5, step, jerk_sq, cs_step, cs_jerk,
+                     nj_row, jerk_row)
         nj[:, j] = nj_row
         jerk_norm[:, j] = jerk_row
     top = np.empty(windows)
@@ -901,6 +922,95 @@ def ground_penetration(zmin: np.ndarray, depth: np.ndarray, details: np.ndarray)
 
 
 @njit(cache=True)
+def _foot_floors(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, ankle: np.ndarray,
+                 buf: np.ndarray, tmp: np.ndarray) -> tuple[float, float]:
+    """Floors of the foot contact test, metres: toes from the 1st percentile
+    of the lowest keypoint ``zmin`` (T,), ankles (``ankle`` True) from that
+    of the lowest ankle (the toe floor when there is none). ``buf`` and
+    ``tmp`` (T,) are scratch."""
+    t_count = zmin.shape[0]
+    buf[:] = zmin
+    floor = percentile(buf, t_count, 0.01, tmp)
+    ankle_floor = floor
+    if ankle.any():
+        for t in range(t_count):
+            m = np.inf
+            for f in range(feet.shape[0]):
+                if ankle[f]:
+                    m = min(m, np.float64(p[2, feet[f], t]))
+            buf[t] = m
+        ankle_floor = percentile(buf, t_count, 0.01, tmp)
+    return floor, ankle_floor
+
+
+@njit(cache=True)
+def _running_mean(v: np.ndarray, window: int, padded: np.ndarray, out: np.ndarray) -> None:
+    """out (N,) <- the ``window``-frame running mean of ``v`` (N,), as scipy's
+    ``uniform_filter1d(mode="constant")``; ``padded`` (N + window - 1,) is
+    scratch whose ends are zero."""
+    pairs = v.shape[0]
+    half = window // 2
+    padded[half:half + pairs] = v
+    acc = 0.0
+    for k in range(window):
+        acc += padded[k]
+    out[0] = acc / window
+    for k in range(1, pairs):
+        acc += padded[k + window - 1] - padded[k - 1]
+        out[k] = acc / window
+
+
+@njit(cache=True)
+def _foot_track(p: np.ndarray, foot: int, floor: float, height: float, fps: float,
+                skate_speed: float, contact_speed: float, rel: np.ndarray, low: np.ndarray,
+                v_h: np.ndarray, planted: np.ndarray, raw_sliding: np.ndarray) -> None:
+    """One foot keypoint's states over a clip of T frames, into: rel (T,)
+    height above ``floor``, low (T,) below ``height``, v_h (T - 1,)
+    horizontal speed per frame pair (m/s), planted (T,) low and slow
+    (3-D speed below ``contact_speed``, as
+    :func:`simenv.body.foot_contact.foot_contacts`; the last frame reuses the
+    last speed), raw_sliding (T - 1,) low at both frames and faster than
+    ``skate_speed``."""
+    x, y, z = p[0, foot], p[1, foot], p[2, foot]
+    t_count = rel.shape[0]
+    pairs = t_count - 1
+    for t in range(t_count):
+        rel[t] = np.float64(z[t]) - floor
+        low[t] = rel[t] < height
+    for t in range(pairs):
+        dx = np.float64(x[t + 1]) - np.float64(x[t])
+        dy = np.float64(y[t + 1]) - np.float64(y[t])
+        dz = np.float64(z[t + 1]) - np.float64(z[t])
+        v_h[t] = np.sqrt(dx * dx + dy * dy) * fps
+        slow = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps < contact_speed
+        planted[t] = low[t] and slow
+        if t == pairs - 1:
+            planted[t + 1] = low[t + 1] and slow
+        raw_sliding[t] = low[t + 1] and low[t] and v_h[t] > skate_speed
+
+
+@njit(cache=True)
+def _unsupported_slides(rel: np.ndarray, v_h: np.ndarray, raw_sliding: np.ndarray,
+                        skate_speed: float, margin: float, min_run: int,
+                        sliding: np.ndarray) -> None:
+    """sliding (F, T - 1) <- the slides of ``raw_sliding`` whose foot carries
+    weight (not while the other foot, slower than ``skate_speed``, stands
+    more than ``margin`` lower at both frames), kept where they last
+    ``min_run`` frame pairs. rel, v_h: as :func:`_foot_track`, per foot."""
+    f_count, pairs = v_h.shape[0], v_h.shape[1]
+    for f in range(f_count):
+        o = f_count - 1 - f
+        for t in range(pairs):
+            # The other foot, planted and lower, carries the weight.
+            supported = (f_count == 2 and v_h[o, t] <= skate_speed
+                         and rel[o, t + 1] + margin < rel[f, t + 1]
+                         and rel[o, t] + margin < rel[f, t])
+            sliding[f, t] = raw_sliding[f, t] and not supported
+        if min_run > 1:
+            _keep_long_runs(sliding[f], min_run)
+
+
+@njit(cache=True)
 def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.ndarray,
                ankle: np.ndarray, fps: float, skate_speed: float, margin: float,
                min_run: int, window: int, contact_speed: float, to_mm: float,
@@ -936,47 +1046,12 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
     v_avg = np.empty(pairs)
     slide = np.zeros(pairs)
     disp = np.empty(pairs)
-    # Floors: toes from the 1st percentile of the lowest keypoint, ankles
-    # from that of the lowest ankle.
-    buf[:] = zmin
-    floor = percentile(buf, t_count, 0.01, tmp)
-    ankle_floor = floor
-    if ankle.any():
-        for t in range(t_count):
-            m = np.inf
-            for f in range(f_count):
-                if ankle[f]:
-                    m = min(m, np.float64(p[2, feet[f], t]))
-            buf[t] = m
-        ankle_floor = percentile(buf, t_count, 0.01, tmp)
+    floor, ankle_floor = _foot_floors(p, zmin, feet, ankle, buf, tmp)
     for f in range(f_count):
-        x, y, z = p[0, feet[f]], p[1, feet[f]], p[2, feet[f]]
-        fl = ankle_floor if ankle[f] else floor
-        for t in range(t_count):
-            rel[f, t] = np.float64(z[t]) - fl
-            low[f, t] = rel[f, t] < heights[f]
-        for t in range(pairs):
-            dx = np.float64(x[t + 1]) - np.float64(x[t])
-            dy = np.float64(y[t + 1]) - np.float64(y[t])
-            dz = np.float64(z[t + 1]) - np.float64(z[t])
-            v_h[f, t] = np.sqrt(dx * dx + dy * dy) * fps
-            # Planted (foot_contacts): low and slow; the last frame
-            # reuses the last speed.
-            slow = np.sqrt((dx * dx + dy * dy) + dz * dz) * fps < contact_speed
-            planted[f, t] = low[f, t] and slow
-            if t == pairs - 1:
-                planted[f, t + 1] = low[f, t + 1] and slow
-            raw_sliding[f, t] = low[f, t + 1] and low[f, t] and v_h[f, t] > skate_speed
-    for f in range(f_count):
-        o = f_count - 1 - f
-        for t in range(pairs):
-            # The other foot, planted and lower, carries the weight.
-            supported = (f_count == 2 and v_h[o, t] <= skate_speed
-                         and rel[o, t + 1] + margin < rel[f, t + 1]
-                         and rel[o, t] + margin < rel[f, t])
-            sliding[f, t] = raw_sliding[f, t] and not supported
-        if min_run > 1:
-            _keep_long_runs(sliding[f], min_run)
+        _foot_track(p, feet[f], ankle_floor if ankle[f] else floor, heights[f], fps,
+                    skate_speed, contact_speed, rel[f], low[f], v_h[f], planted[f],
+                    raw_sliding[f])
+    _unsupported_slides(rel, v_h, raw_sliding, skate_speed, margin, min_run, sliding)
     skating_pairs = 0
     gmd_pairs = 0
     for t in range(pairs):
@@ -987,25 +1062,13 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
                 slide[t] = max(slide[t], v_h[f, t])
         skating_pairs += skating
     for f in range(f_count):
-        # scipy's uniform_filter1d(mode="constant") running mean.
-        half = window // 2
-        padded[half:half + pairs] = v_h[f]
-        acc = 0.0
-        for k in range(window):
-            acc += padded[k]
-        v_avg[0] = acc / window
-        for k in range(1, pairs):
-            acc += padded[k + window - 1] - padded[k - 1]
-            v_avg[k] = acc / window
+        _running_mean(v_h[f], window, padded, v_avg)
         for t in range(pairs):
             # Reused below as "a GMD-skating foot at this pair".
             raw_sliding[f, t] = raw_sliding[f, t] and v_avg[t] > skate_speed
     contact_frames = 0
     for t in range(t_count):
-        contact = False
-        for f in range(f_count):
-            contact = contact or planted[f, t]
-        contact_frames += contact
+        contact_frames += planted[:, t].any()
     for t in range(pairs):
         gmd = False
         total = 0.0
@@ -1025,6 +1088,49 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
     details[2] = slide.max() * to_mm
     details[3] = contact_frames / t_count
     return skating_pairs / pairs
+
+
+@njit(cache=True)
+def _mean_height(p: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
+    """(T,) mean height of ``keypoints`` (K >= 1) of the (3, J, T) planes
+    ``p``, as np.mean over keypoints: a sequential sum, then one division."""
+    com_z = p[2, keypoints[0]].astype(np.float64)
+    for k in keypoints[1:]:
+        zk = p[2, k]
+        for t in range(com_z.shape[0]):
+            com_z[t] += np.float64(zk[t])
+    com_z /= keypoints.shape[0]
+    return com_z
+
+
+@njit(cache=True)
+def _ballistic_rms(z: np.ndarray, start: int, n: int, fps: float, half_g: float) -> float:
+    """RMS residual (metres) of the best free fall ``z0 + v0 s - g s^2 / 2``
+    through ``z[start:start + n]`` (n >= 3): the least-squares line through
+    the height plus ``g s^2 / 2``, solved in closed form about the mean time
+    (well conditioned)."""
+    s_mean = 0.0
+    y_mean = 0.0
+    for k in range(n):
+        s = k / fps
+        s_mean += s
+        y_mean += z[start + k] + half_g * (s * s)
+    s_mean /= n
+    y_mean /= n
+    sxy = 0.0
+    sxx = 0.0
+    for k in range(n):
+        s = k / fps
+        ds = s - s_mean
+        sxy += ds * (z[start + k] + half_g * (s * s) - y_mean)
+        sxx += ds * ds
+    slope = sxy / sxx
+    sq = 0.0
+    for k in range(n):
+        s = k / fps
+        r = (z[start + k] + half_g * (s * s) - y_mean) - slope * (s - s_mean)
+        sq += r * r
+    return np.sqrt(sq / n)
 
 
 @njit(cache=True)
@@ -1053,13 +1159,7 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
         zh = p[2, h]
         for t in range(t_count):
             lowest[t] = min(lowest[t], np.float64(zh[t]) - hand_reach)
-    # np.mean over keypoints: a sequential sum, then one division.
-    com_z = p[2, com[0]].astype(np.float64)
-    for k in com[1:]:
-        zk = p[2, k]
-        for t in range(t_count):
-            com_z[t] += np.float64(zk[t])
-    com_z /= com.shape[0]
+    com_z = _mean_height(p, com)
     tl[:] = 0.0
     worst, jumps, airborne, floating_frames = 0.0, 0, 0, 0
     t = 0
@@ -1072,33 +1172,7 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
             t += 1
         n = t - start
         airborne += n
-        residual = 0.0
-        if n >= 3:
-            # Free fall z0 + v0 s - g s^2 / 2: least-squares line through
-            # the height plus g s^2 / 2, solved in closed form about the
-            # mean time (well conditioned).
-            s_mean = 0.0
-            y_mean = 0.0
-            for k in range(n):
-                s = k / fps
-                s_mean += s
-                y_mean += com_z[start + k] + half_g * (s * s)
-            s_mean /= n
-            y_mean /= n
-            sxy = 0.0
-            sxx = 0.0
-            for k in range(n):
-                s = k / fps
-                ds = s - s_mean
-                sxy += ds * (com_z[start + k] + half_g * (s * s) - y_mean)
-                sxx += ds * ds
-            slope = sxy / sxx
-            sq = 0.0
-            for k in range(n):
-                s = k / fps
-                r = (com_z[start + k] + half_g * (s * s) - y_mean) - slope * (s - s_mean)
-                sq += r * r
-            residual = np.sqrt(sq / n)
+        residual = _ballistic_rms(com_z, start, n, fps, half_g) if n >= 3 else 0.0
         worst = max(worst, residual)
         if residual > tolerance:
             floating_frames += n

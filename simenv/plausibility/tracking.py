@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import copy
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import mujoco
@@ -129,6 +130,133 @@ def _work(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     return float(p[p > 0].sum())
 
 
+def _controller(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
+                max_seconds: float | None, controller: str, mpc: MPCConfig | None
+                ) -> tuple[TrackingReference, TrackingMPC | None, mujoco.MjModel]:
+    """The reference per physics step, the planner (None for the PD servos) and
+    the simulated model (with the assistance weld when ``assist``)."""
+    if controller not in CONTROLLERS:
+        raise PhysicsError(f"unknown controller {controller!r}; expected one of {CONTROLLERS}",
+                           field="controller")
+    if assist and controller != "pd":
+        raise PhysicsError("root assistance is a PD-tracker option; the MPC is never assisted",
+                           field="assist")
+    h = result.humanoid
+    settings = dynamics_settings(thresholds)
+    limit = thresholds.tracking_max_seconds if max_seconds is None else max_seconds
+    if controller == "mpc":
+        ref = TrackingReference.from_retarget(result, h.model, settings, limit)
+        planner = TrackingMPC(h, ref, mpc)
+        return ref, planner, planner.model
+    model = assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
+    ref = TrackingReference.from_retarget(result, model, settings, limit, feedforward=False)
+    return ref, None, model
+
+
+def _mocap_path(result: RetargetResult, ref: TrackingReference
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Where the assistance's mocap target goes: (n_steps, 3) positions per
+    physics step, the reference root interpolated like the servo targets, and
+    (T, 4) the root orientation per frame."""
+    fps, n_frames = ref.fps, ref.n_frames
+    root = result.qpos[:n_frames, :3]
+    u = np.clip(np.arange(ref.n_steps) * ref.dt * fps, 0.0, n_frames - 1)
+    i0 = np.minimum(np.floor(u).astype(int), n_frames - 2)
+    return root[i0] + (u - i0)[:, None] * (root[i0 + 1] - root[i0]), result.qpos[:, 3:7]
+
+
+def _advance(model: mujoco.MjModel, data: mujoco.MjData, ref: TrackingReference,
+             planner: TrackingMPC | None, k: int,
+             mocap: tuple[np.ndarray, np.ndarray] | None, work: float) -> tuple[float, float]:
+    """Step the physics from reference frame ``k - 1`` to ``k``.
+
+    Returns:
+        the mean assistance force over the steps (N; 0 without ``mocap``) and
+        ``work`` plus the actuators' positive work over them (J).
+    """
+    force_sum, n_sub = 0.0, 0
+    if mocap is not None:
+        data.mocap_quat[0] = mocap[1][k]
+    for s in range(ref.frame_step[k - 1], ref.frame_step[k]):
+        data.ctrl[:] = planner.control(data, s) if planner is not None else ref.ctrl[s]
+        if mocap is not None:
+            data.mocap_pos[0] = mocap[0][s]
+        mujoco.mj_step(model, data)
+        work += _work(model, data) * ref.dt
+        if mocap is not None:
+            # The weld is the model's only equality constraint, and MuJoCo
+            # puts equality rows first: rows 0-2 are its translation.
+            force_sum += float(np.linalg.norm(data.efc_force[:3]))
+            n_sub += 1
+    return force_sum / max(n_sub, 1), work
+
+
+@dataclass
+class _Run:
+    """What one simulation recorded (see :class:`TrackingResult`)."""
+
+    kp_sim: np.ndarray
+    body_err: np.ndarray
+    assist_f: np.ndarray
+    error: str | None = None
+    failed_at: int | None = None
+    steps: int = 0
+    work: float = 0.0
+
+
+def _simulate(result: RetargetResult, ref: TrackingReference, model: mujoco.MjModel,
+              planner: TrackingMPC | None, thresholds: BodyThresholds, assist: bool,
+              frames: Iterable[int]) -> _Run:
+    """Run the controller from the first reference state over ``frames`` (1 ..
+    n_frames - 1), stopping at a divergence or once the body error exceeds
+    ``tracking_fail_m``."""
+    h = result.humanoid
+    T = len(result.qpos)
+    mocap = _mocap_path(result, ref) if assist else None
+    data = mujoco.MjData(model)
+    warnings_at_start = warning_counts(data)
+    data.qpos[:] = ref.qpos0
+    data.qvel[:] = ref.qvel0
+    mujoco.mj_forward(model, data)
+    # The assistance force is read from the first three constraint rows (see
+    # _advance); MuJoCo orders equality constraints first.
+    assert not assist or (data.efc_type[:3] == mujoco.mjtConstraint.mjCNSTR_EQUALITY).all()
+    weight = h.total_mass * thresholds.gravity_mps2
+    run = _Run(np.full((ref.n_frames, len(h.site_ids), 3), np.nan), np.full(T, np.nan),
+               np.full(T, np.nan))
+    run.kp_sim[0] = data.site_xpos[h.site_ids]
+    run.body_err[0] = np.linalg.norm(run.kp_sim[0] - ref.frame_keypoints[0], axis=-1).mean()
+    run.assist_f[0] = 0.0
+    for k in frames:
+        force, run.work = _advance(model, data, ref, planner, k, mocap, run.work)
+        run.steps += ref.frame_step[k] - ref.frame_step[k - 1]
+        reason = physics_problem(model, data, warnings_at_start)
+        if reason is not None:
+            run.error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
+                                         source=result.name))
+            run.failed_at = k
+            break
+        run.kp_sim[k] = data.site_xpos[h.site_ids]
+        run.body_err[k] = norm3(run.kp_sim[k] - ref.frame_keypoints[k]).mean()
+        run.assist_f[k] = force / weight
+        if run.body_err[k] > thresholds.tracking_fail_m:
+            run.failed_at = k
+            break
+    return run
+
+
+def _accel_error(sim_pos: np.ndarray, ref_kp: np.ndarray) -> float:
+    """Mean keypoint acceleration error (second differences), mm/frame^2, of
+    the tracked frames ``sim_pos`` (N, K, 3) against the reference's first N;
+    NaN below 3 frames."""
+    tracked = len(sim_pos)
+    if tracked < 3:
+        return float("nan")
+    acc_s = sim_pos[2:] - 2 * sim_pos[1:-1] + sim_pos[:-2]
+    acc_r = ref_kp[2:tracked] - 2 * ref_kp[1:tracked - 1] + ref_kp[:tracked - 2]
+    return float(np.linalg.norm(acc_s - acc_r, axis=-1).mean() * 1000.0)
+
+
 def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
           assist: bool = False, max_seconds: float | None = None, controller: str = "pd",
           mpc: MPCConfig | None = None, progress: bool = False) -> TrackingResult:
@@ -149,120 +277,41 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         PhysicsError: bad qpos (shape, NaN/inf, fewer than 2 frames), an unknown
             controller, or ``assist`` with the MPC.
     """
-    if controller not in CONTROLLERS:
-        raise PhysicsError(f"unknown controller {controller!r}; expected one of {CONTROLLERS}",
-                           field="controller")
-    if assist and controller != "pd":
-        raise PhysicsError("root assistance is a PD-tracker option; the MPC is never assisted",
-                           field="assist")
     h = result.humanoid
-    settings = dynamics_settings(thresholds)
-    limit = thresholds.tracking_max_seconds if max_seconds is None else max_seconds
-    if controller == "mpc":
-        ref = TrackingReference.from_retarget(result, h.model, settings, limit)
-        planner: TrackingMPC | None = TrackingMPC(h, ref, mpc)
-        model = planner.model
-    else:
-        model = assisted_model(h, thresholds) if assist else copy.deepcopy(h.model)
-        ref = TrackingReference.from_retarget(result, model, settings, limit,
-                                              feedforward=False)
-        planner = None
-    T = len(result.qpos)
-    fps, n_frames, dt = ref.fps, ref.n_frames, ref.dt
-    ref_kp = ref.frame_keypoints
-    frame_step = ref.frame_step
-    if assist:
-        # The mocap target follows the reference root, interpolated like the servo targets.
-        root = result.qpos[:n_frames, :3]
-        u = np.clip(np.arange(ref.n_steps) * dt * fps, 0.0, n_frames - 1)
-        i0 = np.minimum(np.floor(u).astype(int), n_frames - 2)
-        mocap_steps = root[i0] + (u - i0)[:, None] * (root[i0 + 1] - root[i0])
-
-    data = mujoco.MjData(model)
-    warnings_at_start = warning_counts(data)
-    data.qpos[:] = ref.qpos0
-    data.qvel[:] = ref.qvel0
-    mujoco.mj_forward(model, data)
-    # The assistance force is read from the first three constraint rows (see
-    # the stepping loop); MuJoCo orders equality constraints first.
-    assert not assist or (data.efc_type[:3] == mujoco.mjtConstraint.mjCNSTR_EQUALITY).all()
-    weight = h.total_mass * thresholds.gravity_mps2
-
-    kp_sim = np.full((n_frames, len(h.site_ids), 3), np.nan)
-    kp_sim[0] = data.site_xpos[h.site_ids]
-    body_err = np.full(T, np.nan)
-    body_err[0] = np.linalg.norm(kp_sim[0] - ref_kp[0], axis=-1).mean()
-    assist_f = np.full(T, np.nan)
-    assist_f[0] = 0.0
-    error: str | None = None
-    failed_at: int | None = None
-    steps = 0
-    work = 0.0
+    ref, planner, model = _controller(result, thresholds, assist, max_seconds, controller, mpc)
+    fps, n_frames = ref.fps, ref.n_frames
     wall = time.perf_counter()
     frames = tqdm(range(1, n_frames), desc=f"track {result.name} ({controller})",
                   unit="frame", disable=not progress)
     try:
-        for k in frames:
-            force_sum, n_sub = 0.0, 0
-            if assist:
-                data.mocap_quat[0] = result.qpos[k, 3:7]
-            for s in range(frame_step[k - 1], frame_step[k]):
-                data.ctrl[:] = planner.control(data, s) if planner is not None else ref.ctrl[s]
-                if assist:
-                    data.mocap_pos[0] = mocap_steps[s]
-                mujoco.mj_step(model, data)
-                work += _work(model, data) * dt
-                if assist:
-                    # The weld is the model's only equality constraint, and MuJoCo
-                    # puts equality rows first: rows 0-2 are its translation.
-                    force_sum += float(np.linalg.norm(data.efc_force[:3]))
-                    n_sub += 1
-            steps += frame_step[k] - frame_step[k - 1]
-            reason = physics_problem(model, data, warnings_at_start)
-            if reason is not None:
-                error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
-                                         source=result.name))
-                failed_at = k
-                break
-            kp_sim[k] = data.site_xpos[h.site_ids]
-            body_err[k] = norm3(kp_sim[k] - ref_kp[k]).mean()
-            assist_f[k] = force_sum / max(n_sub, 1) / weight
-            if body_err[k] > thresholds.tracking_fail_m:
-                failed_at = k
-                break
+        run = _simulate(result, ref, model, planner, thresholds, assist, frames)
     finally:
         frames.close()
         if planner is not None:
             planner.close()
     wall = time.perf_counter() - wall
-    tracked = n_frames if failed_at is None else failed_at + (0 if error else 1)
+    failed_at = run.failed_at
+    tracked = n_frames if failed_at is None else failed_at + (0 if run.error else 1)
     ok = failed_at is None
-    sim_pos = kp_sim[:tracked]
-    if tracked >= 3:
-        acc_s = sim_pos[2:] - 2 * sim_pos[1:-1] + sim_pos[:-2]
-        acc_r = ref_kp[2:tracked] - 2 * ref_kp[1:tracked - 1] + ref_kp[:tracked - 2]
-        acc_err = float(np.linalg.norm(acc_s - acc_r, axis=-1).mean() * 1000.0)
-    else:
-        acc_err = float("nan")
-    full = np.full((T, len(h.site_ids), 3), np.nan)
-    full[:n_frames] = kp_sim
+    full = np.full((len(result.qpos), len(h.site_ids), 3), np.nan)
+    full[:n_frames] = run.kp_sim
     return TrackingResult(
         success=ok,
         frames_tracked=int(tracked),
         time_to_failure_s=(n_frames - 1) / fps if ok else failed_at / fps,
         simulated_s=(n_frames - 1) / fps,
-        body_error=body_err,
-        mpjpe_mm=float(np.nanmean(body_err[:tracked]) * 1000.0),
-        accel_error=acc_err,
+        body_error=run.body_err,
+        mpjpe_mm=float(np.nanmean(run.body_err[:tracked]) * 1000.0),
+        accel_error=_accel_error(run.kp_sim[:tracked], ref.frame_keypoints),
         assisted=assist,
-        assist_force=assist_f,
-        error=error,
-        steps=steps,
+        assist_force=run.assist_f,
+        error=run.error,
+        steps=run.steps,
         wall_s=wall,
         sim_keypoints=full,
         controller=controller,
-        work_j=work,
-        work_j_per_kg=work / h.total_mass,
+        work_j=run.work,
+        work_j_per_kg=run.work / h.total_mass,
     )
 
 
