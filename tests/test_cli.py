@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.cli.demo import check_links
-from simenv.cli.main import main as cli
+from simenv.cli import info as info_command
+from simenv.cli import main as cli
+from simenv.cli.demo_page import check_links
 
 SUMMARY_KEYS = {
     "frames", "fps", "people", "mean_residual_m", "p95_residual_m", "max_residual_m", "seconds"
@@ -87,7 +88,7 @@ def test_unexpected_errors_keep_their_traceback(monkeypatch):
     def broken(path):
         raise RuntimeError("a bug, not bad input")
 
-    monkeypatch.setattr(cli, "load_any", broken)
+    monkeypatch.setattr(info_command, "load_any", broken)
     with pytest.raises(RuntimeError, match="a bug"):
         cli.main(["info", str(asset_path(WALK))])
 

@@ -1,4 +1,4 @@
-"""The demo's page (simenv.cli.demo.write_page) and the report writers' links: every link is
+"""The demo's page (simenv.cli.demo_page.write_page) and the report writers' links: every link is
 relative and resolves after the folder is moved; a headless Chromium screenshot of the page
 is not blank and shows the video's poster (skipped when Chromium is absent: `make
 demo-check` installs it and checks the full demo's page)."""
@@ -15,9 +15,9 @@ import pytest
 from simenv.assets import WALK, asset_path
 from simenv.body.render import render_result
 from simenv.body.retarget import retarget
-from simenv.cli.demo import (
-    _export,
-    _poster,
+from simenv.cli.common import save_npz, summary
+from simenv.cli.demo_job import export_glb, write_poster
+from simenv.cli.demo_page import (
     check_links,
     check_page,
     check_screenshot,
@@ -26,7 +26,7 @@ from simenv.cli.demo import (
     page_links,
     write_page,
 )
-from simenv.cli.main import main, save_npz, summary
+from simenv.cli.main import main
 from simenv.core.errors import SimenvError
 from simenv.io.loader import load
 from simenv.plausibility.html_report import write_report
@@ -49,8 +49,8 @@ def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     scored = score(clip, physics=False)
     page = write_report(scored, out / "report" / "walk", video=False)
     entry.update(asset=WALK, npz=str(save_npz(result, out / "walk.npz")),
-                 glb=str(_export(result, out / "walk.glb")), video=str(video),
-                 poster=_poster(video), render_stride=20,
+                 glb=str(export_glb(result, out / "walk.glb")), video=str(video),
+                 poster=write_poster(video), render_stride=20,
                  plausibility={"verdict": scored.verdict, "report": str(page), "people": [
                      {"name": p.name, "verdict": p.verdict, "score": p.score, "failed": []}
                      for p in scored.people]})

@@ -14,7 +14,7 @@ import pytest
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
-from simenv.cli.main import main as cli
+from simenv.cli import main as cli
 from simenv.core.errors import FormatError, MotionError, SkeletonError, UnitsError
 from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import SMPL22_JOINTS, SMPL22_PARENTS, get_skeleton

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from simenv.cli.main import main as cli
+from simenv.cli import main as cli
 from simenv.core.errors import MotionError, SimenvError
 from simenv.core.motion import Motion
 from simenv.data import prediction_data as pdata

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.cli.main import main as cli
+from simenv.cli import main as cli
 from simenv.core.errors import SimenvError
 from simenv.data import interaction_data as idata
 from simenv.envs import reaction_rehearsal as rr

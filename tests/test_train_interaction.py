@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simenv.cli.main import main as cli
+from simenv.cli import main as cli
 from simenv.core.errors import SimenvError
 from simenv.learning import train_interaction as ti
 from simenv.models import INTERACTION_MODELS, interaction_model_class

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import simenv.models
-from simenv.cli.main import main as cli
+from simenv.cli import main as cli
 from simenv.perception.train_recogniser import benchmark_table
 
 shipped = pytest.mark.skipif(

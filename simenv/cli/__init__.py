@@ -1,1 +1,4 @@
-"""The `simenv` command: one entry per subcommand, and the demo."""
+"""The ``simenv`` command: :mod:`simenv.cli.main` assembles one module per subcommand
+(``info``, ``retarget``, ``render``, ``score``, ``export``, ``demo``, ``train``,
+``evaluate`` for ``eval``, ``rehearse``), each with ``add_parser(subparsers)`` and
+``run(args)``; :mod:`simenv.cli.common` holds what they share."""

@@ -1,0 +1,205 @@
+"""What the ``simenv`` commands share: the exit status of a user error, argument types and
+help, the ``train``/``eval`` parser shape, and the clip summary, retargeting and NPZ writing
+of ``info``, ``retarget``, ``render`` and ``demo``.
+
+The body modules (MuJoCo) are imported where a clip is measured or retargeted, so that
+building the command line stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion
+
+#: Exit status of a user error (:class:`~simenv.core.errors.SimenvError`), as argparse's.
+EXIT_USER_ERROR = 2
+
+#: Help of the positional motion argument of the commands that read motion.
+PATH_HELP = (
+    "a motion file (BVH, ASF/AMC, Kinect text, NPZ), a folder with a two-person recording, "
+    "or the two files of one"
+)
+
+#: The model kinds of ``train`` and ``eval``.
+MODEL_KINDS = ("predictor", "classifier", "recogniser", "interaction")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return value
+
+
+def check_suffix(path: str, suffix: str, option: str) -> Path:
+    """``path`` as a Path; a :class:`SimenvError` naming ``option`` unless it ends with
+    ``suffix`` (lower case, e.g. ``".npz"``)."""
+    out = Path(path)
+    if out.suffix.lower() != suffix:
+        raise SimenvError(f"{option} must end with {suffix}; got {out.name!r}", field=option)
+    return out
+
+
+def add_model_command(subparsers: argparse._SubParsersAction, verb: str, text: str,
+                      run: Callable[[argparse.Namespace], int]) -> None:
+    """Add ``simenv VERB KIND ...`` (``train``, ``eval``): the options after KIND go, as
+    they are, to the script of that kind (``args.kind``, ``args.options``)."""
+    cmd = subparsers.add_parser(verb, help=text.split(" (")[0].split(":")[0], description=text)
+    cmd.add_argument("kind", choices=MODEL_KINDS, metavar="KIND", help=" or ".join(MODEL_KINDS))
+    cmd.add_argument("options", nargs=argparse.REMAINDER, metavar="...",
+                     help="options of the training/evaluation script")
+    cmd.set_defaults(func=run)
+
+
+# -- clips ----------------------------------------------------------------------------------
+
+
+def _stature(motion: Motion) -> float | None:
+    """Standing height (m, sole to top of head) of the body fitted to the bone lengths."""
+    from simenv.body.humanoid import fit_dimensions  # MuJoCo: only when a clip is described
+
+    try:
+        return round(fit_dimensions(motion).height, 3)
+    except SimenvError:  # e.g. no pelvis/hips to measure a body from
+        return None
+
+
+def _person_info(motion: Motion) -> dict[str, Any]:
+    """``height_m`` is the joint span (highest minus lowest joint, 95th percentile over
+    frames); ``stature_m`` the standing height of the fitted body, when one can be fitted."""
+    meta = motion.metadata
+    return {
+        "name": motion.name,
+        "joints": motion.num_joints,
+        "frames": motion.num_frames,
+        "fps": motion.fps,
+        "duration_s": round(motion.duration, 4),
+        "height_m": round(motion.height(), 3),
+        "stature_m": _stature(motion),
+        "units_in_file": meta.get("units"),
+        "quirks": list(meta.get("quirks", [])),
+        "repairs": list(meta.get("repairs", [])),
+    }
+
+
+def describe(clip: Motion | Interaction) -> dict[str, Any]:
+    """JSON-ready summary of a clip: format, people, joints, frames, fps, duration, heights."""
+    people = clip.people if isinstance(clip, Interaction) else (clip,)
+    first = people[0]
+    info: dict[str, Any] = {
+        "name": clip.name,
+        "source": str(clip.metadata.get("source", first.metadata.get("source", ""))),
+        "format": clip.metadata.get("format", first.metadata.get("format")),
+        "people": len(people),
+        "frames": first.num_frames,
+        "fps": first.fps,
+        "duration_s": round(first.duration, 4),
+        "persons": [_person_info(m) for m in people],
+    }
+    if isinstance(clip, Interaction):
+        info["label"] = clip.label
+        info["quirks"] = list(clip.metadata.get("quirks", []))
+    return info
+
+
+def retarget_clip(clip: Motion | Interaction) -> Any:
+    """Retarget one clip (each person on their own fitted humanoid); see
+    :mod:`simenv.body.retarget`."""
+    from simenv.body.retarget import retarget  # MuJoCo: only when a clip is retargeted
+
+    return retarget(clip)
+
+
+def summary(result: Any) -> dict[str, Any]:
+    """The one-object JSON summary of a retargeting result (residuals in metres)."""
+    qpos = np.asarray(result.qpos)
+    return {
+        "frames": int(qpos.shape[0]),
+        "fps": float(result.fps),
+        "people": len(_people_results(result)),
+        "mean_residual_m": float(result.mean_residual),
+        "p95_residual_m": float(result.p95_residual),
+        "max_residual_m": float(result.max_residual),
+        "seconds": float(result.seconds),
+    }
+
+
+def _people_results(result: Any) -> list[Any]:
+    for attr in ("people", "results", "persons"):
+        people = getattr(result, attr, None)
+        if people is not None:
+            return list(people)
+    return [result]
+
+
+def _humanoid_arrays(humanoid: Any, suffix: str) -> dict[str, np.ndarray]:
+    """The humanoid's dimensions as NPZ arrays: ``dim_names``/``dim_values`` (metres; 3-vector
+    offsets split into ``_x``/``_y``/``_z``), ``height`` (m) and ``mass`` (kg)."""
+    names: list[str] = []
+    values: list[float] = []
+    dims = getattr(humanoid, "dims", None)
+    if dims is not None and dataclasses.is_dataclass(dims):
+        for f in dataclasses.fields(dims):
+            value = getattr(dims, f.name)
+            if isinstance(value, (int, float)):
+                names.append(f.name)
+                values.append(float(value))
+            elif isinstance(value, tuple) and len(value) == 3 and all(
+                isinstance(v, (int, float)) for v in value
+            ):
+                names += [f"{f.name}_{axis}" for axis in "xyz"]
+                values += [float(v) for v in value]
+    arrays = {
+        f"dim_names{suffix}": np.array(names, dtype=str),
+        f"dim_values{suffix}": np.array(values, dtype=np.float64),
+    }
+    height = getattr(dims, "height", None)
+    if isinstance(height, (int, float)):
+        arrays[f"height{suffix}"] = np.float64(height)
+    mass = getattr(humanoid, "total_mass", None)
+    if isinstance(mass, (int, float)):
+        arrays[f"mass{suffix}"] = np.float64(mass)
+    return arrays
+
+
+def save_npz(result: Any, path: str | Path) -> Path:
+    """Write ``qpos`` (T, nq), ``fps``, per-person ``qpos_i`` and humanoid dimensions to NPZ."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays: dict[str, np.ndarray] = {
+        "qpos": np.asarray(result.qpos, dtype=np.float64),
+        "fps": np.float64(result.fps),
+        "residuals": np.asarray(_residuals(result), dtype=np.float32),
+    }
+    people = _people_results(result)
+    if len(people) == 1:
+        arrays.update(_humanoid_arrays(people[0].humanoid, ""))
+    else:
+        for i, person in enumerate(people):
+            arrays[f"qpos_{i}"] = np.asarray(person.qpos, dtype=np.float64)
+            arrays.update(_humanoid_arrays(person.humanoid, f"_{i}"))
+    np.savez(path, **arrays)
+    return path
+
+
+def _residuals(result: Any) -> np.ndarray:
+    people = _people_results(result)
+    if len(people) == 1:
+        return np.asarray(people[0].residuals)
+    return np.concatenate([np.asarray(p.residuals) for p in people], axis=1)
+
+
+__all__ = ["EXIT_USER_ERROR", "MODEL_KINDS", "PATH_HELP", "add_model_command", "check_suffix",
+           "describe", "positive_int", "retarget_clip", "save_npz", "summary"]

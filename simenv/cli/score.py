@@ -1,0 +1,168 @@
+"""``simenv score``: judge the physical plausibility of motion files and folders, optionally
+relative to real data of the same source (``--reference``)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from simenv.cli.common import EXIT_USER_ERROR, positive_int
+from simenv.core.errors import SimenvError
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``simenv score``."""
+    sco = subparsers.add_parser("score", help="judge physical plausibility", description=(
+        "Score each motion: joint-level metrics (bone length, foot skate, jitter, velocity, "
+        "...), and with --physics (default) the retargeted body's ground penetration, "
+        "floating, joint limits, self-penetration, inverse-dynamics root residual, balance "
+        "and unassisted physics tracking (model-predictive control); two-person clips add "
+        "inter-person penetration and contact. "
+        "Folders are walked (a folder with one two-person recording is one clip). Prints a "
+        "verdict per person, or with --json one JSON object per person."))
+    sco.add_argument("paths", nargs="+", metavar="PATH", help="motion files or folders")
+    sco.add_argument("--json", action="store_true", help=(
+        "print one JSON object per person scored: file, person, frames, fps, verdict, score, "
+        "metrics, violations (and interaction for two people)"))
+    sco.add_argument("--physics", action=argparse.BooleanOptionalAction, default=True,
+                     help="run the body-level and simulation metrics (default: on)")
+    sco.add_argument("--jobs", type=positive_int, default=1,
+                     help="parallel worker processes / Ray tasks (default 1)")
+    sco.add_argument("--backend", choices=("local", "ray"), default="local",
+                     help="where the jobs run (default local)")
+    sco.add_argument("--ray-address", default=None,
+                     help="with --backend ray: cluster address (default: start a local Ray)")
+    sco.add_argument("--out", metavar="RESULTS.jsonl", help=(
+        "append one JSON line per person as each file finishes; a rerun skips files "
+        "already there"))
+    sco.add_argument("--report", metavar="DIR",
+                     help="write an HTML report (timelines, violation video) per file")
+    sco.add_argument("--progress", action="store_true",
+                     help="show the progress bar even when stderr is not a terminal")
+    sco.add_argument("--restore-collapsed-bones", action="store_true", help=(
+        "read BVH files with the thorax and wrist bones that the CMU conversions collapse "
+        "put back (reader's repair; listed in each record's repairs); default: as written"))
+    sco.add_argument("--reference", nargs="+", action="extend", metavar="REAL_PATH", help=(
+        "judge the clips relative to real data of the same source: score these real files or "
+        "folders (or read their earlier --out .jsonl results), calibrate every metric on them "
+        "(percentiles) and report per clip and for the set where the scored clips fall "
+        "(records get 'reference'; a summary line, REPORT/reference.html and "
+        "OUT.reference.json). Put it after the scored PATHs"))
+    sco.set_defaults(func=run)
+
+
+def _print_score(rec: dict[str, Any]) -> None:
+    if "error" in rec:
+        print(f"{rec['file']}: error: {rec['error']}")
+        return
+    failed = [n for n, m in rec["metrics"].items() if m["passed"] is False]
+    na = [n for n, m in rec["metrics"].items() if m["passed"] is None]
+    where = f"clip {rec['clip']}, person {rec['person']}" if "clip" in rec \
+        else f"person {rec['person']}"
+    line = (f"{rec['file']} [{where}]: {rec['verdict']} (score "
+            f"{rec['score']:.1f}, {rec['frames']} frames at {rec['fps']:g} fps)")
+    if failed:
+        line += "; failed: " + ", ".join(failed)
+    if na:
+        line += "; not available: " + ", ".join(na)
+    pair = rec.get("interaction")
+    if pair is not None and rec["person"] == 0:
+        line += f"; interaction: {pair['verdict']}"
+    ref = rec.get("reference")
+    if ref is not None:
+        line += (f"; against the reference: {ref['verdict']} (worst: {ref['worst_metric']} at "
+                 f"percentile {ref['worst_percentile']:.1f})")
+    print(line)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Score every target, print a line (or a JSON object) per person as it finishes; exit
+    status 2 when some input could not be scored."""
+    # The scorer (MuJoCo, numba kernels) loads only when something is scored.
+    from simenv.plausibility.batch import (
+        ScoreJob,
+        calibrate_reference,
+        find_targets,
+        index_entries,
+        score_batch,
+    )
+
+    targets = find_targets(args.paths)
+    if not targets:
+        raise SimenvError("found no motion file to score", source=args.paths[0])
+    report_dir = None
+    if args.report:
+        report_dir = Path(args.report)
+        report_dir.mkdir(parents=True, exist_ok=True)
+    job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
+                   else str(report_dir), restore_collapsed_bones=args.restore_collapsed_bones)
+    progress = sys.stderr.isatty() or args.progress
+    if args.reference:
+        reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,
+                                        backend=args.backend, ray_address=args.ray_address,
+                                        progress=progress)
+        job = dataclasses.replace(job, reference=reference)
+
+    def show(_target: Path, records: list[dict[str, Any]]) -> None:
+        for rec in records:
+            if args.json:
+                print(json.dumps(rec), flush=True)
+            else:
+                _print_score(rec)
+
+    records = score_batch(targets, job, jobs=args.jobs, backend=args.backend,
+                          ray_address=args.ray_address, out=args.out,
+                          progress=progress, on_result=show)
+    if report_dir is not None:
+        from simenv.plausibility.html_report import write_index  # rendering: with --report
+
+        index = write_index(index_entries(records), report_dir)
+        if not args.json:
+            print(f"wrote {index}")
+    if job.reference is not None:
+        _reference_summary(args, job.reference, records, report_dir)
+    if args.out and not args.json:
+        print(f"results in {args.out}")
+    # Every file was attempted and recorded; the status still says some input was bad.
+    return EXIT_USER_ERROR if any("error" in r for r in records) else 0
+
+
+def _reference_summary(args: argparse.Namespace, reference: Any,
+                       records: list[dict[str, Any]], report_dir: Path | None) -> None:
+    """Compare the generated set with the reference; print (JSON: one
+    ``{"reference_summary": ...}`` line), write it next to ``--out`` and into
+    ``--report``."""
+    # The report writers (MuJoCo, rendering) load only with --reference.
+    from simenv.plausibility.reference import compare, read_records, write_reference_page
+
+    # With --out, the set is every record of the results file (a rerun skips files already in it),
+    # judged against this reference.
+    if args.out:
+        records = [rec if "error" in rec else {**rec, "reference": reference.judge(rec)}
+                   for rec in read_records(args.out)]
+    summary = compare(reference, records)
+    if args.out:
+        Path(args.out).with_suffix(".reference.json").write_text(
+            json.dumps(summary, indent=1), encoding="utf-8")
+    if report_dir is not None:
+        page = write_reference_page(summary, records, report_dir)
+        if not args.json:
+            print(f"wrote {page}")
+    if args.json:
+        print(json.dumps({"reference_summary": summary}), flush=True)
+        return
+    o = summary["overall"]
+    print(f"reference: {summary['reference']['people']} real people; generated: "
+          f"{summary['generated']['people']}: {summary['verdict']} "
+          f"({100 * o['share_beyond_p99']:.1f} % beyond the real 99th percentile of the worst "
+          f"metric, expected {100 * o['expected_share_beyond_p99']:.1f} %; p = "
+          f"{o['p_value']:.3g})")
+    for name, m in summary["metrics"].items():
+        g = m.get("generated")
+        if g is not None:
+            print(f"  {name}: median percentile {g['median_percentile']:.1f}, "
+                  f"{100 * g['share_beyond_p99']:.1f} % beyond real p99 ({g['verdict']})")
