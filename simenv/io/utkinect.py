@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Literal
 
@@ -121,6 +122,44 @@ def read(
         ``metadata["segments"]``.
     """
     path = Path(path)
+    frames, xyz, repairs = _rows(path)
+    quirks: list[str] = []
+    steps = np.diff(frames)
+    median_step = float(np.median(steps)) if steps.size else 1.0
+    xyz, out_fps, to_index = _timing(frames, xyz, timing, fps, median_step, repairs, quirks)
+    segments, label_path = _segments(path, labels, to_index, quirks)
+    meta: dict[str, object] = {
+        "source": str(path),
+        "format": "utkinect",
+        "units": "m (camera frame)",
+        "dataset": "UTKinect-Action3D",
+        "repairs": repairs,
+        "quirks": quirks,
+        "segments": segments,
+        "timing": {"mode": timing, "frame_clock_hz": FRAME_CLOCK_HZ,
+                   "median_frame_step": median_step, "rows": int(len(frames))},
+        "frame_numbers": frames.astype(int).tolist(),
+    }
+    if label_path is not None:
+        meta["labels_file"] = str(label_path)
+    m = re.search(r"s(\d+)_e(\d+)", path.name, re.IGNORECASE)
+    if m:
+        meta["subject"], meta["repetition"] = int(m.group(1)), int(m.group(2))
+    return world_motion(
+        xyz, kinect_v1_skeleton(), fps=out_fps, name=path.name.split(".")[0], metadata=meta,
+        source=str(path),
+    )
+
+
+def _rows(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The stored rows: (R,) frame numbers, strictly increasing, and (R, 20, 3) joint
+    positions, m (camera frame), a row repeating the previous frame number dropped (a
+    repair noted in the returned list).
+
+    Raises:
+        FormatError: a row without 61 numbers, a frame number that is not an integer or
+            that decreases.
+    """
     rows = table_lines(path, None)
     check_counts(path, rows, (VALUES_PER_ROW,), "frame number + 20 joints x y z")
     data = to_floats(path, rows)
@@ -142,18 +181,23 @@ def read(
         )
     keep = np.concatenate([[True], step > 0])
     repairs: list[str] = []
-    quirks: list[str] = []
     if not keep.all():
         repairs.append(
             f"dropped {int((~keep).sum())} rows repeating the previous frame number "
             "(duplicate skeleton estimates; kept the first of each)"
         )
-    frames = frames[keep]
-    xyz = data[keep, 1:].reshape(-1, 20, 3)
-    steps = np.diff(frames)
-    median_step = float(np.median(steps)) if steps.size else 1.0
-    t_rows = (frames - frames[0]) / FRAME_CLOCK_HZ
+    return frames[keep], data[keep, 1:].reshape(-1, 20, 3), repairs
 
+
+def _timing(frames: np.ndarray, xyz: np.ndarray, timing: str, fps: float, median_step: float,
+            repairs: list[str], quirks: list[str]
+            ) -> tuple[np.ndarray, float, Callable[..., int]]:
+    """The frames of the motion (module docstring, *timing*): (T, 20, 3) positions, their
+    rate, and ``to_index(frame_number, end=)``, the motion frame a segment bound falls on
+    (its first frame, or one past its last with ``end``); gaps bridged by resampling go to
+    ``repairs``, the rows' uneven spacing to ``quirks``."""
+    steps = np.diff(frames)
+    t_rows = (frames - frames[0]) / FRAME_CLOCK_HZ
     if timing == "resample" and len(frames) >= 2:
         n = int(math.floor(t_rows[-1] * fps + 1e-9)) + 1
         t_new = np.arange(n) / fps
@@ -184,7 +228,19 @@ def read(
             return int(np.searchsorted(frames, frame_number, side=side))
     else:
         raise ValueError(f"timing must be 'resample' or 'rows', got {timing!r}")
+    return xyz, out_fps, to_index
 
+
+def _segments(path: Path, labels: Path | str | None | Literal[False],
+              to_index: Callable[..., int], quirks: list[str]
+              ) -> tuple[list[dict[str, object]], Path | None]:
+    """The labelled segments of the session (``start``/``end`` motion frames by
+    ``to_index``, the file's ``start_frame``/``end_frame``) and the label file read
+    (None: none); segments the file cannot give go to ``quirks``.
+
+    Raises:
+        FormatError: a given label file that is missing, a segment ending before it starts.
+    """
     segments: list[dict[str, object]] = []
     session = _SESSION.search(path.name)
     label_path = None
@@ -192,42 +248,25 @@ def read(
         label_path = Path(labels) if labels else path.with_name("actionLabel.txt")
         if labels and not label_path.is_file():
             raise FormatError(f"label file {label_path} not found", source=path)
-    if label_path is not None and label_path.is_file() and session:
-        table = read_labels(label_path)
-        key = session.group(1).lower()
-        if key not in table:
-            quirks.append(f"session {key} not found in {label_path.name}; no segments")
-        for label, start, end in table.get(key, []):
-            if math.isnan(start) or math.isnan(end):
-                quirks.append(f"segment {label!r} has NaN bounds in {label_path.name}; left out")
-                continue
-            if end < start:
-                raise FormatError(
-                    f"segment {label!r} ends ({end:g}) before it starts ({start:g})",
-                    source=label_path, field=label,
-                )
-            segments.append({
-                "label": label, "start": to_index(start, end=False),
-                "end": to_index(end, end=True), "start_frame": int(start), "end_frame": int(end),
-            })
-    meta: dict[str, object] = {
-        "source": str(path),
-        "format": "utkinect",
-        "units": "m (camera frame)",
-        "dataset": "UTKinect-Action3D",
-        "repairs": repairs,
-        "quirks": quirks,
-        "segments": segments,
-        "timing": {"mode": timing, "frame_clock_hz": FRAME_CLOCK_HZ,
-                   "median_frame_step": median_step, "rows": int(len(frames))},
-        "frame_numbers": frames.astype(int).tolist(),
-    }
-    if label_path is not None and label_path.is_file():
-        meta["labels_file"] = str(label_path)
-    m = re.search(r"s(\d+)_e(\d+)", path.name, re.IGNORECASE)
-    if m:
-        meta["subject"], meta["repetition"] = int(m.group(1)), int(m.group(2))
-    return world_motion(
-        xyz, kinect_v1_skeleton(), fps=out_fps, name=path.name.split(".")[0], metadata=meta,
-        source=str(path),
-    )
+    if label_path is None or not label_path.is_file():
+        return segments, None
+    if not session:
+        return segments, label_path
+    table = read_labels(label_path)
+    key = session.group(1).lower()
+    if key not in table:
+        quirks.append(f"session {key} not found in {label_path.name}; no segments")
+    for label, start, end in table.get(key, []):
+        if math.isnan(start) or math.isnan(end):
+            quirks.append(f"segment {label!r} has NaN bounds in {label_path.name}; left out")
+            continue
+        if end < start:
+            raise FormatError(
+                f"segment {label!r} ends ({end:g}) before it starts ({start:g})",
+                source=label_path, field=label,
+            )
+        segments.append({
+            "label": label, "start": to_index(start, end=False),
+            "end": to_index(end, end=True), "start_frame": int(start), "end_frame": int(end),
+        })
+    return segments, label_path
