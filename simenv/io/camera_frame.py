@@ -259,32 +259,7 @@ def estimate_floor(
     Returns:
         The :class:`FloorEstimate`.
     """
-    prepared = []
-    for positions, skeleton in people:
-        p = np.asarray(positions, dtype=np.float64)
-        bad = np.argwhere(~(np.abs(p) <= MAX_RANGE_M))
-        if bad.size:
-            t, j = int(bad[0][0]), int(bad[0][1])
-            raise MotionError(
-                f"joint position {p[t, j].tolist()} is not finite or farther than "
-                f"{MAX_RANGE_M:g} m from the sensor; expected camera-frame metres",
-                source=source, frame=t, field=skeleton.joint_names[j],
-            )
-        p = p @ KINECT_TO_ZUP.T
-        feet, clearance = _foot_joints(skeleton)
-        if not feet:
-            raise MotionError(
-                f"skeleton {skeleton.name!r} maps no ankle or toe keypoint; the floor cannot be "
-                "estimated from the feet",
-                source=source,
-            )
-        if len(_body_axis_votes(p[:1], skeleton)) == 0:
-            raise MotionError(
-                f"skeleton {skeleton.name!r} has neither shanks (knee, ankle) nor a trunk "
-                "(hips/pelvis to neck/head) to estimate the vertical from",
-                source=source,
-            )
-        prepared.append((p, skeleton, feet, np.asarray(clearance)))
+    prepared = [_prepared(positions, skeleton, source) for positions, skeleton in people]
     if not prepared:
         raise MotionError("no person to estimate the floor from", source=source)
 
@@ -307,13 +282,7 @@ def estimate_floor(
             source=source,
         )
     q = pts[keep] @ _rotation_to_z(n_cur).T
-    centred = q[:, :2] - q[:, :2].mean(axis=0)
-    if len(centred) >= 2:
-        _, _, vt = np.linalg.svd(centred, full_matrices=False)
-        proj = centred @ vt.T
-        spread = tuple(float(np.ptp(np.percentile(proj[:, i], [5, 95]))) for i in range(2))
-    else:
-        spread = (0.0, 0.0)
+    spread = _spread(q[:, :2])
     rms = float(np.sqrt(np.mean((q[:, 2] - floor_level) ** 2)))
     return FloorEstimate(
         rotation=level @ KINECT_TO_ZUP,
@@ -327,6 +296,52 @@ def estimate_floor(
         floor_points=int(keep.sum()),
         feet_spread_m=(spread[0], spread[1]),
     )
+
+
+def _prepared(positions: np.ndarray, skeleton: Skeleton, source: str | None
+              ) -> tuple[np.ndarray, Skeleton, list[int], np.ndarray]:
+    """One person's input to the floor fit: (T, J, 3) positions permuted to Z-up (not yet
+    levelled), the skeleton, its foot joints and their clearances above the floor.
+
+    Raises:
+        MotionError: a position that is not finite or out of the sensor's range, a
+            skeleton without feet or without shanks or a trunk.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    bad = np.argwhere(~(np.abs(p) <= MAX_RANGE_M))
+    if bad.size:
+        t, j = int(bad[0][0]), int(bad[0][1])
+        raise MotionError(
+            f"joint position {p[t, j].tolist()} is not finite or farther than "
+            f"{MAX_RANGE_M:g} m from the sensor; expected camera-frame metres",
+            source=source, frame=t, field=skeleton.joint_names[j],
+        )
+    p = p @ KINECT_TO_ZUP.T
+    feet, clearance = _foot_joints(skeleton)
+    if not feet:
+        raise MotionError(
+            f"skeleton {skeleton.name!r} maps no ankle or toe keypoint; the floor cannot be "
+            "estimated from the feet",
+            source=source,
+        )
+    if len(_body_axis_votes(p[:1], skeleton)) == 0:
+        raise MotionError(
+            f"skeleton {skeleton.name!r} has neither shanks (knee, ankle) nor a trunk "
+            "(hips/pelvis to neck/head) to estimate the vertical from",
+            source=source,
+        )
+    return p, skeleton, feet, np.asarray(clearance)
+
+
+def _spread(xy: np.ndarray) -> tuple[float, float]:
+    """5-95 % extent (m) of (N, 2) floor points along their two principal axes."""
+    centred = xy - xy.mean(axis=0)
+    if len(centred) < 2:
+        return (0.0, 0.0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    proj = centred @ vt.T
+    return (float(np.ptp(np.percentile(proj[:, 0], [5, 95]))),
+            float(np.ptp(np.percentile(proj[:, 1], [5, 95]))))
 
 
 def camera_to_world(
