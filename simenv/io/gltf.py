@@ -135,7 +135,38 @@ def write_gltf(model: mujoco.MjModel, path: str | os.PathLike[str], *,
     if frames > 1 and not (fps is not None and np.isfinite(fps) and fps > 0):
         raise SimenvError(f"an animation needs fps > 0; got {fps!r}", field="fps")
     xquat = _continuous(xquat / np.linalg.norm(xquat, axis=-1, keepdims=True))
+    scene, body_nodes = _scene(model, xpos, xquat)
+    glb = scene.export(file_type="glb", include_normals=True)
+    doc, blob = _split_glb(glb)
+    moving = [b for b in body_nodes if frames > 1 and (
+        np.ptp(xpos[:, b], axis=0).max() > STATIC_TOL
+        or np.ptp(xquat[:, b], axis=0).max() > STATIC_TOL)]
+    _use_trs(doc, body_nodes, xpos[0], xquat[0])
+    _set_targets(doc)
+    if moving:
+        blob = _add_animation(doc, blob, {body_nodes[b]: (xpos[:, b], xquat[:, b])
+                                          for b in moving},
+                              np.arange(frames) / float(fps), name or path.stem)
+    doc.setdefault("asset", {})["generator"] = "simenv (trimesh + animation)"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".glb":
+        path.write_bytes(_join_glb(doc, blob))
+    else:
+        doc["buffers"] = [{"byteLength": len(blob), "uri": "data:application/octet-stream;"
+                           "base64," + base64.b64encode(blob).decode()}]
+        path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    return path
 
+
+def _scene(model: mujoco.MjModel, xpos: np.ndarray, xquat: np.ndarray
+           ) -> tuple[Any, dict[int, str]]:
+    """The trimesh scene of the model's visible geoms (a Y-up root over the Z-up world, one
+    node per body with visible geoms at its frame-0 pose, one child node per geom) and body
+    index -> node name.
+
+    Raises:
+        SimenvError: no visible geometry.
+    """
     scene = trimesh.Scene(base_frame="scene")
     scene.graph.update(frame_from="scene", frame_to="world",
                        matrix=trimesh.transformations.quaternion_matrix(
@@ -161,26 +192,7 @@ def write_gltf(model: mujoco.MjModel, path: str | os.PathLike[str], *,
                                transform=_matrix(model.geom_pos[g], model.geom_quat[g]))
     if not scene.geometry:
         raise SimenvError("the model has no visible geometry to export", field="model")
-    glb = scene.export(file_type="glb", include_normals=True)
-    doc, blob = _split_glb(glb)
-    moving = [b for b in body_nodes if frames > 1 and (
-        np.ptp(xpos[:, b], axis=0).max() > STATIC_TOL
-        or np.ptp(xquat[:, b], axis=0).max() > STATIC_TOL)]
-    _use_trs(doc, body_nodes, xpos[0], xquat[0])
-    _set_targets(doc)
-    if moving:
-        blob = _add_animation(doc, blob, {body_nodes[b]: (xpos[:, b], xquat[:, b])
-                                          for b in moving},
-                              np.arange(frames) / float(fps), name or path.stem)
-    doc.setdefault("asset", {})["generator"] = "simenv (trimesh + animation)"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if path.suffix.lower() == ".glb":
-        path.write_bytes(_join_glb(doc, blob))
-    else:
-        doc["buffers"] = [{"byteLength": len(blob), "uri": "data:application/octet-stream;"
-                           "base64," + base64.b64encode(blob).decode()}]
-        path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    return path
+    return scene, body_nodes
 
 
 def check_gltf(path: str | os.PathLike[str]) -> dict[str, Any]:
