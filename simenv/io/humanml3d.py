@@ -386,26 +386,7 @@ def read_mdm_results(
             "simenv unpickles MDM results only from files named results*.npy (a pickle can "
             "run code); rename the file if you trust it", source=path)
     data = _load_mdm_dict(path)
-    if "motion" not in data:
-        raise FormatError(f"no 'motion' entry; keys are {', '.join(map(str, data))}",
-                          source=path, field="motion")
-    motion = np.asarray(data["motion"])
-    if not np.issubdtype(motion.dtype, np.number):
-        raise FormatError(f"motion has dtype {motion.dtype}; expected numbers",
-                          source=path, field="motion")
-    if motion.ndim != 4 or motion.shape[1:3] != (N_JOINTS, 3):
-        shape = motion.shape
-        if motion.ndim == 4 and shape[2:] == (N_JOINTS, 3):
-            hint = ("this is (N, T, 22, 3); MDM stores (N, 22, 3, T) (convert with "
-                    "motion.transpose(0, 2, 3, 1))")
-        elif motion.ndim == 4 and shape[1] == 21:
-            hint = "21 joints is a KIT-ML model's output, not supported"
-        elif motion.ndim == 4 and shape[1] == HML_VEC_DIM:
-            hint = ("these are HumanML3D 263-feature vectors; MDM recovers positions with "
-                    "recover_from_ric before saving")
-        else:
-            hint = "expected (N, 22, 3, T) joint positions"
-        raise FormatError(f"motion has shape {shape}: {hint}", source=path, field="motion")
+    motion = _mdm_motion(data, path)
     n, t_max = motion.shape[0], motion.shape[3]
     if n == 0:
         raise MotionError("motion holds no samples (N = 0)", source=path, field="motion")
@@ -443,6 +424,36 @@ def read_mdm_results(
             metadata={"text": text, "sample": sample, "repetition": rep, "index": i},
         ))
     return out
+
+
+def _mdm_motion(data: dict[str, Any], path: Path) -> np.ndarray:
+    """The (N, 22, 3, T) ``motion`` entry of MDM results.
+
+    Raises:
+        FormatError: no ``motion``, not numbers, or another layout (the message names the
+            layout it looks like: (N, T, 22, 3), KIT-ML's 21 joints, HumanML3D vectors).
+    """
+    if "motion" not in data:
+        raise FormatError(f"no 'motion' entry; keys are {', '.join(map(str, data))}",
+                          source=path, field="motion")
+    motion = np.asarray(data["motion"])
+    if not np.issubdtype(motion.dtype, np.number):
+        raise FormatError(f"motion has dtype {motion.dtype}; expected numbers",
+                          source=path, field="motion")
+    if motion.ndim == 4 and motion.shape[1:3] == (N_JOINTS, 3):
+        return motion
+    shape = motion.shape
+    if motion.ndim == 4 and shape[2:] == (N_JOINTS, 3):
+        hint = ("this is (N, T, 22, 3); MDM stores (N, 22, 3, T) (convert with "
+                "motion.transpose(0, 2, 3, 1))")
+    elif motion.ndim == 4 and shape[1] == 21:
+        hint = "21 joints is a KIT-ML model's output, not supported"
+    elif motion.ndim == 4 and shape[1] == HML_VEC_DIM:
+        hint = ("these are HumanML3D 263-feature vectors; MDM recovers positions with "
+                "recover_from_ric before saving")
+    else:
+        hint = "expected (N, 22, 3, T) joint positions"
+    raise FormatError(f"motion has shape {shape}: {hint}", source=path, field="motion")
 
 
 # -- writing ------------------------------------------------------------------------
