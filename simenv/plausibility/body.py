@@ -65,14 +65,18 @@ DEFAULT_CONTACT_PAIRS: tuple[tuple[str, str], ...] = (
 # -- ground ----------------------------------------------------------------------
 
 
-def _lowest(result: RetargetResult) -> tuple[np.ndarray, BodyPoses]:
+def _lowest(result: RetargetResult, poses: BodyPoses | None) -> tuple[np.ndarray, BodyPoses]:
+    """(T,) height of the lowest body geom point, metres, and the poses used
+    (``poses`` when given, else computed)."""
     model = result.humanoid.model
-    poses = body_poses(model, result.qpos)
+    if poses is None:
+        poses = body_poses(model, result.qpos)
     return geom_lowest_z(model, poses, body_geoms(model)).min(axis=1), poses
 
 
 def body_penetration(result: RetargetResult,
-                     thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+                     thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
+                     poses: BodyPoses | None = None) -> MetricResult:
     """Depth of the body's lowest geom point below the floor.
 
     Timeline: ``max(0, -min_g z_low,g(t)) * 1000`` mm over every body geom
@@ -80,9 +84,10 @@ def body_penetration(result: RetargetResult,
     knee or hand counts. Value: the maximum over frames; passes when at most
     ``geom_penetration_max_mm``. Details: ``mean_mm`` (PhysDiff's
     "penetrate", here on geoms instead of mesh vertices) and
-    ``frames_below_floor`` (fraction of frames deeper than 1 mm).
+    ``frames_below_floor`` (fraction of frames deeper than 1 mm). ``poses``:
+    ``result``'s forward kinematics when the caller has them.
     """
-    lowest, _ = _lowest(result)
+    lowest, _ = _lowest(result, poses)
     depth = np.maximum(-lowest, 0.0) * 1000.0
     return MetricResult.from_timeline(
         "body_penetration", depth, float(depth.max()), "mm",
@@ -98,7 +103,8 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def body_floating(result: RetargetResult,
-                  thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS) -> MetricResult:
+                  thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
+                  poses: BodyPoses | None = None) -> MetricResult:
     """Floating on geoms: airborne frames whose centre of mass does not fall.
 
     A frame is airborne when every body geom is more than
@@ -110,7 +116,8 @@ def body_floating(result: RetargetResult,
     otherwise. Timeline: clearance (mm) of the lowest geom on floating frames,
     0 elsewhere; value: its maximum; passes when no frame floats. Details:
     ``airborne_fraction``, ``floating_fraction``, ``worst_residual_m``,
-    ``jumps``. Assumes the floor is the only support.
+    ``jumps``. Assumes the floor is the only support. ``poses``: ``result``'s
+    forward kinematics when the caller has them.
     """
     thr = thresholds.geom_float_clearance_m * 1000.0
     T = result.num_frames
@@ -118,7 +125,7 @@ def body_floating(result: RetargetResult,
         return MetricResult.not_available(
             "body_floating", T, "mm", thr,
             f"needs at least 3 frames to tell a jump from floating; the motion has {T}")
-    lowest, poses = _lowest(result)
+    lowest, poses = _lowest(result, poses)
     airborne = lowest > thresholds.geom_float_clearance_m
     floating_mask = np.zeros(T, dtype=bool)
     worst, jumps = 0.0, 0

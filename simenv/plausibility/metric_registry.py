@@ -209,7 +209,8 @@ class GeomPenetration(_OnBody):
 
     def compute(self, inputs: PersonInputs) -> MetricResult:
         # The geom version keeps its module name; the report uses the stable one.
-        return replace(body_penetration(_fitted(inputs), inputs.config.body), name=self.name)
+        result = body_penetration(_fitted(inputs), inputs.config.body, poses=inputs.poses)
+        return replace(result, name=self.name)
 
 
 class GeomFloating(_OnBody):
@@ -229,7 +230,8 @@ class GeomFloating(_OnBody):
         return body.geom_float_clearance_m * 1000.0
 
     def compute(self, inputs: PersonInputs) -> MetricResult:
-        return replace(body_floating(_fitted(inputs), inputs.config.body), name=self.name)
+        result = body_floating(_fitted(inputs), inputs.config.body, poses=inputs.poses)
+        return replace(result, name=self.name)
 
 
 class JointLimits(_OnBody):

@@ -1,0 +1,142 @@
+"""The metric registry and the scorer's shared inputs (simenv.plausibility.metric*)."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+import simenv
+import simenv.plausibility.body as plausibility_body
+import simenv.plausibility.metric as metric_module
+import simenv.plausibility.metric_registry as registry_module
+import simenv.plausibility.report as report_module
+from simenv.assets import HANDSHAKE_PAIR, asset_path
+from simenv.body import dynamics as body_dynamics
+from simenv.body import geometry
+from simenv.plausibility import dynamics as plausibility_dynamics
+from simenv.plausibility.metric import Metric, Needs, ScoreConfig
+from simenv.plausibility.metric_registry import (
+    PAIR_METRICS,
+    PAIR_REGISTRY,
+    PERSON_METRICS,
+    PERSON_REGISTRY,
+    alternatives,
+)
+from simenv.plausibility.report import score
+
+#: The report's names in order: the JSON contract.
+CONTRACT_PERSON = ("bone_length", "foot_skate", "ground_penetration", "floating", "jitter",
+                   "velocity", "joint_limits", "self_penetration", "root_residual", "balance",
+                   "tracking")
+CONTRACT_PAIR = ("inter_penetration", "contact", "pair_root_residual")
+FAMILIES = {"kinematic", "contact", "body", "dynamics", "tracking"}
+BASES = {"keypoints", "geoms", "dynamics", "simulation"}
+QUICK = ScoreConfig(tracking=False)
+
+
+def test_every_metric_is_registered_once_in_report_order():
+    everything = PERSON_REGISTRY + PAIR_REGISTRY
+    assert len({id(m) for m in everything}) == len(everything)
+    assert len({type(m) for m in everything}) == len(everything)
+    # A name has at most one metric per input (the geom and the keypoint versions).
+    assert len({(m.name, m.needs) for m in everything}) == len(everything)
+    assert PERSON_METRICS == CONTRACT_PERSON
+    assert PAIR_METRICS == CONTRACT_PAIR
+    options = alternatives(PERSON_REGISTRY)
+    assert [m.basis for m in options["ground_penetration"]] == ["geoms", "keypoints"]
+    assert [m.basis for m in options["floating"]] == ["geoms", "keypoints"]
+    assert all(len(v) == 1 for k, v in options.items() if k not in ("ground_penetration",
+                                                                    "floating"))
+
+
+def test_registered_metrics_follow_the_protocol():
+    for m in PERSON_REGISTRY + PAIR_REGISTRY:
+        assert isinstance(m, Metric), m
+        assert m.family in FAMILIES and m.basis in BASES, m
+        assert isinstance(m.unit, str) and m.unit
+        assert m.__doc__ and len(m.__doc__.splitlines()) >= 3, f"{m.name}: document the math"
+        threshold, frame_threshold = m.thresholds(QUICK)
+        assert np.isfinite(threshold) and np.isfinite(frame_threshold)
+    assert {m.needs for m in PERSON_REGISTRY} == {Needs.MOTION, Needs.BODY}
+    assert {m.needs for m in PAIR_REGISTRY} == {Needs.PAIR}
+
+
+def test_declared_units_and_thresholds_are_those_of_the_results(walk_2s):
+    report = score(walk_2s.slice(0, 120), config=QUICK)
+    person = report.people[0]
+    chosen = {m.name: m for m in PERSON_REGISTRY if m.basis == person.basis[m.name]}
+    assert list(chosen) == list(PERSON_METRICS)
+    for name, result in person.metrics.items():
+        m = chosen[name]
+        assert result.unit == m.unit, name
+        assert (result.threshold, result.frame_threshold) == m.thresholds(QUICK), name
+    no_body = score(walk_2s.slice(0, 120), physics=False).people[0]
+    for m in PERSON_REGISTRY:
+        if m.needs is Needs.BODY and no_body.basis[m.name] == m.basis:
+            result = no_body.metrics[m.name]
+            assert result.reason == "physics=False"
+            assert (result.unit, result.threshold) == (m.unit, m.thresholds(QUICK)[0])
+
+
+def _count(monkeypatch, module, name, counts: Counter, key=None):
+    """Wrap ``module.name`` so that each call adds one to ``counts[key or name]``."""
+    original = getattr(module, name)
+
+    def counted(*args, **kwargs):
+        counts[key or name] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(module, name, counted)
+
+
+def test_a_person_is_retargeted_once_and_posed_once(walk_2s, monkeypatch):
+    counts: Counter = Counter()
+    _count(monkeypatch, report_module, "retarget", counts, "fit")
+    # The joint-limit probe refits onto a body with widened ranges only.
+    original_refit = plausibility_body.retarget
+
+    def refit(motion, humanoid=None, **kwargs):
+        counts["refit" if humanoid is None else "probe"] += 1
+        return original_refit(motion, humanoid=humanoid, **kwargs)
+
+    monkeypatch.setattr(plausibility_body, "retarget", refit)
+    # Forward kinematics of the fitted trajectory, wherever the metrics ask for it.
+    fk = geometry.body_poses
+    frames = 120
+
+    def poses(model, qpos):
+        counts["poses" if len(qpos) == frames else "poses_of_some_frames"] += 1
+        return fk(model, qpos)
+
+    for module in (metric_module, plausibility_body, plausibility_dynamics, body_dynamics):
+        monkeypatch.setattr(module, "body_poses", poses)
+    person = score(walk_2s.slice(0, frames), config=QUICK).people[0]
+    assert all(m.passed is not None for n, m in person.metrics.items() if n != "tracking")
+    assert counts["fit"] == 1 and counts["refit"] == 0 and counts["probe"] == 1
+    assert counts["poses"] == 1, counts
+
+
+def test_two_people_are_retargeted_once_together(monkeypatch):
+    counts: Counter = Counter()
+    _count(monkeypatch, report_module, "retarget", counts)
+    _count(monkeypatch, metric_module, "pair_root_residual", counts)
+    pair = simenv.load(asset_path(HANDSHAKE_PAIR)).slice(0, 60)
+    report = score(pair, config=ScoreConfig(tracking=False, joint_limits=False))
+    assert counts == {"retarget": 1, "pair_root_residual": 1}
+    # Each person's root residual is the pair's partner-explained one.
+    assert all("single_person_value" in p.metrics["root_residual"].details
+               for p in report.people)
+
+
+def test_root_residual_reads_the_tracking_run_instead_of_running_it_again(walk_2s,
+                                                                          monkeypatch):
+    counts: Counter = Counter()
+    _count(monkeypatch, registry_module, "tracking", counts)
+    config = ScoreConfig(tracking_controller="pd", tracking_assisted_detail=False,
+                         joint_limits=False)
+    person = score(walk_2s.slice(0, 30), config=config).people[0]
+    assert counts["tracking"] == 1
+    tracked = person.metrics["tracking"]
+    assert tracked.available and tracked.details["mpc"] == 0.0
+    assert "measured_fraction" in person.metrics["root_residual"].details
