@@ -288,27 +288,7 @@ def normalise_windows(
         MotionError: wrong shape, no valid frame, non-finite values, or a degenerate
             pose (shoulders on top of each other) in a window.
     """
-    x = np.asarray(windows, dtype=np.float64)
-    single = x.ndim == 3
-    if single:
-        x = x[None]
-    if x.ndim != 4 or x.shape[-1] != 3 or x.shape[2] != len(joints):
-        raise MotionError(
-            f"windows must have shape (N, T, {len(joints)}, 3); got {np.shape(windows)}",
-            field="windows",
-        )
-    v = np.ones(x.shape[:2], bool) if valid is None else np.asarray(valid, bool)
-    if single and valid is not None:
-        v = v[None]
-    if v.shape != x.shape[:2]:
-        raise MotionError(f"valid must have shape {x.shape[:2]}; got {v.shape}", field="valid")
-    empty = np.flatnonzero(~v.any(axis=1))
-    if empty.size:
-        raise MotionError(f"window {int(empty[0])} has no valid frame", field="valid")
-    bad = np.argwhere(~np.isfinite(x).all(axis=(2, 3)) & v)
-    if bad.size:
-        raise MotionError(f"window {int(bad[0, 0])} has a non-finite position",
-                          frame=int(bad[0, 1]), field="windows")
+    x, v, single = _checked_windows(windows, valid, len(joints))
     names = list(joints)
     spine = names.index("spine")
     ls, rs = names.index("left_shoulder"), names.index("right_shoulder")
@@ -350,6 +330,39 @@ def normalise_windows(
     out = np.einsum("nij,ntkj->ntki", rot, x - origin[:, None, None, :]) * k
     out = out.astype(np.float32)
     return out[0] if single else out
+
+
+def _checked_windows(windows: np.ndarray, valid: np.ndarray | None, joints: int
+                     ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(N, T, J, 3) float64 windows, (N, T) bool validity (default all real) and whether a
+    single (T, J, 3) window was given.
+
+    Raises:
+        MotionError: wrong shapes, a window without a valid frame, or a non-finite
+            position on a valid frame.
+    """
+    x = np.asarray(windows, dtype=np.float64)
+    single = x.ndim == 3
+    if single:
+        x = x[None]
+    if x.ndim != 4 or x.shape[-1] != 3 or x.shape[2] != joints:
+        raise MotionError(
+            f"windows must have shape (N, T, {joints}, 3); got {np.shape(windows)}",
+            field="windows",
+        )
+    v = np.ones(x.shape[:2], bool) if valid is None else np.asarray(valid, bool)
+    if single and valid is not None:
+        v = v[None]
+    if v.shape != x.shape[:2]:
+        raise MotionError(f"valid must have shape {x.shape[:2]}; got {v.shape}", field="valid")
+    empty = np.flatnonzero(~v.any(axis=1))
+    if empty.size:
+        raise MotionError(f"window {int(empty[0])} has no valid frame", field="valid")
+    bad = np.argwhere(~np.isfinite(x).all(axis=(2, 3)) & v)
+    if bad.size:
+        raise MotionError(f"window {int(bad[0, 0])} has a non-finite position",
+                          frame=int(bad[0, 1]), field="windows")
+    return x, v, single
 
 
 def mirror_windows(windows: np.ndarray, joints: Sequence[str] = GESTURE15_JOINTS
