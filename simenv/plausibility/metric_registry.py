@@ -77,6 +77,18 @@ class _OnBody:
         return value, value
 
 
+class _GroundOnBody(_OnBody):
+    """The geom version of a keypoint ground metric: its family function
+    (``measure``) names the result after itself; the report uses the stable
+    name the keypoint version shares."""
+
+    measure: Callable[..., MetricResult]
+
+    def compute(self, inputs: PersonInputs) -> MetricResult:
+        result = self.measure(_fitted(inputs), inputs.config.body, poses=inputs.poses)
+        return replace(result, name=self.name)
+
+
 class _OnPair(_OnBody):
     """A metric of the two bodies of a pair with one ``limit``."""
 
@@ -197,7 +209,7 @@ class Velocity(_Keypoints):
 # -- body: the retargeted humanoid's geoms ---------------------------------------------
 
 
-class GeomPenetration(_OnBody):
+class GeomPenetration(_GroundOnBody):
     """Lowest body geom point below the floor (:func:`simenv.plausibility.body.body_penetration`).
 
     Per frame ``max(0, -min_g z_low,g(t))`` in mm over every body geom (exact
@@ -206,14 +218,10 @@ class GeomPenetration(_OnBody):
     """
 
     name, limit = "ground_penetration", attrgetter("geom_penetration_max_mm")
-
-    def compute(self, inputs: PersonInputs) -> MetricResult:
-        # The geom version keeps its module name; the report uses the stable one.
-        result = body_penetration(_fitted(inputs), inputs.config.body, poses=inputs.poses)
-        return replace(result, name=self.name)
+    measure = staticmethod(body_penetration)
 
 
-class GeomFloating(_OnBody):
+class GeomFloating(_GroundOnBody):
     """Airborne geoms without a free-fall centre of mass
     (:func:`simenv.plausibility.body.body_floating`).
 
@@ -225,13 +233,10 @@ class GeomFloating(_OnBody):
     """
 
     name = "floating"
+    measure = staticmethod(body_floating)
 
     def limit(self, body: BodyThresholds) -> float:
         return body.geom_float_clearance_m * 1000.0
-
-    def compute(self, inputs: PersonInputs) -> MetricResult:
-        result = body_floating(_fitted(inputs), inputs.config.body, poses=inputs.poses)
-        return replace(result, name=self.name)
 
 
 class JointLimits(_OnBody):
