@@ -291,83 +291,18 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
     kinds = {name: interaction_model_entry(name, GENERATOR_KINDS)[2] for name in models}
 
     t0 = time.process_time()
-    recordings = idata.load_recordings(shared)
-    windows = idata.make_windows(recordings)
-    if data:
-        test_recs = [idata.load_interaction(p, label=label, name=f"data/{Path(p).name}")
-                     for p in data]
-        test = idata.make_windows(test_recs)
-        # Corpus recordings read from the given files are held out of training too.
-        given = [Path(p).resolve() for p in data]
-        keep = [k for k, r in enumerate(recordings)
-                if not any(_within(Path(f).resolve(), g) for f in r.metadata["sources"]
-                           for g in given)]
-        train = windows.subset(np.isin(windows.recording, keep))
-        if len(train) == 0:
-            raise SimenvError("every corpus recording is among --data: nothing left to "
-                              "train the nearest neighbour on")
-        test_names = list(test.recording_names)
-    else:
-        split = idata.split_by_recording(windows)
-        train, test = windows.subset(split.train), windows.subset(split.test)
-        test_names = list(split.test_clips)
-    closest = {}
-    for r, rec in enumerate(test.recording_names):
-        sel = test.recording == r
-        if sel.any():
-            d = im.joint_pair_distances(test.actor[sel], test.reactor[sel])
-            closest[rec] = {f"A:{a}-B:{b}": float(d[..., k].min())
-                            for k, (a, b) in enumerate(im.KEY_JOINT_PAIRS)}
+    train, test, test_names = _train_test(shared, data, label)
     extractor, fallback = default_feature_extractor()
     recognizer = InteractionRecognizer(extractor).fit(train.actor, train.reactor,
                                                       train.label)
-    reactor_recognizer = InteractionRecognizer(extractor, use_actor=False).fit(
-        train.actor, train.reactor, train.label)
-    reactions: dict[str, np.ndarray] = {REAL: test.reactor.astype(np.float64)}
-    results: dict[str, Any] = {}
-    generators = [(name, load(name)) for name in models if kinds[name] == "reaction"]
-    generators += [(name, make_baseline(name, train.actor, train.reactor))
-                   for name in BASELINE_NAMES]
-    for name, gen in tqdm(generators, desc="reaction generators", unit="model",
-                          disable=not progress):
-        reactions[name] = _generated(test, gen)
-        results[name] = reaction_metrics(test, reactions[name], extractor, seed)
-    # The real reactions through the same code: 0 errors by construction, and the
-    # diversity, multimodality and lag every method should match.
-    results[REAL] = reaction_metrics(test, reactions[REAL], extractor, seed)
-    results[REAL]["FVD_train_vs_test"] = im.frechet_feature_distance(
-        extractor(train.reactor), extractor(test.reactor))
-    for name, r in results.items():
-        r["recognition_acc"], r["recognition_windows"] = recognizer.accuracy(
-            test.actor, reactions[name], test.label)
-        r["recognition_reactor_acc"], _ = reactor_recognizer.accuracy(
-            test.actor, reactions[name], test.label)
-    generation, samples = {}, {}
-    for name in (n for n in models if kinds[n] == "interaction"):
-        model = load(name)
-        # Samples of the classes the model knows, one per test window of those classes.
-        keep = np.flatnonzero(np.isin(test.window_labels.astype(str), list(model.labels)))
-        if not len(keep):
-            generation[name] = {"windows": 0, "reason": "no test window of a class the "
-                                f"model knows ({', '.join(model.labels)})"}
-            continue
-        sub = test.subset(keep)
-        actor, reactor = model.sample(list(sub.window_labels.astype(str)), seed=seed)
-        samples[name] = (keep, np.asarray(actor, np.float64), np.asarray(reactor, np.float64))
-        generation[name] = generation_metrics(sub, actor, reactor, extractor, recognizer,
-                                              seed)
+    results, reactions = _reaction_results(
+        train, test, [n for n in models if kinds[n] == "reaction"], extractor, recognizer,
+        seed, progress)
+    generation, samples = _generation_results(
+        test, [n for n in models if kinds[n] == "interaction"], extractor, recognizer, seed)
     generation_real = generation_metrics(test, test.actor, test.reactor, extractor,
                                          recognizer, seed) if samples else {}
-    phys = {}
-    if physics:
-        phys_index = physics_windows(test)
-        phys = physics_of(test, phys_index, reactions, progress)
-        for name, (keep, actor, reactor) in samples.items():
-            # A sample of a window's class is placed where that window was in the world.
-            full_a, full_b = test.actor.astype(np.float64), test.reactor.astype(np.float64)
-            full_a[keep], full_b[keep] = actor, reactor
-            phys |= physics_of(test, [n for n in phys_index if n in keep], {name: full_b},
-                               progress, actors={name: full_a})
+    phys = _physics(test, reactions, samples, progress) if physics else {}
     return _jsonable({
         "pairs": len(test),
         "results": results,
@@ -385,10 +320,120 @@ def evaluate(shared: Path = SHARED, data: Sequence[str | Path] | None = None,
             "test_labels": dict(Counter(test.window_labels.tolist())),
             "train_labels": dict(Counter(train.window_labels.tolist())),
             "key_joint_pairs": [list(p) for p in im.KEY_JOINT_PAIRS],
-            "closest_real_approach_m": closest,
+            "closest_real_approach_m": _closest_approach(test),
         },
         "cpu_seconds": time.process_time() - t0,
     })
+
+
+def _train_test(shared: Path, data: Sequence[str | Path] | None, label: str | None
+                ) -> tuple[idata.InteractionWindows, idata.InteractionWindows, list[str]]:
+    """(train, test windows, test recording names): the corpus split by recording, or,
+    with ``data``, those files as the test set and the corpus recordings not read from
+    them as the training set.
+
+    Raises:
+        SimenvError: every corpus recording is among ``data``.
+    """
+    recordings = idata.load_recordings(shared)
+    windows = idata.make_windows(recordings)
+    if not data:
+        split = idata.split_by_recording(windows)
+        return windows.subset(split.train), windows.subset(split.test), list(split.test_clips)
+    test_recs = [idata.load_interaction(p, label=label, name=f"data/{Path(p).name}")
+                 for p in data]
+    test = idata.make_windows(test_recs)
+    # Corpus recordings read from the given files are held out of training too.
+    given = [Path(p).resolve() for p in data]
+    keep = [k for k, r in enumerate(recordings)
+            if not any(_within(Path(f).resolve(), g) for f in r.metadata["sources"]
+                       for g in given)]
+    train = windows.subset(np.isin(windows.recording, keep))
+    if len(train) == 0:
+        raise SimenvError("every corpus recording is among --data: nothing left to "
+                          "train the nearest neighbour on")
+    return train, test, list(test.recording_names)
+
+
+def _closest_approach(test: idata.InteractionWindows) -> dict[str, dict[str, float]]:
+    """Test recording -> ``"A:<a>-B:<b>"`` -> the closest approach of that key joint pair
+    over its windows, m."""
+    closest = {}
+    for r, rec in enumerate(test.recording_names):
+        sel = test.recording == r
+        if sel.any():
+            d = im.joint_pair_distances(test.actor[sel], test.reactor[sel])
+            closest[rec] = {f"A:{a}-B:{b}": float(d[..., k].min())
+                            for k, (a, b) in enumerate(im.KEY_JOINT_PAIRS)}
+    return closest
+
+
+def _reaction_results(train: idata.InteractionWindows, test: idata.InteractionWindows,
+                      models: Sequence[str], extractor: im.FeatureExtractor,
+                      recognizer: InteractionRecognizer, seed: int, progress: bool
+                      ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """:func:`reaction_metrics` and recognition accuracies of the reaction ``models`` and
+    the baselines on the test windows, then of the real reactions (row :data:`REAL`, with
+    the train-vs-test FVD); returns (results, method -> (N, T, J, 3) reactions)."""
+    reactor_recognizer = InteractionRecognizer(extractor, use_actor=False).fit(
+        train.actor, train.reactor, train.label)
+    reactions: dict[str, np.ndarray] = {REAL: test.reactor.astype(np.float64)}
+    results: dict[str, Any] = {}
+    generators = [(name, load(name)) for name in models]
+    generators += [(name, make_baseline(name, train.actor, train.reactor))
+                   for name in BASELINE_NAMES]
+    for name, gen in tqdm(generators, desc="reaction generators", unit="model",
+                          disable=not progress):
+        reactions[name] = _generated(test, gen)
+        results[name] = reaction_metrics(test, reactions[name], extractor, seed)
+    # The real reactions through the same code: 0 errors by construction, and the
+    # diversity, multimodality and lag every method should match.
+    results[REAL] = reaction_metrics(test, reactions[REAL], extractor, seed)
+    results[REAL]["FVD_train_vs_test"] = im.frechet_feature_distance(
+        extractor(train.reactor), extractor(test.reactor))
+    for name, r in results.items():
+        r["recognition_acc"], r["recognition_windows"] = recognizer.accuracy(
+            test.actor, reactions[name], test.label)
+        r["recognition_reactor_acc"], _ = reactor_recognizer.accuracy(
+            test.actor, reactions[name], test.label)
+    return results, reactions
+
+
+def _generation_results(test: idata.InteractionWindows, models: Sequence[str],
+                        extractor: im.FeatureExtractor, recognizer: InteractionRecognizer,
+                        seed: int) -> tuple[dict[str, Any], dict[str, tuple]]:
+    """:func:`generation_metrics` of each interaction model on one sample per test window
+    of a class it knows; returns (results, model -> (window indices, actor, reactor))."""
+    generation, samples = {}, {}
+    for name in models:
+        model = load(name)
+        # Samples of the classes the model knows, one per test window of those classes.
+        keep = np.flatnonzero(np.isin(test.window_labels.astype(str), list(model.labels)))
+        if not len(keep):
+            generation[name] = {"windows": 0, "reason": "no test window of a class the "
+                                f"model knows ({', '.join(model.labels)})"}
+            continue
+        sub = test.subset(keep)
+        actor, reactor = model.sample(list(sub.window_labels.astype(str)), seed=seed)
+        samples[name] = (keep, np.asarray(actor, np.float64), np.asarray(reactor, np.float64))
+        generation[name] = generation_metrics(sub, actor, reactor, extractor, recognizer,
+                                              seed)
+    return generation, samples
+
+
+def _physics(test: idata.InteractionWindows, reactions: dict[str, np.ndarray],
+             samples: dict[str, tuple], progress: bool) -> dict[str, Any]:
+    """:func:`physics_of` the reactions and the interaction models' samples on the
+    windows of :func:`physics_windows`."""
+    phys_index = physics_windows(test)
+    phys = physics_of(test, phys_index, reactions, progress)
+    for name, (keep, actor, reactor) in samples.items():
+        # A sample of a window's class is placed where that window was in the world.
+        full_a, full_b = test.actor.astype(np.float64), test.reactor.astype(np.float64)
+        full_a[keep], full_b[keep] = actor, reactor
+        phys |= physics_of(test, [n for n in phys_index if n in keep], {name: full_b},
+                           progress, actors={name: full_a})
+    return phys
 
 
 def _fmt(value: Any, spec: str) -> str:
@@ -397,8 +442,14 @@ def _fmt(value: Any, spec: str) -> str:
 
 def render_markdown(res: Mapping[str, Any]) -> str:
     """docs/interaction.md from the results of :func:`evaluate` (numbers as computed)."""
-    d, results, phys = res["data"], res["results"], res["physics"]
-    methods = list(results)
+    lines = [*_md_protocol(res), *_md_results(res), *_md_generation(res), *_md_physics(res),
+             "", f"CPU time of the run: {res['cpu_seconds']:.0f} s.", ""]
+    return "\n".join(lines)
+
+
+def _md_protocol(res: Mapping[str, Any]) -> list[str]:
+    """The report's title, data, protocol and metric definitions."""
+    d, results = res["data"], res["results"]
     lines = [
         "# Two-person generation: evaluation",
         "",
@@ -457,6 +508,15 @@ def render_markdown(res: Mapping[str, Any]) -> str:
         "alone gives the class away when few classes are trained, so `recog. B only` is "
         "the same with a classifier of the reactor's features alone.",
         "",
+    ]
+    return lines
+
+
+def _md_results(res: Mapping[str, Any]) -> list[str]:
+    """The reaction results: the headline table and E_r per class."""
+    d, results = res["data"], res["results"]
+    methods = list(results)
+    lines = [
         "## Results (held-out windows)",
         "",
         "| method | " + " | ".join(h for _, h, _ in COLUMNS) + " |",
@@ -485,63 +545,75 @@ def render_markdown(res: Mapping[str, Any]) -> str:
         pl = results[m]["per_label"]
         lines.append(f"| {m} | " + " | ".join(
             _fmt(pl.get(lab, {}).get("E_r_mm"), "{:.0f}") for lab in d["labels"]) + " |")
+    return lines
+
+
+def _md_generation(res: Mapping[str, Any]) -> list[str]:
+    """The interaction generators' table (none without one)."""
     gen, gen_real = res.get("generation") or {}, res.get("generation_real") or {}
-    if gen:
-        keys = (("FVD", "{:.3f}"), ("FID", "{:.3f}"), ("diversity", "{:.3f}"),
-                ("multimodality", "{:.3f}"), ("E_b_mm", "{:.1f}"))
-        lines += [
-            "",
-            "## Interaction generation (both people from the class label)",
-            "",
-            "One sample per test window of a class the model was trained on, against the "
-            "real test windows (the `real` row: all real test windows through the same "
-            "code). E_b: bone-length error against the real window's first frame. Recog. "
-            "acc: the classifier above on the generated pair.",
-            "",
-            "| model | windows | " + " | ".join(f"{p} {k}" for p in ("actor", "reactor")
-                                              for k, _ in keys) + " | recog. acc |",
-            "|---|---:|" + "---:|" * (2 * len(keys) + 1),
-        ]
-        for m, g in [*gen.items(), *([(REAL, gen_real)] if gen_real else [])]:
-            if not g.get("windows"):
-                lines.append(f"| {m} | 0 | {g.get('reason', '')} |")
-                continue
-            lines.append(f"| {m} | {g['windows']} | " + " | ".join(
-                _fmt(g[p].get(k), f) for p in ("actor", "reactor") for k, f in keys)
-                + f" | {_fmt(g.get('recognition_acc'), '{:.2f}')} |")
-    if phys:
-        n = next(iter(phys.values()))["windows"]
-        lines += [
-            "",
-            "## Physics (`simenv.score`, physics on)",
-            "",
-            f"{n} windows, one per test recording (the window where the real right hands "
-            "come closest), placed back in the world with the inverse normalisation; the "
-            "actor is the real one in every row but those of interaction generators (both "
-            "people generated, for the windows of classes they know).",
-            "",
-            "| method | reactor plausible | interaction plausible | reactor score | "
-            "inter-pen. max (mm) | inter-pen. pass | scorer contact JPD (mm) | "
-            "scorer contact retention | reactor failures |",
-            "|---|---:|---:|---:|---:|---:|---:|---:|---|",
-        ]
-        for m, p in phys.items():
-            fails = ", ".join(f"{k} {v}" for k, v in p["reactor_failed"].items()) or "none"
-            lines.append(
-                f"| {m} | {p['reactor_plausible']:.2f} | {p['interaction_plausible']:.2f} | "
-                f"{p['reactor_score_mean']:.1f} | "
-                f"{_fmt(p['inter_penetration_max_mm'], '{:.0f}')} | "
-                f"{p['inter_penetration_pass']:.2f} | {_fmt(p['contact_jpd_mm'], '{:.1f}')} | "
-                f"{_fmt(p['contact_retention'], '{:.2f}')} | {fails} |")
-        lines += [
-            "",
-            f"Actor (real) plausible in {phys[REAL]['actor_plausible']:.2f} of the windows. "
-            "The scorer's contact metric compares the retargeted bodies with the keypoints "
-            "they were fitted to (does the body keep the contacts the motion shows); "
-            "contact retention against the *real* reaction is the keypoint column above.",
-        ]
-    lines += ["", f"CPU time of the run: {res['cpu_seconds']:.0f} s.", ""]
-    return "\n".join(lines)
+    if not gen:
+        return []
+    keys = (("FVD", "{:.3f}"), ("FID", "{:.3f}"), ("diversity", "{:.3f}"),
+            ("multimodality", "{:.3f}"), ("E_b_mm", "{:.1f}"))
+    lines = [
+        "",
+        "## Interaction generation (both people from the class label)",
+        "",
+        "One sample per test window of a class the model was trained on, against the "
+        "real test windows (the `real` row: all real test windows through the same "
+        "code). E_b: bone-length error against the real window's first frame. Recog. "
+        "acc: the classifier above on the generated pair.",
+        "",
+        "| model | windows | " + " | ".join(f"{p} {k}" for p in ("actor", "reactor")
+                                          for k, _ in keys) + " | recog. acc |",
+        "|---|---:|" + "---:|" * (2 * len(keys) + 1),
+    ]
+    for m, g in [*gen.items(), *([(REAL, gen_real)] if gen_real else [])]:
+        if not g.get("windows"):
+            lines.append(f"| {m} | 0 | {g.get('reason', '')} |")
+            continue
+        lines.append(f"| {m} | {g['windows']} | " + " | ".join(
+            _fmt(g[p].get(k), f) for p in ("actor", "reactor") for k, f in keys)
+            + f" | {_fmt(g.get('recognition_acc'), '{:.2f}')} |")
+    return lines
+
+
+def _md_physics(res: Mapping[str, Any]) -> list[str]:
+    """The physics table of the scored windows (none without physics)."""
+    phys = res["physics"]
+    if not phys:
+        return []
+    n = next(iter(phys.values()))["windows"]
+    lines = [
+        "",
+        "## Physics (`simenv.score`, physics on)",
+        "",
+        f"{n} windows, one per test recording (the window where the real right hands "
+        "come closest), placed back in the world with the inverse normalisation; the "
+        "actor is the real one in every row but those of interaction generators (both "
+        "people generated, for the windows of classes they know).",
+        "",
+        "| method | reactor plausible | interaction plausible | reactor score | "
+        "inter-pen. max (mm) | inter-pen. pass | scorer contact JPD (mm) | "
+        "scorer contact retention | reactor failures |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for m, p in phys.items():
+        fails = ", ".join(f"{k} {v}" for k, v in p["reactor_failed"].items()) or "none"
+        lines.append(
+            f"| {m} | {p['reactor_plausible']:.2f} | {p['interaction_plausible']:.2f} | "
+            f"{p['reactor_score_mean']:.1f} | "
+            f"{_fmt(p['inter_penetration_max_mm'], '{:.0f}')} | "
+            f"{p['inter_penetration_pass']:.2f} | {_fmt(p['contact_jpd_mm'], '{:.1f}')} | "
+            f"{_fmt(p['contact_retention'], '{:.2f}')} | {fails} |")
+    lines += [
+        "",
+        f"Actor (real) plausible in {phys[REAL]['actor_plausible']:.2f} of the windows. "
+        "The scorer's contact metric compares the retargeted bodies with the keypoints "
+        "they were fitted to (does the body keep the contacts the motion shows); "
+        "contact retention against the *real* reaction is the keypoint column above.",
+    ]
+    return lines
 
 
 def plot(res: Mapping[str, Any], path: Path) -> Path:
