@@ -117,13 +117,23 @@ def test_a_person_is_retargeted_once_and_posed_once(walk_2s, monkeypatch):
     assert counts["poses"] == 1, counts
 
 
-def test_two_people_are_retargeted_once_together(monkeypatch):
+def test_two_people_are_retargeted_once_together_and_each_body_posed_once(monkeypatch):
     counts: Counter = Counter()
     _count(monkeypatch, report_module, "retarget", counts)
     _count(monkeypatch, metric_module, "pair_root_residual", counts)
+    fk, posed = geometry.body_poses, Counter()
+
+    def poses(model, qpos):
+        posed[id(model)] += 1
+        return fk(model, qpos)
+
+    for module in (metric_module, plausibility_body, plausibility_dynamics, body_dynamics):
+        monkeypatch.setattr(module, "body_poses", poses)
     pair = simenv.load(asset_path(HANDSHAKE_PAIR)).slice(0, 60)
     report = score(pair, config=ScoreConfig(tracking=False, joint_limits=False))
     assert counts == {"retarget": 1, "pair_root_residual": 1}
+    # Each person's model, and the two-person scene's (the contact metric's key joints).
+    assert len(posed) == 3 and set(posed.values()) == {1}, posed
     # Each person's root residual is the pair's partner-explained one.
     assert all("single_person_value" in p.metrics["root_residual"].details
                for p in report.people)

@@ -132,12 +132,20 @@ class PairInputs(_Memo):
         return needs is Needs.PAIR and self.fitted is not None
 
     @cached_property
+    def poses(self) -> tuple[BodyPoses, BodyPoses]:
+        """Forward kinematics of every frame of each fitted body
+        (:func:`simenv.body.geometry.body_poses`), each person's model apart."""
+        assert self.fitted is not None
+        a, b = self.fitted.people
+        return (body_poses(a.humanoid.model, a.qpos), body_poses(b.humanoid.model, b.qpos))
+
+    @cached_property
     def partner_explained(self) -> tuple[MetricResult, tuple[MetricResult, MetricResult]]:
         """The pairwise ``pair_root_residual`` and each person's partner-explained
         ``root_residual`` (:func:`simenv.plausibility.pair_dynamics.pair_root_residual`),
         solved once for both."""
         assert self.fitted is not None
-        return pair_root_residual(self.fitted, self.config.body)
+        return pair_root_residual(self.fitted, self.config.body, poses=self.poses)
 
 
 class PersonInputs(_Memo):
@@ -176,8 +184,10 @@ class PersonInputs(_Memo):
     @cached_property
     def poses(self) -> BodyPoses:
         """Forward kinematics of every frame of the fitted body
-        (:func:`simenv.body.geometry.body_poses`)."""
+        (:func:`simenv.body.geometry.body_poses`; the pair's, one of two)."""
         assert self.fitted is not None
+        if self.pair is not None:
+            return self.pair.poses[self.person]
         return body_poses(self.fitted.humanoid.model, self.fitted.qpos)
 
 

@@ -74,6 +74,7 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from simenv.body.dynamics import RootWrench, floor_forces, root_wrench
+from simenv.body.geometry import BodyPoses
 from simenv.body.retarget import InteractionRetargetResult
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.dynamics import RootResidual, dynamics_settings, residual_of
@@ -193,10 +194,14 @@ def _pair_frame(rw: tuple[RootWrench, RootWrench], t: int, points: np.ndarray,
 
 def pair_root_residual_wrench(result: InteractionRetargetResult,
                               thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS,
-                              contacts: HandContacts | None = None) -> PairResidual:
-    """Both people's root residuals with the best hand-contact forces (module docstring)."""
+                              contacts: HandContacts | None = None,
+                              poses: tuple[BodyPoses, BodyPoses] | None = None) -> PairResidual:
+    """Both people's root residuals with the best hand-contact forces (module
+    docstring); ``poses``: each person's forward kinematics when the caller has them."""
     settings = dynamics_settings(thresholds)
-    rw = (root_wrench(result.people[0], settings), root_wrench(result.people[1], settings))
+    each = poses if poses is not None else (None, None)
+    rw = (root_wrench(result.people[0], settings, poses=each[0]),
+          root_wrench(result.people[1], settings, poses=each[1]))
     single = (residual_of(rw[0]), residual_of(rw[1]))
     contacts = contacts if contacts is not None else hand_contacts(result, thresholds)
     force = np.stack([s.force for s in single])
@@ -215,7 +220,8 @@ def pair_root_residual_wrench(result: InteractionRetargetResult,
 
 
 def pair_root_residual(result: InteractionRetargetResult,
-                       thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS
+                       thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
+                       poses: tuple[BodyPoses, BodyPoses] | None = None
                        ) -> tuple[MetricResult, tuple[MetricResult, MetricResult]]:
     """Partner-explained root residual: the pairwise metric and each person's verdict.
 
@@ -235,6 +241,7 @@ def pair_root_residual(result: InteractionRetargetResult,
         partner-explained timeline, with the single-person values in its
         details (``single_person_value``, ``single_person_p95``,
         ``single_person_max``) and ``partner_contact_fraction``. Needs 3 frames.
+        ``poses``: each person's forward kinematics when the caller has them.
     """
     thr, frame_thr = thresholds.root_force_mean_max, thresholds.root_force_frame_max
     T = result.qpos.shape[0]
@@ -244,7 +251,7 @@ def pair_root_residual(result: InteractionRetargetResult,
                                          frame_threshold=frame_thr)
               for n in ("pair_root_residual", "root_residual", "root_residual")]
         return na[0], (na[1], na[2])
-    pr = pair_root_residual_wrench(result, thresholds)
+    pr = pair_root_residual_wrench(result, thresholds, poses=poses)
     touching = pr.contacts.counts > 0
     people = []
     for i, s in enumerate(pr.single):

@@ -286,7 +286,8 @@ def _score_person(inputs: PersonInputs) -> PersonReport:
                         retargeted=inputs.fitted, published=published_record(motion))
 
 
-def _fit(clip: Motion | Interaction) -> tuple[Any, str | None]:
+def _fit(clip: Motion | Interaction
+         ) -> tuple[RetargetResult | InteractionRetargetResult | None, str | None]:
     """Retarget for the body metrics; a motion that cannot be fitted (no pelvis/hips,
     too few frames) gets the reason instead, and the joint-level metrics still run."""
     try:
@@ -345,14 +346,15 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
                           f"{type(motion_or_path).__name__}")
     fitted, missing = _fit(clip) if physics else (None, "physics=False")
     if isinstance(clip, Interaction):
-        pair = PairInputs(clip, fitted, missing, config)
-        bodies: Sequence[RetargetResult | None] = (
-            fitted.people if isinstance(fitted, InteractionRetargetResult) else (None, None))
+        scene = fitted if isinstance(fitted, InteractionRetargetResult) else None
+        pair = PairInputs(clip, scene, missing, config)
+        bodies = scene.people if scene is not None else (None, None)
         people = [_score_person(PersonInputs(m, r, missing, config, pair=pair, person=i))
                   for i, (m, r) in enumerate(zip(clip.people, bodies, strict=True))]
         interaction, pair_basis = _measure(PAIR_REGISTRY, pair)
     else:
-        people = [_score_person(PersonInputs(clip, fitted, missing, config))]
+        body = fitted if isinstance(fitted, RetargetResult) else None
+        people = [_score_person(PersonInputs(clip, body, missing, config))]
         interaction, pair_basis = None, {}
     return PlausibilityReport(source=source, people=people, interaction=interaction,
                               physics=physics, seconds=time.perf_counter() - t0,
