@@ -43,9 +43,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -318,22 +319,16 @@ def train(
         A log: one dict of losses every 50 iterations (and the last).
     """
     torch.manual_seed(seed)
-    weights = LOSS_WEIGHTS | {"adv": adv_weight}
     rng = np.random.default_rng(seed)
     data = model.prepare(windows)
     if len(data) < 2:
         raise MotionError(f"training needs at least 2 windows; got {len(data)}")
-    noise = torch.Generator().manual_seed(seed + 1)
-    betas = (0.5, 0.9)
-    gen_params = list(model.generator.parameters())
-    if joint_amplitude:
-        gen_params += list(model.amplitude.parameters())
-    opt_g = torch.optim.Adam(gen_params, lr=lr, betas=betas)
-    opt_c = torch.optim.Adam(model.critic.parameters(), lr=lr, betas=betas)
-    opt_a = torch.optim.Adam(model.amplitude.parameters(), lr=lr, betas=betas)
+    bs = min(batch_size, len(data))
+    steps = _WganSteps(model, lr=lr, adv_weight=adv_weight, n_critic=n_critic,
+                       joint_amplitude=joint_amplitude, amplitude_target=amplitude_target,
+                       noise=torch.Generator().manual_seed(seed + 1), batch_size=bs)
     for net in (model.generator, model.critic, model.amplitude):
         net.train()
-    bs = min(batch_size, len(data))
     log: list[dict[str, float]] = []
     best = _Best(validation, (model.generator, model.amplitude))
     budget = CpuBudget(minutes)
@@ -344,28 +339,7 @@ def train(
         return data.take(idx)
 
     for it in bar:
-        if adv_weight:
-            for _ in range(n_critic):
-                batch = sample()
-                loss_c, info_c = critic_loss(model, batch, model.sample_noise(bs, noise))
-                opt_c.zero_grad()
-                loss_c.backward()
-                opt_c.step()
-        else:
-            info_c = {}
-        batch = sample()
-        loss_g, info_g, u = generator_loss(model, batch, model.sample_noise(bs, noise),
-                                           weights, joint_amplitude=joint_amplitude)
-        opt_g.zero_grad()
-        loss_g.backward()
-        opt_g.step()
-        if joint_amplitude:
-            loss_a = torch.as_tensor(info_g["rec"])
-        else:
-            loss_a = amplitude_loss(model, batch, u, amplitude_target)
-            opt_a.zero_grad()
-            loss_a.backward()
-            opt_a.step()
+        info_c, info_g, loss_a = steps.step(sample)
         done = budget.exceeded()
         if it % 50 == 0 or it == iterations - 1 or done:
             entry = {"iteration": it, **info_c, **info_g, "amplitude": loss_a.item(),
@@ -381,6 +355,53 @@ def train(
     bar.close()
     best.restore()
     return log
+
+
+class _WganSteps:
+    """The optimisers (Adam, betas 0.5 and 0.9) and loss settings of :func:`train`;
+    :meth:`step` is one training iteration."""
+
+    def __init__(self, model: PredictiveMAWGAN, *, lr: float, adv_weight: float,
+                 n_critic: int, joint_amplitude: bool, amplitude_target: str,
+                 noise: torch.Generator, batch_size: int) -> None:
+        self.model, self.noise, self.batch_size = model, noise, batch_size
+        self.adv_weight, self.n_critic = adv_weight, n_critic
+        self.joint_amplitude, self.amplitude_target = joint_amplitude, amplitude_target
+        self.weights = LOSS_WEIGHTS | {"adv": adv_weight}
+        betas = (0.5, 0.9)
+        gen_params = list(model.generator.parameters())
+        if joint_amplitude:
+            gen_params += list(model.amplitude.parameters())
+        self.opt_g = torch.optim.Adam(gen_params, lr=lr, betas=betas)
+        self.opt_c = torch.optim.Adam(model.critic.parameters(), lr=lr, betas=betas)
+        self.opt_a = torch.optim.Adam(model.amplitude.parameters(), lr=lr, betas=betas)
+
+    def step(self, sample: Callable[[], Any]) -> tuple[dict, dict, torch.Tensor]:
+        """``n_critic`` critic steps (none without the adversarial term), one generator
+        step and one amplitude-head step, each on a fresh batch from ``sample()``; returns
+        the critic's and generator's loss terms and the head's loss."""
+        model, bs = self.model, self.batch_size
+        info_c: dict = {}
+        if self.adv_weight:
+            for _ in range(self.n_critic):
+                batch = sample()
+                loss_c, info_c = critic_loss(model, batch, model.sample_noise(bs, self.noise))
+                self.opt_c.zero_grad()
+                loss_c.backward()
+                self.opt_c.step()
+        batch = sample()
+        loss_g, info_g, u = generator_loss(model, batch, model.sample_noise(bs, self.noise),
+                                           self.weights, joint_amplitude=self.joint_amplitude)
+        self.opt_g.zero_grad()
+        loss_g.backward()
+        self.opt_g.step()
+        if self.joint_amplitude:
+            return info_c, info_g, torch.as_tensor(info_g["rec"])
+        loss_a = amplitude_loss(model, batch, u, self.amplitude_target)
+        self.opt_a.zero_grad()
+        loss_a.backward()
+        self.opt_a.step()
+        return info_c, info_g, loss_a
 
 
 def validation_score(model: object, windows: pdata.PredictionWindows) -> float:
@@ -693,18 +714,9 @@ def run(args: argparse.Namespace) -> dict:
     windows = pdata.windows_from_motions(motions, args.past, args.future, stride=1)
     split = make_split(windows, args.test_fraction, args.seed)
     test_w = windows.subset(split.test)
-    fit_clips, val_w, val_clips = set(split.train_clips), None, []
     base = windows.subset(split.train)
     ensemble = args.model == "regression" and args.members > 1
-    if ensemble and args.cross_fit:
-        groups = [group_of(c) for c in base.window_clip_names]
-        folds = pdata.clip_folds(groups, args.members, args.seed)
-        val_w, val_clips = base.subset(folds[0].test), list(folds[0].test_clips)
-        fit_clips = set(folds[0].train_clips)
-    elif args.validation:
-        vsplit = make_split(base, args.validation, args.seed)
-        val_w, val_clips = base.subset(vsplit.test), list(vsplit.test_clips)
-        fit_clips = set(vsplit.train_clips)
+    folds, fit_clips, val_w, val_clips = _validation(args, base, split, ensemble)
     extra: list[Motion] = []
     if getattr(args, "extra_data", None):
         extra, extra_notes = extra_motions(Path(args.shared), args.extra_data)
@@ -713,57 +725,11 @@ def run(args: argparse.Namespace) -> dict:
     budget = {"iterations": args.iterations, "minutes": args.minutes,
               "validation": val_w, "seed": args.seed, "progress": not args.quiet}
     if args.model == "regression":
-        lr = args.lr or 3e-4
-        config = RegressionConfig(args.past, args.future, blocks=args.blocks,
-                                  dropout=args.dropout, members=args.members,
-                                  mirror_average=args.mirror_average)
-        model = DCTRegressionPredictor(config, seed=args.seed)  # reproducible init
-        members, logs = [], []
-        for i in range(args.members):
-            if i and args.cross_fit:  # every further member: its own validation fold
-                val_w = base.subset(folds[i].test)
-                train_w = training_windows(motions, set(folds[i].train_clips), args, extra)
-            weights = (source_weights(train_w, args.extra_share)
-                       if extra and args.extra_share is not None else None)
-            log = train_regression(model.member(i), train_w, lr=lr,
-                                   weight_decay=args.weight_decay, sample_weights=weights,
-                                   horizon_weight=args.horizon_weight,
-                                   **budget | {"validation": val_w, "seed": args.seed + i})
-            members.append(_member_info(log, val_w, len(train_w)))
-            logs += [e | {"member": i} for e in log]
-        log = logs
-        recipe = {"model": "dct-mlp", "blocks": args.blocks,
-                  "weight_decay": args.weight_decay, "members": members,
-                  "horizon_weight": args.horizon_weight,
-                  "mirror_average": args.mirror_average,
-                  "cross_fit": ensemble and args.cross_fit,
-                  "extra_data": list(getattr(args, "extra_data", None) or []),
-                  "extra_share": args.extra_share if extra else None,
-                  "extra_stride": args.extra_stride if extra else None,
-                  "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c)),
-                  "train_seconds_total": round(sum(m["train_seconds"] for m in members), 1)}
+        model, log, recipe, train_w = _train_regression_run(
+            args, motions, base, folds, train_w, val_w, extra, budget)
     else:
-        lr = args.lr or 1e-4
-        config = PredictorConfig(args.past, args.future, dropout=args.dropout,
-                                 prior=args.prior,
-                                 velocity_condition=args.velocity_condition,
-                                 mirror_average=args.mirror_average,
-                                 restore_bones=args.restore_bones)
-        torch.manual_seed(args.seed)  # fit_geometry builds the networks before train() seeds
-        model = fit_geometry(train_w, config)
-        log = train(model, train_w, n_critic=args.n_critic, lr=lr,
-                    adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
-                    amplitude_target=args.amplitude_target,
-                    validate_every=args.validate_every, **budget)
-        recipe = {"model": "predictive-ma-wgan", "n_critic": args.n_critic,
-                  "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude,
-                  "prior": args.prior, "velocity_condition": args.velocity_condition,
-                  "mirror_average": args.mirror_average,
-                  "restore_bones": args.restore_bones,
-                  "amplitude_target": None if args.joint_amplitude else args.amplitude_target,
-                  "extra_data": list(getattr(args, "extra_data", None) or []),
-                  "extra_stride": args.extra_stride if extra else None,
-                  "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c))}
+        model, log, recipe = _train_gan_run(args, train_w, extra, budget)
+    config = model.config
     # an ensemble's selections are per member (recipe["members"])
     selected = [] if ensemble else [e for e in log if "val_mpjpe_mm" in e]
     config.info.update({"train_clips": list(split.train_clips),
@@ -774,7 +740,7 @@ def run(args: argparse.Namespace) -> dict:
                         "dropout": args.dropout,
                         "iterations": log[-1]["iteration"] + 1,
                         "train_seconds": round(log[-1]["seconds"], 1), "seed": args.seed,
-                        "lr": lr, **recipe})
+                        **recipe})
     if selected:
         pick = min(selected, key=lambda e: e["val_mpjpe_mm"])
         config.info.update({"selected_iteration": pick["iteration"],
@@ -789,6 +755,101 @@ def run(args: argparse.Namespace) -> dict:
     metrics |= {"config": {"past_len": args.past, "future_len": args.future,
                            **config.info},
                 "skipped_clips": list(windows.skipped), "notes": notes, "train_log": log}
+    _write_reports(args, model, metrics)
+    return metrics
+
+
+def _validation(args: argparse.Namespace, base: pdata.PredictionWindows, split: pdata.ClipSplit,
+                ensemble: bool) -> tuple[list | None, set[str], pdata.PredictionWindows | None,
+                                         list[str]]:
+    """How :func:`run` holds out validation windows from the training ones ``base``:
+    (cross-fitting folds or None, the clips the (first) model trains on, its validation
+    windows or None, their clips)."""
+    if ensemble and args.cross_fit:
+        groups = [group_of(c) for c in base.window_clip_names]
+        folds = pdata.clip_folds(groups, args.members, args.seed)
+        return (folds, set(folds[0].train_clips), base.subset(folds[0].test),
+                list(folds[0].test_clips))
+    if args.validation:
+        vsplit = make_split(base, args.validation, args.seed)
+        return None, set(vsplit.train_clips), base.subset(vsplit.test), list(vsplit.test_clips)
+    return None, set(split.train_clips), None, []
+
+
+def _train_regression_run(args: argparse.Namespace, motions: Sequence[Motion],
+                          base: pdata.PredictionWindows, folds: list | None,
+                          train_w: pdata.PredictionWindows,
+                          val_w: pdata.PredictionWindows | None, extra: Sequence[Motion],
+                          budget: dict[str, Any]
+                          ) -> tuple[DCTRegressionPredictor, list[dict], dict[str, Any],
+                                     pdata.PredictionWindows]:
+    """The regression ensemble of :func:`run`, member by member (cross-fitted members on
+    their own folds); returns (model, training log, recipe for the config's info, the last
+    member's training windows)."""
+    lr = args.lr or 3e-4
+    config = RegressionConfig(args.past, args.future, blocks=args.blocks,
+                              dropout=args.dropout, members=args.members,
+                              mirror_average=args.mirror_average)
+    model = DCTRegressionPredictor(config, seed=args.seed)  # reproducible init
+    members, logs = [], []
+    for i in range(args.members):
+        if i and args.cross_fit:  # every further member: its own validation fold
+            val_w = base.subset(folds[i].test)
+            train_w = training_windows(motions, set(folds[i].train_clips), args, extra)
+        weights = (source_weights(train_w, args.extra_share)
+                   if extra and args.extra_share is not None else None)
+        log = train_regression(model.member(i), train_w, lr=lr,
+                               weight_decay=args.weight_decay, sample_weights=weights,
+                               horizon_weight=args.horizon_weight,
+                               **budget | {"validation": val_w, "seed": args.seed + i})
+        members.append(_member_info(log, val_w, len(train_w)))
+        logs += [e | {"member": i} for e in log]
+    recipe = {"lr": lr, "model": "dct-mlp", "blocks": args.blocks,
+              "weight_decay": args.weight_decay, "members": members,
+              "horizon_weight": args.horizon_weight,
+              "mirror_average": args.mirror_average,
+              "cross_fit": args.members > 1 and args.cross_fit,
+              "extra_data": list(getattr(args, "extra_data", None) or []),
+              "extra_share": args.extra_share if extra else None,
+              "extra_stride": args.extra_stride if extra else None,
+              "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c)),
+              "train_seconds_total": round(sum(m["train_seconds"] for m in members), 1)}
+    return model, logs, recipe, train_w
+
+
+def _train_gan_run(args: argparse.Namespace, train_w: pdata.PredictionWindows,
+                   extra: Sequence[Motion], budget: dict[str, Any]
+                   ) -> tuple[PredictiveMAWGAN, list[dict], dict[str, Any]]:
+    """The PredictiveMA-WGAN of :func:`run`: geometry fitted, then trained; returns
+    (model, training log, recipe for the config's info)."""
+    lr = args.lr or 1e-4
+    config = PredictorConfig(args.past, args.future, dropout=args.dropout,
+                             prior=args.prior,
+                             velocity_condition=args.velocity_condition,
+                             mirror_average=args.mirror_average,
+                             restore_bones=args.restore_bones)
+    torch.manual_seed(args.seed)  # fit_geometry builds the networks before train() seeds
+    model = fit_geometry(train_w, config)
+    log = train(model, train_w, n_critic=args.n_critic, lr=lr,
+                adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
+                amplitude_target=args.amplitude_target,
+                validate_every=args.validate_every, **budget)
+    recipe = {"lr": lr, "model": "predictive-ma-wgan", "n_critic": args.n_critic,
+              "adv_weight": args.adv_weight, "joint_amplitude": args.joint_amplitude,
+              "prior": args.prior, "velocity_condition": args.velocity_condition,
+              "mirror_average": args.mirror_average,
+              "restore_bones": args.restore_bones,
+              "amplitude_target": None if args.joint_amplitude else args.amplitude_target,
+              "extra_data": list(getattr(args, "extra_data", None) or []),
+              "extra_stride": args.extra_stride if extra else None,
+              "extra_windows": sum(1 for c in train_w.window_clip_names if is_extra(c))}
+    return model, log, recipe
+
+
+def _write_reports(args: argparse.Namespace, model: Any, metrics: dict) -> None:
+    """Into ``args.out``: metrics.json, the error-curve plot, and the shipped checkpoint
+    (a GAN without its critic) with its model card."""
+    out = Path(args.out)
     (out / "metrics.json").write_text(json.dumps(metrics, indent=1))
     plot_curves(metrics, out / "error_curve.png")
     if args.model == "gan":
@@ -799,7 +860,6 @@ def run(args: argparse.Namespace) -> dict:
         name = f"predictor-dctmlp-{args.past}-{args.future}"
         model.save(out / f"{name}.npz")
     (out / f"{name}.md").write_text(model_card(name, metrics))
-    return metrics
 
 
 def _table(rows: dict[str, dict], key: str) -> list[str]:
@@ -918,67 +978,7 @@ def model_card(name: str, metrics: dict) -> str:
     title, module = (("DCT-residual MLP regression baseline (siMLPe-style, not the thesis "
                       "model)", "simenv.models.predictor_regression") if regression else
                      ("PredictiveMA-WGAN motion predictor", "simenv.models.predictor"))
-    if regression and isinstance(cfg.get("members"), list):
-        selected = all("selected_iteration" in m for m in cfg["members"])
-        how = (f"cross-fitted: the training clip groups are dealt into "
-               f"{len(cfg['members'])} folds, member i is trained on the other folds (seed "
-               "+ i) and its iteration selected on fold i" if cfg.get("cross_fit", True)
-               else "member i trained with seed + i on the same clips, its iteration "
-               "selected on the validation clips" if selected
-               else "member i trained with seed + i on all training clips for a fixed "
-               "schedule, its last iteration kept (no validation clips, no selection)")
-        rows = (["| member | validation clips | selected iteration | validation MPJPE [mm] "
-                 "| training windows |", "|---|---|---|---|---|",
-                 *(f"| {i} | {', '.join(m['validation_clips'])} | "
-                   f"{m['selected_iteration']} | {m['val_mpjpe_mm']} | "
-                   f"{m['train_windows']} |" for i, m in enumerate(cfg["members"]))]
-                if selected else
-                ["| member | iterations | training windows |", "|---|---|---|",
-                 *(f"| {i} | {m['iterations']} | {m['train_windows']} |"
-                   for i, m in enumerate(cfg["members"]))])
-        held_out = (" (training clips held out of that member's training, never the test "
-                    "clips)" if selected else "")
-        training = "\n".join([
-            f"* training: an ensemble of {len(cfg['members'])} networks, {how}{held_out}. "
-            f"{cfg['members'][0]['iterations']} iterations per member, "
-            f"{cfg['train_seconds_total']} CPU s in all on one thread, batch 128, AdamW lr "
-            f"{cfg['lr']}, weight decay {cfg['weight_decay']}, {cfg['blocks']} blocks, "
-            f"dropout {cfg['dropout']}; prediction = mean of the members"
-            + (", each averaged with its mirrored prediction of the mirrored history"
-               if cfg.get("mirror_average") else ""),
-            "", *rows])
-    elif regression:
-        training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
-                    f"CPU s on one thread, batch 128, AdamW lr {cfg['lr']}, weight decay "
-                    f"{cfg['weight_decay']}, {cfg['blocks']} blocks, dropout {cfg['dropout']};"
-                    f" checkpoint of iteration {cfg['selected_iteration']} chosen on the "
-                    f"validation clips {', '.join(cfg['validation_clips'])} (training clips "
-                    f"held out of training, never the test clips; validation MPJPE "
-                    f"{cfg['val_mpjpe_mm']} mm)")
-    else:
-        training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
-                    f"CPU s on one thread, batch 64, Adam lr {cfg['lr']}, "
-                    f"{cfg['n_critic']} critic step(s) per generator step, adversarial "
-                    f"weight {cfg['adv_weight']}, dropout {cfg['dropout']}")
-        if cfg.get("prior", "none") != "none":
-            fit = cfg.get("prior_fit", {})
-            detail = (f"damping {fit['damping']}" if "damping" in fit else
-                      f"ridge {fit.get('ridge', 0):.3g}")
-            training += (f"; residual to the {cfg['prior'].replace('_', ' ')} prior "
-                         f"future ({detail}, fitted on the training windows)")
-        flags = [name for key, name in (
-            ("joint_amplitude", "generator and amplitude head trained together"),
-            ("velocity_condition", "last velocity in the condition"),
-            ("mirror_average", "test-time mirror averaging"),
-            ("restore_bones", "bone lengths restored to the last observed pose's"))
-            if cfg.get(key)]
-        if flags:
-            training += "; " + ", ".join(flags)
-        if "selected_iteration" in cfg:
-            training += (f"; iteration {cfg['selected_iteration']} selected on the "
-                         f"validation clips {', '.join(cfg['validation_clips'])} (training "
-                         f"clips held out of training, never the test clips; validation "
-                         f"MPJPE {cfg['val_mpjpe_mm']} mm)")
+    training = _training_text(cfg, regression)
     lines = [
         f"# {name}: {title} "
         f"({cfg['past_len']} -> {cfg['future_len']} frames at 25 fps)",
@@ -1022,6 +1022,82 @@ def model_card(name: str, metrics: dict) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _training_text(cfg: dict[str, Any], regression: bool) -> str:
+    """The model card's training paragraph: an ensemble's (with its members' table), a
+    single regression network's, or the GAN's."""
+    if regression and isinstance(cfg.get("members"), list):
+        return _ensemble_training_text(cfg)
+    if regression:
+        return (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
+                f"CPU s on one thread, batch 128, AdamW lr {cfg['lr']}, weight decay "
+                f"{cfg['weight_decay']}, {cfg['blocks']} blocks, dropout {cfg['dropout']};"
+                f" checkpoint of iteration {cfg['selected_iteration']} chosen on the "
+                f"validation clips {', '.join(cfg['validation_clips'])} (training clips "
+                f"held out of training, never the test clips; validation MPJPE "
+                f"{cfg['val_mpjpe_mm']} mm)")
+    return _gan_training_text(cfg)
+
+
+def _ensemble_training_text(cfg: dict[str, Any]) -> str:
+    """The training paragraph and members' table of a regression ensemble."""
+    selected = all("selected_iteration" in m for m in cfg["members"])
+    how = (f"cross-fitted: the training clip groups are dealt into "
+           f"{len(cfg['members'])} folds, member i is trained on the other folds (seed "
+           "+ i) and its iteration selected on fold i" if cfg.get("cross_fit", True)
+           else "member i trained with seed + i on the same clips, its iteration "
+           "selected on the validation clips" if selected
+           else "member i trained with seed + i on all training clips for a fixed "
+           "schedule, its last iteration kept (no validation clips, no selection)")
+    rows = (["| member | validation clips | selected iteration | validation MPJPE [mm] "
+             "| training windows |", "|---|---|---|---|---|",
+             *(f"| {i} | {', '.join(m['validation_clips'])} | "
+               f"{m['selected_iteration']} | {m['val_mpjpe_mm']} | "
+               f"{m['train_windows']} |" for i, m in enumerate(cfg["members"]))]
+            if selected else
+            ["| member | iterations | training windows |", "|---|---|---|",
+             *(f"| {i} | {m['iterations']} | {m['train_windows']} |"
+               for i, m in enumerate(cfg["members"]))])
+    held_out = (" (training clips held out of that member's training, never the test "
+                "clips)" if selected else "")
+    return "\n".join([
+        f"* training: an ensemble of {len(cfg['members'])} networks, {how}{held_out}. "
+        f"{cfg['members'][0]['iterations']} iterations per member, "
+        f"{cfg['train_seconds_total']} CPU s in all on one thread, batch 128, AdamW lr "
+        f"{cfg['lr']}, weight decay {cfg['weight_decay']}, {cfg['blocks']} blocks, "
+        f"dropout {cfg['dropout']}; prediction = mean of the members"
+        + (", each averaged with its mirrored prediction of the mirrored history"
+           if cfg.get("mirror_average") else ""),
+        "", *rows])
+
+
+def _gan_training_text(cfg: dict[str, Any]) -> str:
+    """The training paragraph of the PredictiveMA-WGAN."""
+    training = (f"* training: {cfg['iterations']} iterations in {cfg['train_seconds']} "
+                f"CPU s on one thread, batch 64, Adam lr {cfg['lr']}, "
+                f"{cfg['n_critic']} critic step(s) per generator step, adversarial "
+                f"weight {cfg['adv_weight']}, dropout {cfg['dropout']}")
+    if cfg.get("prior", "none") != "none":
+        fit = cfg.get("prior_fit", {})
+        detail = (f"damping {fit['damping']}" if "damping" in fit else
+                  f"ridge {fit.get('ridge', 0):.3g}")
+        training += (f"; residual to the {cfg['prior'].replace('_', ' ')} prior "
+                     f"future ({detail}, fitted on the training windows)")
+    flags = [name for key, name in (
+        ("joint_amplitude", "generator and amplitude head trained together"),
+        ("velocity_condition", "last velocity in the condition"),
+        ("mirror_average", "test-time mirror averaging"),
+        ("restore_bones", "bone lengths restored to the last observed pose's"))
+        if cfg.get(key)]
+    if flags:
+        training += "; " + ", ".join(flags)
+    if "selected_iteration" in cfg:
+        training += (f"; iteration {cfg['selected_iteration']} selected on the "
+                     f"validation clips {', '.join(cfg['validation_clips'])} (training "
+                     f"clips held out of training, never the test clips; validation "
+                     f"MPJPE {cfg['val_mpjpe_mm']} mm)")
+    return training
 
 
 def eval_motions(model: PredictiveMAWGAN, paths: Sequence[str | Path] | None = None,
@@ -1082,6 +1158,24 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     """
     ap = argparse.ArgumentParser(prog="simenv train predictor",
                                  description=__doc__.split("\n")[0])
+    _data_options(ap)
+    _model_options(ap)
+    _run_options(ap)
+    args = ap.parse_args(argv)
+    if args.config:
+        options = {k.replace("-", "_"): v for k, v in read_options(args.config).items()}
+        known = set(vars(args)) - {"config"}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise SimenvError(f"unknown option(s) {', '.join(unknown)}; known: "
+                              f"{', '.join(sorted(known))}", source=args.config)
+        ap.set_defaults(**options)
+        args = ap.parse_args(argv)
+    return args
+
+
+def _data_options(ap: argparse.ArgumentParser) -> None:
+    """Window lengths, data, evaluation of a shipped model, model kind and validation."""
     ap.add_argument("--config", help="TOML/JSON file of option values")
     ap.add_argument("--past", type=int, default=25, help="observed frames P (25 fps)")
     ap.add_argument("--future", type=int, default=25, help="predicted frames F")
@@ -1099,6 +1193,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--validation", type=float, default=0.0,
                     help="share of the training windows held out by clip group for "
                     "model selection (0: none, the last iterate is kept)")
+
+
+def _model_options(ap: argparse.ArgumentParser) -> None:
+    """The regression ensemble's, the extra training data's and the GAN's options."""
     ap.add_argument("--blocks", type=int, default=4, help="regression: temporal blocks")
     ap.add_argument("--weight-decay", type=float, default=1e-4,
                     help="regression: AdamW weight decay")
@@ -1145,6 +1243,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--restore-bones", action=argparse.BooleanOptionalAction,
                     default=False, help="GAN: rebuild the prior future and every "
                     "predicted frame with the last observed pose's bone lengths")
+
+
+def _run_options(ap: argparse.ArgumentParser) -> None:
+    """Augmentation, split, seed, threads, output and progress."""
     ap.add_argument("--speeds", type=float, nargs="+", default=[0.8, 1.0, 1.25],
                     help="speed augmentation factors of the training clips")
     ap.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
@@ -1156,17 +1258,6 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--out", help="output folder (metrics.json, error_curve.png and, when "
                     "training, model.npz; default out/predictor or out/eval-NAME)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
-    args = ap.parse_args(argv)
-    if args.config:
-        options = {k.replace("-", "_"): v for k, v in read_options(args.config).items()}
-        known = set(vars(args)) - {"config"}
-        unknown = sorted(set(options) - known)
-        if unknown:
-            raise SimenvError(f"unknown option(s) {', '.join(unknown)}; known: "
-                              f"{', '.join(sorted(known))}", source=args.config)
-        ap.set_defaults(**options)
-        args = ap.parse_args(argv)
-    return args
 
 
 def main(argv: Sequence[str] | None = None) -> int:
