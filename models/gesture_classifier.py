@@ -189,6 +189,24 @@ class ClassifierConfig(SkeletonClasses):
     extra: dict[str, Any] = field(default_factory=dict)
 
 
+def valid_mask(x: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
+    """(B, T) bool mask of the real frames of windows ``x`` (B, T, ...): ``valid`` checked,
+    or all frames when None.
+
+    Raises:
+        MotionError: ``valid`` of another shape, or a window without a valid frame.
+    """
+    if valid is None:
+        return torch.ones(x.shape[:2], dtype=torch.bool, device=x.device)
+    if valid.shape != x.shape[:2]:
+        raise MotionError(f"valid must have shape {tuple(x.shape[:2])}; got "
+                          f"{tuple(valid.shape)}", field="valid")
+    valid = valid.bool()
+    if not bool(valid.any(dim=1).all()):
+        raise MotionError("every window needs at least one valid frame", field="valid")
+    return valid
+
+
 def time_encoding(length: int, dim: int) -> torch.Tensor:
     """(length, dim) sinusoidal encoding ``PE(t, 2i) = sin(t / 10000^(2i/dim))``,
     ``PE(t, 2i+1) = cos(...)``."""
@@ -232,15 +250,7 @@ class GestureClassifier(CheckpointMixin, nn.Module):
                 f"classifier input must have shape (B, {c.window}, {len(c.joint_names)}, 3) "
                 f"(frames at {c.fps:g} fps, joints {', '.join(c.joint_names)}); "
                 f"got {tuple(x.shape)}", field="x")
-        if valid is None:
-            return torch.ones(x.shape[:2], dtype=torch.bool, device=x.device)
-        if valid.shape != x.shape[:2]:
-            raise MotionError(f"valid must have shape {tuple(x.shape[:2])}; got "
-                              f"{tuple(valid.shape)}", field="valid")
-        valid = valid.bool()
-        if not bool(valid.any(dim=1).all()):
-            raise MotionError("every window needs at least one valid frame", field="valid")
-        return valid
+        return valid_mask(x, valid)
 
     def pooled(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
         """(B, dim) tokens averaged over joints and valid frames."""

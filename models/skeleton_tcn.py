@@ -45,7 +45,7 @@ from torch import nn
 
 from simenv.core.errors import MotionError
 from simenv.models.checkpoint import CheckpointMixin
-from simenv.models.gesture_classifier import SkeletonClasses
+from simenv.models.gesture_classifier import SkeletonClasses, valid_mask
 
 CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
 #: Dilations of the residual blocks (receptive field 1 + 4 (1 + 2 + 4 + 1) = 33 frames).
@@ -120,15 +120,7 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
             raise MotionError(
                 f"classifier input must have shape (B, T, {joints}, 3) (joints "
                 f"{', '.join(self.config.joint_names)}); got {tuple(x.shape)}", field="x")
-        if valid is None:
-            return torch.ones(x.shape[:2], dtype=torch.bool)
-        if valid.shape != x.shape[:2]:
-            raise MotionError(f"valid must have shape {tuple(x.shape[:2])}; got "
-                              f"{tuple(valid.shape)}", field="valid")
-        valid = valid.bool()
-        if not bool(valid.any(dim=1).all()):
-            raise MotionError("every window needs at least one valid frame", field="valid")
-        return valid
+        return valid_mask(x, valid)
 
     def streams(self, x: torch.Tensor) -> torch.Tensor:
         """(B, T, 9J + 3) per-frame joint, bone, motion and root features."""
