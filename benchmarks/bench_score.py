@@ -232,18 +232,23 @@ def alternating(baseline: Path, args: argparse.Namespace, part: str) -> dict[str
     return best
 
 
-def compare_kinematic(baseline: Path, args: argparse.Namespace) -> None:
-    """This tree's kinematic rates against those of ``baseline`` (:func:`alternating`)."""
-    best = alternating(baseline, args, "kinematic")
-    print(f"{_HEADER}; best of {args.rounds} alternating rounds, load average now "
+#: Speed-up lines: timing key -> its name.
+_SPEEDUPS = {"wall": "wall", "cpu": "CPU", "cpu_call": "CPU single call"}
+
+
+def compare(baseline: Path, args: argparse.Namespace, part: str) -> None:
+    """This tree's ``part`` cases (``kinematic`` or ``scorer``) against those
+    of ``baseline`` (:func:`alternating`)."""
+    best = alternating(baseline, args, part)
+    header, line = (_HEADER, _rates) if part == "kinematic" else (_SCORER_HEADER, _scorer_line)
+    print(f"{header}; best of {args.rounds} alternating rounds, load average now "
           f"{os.getloadavg()[0]:.1f}; baseline: {baseline}")
     for base, cur in zip(best["baseline"], best["current"], strict=True):
-        print(f"  {cur['label']:28s} {cur['clips']:4d} clip(s) {cur['frames']:7d} frames")
-        print(f"    baseline {_rates(base)}")
-        print(f"    current  {_rates(cur)}")
-        print(f"    speed-up wall {base['wall'] / cur['wall']:.2f} x, CPU "
-              f"{base['cpu'] / cur['cpu']:.2f} x, CPU single call "
-              f"{base['cpu_call'] / cur['cpu_call']:.2f} x")
+        print(f"  {cur['label']:28s} {cur.get('clips', 1):4d} clip(s) {cur['frames']:7d} frames")
+        print(f"    baseline {line(base)}")
+        print(f"    current  {line(cur)}")
+        print("    speed-up " + ", ".join(f"{name} {base[k] / cur[k]:.2f} x"
+                                          for k, name in _SPEEDUPS.items() if k in cur))
 
 
 def raw_steps_per_s(model: mujoco.MjModel, result: RetargetResult, steps: int,
@@ -323,19 +328,6 @@ def bench_scorer(walk: Motion, repeats: int) -> None:
         print(f"  {case['label']:28s} {_scorer_line(case)}")
 
 
-def compare_scorer(baseline: Path, args: argparse.Namespace) -> None:
-    """This tree's scorer times against those of ``baseline`` (:func:`alternating`)."""
-    best = alternating(baseline, args, "scorer")
-    print(f"{_SCORER_HEADER}; best of {args.rounds} alternating rounds, load average now "
-          f"{os.getloadavg()[0]:.1f}; baseline: {baseline}")
-    for base, cur in zip(best["baseline"], best["current"], strict=True):
-        print(f"  {cur['label']:28s} ({cur['frames']} frames)")
-        print(f"    baseline {_scorer_line(base)}")
-        print(f"    current  {_scorer_line(cur)}")
-        print(f"    speed-up wall {base['wall'] / cur['wall']:.2f} x, "
-              f"CPU {base['cpu'] / cur['cpu']:.2f} x")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
@@ -366,7 +358,7 @@ def main() -> None:
         return
     if args.scorer_only:
         if args.baseline is not None:
-            compare_scorer(args.baseline, args)
+            compare(args.baseline, args, "scorer")
         else:
             bench_scorer(walk, args.repeats)
         return
@@ -380,13 +372,13 @@ def main() -> None:
     if not args.kinematic_only:
         bench_compile()
     if args.baseline is not None:
-        compare_kinematic(args.baseline, args)
+        compare(args.baseline, args, "kinematic")
     else:
         bench_kinematic(clips, walk, args.window_s, args.repeats)
     if not args.kinematic_only:
         bench_tracking(walk, args.repeats)
         if args.baseline is not None:
-            compare_scorer(args.baseline, args)
+            compare(args.baseline, args, "scorer")
         else:
             bench_scorer(walk, args.repeats)
 
