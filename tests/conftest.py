@@ -25,6 +25,33 @@ def shared_data() -> Path:
 
 
 @pytest.fixture(scope="session")
+def gesture_root(shared_data: Path) -> Path:
+    """Root of the gesture corpus (``<shared>/gestures``: index.csv and the per-dataset
+    folders); skips the test when it is absent."""
+    root = shared_data / "gestures"
+    if not ((root / "index.csv").is_file() and (root / "utkinect").is_dir()):
+        pytest.skip(f"gesture corpus not found at {root}")
+    return root
+
+
+@pytest.fixture(scope="module")
+def room():
+    """The default room, one per test module (a module's tests may change its state)."""
+    from simenv.room.room import Room
+
+    return Room("default")
+
+
+@pytest.fixture(scope="session")
+def interaction_windows(shared_data: Path):
+    """Every window of the real two-person recordings of the shared corpus
+    (:func:`simenv.data.interaction_data.make_windows`, default layout), read once."""
+    from simenv.data import interaction_data as idata
+
+    return idata.make_windows(idata.load_recordings(shared_data))
+
+
+@pytest.fixture(scope="session")
 def walk_2s():
     """The bundled real CMU walk 02_01, first 2 s (240 frames at 120 fps)."""
     from simenv.assets import WALK, asset_path

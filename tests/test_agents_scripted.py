@@ -33,11 +33,6 @@ from simenv.room.room import Room
 from simenv.room.scenario import load_scenario
 
 
-@pytest.fixture(scope="module")
-def room() -> Room:
-    return Room("default")
-
-
 def _settled(room: Room) -> mujoco.MjData:
     data = room.make_data()
     for _ in range(250):  # 0.5 s: the seated agent settles on the chair

@@ -11,11 +11,6 @@ from simenv.agents.stand import ComBalance, plan_sit_down, plan_stand_up, seated
 from simenv.room.room import Room
 
 
-@pytest.fixture(scope="module")
-def room() -> Room:
-    return Room("default")
-
-
 def _stand(room: Room, balance: bool) -> tuple[mujoco.MjData, list[dict], float]:
     data = room.make_data()
     for _ in range(250):  # 0.5 s: the seated agent settles on the chair

@@ -7,20 +7,14 @@ import pytest
 
 from simenv.core.errors import MotionError
 from simenv.data import augment_targets as at
-from simenv.data import interaction_data as idata
 
 
 @pytest.fixture(scope="module")
-def windows(shared_data):
-    return idata.make_windows(idata.load_recordings(shared_data))
-
-
-@pytest.fixture(scope="module")
-def contact_windows(windows):
+def contact_windows(interaction_windows):
     """Eight real windows (salsa) whose key pairs come into contact."""
-    d = at.contact_distances(windows.actor, windows.reactor)
+    d = at.contact_distances(interaction_windows.actor, interaction_windows.reactor)
     idx = np.flatnonzero((d < 0.15).any(axis=(1, 2)))
-    return windows.subset(idx[:: max(1, len(idx) // 8)][:8])
+    return interaction_windows.subset(idx[:: max(1, len(idx) // 8)][:8])
 
 
 def test_grid_bones_and_groups():
@@ -59,8 +53,8 @@ def test_scale_skeleton_uniform_toy_matches_similarity():
     np.testing.assert_allclose(at.scale_skeleton(pose, np.ones(17)), pose, atol=1e-6)
 
 
-def test_scale_skeleton_real_bones_scaled_directions_kept(windows):
-    b = windows.reactor[:6]
+def test_scale_skeleton_real_bones_scaled_directions_kept(interaction_windows):
+    b = interaction_windows.reactor[:6]
     s = at.sample_scales(6, np.random.default_rng(2))
     out = at.scale_skeleton(b, s)
     v0, v1 = at.bone_vectors(b), at.bone_vectors(out)
@@ -85,10 +79,10 @@ def test_bad_scales_and_positions():
         at.scale_skeleton(np.full((4, 18, 3), np.nan), np.ones(17))
 
 
-def test_adapt_without_contact_is_identity(windows):
-    d = at.contact_distances(windows.actor, windows.reactor)
+def test_adapt_without_contact_is_identity(interaction_windows):
+    d = at.contact_distances(interaction_windows.actor, interaction_windows.reactor)
     free = np.flatnonzero(~(d < 0.15).any(axis=(1, 2)))[:3]
-    a, b = windows.actor[free], windows.reactor[free]
+    a, b = interaction_windows.actor[free], interaction_windows.reactor[free]
     nb = at.scale_skeleton(b, np.full(17, 1.2))
     out, info = at.adapt_actor(a, b, nb)
     assert info["optimised_windows"] == 0 and info["jpd_contact_mm"] is None

@@ -148,11 +148,9 @@ def test_save_load_round_trip(tmp_path, walk15) -> None:
 
 
 @pytest.fixture(scope="module")
-def recordings(shared_data):
+def recordings(shared_data, gesture_root):
     from simenv.learning.train_gesture_predictor import load_sequences
 
-    if not (shared_data / "gestures" / "utkinect").is_dir():
-        pytest.skip(f"gesture corpus not found at {shared_data / 'gestures'}")
     return load_sequences(shared_data, cmu=False)
 
 

@@ -16,14 +16,6 @@ from simenv.data import gestures as g
 
 
 @pytest.fixture(scope="module")
-def gesture_root(shared_data: Path) -> Path:
-    root = shared_data / "gestures"
-    if not (root / "index.csv").is_file():
-        pytest.skip(f"gesture corpus not found at {root}")
-    return root
-
-
-@pytest.fixture(scope="module")
 def clips(gesture_root: Path) -> tuple[list[g.GestureClip], g.LoadReport]:
     report = g.LoadReport()
     return g.load_gesture_clips(gesture_root, report=report), report

@@ -22,17 +22,12 @@ SHIPPED = Path(__file__).resolve().parent.parent / "assets" / "models" / \
 
 
 @pytest.fixture(scope="module")
-def windows(shared_data):
-    return idata.make_windows(idata.load_recordings(shared_data))
-
-
-@pytest.fixture(scope="module")
-def small(windows):
+def small(interaction_windows):
     """Twelve real windows, half of them with key-pair contacts."""
-    d = at.contact_distances(windows.actor, windows.reactor)
+    d = at.contact_distances(interaction_windows.actor, interaction_windows.reactor)
     touch = (d < 0.15).any(axis=(1, 2))
     idx = np.concatenate([np.flatnonzero(touch)[::20][:6], np.flatnonzero(~touch)[::40][:6]])
-    return windows.subset(np.sort(idx))
+    return interaction_windows.subset(np.sort(idx))
 
 
 @pytest.fixture(scope="module")
@@ -132,12 +127,13 @@ def test_evaluate_reports_model_and_naive(trained, small):
     assert res["naive"]["jpd_contact_mm"] > 0
 
 
-def test_generalisation_splits_no_leakage(windows):
-    targets = at.build_targets(windows, 1, seed=0, weights=at.AdaptWeights(iterations=2))
-    splits = ia.generalisation_splits(targets, windows)
+def test_generalisation_splits_no_leakage(interaction_windows):
+    targets = at.build_targets(interaction_windows, 1, seed=0,
+                               weights=at.AdaptWeights(iterations=2))
+    splits = ia.generalisation_splits(targets, interaction_windows)
     assert set(splits) == {"random", "cross-scale", "cross-interaction", "both"}
-    rec = windows.window_recording_names[targets.window]
-    label = windows.window_labels[targets.window]
+    rec = interaction_windows.window_recording_names[targets.window]
+    label = interaction_windows.window_labels[targets.window]
     dev = np.abs(targets.scales.mean(axis=1) - 1)
     for name, (tr, te) in splits.items():
         assert len(tr) and len(te) and not set(tr) & set(te)
@@ -150,7 +146,7 @@ def test_generalisation_splits_no_leakage(windows):
         assert not set(label[tr]) & set(label[te])
     assert set(label[splits["cross-interaction"][1]]) == {"salsa"}
     with pytest.raises(MotionError, match="held_out_label"):
-        ia.generalisation_splits(targets, windows, held_out_label="wave")
+        ia.generalisation_splits(targets, interaction_windows, held_out_label="wave")
 
 
 @pytest.mark.skipif(not SHIPPED.is_file(), reason="interaction-augment checkpoint not shipped")

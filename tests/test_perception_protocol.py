@@ -80,13 +80,10 @@ def test_cross_fitting_never_uses_the_held_out_fold():
 
 
 @pytest.fixture(scope="module")
-def utk_clips(shared_data):
+def utk_clips(gesture_root):
     from simenv.data.gestures import load_gesture_clips
 
-    root = shared_data / "gestures"
-    if not (root / "utkinect").is_dir():
-        pytest.skip(f"gesture corpus not found at {root}")
-    return load_gesture_clips(root, datasets=("utkinect",))
+    return load_gesture_clips(gesture_root, datasets=("utkinect",))
 
 
 def test_avatar_clips_and_stream_readings_on_real_sessions(utk_clips):

@@ -27,11 +27,8 @@ from simenv.learning.recognition import (
 
 
 @pytest.fixture(scope="module")
-def clips(shared_data: Path):
-    root = shared_data / "gestures"
-    if not (root / "utkinect").is_dir():
-        pytest.skip(f"gesture corpus not found at {root}")
-    return load_gesture_clips(root, datasets=("utkinect",))
+def clips(gesture_root: Path):
+    return load_gesture_clips(gesture_root, datasets=("utkinect",))
 
 
 def test_config_validation(tmp_path: Path):

@@ -34,16 +34,8 @@ from simenv.learning.recognition_protocols import (
 
 
 @pytest.fixture(scope="module")
-def root(shared_data: Path) -> Path:
-    root = shared_data / "gestures"
-    if not (root / "utkinect").is_dir():
-        pytest.skip(f"gesture corpus not found at {root}")
-    return root
-
-
-@pytest.fixture(scope="module")
-def utk(root: Path):
-    return load_gesture_clips(root, datasets=("utkinect",), idle=True)
+def utk(gesture_root: Path):
+    return load_gesture_clips(gesture_root, datasets=("utkinect",), idle=True)
 
 
 def test_subject_folds_are_disjoint_and_cover_every_clip(utk):
@@ -110,20 +102,20 @@ def test_room_protocol_runs_every_fold_on_unseen_subjects(utk):
     assert 0.0 <= out["conditions"]["real_3s"]["accuracy"] <= 1.0
 
 
-def test_benchmark_rejects_unknown_datasets(root: Path):
+def test_benchmark_rejects_unknown_datasets(gesture_root: Path):
     with pytest.raises(SimenvError, match="unknown benchmark"):
-        run_benchmark("ntu", root)
+        run_benchmark("ntu", gesture_root)
     with pytest.raises(SimenvError, match="unknown joint set"):
-        run_benchmark("msr_action3d", root, joints="kinect")  # type: ignore[arg-type]
+        run_benchmark("msr_action3d", gesture_root, joints="kinect")  # type: ignore[arg-type]
 
 
-def test_native_msr_clips_carry_the_20_kinect_joints(root: Path):
+def test_native_msr_clips_carry_the_20_kinect_joints(gesture_root: Path):
     """MSR on its own skeleton: 20 joints renamed to canonical keypoints, the gesture15
     joints equal to the gesture clips', the clip mirror equal to the training mirror of
     normalised windows, and a thin network trains and classifies on them."""
-    if not (root / "msr_action3d").is_dir():
+    if not (gesture_root / "msr_action3d").is_dir():
         pytest.skip("MSR Action3D not in the corpus")
-    gesture = load_gesture_clips(root, datasets=("msr_action3d",))[:24]
+    gesture = load_gesture_clips(gesture_root, datasets=("msr_action3d",))[:24]
     clips = native_clips(gesture)
     skel = clip_skeleton(clips)
     assert len(skel.joint_names) == 20 and skel.parents[skel.joint_names.index("pelvis")] == -1

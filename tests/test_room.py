@@ -16,11 +16,6 @@ from simenv.room.scenario import REACTIONS, list_scenarios, load_scenario
 OBJECTS = ("window", "curtain", "hifi", "cigarette", "door")
 
 
-@pytest.fixture(scope="module")
-def room() -> Room:
-    return Room("default")
-
-
 def _warnings(data: mujoco.MjData) -> int:
     return int(sum(data.warning[w].number for w in range(len(data.warning))))
 
