@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import SHARED_DATA
+from expect import names_all
 from scipy.spatial.transform import Rotation
 
 from simenv.core.errors import FormatError
@@ -123,11 +124,7 @@ def _expect(shared_data: Path, tmp_path: Path, lines: list[str], *needles: str) 
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(FormatError) as info:
         asf_amc.read(path, asf=shared_data / "cmu/asf_amc/02.asf")
-    msg = str(info.value)
-    assert str(path) in msg
-    for needle in needles:
-        assert needle in msg, msg
-    return info.value
+    return names_all(info.value, path, needles)
 
 
 def test_amc_errors(shared_data: Path, tmp_path: Path) -> None:

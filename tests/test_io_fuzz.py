@@ -4,6 +4,7 @@ real files: each either returns a valid Motion or raises a SimenvError."""
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -122,56 +123,41 @@ BVH_SOURCES = [
 ]
 
 
-@pytest.mark.parametrize("rel", BVH_SOURCES)
-def test_bvh_reader_survives_mutations(shared_data: Path, tmp_path: Path, rel: str) -> None:
-    base = _bvh_head(rel)
+def _survives_mutations(base: str, path: Path, read: Callable[[], object],
+                        named: tuple[Path, ...] = ()) -> None:
+    """``read()`` of ``path`` written with mutations of ``base`` returns a valid motion
+    or raises a SimenvError naming ``path`` (or one of ``named``)."""
 
     @SETTINGS
     @given(data=mutated(base))
     def run(data: bytes) -> None:
-        path = tmp_path / "fuzz.bvh"
         path.write_bytes(data)
         try:
-            _check(bvh.read(path))
+            _check(read())
         except SimenvError as exc:
-            assert str(path) in str(exc)
+            assert any(str(p) in str(exc) for p in (path, *named))
 
     run()
+
+
+@pytest.mark.parametrize("rel", BVH_SOURCES)
+def test_bvh_reader_survives_mutations(shared_data: Path, tmp_path: Path, rel: str) -> None:
+    path = tmp_path / "fuzz.bvh"
+    _survives_mutations(_bvh_head(rel), path, lambda: bvh.read(path))
 
 
 def test_amc_reader_survives_mutations(shared_data: Path, tmp_path: Path) -> None:
-    base = _amc_head()
     asf = shared_data / "cmu/asf_amc/02.asf"
-
-    @SETTINGS
-    @given(data=mutated(base))
-    def run(data: bytes) -> None:
-        path = tmp_path / "02_01.amc"
-        path.write_bytes(data)
-        try:
-            _check(asf_amc.read(path, asf=asf))
-        except SimenvError as exc:
-            assert str(path) in str(exc)
-
-    run()
+    path = tmp_path / "02_01.amc"
+    _survives_mutations(_amc_head(), path, lambda: asf_amc.read(path, asf=asf))
 
 
 def test_asf_parser_survives_mutations(shared_data: Path, tmp_path: Path) -> None:
-    base = (shared_data / "cmu/asf_amc/02.asf").read_text()
     amc = tmp_path / "02_01.amc"
     amc.write_text(_amc_head(5))
-
-    @SETTINGS
-    @given(data=mutated(base))
-    def run(data: bytes) -> None:
-        path = tmp_path / "02.asf"
-        path.write_bytes(data)
-        try:
-            _check(asf_amc.read(amc, asf=path))
-        except SimenvError as exc:
-            assert str(path) in str(exc) or str(amc) in str(exc)
-
-    run()
+    path = tmp_path / "02.asf"
+    _survives_mutations((shared_data / "cmu/asf_amc/02.asf").read_text(), path,
+                        lambda: asf_amc.read(amc, asf=path), named=(amc,))
 
 
 def test_npz_reader_survives_byte_damage(shared_data: Path, tmp_path: Path) -> None:

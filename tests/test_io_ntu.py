@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from expect import raises_at
 
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Interaction, Motion
@@ -97,9 +98,7 @@ def test_bad_input(shared_data: Path, tmp_path: Path, edit, message: str, line: 
     assert len(lines) == 1 + 3 * 28
     bad = tmp_path / "bad.skeleton"
     bad.write_text("\n".join(edit(lines)) + "\n")
-    with pytest.raises(FormatError, match=message) as err:
-        ntu.read(bad)
-    assert err.value.line == line
+    raises_at(FormatError, message, lambda: ntu.read(bad), line=line)
 
 
 def test_empty_and_bodiless(tmp_path: Path) -> None:

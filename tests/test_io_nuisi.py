@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from expect import raises_at
 
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Interaction, Motion
@@ -81,9 +82,7 @@ def _lines(shared_data: Path) -> list[str]:
 def test_bad_input(shared_data: Path, tmp_path: Path, edit, message: str, line: int) -> None:
     bad = tmp_path / "Bad_p1.txt"
     bad.write_text("\n".join(edit(_lines(shared_data))) + "\n")
-    with pytest.raises(FormatError, match=message) as err:
-        nuisi.read(bad)
-    assert err.value.line == line
+    raises_at(FormatError, message, lambda: nuisi.read(bad), line=line)
 
 
 def test_no_skeleton_at_all(tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from expect import raises_at
 
 import simenv
 from simenv.assets import HANDSHAKE_PAIR, asset_path
@@ -149,9 +150,8 @@ def test_bad_qpos_raises_physics_errors(walk_2s_retargeted) -> None:
     model = walk_2s_retargeted.humanoid.model
     q = walk_2s_retargeted.qpos.copy()
     q[17, 9] = np.nan
-    with pytest.raises(PhysicsError, match="NaN") as err:
-        body_penetration(replace(walk_2s_retargeted, qpos=q))
-    assert err.value.frame == 17
+    raises_at(PhysicsError, "NaN", lambda: body_penetration(replace(walk_2s_retargeted, qpos=q)),
+              frame=17)
     with pytest.raises(PhysicsError, match="frame 17"):
         self_penetration(replace(walk_2s_retargeted, qpos=q))
     with pytest.raises(PhysicsError, match=r"expected \(T >= 1"):

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from expect import raises_at
 
 import simenv
 from simenv.body.dynamics import DEFAULT_DYNAMICS, finite_differences
@@ -137,9 +138,8 @@ def test_short_and_bad_input(walk_2s_retargeted) -> None:
         finite_differences(walk_2s_retargeted.humanoid.model, walk_2s_retargeted.qpos[:1], 120.0)
     q = walk_2s_retargeted.qpos.copy()
     q[33, 0] = np.inf
-    with pytest.raises(PhysicsError, match="NaN/inf") as err:
-        root_residual(replace(walk_2s_retargeted, qpos=q))
-    assert err.value.frame == 33
+    raises_at(PhysicsError, "NaN/inf", lambda: root_residual(replace(walk_2s_retargeted, qpos=q)),
+              frame=33)
     with pytest.raises(PhysicsError, match="shape"):
         balance(replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:, :5]))
 

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from expect import raises_at
 
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult
@@ -106,9 +107,7 @@ def test_tracking_is_deterministic(walk_2s_retargeted) -> None:
 def test_bad_input_raises_physics_errors(walk_2s_retargeted) -> None:
     q = walk_2s_retargeted.qpos.copy()
     q[42, 12] = np.nan
-    with pytest.raises(PhysicsError, match="NaN") as err:
-        track(replace(walk_2s_retargeted, qpos=q))
-    assert err.value.frame == 42
+    raises_at(PhysicsError, "NaN", lambda: track(replace(walk_2s_retargeted, qpos=q)), frame=42)
     with pytest.raises(PhysicsError, match="shape"):
         track(replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:, 1:]))
     with pytest.raises(PhysicsError, match="at least 2 frames"):

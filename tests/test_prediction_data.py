@@ -140,16 +140,22 @@ def test_split_by_clip_on_real_windows(shared_data):
     assert set(test_part.window_clip_names) == set(split.test_clips)
 
 
-@settings(max_examples=200, deadline=None)
-@given(
-    st.lists(st.integers(1, 40), min_size=2, max_size=12),
-    st.floats(0.01, 0.99),
-    st.integers(0, 2**32 - 1),
-)
-def test_split_by_clip_never_shares_a_clip_and_approaches_the_fraction(sizes, fraction, seed):
+#: Window counts of 2-12 clips, and a seed, of the split properties.
+CLIP_SIZES = st.lists(st.integers(1, 40), min_size=2, max_size=12)
+SEEDS = st.integers(0, 2**32 - 1)
+
+
+def _clip_names(sizes: list[int], seed: int) -> np.ndarray:
+    """The clip name of each window, ``sizes[i]`` windows of clip i, in a seeded random
+    order (windows need not be grouped by clip)."""
     names = np.concatenate([np.full(n, f"clip{i}") for i, n in enumerate(sizes)])
-    order = np.random.default_rng(seed).permutation(len(names))  # windows need not be grouped
-    names = names[order]
+    return names[np.random.default_rng(seed).permutation(len(names))]
+
+
+@settings(max_examples=200, deadline=None)
+@given(CLIP_SIZES, st.floats(0.01, 0.99), SEEDS)
+def test_split_by_clip_never_shares_a_clip_and_approaches_the_fraction(sizes, fraction, seed):
+    names = _clip_names(sizes, seed)
     split = pdata.split_by_clip(names, fraction, seed)
     assert split.train.size and split.test.size
     assert not set(names[split.train]) & set(names[split.test])
@@ -166,15 +172,10 @@ def test_split_by_clip_rejects_bad_input():
 
 
 @settings(max_examples=200, deadline=None)
-@given(
-    st.lists(st.integers(1, 40), min_size=2, max_size=12),
-    st.integers(2, 6),
-    st.integers(0, 2**32 - 1),
-)
+@given(CLIP_SIZES, st.integers(2, 6), SEEDS)
 def test_clip_folds_hold_out_every_clip_once_and_balance_the_windows(sizes, folds, seed):
     folds = min(folds, len(sizes))
-    names = np.concatenate([np.full(n, f"clip{i}") for i, n in enumerate(sizes)])
-    names = names[np.random.default_rng(seed).permutation(len(names))]
+    names = _clip_names(sizes, seed)
     splits = pdata.clip_folds(names, folds, seed)
     assert len(splits) == folds
     held = [c for s in splits for c in s.test_clips]
