@@ -122,28 +122,28 @@ def _first_bad(mask: np.ndarray) -> str:
     return f" (batch index {tuple(int(i) for i in np.argwhere(mask)[0])})"
 
 
+def _require(bad: np.ndarray, values: np.ndarray, message: str, name: str) -> None:
+    """Raise a GeometryError (``field=name``) when the batch mask ``bad`` has a True
+    entry: ``message`` formatted with the first offending ``value`` of ``values`` and
+    ``where``, its batch index."""
+    if np.any(bad):
+        value = float(np.asarray(values)[bad][0]) if bad.ndim else float(values)
+        raise GeometryError(message.format(value=value, where=_first_bad(np.asarray(bad))),
+                            field=name)
+
+
 def _check_unit(p: np.ndarray, name: str) -> None:
     n = norm(p)
-    bad = np.abs(n - 1.0) > UNIT_TOL
-    if np.any(bad):
-        value = float(np.asarray(n)[bad][0]) if bad.ndim else float(n)
-        raise GeometryError(
-            f"{name} must lie on the unit sphere (||{name}|| = 1 in the SRVF inner product); "
-            f"got norm {value:.6g}{_first_bad(np.asarray(bad))}. Normalise with to_sphere()",
-            field=name,
-        )
+    _require(np.abs(n - 1.0) > UNIT_TOL, n,
+             f"{name} must lie on the unit sphere (||{name}|| = 1 in the SRVF inner product); "
+             "got norm {value:.6g}{where}. Normalise with to_sphere()", name)
 
 
 def _check_tangent(p: np.ndarray, v: np.ndarray, name: str) -> None:
     off = np.abs(inner(v, p)) / (1.0 + norm(v))
-    bad = off > TANGENT_TOL
-    if np.any(bad):
-        value = float(np.asarray(off)[bad][0]) if bad.ndim else float(off)
-        raise GeometryError(
-            f"{name} must be tangent at the base point (<{name}, p> = 0); relative normal "
-            f"component is {value:.3g}{_first_bad(np.asarray(bad))}. Use project_tangent()",
-            field=name,
-        )
+    _require(off > TANGENT_TOL, off,
+             f"{name} must be tangent at the base point (<{name}, p> = 0); relative normal "
+             "component is {value:.3g}{where}. Use project_tangent()", name)
 
 
 # -- SRVF of curves ------------------------------------------------------------
