@@ -35,6 +35,14 @@ def gesture_root(shared_data: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
+def utkinect_clips(gesture_root: Path):
+    """The labelled UTKinect gesture clips of the corpus, one list per test module."""
+    from simenv.data.gestures import load_gesture_clips
+
+    return load_gesture_clips(gesture_root, datasets=("utkinect",))
+
+
+@pytest.fixture(scope="module")
 def room():
     """The default room, one per test module (a module's tests may change its state)."""
     from simenv.room.room import Room

@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from simenv.core.errors import SimenvError
+from simenv.core.errors import FormatError, SimenvError
 
 
 def names_all(error: SimenvError, path: Path, needles: tuple[str, ...]) -> SimenvError:
@@ -18,6 +18,14 @@ def names_all(error: SimenvError, path: Path, needles: tuple[str, ...]) -> Simen
     for needle in needles:
         assert needle in msg, msg
     return error
+
+
+def rejects_lines(read: Callable[[Path], Any], path: Path, lines: list[str], match: str,
+                  line: int) -> SimenvError:
+    """``read(path)`` of ``lines`` written to ``path`` raises a FormatError matching
+    ``match`` at line ``line``; returns it."""
+    path.write_text("\n".join(lines) + "\n")
+    return raises_at(FormatError, match, lambda: read(path), line=line)
 
 
 def raises_at(error: type[SimenvError], match: str, call: Callable[[], Any],

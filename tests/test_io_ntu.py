@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from expect import raises_at
+from expect import rejects_lines
 
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Interaction, Motion
@@ -96,9 +96,7 @@ def _written(shared_data: Path, tmp_path: Path) -> list[str]:
 def test_bad_input(shared_data: Path, tmp_path: Path, edit, message: str, line: int) -> None:
     lines = _written(shared_data, tmp_path)
     assert len(lines) == 1 + 3 * 28
-    bad = tmp_path / "bad.skeleton"
-    bad.write_text("\n".join(edit(lines)) + "\n")
-    raises_at(FormatError, message, lambda: ntu.read(bad), line=line)
+    rejects_lines(ntu.read, tmp_path / "bad.skeleton", edit(lines), message, line)
 
 
 def test_empty_and_bodiless(tmp_path: Path) -> None:

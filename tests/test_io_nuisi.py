@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from expect import raises_at
+from expect import rejects_lines
 
-from simenv.core.errors import FormatError, MotionError
+from simenv.core.errors import MotionError
 from simenv.core.motion import Interaction, Motion
 from simenv.io import nuisi
 
@@ -80,9 +80,7 @@ def _lines(shared_data: Path) -> list[str]:
      "expected a finite number", 21),
 ])
 def test_bad_input(shared_data: Path, tmp_path: Path, edit, message: str, line: int) -> None:
-    bad = tmp_path / "Bad_p1.txt"
-    bad.write_text("\n".join(edit(_lines(shared_data))) + "\n")
-    raises_at(FormatError, message, lambda: nuisi.read(bad), line=line)
+    rejects_lines(nuisi.read, tmp_path / "Bad_p1.txt", edit(_lines(shared_data)), message, line)
 
 
 def test_no_skeleton_at_all(tmp_path: Path) -> None:

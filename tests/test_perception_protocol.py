@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from simenv.data.gestures import GESTURE15_JOINTS, GESTURE_LABELS, subject_fold
 from simenv.perception.protocol import (
@@ -79,14 +78,7 @@ def test_cross_fitting_never_uses_the_held_out_fold():
     assert b["folds"][0]["other_clips"][0] > a["folds"][0]["other_clips"][0]
 
 
-@pytest.fixture(scope="module")
-def utk_clips(gesture_root):
-    from simenv.data.gestures import load_gesture_clips
-
-    return load_gesture_clips(gesture_root, datasets=("utkinect",))
-
-
-def test_avatar_clips_and_stream_readings_on_real_sessions(utk_clips):
+def test_avatar_clips_and_stream_readings_on_real_sessions(utkinect_clips):
     """Two real UTKinect segments retargeted into the room: gesture15 keypoints of the
     avatar, then one reading per clip with a tick per second past its end."""
     import torch
@@ -95,8 +87,8 @@ def test_avatar_clips_and_stream_readings_on_real_sessions(utk_clips):
     from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
     from simenv.perception.protocol import avatar_clips, stream_readings
 
-    wave = next(c for c in utk_clips if c.label == "wave")
-    walk = next(c for c in utk_clips if c.label == "walk")
+    wave = next(c for c in utkinect_clips if c.label == "wave")
+    walk = next(c for c in utkinect_clips if c.label == "walk")
     avatars, skipped = avatar_clips([wave, walk], progress=False)
     assert not skipped and [a.label for a in avatars] == ["wave", "walk"]
     assert avatars[0].positions.shape == (wave.num_frames, 15, 3)
