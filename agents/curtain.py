@@ -123,8 +123,8 @@ def plan_walk_to_curtain(room: Room, data: mujoco.MjData) -> SteppingPlan:
 
 
 def plan_close_curtain(room: Room, data: mujoco.MjData) -> PlanChain:
-    """``close_curtain``: stand up, walk to the curtain, draw it, go back to the chair and
-    sit down (module docstring).
+    """``close_curtain``: stand up, walk to the curtain, draw it, go back to the chair,
+    sit down and roll it in (module docstring).
 
     Raises:
         SimenvError: the curtain is already closed.

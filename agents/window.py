@@ -1,9 +1,9 @@
 """Closing the window: stand up, walk to it, slide the pane shut with a proximity grasp,
-walk back to the chair and sit down.
+walk back to the chair, sit down and roll the chair back to the desk.
 
 ``close_window`` (:func:`plan_close_window`) is a :class:`~simenv.agents.reach.PlanChain`
 of three stages and the return (:data:`simenv.agents.seat.RETURN_STAGES`: turn, walk back,
-turn to the desk, sit down, settle), each planned from the state the previous one left:
+turn to the desk, sit down, settle, roll in), each planned from the state the previous one left:
 
 1. :func:`simenv.agents.stand.plan_stand_up` (sit-to-stand, no assistance);
 2. :func:`plan_walk_to_window`: a stepping turn onto the heading towards the wall, then
@@ -135,8 +135,8 @@ def plan_walk_to_window(room: Room, data: mujoco.MjData) -> SteppingPlan:
 
 
 def plan_close_window(room: Room, data: mujoco.MjData) -> PlanChain:
-    """``close_window``: stand up, walk to the window, slide it shut, go back to the chair
-    and sit down (module docstring).
+    """``close_window``: stand up, walk to the window, slide it shut, go back to the chair,
+    sit down and roll it in (module docstring).
 
     Raises:
         SimenvError: the window is already closed.

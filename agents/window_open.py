@@ -136,7 +136,7 @@ def plan_walk_to_open(room: Room, data: mujoco.MjData) -> SteppingPlan:
 
 def plan_open_window(room: Room, data: mujoco.MjData) -> PlanChain:
     """``open_window``: stand up, walk to the window, slide it open, then go back to the
-    chair and sit down (:data:`simenv.agents.seat.RETURN_STAGES`, as ``close_window``).
+    chair, sit down and roll it in (:data:`simenv.agents.seat.RETURN_STAGES`, as ``close_window``).
 
     Raises:
         SimenvError: the window is already open.
