@@ -29,7 +29,8 @@ sets its heel down ahead (knee :data:`ROLL_IN_REACH_DEG` extended, ankle dorsifl
 :data:`ROLL_IN_DORSI_DEG`, hip pressing :data:`ROLL_IN_PRESS_DEG` down), does the same
 with the other foot, then flexes both knees to :data:`ROLL_IN_PULL_DEG` beyond a right
 angle with the heels pressed: the heels hold on the floor and the body and chair roll
-towards the desk (0.12-0.2 m a stroke, measured). Only one foot is off the floor at a
+towards the desk (0.19-0.20 m a pull, less 2.4-2.6 cm given back while the feet are
+placed, measured). Only one foot is off the floor at a
 time and it is lifted, not slid: a foot slid forward on the floor pushes the chair back
 (measured: 8-30 cm for one leg's reach, the way :func:`~simenv.agents.stand.plan_stand_up`
 pushes it on purpose). The chair's forward stop (0.02 m) ends the travel; strokes beyond
@@ -81,13 +82,13 @@ ROLL_IN_PULL_DEG = 15.0
 #: Durations of a foot's lift or set-down, and of the pull, s.
 ROLL_IN_SWING_S = 0.5
 ROLL_IN_PULL_S = 1.0
-#: Travel planned per stroke, m: below the 0.12-0.2 m measured, so the strokes reach the
-#: desk (extra strokes end on the chair's forward stop, measured harmless).
+#: Travel planned per stroke, m: about 2/3 of the ~0.17 m measured, so the strokes reach
+#: the desk (extra strokes end on the chair's forward stop, measured harmless).
 ROLL_IN_STROKE_M = 0.12
 #: The chair counts as rolled back to the desk within this distance of where it started
-#: (:func:`chair_from_desk`), m: the seated pose's thighs then still reach under the desk
-#: top (0.35 m deep from its front edge to the knees' place at the start, 0.16 m of it
-#: under the top) and the seated reactions' targets on the desk stay in reach.
+#: (:func:`chair_from_desk`), m: the seated knees, 0.16 m under the desk top at the start,
+#: are then still under it; the strokes end 1.6-1.8 cm from the start (measured), so
+#: this bounds "at the desk", it is not a margin the strokes need.
 CHAIR_AT_DESK_M = 0.1
 
 
