@@ -84,7 +84,7 @@ def plan_curtain_pull(room: Room, data: mujoco.MjData) -> PDPlan:
 
 
 #: ``close_curtain``: stand up, walk to :func:`curtain_spot`, :func:`plan_curtain_pull`,
-#: go back to the chair and sit down.
+#: go back to the chair, sit down and roll it in.
 plan_close_curtain = task.ObjectTask("close_curtain", "pull", curtain_spot, plan_curtain_pull)
 
 

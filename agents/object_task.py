@@ -1,5 +1,6 @@
 """A standing act on one object of the room, as one template: stand up, walk to the
-object, reach and grasp, act, let go, walk back to the chair and sit down.
+object, reach and grasp, act, let go, walk back to the chair, sit down and roll the chair
+back to the desk.
 
 An :class:`ObjectTask` is a reaction's planner (:data:`simenv.agents.scripted.PLANNERS`):
 called with the room and the simulation state, it refuses an object already in the
@@ -17,7 +18,7 @@ stage, its duration, where the pelvis ended, the measured help and outcome):
    plan from where the walk left the agent, the body balanced on both feet
    (:func:`grasp_stroke`);
 4. the return to the chair, :data:`simenv.agents.seat.RETURN_STAGES` (turn, walk back,
-   turn to the desk, sit down, settle).
+   turn to the desk, sit down, settle, roll in).
 
 What differs between the tasks is the reaction (hence the object and its target state,
 :data:`simenv.room.scenario.REACTIONS`), the act's name, the approach pose and the

@@ -15,7 +15,26 @@ planned from the state the previous one left:
    facing the desk, the seat now behind the agent;
 4. ``sit_down`` (:func:`simenv.agents.stand.plan_sit_down`) and ``settle``
    (:func:`plan_settle`): crouch onto the seat, then hold the seated pose; the settle's
-   plan measures the result (:func:`seated_on_chair`) when it ends.
+   plan measures the result (:func:`seated_on_chair`) when it ends;
+5. ``roll_in`` (:func:`plan_roll_in`): seated, the agent scoots the chair back to the
+   desk with heel pulls (below); its plan measures the help (none) every physics step
+   and, at its end, the seat and the chair's distance from the desk
+   (:class:`RollInMeter`).
+
+Rolling in: standing up pushes the chair ~0.4 m back from the desk and sitting down
+pushes it on to 0.5-0.8 m (the slide ``chair/roll``, 30 N of Coulomb friction). A
+*stroke* (:data:`ROLL_IN_SWING_S` x 4 + :data:`ROLL_IN_PULL_S`) lifts one foot (hip
+flexed and knee extended :data:`ROLL_IN_LIFT_DEG` each, the leg's gravity fed forward),
+sets its heel down ahead (knee :data:`ROLL_IN_REACH_DEG` extended, ankle dorsiflexed
+:data:`ROLL_IN_DORSI_DEG`, hip pressing :data:`ROLL_IN_PRESS_DEG` down), does the same
+with the other foot, then flexes both knees to :data:`ROLL_IN_PULL_DEG` beyond a right
+angle with the heels pressed: the heels hold on the floor and the body and chair roll
+towards the desk (0.19-0.20 m a pull, less 2.4-2.6 cm given back while the feet are
+placed, measured). Only one foot is off the floor at a
+time and it is lifted, not slid: a foot slid forward on the floor pushes the chair back
+(measured: 8-30 cm for one leg's reach, the way :func:`~simenv.agents.stand.plan_stand_up`
+pushes it on purpose). The chair's forward stop (0.02 m) ends the travel; strokes beyond
+it leave the agent seated (measured).
 
 Every step is the stepping gait of :mod:`simenv.agents.gait` on the agent's own legs
 (:func:`simenv.agents.walk.turn_steps`: pairs of steps, the foot on the side of the turn
@@ -27,7 +46,7 @@ a turn before a walk in one plan (the walks to the window and the curtain).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -36,6 +55,7 @@ from simenv.agents.gait import SteppingPlan, leg_ik, plan_footsteps, quat_yaw, w
 from simenv.agents.reach import PDPlan, PDTrajectory, pd_targets, upper_body_joints
 from simenv.agents.stand import plan_sit_down
 from simenv.agents.walk import GaitMeter, check_standing, plan_walk, turn_steps
+from simenv.core.errors import SimenvError
 from simenv.room.room import Room
 
 #: Pelvis in front of the seat's centre along the desk's heading when the agent stands to
@@ -50,6 +70,26 @@ CLEAR_CHAIR_M = 0.5
 CLEAR_AHEAD_M = 0.12
 #: Seated hold after sitting down, s.
 SETTLE_S = 1.5
+#: Rolling in (module docstring): hip flexion added and knee extension taken off while a
+#: foot is in the air, deg; knee extension of a heel set down ahead, deg; ankle
+#: dorsiflexion then (heel first), deg; hip extension pressing the heels down, deg; knee
+#: flexion beyond a right angle at the end of a pull, deg.
+ROLL_IN_LIFT_DEG = 20.0
+ROLL_IN_REACH_DEG = 20.0
+ROLL_IN_DORSI_DEG = 15.0
+ROLL_IN_PRESS_DEG = 5.0
+ROLL_IN_PULL_DEG = 15.0
+#: Durations of a foot's lift or set-down, and of the pull, s.
+ROLL_IN_SWING_S = 0.5
+ROLL_IN_PULL_S = 1.0
+#: Travel planned per stroke, m: about 2/3 of the ~0.17 m measured, so the strokes reach
+#: the desk (extra strokes end on the chair's forward stop, measured harmless).
+ROLL_IN_STROKE_M = 0.12
+#: The chair counts as rolled back to the desk within this distance of where it started
+#: (:func:`chair_from_desk`), m: the seated knees, 0.16 m under the desk top at the start,
+#: are then still under it; the strokes end 1.6-1.8 cm from the start (measured), so
+#: this bounds "at the desk", it is not a margin the strokes need.
+CHAIR_AT_DESK_M = 0.1
 
 
 def desk_heading(room: Room) -> float:
@@ -131,6 +171,12 @@ def plan_turn_to_desk(room: Room, data: mujoco.MjData) -> SteppingPlan:
     return plan_step(room, data, chair_spot(room, data), desk_heading(room))
 
 
+def chair_from_desk(room: Room, data: mujoco.MjData) -> float:
+    """How far the chair has rolled back from where the scenario puts it at the desk
+    (its slide ``chair/roll``, 0 at the start, negative away from the desk), m >= 0."""
+    return abs(float(data.qpos[room.model.joint("chair/roll").qposadr[0]]))
+
+
 def seated_on_chair(room: Room, data: mujoco.MjData) -> dict[str, float | bool]:
     """Whether the agent sits on the chair now, measured:
 
@@ -139,7 +185,8 @@ def seated_on_chair(room: Room, data: mujoco.MjData) -> dict[str, float | bool]:
     * ``seat_distance_m``: the pelvis within 15 cm of the seat's centre on the floor;
     * ``torso_tilt_deg``: the chest's vertical axis within 30 deg of upright;
     * ``fallen``: any agent geom but a foot or toe touching the floor;
-    * ``success``: all of them.
+    * ``success``: all of them;
+    * ``chair_from_desk_m`` (:func:`chair_from_desk`), reported, not part of ``success``.
     """
     m = room.model
     seat = m.geom("chair/seat").id
@@ -164,7 +211,8 @@ def seated_on_chair(room: Room, data: mujoco.MjData) -> dict[str, float | bool]:
     ok = contact and abs(dz) <= 0.05 and dist <= 0.15 and tilt <= 30.0 and not fallen
     return {"seat_contact": contact, "pelvis_height_m": float(q[2]),
             "pelvis_height_error_m": dz, "seat_distance_m": dist, "torso_tilt_deg": tilt,
-            "fallen": fallen, "success": bool(ok)}
+            "fallen": fallen, "success": bool(ok),
+            "chair_from_desk_m": chair_from_desk(room, data)}
 
 
 @dataclass
@@ -191,12 +239,135 @@ def plan_settle(room: Room, data: mujoco.MjData) -> PDPlan:
                   feedback=SeatedCheck(room))
 
 
+def _passthrough(t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
+    return targets
+
+
+@dataclass
+class RollInMeter:
+    """A :data:`~simenv.agents.reach.Feedback` that passes the targets through and
+    measures, every physics step, the external help on the agent (a
+    :class:`~simenv.agents.walk.GaitMeter`'s bookkeeping: it must stay 0; :meth:`summary`);
+    its :meth:`outcome` is :func:`seated_on_chair` at the stage's end with the chair's
+    distance from the desk.
+
+    Attributes:
+        room: the room. meter: the help's bookkeeping (per physics step, N).
+        chair_start_m: :func:`chair_from_desk` when the stage was planned, m.
+    """
+
+    room: Room
+    chair_start_m: float = 0.0
+    meter: GaitMeter = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.meter = GaitMeter(self.room, _passthrough)
+
+    def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
+        return self.meter(t, data, targets)
+
+    def summary(self, steps_per_frame: int = 20) -> dict[str, float | int | list[float]]:
+        """The help over the physics steps so far (:meth:`GaitMeter.summary`)."""
+        return self.meter.summary(steps_per_frame)
+
+    def outcome(self, data: mujoco.MjData) -> dict[str, float | bool]:
+        """:func:`seated_on_chair` now, with ``chair_start_m`` (m), ``chair_at_desk``
+        (within :data:`CHAIR_AT_DESK_M` of the desk) and ``success``: seated and the
+        chair at the desk."""
+        out = seated_on_chair(self.room, data)
+        at_desk = out["chair_from_desk_m"] <= CHAIR_AT_DESK_M
+        return {**out, "chair_start_m": self.chair_start_m, "chair_at_desk": bool(at_desk),
+                "success": bool(out["success"] and at_desk)}
+
+
+def roll_in_strokes(distance_m: float) -> int:
+    """Heel-pull strokes planned for rolling the chair in from ``distance_m`` (m) behind
+    the desk: ``ceil(distance / ROLL_IN_STROKE_M)``, none within :data:`CHAIR_AT_DESK_M`."""
+    if distance_m <= CHAIR_AT_DESK_M:
+        return 0
+    return int(np.ceil(distance_m / ROLL_IN_STROKE_M))
+
+
+def plan_roll_in(room: Room, data: mujoco.MjData) -> PDPlan:
+    """Plan for the seated agent scooting its chair back to the desk with heel pulls
+    (module docstring): knees drawn in with the heels pressed (the first pull),
+    :func:`roll_in_strokes` strokes, then each foot lifted back onto the seated pose's
+    place and the seated pose held. Nothing but the agent's servos and contacts moves the
+    chair; the plan's feedback (:class:`RollInMeter`) measures that, and the result.
+
+    Raises:
+        SimenvError: the agent is not seated on the chair (:func:`seated_on_chair`).
+
+    Returns:
+        the plan: ``1 + n (4 ROLL_IN_SWING_S + ROLL_IN_PULL_S) + 4 ROLL_IN_SWING_S + 1``
+        s (n strokes; 2 s with none).
+    """
+    seat = seated_on_chair(room, data)
+    if not seat["success"]:
+        raise SimenvError("the agent is not seated on the chair: it cannot roll it in "
+                          f"(pelvis {seat['seat_distance_m']:.2f} m from the seat's centre, "
+                          f"{seat['pelvis_height_error_m']:+.2f} m from its height)",
+                          field="roll_in")
+    h = room.agent
+    upper = upper_body_joints(h)
+    start = chair_from_desk(room, data)
+    strokes = roll_in_strokes(start)
+    seated = pd_targets(h, room.seated_pose(), upper)
+    now = data.ctrl[room.agent_ctrl].copy()
+    if not strokes:  # at the desk already: settle into the seated pose
+        return PDPlan([PDTrajectory(now, seated, 1.0), PDTrajectory(seated, seated, 1.0)],
+                      feedback=RollInMeter(room, start))
+    legs = {s: tuple(n for n in h.joint_names if n.startswith(f"{s}_")
+                     and n.split("_")[1] in ("thigh", "shin", "foot")) for s in ("left", "right")}
+    base = room.seated_pose()
+
+    def leg(q: np.ndarray, side: str, hip: float, knee: float, ankle: float) -> np.ndarray:
+        q = q.copy()  # hinge angles in deg from the seated pose's right angles
+        for name, deg in (("thigh_flex", 90.0 + hip), ("shin_flex", 90.0 + knee),
+                          ("foot_flex", ankle)):
+            q[h.hinge_qpos[h.joint_names.index(f"{side}_{name}")]] = np.deg2rad(deg)
+        return q
+
+    press, lift = ROLL_IN_PRESS_DEG, ROLL_IN_LIFT_DEG
+    pull = base
+    for side in ("left", "right"):
+        pull = leg(pull, side, -press, ROLL_IN_PULL_DEG, 0.0)
+    pulled = pd_targets(h, pull, upper)
+    poses: list[tuple[np.ndarray, float]] = [(pulled, 1.0)]
+    q = pull
+    for _ in range(strokes):
+        for side in ("left", "right"):
+            # The foot in the air carries only its leg: that leg's gravity is fed forward
+            # (without, a stroke's two lifts give back 2.7-2.9 cm of travel instead of
+            # 2.4-2.6, measured).
+            up = leg(q, side, lift, -lift - ROLL_IN_REACH_DEG, -ROLL_IN_DORSI_DEG)
+            poses.append((pd_targets(h, up, upper + legs[side]), ROLL_IN_SWING_S))
+            q = leg(q, side, -press, -ROLL_IN_REACH_DEG, -ROLL_IN_DORSI_DEG)
+            poses.append((pd_targets(h, q, upper), ROLL_IN_SWING_S))
+        q = pull
+        poses.append((pulled, ROLL_IN_PULL_S))
+    for side in ("left", "right"):
+        # Each foot back under its knee through the air: slid there, the feet pushed the
+        # chair 8 cm back (measured).
+        up = leg(q, side, lift, -lift, 0.0)
+        poses.append((pd_targets(h, up, upper + legs[side]), ROLL_IN_SWING_S))
+        q = leg(q, side, 0.0, 0.0, 0.0)
+        poses.append((pd_targets(h, q, upper), ROLL_IN_SWING_S))
+    poses.append((seated, 1.0))
+    segments = []
+    for target, duration in poses:
+        segments.append(PDTrajectory(now, target, duration))
+        now = target
+    return PDPlan(segments, feedback=RollInMeter(room, start))
+
+
 #: The return to the chair, appended to a standing act's chain.
 RETURN_STAGES = (("turn_away", plan_turn_away), ("walk_back", plan_walk_back),
                  ("turn_to_desk", plan_turn_to_desk), ("sit_down", plan_sit_down),
-                 ("settle", plan_settle))
+                 ("settle", plan_settle), ("roll_in", plan_roll_in))
 
 
-__all__ = ["RETURN_STAGES", "SeatedCheck", "chair_spot", "desk_heading", "plan_settle",
+__all__ = ["CHAIR_AT_DESK_M", "RETURN_STAGES", "RollInMeter", "SeatedCheck",
+           "chair_from_desk", "chair_spot", "desk_heading", "plan_roll_in", "plan_settle",
            "plan_step", "plan_turn_away", "plan_turn_then_walk", "plan_turn_to_desk",
-           "plan_walk_back", "seated_on_chair"]
+           "plan_walk_back", "roll_in_strokes", "seated_on_chair"]

@@ -1,5 +1,5 @@
 """Closing the window: stand up, walk to it, slide the pane shut with a proximity grasp,
-walk back to the chair and sit down.
+walk back to the chair, sit down and roll the chair back to the desk.
 
 ``close_window`` (:data:`plan_close_window`) is an :class:`~simenv.agents.object_task.ObjectTask`
 (stand up, walk, act, return to the chair), specified by:
@@ -86,7 +86,7 @@ def plan_window_push(room: Room, data: mujoco.MjData) -> PDPlan:
 
 
 #: ``close_window``: stand up, walk to :func:`window_spot`, :func:`plan_window_push`, go
-#: back to the chair and sit down.
+#: back to the chair, sit down and roll it in.
 plan_close_window = task.ObjectTask("close_window", "push", window_spot, plan_window_push)
 
 

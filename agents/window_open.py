@@ -94,7 +94,7 @@ def plan_window_pull(room: Room, data: mujoco.MjData) -> PDPlan:
 
 
 #: ``open_window``: stand up, walk to :func:`open_spot`, :func:`plan_window_pull`, go back
-#: to the chair and sit down.
+#: to the chair, sit down and roll it in.
 plan_open_window = task.ObjectTask("open_window", "pull", open_spot, plan_window_pull)
 
 

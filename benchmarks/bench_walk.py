@@ -9,8 +9,8 @@ Runs (no rendering, 1 thread):
 * the rehearsals of ``cold`` (``close_window``) and ``bright`` (``close_curtain``) on the
   bundled CMU walk's first 0.5 s (:func:`simenv.envs.rehearsal.rehearse`, the ``labels``
   agent): every stage's record (duration, outcome: fell / lowest pelvis / distance from
-  the goal / success, external help), the help on every ``log.jsonl`` line, and the cost
-  as wall time over simulated time.
+  the goal / success / the chair's distance from the desk once seated, external help),
+  the help on every ``log.jsonl`` line, and the cost as wall time over simulated time.
 
 Usage::
 
@@ -118,8 +118,8 @@ def _section(walks: list[dict[str, Any]], runs: list[dict[str, Any]], command: s
     lines += ["", "Rehearsals (bundled CMU 02_01 walk's first 0.5 s, labelled 0.2-0.5 s, "
               "`labels` agent):", "",
               "| label | reaction | stage | planned s | ran s | fell | lowest pelvis m | "
-              "from the goal m | help max N | grasp max N |",
-              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+              "from the goal m | chair from the desk m | help max N | grasp max N |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     def num(v: Any) -> str:
         return "-" if v is None else f"{v:.3f}" if isinstance(v, float) else str(v)
 
@@ -129,10 +129,12 @@ def _section(walks: list[dict[str, Any]], runs: list[dict[str, Any]], command: s
             lines.append(f"| {r['label']} | {r['reaction']} | {s['stage']} | "
                          f"{s['duration_s']:.1f} | {s['ran_s']:.1f} | {num(o.get('fell'))} | "
                          f"{num(o.get('lowest_pelvis_m'))} | {num(o.get('goal_error_m'))} | "
+                         f"{num(o.get('chair_from_desk_m'))} | "
                          f"{num(s['help_max_n'])} | {num(s.get('grasp_max_n'))} |")
     lines += ["", "(grasp: the largest force of a closed proximity grasp on the hand, N -- holding "
               "a handle, not help; with every grasp refused the standing acts keep their "
-              "balance the same, measured.)", "",
+              "balance the same, measured. chair: how far the chair's slide has rolled back "
+              "from its start at the desk when the seated check ends the stage, m.)", "",
               "| label | object changed (success) | fell | failed stage | returned | "
               "log.jsonl lines | max assistance_bw | simulated s | loop wall s | cost "
               "(wall / simulated) |",

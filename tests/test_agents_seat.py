@@ -1,6 +1,7 @@
 """Back to the chair (simenv.agents.seat): after closing the window or drawing the curtain
 the agent turns on its feet, walks back between the chair and the desk, steps onto the
-spot in front of the seat facing the desk, and sits down; measured in simulation."""
+spot in front of the seat facing the desk, sits down, and rolls the chair back to the
+desk with its heels; measured in simulation."""
 
 from __future__ import annotations
 
@@ -11,9 +12,18 @@ import numpy as np
 import pytest
 
 import simenv
-from simenv.agents.seat import RETURN_STAGES, plan_step, seated_on_chair
-from simenv.agents.stand import plan_stand_up, standing
+from simenv.agents.seat import (
+    CHAIR_AT_DESK_M,
+    RETURN_STAGES,
+    chair_from_desk,
+    plan_roll_in,
+    plan_settle,
+    plan_step,
+    seated_on_chair,
+)
+from simenv.agents.stand import plan_sit_down, plan_stand_up, standing
 from simenv.assets import WALK, asset_path
+from simenv.core.errors import SimenvError
 from simenv.envs.interaction_room import InteractionRoomEnv
 from simenv.room.room import Room
 from simenv.room.session import PERCEPTION_FPS, GestureEvent
@@ -73,6 +83,14 @@ def _assert_seated(env: InteractionRoomEnv, stages: dict[str, dict[str, Any]]) -
         assert a["steps"] > 0 and a["max_n"] == 0.0 and a["max_torque_nm"] == 0.0, (name, a)
         assert not stages[name]["outcome"]["fell"]
     assert "assistance" not in stages["sit_down"] and "assistance" not in stages["settle"]
+    # Rolled back to the desk with heel pulls on the agent's own legs, measured every step.
+    roll = stages["roll_in"]
+    assert roll["assistance"]["steps"] > 0 and roll["assistance"]["max_n"] == 0.0, roll
+    assert roll["assistance"]["max_torque_nm"] == 0.0
+    assert roll["assistance"]["grasp_max_n"] == 0.0  # no hand held anything
+    assert stages["settle"]["outcome"]["chair_from_desk_m"] > 0.4  # sitting pushed it back
+    assert roll["outcome"]["chair_from_desk_m"] <= CHAIR_AT_DESK_M
+    assert chair_from_desk(env.room, env.data) <= CHAIR_AT_DESK_M
     assert all(s["lowest_pelvis_m"] > 0.85 for n, s in stages.items()
                if n in ("turn_away", "walk_back", "turn_to_desk"))  # standing throughout
 
@@ -133,6 +151,48 @@ def test_stepping_turn_re_places_the_feet():
     a = plan.feedback.summary()
     assert a["steps"] > 0 and a["max_n"] == 0.0 and a["max_torque_nm"] == 0.0
     assert not plan.feedback.outcome(data)["fell"]
+
+
+def test_seated_agent_rolls_the_chair_back_to_the_desk():
+    """Stand up (the feet push the chair ~0.4 m back), sit straight back down (on to ~0.5
+    m), then the seated agent's heel pulls roll it back to the desk: within
+    CHAIR_AT_DESK_M (0.1 m) of where it started, seated, and with no help on any physics
+    step (no applied force or torque, no equality but grasps, and no grasp closed)."""
+    room = Room("discomfort")
+    data = room.make_data()
+    for _ in range(250):
+        mujoco.mj_step(room.model, data)
+    for plan in (plan_stand_up(room, data), plan_sit_down(room, data),
+                 plan_settle(room, data)):
+        _run(room, data, plan)
+    start = chair_from_desk(room, data)
+    assert start > 0.4 and seated_on_chair(room, data)["success"]
+    plan = plan_roll_in(room, data)
+    run = _run(room, data, plan)
+    out = plan.feedback.outcome(data)
+    assert out["chair_start_m"] == pytest.approx(start)
+    assert out["chair_from_desk_m"] <= CHAIR_AT_DESK_M, out
+    assert out["chair_at_desk"] and out["success"] and out["seat_contact"] and not out["fallen"]
+    assert out["seat_distance_m"] < 0.15 and abs(out["pelvis_height_error_m"]) < 0.05
+    a = run["assistance"]
+    assert a["steps"] == int(round(plan.duration / room.model.opt.timestep))
+    assert a["max_n"] == 0.0 and a["max_torque_nm"] == 0.0 and a["grasp_max_n"] == 0.0
+    assert room.assist_wrench(data) == (0.0, 0.0)
+    assert run["lowest_pelvis_m"] > 0.5  # seated throughout (seated pelvis 0.57 m)
+    assert data.warning.number.sum() == 0
+    # At the desk already, the stage only settles into the seated pose.
+    assert plan_roll_in(room, data).duration == pytest.approx(2.0)
+
+
+def test_roll_in_needs_a_seated_agent():
+    room = Room("discomfort")
+    data = room.make_data()
+    q = room.agent.default_qpos()
+    q[:2] = [-1.0, -0.5]
+    data.qpos[room.agent_qpos] = q
+    mujoco.mj_forward(room.model, data)
+    with pytest.raises(SimenvError, match="not seated"):
+        plan_roll_in(room, data)
 
 
 def test_seated_measure():

@@ -270,7 +270,7 @@ def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: 
     assert reaction["reaction"] == "close_window" and reaction["object"] == "window"
     assert [s["stage"] for s in reaction["stages"]] == [
         "stand_up", "walk", "push", "turn_away", "walk_back", "turn_to_desk", "sit_down",
-        "settle"]  # closed the window, then back to the chair
+        "settle", "roll_in"]  # closed the window, then back to the chair and the desk
     assert reaction["returned"] is True
     walk = reaction["stages"][1]["assistance"]
     assert walk["max_n"] == 0.0 and len(walk["per_frame_n"]) == -(-walk["steps"] // 20)
