@@ -254,6 +254,32 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
         ) from err
 
 
+def _checked_qpos(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """``qpos`` as float64 (T, nq), T >= 1, finite; else the first bad frame is named."""
+    qpos = np.asarray(qpos, dtype=np.float64)
+    if qpos.ndim != 2 or qpos.shape[1] != model.nq or qpos.shape[0] == 0:
+        raise SimenvError(
+            f"qpos has shape {qpos.shape}; expected (T>=1, {model.nq}) for this model", field="qpos"
+        )
+    bad = np.flatnonzero(~np.all(np.isfinite(qpos), axis=1))
+    if bad.size:
+        raise SimenvError("qpos is not finite", frame=int(bad[0]), field="qpos")
+    return qpos
+
+
+def _checked_ghosts(ghost: np.ndarray | Sequence[np.ndarray] | None,
+                    ghost_edges: Sequence[tuple[int, int]], length: int) -> list[np.ndarray]:
+    """The ghosts as a list of (T, K, 3) arrays whose keypoints every edge indexes."""
+    ghosts = _as_ghost_list(ghost, length)
+    for a, b in ghost_edges:
+        for g in ghosts:
+            if not (0 <= a < g.shape[1] and 0 <= b < g.shape[1]):
+                raise SimenvError(
+                    f"ghost edge ({a}, {b}) outside the {g.shape[1]} keypoints", field="ghost_edges"
+                )
+    return ghosts
+
+
 def render_frames(
     model: mujoco.MjModel,
     qpos: np.ndarray,
@@ -297,25 +323,11 @@ def render_frames(
     Raises:
         SimenvError: bad shapes or non-finite ``qpos``, unknown body, or no OpenGL.
     """
-    qpos = np.asarray(qpos, dtype=np.float64)
-    if qpos.ndim != 2 or qpos.shape[1] != model.nq or qpos.shape[0] == 0:
-        raise SimenvError(
-            f"qpos has shape {qpos.shape}; expected (T>=1, {model.nq}) for this model", field="qpos"
-        )
-    bad = np.flatnonzero(~np.all(np.isfinite(qpos), axis=1))
-    if bad.size:
-        raise SimenvError("qpos is not finite", frame=int(bad[0]), field="qpos")
+    qpos = _checked_qpos(model, qpos)
     if stride < 1 or (max_frames is not None and max_frames < 1):
         raise SimenvError(f"stride={stride}, max_frames={max_frames}; expected both >= 1")
-    ghosts = _as_ghost_list(ghost, len(qpos))
+    ghosts = _checked_ghosts(ghost, ghost_edges, len(qpos))
     indices = np.arange(0, len(qpos), stride)[:max_frames]
-    for a, b in ghost_edges:
-        for g in ghosts:
-            if not (0 <= a < g.shape[1] and 0 <= b < g.shape[1]):
-                raise SimenvError(
-                    f"ghost edge ({a}, {b}) outside the {g.shape[1]} keypoints", field="ghost_edges"
-                )
-
     lookat, distance, azimuth = _camera_track(
         model, qpos[indices], _follow_body_ids(model, follow_body), distance, azimuth
     )

@@ -327,8 +327,7 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line (module docstring)."""
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m simenv.perception.train_recogniser",
                                      description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -361,57 +360,67 @@ def main(argv: Sequence[str] | None = None) -> int:
                          help="joint set: the room's gesture15, or each dataset's own "
                          "skeleton (native)")
     p_bench.add_argument("--json", action="store_true")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def _train_command(args: argparse.Namespace) -> None:
+    overrides = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed))
+                 if v is not None}
+    config = (RecognitionConfig.from_file(args.config, **overrides) if args.config
+              else RecognitionConfig(**overrides))
+    metrics = run_train(config, Path(args.out),
+                        data=Path(args.data) if args.data else _default_data(),
+                        forecasters_dir=Path(args.forecasters) if args.forecasters else None)
+    print(protocol_table(metrics))
+    print(f"outputs in {args.out}")
+
+
+def _eval_command(args: argparse.Namespace) -> None:
+    result = run_eval(args.data or [str(_default_data())], checkpoint=args.checkpoint,
+                      model_name=args.model,
+                      predictor=None if args.predictor == "none" else args.predictor)
+    if args.out:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / "metrics.json").write_text(json.dumps(result, indent=1))
+    if args.json:
+        print(json.dumps({"clips": result["clips"], "conditions": {
+            k: {"accuracy": v["accuracy"], "balanced_accuracy": v["balanced_accuracy"]}
+            for k, v in result["conditions"].items()}}))
+    else:
+        for name, v in result["conditions"].items():
+            print(f"{name:>16}: accuracy {v['accuracy']:.3f}  balanced "
+                  f"{v['balanced_accuracy']:.3f}  (n={v['n']})")
+
+
+def _benchmark_command(args: argparse.Namespace) -> None:
+    data = Path(args.data) if args.data else _default_data()
+    names = list(PUBLISHED) if args.dataset == "all" else [args.dataset]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    results = []
+    for name in names:
+        results.append(run_benchmark(name, data, members=args.members,
+                                     whole_sequences=args.whole_sequences, joints=args.joints))
+        tag = f"{name}_m{args.members}_w{int(args.whole_sequences)}"
+        if args.joints != "gesture15":
+            tag += f"_{args.joints}"
+        (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
+    print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
+                      | {"accuracy": r["scores"]["accuracy"]} for r in results])
+          if args.json else benchmark_table(results))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line (module docstring)."""
+    args = _parser().parse_args(argv)
+    commands = {"train": _train_command, "eval": _eval_command,
+                "benchmark": _benchmark_command}
     try:
-        if args.command == "train":
-            overrides = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed))
-                         if v is not None}
-            config = (RecognitionConfig.from_file(args.config, **overrides) if args.config
-                      else RecognitionConfig(**overrides))
-            metrics = run_train(config, Path(args.out),
-                                data=Path(args.data) if args.data else _default_data(),
-                                forecasters_dir=Path(args.forecasters) if args.forecasters
-                                else None)
-            print(protocol_table(metrics))
-            print(f"outputs in {args.out}")
-        elif args.command == "eval":
-            result = run_eval(args.data or [str(_default_data())], checkpoint=args.checkpoint,
-                              model_name=args.model,
-                              predictor=None if args.predictor == "none" else args.predictor)
-            if args.out:
-                Path(args.out).mkdir(parents=True, exist_ok=True)
-                (Path(args.out) / "metrics.json").write_text(json.dumps(result, indent=1))
-            if args.json:
-                print(json.dumps({"clips": result["clips"], "conditions": {
-                    k: {"accuracy": v["accuracy"], "balanced_accuracy": v["balanced_accuracy"]}
-                    for k, v in result["conditions"].items()}}))
-            else:
-                for name, v in result["conditions"].items():
-                    print(f"{name:>16}: accuracy {v['accuracy']:.3f}  balanced "
-                          f"{v['balanced_accuracy']:.3f}  (n={v['n']})")
-        else:
-            data = Path(args.data) if args.data else _default_data()
-            names = list(PUBLISHED) if args.dataset == "all" else [args.dataset]
-            out = Path(args.out)
-            out.mkdir(parents=True, exist_ok=True)
-            results = []
-            for name in names:
-                results.append(run_benchmark(name, data, members=args.members,
-                                             whole_sequences=args.whole_sequences,
-                                             joints=args.joints))
-                tag = f"{name}_m{args.members}_w{int(args.whole_sequences)}"
-                if args.joints != "gesture15":
-                    tag += f"_{args.joints}"
-                (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1,
-                                                            default=str))
-            print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
-                              | {"accuracy": r["scores"]["accuracy"]} for r in results])
-                  if args.json else benchmark_table(results))
+        commands[args.command](args)
     except SimenvError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     return 0
-
 
 if __name__ == "__main__":
     raise SystemExit(main())
