@@ -319,7 +319,7 @@ _SCORER_HEADER = "whole scorer, simenv.score on the bundled walk"
 
 
 def _scorer_line(case: dict) -> str:
-    return f"wall {case['wall']:8.3f} s | CPU {case['cpu']:8.3f} s"
+    return f"wall {case['wall'] * 1e3:10.1f} ms | CPU {case['cpu'] * 1e3:10.1f} ms"
 
 
 def bench_scorer(walk: Motion, repeats: int) -> None:
