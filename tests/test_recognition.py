@@ -76,6 +76,22 @@ def test_forecast_windows_are_real_second_plus_forecast(utkinect_clips):
         continue_windows(x[:1], valid[:1], np.array([0]), lambda h: np.zeros((2, 3)))
 
 
+def test_stream_windows_are_the_loops_ticks(utkinect_clips):
+    config = RecognitionConfig(stream_prob=1.0, forecast_prob=0.0, speed=(1.0, 1.0))
+    x, valid = training_windows(utkinect_clips, np.random.default_rng(2), config)
+    n = valid.sum(1)
+    lo, hi = config.stream_frames
+    assert ((n >= lo) & (n <= hi)).all() and np.isfinite(x).all()
+    assert all(v[:k].all() and not v[k:].any() for v, k in zip(valid, n, strict=True))
+    # windows reaching before the clip's first frame hold its first pose there
+    still = [i for i in range(len(x)) if np.allclose(x[i, 0], x[i, 1], atol=1e-6)]
+    assert len(still) > len(x) // 4
+    with pytest.raises(SimenvError, match="stream_frames"):
+        RecognitionConfig(stream_frames=(25, 100))
+    with pytest.raises(SimenvError, match="stream_prob"):
+        RecognitionConfig(stream_prob=-0.1)
+
+
 def test_kinect_noise_changes_but_keeps_the_body(utkinect_clips):
     skel = gesture_skeleton("gesture15")
     x, _ = training_windows(utkinect_clips[:20], np.random.default_rng(0), RecognitionConfig())

@@ -16,6 +16,11 @@ Training windows (:func:`training_windows`), one fresh window per clip and epoch
    network learns to read forecasts instead of meeting them first at test time. The
    forecaster runs on the normalised window (a similarity transform of the world frame,
    scale near 1; the gesture forecaster body-centres its input itself).
+   **Stream** (``stream_prob``, off by default): otherwise, with this probability, the
+   window the perception loop reads at a tick: the last ``stream_frames`` frames (a
+   length drawn in that range) ending at a random frame of the clip, frames before the
+   clip's first holding its first pose (the loop's stream, where a person stands still
+   before the gesture); every frame valid.
 4. **Normalise** (:func:`simenv.data.gestures.normalise_windows`), then **Kinect noise**
    (:func:`kinect_noise`): mirror image, rotation (yaw, and pitch/roll of a tilted
    sensor), isotropic and per-axis scale, Gaussian jitter, and dropped joints (a joint
@@ -78,6 +83,8 @@ class RecognitionConfig:
         scale, axis_scale: isotropic and per-axis scale noise (± fraction).
         jitter_m: standard deviation of per-joint Gaussian jitter, m.
         drop_prob: probability of a window with one dropped joint.
+        stream_prob: probability of a loop-tick window (module docstring, step 3);
+            stream_frames: its length range [lo, hi] in frames (at most max_frames).
         max_minutes: CPU-time budget; training stops after the epoch that exceeds it.
     """
 
@@ -101,10 +108,13 @@ class RecognitionConfig:
     axis_scale: float = 0.07
     jitter_m: float = 0.01
     drop_prob: float = 0.3
+    stream_prob: float = 0.0
+    stream_frames: tuple[int, int] = (25, 75)
     max_minutes: float = 20.0
 
     def __post_init__(self) -> None:
         self.partial_frames = tuple(int(v) for v in self.partial_frames)  # type: ignore
+        self.stream_frames = tuple(int(v) for v in self.stream_frames)  # type: ignore
         self.speed = tuple(float(v) for v in self.speed)  # type: ignore[assignment]
         lo, hi = self.partial_frames
         if not 1 <= lo <= hi:
@@ -112,7 +122,11 @@ class RecognitionConfig:
                               field="partial_frames")
         if not 0 < self.speed[0] <= self.speed[1]:
             raise SimenvError(f"speed must be 0 < lo <= hi; got {self.speed}", field="speed")
-        for name in ("partial_prob", "forecast_prob", "drop_prob"):
+        lo, hi = self.stream_frames
+        if not 1 <= lo <= hi <= self.max_frames:
+            raise SimenvError(f"stream_frames must be 1 <= lo <= hi <= max_frames; got "
+                              f"{self.stream_frames}", field="stream_frames")
+        for name in ("partial_prob", "forecast_prob", "drop_prob", "stream_prob"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise SimenvError(f"{name} must be in [0, 1]; got {getattr(self, name)}",
                                   field=name)
@@ -232,15 +246,22 @@ def training_windows(clips: Sequence[GestureClip], rng: np.random.Generator,
     for clip in clips:
         p = time_scale(clip.positions, rng.uniform(*config.speed))
         to_forecast = forecast is not None and rng.random() < config.forecast_prob
-        if to_forecast:
-            span = SHORT_FRAMES
-        elif rng.random() < config.partial_prob:
-            span = int(rng.integers(lo, hi + 1))
+        if not to_forecast and config.stream_prob > 0 and rng.random() < config.stream_prob:
+            # The loop's window at a tick: the person held the first pose before the clip.
+            span = int(rng.integers(config.stream_frames[0], config.stream_frames[1] + 1))
+            end = int(rng.integers(1, len(p) + 1)) + length
+            lead = np.concatenate([np.repeat(p[:1], length, axis=0), p])
+            w, v = cut_window(lead[end - span:end], length=length)
         else:
-            span = length
-        span = min(span, len(p), length)
-        offset = int(rng.integers(0, len(p) - span + 1))
-        w, v = cut_window(p, length=length, offset=offset, real_frames=span)
+            if to_forecast:
+                span = SHORT_FRAMES
+            elif rng.random() < config.partial_prob:
+                span = int(rng.integers(lo, hi + 1))
+            else:
+                span = length
+            span = min(span, len(p), length)
+            offset = int(rng.integers(0, len(p) - span + 1))
+            w, v = cut_window(p, length=length, offset=offset, real_frames=span)
         xs.append(w)
         vs.append(v)
         fc.append(to_forecast)
