@@ -23,7 +23,8 @@ per cent when other jobs run.
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_tracking.py [--seconds 1.0] [--repeats 2] [--no-mjx]
+    .venv/bin/python benchmarks/bench_tracking.py [--seconds 1.0] [--repeats 2] [--no-mjx] \
+        [--samples N]
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
+from dataclasses import replace  # noqa: E402
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
@@ -149,16 +151,18 @@ def main() -> None:
     ap.add_argument("--no-mjx", action="store_true", help="skip the MJX comparison")
     ap.add_argument("--mjx-samples", type=int, default=4)
     ap.add_argument("--mjx-steps", type=int, default=10)
+    ap.add_argument("--samples", type=int, default=None,
+                    help="MPC rollouts per replan (default MPCConfig's)")
     args = ap.parse_args()
     print(f"load average before: {os.getloadavg()}  (2 cores, shared: timings are noisy)")
     result = retarget(bvh.read(asset_path(WALK)).slice(0, int(args.seconds * 120) + 2))
     raw = raw_step_ratio(result, args.seconds, args.repeats)
     pd = track_ratio(result, args.seconds, args.repeats, assist=True)
+    cfg = MPCConfig(**({} if args.samples is None else {"n_samples": args.samples}))
     mpc1 = track_ratio(result, args.seconds, args.repeats, controller="mpc",
-                       mpc=MPCConfig(nthread=1))
+                       mpc=replace(cfg, nthread=1))
     mpc2 = track_ratio(result, args.seconds, args.repeats, controller="mpc",
-                       mpc=MPCConfig(nthread=2))
-    cfg = MPCConfig()
+                       mpc=replace(cfg, nthread=2))
     print(f"\nwalk 02_01, {args.seconds:.1f} s simulated; MPC: {cfg.n_samples} samples x "
           f"{cfg.horizon_s:.2f} s horizon, replan every {cfg.replan_steps} steps, planning "
           f"step x{cfg.timestep_factor}")
