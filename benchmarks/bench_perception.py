@@ -8,8 +8,16 @@ real + forecast stage (forced by a threshold of 1.1, so both stages always run).
 * ``gesture-classifier`` (transformer) + ``predictor-25-50`` (PredictiveMA-WGAN): the
   reference it replaces.
 
+``--members PATH ...`` adds the room's loop with an ensemble
+(:class:`simenv.perception.loop.TrainedClassifier` with several members): ``gesture-tcn``
+plus the first 1, 2, ... of these SkeletonTCN checkpoints (e.g. fold networks of
+``benchmarks/loop_variants.py``: same architecture, so the same cost as all-subject
+members), written under ``room_members`` by member count.
+
 One torch thread (a 90 Hz frame is 11 ms of one core); the median over ``--ticks`` ticks
-and the ratio reference / room are printed, and ``--json`` writes them.
+of the wall time and of the thread's CPU time (``*_cpu_ms``; on a shared machine the wall
+time also counts the other processes' turns) and the ratio reference / room are printed,
+and ``--json`` writes them.
 """
 
 from __future__ import annotations
@@ -28,6 +36,7 @@ import torch  # noqa: E402
 import simenv  # noqa: E402
 import simenv.models  # noqa: E402
 from simenv.assets import WALK, asset_path  # noqa: E402
+from simenv.models.skeleton_tcn import SkeletonTCN  # noqa: E402
 from simenv.perception.loop import PerceptionLoop, TrainedClassifier, load_predictor  # noqa: E402
 from simenv.room.scenario import load_scenario  # noqa: E402
 from simenv.room.session import Session, user_track  # noqa: E402
@@ -36,22 +45,47 @@ STACKS = {"room": ("gesture-tcn", "predictor-gesture-25-50"),
           "reference": ("gesture-classifier", "predictor-25-50")}
 
 
-def tick_ms(classifier: str, predictor: str, keypoints: np.ndarray, ticks: int
-            ) -> dict[str, float]:
-    """Median ms of a tick with the real stage only and with both stages."""
+def tick_ms(classifiers: dict[str, TrainedClassifier], predictor: str, keypoints: np.ndarray,
+            ticks: int) -> dict[str, dict[str, float]]:
+    """Median ms of a tick with the real stage only and with both stages, wall time
+    (``*_ms``) and this thread's CPU time (``*_cpu_ms``: what the tick costs one core,
+    whatever else the machine runs), per classifier. The classifiers take turns tick by
+    tick, so a change in the machine's load falls on all of them alike."""
     behaviour = load_scenario("default").behaviour
-    clf, ahead = TrainedClassifier.shipped(classifier), load_predictor(predictor)
+    ahead = load_predictor(predictor)
     need = max(25, ahead.history_len)
-    out = {}
-    for name, threshold in (("real_stage_ms", 0.0), ("both_stages_ms", 1.1)):
-        loop = PerceptionLoop(behaviour, clf, ahead, threshold=threshold, use_forecast=True)
-        times = []
+    out: dict[str, dict[str, float]] = {name: {} for name in classifiers}
+    for stage, threshold in (("real_stage", 0.0), ("both_stages", 1.1)):
+        loops = {name: PerceptionLoop(behaviour, clf, ahead, threshold=threshold,
+                                      use_forecast=True) for name, clf in classifiers.items()}
+        wall: dict[str, list[float]] = {name: [] for name in loops}
+        cpu: dict[str, list[float]] = {name: [] for name in loops}
         for k in range(ticks):
             end = need + k % (len(keypoints) - need)
-            start = time.perf_counter()
-            loop.perceive(end / 25.0, keypoints[end - need:end])
-            times.append(time.perf_counter() - start)
-        out[name] = round(1000 * float(np.median(times[5:])), 2)
+            for name, loop in loops.items():
+                start, start_cpu = time.perf_counter(), time.thread_time()
+                loop.perceive(end / 25.0, keypoints[end - need:end])
+                wall[name].append(time.perf_counter() - start)
+                cpu[name].append(time.thread_time() - start_cpu)
+        for name in loops:
+            out[name][f"{stage}_ms"] = round(1000 * float(np.median(wall[name][5:])), 2)
+            out[name][f"{stage}_cpu_ms"] = round(1000 * float(np.median(cpu[name][5:])), 2)
+    return out
+
+
+def ensemble_ticks(members: list[Path], keypoints: np.ndarray, ticks: int
+                   ) -> dict[str, dict[str, float]]:
+    """Tick cost of the room's stack with ``gesture-tcn`` plus the first 0, 1, ...
+    ``members`` as an ensemble, keyed by member count ("1", "2", ...)."""
+    classifier, predictor = STACKS["room"]
+    shipped = simenv.models.load(classifier)
+    extra = [SkeletonTCN.load(path) for path in members]
+    out = tick_ms({str(k + 1): TrainedClassifier([shipped, *extra[:k]])
+                   for k in range(len(extra) + 1)}, predictor, keypoints, ticks)
+    for k, r in out.items():
+        print(f"room, {k} member(s): real stage {r['real_stage_ms']} ms "
+              f"({r['real_stage_cpu_ms']} ms CPU), both stages {r['both_stages_ms']} ms "
+              f"({r['both_stages_cpu_ms']} ms CPU) a tick")
     return out
 
 
@@ -59,6 +93,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--ticks", type=int, default=200)
     parser.add_argument("--json", help="write the results here")
+    parser.add_argument("--members", nargs="*", type=Path, default=[],
+                        help="SkeletonTCN checkpoints added to gesture-tcn as ensemble members")
     args = parser.parse_args()
     torch.set_num_threads(1)
     kp = user_track(Session(simenv.load(asset_path(WALK)))).keypoints.astype(np.float32)
@@ -68,15 +104,19 @@ def main() -> int:
             print(f"{stack}: {classifier} / {predictor} not shipped; skipped")
             continue
         results[stack] = {"classifier": classifier, "predictor": predictor,
-                          **tick_ms(classifier, predictor, kp, args.ticks)}
+                          **tick_ms({stack: TrainedClassifier.shipped(classifier)}, predictor,
+                                    kp, args.ticks)[stack]}
         print(f"{stack:>9} ({classifier} + {predictor}): real stage "
               f"{results[stack]['real_stage_ms']} ms, both stages "
-              f"{results[stack]['both_stages_ms']} ms a tick")
+              f"{results[stack]['both_stages_ms']} ms a tick (CPU: "
+              f"{results[stack]['real_stage_cpu_ms']} / {results[stack]['both_stages_cpu_ms']} ms)")
     if len(results) == 2:
         for key in ("real_stage_ms", "both_stages_ms"):
             ratio = results["reference"][key] / results["room"][key]
             results[f"ratio_{key}"] = round(ratio, 2)
             print(f"reference / room, {key}: {ratio:.2f}x")
+    if args.members:
+        results["room_members"] = ensemble_ticks(args.members, kp, args.ticks)
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     return 0

@@ -202,6 +202,53 @@ def test_trained_classifier_adapter_pads_truncates_and_maps(shared_data):
 
 
 @shipped
+def test_ensemble_averages_the_members_temperature_scaled_logits(shared_data):
+    """On a real UTKinect wave: the shipped TCN twice gives its probabilities once; with a
+    second member of other output biases and twice the temperature, the ensemble is
+    softmax of the mean of z_m / tau_m (the class docstring's math), also mapped onto a
+    scenario's vocabulary; members that classify differently are refused."""
+    import copy
+    import dataclasses
+
+    import torch
+
+    from simenv.data.gestures import normalise_windows
+    from simenv.perception.loop import TrainedClassifier
+
+    clips = load_gesture_clips(shared_data / "gestures", datasets=("utkinect",))
+    wave = next(c for c in clips if c.label == "wave" and c.num_frames >= 50)
+    x, v = wave.positions[:50].astype(np.float32), np.ones(50, bool)
+    one = TrainedClassifier.shipped()
+    twice = TrainedClassifier.shipped(["gesture-tcn", "gesture-tcn"])
+    assert len(twice.members) == 2 and twice.name == "gesture-tcn+gesture-tcn"
+    assert (twice.threshold, twice.loop_windows) == (one.threshold, one.loop_windows)
+    p = one.classify(x, v)
+    np.testing.assert_allclose(p, one.model.classify_world(x, v), atol=1e-6)
+    np.testing.assert_allclose(twice.classify(x, v), p, atol=1e-6)
+    other = copy.deepcopy(one.model)
+    other.config = dataclasses.replace(other.config, temperature=2 * one.model.config.temperature)
+    with torch.no_grad():
+        other.out.bias += torch.linspace(-1.0, 1.0, len(other.config.labels))
+    ensemble = TrainedClassifier([one.model, other])
+    w = torch.as_tensor(normalise_windows(x[None], v[None], joints=GESTURE15_JOINTS))
+    with torch.no_grad():
+        z = np.mean([m(w, torch.as_tensor(v[None]))[0].numpy() / m.config.temperature
+                     for m in (one.model, other)], axis=0)
+    expected = np.exp(z - z.max()) / np.exp(z - z.max()).sum()
+    q = ensemble.classify(x, v)
+    np.testing.assert_allclose(q, expected, atol=1e-6)
+    assert np.abs(q - p).max() > 1e-3  # a different member changes the answer
+    vocab = load_scenario("discomfort").behaviour.vocabulary
+    mapped = TrainedClassifier.shipped(["gesture-tcn", "gesture-tcn"], vocab)
+    hello = dict(zip(mapped.labels, mapped.classify(x, v), strict=True))["hello"]
+    assert hello == pytest.approx(p[one.labels.index("wave")], abs=1e-6)
+    with pytest.raises(SimenvError, match="member 1"):
+        TrainedClassifier([one.model, simenv.models.load("gesture-classifier")])
+    with pytest.raises(SimenvError, match="at least one member"):
+        TrainedClassifier([])
+
+
+@shipped
 def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
     from simenv.perception.loop import (
         TrainedClassifier,

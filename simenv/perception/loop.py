@@ -23,10 +23,10 @@ are present -- the gesture-domain forecaster ``predictor-gesture-25-50``
 (:data:`DEFAULT_PREDICTOR`; any other shipped ``predictor-*`` can be named, e.g. the
 thesis's PredictiveMA-WGAN ``predictor-25-50``) and the skeleton TCN ``gesture-tcn``
 (:data:`DEFAULT_CLASSIFIER`; the thesis's transformer ``gesture-classifier`` by name)
-through :class:`TrainedClassifier`, with the threshold, real windows and use of the
-forecast stage its training chose on held-out subjects -- and otherwise the
-constant-velocity baseline and the nearest-neighbour :class:`TemplateClassifier` built from
-the labelled real clips of the gesture corpus.
+through :class:`TrainedClassifier` (one network, or an ensemble of several), with the
+threshold, real windows and use of the forecast stage its training chose on held-out
+subjects -- and otherwise the constant-velocity baseline and the nearest-neighbour
+:class:`TemplateClassifier` built from the labelled real clips of the gesture corpus.
 """
 
 from __future__ import annotations
@@ -184,21 +184,44 @@ def vocabulary_map(labels: Sequence[str], vocabulary: Sequence[str]) -> dict[str
 
 
 class TrainedClassifier:
-    """A trained :class:`~simenv.models.gesture_classifier.GestureClassifier` as a
-    :class:`GestureModel`.
+    """Trained gesture network(s) (:class:`~simenv.models.skeleton_tcn.SkeletonTCN`,
+    :class:`~simenv.models.gesture_classifier.GestureClassifier`) as a :class:`GestureModel`:
+    one network, or an ensemble of member networks.
 
-    The network classifies fixed windows of ``W`` frames (75 = 3 s at 25 fps). A shorter
-    window (the loop's 1 s of real motion, or 1 s real + F predicted frames) is padded to
-    ``W`` by holding its last frame, the padded frames marked invalid (the network masks
-    them out of attention and pooling: the thesis's "1 s real" condition); a longer one
-    keeps its last ``W`` frames. The network's class probabilities ``p_c`` are summed onto
-    the room's labels through ``label_map`` (``P_l = sum_{c -> l} p_c``).
+    A network with a fixed window of ``W`` frames (the transformer: 75 = 3 s at 25 fps) is
+    given a shorter window (the loop's 1 s of real motion, or 1 s real + F predicted
+    frames) padded to ``W`` by holding its last frame, the padded frames marked invalid
+    (the network masks them out of attention and pooling: the thesis's "1 s real"
+    condition), and a longer one's last ``W`` frames; the TCN classifies the frames it is
+    given. The window is normalised once (:func:`simenv.data.gestures.normalise_windows`,
+    the normalisation every member's ``classify_world`` applies).
+
+    Ensemble math: member m (m = 1..M) gives logits ``z_m`` and its calibrated
+    probabilities ``p_m = softmax(z_m / τ_m)`` (``τ_m`` its checkpoint's temperature; 1
+    for the transformer). The members' temperature-scaled logits are averaged,
+
+        p = softmax( (1/M) Σ_m z_m / τ_m ) = softmax( (1/M) Σ_m log p_m ),
+
+    the second form because ``log p_m`` differs from ``z_m / τ_m`` by a constant per member
+    that the softmax drops (computed so, from each member's probabilities). One member
+    gives its own ``p_1``; M copies of a network give its ``p`` again; members sharing one
+    temperature τ give ``softmax(mean_m z_m / τ)``, the ensemble that
+    ``benchmarks/loop_variants.py`` scores (τ fitted on the members' mean logits). The
+    class probabilities ``p_c`` are then summed onto the room's labels through
+    ``label_map`` (``P_l = sum_{c -> l} p_c``).
 
     Args:
-        model: the trained classifier (e.g. ``simenv.models.load("gesture-classifier")``).
+        model: the trained classifier (e.g. ``simenv.models.load("gesture-tcn")``), or a
+            sequence of member networks with the same labels, joints and window. The first
+            member's checkpoint records the loop settings (threshold, forecast stage, real
+            windows) used for the whole ensemble.
         label_map: network label -> room label (default: identity). Unmapped labels keep
             their name.
         name: what the rehearsal summary calls it.
+
+    Raises:
+        SimenvError: no member, members that differ in labels, joints or window, or a
+            ``label_map`` naming labels the networks lack.
     """
 
     #: Decision threshold suggested to :class:`PerceptionLoop` for the shipped network:
@@ -212,24 +235,36 @@ class TrainedClassifier:
     #: higher. Test-subject numbers in docs/room.md.
     threshold = 0.15
 
-    def __init__(self, model: Any, label_map: dict[str, str] | None = None,
+    def __init__(self, model: Any | Sequence[Any], label_map: dict[str, str] | None = None,
                  name: str = "gesture-classifier") -> None:
-        config = model.config
+        members = tuple(model) if isinstance(model, (list, tuple)) else (model,)
+        if not members:
+            raise SimenvError("an ensemble needs at least one member network", field="model")
+        config = members[0].config
         source = tuple(config.labels)
+        # A network with a fixed window (the transformer) is padded to it; one that takes
+        # any length (the TCN) classifies the frames it is given.
+        window = int(config.window) if hasattr(config, "window") else None
+        for k, m in enumerate(members[1:], start=1):
+            other = int(m.config.window) if hasattr(m.config, "window") else None
+            if (tuple(m.config.labels), tuple(m.config.joint_names), other) != (
+                    source, tuple(config.joint_names), window):
+                raise SimenvError(f"ensemble member {k} differs from member 0 in its labels, "
+                                  "joints or window; members must classify alike",
+                                  field="model")
         label_map = dict(label_map or {})
         unknown = sorted(set(label_map) - set(source))
         if unknown:
             raise SimenvError(f"label_map names labels {unknown} that the classifier does "
                               f"not have; its labels: {list(source)}", field="label_map")
         mapped = [label_map.get(label, label) for label in source]
-        self.model, self.name = model, name
+        #: The member networks; :attr:`model` is the first, whose record the loop follows.
+        self.members, self.model, self.name = members, members[0], name
         self.joint_names = tuple(config.joint_names)
-        # A network with a fixed window (the transformer) is padded to it; one that takes
-        # any length (the TCN) classifies the frames it is given.
-        self.window = int(config.window) if hasattr(config, "window") else None
+        self.window = window
         # A checkpoint that records its loop threshold (chosen on held-out subjects by
         # its training) overrides the class default.
-        metadata = getattr(model, "metadata", {})
+        metadata = getattr(self.model, "metadata", {})
         self.threshold = float(metadata.get("loop_threshold", type(self).threshold))
         self.uses_forecast = bool(metadata.get("loop_uses_forecast", True))
         #: Real windows (frames) its loop threshold was chosen with.
@@ -238,19 +273,21 @@ class TrainedClassifier:
         self._to = np.array([self.labels.index(m) for m in mapped])
 
     @classmethod
-    def shipped(cls, name: str | None = None,
+    def shipped(cls, name: str | Sequence[str] | None = None,
                 vocabulary: Sequence[str] | None = None) -> TrainedClassifier:
-        """The shipped checkpoint ``name`` (None: :data:`DEFAULT_CLASSIFIER`), its labels
+        """The shipped checkpoint ``name`` (None: :data:`DEFAULT_CLASSIFIER`; several
+        names: an ensemble of them, the first recording the loop settings), its labels
         mapped onto ``vocabulary`` (:func:`vocabulary_map`; None: the network's own)."""
-        name = name or DEFAULT_CLASSIFIER
-        model = simenv.models.load(name)
-        mapping = None if vocabulary is None else vocabulary_map(model.config.labels,
+        names = [name or DEFAULT_CLASSIFIER] if name is None or isinstance(name, str) \
+            else list(name)
+        models = [simenv.models.load(n) for n in names]
+        mapping = None if vocabulary is None else vocabulary_map(models[0].config.labels,
                                                                  vocabulary)
-        return cls(model, mapping, name)
+        return cls(models, mapping, "+".join(names))
 
     def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """(T, J, 3) world-frame window on :attr:`joint_names` (m, Z up, 25 fps), (T,)
-        valid mask -> (len(labels),) probabilities."""
+        valid mask -> (len(labels),) probabilities (the ensemble's, class docstring)."""
         x = np.asarray(window, dtype=np.float32)
         v = np.asarray(valid, dtype=bool)
         if x.ndim != 3 or x.shape[1:] != (len(self.joint_names), 3) or v.shape != x.shape[:1]:
@@ -258,15 +295,21 @@ class TrainedClassifier:
                               f"valid mask; got {x.shape} and {v.shape}", field="window")
         if not v.any():
             raise SimenvError("window has no valid frame", field="valid")
-        if self.window is None:
-            return np.bincount(self._to, weights=self.model.classify_world(x, v),
-                               minlength=len(self.labels))
-        x, v = x[-self.window:], v[-self.window:]
-        pad = self.window - len(x)
-        if pad:
-            x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
-            v = np.concatenate([v, np.zeros(pad, bool)])
-        p = self.model.classify_world(x, v)
+        if self.window is not None:
+            x, v = x[-self.window:], v[-self.window:]
+            pad = self.window - len(x)
+            if pad:
+                x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
+                v = np.concatenate([v, np.zeros(pad, bool)])
+        normed = normalise_windows(x[None], v[None], joints=self.joint_names)
+        probs = [m.predict_proba(normed, v[None])[0] for m in self.members]
+        p = probs[0]
+        if len(probs) > 1:
+            # Mean of the members' log-probabilities = mean temperature-scaled logits
+            # up to a constant; the floor keeps a probability that underflowed finite.
+            logp = np.log(np.maximum(probs, 1e-30)).mean(axis=0)
+            p = np.exp(logp - logp.max())
+            p = p / p.sum()
         return np.bincount(self._to, weights=p, minlength=len(self.labels))
 
 
