@@ -14,12 +14,19 @@ and, on ``--corrupt-clips`` of them, the same MPC run on corrupted copies
 (:mod:`simenv.plausibility.corrupt`: float, foot slide, teleport, time warp at their
 moderate strengths and a strong one), which should fail.
 
+``--samples N`` sets the MPC's rollouts per replan (recorded in every line;
+lines without it ran with 32); ``docs`` tabulates each sample count apart and
+puts the counts side by side clip by clip.
+
 Results go to a JSONL file one line per run as each finishes (a rerun skips
-runs already there), so the long run can go in the background::
+runs already there with the same sample count), so the long run can go in the
+background::
 
     nohup nice .venv/bin/python benchmarks/eval_tracking.py run --runs clean &
     nohup nice .venv/bin/python benchmarks/eval_tracking.py run --runs corrupt \
         --out out/eval_tracking_corrupt.jsonl &
+    nohup nice .venv/bin/python benchmarks/eval_tracking.py run --runs clean --samples 64 \
+        --out out/eval_tracking_64.jsonl &
     .venv/bin/python benchmarks/eval_tracking.py docs   # tables -> docs/plausibility.md
 
 ``docs`` writes the tables between the ``unassisted-tracking`` markers of

@@ -79,7 +79,7 @@ class MPCConfig:
 
     horizon_s: float = 0.45
     n_knots: int = 4
-    n_samples: int = 32
+    n_samples: int = 64
     replan_steps: int = 10
     noise_rad: float = 0.2
     noise_scaling: float = 0.0
