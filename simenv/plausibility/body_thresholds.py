@@ -165,8 +165,8 @@ class BodyThresholds(PositiveThresholds):
         root_residual_tracked_m: 0.1. When an unassisted controller tracked
             the motion, ``root_residual`` counts no help on the frames where
             its body error (mean keypoint distance) stayed within this: the
-            simulated body did them alone. Twice the tracking goal of
-            issue 16 (mean body-point error <= 5 cm); a body that cannot
+            simulated body did them alone. Twice the tracking goal
+            (mean body-point error <= 5 cm); a body that cannot
             follow a 15 cm hover (the moderate ``float`` corruption) is
             further off than this once it drops.
         pair_contact_gap_m: 0.05. Two-person files
