@@ -66,6 +66,7 @@ import mujoco  # noqa: E402
 import simenv  # noqa: E402
 from simenv.assets import WALK, asset_path  # noqa: E402
 from simenv.body.retarget import RetargetResult, retarget  # noqa: E402
+from simenv.core.config import shared_data_root  # noqa: E402
 from simenv.core.motion import Motion  # noqa: E402
 from simenv.io import bvh  # noqa: E402
 from simenv.plausibility import kinematic_metrics, kinematic_metrics_batch  # noqa: E402
@@ -73,7 +74,7 @@ from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS  # noqa:
 from simenv.plausibility.tracking import assisted_model, track  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 GOAL_FRAMES_PER_S = 2e6
 GOAL_RATIO = 0.5
 #: CPU seconds of single calls behind the ``cpu_call`` rates (a few hundred

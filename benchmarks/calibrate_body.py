@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -30,6 +29,7 @@ from pathlib import Path
 
 import simenv
 from simenv.body.retarget import RetargetResult, retarget
+from simenv.core.config import shared_data_root
 from simenv.core.motion import Interaction, Motion
 from simenv.io import asf_amc, bvh
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
@@ -39,7 +39,7 @@ from simenv.plausibility.timeline import MetricResult
 from simenv.plausibility.tracking import tracking
 
 REPO = Path(__file__).resolve().parent.parent
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 
 #: The registry's body metrics, without the scorer's tracking run (the root
 #: residual is then the inferred one).

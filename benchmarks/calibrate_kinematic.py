@@ -19,19 +19,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
 import simenv
+from simenv.core.config import shared_data_root
 from simenv.core.motion import Motion
 from simenv.io import asf_amc, bvh
 from simenv.plausibility import DEFAULT_THRESHOLDS, KINEMATIC_METRICS
 
 REPO = Path(__file__).resolve().parent.parent
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 
 
 def single_person_clips(data: Path) -> list[Path]:

@@ -58,7 +58,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import re
 import time
 from collections import Counter, defaultdict
@@ -72,6 +71,7 @@ from calibrate_residual import table as residual_table
 from calibrate_score import summarise
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
 from simenv.io.loader import load
@@ -84,7 +84,7 @@ from simenv.plausibility.report import score
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 DEFAULT_OUT = REPO / "out" / "calibration_loo"
 
 #: Tukey's far-out fence multiplier of the threshold rule.

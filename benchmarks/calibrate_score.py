@@ -24,18 +24,18 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.core.config import shared_data_root
 from simenv.plausibility.batch import ScoreJob, find_targets, score_batch
 from simenv.plausibility.metric_registry import PAIR_METRICS, PERSON_METRICS
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 
 
 def corpus_of(file: str, data: Path) -> str:

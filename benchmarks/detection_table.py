@@ -31,7 +31,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import platform
 import subprocess
 import sys
@@ -45,13 +44,14 @@ import numpy as np
 from tqdm import tqdm
 
 import simenv
+from simenv.core.config import shared_data_root
 from simenv.core.motion import Motion
 from simenv.io import asf_amc, bvh
 from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.corrupt import CORRUPTIONS, STRENGTH_UNITS
 
 REPO = Path(__file__).resolve().parent.parent
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 
 #: Strengths per corruption (unit: STRENGTH_UNITS), weakest first; each
 #: list contains the registry's moderate strength.

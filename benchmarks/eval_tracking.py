@@ -50,13 +50,14 @@ from doc_sections import replace_section  # noqa: E402
 
 from simenv.body.retarget import retarget  # noqa: E402
 from simenv.control import MPCConfig  # noqa: E402
+from simenv.core.config import shared_data_root  # noqa: E402
 from simenv.core.motion import Motion  # noqa: E402
 from simenv.io.loader import load  # noqa: E402
 from simenv.plausibility.corrupt import CORRUPTIONS  # noqa: E402
 from simenv.plausibility.tracking import TrackingResult, track  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 DEFAULT_OUT = REPO / "out" / "eval_tracking.jsonl"
 DEFAULT_RESULTS = (DEFAULT_OUT, REPO / "out" / "eval_tracking_corrupt.jsonl",
                    REPO / "out" / "eval_tracking_64.jsonl")

@@ -26,7 +26,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -34,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
 from simenv.data.gestures import GestureClip, load_gesture_clips, split_cross_subject
@@ -44,7 +44,7 @@ from simenv.plausibility.reference import Reference, calibrate, compare
 from simenv.plausibility.report import score
 
 REPO = Path(__file__).resolve().parent.parent
-DEFAULT_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+DEFAULT_DATA = shared_data_root()
 FACTORS = (1.0, 2.0, 4.0)
 KINECT_DATASETS = ("msr_action3d", "utkinect", "florence3d")
 

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
 import simenv  # noqa: F401  (chooses MUJOCO_GL before any test module imports mujoco)
+from simenv.core.config import shared_data_root
 
 REPO = Path(__file__).resolve().parent.parent
-SHARED_DATA = Path(os.environ.get("SIMENV_SHARED_DATA", REPO.parent / "shared" / "data"))
+SHARED_DATA = shared_data_root()
 
 
 @pytest.fixture(scope="session")

@@ -42,7 +42,7 @@ class ScoreConfig:
     Attributes:
         thresholds: joint-level thresholds (:class:`Thresholds`).
         body: body-level thresholds (:class:`BodyThresholds`).
-        tracking: run the PD physics-tracking simulation (up to
+        tracking: run the physics-tracking simulation (up to
             ``body.tracking_max_seconds`` of simulated time per person).
         tracking_assist: judge tracking with the PD servos and the root
             assistance on (:func:`simenv.plausibility.tracking.track`,
