@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 import simenv  # noqa: F401  (chooses MUJOCO_GL before any test module imports mujoco)
 from simenv.core.config import shared_data_root
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED_DATA = shared_data_root()
+
+# Property tests draw the same examples on every run, so CI cannot fail on a draw nobody saw
+# locally; `SIMENV_HYPOTHESIS=explore make test` searches fresh examples.
+settings.register_profile("ci", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("SIMENV_HYPOTHESIS", "ci"))
 
 
 @pytest.fixture(scope="session")

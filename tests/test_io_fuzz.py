@@ -45,7 +45,6 @@ GARBAGE = [
 SETTINGS = settings(
     max_examples=50,
     deadline=None,
-    derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )
 

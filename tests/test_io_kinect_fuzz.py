@@ -17,8 +17,7 @@ from simenv.core.errors import SimenvError
 from simenv.io import florence3d, h36m, msr_action3d, ntu, nuisi, sbu, utkinect
 
 FUZZ = settings(max_examples=int(os.environ.get("SIMENV_FUZZ_EXAMPLES", "60")), deadline=None,
-                derandomize=True,
-                suppress_health_check=[HealthCheck.function_scoped_fixture])
+                            suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
 @st.composite
