@@ -15,11 +15,14 @@ and, on ``--corrupt-clips`` of them, the same MPC run on corrupted copies
 moderate strengths and a strong one), which should fail.
 
 ``--samples N`` sets the MPC's rollouts per replan (recorded in every line;
-lines without it ran with 32); ``docs`` tabulates each sample count apart and
-puts the counts side by side clip by clip.
+lines without it ran with 32) and ``--trunk-weight W`` the weight of its
+upper-trunk orientation cost (:class:`simenv.control.CostWeights` ``trunk``,
+per rad^2; recorded as ``trunk_weight``, lines without it ran with 0); a
+*setting* is the pair. ``docs`` tabulates each setting apart and puts the
+settings side by side clip by clip.
 
 Results go to a JSONL file one line per run as each finishes (a rerun skips
-runs already there with the same sample count), so the long run can go in the
+runs already there with the same setting), so the long run can go in the
 background::
 
     nohup nice .venv/bin/python benchmarks/eval_tracking.py run --runs clean &
@@ -49,7 +52,7 @@ import numpy as np  # noqa: E402
 from doc_sections import replace_section  # noqa: E402
 
 from simenv.body.retarget import retarget  # noqa: E402
-from simenv.control import MPCConfig  # noqa: E402
+from simenv.control import CostWeights, MPCConfig  # noqa: E402
 from simenv.core.config import shared_data_root  # noqa: E402
 from simenv.core.motion import Motion  # noqa: E402
 from simenv.io.loader import load  # noqa: E402
@@ -118,17 +121,27 @@ def _record(tr: TrackingResult, fps: float) -> dict[str, float | bool | str | No
             "realtime_ratio": tr.wall_s / max(tr.steps * 0.002, 1e-9), "error": tr.error}
 
 
-def samples_of(record: dict) -> int:
-    """The MPC's samples per replan of a run (lines written before the setting
-    was recorded ran with 32)."""
-    return int(record.get("samples", 32))
+#: An MPC setting of a run: (samples per replan, trunk cost weight per rad^2).
+Setting = tuple[int, float]
 
 
-def _done(out: Path) -> set[tuple[str, str, float, int]]:
-    """(clip, corruption, strength, samples) of the runs already in ``out``."""
+def setting_of(record: dict) -> Setting:
+    """The MPC setting of a run (lines written before a setting was recorded
+    ran with 32 samples and no trunk term)."""
+    return int(record.get("samples", 32)), float(record.get("trunk_weight", 0.0))
+
+
+def setting_label(setting: Setting) -> str:
+    """``"64 samples"``, with ``", trunk weight W"`` when the trunk term is on."""
+    n, w = setting
+    return f"{n} samples" + (f", trunk weight {w:g}" if w else "")
+
+
+def _done(out: Path) -> set[tuple[str, str, float, Setting]]:
+    """(clip, corruption, strength, setting) of the runs already in ``out``."""
     if not out.is_file():
         return set()
-    return {(r["clip"], r["corruption"], r["strength"], samples_of(r))
+    return {(r["clip"], r["corruption"], r["strength"], setting_of(r))
             for r in map(json.loads, filter(str.strip, out.read_text().splitlines()))}
 
 
@@ -137,7 +150,9 @@ def run(args: argparse.Namespace) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     desc = descriptions(args.data)
     cfg = MPCConfig(nthread=args.threads, seed=args.seed,
+                    weights=CostWeights(trunk=args.trunk_weight),
                     **({} if args.samples is None else {"n_samples": args.samples}))
+    setting = (cfg.n_samples, cfg.weights.trunk)
     paths = clips(args.data)
     if args.clips:
         # The named clips first, in the order given; the others follow with --all-clips.
@@ -153,7 +168,7 @@ def run(args: argparse.Namespace) -> None:
         jobs.reverse()
     for path, corruption, strength in jobs:
         # Read before every job: a second process may share the file (--reverse).
-        if (path.name, corruption, strength, cfg.n_samples) in _done(out):
+        if (path.name, corruption, strength, setting) in _done(out):
             continue
         t0 = time.perf_counter()
         motion = _clip_motion(path, args.seconds)
@@ -167,6 +182,7 @@ def run(args: argparse.Namespace) -> None:
             "corruption": corruption, "strength": strength, "seconds": args.seconds,
             "acrobatics": path.stem in ACROBATICS, "mass_kg": fitted.humanoid.total_mass,
             "mpc": _record(mpc, motion.fps), "samples": cfg.n_samples,
+            "trunk_weight": cfg.weights.trunk,
             "threads": args.threads, "seed": args.seed,
             "load_average": os.getloadavg()[0],
         }
@@ -199,11 +215,13 @@ def corrupted_span(data: Path, record: dict) -> tuple[float, float]:
     return runs[0][0] / motion.fps, runs[-1][1] / motion.fps
 
 
-def _clean_table(clean: list[dict], samples: int, expected: list[str] | None) -> list[str]:
-    """Markdown lines of the clean runs of one MPC setting (``samples`` per replan)."""
+def _clean_table(clean: list[dict], setting: Setting, expected: list[str] | None) -> list[str]:
+    """Markdown lines of the clean runs of one MPC setting."""
     seconds = clean[0]["seconds"]
     lines = [
-        f"**MPC with {samples} samples per replan.** Generated by `benchmarks/eval_tracking.py` "
+        f"**MPC with {setting[0]} samples per replan"
+        f"{f', trunk weight {setting[1]:g}' if setting[1] else ''}.** "
+        "Generated by `benchmarks/eval_tracking.py` "
         f"(first {seconds:g} s of each clip; MPC seed {clean[0]['seed']}, "
         f"{clean[0]['threads']} rollout threads). Error = mean body-point (keypoint) error over "
         "the tracked frames; work = positive work of the hinge actuators; x RT = wall time per "
@@ -228,7 +246,7 @@ def _clean_table(clean: list[dict], samples: int, expected: list[str] | None) ->
     err = [r["mpc"]["mpjpe_mm"] for r in ok]
     mean_err = float(np.mean(err)) if err else None
     pd_ok = sum(r["pd"]["success"] for r in judged)
-    lines += ["", f"Unassisted MPC, {samples} samples: **{len(ok)} of {len(judged)} clips "
+    lines += ["", f"Unassisted MPC, {setting_label(setting)}: **{len(ok)} of {len(judged)} clips "
               f"tracked** ({100 * len(ok) / max(len(judged), 1):.0f} %; goal 90 %), acrobatics "
               f"apart; mean body error of the tracked clips {_fmt(mean_err)}"
               f" mm (goal 50 mm). Unassisted PD servos: {pd_ok} of {len(judged)}. Median "
@@ -239,12 +257,14 @@ def _clean_table(clean: list[dict], samples: int, expected: list[str] | None) ->
     return lines
 
 
-def _corrupt_table(bad: list[dict], clean: list[dict], samples: int, data: Path) -> list[str]:
+def _corrupt_table(bad: list[dict], clean: list[dict], setting: Setting,
+                   data: Path) -> list[str]:
     """Markdown lines of the corrupted runs of one MPC setting, beside its clean runs."""
     clean_by_clip = {r["clip"]: r["mpc"] for r in clean}
-    lines = [f"Corrupted copies (the same MPC, {samples} samples; a copy fails when the body "
-             "error exceeds 0.5 m; *corrupted s* is the span the corruption edits, and a failure "
-             "long after it, or where the clean clip also fell, is not the corruption's doing):",
+    lines = [f"Corrupted copies (the same MPC, {setting_label(setting)}; a copy fails when the "
+             "body error exceeds 0.5 m; *corrupted s* is the span the corruption edits, and a "
+             "failure long after it, or where the clean clip also fell, is not the "
+             "corruption's doing):",
              "", "| clip | corruption | strength | corrupted s | MPC | time to failure s | "
              "error mm | max 0.5 s error mm | clean clip |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -267,14 +287,15 @@ def _corrupt_table(bad: list[dict], clean: list[dict], samples: int, data: Path)
     return lines
 
 
-def _comparison_table(clean: list[dict], settings: list[int]) -> list[str]:
-    """Markdown lines comparing the sample counts clip by clip (clean runs of
+def _comparison_table(clean: list[dict], settings: list[Setting]) -> list[str]:
+    """Markdown lines comparing the MPC settings clip by clip (clean runs of
     the clips every setting ran)."""
-    by = {(r["clip"], samples_of(r)): r["mpc"] for r in clean}
+    by = {(r["clip"], setting_of(r)): r["mpc"] for r in clean}
     names = [c for c in dict.fromkeys(r["clip"] for r in clean)
              if all((c, n) in by for n in settings)]
-    head = " | ".join(f"{n} samples: MPC, time to failure s, error mm, x RT" for n in settings)
-    lines = ["MPC sample counts side by side (clean clips run at every count):", "",
+    head = " | ".join(f"{setting_label(n)}: MPC, time to failure s, error mm, x RT"
+                      for n in settings)
+    lines = ["MPC settings side by side (clean clips run at every setting):", "",
              f"| clip | {head} |", "|---|" + "---|" * len(settings)]
     for c in names:
         cells = [f"{'tracked' if m['success'] else 'FELL'}, {m['time_to_failure_s']:.2f}, "
@@ -286,19 +307,20 @@ def _comparison_table(clean: list[dict], settings: list[int]) -> list[str]:
 
 def tables(records: list[dict], expected: list[str] | None = None,
            data: Path = DEFAULT_DATA) -> str:
-    """Markdown tables of the runs, one set per MPC sample count (the default
+    """Markdown tables of the runs, one set per MPC setting (the default
     :class:`MPCConfig`'s first) so settings never mix; ``expected`` clip names
     missing from a setting's clean runs are listed as not evaluated."""
     order = {p: i for i, p in enumerate(expected or [])}
     records = sorted(records, key=lambda r: (order.get(r["clip"], len(order)), r["clip"],
                                              r["corruption"], r["strength"]))
-    default = MPCConfig().n_samples
-    settings = sorted({samples_of(r) for r in records}, key=lambda n: (n != default, n))
+    cfg = MPCConfig()
+    default = (cfg.n_samples, cfg.weights.trunk)
+    settings = sorted({setting_of(r) for r in records}, key=lambda n: (n != default, n))
     clean_all = [r for r in records if r["corruption"] == "none"]
     lines = (_comparison_table(clean_all, settings)
-             if len({samples_of(r) for r in clean_all}) > 1 else [])
+             if len({setting_of(r) for r in clean_all}) > 1 else [])
     for n in settings:
-        mine = [r for r in records if samples_of(r) == n]
+        mine = [r for r in records if setting_of(r) == n]
         clean = [r for r in mine if r["corruption"] == "none"]
         bad = [r for r in mine if r["corruption"] != "none"]
         if lines:
@@ -326,6 +348,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--samples", type=int, default=None,
                     help="run: MPC rollouts per replan (default MPCConfig's)")
+    ap.add_argument("--trunk-weight", type=float, default=CostWeights().trunk,
+                    help="run: MPC upper-trunk orientation cost weight, per rad^2")
     ap.add_argument("--clips", nargs="*", default=[],
                     help="run: only these clip files (e.g. 05_02.bvh), in this order")
     ap.add_argument("--all-clips", action="store_true",
@@ -340,14 +364,14 @@ def main() -> None:
     if args.command == "run":
         run(args)
     else:
-        records: dict[tuple[str, str, float, int], dict] = {}
+        records: dict[tuple[str, str, float, Setting], dict] = {}
         for path in args.results:
             if path.is_file():
                 for line in filter(str.strip, path.read_text().splitlines()):
                     r = json.loads(line)
                     # A run repeated by a second process: the first one counts.
                     records.setdefault((r["clip"], r["corruption"], r["strength"],
-                                        samples_of(r)), r)
+                                        setting_of(r)), r)
         write_docs(list(records.values()), [p.name for p in clips(args.data)], args.data)
 
 

@@ -23,6 +23,8 @@ def test_sensors_read_the_keypoints_and_the_centre_of_mass() -> None:
                                data.site_xpos[h.site_ids])
     np.testing.assert_allclose(data.sensordata[layout.com], data.subtree_com[1])
     np.testing.assert_allclose(data.sensordata[layout.com_vel], [0.7, 0.0, 0.0], atol=1e-9)
+    # The trunk quaternion is the chest's body frame, not its inertia frame.
+    np.testing.assert_allclose(data.sensordata[layout.trunk], data.xquat[model.body("chest").id])
     # Same body, same dynamics: the humanoid's model is left without sensors.
     assert h.model.nsensor == 0 and model.nbody == h.model.nbody and model.nu == h.model.nu
     np.testing.assert_array_equal(root_dofs(model), np.arange(6))

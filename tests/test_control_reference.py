@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -29,6 +30,12 @@ def test_frames_land_on_their_steps(reference, walk_2s_retargeted) -> None:
     np.testing.assert_allclose(velocity_feedthrough(model), 0.1)
     np.testing.assert_allclose(reference.ctrl[125],
                                r.qpos[30, q_adr] + 0.1 * reference.qvel[125, v_adr])
+    # The upper trunk's orientation is the chest's at that frame (up to sign), unit length.
+    data = mujoco.MjData(model)
+    data.qpos[:] = r.qpos[30]
+    mujoco.mj_kinematics(model, data)
+    assert abs(reference.trunk[125] @ data.xquat[model.body("chest").id]) == pytest.approx(1.0)
+    np.testing.assert_allclose(np.linalg.norm(reference.trunk, axis=1), 1.0)
     # Between frames the keypoints lie on the segment joining them.
     mid = reference.keypoints[2]  # step 2 = 0.004 s, between frames 0 and 1
     a = (2 * 0.002 * 120.0)

@@ -9,12 +9,24 @@ quantity at the same time::
          + w_vcom |v_c - v*_c|^2                            its velocity ((m/s)^2)
          + w_qvel mean_h (qd_h - qd*_h)^2                   hinge velocities ((rad/s)^2)
          + w_foot mean_{f planted in x*} |p_f - p*_f|^2     contact schedule (m^2)
+         + w_trunk theta(R, R*)^2                           upper-trunk orientation (rad^2)
 
 and the rollout's cost is ``mean_j c_ij + w_effort mean(theta_i^2)`` (the
 last term, on the sampled knot offsets in rad^2, keeps the servos near the
 reference when tracking is good anyway). The foot term weighs the feet again
 where the reference stands on them: a planted reference foot that the body
 lifts, or slides, is what makes a tracked body fall.
+
+The trunk term is the geodesic angle between the simulated and the reference
+world orientation of the upper trunk (the body the shoulders hang from), read
+as unit quaternions ``r``, ``r*``::
+
+    theta = 2 arccos |<r, r*>|        in [0, pi] rad
+
+(the absolute value: ``r`` and ``-r`` are one rotation). The keypoint term
+sees a trunk lean only through the few upper-body keypoints it moves, so a
+planner free to bend the lower spine can buy balance with a lean that shifts
+every arm keypoint; this term prices the lean itself.
 """
 
 from __future__ import annotations
@@ -27,6 +39,13 @@ from simenv.control.model import SensorLayout, keypoints_of
 from simenv.control.reference import TrackingReference
 
 
+def trunk_angle(quat: np.ndarray, ref_quat: np.ndarray) -> np.ndarray:
+    """Geodesic angle between unit quaternions ``(w, x, y, z)`` (module docstring),
+    radians in [0, pi]; shapes (..., 4) broadcast to (...)."""
+    dot = np.abs(np.einsum("...c,...c->...", quat, ref_quat))
+    return 2.0 * np.arccos(np.minimum(dot, 1.0))
+
+
 @dataclass(frozen=True)
 class CostWeights:
     """Weights of the tracking cost terms (module docstring), each per its unit.
@@ -37,6 +56,7 @@ class CostWeights:
         com_vel: per (m/s)^2 of centre-of-mass velocity error.
         qvel: per (rad/s)^2 of mean squared hinge velocity error.
         foot: per m^2 of mean squared planted-foot error.
+        trunk: per rad^2 of squared upper-trunk orientation error (0: off).
         effort: per rad^2 of mean squared knot offset.
     """
 
@@ -45,6 +65,7 @@ class CostWeights:
     com_vel: float = 0.02
     qvel: float = 1e-4
     foot: float = 1.0
+    trunk: float = 0.0
     effort: float = 1e-3
 
 
@@ -53,7 +74,8 @@ class TrackingCost:
 
     Args:
         reference: the resampled clip.
-        layout: where the planning model's sensors put keypoints and the COM.
+        layout: where the planning model's sensors put keypoints, the COM and the
+            trunk orientation.
         hinge_dofs: (nu,) dof index of each actuated hinge (for ``qvel``).
         qvel_offset: column of ``qvel[0]`` in a rollout state row.
         weights: the term weights.
@@ -97,5 +119,6 @@ class TrackingCost:
         c += w.com_vel * np.einsum("njc,njc->nj", dv, dv)
         dq = state[..., self.hinge_cols] - ref.qvel[state_steps][:, self.hinge_dofs]
         c += w.qvel * (dq * dq).mean(axis=-1)
+        c += w.trunk * trunk_angle(sensordata[..., self.layout.trunk], ref.trunk[steps]) ** 2
         total = c.mean(axis=1) + w.effort * (knots * knots).mean(axis=(1, 2))
         return np.where(np.isfinite(total), total, np.nan)

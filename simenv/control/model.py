@@ -7,7 +7,9 @@ rollout threads. :func:`planning_model` adds to a copy of the humanoid's spec:
 
 * one ``framepos`` sensor per keypoint site (world position, metres), K x 3;
 * ``subtreecom`` of the pelvis: whole-body centre of mass (metres), 3;
-* ``subtreelinvel`` of the pelvis: its velocity (m/s), 3.
+* ``subtreelinvel`` of the pelvis: its velocity (m/s), 3;
+* ``framequat`` of the upper trunk (:data:`TRUNK_BODY`): its world orientation
+  as a unit quaternion ``(w, x, y, z)``, 4.
 
 Sensors do not change the dynamics, so the same model both plans and is
 simulated (the controller never plans on a model other than the one it
@@ -25,6 +27,10 @@ import numpy as np
 from simenv.body.humanoid import Humanoid
 from simenv.core.errors import PhysicsError
 
+#: The upper-trunk body whose orientation the planner tracks: the shoulders
+#: and the neck hang from it.
+TRUNK_BODY = "chest"
+
 
 @dataclass(frozen=True)
 class SensorLayout:
@@ -33,12 +39,14 @@ class SensorLayout:
     Attributes:
         keypoints: slice of the K x 3 keypoint positions (reshape to (K, 3)).
         com: slice of the centre of mass (3). com_vel: slice of its velocity (3).
+        trunk: slice of the upper trunk's world quaternion ``(w, x, y, z)`` (4).
         n_keypoints: K. size: total sensor values per step.
     """
 
     keypoints: slice
     com: slice
     com_vel: slice
+    trunk: slice
     n_keypoints: int
     size: int
 
@@ -79,14 +87,20 @@ def planning_model(humanoid: Humanoid, timestep_factor: int = 1, gain_scale: flo
         s.type = sensor_type
         s.objtype = mujoco.mjtObj.mjOBJ_BODY
         s.objname = root
+    s = spec.add_sensor()
+    s.name = "trunk_quat"
+    s.type = mujoco.mjtSensor.mjSENS_FRAMEQUAT
+    s.objtype = mujoco.mjtObj.mjOBJ_XBODY  # the body frame (mjOBJ_BODY: its inertia frame)
+    s.objname = TRUNK_BODY
     model = spec.compile()
     model.actuator_gainprm[:, 0] *= gain_scale
     model.actuator_biasprm[:, 1:3] *= gain_scale
     K = len(site_names)
     layout = SensorLayout(keypoints=slice(0, 3 * K), com=slice(3 * K, 3 * K + 3),
-                          com_vel=slice(3 * K + 3, 3 * K + 6), n_keypoints=K,
+                          com_vel=slice(3 * K + 3, 3 * K + 6),
+                          trunk=slice(3 * K + 6, 3 * K + 10), n_keypoints=K,
                           size=int(model.nsensordata))
-    assert layout.size == 3 * K + 6
+    assert layout.size == 3 * K + 10
     return model, layout
 
 

@@ -15,6 +15,10 @@ between the two frames around ``s dt``:
 * ``com`` / ``com_vel``: the whole-body centre of mass and its velocity
   (metres, m/s), (S, 3);
 * ``qvel``: generalized velocities, (S, nv);
+* ``trunk``: the upper trunk's (:data:`~simenv.control.model.TRUNK_BODY`)
+  world orientation, unit quaternions ``(w, x, y, z)``, (S, 4), normalised
+  after the interpolation (each frame's sign chosen nearest the previous
+  frame's, so the interpolation never passes through the long way round);
 * ``torque``: feed-forward hinge torques from the inverse dynamics of the
   reference (:func:`simenv.control.feedforward.feedforward_torques`), N m,
   (S, nu), zeros when not requested;
@@ -35,6 +39,7 @@ from simenv.body.geometry import check_qpos
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult
 from simenv.control.feedforward import feedforward_torques
+from simenv.control.model import TRUNK_BODY
 from simenv.core.errors import PhysicsError
 
 #: The keypoints whose floor contact the planner tracks (heels are the ankles).
@@ -64,7 +69,7 @@ class TrackingReference:
         n_frames: reference frames covered; frame ``f`` is at step ``frame_step[f]``.
         frame_step: (n_frames,) physics step of each frame.
         qpos0, qvel0: (nq,), (nv,) the first frame's state (the start state).
-        ctrl, torque, keypoints, com, com_vel, qvel, planted: per-step arrays, S =
+        ctrl, torque, keypoints, com, com_vel, qvel, trunk, planted: per-step arrays, S =
             ``frame_step[-1] + 1`` rows (module docstring for units).
         frame_keypoints: (n_frames, K, 3) the reference keypoints per frame.
         foot_sites: (F,) indices into the keypoint axis of :data:`FOOT_KEYPOINTS`.
@@ -83,6 +88,7 @@ class TrackingReference:
     com: np.ndarray
     com_vel: np.ndarray
     qvel: np.ndarray
+    trunk: np.ndarray
     planted: np.ndarray
     frame_keypoints: np.ndarray
     foot_sites: np.ndarray
@@ -140,11 +146,17 @@ class TrackingReference:
         kp = h.keypoints(q)
         data = mujoco.MjData(model)
         com = np.empty((n_frames, 3))
+        trunk_id = model.body(TRUNK_BODY).id
+        trunk = np.empty((n_frames, 4))
         for t in range(n_frames):
             data.qpos[:] = q[t]
             mujoco.mj_kinematics(model, data)
             mujoco.mj_comPos(model, data)
             com[t] = data.subtree_com[1]
+            trunk[t] = data.xquat[trunk_id]
+        # q and -q are one rotation: keep each frame on the previous one's side.
+        flip = np.cumprod(np.where(np.einsum("tc,tc->t", trunk[1:], trunk[:-1]) < 0, -1.0, 1.0))
+        trunk[1:] *= flip[:, None]
         com_vel = np.gradient(com, 1.0 / fps, axis=0)
         act_q, act_v = actuated_indices(model)
         ctrl = q[:, act_q] + velocity_feedthrough(model) * qvel[:, act_v]
@@ -166,8 +178,11 @@ class TrackingReference:
         rest = h.keypoints(h.default_qpos()[None])[0, foot, 2]
         kps = interp(kp)
         planted = kps[:, foot, 2] - rest < contact_height_m
+        trunk_steps = interp(trunk)
+        trunk_steps /= np.linalg.norm(trunk_steps, axis=-1, keepdims=True)
         return cls(name=result.name, dt=dt, fps=fps, n_frames=n_frames, frame_step=frame_step,
                    qpos0=q[0].copy(), qvel0=qvel[0].copy(), ctrl=interp(ctrl),
                    torque=interp(torque), keypoints=kps, com=interp(com),
-                   com_vel=interp(com_vel), qvel=interp(qvel), planted=planted,
+                   com_vel=interp(com_vel), qvel=interp(qvel), trunk=trunk_steps,
+                   planted=planted,
                    frame_keypoints=kp, foot_sites=foot)
