@@ -4,9 +4,12 @@ A tick of :class:`simenv.perception.loop.PerceptionLoop` on real keypoints (the 
 walk retargeted into the room, as the rehearsal gives them): the real stage alone, and the
 real + forecast stage (forced by a threshold of 1.1, so both stages always run). Stacks:
 
-* ``gesture-tcn`` + ``predictor-gesture-25-50`` (the room's now),
+* ``gesture-tcn-ensemble`` + ``predictor-gesture-25-50`` (the room's now: two TCNs run as
+  one fused network),
+* ``gesture-tcn`` + ``predictor-gesture-25-50`` (one TCN: the room's before),
 * ``gesture-classifier`` (transformer) + ``predictor-25-50`` (PredictiveMA-WGAN): the
-  reference it replaces.
+  reference both replace,
+* the room's ensemble run member by member (``ensemble_one_by_one``: what the fusion saves).
 
 ``--members PATH ...`` adds the room's loop with an ensemble
 (:class:`simenv.perception.loop.TrainedClassifier` with several members): ``gesture-tcn``
@@ -16,7 +19,8 @@ members), written under ``room_members`` by member count.
 
 One torch thread (a 90 Hz frame is 11 ms of one core); the median over ``--ticks`` ticks
 of the wall time and of the thread's CPU time (``*_cpu_ms``; on a shared machine the wall
-time also counts the other processes' turns) and the ratio reference / room are printed,
+time also counts the other processes' turns), every stack taking turns tick by tick, and
+the ratios other / room are printed,
 and ``--json`` writes them.
 """
 
@@ -41,23 +45,43 @@ from simenv.perception.loop import PerceptionLoop, TrainedClassifier, load_predi
 from simenv.room.scenario import load_scenario  # noqa: E402
 from simenv.room.session import Session, user_track  # noqa: E402
 
-STACKS = {"room": ("gesture-tcn", "predictor-gesture-25-50"),
+STACKS = {"room": ("gesture-tcn-ensemble", "predictor-gesture-25-50"),
+          "one_network": ("gesture-tcn", "predictor-gesture-25-50"),
           "reference": ("gesture-classifier", "predictor-25-50")}
 
 
-def tick_ms(classifiers: dict[str, TrainedClassifier], predictor: str, keypoints: np.ndarray,
+class OneByOne:
+    """A member network :class:`TrainedClassifier` does not fuse (not a ``SkeletonTCN``):
+    an ensemble of these runs member by member, with ``record``'s loop settings."""
+
+    def __init__(self, net: SkeletonTCN, record: object) -> None:
+        self.net, self.config = net, net.config
+        self.metadata = getattr(record, "metadata", {})
+
+    def predict_proba(self, x: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        return self.net.predict_proba(x, valid)
+
+
+def one_by_one(name: str) -> TrainedClassifier:
+    """The shipped ensemble ``name`` run member by member."""
+    ensemble = simenv.models.load(name)
+    return TrainedClassifier([OneByOne(m, ensemble) for m in ensemble.members],
+                             name=f"{name}, member by member")
+
+
+def tick_ms(stacks: dict[str, tuple[TrainedClassifier, str]], keypoints: np.ndarray,
             ticks: int) -> dict[str, dict[str, float]]:
     """Median ms of a tick with the real stage only and with both stages, wall time
     (``*_ms``) and this thread's CPU time (``*_cpu_ms``: what the tick costs one core,
-    whatever else the machine runs), per classifier. The classifiers take turns tick by
-    tick, so a change in the machine's load falls on all of them alike."""
+    whatever else the machine runs), per stack (name -> classifier, predictor name). The
+    stacks take turns tick by tick, so a change in the machine's load falls on all alike."""
     behaviour = load_scenario("default").behaviour
-    ahead = load_predictor(predictor)
-    need = max(25, ahead.history_len)
-    out: dict[str, dict[str, float]] = {name: {} for name in classifiers}
+    ahead = {name: load_predictor(predictor) for name, (_, predictor) in stacks.items()}
+    need = max(25, *(a.history_len for a in ahead.values()))
+    out: dict[str, dict[str, float]] = {name: {} for name in stacks}
     for stage, threshold in (("real_stage", 0.0), ("both_stages", 1.1)):
-        loops = {name: PerceptionLoop(behaviour, clf, ahead, threshold=threshold,
-                                      use_forecast=True) for name, clf in classifiers.items()}
+        loops = {name: PerceptionLoop(behaviour, clf, ahead[name], threshold=threshold,
+                                      use_forecast=True) for name, (clf, _) in stacks.items()}
         wall: dict[str, list[float]] = {name: [] for name in loops}
         cpu: dict[str, list[float]] = {name: [] for name in loops}
         for k in range(ticks):
@@ -77,11 +101,11 @@ def ensemble_ticks(members: list[Path], keypoints: np.ndarray, ticks: int
                    ) -> dict[str, dict[str, float]]:
     """Tick cost of the room's stack with ``gesture-tcn`` plus the first 0, 1, ...
     ``members`` as an ensemble, keyed by member count ("1", "2", ...)."""
-    classifier, predictor = STACKS["room"]
+    classifier, predictor = STACKS["one_network"]
     shipped = simenv.models.load(classifier)
     extra = [SkeletonTCN.load(path) for path in members]
-    out = tick_ms({str(k + 1): TrainedClassifier([shipped, *extra[:k]])
-                   for k in range(len(extra) + 1)}, predictor, keypoints, ticks)
+    out = tick_ms({str(k + 1): (TrainedClassifier([shipped, *extra[:k]]), predictor)
+                   for k in range(len(extra) + 1)}, keypoints, ticks)
     for k, r in out.items():
         print(f"room, {k} member(s): real stage {r['real_stage_ms']} ms "
               f"({r['real_stage_cpu_ms']} ms CPU), both stages {r['both_stages_ms']} ms "
@@ -98,23 +122,27 @@ def main() -> int:
     args = parser.parse_args()
     torch.set_num_threads(1)
     kp = user_track(Session(simenv.load(asset_path(WALK)))).keypoints.astype(np.float32)
-    results = {}
+    stacks = {}
     for stack, (classifier, predictor) in STACKS.items():
         if not {classifier, predictor} <= set(simenv.models.available()):
             print(f"{stack}: {classifier} / {predictor} not shipped; skipped")
             continue
-        results[stack] = {"classifier": classifier, "predictor": predictor,
-                          **tick_ms({stack: TrainedClassifier.shipped(classifier)}, predictor,
-                                    kp, args.ticks)[stack]}
-        print(f"{stack:>9} ({classifier} + {predictor}): real stage "
-              f"{results[stack]['real_stage_ms']} ms, both stages "
-              f"{results[stack]['both_stages_ms']} ms a tick (CPU: "
-              f"{results[stack]['real_stage_cpu_ms']} / {results[stack]['both_stages_cpu_ms']} ms)")
-    if len(results) == 2:
-        for key in ("real_stage_ms", "both_stages_ms"):
-            ratio = results["reference"][key] / results["room"][key]
-            results[f"ratio_{key}"] = round(ratio, 2)
-            print(f"reference / room, {key}: {ratio:.2f}x")
+        stacks[stack] = (TrainedClassifier.shipped(classifier), predictor)
+    if "room" in stacks:
+        stacks["ensemble_one_by_one"] = (one_by_one(STACKS["room"][0]), STACKS["room"][1])
+    results: dict[str, object] = {}
+    for stack, r in tick_ms(stacks, kp, args.ticks).items():
+        results[stack] = {"classifier": stacks[stack][0].name, "predictor": stacks[stack][1],
+                          **r}
+        print(f"{stack:>19} ({stacks[stack][0].name} + {stacks[stack][1]}): real stage "
+              f"{r['real_stage_ms']} ms, both stages {r['both_stages_ms']} ms a tick (CPU: "
+              f"{r['real_stage_cpu_ms']} / {r['both_stages_cpu_ms']} ms)")
+    for other in ("reference", "one_network", "ensemble_one_by_one"):
+        for key in ("real_stage_cpu_ms", "both_stages_cpu_ms"):
+            if {"room", other} <= set(results):
+                ratio = results[other][key] / results["room"][key]
+                results[f"ratio_{other}_{key}"] = round(ratio, 2)
+                print(f"{other} / room, {key}: {ratio:.2f}x")
     if args.members:
         results["room_members"] = ensemble_ticks(args.members, kp, args.ticks)
     if args.json:

@@ -21,6 +21,15 @@ on the other folds' held-out ``real_3s`` + ``real_1s`` logits and its threshold 
 the other folds' loop readings (:func:`simenv.perception.protocol.cross_fitted_outcomes`,
 last 1 / 2 / 3 s real, no forecast stage). Prints waves / other / idle greeted and the
 decision time; ``--json`` appends the row to ``OUT/scores.jsonl``.
+
+``ship MEMBER [MEMBER ...] [--name N] [--ship-dir DIR]``: the ensemble as the room ships
+it: each member variant trained once more on every subject (its ``config.json``, the shipped
+forecaster; ``DIR/<member>.npz``, kept across runs), the temperature fitted on all the
+members' out-of-fold mean logits, the loop threshold chosen on all out-of-fold loop readings
+(:func:`simenv.perception.protocol.choose_threshold`, as ``train_recogniser train`` does
+for one network), written as ``DIR/N.npz``
+(:class:`simenv.models.skeleton_tcn.SkeletonTCNEnsemble`) with its card ``DIR/N.md`` (the
+unseen-subject numbers of ``score``). Copy both into ``assets/models`` to ship.
 """
 
 from __future__ import annotations
@@ -50,15 +59,28 @@ from simenv.learning.recognition import (  # noqa: E402
     logits_of,
     train_recogniser,
 )
-from simenv.learning.recognition_protocols import condition_windows  # noqa: E402
-from simenv.models.skeleton_tcn import SkeletonTCN, fit_temperature  # noqa: E402
+from simenv.learning.recognition_protocols import (  # noqa: E402
+    calibrated,
+    classification_scores,
+    condition_windows,
+)
+from simenv.models.skeleton_tcn import (  # noqa: E402
+    SkeletonTCN,
+    SkeletonTCNEnsemble,
+    fit_temperature,
+)
 from simenv.perception.protocol import (  # noqa: E402
     StreamReading,
     avatar_clips,
+    choose_threshold,
     cross_fitted_outcomes,
     stream_readings,
 )
-from simenv.perception.train_recogniser import LOOP_WINDOWS, fold_forecasters  # noqa: E402
+from simenv.perception.train_recogniser import (  # noqa: E402
+    LOOP_WINDOWS,
+    fold_forecasters,
+    shipped_forecaster,
+)
 
 #: The gesture corpus the folds are cut from.
 GESTURES = shared_data_root(None) / "gestures"
@@ -134,18 +156,14 @@ def cmd_import(args: argparse.Namespace) -> None:
         np.savez(folder / f"fold{k}_readings.npz", **_readings(model, test, avatars, k))
 
 
-def score(members: list[Path]) -> dict[str, Any]:
-    """Cross-fitted loop outcomes of the ensemble ``members`` (module docstring)."""
+def _ensemble_readings(members: list[Path]) -> tuple[list[Any], list[dict[str, np.ndarray]]]:
+    """Every fold's held-out readings of the ensemble ``members``: the members' logits
+    averaged (one :class:`StreamReading` per avatar clip, and per fold the arrays
+    ``z3``, ``z1``, ``logits``, ``y``)."""
     folds = [[np.load(m / f"fold{k}_readings.npz") for m in members]
              for k in range(SUBJECT_FOLDS)]
     mean = [{key: np.mean([d[key] for d in ds], axis=0) for key in ("z3", "z1", "logits")}
-            for ds in folds]
-    temps = []
-    for k in range(SUBJECT_FOLDS):
-        others = [j for j in range(SUBJECT_FOLDS) if j != k]
-        z = np.concatenate([mean[j][key] for j in others for key in ("z3", "z1")])
-        y = np.concatenate([folds[j][0]["y"] for j in others for _ in ("z3", "z1")])
-        temps.append(fit_temperature(z, y))
+            | {"y": ds[0]["y"]} for ds in folds]
     readings = []
     for k, ds in enumerate(folds):
         d = ds[0]
@@ -157,6 +175,21 @@ def score(members: list[Path]) -> dict[str, Any]:
                                           float(d["duration"][i]), d["ticks"][a:b],
                                           mean[k]["logits"][a:b],
                                           np.full((b - a, len(GESTURE_LABELS)), np.nan)))
+    return readings, mean
+
+
+def _temperature(mean: list[dict[str, np.ndarray]], folds: list[int]) -> float:
+    """τ of the mean logits fitted on the ``real_3s`` + ``real_1s`` logits of ``folds``."""
+    z = np.concatenate([mean[j][key] for j in folds for key in ("z3", "z1")])
+    y = np.concatenate([mean[j]["y"] for j in folds for _ in ("z3", "z1")])
+    return fit_temperature(z, y)
+
+
+def score(members: list[Path]) -> dict[str, Any]:
+    """Cross-fitted loop outcomes of the ensemble ``members`` (module docstring)."""
+    readings, mean = _ensemble_readings(members)
+    temps = [_temperature(mean, [j for j in range(SUBJECT_FOLDS) if j != k])
+             for k in range(SUBJECT_FOLDS)]
     out = cross_fitted_outcomes(readings, subject_fold, GESTURE_LABELS, temps,
                                 use_forecast=False)
     out["temperatures"] = [round(t, 4) for t in temps]
@@ -175,6 +208,96 @@ def cmd_score(args: argparse.Namespace) -> None:
     if args.json:
         with (Path(args.out) / "scores.jsonl").open("a") as fh:
             fh.write(json.dumps({"members": args.members, **r}) + "\n")
+
+
+def train_members(members: list[Path], out: Path) -> list[Path]:
+    """Each member variant (``NAME_s<S>`` folder: its ``config.json``) trained once more on
+    every subject of the corpus with the shipped forecaster, as the shipped recogniser is
+    (:func:`simenv.perception.train_recogniser.run_train`, step 3); saved as
+    ``out/<NAME_s<S>>.npz`` and skipped when already there (runs resume)."""
+    clips = load_gesture_clips(GESTURES, idle=True)
+    forecast = shipped_forecaster()
+    paths = []
+    for member in members:
+        path = out / f"{member.name}.npz"
+        paths.append(path)
+        if path.is_file():
+            continue
+        config = RecognitionConfig(**json.loads((member / "config.json").read_text()))
+        model, history = train_recogniser(
+            clips, list(GESTURE_LABELS), lambda c: c.label,
+            config if forecast is not None else replace(config, forecast_prob=0.0),
+            forecast=forecast, extra={"joint_set": "gesture15", "variant": member.name,
+                                      "trained_on": "every subject of the corpus"})
+        model.save(path)
+        print(f"{member.name}: {history['train_cpu_s']} CPU s on every subject", flush=True)
+    return paths
+
+
+def ensemble_card(name: str, metadata: dict[str, Any]) -> str:
+    """The shipped ensemble's model card (markdown)."""
+    r, acc = metadata["unseen_subject_loop"], metadata["protocol_accuracy"]
+    greeted = ", ".join(f"{what} {k}/{n} ({k / n:.1%})" for what, (k, n) in
+                        zip(("waves", "other actions", "idle"),
+                            (r["greet_clips"], r["other_clips"], r["idle_clips"]), strict=True))
+    d = r["decision_after_onset_s"]
+    return f"""# {name}
+
+The room's gesture recogniser: {len(metadata['members'])} skeleton TCNs
+(`simenv.models.skeleton_tcn.SkeletonTCN`, the `gesture-tcn` architecture) run as one fused
+network (`SkeletonTCNEnsemble`: probabilities `softmax(mean_m z_m / τ)`), on the 15 gesture
+joints at 25 fps and the room's vocabulary ({', '.join(GESTURE_LABELS)}). Members
+{', '.join(metadata['members'])}: trained with loop-tick windows (`stream_prob`
+{metadata['config']['stream_prob']}), seeds {metadata['seeds']}, on every subject of the
+gesture corpus with "1 s real + forecast" windows from `predictor-gesture-25-50`, by
+`python benchmarks/loop_variants.py ship {' '.join(metadata['members'])}`.
+Temperature {metadata['temperature']:.3f} (fitted on the members' out-of-fold mean logits);
+loop threshold {metadata['loop_threshold']} (chosen on every out-of-fold loop reading: greetings
+on at most 2 % of non-wave clips); real windows {metadata['loop_windows']} frames, no forecast
+stage.
+
+## On subjects it never saw
+
+Leave-subjects-out, {SUBJECT_FOLDS} folds, with the fold networks of the same variants.
+Accuracy on the room vocabulary: real_3s {acc['real_3s']['accuracy']:.3f} (balanced
+{acc['real_3s']['balanced_accuracy']:.3f}), real_1s {acc['real_1s']['accuracy']:.3f}
+(balanced {acc['real_1s']['balanced_accuracy']:.3f}).
+
+The loop (cross-fitted temperature and threshold): {greeted}; decision after the labelled
+onset median {d['median']} s, p90 {d['p90']} s.
+
+Training options: `{json.dumps(metadata['config'])}`.
+"""
+
+
+def cmd_ship(args: argparse.Namespace) -> None:
+    """Train the members on every subject and write the shipped ensemble (main's help)."""
+    members = [Path(args.out) / m for m in args.members]
+    ship = Path(args.ship_dir)
+    nets = [SkeletonTCN.load(p) for p in train_members(members, ship)]
+    readings, mean = _ensemble_readings(members)
+    temperature = _temperature(mean, list(range(SUBJECT_FOLDS)))
+    threshold = choose_threshold(readings, GESTURE_LABELS, temperature, use_forecast=False)
+    y = np.concatenate([m["y"] for m in mean])
+    accuracy = {cond: classification_scores(y, np.concatenate(
+        [m[key] for m in mean]).argmax(1), GESTURE_LABELS)
+        for cond, key in (("real_3s", "z3"), ("real_1s", "z1"))}
+    loop = score(members)
+    configs = [json.loads((m / "config.json").read_text()) for m in members]
+    metadata = {"loop_threshold": threshold, "loop_uses_forecast": False,
+                "loop_windows": list(LOOP_WINDOWS), "temperature": temperature,
+                "members": [m.name for m in members], "seeds": [c["seed"] for c in configs],
+                "config": configs[0],
+                "protocol_accuracy": {c: {k: a[k] for k in ("accuracy", "balanced_accuracy")}
+                                      for c, a in accuracy.items()},
+                "unseen_subject_loop": {k: loop[k] for k in (
+                    "greet_clips", "other_clips", "idle_clips", "decision_after_onset_s")}}
+    ensemble = SkeletonTCNEnsemble([calibrated(n, temperature) for n in nets])
+    ensemble.save(ship / f"{args.name}.npz", metadata)
+    (ship / f"{args.name}.md").write_text(ensemble_card(args.name, metadata))
+    print(f"{ship / args.name}.npz: temperature {temperature:.3f}, threshold {threshold}, "
+          f"unseen-subject loop waves {loop['greet_clips']}, other {loop['other_clips']}, "
+          f"idle {loop['idle_clips']}")
 
 
 def main() -> None:
@@ -196,8 +319,15 @@ def main() -> None:
     p = sub.add_parser("score")
     p.add_argument("members", nargs="+", help="NAME_s<S> folders under --out")
     p.add_argument("--json", action="store_true")
+    p = sub.add_parser("ship", help="train the members on every subject; write the "
+                       "ensemble checkpoint (temperature and loop threshold from the "
+                       "members' out-of-fold readings) and its card to --ship-dir")
+    p.add_argument("members", nargs="+", help="NAME_s<S> folders under --out")
+    p.add_argument("--name", default="gesture-tcn-ensemble")
+    p.add_argument("--ship-dir", default="out/gesture-tcn-ensemble")
     args = parser.parse_args()
-    {"train": cmd_train, "import": cmd_import, "score": cmd_score}[args.command](args)
+    {"train": cmd_train, "import": cmd_import, "score": cmd_score,
+     "ship": cmd_ship}[args.command](args)
 
 
 if __name__ == "__main__":

@@ -75,9 +75,10 @@ def load(name: str) -> Any:
     interface), ``predictor-gesture-<P>-<F>`` the gesture-domain forecaster
     :class:`simenv.models.gesture_predictor.GesturePredictor` (world-frame gesture15
     joints, not pred17); ``zero-velocity-<F>`` / ``constant-velocity-<F>``
-    give the baselines; ``gesture-tcn`` the room's recogniser
+    give the baselines; ``gesture-tcn`` one skeleton TCN
     :class:`simenv.models.skeleton_tcn.SkeletonTCN` (any window length, calibrated
-    probabilities); ``gesture-classifier`` gives a
+    probabilities), ``gesture-tcn-ensemble`` the room's recogniser, TCNs run as one
+    :class:`simenv.models.skeleton_tcn.SkeletonTCNEnsemble`; ``gesture-classifier`` gives a
     :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
     ``predict_proba``, ``features``); an :data:`INTERACTION_MODELS` name gives that
     two-person model.
@@ -102,6 +103,10 @@ def load(name: str) -> Any:
         return DCTRegressionPredictor.load(path)
     if name in INTERACTION_MODELS:
         return interaction_model_class(name).load(path)
+    if name.startswith("gesture-tcn-ensemble"):
+        from simenv.models.skeleton_tcn import SkeletonTCNEnsemble
+
+        return SkeletonTCNEnsemble.load(path)
     if name.startswith("gesture-tcn"):
         from simenv.models.skeleton_tcn import SkeletonTCN
 

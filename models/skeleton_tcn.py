@@ -36,7 +36,7 @@ fitted after training (Guo et al. 2017, "On calibration of modern neural network
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -156,7 +156,8 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
                       batch_size: int = 256) -> np.ndarray:
         """(N, C) calibrated probabilities ``softmax(logits / τ)`` of normalised windows
         (N, T, J, 3)."""
-        self.eval()
+        if self.training:
+            self.eval()
         xt = torch.as_tensor(np.asarray(x, np.float32))
         vt = None if valid is None else torch.as_tensor(np.asarray(valid, bool))
         tau = self.config.temperature
@@ -187,6 +188,151 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
         return {"net": self}
 
 
+ENSEMBLE_FORMAT = "simenv-skeleton-tcn-ensemble-1"
+
+
+class SkeletonTCNEnsemble(CheckpointMixin, nn.Module):
+    """Member :class:`SkeletonTCN` networks of one architecture, evaluated as one network.
+
+    Math: member m (m = 1..M) gives logits ``z_m`` and has temperature ``τ_m``; the
+    ensemble's probabilities average the members' temperature-scaled logits,
+
+        p = softmax( (1/M) Σ_m z_m / τ_m ),
+
+    (members sharing one temperature τ: ``softmax(mean_m z_m / τ)``, a τ fitted on the
+    members' mean logits).
+
+    Fused evaluation: the members read the same streams ``f``, so their input 1x1
+    convolutions are stacked into one of ``M D`` output channels; each block's temporal and
+    mixing convolutions become grouped convolutions (``groups = M``: member m's channels
+    ``m D .. (m+1) D`` see only themselves); the layer norm ``GroupNorm(M, M D)`` is, per
+    member, exactly its own ``GroupNorm(1, D)``; the output layers are one batched product.
+    The logits are the members' own (float rounding aside) for one pass of Python and
+    kernel overhead instead of M. Inference only: the fused weights are rebuilt whenever a
+    member's parameters change.
+
+    Args:
+        members: the networks; same joints, labels, width and frame rate.
+
+    Raises:
+        ValueError: no member, or members whose config differs in more than weights,
+            temperature and provenance.
+    """
+
+    def __init__(self, members: Sequence[SkeletonTCN]) -> None:
+        super().__init__()
+        if not members:
+            raise ValueError("an ensemble needs at least one member network")
+        first = members[0].config
+        shape = (first.joint_names, first.parents, first.labels, first.width, first.fps)
+        for k, m in enumerate(members[1:], start=1):
+            c = m.config
+            if (c.joint_names, c.parents, c.labels, c.width, c.fps) != shape:
+                raise ValueError(f"ensemble member {k} differs from member 0 in its joints, "
+                                 "labels, width or frame rate")
+        self.members = nn.ModuleList(members)
+        #: The shared contract, temperature 1: :meth:`forward` is already scaled.
+        self.config = replace(first, temperature=1.0)
+        self.metadata: dict[str, Any] = {}
+        self._fused: dict[str, Any] | None = None
+        self._versions: tuple[int, ...] = ()
+        # Walking the module tree for every window costs more than a member's forward pass.
+        self._params = tuple(self.parameters())
+
+    @property
+    def temperatures(self) -> tuple[float, ...]:
+        """``τ_m`` of each member."""
+        return tuple(float(m.config.temperature) for m in self.members)
+
+    def _weights(self) -> dict[str, Any]:
+        versions = tuple(p._version for p in self._params)
+        if self._fused is None or versions != self._versions:
+            ms = list(self.members)
+
+            def cat(get: Any) -> torch.Tensor:
+                return torch.cat([get(m).detach() for m in ms])
+
+            blocks = [{"conv": cat(lambda m, k=k: m.blocks[k].conv.weight),
+                       "conv_b": cat(lambda m, k=k: m.blocks[k].conv.bias),
+                       "norm": cat(lambda m, k=k: m.blocks[k].norm.weight),
+                       "norm_b": cat(lambda m, k=k: m.blocks[k].norm.bias),
+                       "mix": cat(lambda m, k=k: m.blocks[k].mix.weight),
+                       "mix_b": cat(lambda m, k=k: m.blocks[k].mix.bias),
+                       "eps": ms[0].blocks[k].norm.eps, "dilation": d}
+                      for k, d in enumerate(DILATIONS)]
+            self._fused = {"inp": cat(lambda m: m.inp.weight), "inp_b": cat(lambda m: m.inp.bias),
+                           "blocks": blocks,
+                           "out": torch.stack([m.out.weight.detach() for m in ms]),
+                           "out_b": torch.stack([m.out.bias.detach() for m in ms])}
+            self._versions = versions
+        return self._fused
+
+    @torch.no_grad()
+    def member_logits(self, x: torch.Tensor, valid: torch.Tensor | None = None
+                      ) -> torch.Tensor:
+        """(B, M, C) each member's logits (before its temperature) of normalised windows
+        ``x`` (B, T, J, 3) with ``valid`` (B, T) bool, by the fused pass (class docstring)."""
+        first: SkeletonTCN = self.members[0]
+        valid = first._check(x, valid)
+        last = int(torch.nonzero(valid.any(dim=0)).max()) + 1
+        x, valid = x[:, :last], valid[:, :last]
+        # Every frame valid (the loop's windows): multiplying by a mask of ones is skipped.
+        mask = None if bool(valid.all()) else valid[:, None, :].to(x.dtype)
+        w, n = self._weights(), len(self.members)
+        h = nn.functional.conv1d(first.streams(x).transpose(1, 2), w["inp"], w["inp_b"])
+        h = h if mask is None else h * mask
+        for b in w["blocks"]:
+            y = nn.functional.conv1d(h, b["conv"], b["conv_b"], padding=b["dilation"] * (
+                KERNEL // 2), dilation=b["dilation"], groups=n)
+            y = nn.functional.gelu(nn.functional.group_norm(y, n, b["norm"], b["norm_b"],
+                                                            b["eps"]))
+            h = h + nn.functional.conv1d(y, b["mix"], b["mix_b"], groups=n)
+            h = h if mask is None else h * mask
+        if mask is None:
+            mean, peak = h.mean(-1), h.amax(-1)
+        else:
+            mean = h.sum(-1) / mask.sum(-1)
+            peak = h.masked_fill(mask == 0, float("-inf")).amax(-1)
+        z = torch.cat([mean.view(len(x), n, -1), peak.view(len(x), n, -1)], dim=-1)
+        return torch.einsum("bmk,mck->bmc", z, w["out"]) + w["out_b"]
+
+    def forward(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, C) the ensemble's logits ``(1/M) Σ_m z_m / τ_m`` (its probabilities are
+        their softmax: :attr:`config` has temperature 1)."""
+        tau = torch.tensor(self.temperatures, dtype=x.dtype)[None, :, None]
+        return (self.member_logits(x, valid) / tau).mean(1)
+
+    @torch.no_grad()
+    def predict_proba(self, x: np.ndarray, valid: np.ndarray | None = None,
+                      batch_size: int = 256) -> np.ndarray:
+        """(N, C) ensemble probabilities (class docstring) of normalised windows
+        (N, T, J, 3)."""
+        xt = torch.as_tensor(np.asarray(x, np.float32))
+        vt = None if valid is None else torch.as_tensor(np.asarray(valid, bool))
+        out = [torch.softmax(self(xt[i:i + batch_size],
+                                  None if vt is None else vt[i:i + batch_size]), -1)
+               for i in range(0, len(xt), batch_size)]
+        return torch.cat(out).numpy()
+
+    #: World-frame windows as :meth:`SkeletonTCN.classify_world` reads them.
+    classify_world = SkeletonTCN.classify_world
+
+    CHECKPOINT_FORMAT = ENSEMBLE_FORMAT
+    CONFIG = TCNConfig
+
+    def checkpoint_nets(self) -> dict[str, nn.Module]:
+        return {f"member{k}": m for k, m in enumerate(self.members)}
+
+    def checkpoint_arrays(self) -> dict[str, np.ndarray]:
+        return {"temperatures": np.array(self.temperatures)}
+
+    @classmethod
+    def from_checkpoint(cls, checkpoint: Any) -> SkeletonTCNEnsemble:
+        taus = np.asarray(checkpoint.arrays["temperatures"], float).reshape(-1)
+        config = TCNConfig(**checkpoint.config)  # temperature 1: each member's is in taus
+        return cls([SkeletonTCN(replace(config, temperature=float(t))) for t in taus])
+
+
 def fit_temperature(logits: np.ndarray, y: np.ndarray,
                     grid: Sequence[float] = tuple(np.exp(np.linspace(np.log(0.25),
                                                                      np.log(8.0), 61)))
@@ -203,4 +349,5 @@ def fit_temperature(logits: np.ndarray, y: np.ndarray,
     return float(grid[int(np.argmin(nll))])
 
 
-__all__ = ["CHECKPOINT_FORMAT", "SkeletonTCN", "TCNConfig", "fit_temperature"]
+__all__ = ["CHECKPOINT_FORMAT", "ENSEMBLE_FORMAT", "SkeletonTCN", "SkeletonTCNEnsemble",
+           "TCNConfig", "fit_temperature"]

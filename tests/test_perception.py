@@ -218,7 +218,7 @@ def test_ensemble_averages_the_members_temperature_scaled_logits(shared_data):
     clips = load_gesture_clips(shared_data / "gestures", datasets=("utkinect",))
     wave = next(c for c in clips if c.label == "wave" and c.num_frames >= 50)
     x, v = wave.positions[:50].astype(np.float32), np.ones(50, bool)
-    one = TrainedClassifier.shipped()
+    one = TrainedClassifier.shipped("gesture-tcn")
     twice = TrainedClassifier.shipped(["gesture-tcn", "gesture-tcn"])
     assert len(twice.members) == 2 and twice.name == "gesture-tcn+gesture-tcn"
     assert (twice.threshold, twice.loop_windows) == (one.threshold, one.loop_windows)
@@ -267,7 +267,7 @@ def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
     vocab = load_scenario("default").behaviour.vocabulary
     classifier = default_classifier(vocab, data=tmp_path)  # no corpus needed
     assert isinstance(classifier, TrainedClassifier)
-    assert classifier.name == "gesture-tcn"
+    assert classifier.name == "gesture-tcn-ensemble"
     loop = PerceptionLoop(load_scenario("default").behaviour, classifier, predictor)
     # the threshold, windows and forecast use its training chose on held-out subjects
     assert loop.threshold == classifier.model.metadata["loop_threshold"]

@@ -14,7 +14,12 @@ from simenv.assets import WALK, asset_path
 from simenv.core.errors import MotionError
 from simenv.data.gestures import GESTURE15_JOINTS, gesture_skeleton, to_gesture_joints
 from simenv.models.checkpoint import CheckpointError
-from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig, fit_temperature
+from simenv.models.skeleton_tcn import (
+    SkeletonTCN,
+    SkeletonTCNEnsemble,
+    TCNConfig,
+    fit_temperature,
+)
 
 
 @pytest.fixture(scope="module")
@@ -89,12 +94,78 @@ def test_checkpoint_round_trip(tmp_path: Path, walk_windows):
         SkeletonTCN.load(tmp_path / "bad.npz")
 
 
-@pytest.mark.skipif("gesture-tcn" not in simenv.models.available(),
-                    reason="shipped gesture-tcn absent")
-def test_shipped_recogniser_on_a_real_walk():
-    """The shipped network reads the bundled CMU walk (mocap it never trained on) as
-    walking, with calibrated probabilities and its loop threshold recorded."""
-    net = simenv.models.load("gesture-tcn")
+def _members() -> list[SkeletonTCN]:
+    nets = [_net(seed) for seed in (0, 1, 2)]
+    for net, tau in zip(nets, (1.0, 0.7, 1.6), strict=True):
+        net.config.temperature = tau
+    return nets
+
+
+def _walk_batch(walk_windows: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+    """The walk windows and a third, three rows with different valid frames."""
+    x = torch.from_numpy(np.concatenate([walk_windows, walk_windows[:1, ::-1].copy()]))
+    valid = torch.ones(x.shape[:2], dtype=torch.bool)
+    valid[1, 35:] = False
+    valid[2, :8] = False
+    return x, valid
+
+
+def test_ensemble_runs_the_members_fused(walk_windows):
+    """The fused pass (grouped convolutions, one group norm per member) gives each member's
+    own logits on real walk windows, masks included, and the probabilities are
+    softmax(mean_m z_m / tau_m)."""
+    members = _members()
+    ensemble = SkeletonTCNEnsemble(members)
+    x, valid = _walk_batch(walk_windows)
+    with torch.no_grad():
+        own = torch.stack([m(x, valid) for m in members], dim=1)
+    torch.testing.assert_close(ensemble.member_logits(x, valid), own, atol=1e-5, rtol=1e-5)
+    with torch.no_grad():  # every frame valid: the unmasked path
+        whole = torch.stack([m(x) for m in members], dim=1)
+    torch.testing.assert_close(ensemble.member_logits(x), whole, atol=1e-5, rtol=1e-5)
+    z = (own / torch.tensor([1.0, 0.7, 1.6])[None, :, None]).mean(1)
+    np.testing.assert_allclose(ensemble.predict_proba(x.numpy(), valid.numpy()),
+                               torch.softmax(z, -1).numpy(), atol=1e-6)
+    one = SkeletonTCNEnsemble(members[:1])
+    np.testing.assert_allclose(one.predict_proba(x.numpy(), valid.numpy()),
+                               members[0].predict_proba(x.numpy(), valid.numpy()), atol=1e-6)
+
+
+def test_ensemble_follows_its_members_weights_and_round_trips(tmp_path: Path, walk_windows):
+    members = _members()
+    ensemble = SkeletonTCNEnsemble(members)
+    x = walk_windows
+    before = ensemble.predict_proba(x)
+    with torch.no_grad():
+        members[1].out.weight.mul_(-1.0)
+    after = ensemble.predict_proba(x)
+    assert np.abs(after - before).max() > 1e-3  # the fused weights were rebuilt
+    ensemble.metadata = {"loop_threshold": 0.8}
+    back = SkeletonTCNEnsemble.load(ensemble.save(tmp_path / "e.npz"))
+    assert back.temperatures == pytest.approx((1.0, 0.7, 1.6))
+    assert back.metadata["loop_threshold"] == 0.8
+    np.testing.assert_allclose(back.predict_proba(x), after, atol=1e-6)
+    with pytest.raises(CheckpointError):
+        SkeletonTCN.load(tmp_path / "e.npz")
+
+
+def test_ensemble_refuses_members_that_differ():
+    skel = gesture_skeleton("gesture15")
+    other = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b"), width=64))
+    with pytest.raises(ValueError, match="member 1"):
+        SkeletonTCNEnsemble([_net(), other])
+    with pytest.raises(ValueError, match="at least one"):
+        SkeletonTCNEnsemble([])
+
+
+@pytest.mark.parametrize("name", ["gesture-tcn", "gesture-tcn-ensemble"])
+def test_shipped_recogniser_on_a_real_walk(name):
+    """The shipped network and the room's ensemble read the bundled CMU walk (mocap they
+    never trained on) as walking, with calibrated probabilities and their loop threshold
+    recorded."""
+    if name not in simenv.models.available():
+        pytest.skip(f"shipped {name} absent")
+    net = simenv.models.load(name)
     assert net.config.joint_names == GESTURE15_JOINTS
     m = simenv.load(asset_path(WALK)).resample(25.0)
     p = net.classify_world(to_gesture_joints(m)[:75])

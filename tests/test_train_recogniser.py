@@ -12,8 +12,8 @@ from simenv.cli import main as cli
 from simenv.perception.train_recogniser import benchmark_table
 
 shipped = pytest.mark.skipif(
-    not {"gesture-tcn", "predictor-gesture-25-50"} <= set(simenv.models.available()),
-    reason="shipped gesture-tcn / predictor-gesture-25-50 absent")
+    not {"gesture-tcn-ensemble", "predictor-gesture-25-50"} <= set(simenv.models.available()),
+    reason="shipped gesture-tcn-ensemble / predictor-gesture-25-50 absent")
 
 
 @shipped
@@ -33,6 +33,9 @@ def test_eval_classifier_json_on_a_folder_of_msr_files(tmp_path: Path, capsys,
     out = json.loads(capsys.readouterr().out)
     assert out["clips"] == len(files)
     assert set(out["conditions"]) == {"real_3s", "real_1s", "real_1s_pred_2s"}
+    # the default is the room's recogniser; one network is asked for by name
+    assert cli.main(["eval", "classifier", "gesture-tcn", "--data", str(folder), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["clips"] == len(files)
     for v in out["conditions"].values():
         assert set(v) == {"accuracy", "balanced_accuracy"} and 0 <= v["accuracy"] <= 1
 

@@ -10,7 +10,8 @@ from simenv.cli.common import add_model_command
 #: Description of ``simenv eval`` (its help is the text up to the first parenthesis).
 DESCRIPTION = (
     "evaluate a shipped model [NAME] (default predictor-25-25 / "
-    "gesture-tcn, the room's recogniser; gesture-classifier: the thesis's transformer) "
+    "gesture-tcn-ensemble, the room's recogniser; gesture-tcn: one of its networks; "
+    "gesture-classifier: the thesis's transformer) "
     "on its held-out split, or on --data PATH... (--json prints one object); writes "
     "metrics.json and plots (--out DIR). `eval classifier --benchmark [DATASET]` runs "
     "the MSR Action3D / UTKinect / Florence 3D protocols against published figures. "
@@ -40,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
         from simenv.learning.train_classifier import main as classifier_main
 
         return classifier_main(["eval", "--model", name, *options])
-    from simenv.perception.train_recogniser import MODEL_NAME
+    from simenv.perception.loop import DEFAULT_CLASSIFIER
     from simenv.perception.train_recogniser import main as recogniser_main
 
     if "--benchmark" in options:
@@ -49,4 +50,4 @@ def run(args: argparse.Namespace) -> int:
         dataset = options[i + 1] if has_value else "all"
         rest = options[:i] + options[i + 1 + has_value:]
         return recogniser_main(["benchmark", "--dataset", dataset, *rest])
-    return recogniser_main(["eval", "--model", name or MODEL_NAME, *options])
+    return recogniser_main(["eval", "--model", name or DEFAULT_CLASSIFIER, *options])

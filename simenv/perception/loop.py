@@ -203,18 +203,22 @@ class TrainedClassifier:
         p = softmax( (1/M) Σ_m z_m / τ_m ) = softmax( (1/M) Σ_m log p_m ),
 
     the second form because ``log p_m`` differs from ``z_m / τ_m`` by a constant per member
-    that the softmax drops (computed so, from each member's probabilities). One member
-    gives its own ``p_1``; M copies of a network give its ``p`` again; members sharing one
-    temperature τ give ``softmax(mean_m z_m / τ)``, the ensemble that
-    ``benchmarks/loop_variants.py`` scores (τ fitted on the members' mean logits). The
+    that the softmax drops. TCN members run as one fused network
+    (:class:`~simenv.models.skeleton_tcn.SkeletonTCNEnsemble`: the first form, at about
+    the cost of one member); other members are run one by one (the second form, from
+    each member's probabilities). One member gives its own ``p_1``; M copies of a network
+    give its ``p`` again; members sharing one temperature τ give
+    ``softmax(mean_m z_m / τ)``, the ensemble that ``benchmarks/loop_variants.py`` scores
+    and ships (τ fitted on the members' mean logits). The
     class probabilities ``p_c`` are then summed onto the room's labels through
     ``label_map`` (``P_l = sum_{c -> l} p_c``).
 
     Args:
-        model: the trained classifier (e.g. ``simenv.models.load("gesture-tcn")``), or a
-            sequence of member networks with the same labels, joints and window. The first
-            member's checkpoint records the loop settings (threshold, forecast stage, real
-            windows) used for the whole ensemble.
+        model: the trained classifier (e.g. ``simenv.models.load("gesture-tcn")``), a
+            shipped :class:`~simenv.models.skeleton_tcn.SkeletonTCNEnsemble` (its
+            checkpoint records the loop settings: threshold, forecast stage, real
+            windows), or a sequence of member networks with the same labels, joints and
+            window (the first member's checkpoint records the loop settings).
         label_map: network label -> room label (default: identity). Unmapped labels keep
             their name.
         name: what the rehearsal summary calls it.
@@ -237,9 +241,15 @@ class TrainedClassifier:
 
     def __init__(self, model: Any | Sequence[Any], label_map: dict[str, str] | None = None,
                  name: str = "gesture-classifier") -> None:
+        # torch comes with the networks: imported only once a network is given.
+        from simenv.models.skeleton_tcn import SkeletonTCN, SkeletonTCNEnsemble
+
         members = tuple(model) if isinstance(model, (list, tuple)) else (model,)
         if not members:
             raise SimenvError("an ensemble needs at least one member network", field="model")
+        record = members[0]
+        if isinstance(record, SkeletonTCNEnsemble):
+            members = tuple(record.members)
         config = members[0].config
         source = tuple(config.labels)
         # A network with a fixed window (the transformer) is padded to it; one that takes
@@ -258,8 +268,13 @@ class TrainedClassifier:
             raise SimenvError(f"label_map names labels {unknown} that the classifier does "
                               f"not have; its labels: {list(source)}", field="label_map")
         mapped = [label_map.get(label, label) for label in source]
-        #: The member networks; :attr:`model` is the first, whose record the loop follows.
-        self.members, self.model, self.name = members, members[0], name
+        #: The member networks; :attr:`model` is the one whose record the loop follows
+        #: (a shipped ensemble's own, else the first member's).
+        self.members, self.model, self.name = members, record, name
+        # TCN members run as one fused network (same probabilities, one pass of overhead).
+        self._net = record if len(members) == 1 or isinstance(record, SkeletonTCNEnsemble) \
+            else SkeletonTCNEnsemble(members) \
+            if all(isinstance(m, SkeletonTCN) for m in members) else None
         self.joint_names = tuple(config.joint_names)
         self.window = window
         # A checkpoint that records its loop threshold (chosen on held-out subjects by
@@ -302,11 +317,12 @@ class TrainedClassifier:
                 x = np.concatenate([x, np.repeat(x[-1:], pad, axis=0)])
                 v = np.concatenate([v, np.zeros(pad, bool)])
         normed = normalise_windows(x[None], v[None], joints=self.joint_names)
-        probs = [m.predict_proba(normed, v[None])[0] for m in self.members]
-        p = probs[0]
-        if len(probs) > 1:
+        if self._net is not None:
+            p = self._net.predict_proba(normed, v[None])[0]
+        else:
             # Mean of the members' log-probabilities = mean temperature-scaled logits
             # up to a constant; the floor keeps a probability that underflowed finite.
+            probs = [m.predict_proba(normed, v[None])[0] for m in self.members]
             logp = np.log(np.maximum(probs, 1e-30)).mean(axis=0)
             p = np.exp(logp - logp.max())
             p = p / p.sum()
@@ -372,7 +388,7 @@ FALLBACK_PREDICTOR = "constant-velocity-50"
 #: The shipped classifier the room uses by default: the skeleton TCN, measured on
 #: subjects it never saw (docs/recognition.md); ``gesture-classifier`` is the thesis's
 #: transformer.
-DEFAULT_CLASSIFIER = "gesture-tcn"
+DEFAULT_CLASSIFIER = "gesture-tcn-ensemble"
 
 
 def load_predictor(spec: Any = None) -> Any:

@@ -15,7 +15,8 @@
    loop threshold chosen on all out-of-fold loop readings; written as
    ``gesture-tcn.npz`` with its card ``gesture-tcn.md`` and ``metrics.json``.
 
-``eval --data PATH... [--json]``: the shipped (or ``--checkpoint``) recogniser on any
+``eval --data PATH... [--json]``: the room's recogniser (``--model``, default
+:data:`simenv.perception.loop.DEFAULT_CLASSIFIER`; or a ``--checkpoint`` file) on any
 labelled recordings (:func:`simenv.data.gestures.load_labelled`) in the conditions ``real_3s``,
 ``real_1s`` and ``real_1s_pred_2s`` (the forecaster: ``--predictor``, default the shipped
 gesture predictor). ``--json`` prints one object ``{"clips": N, "conditions": {name:
@@ -64,6 +65,7 @@ from simenv.learning.recognition_protocols import (
 )
 from simenv.models.gesture_predictor import GesturePredictor
 from simenv.models.skeleton_tcn import SkeletonTCN
+from simenv.perception.loop import DEFAULT_CLASSIFIER
 from simenv.perception.protocol import (
     avatar_clips,
     choose_threshold,
@@ -282,7 +284,7 @@ Training options: `{json.dumps(metrics['config'])}`.
 
 
 def run_eval(paths: Sequence[str], *, checkpoint: str | None = None,
-             model_name: str = MODEL_NAME, predictor: str | None = FORECASTER
+             model_name: str = DEFAULT_CLASSIFIER, predictor: str | None = FORECASTER
              ) -> dict[str, Any]:
     """``eval`` (module docstring): scores of each condition on the clips of ``paths``."""
     model = SkeletonTCN.load(checkpoint) if checkpoint else simenv.models.load(model_name)
@@ -342,8 +344,9 @@ def _parser() -> argparse.ArgumentParser:
     p_eval = sub.add_parser("eval", help="evaluate on labelled recordings")
     p_eval.add_argument("--data", nargs="+", help="corpus roots, dataset folders or files "
                         "(default: the shared corpus; in-sample for the shipped model)")
-    p_eval.add_argument("--model", default=MODEL_NAME)
-    p_eval.add_argument("--checkpoint")
+    p_eval.add_argument("--model", default=DEFAULT_CLASSIFIER,
+                        help=f"shipped recogniser (default {DEFAULT_CLASSIFIER}, the room's)")
+    p_eval.add_argument("--checkpoint", help="a SkeletonTCN checkpoint file instead")
     p_eval.add_argument("--predictor", default=FORECASTER,
                         help="forecaster of real_1s_pred_2s ('none' to skip)")
     p_eval.add_argument("--json", action="store_true", help="print one JSON object")
