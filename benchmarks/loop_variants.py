@@ -264,7 +264,8 @@ Accuracy on the room vocabulary: real_3s {acc['real_3s']['accuracy']:.3f} (balan
 (balanced {acc['real_1s']['balanced_accuracy']:.3f}).
 
 The loop (cross-fitted temperature and threshold): {greeted}; decision after the labelled
-onset median {d['median']} s, p90 {d['p90']} s.
+onset median {d['median']} s, p90 {d['p90']} s; {r['decided_before_end']:.1%} of the greeted
+waves decided before the wave ends.
 
 Training options: `{json.dumps(metadata['config'])}`.
 """
@@ -291,7 +292,8 @@ def cmd_ship(args: argparse.Namespace) -> None:
                 "protocol_accuracy": {c: {k: a[k] for k in ("accuracy", "balanced_accuracy")}
                                       for c, a in accuracy.items()},
                 "unseen_subject_loop": {k: loop[k] for k in (
-                    "greet_clips", "other_clips", "idle_clips", "decision_after_onset_s")}}
+                    "greet_clips", "other_clips", "idle_clips", "decision_after_onset_s",
+                    "decided_before_end")}}
     ensemble = SkeletonTCNEnsemble([calibrated(n, temperature) for n in nets])
     ensemble.save(ship / f"{args.name}.npz", metadata)
     (ship / f"{args.name}.md").write_text(ensemble_card(args.name, metadata))

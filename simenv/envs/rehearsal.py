@@ -48,7 +48,7 @@ with one of the agents below, and writes to ``out``:
   (:func:`simenv.plausibility.html_report.html_page`).
 
 Agents: ``"scripted"`` decides with a :class:`~simenv.perception.loop.PerceptionLoop` (predict,
-classify, decide every second; by default the shipped ``gesture-tcn`` and
+classify, decide every second; by default the shipped ``gesture-tcn-ensemble`` and
 ``predictor-gesture-25-50``, falling back to templates from the gesture corpus and constant
 velocity, :func:`simenv.perception.loop.default_classifier` /
 :func:`~simenv.perception.loop.load_predictor`; ``summary.json`` names them under
@@ -528,7 +528,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "predictor-* name or constant-velocity-50 (default: "
                         "predictor-gesture-25-50 when shipped)")
     parser.add_argument("--classifier", help="shipped classifier name for the scripted agent "
-                        "(default: gesture-tcn when shipped, else templates)")
+                        "(default: gesture-tcn-ensemble when shipped, else templates)")
     parser.add_argument("--templates", help="gesture recordings folder (msr_action3d/, "
                         "utkinect/, florence3d/): the scripted agent classifies with "
                         "nearest-neighbour templates from it instead")

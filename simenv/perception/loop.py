@@ -21,8 +21,9 @@ on the root-relative pred17 layout, through :class:`CanonicalPredictor`); any
 Defaults (:func:`load_predictor`, :func:`default_classifier`): the shipped models when they
 are present -- the gesture-domain forecaster ``predictor-gesture-25-50``
 (:data:`DEFAULT_PREDICTOR`; any other shipped ``predictor-*`` can be named, e.g. the
-thesis's PredictiveMA-WGAN ``predictor-25-50``) and the skeleton TCN ``gesture-tcn``
-(:data:`DEFAULT_CLASSIFIER`; the thesis's transformer ``gesture-classifier`` by name)
+thesis's PredictiveMA-WGAN ``predictor-25-50``) and the two skeleton TCNs of
+``gesture-tcn-ensemble`` (:data:`DEFAULT_CLASSIFIER`; the single TCN ``gesture-tcn`` and the
+thesis's transformer ``gesture-classifier`` by name)
 through :class:`TrainedClassifier` (one network, or an ensemble of several), with the
 threshold, real windows and use of the forecast stage its training chose on held-out
 subjects -- and otherwise the constant-velocity baseline and the nearest-neighbour
@@ -385,9 +386,9 @@ class CanonicalPredictor:
 DEFAULT_PREDICTOR = "predictor-gesture-25-50"
 #: The fallback when no learned predictor is shipped: the 2-s constant-velocity baseline.
 FALLBACK_PREDICTOR = "constant-velocity-50"
-#: The shipped classifier the room uses by default: the skeleton TCN, measured on
-#: subjects it never saw (docs/recognition.md); ``gesture-classifier`` is the thesis's
-#: transformer.
+#: The shipped classifier the room uses by default: two skeleton TCNs run as one, measured
+#: on subjects they never saw (docs/recognition.md); ``gesture-tcn`` is one TCN alone,
+#: ``gesture-classifier`` the thesis's transformer.
 DEFAULT_CLASSIFIER = "gesture-tcn-ensemble"
 
 
