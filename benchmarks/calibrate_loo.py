@@ -37,7 +37,9 @@ there, so a killed run resumes):
 
 ``score``
     every real target scored by ``simenv.score(physics=True)`` (tracking by
-    the root-assisted PD servos, :func:`score_config`) -> ``real.jsonl``.
+    ``--tracker``: the root-assisted PD servos by default, or the scorer's own
+    unassisted MPC; :func:`score_config`; one tracker per ``--out`` folder,
+    recorded in its ``tracker.json``) -> ``real.jsonl``.
 ``corrupt``
     every corruption of :data:`simenv.plausibility.corrupt.CORRUPTIONS` at its moderate
     strength (seed 0) applied to every single-person CMU clip and to every
@@ -51,6 +53,8 @@ Usage::
 
     nohup nice .venv/bin/python benchmarks/calibrate_loo.py score corrupt report &
     .venv/bin/python benchmarks/calibrate_loo.py report      # docs only
+    nohup nice .venv/bin/python benchmarks/calibrate_loo.py score --only cmu --tracker mpc \
+        --out out/calibration_loo_mpc &                      # the MPC's verdicts, resumable
 """
 
 from __future__ import annotations
@@ -132,17 +136,41 @@ DIAGNOSES: dict[str, str] = {
 }
 
 
-def score_config() -> ScoreConfig:
-    """The scorer's settings for every clip of a calibration run: the defaults,
-    with tracking by the PD servos with the root assisted (about real time; the
-    scorer this calibration was first run with), so that every source and every
-    corrupted copy is judged by the same tracker whatever the current default
-    (the unassisted MPC costs tens of times real time)."""
+#: Trackers a calibration run can judge ``tracking`` with, and how the report names them.
+TRACKERS = {"pd-assisted": "the root-assisted PD servos (about real time; the scorer's default "
+                           "when this calibration was first run)",
+            "mpc": "the scorer's default, the unassisted MPC (tens of times real time)"}
+
+
+def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
+    """The scorer's settings for every clip of a calibration run: the defaults, with
+    ``tracking`` judged by ``tracker`` (:data:`TRACKERS`), the same for every source and
+    every corrupted copy of one run whatever the current default."""
+    if tracker not in TRACKERS:
+        raise SimenvError(f"unknown tracker {tracker!r}; one of {sorted(TRACKERS)}",
+                          field="tracker")
+    if tracker == "mpc":
+        return ScoreConfig()
     names = {f.name for f in fields(ScoreConfig)}
     options: dict[str, Any] = {"tracking_assist": True}
     if "tracking_controller" in names:
         options["tracking_controller"] = "pd"
     return ScoreConfig(**options)
+
+
+def run_tracker(out: Path, tracker: str | None) -> str:
+    """The tracker of the run in ``out`` (``tracker.json``): ``tracker`` recorded on the
+    first stage, checked against the record after (one run, one tracker); None reads it
+    (a folder without a record was run with ``pd-assisted``)."""
+    path = out / "tracker.json"
+    recorded = json.loads(path.read_text())["tracker"] if path.is_file() else None
+    if tracker is None:
+        return recorded or "pd-assisted"
+    if recorded not in (None, tracker):
+        raise SimenvError(f"{out} holds a calibration run with tracker {recorded!r}; use "
+                          f"another --out for {tracker!r}", field="tracker")
+    path.write_text(json.dumps({"tracker": tracker}))
+    return tracker
 
 
 # -- corpus ------------------------------------------------------------------------
@@ -230,7 +258,8 @@ def corruption_inputs(data: Path, depth_every: int, only: str | None = None
             yield str(target), i, clip
 
 
-def run_corruptions(data: Path, out: Path, depth_every: int, only: str | None = None) -> None:
+def run_corruptions(data: Path, out: Path, depth_every: int, only: str | None = None,
+                    tracker: str = "pd-assisted") -> None:
     """Score every corrupted copy (module docstring), appending to ``out``."""
     done = {(r["file"], r.get("clip", 0), r["corruption"]) for r in _read_jsonl(out)}
     with out.open("a", encoding="utf-8") as fh:
@@ -243,8 +272,8 @@ def run_corruptions(data: Path, out: Path, depth_every: int, only: str | None = 
                         "strength": spec.moderate, "seed": 0, "targets": list(spec.targets)}
                 try:
                     bad = spec.fn(motion, spec.moderate, seed=0)
-                    rec = {**score(bad, physics=True, config=score_config()).to_records()[0],
-                           **base}
+                    rec = {**score(bad, physics=True,
+                                   config=score_config(tracker)).to_records()[0], **base}
                 except SimenvError as exc:
                     rec = {**base, "error": str(exc)}
                 rec["seconds"] = round(time.perf_counter() - t0, 2)
@@ -349,14 +378,14 @@ def _who(r: dict[str, Any], data: Path) -> str:
 
 
 def markdown(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
-             th: dict[str, Any], data: Path) -> str:
+             th: dict[str, Any], data: Path, tracker: str = "pd-assisted") -> str:
     """The leave-clips-out sections of docs/calibration.md."""
     lines = [
         "# Calibration of the plausibility verdict on real capture, leave clips out",
         "",
         "Generated by `benchmarks/calibrate_loo.py` (do not edit by hand). Every real clip of",
-        "the shared corpus is scored once by `simenv.score(path, physics=True)` (tracking by the",
-        "root-assisted PD servos, the scorer's default when this ran); each person is",
+        "the shared corpus is scored once by `simenv.score(path, physics=True)` (tracking by",
+        f"{TRACKERS[tracker]}); each person is",
         "then judged with thresholds set from the *other subjects* of its own source",
         "(leave-one-subject-out), by the rule `thr = max(prior, largest training value within",
         "Q3 + 3 IQR)` per metric (`tracking` at its prior). Corrupted copies "
@@ -547,8 +576,12 @@ def main() -> None:
     ap.add_argument("--only", choices=tuple(SOURCES),
                     help="score and corrupt only this source (report: all)")
     ap.add_argument("--docs", type=Path, default=REPO / "docs")
+    ap.add_argument("--tracker", choices=tuple(TRACKERS),
+                    help="what judges tracking (default: the run's recorded tracker, else "
+                    "pd-assisted); one tracker per --out folder")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    tracker = run_tracker(args.out, args.tracker)
     # One file per source when run per source, so parallel runs never share a file.
     tag = f"-{args.only}" if args.only else ""
     real_path, corrupt_path = args.out / f"real{tag}.jsonl", args.out / f"corrupt{tag}.jsonl"
@@ -558,9 +591,10 @@ def main() -> None:
             targets = [t for t in targets if source_of(str(t), args.data) == args.only]
         done = done_files(real_path)
         print(f"{len(targets)} targets, {sum(str(t) in done for t in targets)} already scored")
-        score_batch(targets, ScoreJob(physics=True, config=score_config()), out=real_path)
+        score_batch(targets, ScoreJob(physics=True, config=score_config(tracker)),
+                    out=real_path)
     if "corrupt" in args.stages:
-        run_corruptions(args.data, corrupt_path, args.depth_every, args.only)
+        run_corruptions(args.data, corrupt_path, args.depth_every, args.only, tracker)
     if "report" in args.stages:
         # Keyed by person, so a target scored by two runs counts once.
         real_all = list({(r["file"], r.get("clip", 0), r.get("person", 0)): r
@@ -569,7 +603,7 @@ def main() -> None:
         real = [r for r in real_all if "error" not in r]
         corrupt = [r for p in sorted(args.out.glob("corrupt*.jsonl")) for r in _read_jsonl(p)]
         th = judge(real, corrupt, args.data)
-        text = markdown(real, corrupt, th, args.data)
+        text = markdown(real, corrupt, th, args.data, tracker)
         residual = _read_jsonl(args.out / "residual.jsonl")
         if residual:
             text += RESIDUAL_HEAD + residual_table(residual) + "\n"

@@ -12,6 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 import calibrate_loo  # noqa: E402
 
+from simenv.core.errors import SimenvError  # noqa: E402
 from simenv.plausibility.metric_registry import PERSON_METRICS  # noqa: E402
 
 
@@ -84,3 +85,19 @@ def test_depth_camera_profile_passes_a_real_kinect_clip_and_catches_a_slide(
     assert score(clip, config=own).people[0].verdict == "plausible"
     slid = score(foot_slide(clip, 1.0, seed=0), config=own).people[0]
     assert "foot_skate" in slid.failed, slid.failed
+
+
+def test_one_tracker_per_run_folder(tmp_path: Path) -> None:
+    """The scorer's MPC or the assisted PD servos judge tracking; a folder keeps the tracker
+    its first stage recorded, and a second tracker is refused rather than mixed in."""
+    assert calibrate_loo.score_config("mpc").tracking_controller == "mpc"
+    assert not calibrate_loo.score_config("mpc").tracking_assist
+    pd = calibrate_loo.score_config("pd-assisted")
+    assert pd.tracking_controller == "pd" and pd.tracking_assist
+    assert calibrate_loo.run_tracker(tmp_path, None) == "pd-assisted"  # an old folder
+    assert calibrate_loo.run_tracker(tmp_path, "mpc") == "mpc"
+    assert calibrate_loo.run_tracker(tmp_path, None) == "mpc"
+    with pytest.raises(SimenvError, match="tracker 'mpc'"):
+        calibrate_loo.run_tracker(tmp_path, "pd-assisted")
+    with pytest.raises(SimenvError, match="unknown tracker"):
+        calibrate_loo.score_config("assisted")
