@@ -63,7 +63,8 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = shared_data_root()
 DEFAULT_OUT = REPO / "out" / "eval_tracking.jsonl"
 DEFAULT_RESULTS = (DEFAULT_OUT, REPO / "out" / "eval_tracking_corrupt.jsonl",
-                   REPO / "out" / "eval_tracking_64.jsonl")
+                   REPO / "out" / "eval_tracking_64.jsonl",
+                   REPO / "out" / "eval_tracking_corrupt_64.jsonl")
 DOCS = REPO / "docs" / "plausibility.md"
 BEGIN, END = "<!-- unassisted-tracking:begin -->", "<!-- unassisted-tracking:end -->"
 
