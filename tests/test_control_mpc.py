@@ -97,6 +97,30 @@ def test_a_floating_walk_falls(walk_2s_retargeted) -> None:
     assert not tr.success and tr.error is None and tr.time_to_failure_s < 0.6
 
 
+def test_retries_rewind_to_states_the_body_reached_and_still_fail_the_impossible(
+        walk_2s_retargeted) -> None:
+    """A 2 m teleport at 0.5 s: each retry rewinds 0.25 s (to a checkpoint the body
+    reached itself), draws new samples and fails at the jump again; the run reports its
+    rewinds, its frames after the failure stay empty, and without retries the run is the
+    same as before the option existed."""
+    q = walk_2s_retargeted.qpos.copy()
+    q[60:, 0] += 2.0
+    jumped = replace(walk_2s_retargeted, qpos=q)
+    once = track(jumped, controller="mpc", mpc=QUICK, max_seconds=0.7)
+    again = track(jumped, controller="mpc", mpc=replace(QUICK, retries=2, rewind_s=0.25),
+                  max_seconds=0.7)
+    assert once.retries == 0 and again.retries == 2
+    assert not again.success and again.frames_tracked == once.frames_tracked
+    assert np.isnan(again.body_error[again.frames_tracked:]).all()
+    # The kept trajectory is one the body performed: before the last checkpoint it is
+    # the first attempt's, bit for bit; the discarded attempts cost simulator steps.
+    np.testing.assert_array_equal(again.sim_keypoints[:30], once.sim_keypoints[:30])
+    assert again.steps > once.steps
+    r = tracking(jumped, controller="mpc", mpc=replace(QUICK, retries=1, rewind_s=0.25),
+                 max_seconds=0.7)
+    assert r.passed is False and r.details["retries"] == 1.0
+
+
 @pytest.mark.parametrize(("kwargs", "field"), [
     ({"controller": "lqr"}, "controller"),
     ({"controller": "mpc", "assist": True}, "assist"),
@@ -108,8 +132,8 @@ def test_bad_tracking_options_raise_naming_the_field(walk_2s_retargeted, kwargs,
 
 
 @pytest.mark.parametrize("field", ["horizon_s", "n_samples", "replan_steps", "nthread",
-                                   "timestep_factor", "temperature"])
+                                   "timestep_factor", "temperature", "retries", "rewind_s"])
 def test_bad_mpc_settings_raise_naming_the_field(field) -> None:
     with pytest.raises(PhysicsError) as err:
-        MPCConfig(**{field: 0 if field != "temperature" else -1.0})
+        MPCConfig(**{field: -1 if field in ("temperature", "retries") else 0})
     assert err.value.field == field

@@ -75,6 +75,11 @@ class MPCConfig:
         nthread: rollout threads.
         seed: noise seed.
         weights: cost weights.
+        retries: times a tracking run may rewind after a failure
+            (:func:`simenv.plausibility.tracking.track`): the body goes back to a
+            state it reached itself ``rewind_s`` earlier and the planner, its noise
+            generator moved on, tries again. 0: a failure ends the run.
+        rewind_s: how far back a retry starts, seconds of reference time.
     """
 
     horizon_s: float = 0.45
@@ -94,6 +99,8 @@ class MPCConfig:
     nthread: int = 2
     seed: int = 0
     weights: CostWeights = field(default_factory=CostWeights)
+    retries: int = 0
+    rewind_s: float = 1.0
 
     def __post_init__(self) -> None:
         checks = {
@@ -102,6 +109,7 @@ class MPCConfig:
             "noise_rad": self.noise_rad >= 0, "limit_rad": self.limit_rad > 0,
             "temperature": self.temperature >= 0, "timestep_factor": self.timestep_factor >= 1,
             "cost_stride": self.cost_stride >= 1, "nthread": self.nthread >= 1,
+            "retries": self.retries >= 0, "rewind_s": self.rewind_s > 0,
         }
         for name, ok in checks.items():
             if not ok:
@@ -198,6 +206,16 @@ class TrackingMPC:
         self.knots[:] = 0.0
         self.plan_step = 0
         self.replans = 0
+
+    def snapshot(self) -> tuple[np.ndarray, int, int]:
+        """The plan (knots, step planned at, replans) to :meth:`restore` on a rewind; the
+        noise generator is not part of it, so a restored planner draws new samples."""
+        return self.knots.copy(), self.plan_step, self.replans
+
+    def restore(self, snapshot: tuple[np.ndarray, int, int]) -> None:
+        """Go back to a plan taken by :meth:`snapshot`."""
+        knots, self.plan_step, self.replans = snapshot
+        self.knots = knots.copy()
 
     def _offsets(self, step: int) -> np.ndarray:
         """(nu,) the nominal's offset at physics step ``step``."""

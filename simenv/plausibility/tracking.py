@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import copy
 import time
-from collections.abc import Iterable
 from dataclasses import dataclass
 
 import mujoco
@@ -83,6 +82,8 @@ class TrackingResult:
         work_j: positive mechanical work of the hinge actuators over the
             simulated stretch, ``sum_t sum_i max(tau_i qd_i, 0) dt``, joules.
         work_j_per_kg: ``work_j`` per kilogram of body mass.
+        retries: rewinds the run used (MPC ``retries``; the discarded attempts
+            count in ``steps`` and ``wall_s``, not in the work).
     """
 
     success: bool
@@ -101,6 +102,7 @@ class TrackingResult:
     controller: str = "pd"
     work_j: float = 0.0
     work_j_per_kg: float = 0.0
+    retries: int = 0
 
 
 def assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
@@ -202,14 +204,51 @@ class _Run:
     failed_at: int | None = None
     steps: int = 0
     work: float = 0.0
+    retries: int = 0
+
+
+#: Seconds of reference time between the states a retrying run can rewind to.
+CHECKPOINT_S = 0.25
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass(frozen=True, eq=False)
+class _Checkpoint:
+    """A state the simulated body reached itself (after reference frame ``frame``), with
+    the plan and the work up to it."""
+
+    frame: int
+    state: np.ndarray
+    plan: tuple[np.ndarray, int, int]
+    work: float
+
+
+def _rewind(run: _Run, checkpoints: list[_Checkpoint], frame: int, back: int,
+            model: mujoco.MjModel, data: mujoco.MjData, planner: TrackingMPC) -> int:
+    """Put the body and the plan back to the latest checkpoint at least ``back`` frames
+    before ``frame`` (the first one if none is that early); forget what came after.
+    Returns the checkpoint's frame."""
+    i = max([j for j, c in enumerate(checkpoints) if c.frame <= frame - back], default=0)
+    cp = checkpoints[i]
+    del checkpoints[i + 1:]
+    mujoco.mj_setState(model, data, cp.state, _FULL)
+    mujoco.mj_forward(model, data)
+    planner.restore(cp.plan)
+    run.work, run.error, run.failed_at = cp.work, None, None
+    for arr in (run.kp_sim, run.body_err, run.assist_f):
+        arr[cp.frame + 1:] = np.nan
+    run.retries += 1
+    return cp.frame
 
 
 def _simulate(result: RetargetResult, ref: TrackingReference, model: mujoco.MjModel,
               planner: TrackingMPC | None, thresholds: BodyThresholds, assist: bool,
-              frames: Iterable[int]) -> _Run:
-    """Run the controller from the first reference state over ``frames`` (1 ..
-    n_frames - 1), stopping at a divergence or once the body error exceeds
-    ``tracking_fail_m``."""
+              bar: tqdm) -> _Run:
+    """Run the controller from the first reference state over the reference frames
+    1 .. n_frames - 1 (``bar`` counts them), stopping at a divergence or once the body
+    error exceeds ``tracking_fail_m``; an MPC with ``retries`` left rewinds instead
+    (:class:`~simenv.control.MPCConfig`): the run is then a trajectory the body
+    performed, from states it reached itself."""
     h = result.humanoid
     T = len(result.qpos)
     mocap = _mocap_path(result, ref) if assist else None
@@ -227,7 +266,16 @@ def _simulate(result: RetargetResult, ref: TrackingReference, model: mujoco.MjMo
     run.kp_sim[0] = data.site_xpos[h.site_ids]
     run.body_err[0] = np.linalg.norm(run.kp_sim[0] - ref.frame_keypoints[0], axis=-1).mean()
     run.assist_f[0] = 0.0
-    for k in frames:
+    retries = planner.config.retries if planner is not None else 0
+    every = max(1, int(round(CHECKPOINT_S * ref.fps)))
+    back = int(round(planner.config.rewind_s * ref.fps)) if planner is not None else 0
+    checkpoints: list[_Checkpoint] = []
+    k = 1
+    while k < ref.n_frames:
+        if retries and (k - 1) % every == 0:
+            state = np.empty(mujoco.mj_stateSize(model, _FULL))
+            mujoco.mj_getState(model, data, state, _FULL)
+            checkpoints.append(_Checkpoint(k - 1, state, planner.snapshot(), run.work))
         force, run.work = _advance(model, data, ref, planner, k, mocap, run.work)
         run.steps += ref.frame_step[k] - ref.frame_step[k - 1]
         reason = physics_problem(model, data, warnings_at_start)
@@ -235,13 +283,23 @@ def _simulate(result: RetargetResult, ref: TrackingReference, model: mujoco.MjMo
             run.error = str(PhysicsError(f"tracking simulation diverged: {reason}", frame=k,
                                          source=result.name))
             run.failed_at = k
+        else:
+            run.kp_sim[k] = data.site_xpos[h.site_ids]
+            run.body_err[k] = norm3(run.kp_sim[k] - ref.frame_keypoints[k]).mean()
+            run.assist_f[k] = force / weight
+            if run.body_err[k] > thresholds.tracking_fail_m:
+                run.failed_at = k
+        if run.failed_at is None:
+            k += 1
+            bar.update(1)
+            continue
+        if run.retries >= retries or not checkpoints:
             break
-        run.kp_sim[k] = data.site_xpos[h.site_ids]
-        run.body_err[k] = norm3(run.kp_sim[k] - ref.frame_keypoints[k]).mean()
-        run.assist_f[k] = force / weight
-        if run.body_err[k] > thresholds.tracking_fail_m:
-            run.failed_at = k
-            break
+        k = _rewind(run, checkpoints, k, back, model, data, planner) + 1
+        # A divergence's warnings stay counted in data: judge from here on.
+        warnings_at_start = warning_counts(data)
+        bar.n = k - 1
+        bar.refresh()
     return run
 
 
@@ -281,12 +339,12 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
     ref, planner, model = _controller(result, thresholds, assist, max_seconds, controller, mpc)
     fps, n_frames = ref.fps, ref.n_frames
     wall = time.perf_counter()
-    frames = tqdm(range(1, n_frames), desc=f"track {result.name} ({controller})",
-                  unit="frame", disable=not progress)
+    bar = tqdm(total=n_frames - 1, desc=f"track {result.name} ({controller})",
+               unit="frame", disable=not progress)
     try:
-        run = _simulate(result, ref, model, planner, thresholds, assist, frames)
+        run = _simulate(result, ref, model, planner, thresholds, assist, bar)
     finally:
-        frames.close()
+        bar.close()
         if planner is not None:
             planner.close()
     wall = time.perf_counter() - wall
@@ -312,6 +370,7 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         controller=controller,
         work_j=run.work,
         work_j_per_kg=run.work / h.total_mass,
+        retries=run.retries,
     )
 
 
@@ -329,7 +388,7 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
     ``assist_force_mean`` (body weights; 0 without assistance), ``diverged``
     (0/1), ``steps_per_s`` (simulator throughput, planning included),
     ``work_j`` and ``work_j_per_kg`` (positive work of the hinge actuators),
-    ``mpc`` (1 when the MPC tracked, 0 for the PD servos) and
+    ``mpc`` (1 when the MPC tracked, 0 for the PD servos), ``retries`` (rewinds used) and
     ``realtime_ratio`` (wall time per simulated second).
     """
     tr = track(result, thresholds, assist=assist, max_seconds=max_seconds,
@@ -346,6 +405,6 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
                  "diverged": float(tr.error is not None),
                  "steps_per_s": tr.steps / max(tr.wall_s, 1e-9),
                  "work_j": tr.work_j, "work_j_per_kg": tr.work_j_per_kg,
-                 "mpc": float(tr.controller == "mpc"),
+                 "mpc": float(tr.controller == "mpc"), "retries": float(tr.retries),
                  "realtime_ratio": tr.wall_s / sim_s if sim_s > 0 else float("nan")},
     )
