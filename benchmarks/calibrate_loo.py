@@ -379,7 +379,8 @@ def _who(r: dict[str, Any], data: Path) -> str:
 
 def markdown(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
              th: dict[str, Any], data: Path, tracker: str = "pd-assisted") -> str:
-    """The leave-clips-out sections of docs/calibration.md."""
+    """The leave-clips-out sections of docs/calibration.md. Long because it is the
+    page's one template, read top to bottom as the page is."""
     lines = [
         "# Calibration of the plausibility verdict on real capture, leave clips out",
         "",

@@ -20,7 +20,8 @@ compared with the reference body's keypoints:
 
 * body error ``e_t = mean_k |x_sim,k(t) - x_ref,k(t)|`` (metres);
 * failure (PHC, Luo et al. 2023): the first frame with ``e_t > 0.5 m``; the
-  simulation stops there and ``time_to_failure_s`` is its time;
+  simulation stops there and ``time_to_failure_s`` is its time (an MPC allowed
+  ``retries`` first rewinds to a state the body reached itself and tries again);
 * global MPJPE: mean of ``e_t`` over the tracked frames, millimetres;
 * acceleration error (PHC's "Acc"): mean over tracked frames and keypoints of
   ``|a_sim - a_ref|`` with ``a`` the second difference of keypoint positions,
