@@ -66,7 +66,6 @@ import re
 import time
 from collections import Counter, defaultdict
 from collections.abc import Iterable, Iterator
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -151,11 +150,7 @@ def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
                           field="tracker")
     if tracker == "mpc":
         return ScoreConfig()
-    names = {f.name for f in fields(ScoreConfig)}
-    options: dict[str, Any] = {"tracking_assist": True}
-    if "tracking_controller" in names:
-        options["tracking_controller"] = "pd"
-    return ScoreConfig(**options)
+    return ScoreConfig(tracking_assist=True, tracking_controller="pd")
 
 
 def run_tracker(out: Path, tracker: str | None) -> str:

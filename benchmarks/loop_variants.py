@@ -187,7 +187,11 @@ def _temperature(mean: list[dict[str, np.ndarray]], folds: list[int]) -> float:
 
 def score(members: list[Path]) -> dict[str, Any]:
     """Cross-fitted loop outcomes of the ensemble ``members`` (module docstring)."""
-    readings, mean = _ensemble_readings(members)
+    return _cross_fitted(*_ensemble_readings(members))
+
+
+def _cross_fitted(readings: list[Any], mean: list[dict[str, np.ndarray]]) -> dict[str, Any]:
+    """:func:`score` of readings already read."""
     temps = [_temperature(mean, [j for j in range(SUBJECT_FOLDS) if j != k])
              for k in range(SUBJECT_FOLDS)]
     out = cross_fitted_outcomes(readings, subject_fold, GESTURE_LABELS, temps,
@@ -283,7 +287,7 @@ def cmd_ship(args: argparse.Namespace) -> None:
     accuracy = {cond: classification_scores(y, np.concatenate(
         [m[key] for m in mean]).argmax(1), GESTURE_LABELS)
         for cond, key in (("real_3s", "z3"), ("real_1s", "z1"))}
-    loop = score(members)
+    loop = _cross_fitted(readings, mean)
     configs = [json.loads((m / "config.json").read_text()) for m in members]
     metadata = {"loop_threshold": threshold, "loop_uses_forecast": False,
                 "loop_windows": list(LOOP_WINDOWS), "temperature": temperature,

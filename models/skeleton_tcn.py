@@ -80,6 +80,22 @@ class TCNConfig(SkeletonClasses):
             raise ValueError(f"temperature must be > 0; got {self.temperature}")
 
 
+def _trimmed(x: torch.Tensor, valid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``x`` (B, T, ...) and ``valid`` (B, T) without the trailing frames that pad every
+    window: padded frames are zeroed after every layer, exactly what the convolutions' own
+    zero padding gives, so cutting them changes nothing."""
+    last = int(torch.nonzero(valid.any(dim=0)).max()) + 1
+    return x[:, :last], valid[:, :last]
+
+
+def _pooled(h: torch.Tensor, mask: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Mean and max over time of ``h`` (B, C, T), over the frames where ``mask`` (B, 1, T)
+    is 1 (None: every frame)."""
+    if mask is None:
+        return h.mean(-1), h.amax(-1)
+    return h.sum(-1) / mask.sum(-1), h.masked_fill(mask == 0, float("-inf")).amax(-1)
+
+
 class _Block(nn.Module):
     """``h + W₂ GELU(LN(W₁ * h))``, padded frames zeroed (module docstring)."""
 
@@ -134,18 +150,12 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
 
     def features(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
         """(B, 2D) masked mean and max of the last block over valid frames."""
-        valid = self._check(x, valid)
-        # Padded frames are zeroed after every layer, exactly what the convolutions'
-        # own zero padding gives, so trailing frames that pad every window can be cut.
-        last = int(torch.nonzero(valid.any(dim=0)).max()) + 1
-        x, valid = x[:, :last], valid[:, :last]
+        x, valid = _trimmed(x, self._check(x, valid))
         mask = valid[:, None, :].to(x.dtype)
         h = self.inp(self.streams(x).transpose(1, 2)) * mask
         for block in self.blocks:
             h = block(h, mask)
-        mean = h.sum(-1) / mask.sum(-1)
-        peak = h.masked_fill(mask == 0, float("-inf")).amax(-1)
-        return torch.cat([mean, peak], dim=-1)
+        return torch.cat(_pooled(h, mask), dim=-1)
 
     def forward(self, x: torch.Tensor, valid: torch.Tensor | None = None) -> torch.Tensor:
         """(B, C) class logits (before the temperature)."""
@@ -273,9 +283,7 @@ class SkeletonTCNEnsemble(CheckpointMixin, nn.Module):
         """(B, M, C) each member's logits (before its temperature) of normalised windows
         ``x`` (B, T, J, 3) with ``valid`` (B, T) bool, by the fused pass (class docstring)."""
         first: SkeletonTCN = self.members[0]
-        valid = first._check(x, valid)
-        last = int(torch.nonzero(valid.any(dim=0)).max()) + 1
-        x, valid = x[:, :last], valid[:, :last]
+        x, valid = _trimmed(x, first._check(x, valid))
         # Every frame valid (the loop's windows): multiplying by a mask of ones is skipped.
         mask = None if bool(valid.all()) else valid[:, None, :].to(x.dtype)
         w, n = self._weights(), len(self.members)
@@ -288,11 +296,7 @@ class SkeletonTCNEnsemble(CheckpointMixin, nn.Module):
                                                             b["eps"]))
             h = h + nn.functional.conv1d(y, b["mix"], b["mix_b"], groups=n)
             h = h if mask is None else h * mask
-        if mask is None:
-            mean, peak = h.mean(-1), h.amax(-1)
-        else:
-            mean = h.sum(-1) / mask.sum(-1)
-            peak = h.masked_fill(mask == 0, float("-inf")).amax(-1)
+        mean, peak = _pooled(h, mask)
         z = torch.cat([mean.view(len(x), n, -1), peak.view(len(x), n, -1)], dim=-1)
         return torch.einsum("bmk,mck->bmc", z, w["out"]) + w["out_b"]
 

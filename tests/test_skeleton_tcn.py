@@ -150,12 +150,18 @@ def test_ensemble_follows_its_members_weights_and_round_trips(tmp_path: Path, wa
 
 
 def test_ensemble_refuses_members_that_differ():
+    from simenv.core.errors import SimenvError
+    from simenv.perception.loop import TrainedClassifier
+
     skel = gesture_skeleton("gesture15")
-    other = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b"), width=64))
+    other = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b", "c"), width=64))
     with pytest.raises(ValueError, match="member 1"):
         SkeletonTCNEnsemble([_net(), other])
     with pytest.raises(ValueError, match="at least one"):
         SkeletonTCNEnsemble([])
+    # The loop's classifier names the problem as a simenv error.
+    with pytest.raises(SimenvError, match="member 1"):
+        TrainedClassifier([_net(), other])
 
 
 @pytest.mark.parametrize("name", ["gesture-tcn", "gesture-tcn-ensemble"])

@@ -272,10 +272,16 @@ class TrainedClassifier:
         #: The member networks; :attr:`model` is the one whose record the loop follows
         #: (a shipped ensemble's own, else the first member's).
         self.members, self.model, self.name = members, record, name
-        # TCN members run as one fused network (same probabilities, one pass of overhead).
-        self._net = record if len(members) == 1 or isinstance(record, SkeletonTCNEnsemble) \
-            else SkeletonTCNEnsemble(members) \
-            if all(isinstance(m, SkeletonTCN) for m in members) else None
+        # One network (a shipped ensemble is one) classifies alone; TCN members run as one
+        # fused network (same probabilities, one pass of overhead); others one by one.
+        self._net = None
+        if len(members) == 1 or isinstance(record, SkeletonTCNEnsemble):
+            self._net = record
+        elif all(isinstance(m, SkeletonTCN) for m in members):
+            try:
+                self._net = SkeletonTCNEnsemble(members)
+            except ValueError as exc:
+                raise SimenvError(str(exc), field="model") from None
         self.joint_names = tuple(config.joint_names)
         self.window = window
         # A checkpoint that records its loop threshold (chosen on held-out subjects by
