@@ -29,6 +29,7 @@ between the two frames around ``s dt``:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -144,19 +145,7 @@ class TrackingReference:
         dt = float(model.opt.timestep)
         qvel, _ = finite_differences(model, q, fps, settings.cutoff_hz)
         kp = h.keypoints(q)
-        data = mujoco.MjData(model)
-        com = np.empty((n_frames, 3))
-        trunk_id = model.body(TRUNK_BODY).id
-        trunk = np.empty((n_frames, 4))
-        for t in range(n_frames):
-            data.qpos[:] = q[t]
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_comPos(model, data)
-            com[t] = data.subtree_com[1]
-            trunk[t] = data.xquat[trunk_id]
-        # q and -q are one rotation: keep each frame on the previous one's side.
-        flip = np.cumprod(np.where(np.einsum("tc,tc->t", trunk[1:], trunk[:-1]) < 0, -1.0, 1.0))
-        trunk[1:] *= flip[:, None]
+        com, trunk = _centre_of_mass_and_trunk(model, q)
         com_vel = np.gradient(com, 1.0 / fps, axis=0)
         act_q, act_v = actuated_indices(model)
         ctrl = q[:, act_q] + velocity_feedthrough(model) * qvel[:, act_v]
@@ -164,14 +153,7 @@ class TrackingReference:
                   else np.zeros_like(ctrl))
 
         frame_step = np.round(np.arange(n_frames) / fps / dt).astype(int)
-        steps = np.arange(frame_step[-1] + 1)
-        u = np.clip(steps * dt * fps, 0.0, n_frames - 1)
-        i0 = np.minimum(np.floor(u).astype(int), n_frames - 2)
-        a = (u - i0)
-
-        def interp(x: np.ndarray) -> np.ndarray:
-            w = a.reshape((-1,) + (1,) * (x.ndim - 1))
-            return x[i0] + w * (x[i0 + 1] - x[i0])
+        interp = _step_interpolator(frame_step, fps, dt)
 
         names = list(h.keypoint_names)
         foot = np.array([names.index(k) for k in FOOT_KEYPOINTS])
@@ -186,3 +168,56 @@ class TrackingReference:
                    com_vel=interp(com_vel), qvel=interp(qvel), trunk=trunk_steps,
                    planted=planted,
                    frame_keypoints=kp, foot_sites=foot)
+
+
+def _centre_of_mass_and_trunk(model: mujoco.MjModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The whole-body centre of mass and the upper trunk's orientation of each pose.
+
+    Args:
+        model: the humanoid's model.
+        q: (T, nq) poses.
+
+    Returns:
+        ``com``: (T, 3) metres, world frame; ``trunk``: (T, 4) unit quaternions (w, x, y, z)
+        of :data:`TRUNK_BODY`, each on the same hemisphere as the previous frame's.
+    """
+    data = mujoco.MjData(model)
+    com = np.empty((len(q), 3))
+    trunk_id = model.body(TRUNK_BODY).id
+    trunk = np.empty((len(q), 4))
+    for t in range(len(q)):
+        data.qpos[:] = q[t]
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        com[t] = data.subtree_com[1]
+        trunk[t] = data.xquat[trunk_id]
+    # q and -q are one rotation: keep each frame on the previous one's side.
+    flip = np.cumprod(np.where(np.einsum("tc,tc->t", trunk[1:], trunk[:-1]) < 0, -1.0, 1.0))
+    trunk[1:] *= flip[:, None]
+    return com, trunk
+
+
+def _step_interpolator(frame_step: np.ndarray, fps: float,
+                      dt: float) -> Callable[[np.ndarray], np.ndarray]:
+    """Linear interpolation of per-frame arrays to every physics step.
+
+    Args:
+        frame_step: (T,) the physics step of each frame (T >= 2).
+        fps: the clip's frame rate, Hz.
+        dt: the physics timestep, seconds.
+
+    Returns:
+        A function taking a (T, ...) array to its (frame_step[-1] + 1, ...) values, step ``s``
+        at clip time ``s dt`` (held at the last frame past the clip's end).
+    """
+    n_frames = len(frame_step)
+    steps = np.arange(frame_step[-1] + 1)
+    u = np.clip(steps * dt * fps, 0.0, n_frames - 1)
+    i0 = np.minimum(np.floor(u).astype(int), n_frames - 2)
+    a = u - i0
+
+    def interp(x: np.ndarray) -> np.ndarray:
+        w = a.reshape((-1,) + (1,) * (x.ndim - 1))
+        return x[i0] + w * (x[i0 + 1] - x[i0])
+
+    return interp
