@@ -9,7 +9,7 @@ no pickle) with a model card ``models/<name>.md``; :func:`load` reads them by na
 
 from __future__ import annotations
 
-from importlib import resources
+from importlib import import_module, resources
 from pathlib import Path
 from typing import Any
 
@@ -86,6 +86,7 @@ def load(name: str) -> Any:
     Raises:
         SimenvError: unknown name (the message lists the available ones).
     """
+    # Each model's module (PyTorch) is imported only when that model is loaded.
     from simenv.models.baselines import ConstantVelocity, ZeroVelocity
 
     for prefix, cls in (("zero-velocity-", ZeroVelocity),
@@ -147,7 +148,5 @@ def interaction_model_class(name: str) -> Any:
     Raises:
         SimenvError: not a two-person model name.
     """
-    import importlib
-
     module, cls, _ = interaction_model_entry(name)
-    return getattr(importlib.import_module(module), cls)
+    return getattr(import_module(module), cls)

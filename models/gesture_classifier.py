@@ -42,6 +42,7 @@ import torch
 from torch import nn
 
 from simenv.core.errors import MotionError
+from simenv.data.gestures import normalise_windows
 from simenv.models.checkpoint import Checkpoint, CheckpointError, CheckpointMixin
 
 CHECKPOINT_FORMAT = "simenv-gesture-classifier"
@@ -295,8 +296,6 @@ class GestureClassifier(CheckpointMixin, nn.Module):
         """Class probabilities of raw world-frame windows, metres, Z up, at ``fps``:
         (N, T, J, 3) or (T, J, 3) on ``config.joint_names``; normalised here with
         :func:`simenv.data.gestures.normalise_windows`. Returns (N, C) or (C,)."""
-        from simenv.data.gestures import normalise_windows
-
         single = np.ndim(windows) == 3
         x = normalise_windows(windows, valid, joints=self.config.joint_names)
         if single:

@@ -45,6 +45,7 @@ from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from simenv.core.errors import MotionError
 from simenv.data.interaction_data import INTER18_JOINTS, actor_frame, denormalise, normalise
@@ -181,7 +182,6 @@ class NearestNeighbour:
         if not (np.isfinite(a).all() and np.isfinite(b).all()):
             raise MotionError("training poses have a non-finite value", field="actor")
         a, b = a.reshape(-1, joints, 3), b.reshape(-1, joints, 3)
-        from scipy.spatial import cKDTree
 
         origin, yaw = self._per_frame(a)
         self._tree = cKDTree(normalise(a[:, None], origin, yaw)[:, 0].reshape(len(a), -1))

@@ -44,6 +44,7 @@ import torch
 from torch import nn
 
 from simenv.core.errors import MotionError
+from simenv.data.gestures import normalise_windows
 from simenv.models.checkpoint import CheckpointMixin
 from simenv.models.gesture_classifier import SkeletonClasses, valid_mask
 
@@ -181,8 +182,6 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
         """Probabilities of world-frame windows (metres, Z up, ``fps``): (N, T, J, 3) or
         (T, J, 3) on ``config.joint_names``, normalised here
         (:func:`simenv.data.gestures.normalise_windows`). Returns (N, C) or (C,)."""
-        from simenv.data.gestures import normalise_windows
-
         single = np.ndim(windows) == 3
         x = normalise_windows(windows, valid, joints=self.config.joint_names)
         v = None if valid is None else np.asarray(valid, bool)

@@ -170,7 +170,8 @@ class TrackingReference:
                    frame_keypoints=kp, foot_sites=foot)
 
 
-def _centre_of_mass_and_trunk(model: mujoco.MjModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _centre_of_mass_and_trunk(model: mujoco.MjModel,
+                              q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The whole-body centre of mass and the upper trunk's orientation of each pose.
 
     Args:

@@ -8,7 +8,7 @@ slicing and concatenation are explicit methods that return new objects.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -246,14 +246,19 @@ class Motion:
         canonical = self.skeleton.canonical
         missing = [k for k in layout.joint_names if k not in canonical]
         if missing:
-            raise SkeletonError(
-                f"skeleton {self.skeleton.name!r} of motion {self.name!r} lacks canonical "
-                f"keypoint(s) {', '.join(missing)}; {purpose} needs "
-                f"{', '.join(layout.joint_names)}",
-                source=self.metadata.get("source"),
-            )
+            raise self.missing_keypoints(missing, layout.joint_names, purpose)
         idx = [self.skeleton.index(canonical[k]) for k in layout.joint_names]
         return Motion(self.positions[:, idx], self.fps, layout, self.name, dict(self.metadata))
+
+    def missing_keypoints(self, missing: Sequence[str], needed: Sequence[str], purpose: str,
+                          note: str = "") -> SkeletonError:
+        """The error for canonical keypoints ``missing`` from this motion's skeleton that
+        ``purpose`` needs (it needs all of ``needed``); ``note`` follows the missing names."""
+        return SkeletonError(
+            f"skeleton {self.skeleton.name!r} of motion {self.name!r} lacks canonical "
+            f"keypoint(s) {', '.join(missing)}{note}; {purpose} needs {', '.join(needed)}",
+            source=self.metadata.get("source"),
+        )
 
     def to_canonical(self) -> Motion:
         """Motion on the canonical keypoint skeleton (only the keypoints this

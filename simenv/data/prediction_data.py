@@ -119,12 +119,8 @@ def to_pred17(motion: Motion, *, derive: bool = False) -> Motion:
     unknown = [k for k in missing if k not in DERIVED_KEYPOINTS
                or any(p not in canonical for p in DERIVED_KEYPOINTS[k])]
     if unknown:
-        raise SkeletonError(
-            f"skeleton {motion.skeleton.name!r} of motion {motion.name!r} lacks canonical "
-            f"keypoint(s) {', '.join(unknown)} (not derivable from "
-            f"{', '.join(canonical)}); {purpose} needs {', '.join(PRED17_JOINTS)}",
-            source=motion.metadata.get("source"),
-        )
+        raise motion.missing_keypoints(unknown, PRED17_JOINTS, purpose,
+                                       f" (not derivable from {', '.join(canonical)})")
     columns = []
     for k in PRED17_JOINTS:
         if k in canonical:

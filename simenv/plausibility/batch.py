@@ -19,26 +19,26 @@ import json
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
-from simenv.core.errors import SimenvError
+from simenv.core.errors import ReferenceDataError, SimenvError
 from simenv.core.motion import Interaction
+from simenv.io.loader import load, motion_files
+from simenv.plausibility.distributed import ray_map
+from simenv.plausibility.reference import Reference, calibrate, read_records
 
 if TYPE_CHECKING:  # the scorer pulls in MuJoCo; workers import it when they score
     from simenv.plausibility.metric import ScoreConfig
-    from simenv.plausibility.reference import Reference
 
 BACKENDS = ("local", "ray")
 
 
 def _pair_folder(folder: Path) -> bool:
     """Whether ``folder`` loads as one two-person recording."""
-    from simenv.io.loader import load, motion_files
-
     if len(motion_files(folder)) != 2:
         return False
     try:
@@ -48,8 +48,6 @@ def _pair_folder(folder: Path) -> bool:
 
 
 def _walk(folder: Path) -> Iterator[Path]:
-    from simenv.io.loader import motion_files
-
     if _pair_folder(folder):
         yield folder
         return
@@ -141,7 +139,7 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
         the message, so one bad file never stops a batch. Other exceptions
         are bugs and propagate.
     """
-    from simenv.io.loader import load
+    # The scorer pulls in MuJoCo: a batch that only walks, reads or calibrates does not.
     from simenv.plausibility.report import score
 
     target = Path(target)
@@ -157,7 +155,7 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
         recs = report.to_records()
         repairs = clip.metadata.get("repairs")
         if job.report_dir is not None:
-            from simenv.plausibility.html_report import write_report
+            from simenv.plausibility.html_report import write_report  # MuJoCo, OpenCV
 
             name = _report_name(target) + (f"__clip{i}" if len(reports) > 1 else "")
             page = write_report(report, Path(job.report_dir) / name)
@@ -276,8 +274,6 @@ def score_batch(
         done = done_files(out)
         paths = [p for p in paths if str(p) not in done]
     if backend == "ray":
-        from simenv.plausibility.distributed import ray_map
-
         results: Iterable[tuple[Path, list[dict[str, Any]]]] = ray_map(
             score_target, paths, job, concurrency=jobs, address=ray_address)
     else:
@@ -327,11 +323,6 @@ def calibrate_reference(paths: Sequence[str | Path], job: ScoreJob = ScoreJob(),
             too small, bad values).
         SimenvError: a path does not exist.
     """
-    from dataclasses import replace
-
-    from simenv.core.errors import ReferenceDataError
-    from simenv.plausibility.reference import calibrate, read_records
-
     results = [Path(p) for p in paths if str(p).endswith(".jsonl") and Path(p).is_file()]
     targets = find_targets([p for p in paths if Path(p) not in results])
     generated = {Path(t).resolve() for t in exclude}

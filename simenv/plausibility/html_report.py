@@ -74,6 +74,7 @@ from urllib.parse import quote
 
 import numpy as np
 
+from simenv.body.humanoid import build_scene
 from simenv.core.errors import SimenvError
 from simenv.plausibility.report import (
     VERDICT_IMPLAUSIBLE,
@@ -414,7 +415,7 @@ def _frame_labels(report: PlausibilityReport, n_frames: int) -> list[list[str]]:
 
 def _highlight(frame: np.ndarray, labels: Sequence[str]) -> np.ndarray:
     """Red border and the failing metric names (bottom banner) on an RGB frame."""
-    import cv2
+    import cv2  # only when a video is rendered
 
     frame = np.ascontiguousarray(frame)
     h, w = frame.shape[:2]
@@ -437,8 +438,6 @@ def _video_scene(report: PlausibilityReport
     """(MjModel, qpos (T, nq), ghost keypoints [(T, K, 3)] per person, the K keypoint
     names) of the video, or None when no person has a retargeted body. Two fitted
     people share one scene; if it cannot be built the video shows person 0."""
-    from simenv.body.humanoid import build_scene
-
     fitted = [p.retargeted for p in report.people if p.retargeted is not None]
     if not fitted:
         return None
@@ -460,6 +459,7 @@ def _video_scene(report: PlausibilityReport
 
 def _video_section(report: PlausibilityReport, out: Path, max_frames: int) -> str:
     """Render the videos and return their HTML (or a note saying why there is none)."""
+    # OpenCV and the GL backend load only when a video is rendered.
     from simenv.body.render import keypoint_edges, render_frames, write_video
 
     scene = _video_scene(report)
@@ -502,7 +502,7 @@ def _video_section(report: PlausibilityReport, out: Path, max_frames: int) -> st
 def _write_webm(frames: Sequence[np.ndarray], path: Path, fps: float) -> Path | None:
     """VP8 WebM of RGB frames (browsers play it, unlike OpenCV's ``mp4v``); None when
     this OpenCV build cannot encode VP8."""
-    import cv2
+    import cv2  # only when a video is rendered
 
     h, w = frames[0].shape[:2]
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"VP80"), fps, (w, h))

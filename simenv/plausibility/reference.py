@@ -70,6 +70,7 @@ import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from html import escape
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -542,9 +543,7 @@ def write_reference_page(summary: Mapping[str, Any],
         records: the generated records (judged: with a ``reference`` entry).
         out_dir: the reports' folder.
     """
-    from html import escape
-
-    from simenv.plausibility.html_report import html_page
+    from simenv.plausibility.html_report import html_page  # the scorer's page: MuJoCo
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

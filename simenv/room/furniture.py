@@ -161,7 +161,7 @@ def read_mesh(path: Path, *, scale: float, up: str, field: str,
 @lru_cache(maxsize=16)
 def _read_cached(path_text: str, _mtime: int, scale: float, up: str, field: str,
                  source: str | None) -> tuple[Any, list[Any], tuple[float, ...] | None]:
-    import trimesh
+    import trimesh  # only for a scenario with mesh furniture (reading a scenario stays light)
 
     path = Path(path_text)
 
@@ -278,7 +278,7 @@ def _voxel_boxes(mesh: Any, pitch: float, field: str, source: str | None) -> lis
     half a voxel. A mesh without consistent winding falls back to trimesh's voxels touching
     the surface, filled, which overshoot the surface by up to one voxel.
     """
-    import trimesh
+    import trimesh  # as in _read_cached
 
     if mesh.is_winding_consistent and mesh.volume != 0:
         filled, corner = _inside_voxels(mesh, pitch, outward=mesh.volume > 0)
