@@ -66,6 +66,7 @@ import re
 import time
 from collections import Counter, defaultdict
 from collections.abc import Iterable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -135,10 +136,15 @@ DIAGNOSES: dict[str, str] = {
 }
 
 
+#: Segment length of the ``mpc-segments`` tracker, seconds (the length of the per-clip
+#: tracking evaluation, ``benchmarks/eval_tracking.py``).
+SEGMENT_S = 4.0
 #: Trackers a calibration run can judge ``tracking`` with, and how the report names them.
 TRACKERS = {"pd-assisted": "the root-assisted PD servos (about real time; the scorer's default "
                            "when this calibration was first run)",
-            "mpc": "the scorer's default, the unassisted MPC (tens of times real time)"}
+            "mpc": "the scorer's default, the unassisted MPC (tens of times real time)",
+            "mpc-segments": f"the unassisted MPC in {SEGMENT_S:g} s segments, each simulated "
+                            "from the captured state 1 s before it (tracking_segment_s)"}
 
 
 def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
@@ -150,6 +156,8 @@ def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
                           field="tracker")
     if tracker == "mpc":
         return ScoreConfig()
+    if tracker == "mpc-segments":
+        return ScoreConfig(body=replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=SEGMENT_S))
     return ScoreConfig(tracking_assist=True, tracking_controller="pd")
 
 

@@ -94,6 +94,10 @@ def test_one_tracker_per_run_folder(tmp_path: Path) -> None:
     assert not calibrate_loo.score_config("mpc").tracking_assist
     pd = calibrate_loo.score_config("pd-assisted")
     assert pd.tracking_controller == "pd" and pd.tracking_assist
+    segmented = calibrate_loo.score_config("mpc-segments")
+    assert segmented.tracking_controller == "mpc" and not segmented.tracking_assist
+    assert segmented.body.tracking_segment_s == 4.0
+    assert calibrate_loo.score_config("mpc").body.tracking_segment_s == float("inf")
     assert calibrate_loo.run_tracker(tmp_path, None) == "pd-assisted"  # an old folder
     assert calibrate_loo.run_tracker(tmp_path, "mpc") == "mpc"
     assert calibrate_loo.run_tracker(tmp_path, None) == "mpc"

@@ -11,7 +11,8 @@ from expect import raises_at
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult
 from simenv.core.errors import PhysicsError
-from simenv.plausibility.tracking import track, tracking
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+from simenv.plausibility.tracking import segment_frames, track, tracking
 
 
 def _lifted(result: RetargetResult, dz: float, start: int = 0) -> RetargetResult:
@@ -112,3 +113,64 @@ def test_bad_input_raises_physics_errors(walk_2s_retargeted) -> None:
         track(replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:, 1:]))
     with pytest.raises(PhysicsError, match="at least 2 frames"):
         tracking(replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:1]))
+
+
+@pytest.mark.parametrize("n_frames, fps, segment_s, lead_s",
+                         [(241, 120.0, 0.5, 0.25), (241, 120.0, 0.7, 1.0), (5, 30.0, 1.0, 1.0),
+                          (2401, 120.0, 4.0, 1.0)])
+def test_segments_tile_the_clip_each_with_its_run_up(n_frames, fps, segment_s,
+                                                      lead_s) -> None:
+    segments = segment_frames(n_frames, fps, segment_s, lead_s)
+    judged = np.concatenate([np.arange(first, last + 1) for _, first, last in segments])
+    np.testing.assert_array_equal(judged, np.arange(n_frames))
+    lead = round(lead_s * fps)
+    assert segments[0][:2] == (0, 0)
+    for start, first, last in segments[1:]:
+        assert start == max(0, first - 1 - lead) and last - first + 1 <= round(segment_s * fps)
+
+
+SEGMENTED = replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=0.5, tracking_lead_s=0.25)
+
+
+def test_segmented_run_puts_the_segments_judged_frames_together(walk_2s_retargeted) -> None:
+    walk = walk_2s_retargeted
+    assert track(walk, assist=True, max_seconds=0.3).segments == 1  # the default: one run
+    tr = track(walk, SEGMENTED, assist=True)
+    n = len(walk.qpos)
+    assert tr.success and tr.segments == 4 and tr.segments_failed == 0
+    assert np.isfinite(tr.body_error).all() and tr.frames_tracked == n
+    # The third segment (judged 121..180) is a run of its own from frame 90.
+    piece = replace(walk, qpos=walk.qpos[90:181], residuals=walk.residuals[90:181],
+                    targets=walk.targets[90:181])
+    alone = track(piece, assist=True)
+    np.testing.assert_array_equal(tr.body_error[121:181], alone.body_error[31:])
+    np.testing.assert_array_equal(tr.sim_keypoints[121:181], alone.sim_keypoints[31:])
+    # The work counts the judged frames only, not the run-ups.
+    assert (np.diff(tr.work_curve) >= 0).all() and tr.work_curve[0] == 0.0
+    assert tr.work_j == pytest.approx(tr.work_curve[-1])
+    assert tr.work_curve[180] - tr.work_curve[120] == pytest.approx(
+        alone.work_curve[-1] - alone.work_curve[30])
+    r = tracking(walk, SEGMENTED, assist=True)
+    assert r.passed and r.details["segments"] == 4.0 and r.details["segments_failed"] == 0.0
+
+
+@pytest.mark.parametrize("jump", [60, 121, 150])
+def test_segments_still_fail_a_teleport_wherever_it_falls(walk_2s_retargeted, jump) -> None:
+    # At a segment's last frame (60), its first judged frame (121) and inside one (150):
+    # the run-up starts before the jump, so the body has to follow it.
+    q = walk_2s_retargeted.qpos.copy()
+    q[jump:, 0] += 2.0
+    tr = track(replace(walk_2s_retargeted, qpos=q), SEGMENTED, assist=True)
+    assert not tr.success and tr.segments_failed >= 1
+    assert tr.time_to_failure_s == pytest.approx(jump / 120.0, abs=2 / 120.0)
+
+
+def test_segmented_errors_name_the_clips_frame(walk_2s_retargeted) -> None:
+    q = walk_2s_retargeted.qpos.copy()
+    q[150, 12] = np.nan
+    raises_at(PhysicsError, "NaN",
+              lambda: track(replace(walk_2s_retargeted, qpos=q), SEGMENTED), frame=150)
+    q = walk_2s_retargeted.qpos.copy()
+    q[151:, 0] += 1e4  # finite but absurd: the run diverges at the clip's frame 151
+    tr = track(replace(walk_2s_retargeted, qpos=q), SEGMENTED)
+    assert tr.error is not None and "diverged" in tr.error and "frame 151" in tr.error

@@ -40,6 +40,7 @@ knee's passive rotation) and 103_charleston1 3.1 (elbow flexion 155).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 from simenv.plausibility.thresholds import PositiveThresholds
@@ -208,6 +209,14 @@ class BodyThresholds(PositiveThresholds):
             simulation has failed once the mean distance between simulated
             and reference keypoints exceeds 0.5 m.
         tracking_max_seconds: 20. Longest stretch simulated per clip.
+        tracking_segment_s: infinity (the default) tracks the clip in one run from
+            its first frame. A finite value judges it in segments of this many seconds,
+            each simulated from the captured state ``tracking_lead_s`` before it (the
+            first from frame 0): every stretch of the motion is then asked of the body
+            with a run-up of its own, so that a controller's drift over a long clip is
+            not counted against the motion (:func:`simenv.plausibility.tracking.track`).
+        tracking_lead_s: 1. The run-up of a segment, seconds: a corruption at a
+            segment's start is met by a body already moving on its own.
         assist_timeconst_s: 0.02. Time constant of the optional root
             assistance: a critically damped soft weld (MuJoCo equality
             constraint, ``solref = (0.02, 1)``) between the pelvis and a
@@ -246,6 +255,8 @@ class BodyThresholds(PositiveThresholds):
 
     tracking_fail_m: float = 0.5
     tracking_max_seconds: float = 20.0
+    tracking_segment_s: float = math.inf
+    tracking_lead_s: float = 1.0
     assist_timeconst_s: float = 0.02
 
     gravity_mps2: float = 9.81
