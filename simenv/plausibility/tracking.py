@@ -74,7 +74,8 @@ class TrackingResult:
     Attributes:
         success: the body error stayed within the failure distance over the
             whole simulated stretch and nothing diverged.
-        frames_tracked: reference frames reached before stopping.
+        frames_tracked: reference frames reached before stopping (a segmented run:
+            judged frames its segments tracked).
         time_to_failure_s: time of the failing frame, or the simulated
             duration on success.
         simulated_s: duration of the reference stretch attempted.
@@ -265,10 +266,9 @@ def _simulate(result: RetargetResult, ref: TrackingReference, model: mujoco.MjMo
     """Run the controller from the first reference state over the reference frames
     1 .. n_frames - 1 (``bar`` counts them; an error names frame ``frame0 + k``, the
     clip's frame when ``result`` is a piece of it from ``frame0``), stopping at a
-    divergence or once the body
-    error exceeds ``tracking_fail_m``; an MPC with ``retries`` left rewinds instead
-    (:class:`~simenv.control.MPCConfig`): the run is then a trajectory the body
-    performed, from states it reached itself."""
+    divergence or once the body error exceeds ``tracking_fail_m``; an MPC with
+    ``retries`` left rewinds instead (:class:`~simenv.control.MPCConfig`): the run is
+    then a trajectory the body performed, from states it reached itself."""
     h = result.humanoid
     T = len(result.qpos)
     mocap = _mocap_path(result, ref) if assist else None
