@@ -14,6 +14,7 @@ import pytest
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.cli import info as info_command
 from simenv.cli import main as cli
+from simenv.cli import score as score_command
 from simenv.cli.demo_page import check_links
 
 SUMMARY_KEYS = {
@@ -217,6 +218,15 @@ def test_score_text_output_and_bad_path(capsys, tmp_path):
     status, text, _ = run(capsys, "score", asset_path(WALK), broken, "--no-physics")
     assert status == 2
     assert "plausible" in text and f"{broken}: error:" in text and "line" in text
+
+
+def test_score_tracking_segments_option(capsys):
+    parser = cli.build_parser()
+    args = parser.parse_args(["score", "clip.bvh", "--tracking-segments", "4"])
+    assert score_command.score_config(args).body.tracking_segment_s == 4.0
+    assert score_command.score_config(parser.parse_args(["score", "clip.bvh"])) is None
+    status, _, err = run(capsys, "score", asset_path(WALK), "--tracking-segments", "0")
+    assert status == 2 and "tracking_segment_s must be a positive number" in err
 
 
 def test_rehearse_forwards_to_the_rehearsal(capsys, tmp_path):

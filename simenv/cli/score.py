@@ -8,10 +8,13 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from simenv.cli.common import EXIT_USER_ERROR, positive_int
 from simenv.core.errors import SimenvError
+
+if TYPE_CHECKING:  # the scorer's settings load MuJoCo
+    from simenv.plausibility.metric import ScoreConfig
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -46,6 +49,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     sco.add_argument("--restore-collapsed-bones", action="store_true", help=(
         "read BVH files with the thorax and wrist bones that the CMU conversions collapse "
         "put back (reader's repair; listed in each record's repairs); default: as written"))
+    sco.add_argument("--tracking-segments", type=float, metavar="SECONDS", help=(
+        "judge physics tracking of long clips in segments of this many seconds, each "
+        "simulated from the captured state 1 s before it (default: the whole clip in one "
+        "run; docs/plausibility.md)"))
     sco.add_argument("--reference", nargs="+", action="extend", metavar="REAL_PATH", help=(
         "judge the clips relative to real data of the same source: score these real files or "
         "folders (or read their earlier --out .jsonl results), calibrate every metric on them "
@@ -79,6 +86,23 @@ def _print_score(rec: dict[str, Any]) -> None:
     print(line)
 
 
+def score_config(args: argparse.Namespace) -> ScoreConfig | None:
+    """The scorer's :class:`~simenv.plausibility.metric.ScoreConfig` of the options, or None
+    for the defaults.
+
+    Raises:
+        SimenvError: ``--tracking-segments`` not a positive number of seconds.
+    """
+    if args.tracking_segments is None:
+        return None
+    # The scorer's settings load MuJoCo: only when an option asks for them.
+    from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+    from simenv.plausibility.metric import ScoreConfig
+
+    return ScoreConfig(body=dataclasses.replace(DEFAULT_BODY_THRESHOLDS,
+                                                tracking_segment_s=args.tracking_segments))
+
+
 def run(args: argparse.Namespace) -> int:
     """Score every target, print a line (or a JSON object) per person as it finishes; exit
     status 2 when some input could not be scored."""
@@ -99,7 +123,8 @@ def run(args: argparse.Namespace) -> int:
         report_dir = Path(args.report)
         report_dir.mkdir(parents=True, exist_ok=True)
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
-                   else str(report_dir), restore_collapsed_bones=args.restore_collapsed_bones)
+                   else str(report_dir), config=score_config(args),
+                   restore_collapsed_bones=args.restore_collapsed_bones)
     progress = sys.stderr.isatty() or args.progress
     if args.reference:
         reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,
