@@ -43,6 +43,7 @@ def test_unassisted_pd_falls_after_the_first_steps(walk_2s_retargeted) -> None:
     # walk the free body falls after ~0.87 s. It must still track the start.
     tr = track(walk_2s_retargeted)
     assert not tr.success and tr.error is None
+    assert tr.segments == 1 and tr.segments_failed == 1
     assert 0.5 < tr.time_to_failure_s < 1.5
     assert np.isnan(tr.body_error[tr.frames_tracked:]).all()
     assert tr.body_error[tr.frames_tracked - 1] > 0.5

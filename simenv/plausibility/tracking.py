@@ -498,6 +498,7 @@ def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
         work_j_per_kg=run.work / h.total_mass,
         retries=run.retries,
         work_curve=run.work_at,
+        segments_failed=int(not ok),
     )
 
 
@@ -516,7 +517,7 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
     (0/1), ``steps_per_s`` (simulator throughput, planning included),
     ``work_j`` and ``work_j_per_kg`` (positive work of the hinge actuators),
     ``mpc`` (1 when the MPC tracked, 0 for the PD servos), ``retries`` (rewinds used),
-    ``segments`` and ``segments_failed`` (1 and 0 for a whole-clip run) and
+    ``segments`` and ``segments_failed`` (a whole-clip run: 1, and 1 when it failed) and
     ``realtime_ratio`` (wall time per simulated second, run-ups included).
     """
     tr = track(result, thresholds, assist=assist, max_seconds=max_seconds,
