@@ -153,7 +153,7 @@ class TrackingReference:
                   else np.zeros_like(ctrl))
 
         frame_step = np.round(np.arange(n_frames) / fps / dt).astype(int)
-        interp = _step_interpolator(frame_step, fps, dt)
+        interp = step_interpolator(frame_step, fps, dt)
 
         names = list(h.keypoint_names)
         foot = np.array([names.index(k) for k in FOOT_KEYPOINTS])
@@ -198,7 +198,7 @@ def _centre_of_mass_and_trunk(model: mujoco.MjModel,
     return com, trunk
 
 
-def _step_interpolator(frame_step: np.ndarray, fps: float,
+def step_interpolator(frame_step: np.ndarray, fps: float,
                       dt: float) -> Callable[[np.ndarray], np.ndarray]:
     """Linear interpolation of per-frame arrays to every physics step.
 

@@ -56,7 +56,7 @@ from simenv.body.divergence import physics_problem, warning_counts
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult
 from simenv.control.mpc import MPCConfig, TrackingMPC
-from simenv.control.reference import TrackingReference
+from simenv.control.reference import TrackingReference, step_interpolator
 from simenv.core.errors import PhysicsError
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.clips import norm3
@@ -175,14 +175,11 @@ def _controller(result: RetargetResult, thresholds: BodyThresholds, assist: bool
 
 def _mocap_path(result: RetargetResult, ref: TrackingReference
                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Where the assistance's mocap target goes: (n_steps, 3) positions per
+    """Where the assistance's mocap target goes: (n_steps + 1, 3) positions per
     physics step, the reference root interpolated like the servo targets, and
     (T, 4) the root orientation per frame."""
-    fps, n_frames = ref.fps, ref.n_frames
-    root = result.qpos[:n_frames, :3]
-    u = np.clip(np.arange(ref.n_steps) * ref.dt * fps, 0.0, n_frames - 1)
-    i0 = np.minimum(np.floor(u).astype(int), n_frames - 2)
-    return root[i0] + (u - i0)[:, None] * (root[i0 + 1] - root[i0]), result.qpos[:, 3:7]
+    interp = step_interpolator(ref.frame_step, ref.fps, ref.dt)
+    return interp(result.qpos[:ref.n_frames, :3]), result.qpos[:, 3:7]
 
 
 def _advance(model: mujoco.MjModel, data: mujoco.MjData, ref: TrackingReference,
@@ -420,7 +417,7 @@ def _track_segments(result: RetargetResult, ref: TrackingReference,
         # Work over the judged frames: from the frame before them (the run-up's end).
         curve = r.work_curve[max(first - 1, 0) - start:last + 1 - start]
         work_curve[first:last + 1] = work + curve[-(last + 1 - first):] - curve[0]
-        work = float(np.nanmax(work_curve[:last + 1], initial=work))
+        work = float(np.nanmax(work_curve[first:last + 1], initial=work))
         tracked = np.flatnonzero(np.isfinite(err[first:last + 1]))
         if len(tracked) >= 3:
             accel.append((_accel_error(kp[first:first + tracked[-1] + 1],
