@@ -75,6 +75,7 @@ from calibrate_residual import table as residual_table
 from calibrate_score import summarise
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.control import MPCConfig
 from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
@@ -139,12 +140,18 @@ DIAGNOSES: dict[str, str] = {
 #: Segment length of the ``mpc-segments`` tracker, seconds (the length of the per-clip
 #: tracking evaluation, ``benchmarks/eval_tracking.py``).
 SEGMENT_S = 4.0
+#: Planner seeds each segment may try under the ``mpc-segments-seeds`` tracker
+#: (:class:`simenv.control.MPCConfig` ``attempts``).
+SEGMENT_ATTEMPTS = 3
 #: Trackers a calibration run can judge ``tracking`` with, and how the report names them.
 TRACKERS = {"pd-assisted": "the root-assisted PD servos (about real time; the scorer's default "
                            "when this calibration was first run)",
             "mpc": "the scorer's default, the unassisted MPC (tens of times real time)",
             "mpc-segments": f"the unassisted MPC in {SEGMENT_S:g} s segments, each simulated "
-                            "from the captured state 1 s before it (tracking_segment_s)"}
+                            "from the captured state 1 s before it (tracking_segment_s)",
+            "mpc-segments-seeds": f"the unassisted MPC in {SEGMENT_S:g} s segments as above, "
+                                  f"each tried with up to {SEGMENT_ATTEMPTS} planner seeds "
+                                  "(MPCConfig.attempts)"}
 
 
 def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
@@ -156,8 +163,10 @@ def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
                           field="tracker")
     if tracker == "mpc":
         return ScoreConfig()
-    if tracker == "mpc-segments":
-        return ScoreConfig(body=replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=SEGMENT_S))
+    if tracker.startswith("mpc-segments"):
+        attempts = SEGMENT_ATTEMPTS if tracker == "mpc-segments-seeds" else 1
+        return ScoreConfig(body=replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=SEGMENT_S),
+                           mpc=MPCConfig(attempts=attempts))
     return ScoreConfig(tracking_assist=True, tracking_controller="pd")
 
 

@@ -19,9 +19,10 @@ lines without it ran with 32) and ``--trunk-weight W`` the weight of its
 upper-trunk orientation cost (:class:`simenv.control.CostWeights` ``trunk``,
 per rad^2; recorded as ``trunk_weight``, lines without it ran with 0) and
 ``--retries R`` the rewinds a run may use after a failure (:class:`simenv.control.MPCConfig`
-``retries``; recorded as ``retries``, lines without it ran with 0); a *setting* is the
-triple. ``docs`` tabulates each setting apart and puts the settings side by side clip by
-clip.
+``retries``; recorded as ``retries``, lines without it ran with 0) and ``--attempts A``
+the planner seeds a run may try (``attempts``; recorded as ``attempts``, lines without it
+ran with 1); a *setting* is the quadruple. ``docs`` tabulates each setting apart and puts
+the settings side by side clip by clip.
 
 Results go to a JSONL file one line per run as each finishes (a rerun skips
 runs already there with the same setting), so the long run can go in the
@@ -123,27 +124,29 @@ def _record(tr: TrackingResult, fps: float) -> dict[str, float | bool | str | No
             "max_error_mm": float(np.nanmax(tr.body_error)) * 1000.0,
             "window_max_mm": _window_max(tr.body_error, fps) * 1000.0,
             "work_j": tr.work_j, "work_j_per_kg": tr.work_j_per_kg, "wall_s": tr.wall_s,
-            "retries_used": tr.retries,
+            "retries_used": tr.retries, "runs": tr.runs,
             "realtime_ratio": tr.wall_s / max(tr.steps * 0.002, 1e-9), "error": tr.error}
 
 
-#: An MPC setting of a run: (samples per replan, trunk cost weight per rad^2, retries).
-Setting = tuple[int, float, int]
+#: An MPC setting of a run: (samples per replan, trunk cost weight per rad^2, retries,
+#: attempts).
+Setting = tuple[int, float, int, int]
 
 
 def setting_of(record: dict) -> Setting:
     """The MPC setting of a run (lines written before a setting was recorded
-    ran with 32 samples, no trunk term and no retries)."""
+    ran with 32 samples, no trunk term, no retries and one attempt)."""
     return (int(record.get("samples", 32)), float(record.get("trunk_weight", 0.0)),
-            int(record.get("retries", 0)))
+            int(record.get("retries", 0)), int(record.get("attempts", 1)))
 
 
 def setting_label(setting: Setting) -> str:
     """``"64 samples"``, with ``", trunk weight W"`` when the trunk term is on and
-    ``", R retries"`` when rewinds are allowed."""
-    n, w, r = setting
+    ``", R retries"`` when rewinds are allowed and ``", A seeds"`` with more than one
+    attempt."""
+    n, w, r, a = setting
     return f"{n} samples" + (f", trunk weight {w:g}" if w else "") + (
-        f", {r} retries" if r else "")
+        f", {r} retries" if r else "") + (f", {a} seeds" if a > 1 else "")
 
 
 def _done(out: Path) -> set[tuple[str, str, float, Setting]]:
@@ -160,8 +163,9 @@ def run(args: argparse.Namespace) -> None:
     desc = descriptions(args.data)
     cfg = MPCConfig(nthread=args.threads, seed=args.seed,
                     weights=CostWeights(trunk=args.trunk_weight), retries=args.retries,
+                    attempts=args.attempts,
                     **({} if args.samples is None else {"n_samples": args.samples}))
-    setting = (cfg.n_samples, cfg.weights.trunk, cfg.retries)
+    setting = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts)
     paths = clips(args.data)
     if args.clips:
         # The named clips first, in the order given; the others follow with --all-clips.
@@ -192,6 +196,7 @@ def run(args: argparse.Namespace) -> None:
             "acrobatics": path.stem in ACROBATICS, "mass_kg": fitted.humanoid.total_mass,
             "mpc": _record(mpc, motion.fps), "samples": cfg.n_samples,
             "trunk_weight": cfg.weights.trunk, "retries": cfg.retries,
+            "attempts": cfg.attempts,
             "threads": args.threads, "seed": args.seed,
             "load_average": os.getloadavg()[0],
         }
@@ -322,7 +327,7 @@ def tables(records: list[dict], expected: list[str] | None = None,
     records = sorted(records, key=lambda r: (order.get(r["clip"], len(order)), r["clip"],
                                              r["corruption"], r["strength"]))
     cfg = MPCConfig()
-    default = (cfg.n_samples, cfg.weights.trunk, cfg.retries)
+    default = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts)
     settings = sorted({setting_of(r) for r in records}, key=lambda n: (n != default, n))
     clean_all = [r for r in records if r["corruption"] == "none"]
     lines = (_comparison_table(clean_all, settings)
@@ -360,6 +365,8 @@ def main() -> None:
                     help="run: MPC upper-trunk orientation cost weight, per rad^2")
     ap.add_argument("--retries", type=int, default=MPCConfig().retries,
                     help="run: rewinds the MPC may use after a failure")
+    ap.add_argument("--attempts", type=int, default=MPCConfig().attempts,
+                    help="run: planner seeds a run may try (the first that tracks is kept)")
     ap.add_argument("--clips", nargs="*", default=[],
                     help="run: only these clip files (e.g. 05_02.bvh), in this order")
     ap.add_argument("--all-clips", action="store_true",

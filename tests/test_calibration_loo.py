@@ -96,7 +96,9 @@ def test_one_tracker_per_run_folder(tmp_path: Path) -> None:
     assert pd.tracking_controller == "pd" and pd.tracking_assist
     segmented = calibrate_loo.score_config("mpc-segments")
     assert segmented.tracking_controller == "mpc" and not segmented.tracking_assist
-    assert segmented.body.tracking_segment_s == 4.0
+    assert segmented.body.tracking_segment_s == 4.0 and segmented.mpc.attempts == 1
+    seeds = calibrate_loo.score_config("mpc-segments-seeds")
+    assert seeds.body.tracking_segment_s == 4.0 and seeds.mpc.attempts == 3
     assert calibrate_loo.score_config("mpc").body.tracking_segment_s == float("inf")
     assert calibrate_loo.run_tracker(tmp_path, None) == "pd-assisted"  # an old folder
     assert calibrate_loo.run_tracker(tmp_path, "mpc") == "mpc"

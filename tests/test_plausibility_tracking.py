@@ -166,12 +166,32 @@ def test_segments_still_fail_a_teleport_wherever_it_falls(walk_2s_retargeted, ju
     assert tr.time_to_failure_s == pytest.approx(jump / 120.0, abs=2 / 120.0)
 
 
+def test_a_segment_whose_run_up_falls_is_simulated_from_its_own_start(
+        walk_2s_retargeted) -> None:
+    """A 2 m excursion over frames 95-104 fails the second segment (judged 61-120) there;
+    the third (judged 121-180) starts its run-up at frame 90, falls on the excursion and is
+    simulated again from frame 120: its judged frames are tracked and equal a run from
+    there."""
+    q = walk_2s_retargeted.qpos.copy()
+    q[95:105, 0] += 2.0
+    spiked = replace(walk_2s_retargeted, qpos=q)
+    tr = track(spiked, SEGMENTED, assist=True)
+    assert not tr.success and tr.segments_failed == 1 and tr.runs == 5
+    assert tr.time_to_failure_s == pytest.approx(95 / 120.0, abs=2 / 120.0)
+    assert np.isfinite(tr.body_error[121:]).all()
+    piece = replace(spiked, qpos=q[120:181], residuals=spiked.residuals[120:181],
+                    targets=spiked.targets[120:181])
+    alone = track(piece, assist=True)
+    np.testing.assert_array_equal(tr.body_error[121:181], alone.body_error[1:])
+    assert not tracking(spiked, SEGMENTED, assist=True).passed
+
+
 def test_segmented_errors_name_the_clips_frame(walk_2s_retargeted) -> None:
     q = walk_2s_retargeted.qpos.copy()
     q[150, 12] = np.nan
     raises_at(PhysicsError, "NaN",
               lambda: track(replace(walk_2s_retargeted, qpos=q), SEGMENTED), frame=150)
     q = walk_2s_retargeted.qpos.copy()
-    q[151:, 0] += 1e4  # finite but absurd: the run diverges at the clip's frame 151
-    tr = track(replace(walk_2s_retargeted, qpos=q), SEGMENTED)
+    q[151:, 0] += 100.0  # finite but absurd: the weld diverges at the clip's frame 151
+    tr = track(replace(walk_2s_retargeted, qpos=q), SEGMENTED, assist=True)
     assert tr.error is not None and "diverged" in tr.error and "frame 151" in tr.error

@@ -80,6 +80,11 @@ class MPCConfig:
             state it reached itself ``rewind_s`` earlier and the planner, its noise
             generator moved on, tries again. 0: a failure ends the run.
         rewind_s: how far back a retry starts, seconds of reference time.
+        attempts: independent tries a tracking run (each segment of a segmented one)
+            gets, with the seeds ``seed, seed + 1, ...``; the first that tracks is kept,
+            else the one that got furthest. A tracked run is a trajectory the body
+            performed on its own, whichever seed found it; a failed one only says that
+            this seed's search found none.
     """
 
     horizon_s: float = 0.45
@@ -101,6 +106,7 @@ class MPCConfig:
     weights: CostWeights = field(default_factory=CostWeights)
     retries: int = 0
     rewind_s: float = 1.0
+    attempts: int = 1
 
     def __post_init__(self) -> None:
         checks = {
@@ -110,6 +116,7 @@ class MPCConfig:
             "temperature": self.temperature >= 0, "timestep_factor": self.timestep_factor >= 1,
             "cost_stride": self.cost_stride >= 1, "nthread": self.nthread >= 1,
             "retries": self.retries >= 0, "rewind_s": self.rewind_s > 0,
+            "attempts": self.attempts >= 1,
         }
         for name, ok in checks.items():
             if not ok:

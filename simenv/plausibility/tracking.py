@@ -38,7 +38,14 @@ default): each segment of the clip is a run of its own, simulated from the captu
 run asks the controller to hold a 20 s clip without drifting; on the 23 s CMU 01_01 the
 MPC falls at 9.0 s, yet every 3 s stretch from 6 to 11.5 s is tracked from the captured
 state (measured). Segments ask less than a whole run -- the body is put back on the
-capture at each run-up -- and they say so in the details (``segments``).
+capture at each run-up -- and they say so in the details (``segments``). A run-up that
+falls (a capture glitch met at speed) is not judged: the segment is simulated again from
+the frame before its judged ones.
+
+The MPC is a stochastic search: :class:`~simenv.control.MPCConfig` ``attempts`` gives a run
+(each segment) further tries with other planner seeds, and the first that tracks is kept.
+A tracked run is a trajectory the body performed with its own actuators, so one success
+shows the motion can be done; a failure only shows that this seed found no way.
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -99,6 +107,9 @@ class TrackingResult:
             the stop (a segmented run: over the judged frames only).
         segments: runs the clip was judged in (1: the whole clip in one run).
         segments_failed: how many of them failed.
+        runs: simulations made: every attempt (MPC ``attempts``) of the clip or of each
+            segment, and each segment simulated again without its run-up; ``steps`` and
+            ``wall_s`` count them all.
     """
 
     success: bool
@@ -121,6 +132,7 @@ class TrackingResult:
     work_curve: np.ndarray | None = None
     segments: int = 1
     segments_failed: int = 0
+    runs: int = 1
 
 
 def assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
@@ -356,14 +368,43 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
         PhysicsError: bad qpos (shape, NaN/inf, fewer than 2 frames), an unknown
             controller, or ``assist`` with the MPC.
     """
-    if math.isinf(thresholds.tracking_segment_s):
-        return _track_run(result, thresholds, assist, max_seconds, controller, mpc, progress)
-    limit = thresholds.tracking_max_seconds if max_seconds is None else max_seconds
-    # Checks the whole clip (frames named as in it) and gives the judged frames' keypoints.
-    ref = TrackingReference.from_retarget(result, max_seconds=limit, feedforward=False)
-    if ref.n_frames - 1 <= thresholds.tracking_segment_s * ref.fps:
-        return _track_run(result, thresholds, assist, max_seconds, controller, mpc, progress)
-    return _track_segments(result, ref, thresholds, assist, controller, mpc, progress)
+    if not math.isinf(thresholds.tracking_segment_s):
+        limit = thresholds.tracking_max_seconds if max_seconds is None else max_seconds
+        # Checks the whole clip (frames named as in it) and gives the judged frames' keypoints.
+        ref = TrackingReference.from_retarget(result, max_seconds=limit, feedforward=False)
+        if ref.n_frames - 1 > thresholds.tracking_segment_s * ref.fps:
+            return _track_segments(result, ref, thresholds, assist, controller, mpc, progress)
+    runs = ((r, 0, r.frames_tracked) for r in (
+        _track_run(result, thresholds, assist, max_seconds, controller, cfg, progress)
+        for cfg in _attempt_configs(controller, mpc)))
+    return _keep_best(runs)[0]
+
+
+def _attempt_configs(controller: str, mpc: MPCConfig | None) -> list[MPCConfig | None]:
+    """The planner settings of a run's attempts: seeds ``seed .. seed + attempts - 1``
+    (one attempt for the PD servos, which draw nothing)."""
+    if controller != "mpc":
+        return [mpc]
+    cfg = mpc or MPCConfig()
+    return [replace(cfg, seed=cfg.seed + i) for i in range(cfg.attempts)]
+
+
+def _keep_best(runs: Iterable[tuple[TrackingResult, int, int]]
+               ) -> tuple[TrackingResult, int]:
+    """Of ``(run, start frame, judged frames tracked)`` simulated one after another (lazily:
+    none after the first success), the first run that tracked, else the one that tracked
+    the most judged frames, with its start; ``steps``, ``wall_s`` and ``runs`` are the
+    totals of every run simulated."""
+    best: tuple[TrackingResult, int, int] | None = None
+    steps, wall, n = 0, 0.0, 0
+    for r, start, judged in runs:
+        steps, wall, n = steps + r.steps, wall + r.wall_s, n + r.runs
+        if best is None or r.success or judged > best[2]:
+            best = (r, start, judged)
+        if r.success:
+            break
+    assert best is not None, "a run has at least one attempt"
+    return replace(best[0], steps=steps, wall_s=wall, runs=n), best[1]
 
 
 def segment_frames(n_frames: int, fps: float, segment_s: float,
@@ -403,13 +444,12 @@ def _track_segments(result: RetargetResult, ref: TrackingReference,
     accel: list[tuple[float, int]] = []
     segments = segment_frames(n_frames, fps, thresholds.tracking_segment_s,
                               thresholds.tracking_lead_s)
-    for start, first, last in tqdm(segments, desc=f"track {result.name} (segments)",
-                                   unit="segment", disable=not progress):
-        piece = replace(result, qpos=result.qpos[start:last + 1],
-                        residuals=result.residuals[start:last + 1],
-                        targets=result.targets[start:last + 1])
-        r = _track_run(piece, thresholds, assist, (last - start + 0.5) / fps, controller,
-                       mpc, False, frame0=start)
+    runs = 0
+    for lead_start, first, last in tqdm(segments, desc=f"track {result.name} (segments)",
+                                        unit="segment", disable=not progress):
+        r, start = _keep_best(_segment_runs(result, lead_start, first, last, fps, thresholds,
+                                            assist, controller, mpc))
+        runs += r.runs
         judged = slice(first - start, last + 1 - start)
         err[first:last + 1] = r.body_error[judged]
         force[first:last + 1] = r.assist_force[judged]
@@ -450,7 +490,27 @@ def _track_segments(result: RetargetResult, ref: TrackingReference,
         work_curve=work_curve,
         segments=len(segments),
         segments_failed=len(fails),
+        runs=runs,
     )
+
+
+def _segment_runs(result: RetargetResult, start: int, first: int, last: int, fps: float,
+                  thresholds: BodyThresholds, assist: bool, controller: str,
+                  mpc: MPCConfig | None) -> Iterator[tuple[TrackingResult, int, int]]:
+    """The attempts at the segment judged on frames ``first .. last``: ``(run, start frame,
+    judged frames tracked)``, each simulated from ``start``; an attempt that falls in its
+    run-up is simulated again from frame ``first - 1``."""
+    for cfg in _attempt_configs(controller, mpc):
+        for s in dict.fromkeys((start, max(first - 1, 0))):
+            piece = replace(result, qpos=result.qpos[s:last + 1],
+                            residuals=result.residuals[s:last + 1],
+                            targets=result.targets[s:last + 1])
+            r = _track_run(piece, thresholds, assist, (last - s + 0.5) / fps, controller,
+                           cfg, False, frame0=s)
+            judged = r.frames_tracked - (first - s)
+            yield r, s, judged
+            if judged > 0:
+                break
 
 
 def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
@@ -514,8 +574,9 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
     (0/1), ``steps_per_s`` (simulator throughput, planning included),
     ``work_j`` and ``work_j_per_kg`` (positive work of the hinge actuators),
     ``mpc`` (1 when the MPC tracked, 0 for the PD servos), ``retries`` (rewinds used),
-    ``segments`` and ``segments_failed`` (a whole-clip run: 1, and 1 when it failed) and
-    ``realtime_ratio`` (wall time per simulated second, run-ups included).
+    ``segments`` and ``segments_failed`` (a whole-clip run: 1, and 1 when it failed),
+    ``runs`` (simulations made: attempts and run-up restarts included) and
+    ``realtime_ratio`` (wall time per simulated second, every run included).
     """
     tr = track(result, thresholds, assist=assist, max_seconds=max_seconds,
                controller=controller, mpc=mpc, progress=progress)
@@ -533,5 +594,6 @@ def tracking(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_T
                  "work_j": tr.work_j, "work_j_per_kg": tr.work_j_per_kg,
                  "mpc": float(tr.controller == "mpc"), "retries": float(tr.retries),
                  "segments": float(tr.segments), "segments_failed": float(tr.segments_failed),
+                 "runs": float(tr.runs),
                  "realtime_ratio": tr.wall_s / sim_s if sim_s > 0 else float("nan")},
     )
