@@ -61,6 +61,21 @@ def test_benchmark_folds_follow_each_protocol(utk):
                                    for name, _, test in loso)
 
 
+def test_msr_action_sets_are_li_et_al_s_eight_actions_each_cross_subject(gesture_root: Path):
+    msr = load_gesture_clips(gesture_root, datasets=("msr_action3d",))
+    folds = benchmark_folds("msr_action3d_sets", msr)
+    assert [name for name, _, _ in folds] == ["AS1", "AS2", "AS3"]
+    for _, train, test in folds:
+        assert len({c.source_label for c in train}) == 8
+        assert {c.source_label for c in test} <= {c.source_label for c in train}
+        assert all(c.subject % 2 == 1 for c in train) and all(c.subject % 2 == 0 for c in test)
+    as1 = {c.source_label for c in folds[0][1]}
+    assert {"horizontal arm wave", "hand clap", "bend"} <= as1 and "high arm wave" not in as1
+    assert "side-boxing" in {c.source_label for c in folds[1][1]}
+    # High throw, tennis serve and pick up & throw are in two sets (AS1 and AS3).
+    assert len([f for f in folds if "tennis serve" in {c.source_label for c in f[1]}]) == 2
+
+
 def test_conditions_share_the_real_second(utk):
     clips = [c for c in utk if c.num_frames >= 40][:12]
     conds = condition_windows(clips, lambda h: np.repeat(h[:, -1:] + 0.05, 50, axis=1))
