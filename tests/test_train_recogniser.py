@@ -62,3 +62,7 @@ def test_benchmark_table_lists_published_figures() -> None:
     assert "HBRNN" not in old  # its 94.49 % is the action-set mean, not a 20-class figure
     gone = benchmark_table([{**row, "dataset": "ntu"}])
     assert "Lie group 90.9 %" in gone
+    sets = benchmark_table([{**row, "dataset": "msr_action3d_sets", "classes": list("abcd"),
+                             "folds": [{"fold": "AS1", "accuracy": 0.8, "classes": 2},
+                                       {"fold": "AS2", "accuracy": 0.9, "classes": 2}]}])
+    assert "| 2 per fold (4 in all) |" in sets and "(AS1 80.0, AS2 90.0)" in sets

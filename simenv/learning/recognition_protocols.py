@@ -303,7 +303,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             fold_cpu += history["train_cpu_s"]
         pred = np.array([labels.index(fold_labels[k]) for k in np.asarray(logits).argmax(1)])
         y = np.array([labels.index(c.source_label) for c in test])
-        per_fold.append({"fold": name, "n": len(test),
+        per_fold.append({"fold": name, "n": len(test), "classes": len(fold_labels),
                          "accuracy": round(float((pred == y).mean()), 4),
                          "train_cpu_s": round(fold_cpu, 1)})
         cpu += fold_cpu
