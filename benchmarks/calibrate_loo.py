@@ -62,6 +62,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import re
 import time
 from collections import Counter, defaultdict
@@ -146,12 +147,13 @@ SEGMENT_ATTEMPTS = 3
 #: Trackers a calibration run can judge ``tracking`` with, and how the report names them.
 TRACKERS = {"pd-assisted": "the root-assisted PD servos (about real time; the scorer's default "
                            "when this calibration was first run)",
-            "mpc": "the scorer's default, the unassisted MPC (tens of times real time)",
+"mpc": "the unassisted MPC, each clip in one run with one planner seed (the "
+                   "scorer's default when this calibration was run; tens of times real time)",
             "mpc-segments": f"the unassisted MPC in {SEGMENT_S:g} s segments, each simulated "
                             "from the captured state 1 s before it (tracking_segment_s)",
             "mpc-segments-seeds": f"the unassisted MPC in {SEGMENT_S:g} s segments as above, "
                                   f"each tried with up to {SEGMENT_ATTEMPTS} planner seeds "
-                                  "(MPCConfig.attempts)"}
+                                  "(MPCConfig.attempts; the scorer's default)"}
 
 
 def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
@@ -161,11 +163,10 @@ def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
     if tracker not in TRACKERS:
         raise SimenvError(f"unknown tracker {tracker!r}; one of {sorted(TRACKERS)}",
                           field="tracker")
-    if tracker == "mpc":
-        return ScoreConfig()
-    if tracker.startswith("mpc-segments"):
+    if tracker.startswith("mpc"):
+        segment_s = math.inf if tracker == "mpc" else SEGMENT_S
         attempts = SEGMENT_ATTEMPTS if tracker == "mpc-segments-seeds" else 1
-        return ScoreConfig(body=replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=SEGMENT_S),
+        return ScoreConfig(body=replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=segment_s),
                            mpc=MPCConfig(attempts=attempts))
     return ScoreConfig(tracking_assist=True, tracking_controller="pd")
 

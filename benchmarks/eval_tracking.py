@@ -69,7 +69,8 @@ DEFAULT_RESULTS = (DEFAULT_OUT, REPO / "out" / "eval_tracking_corrupt.jsonl",
                    REPO / "out" / "eval_tracking_64.jsonl",
                    REPO / "out" / "eval_tracking_corrupt_64.jsonl",
                    REPO / "out" / "eval_tracking_64_r3.jsonl",
-                   REPO / "out" / "eval_tracking_corrupt_64_r3.jsonl")
+                   REPO / "out" / "eval_tracking_corrupt_64_r3.jsonl",
+                   REPO / "out" / "eval_tracking_corrupt_64_a3.jsonl")
 DOCS = REPO / "docs" / "plausibility.md"
 BEGIN, END = "<!-- unassisted-tracking:begin -->", "<!-- unassisted-tracking:end -->"
 

@@ -13,6 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import calibrate_loo  # noqa: E402
 
 from simenv.core.errors import SimenvError  # noqa: E402
+from simenv.plausibility.metric import ScoreConfig  # noqa: E402
 from simenv.plausibility.metric_registry import PERSON_METRICS  # noqa: E402
 
 
@@ -100,6 +101,11 @@ def test_one_tracker_per_run_folder(tmp_path: Path) -> None:
     seeds = calibrate_loo.score_config("mpc-segments-seeds")
     assert seeds.body.tracking_segment_s == 4.0 and seeds.mpc.attempts == 3
     assert calibrate_loo.score_config("mpc").body.tracking_segment_s == float("inf")
+    assert calibrate_loo.score_config("mpc").mpc.attempts == 1
+    # The scorer's default is the last of them.
+    default = ScoreConfig()
+    assert (seeds.body.tracking_segment_s, seeds.mpc.attempts) == (
+        default.body.tracking_segment_s, default.mpc.attempts)
     assert calibrate_loo.run_tracker(tmp_path, None) == "pd-assisted"  # an old folder
     assert calibrate_loo.run_tracker(tmp_path, "mpc") == "mpc"
     assert calibrate_loo.run_tracker(tmp_path, None) == "mpc"

@@ -227,6 +227,12 @@ def test_score_tracking_segments_option(capsys):
     assert score_command.score_config(parser.parse_args(["score", "clip.bvh"])) is None
     status, _, err = run(capsys, "score", asset_path(WALK), "--tracking-segments", "0")
     assert status == 2 and "tracking_segment_s must be a positive number" in err
+    whole = score_command.score_config(parser.parse_args(
+        ["score", "clip.bvh", "--tracking-segments", "inf", "--tracking-attempts", "1"]))
+    assert whole.body.tracking_segment_s == float("inf") and whole.mpc.attempts == 1
+    assert whole.mpc.n_samples == score_command.score_config(args).mpc.n_samples
+    status, _, err = run(capsys, "score", asset_path(WALK), "--tracking-attempts", "0")
+    assert status == 2 and "MPCConfig.attempts" in err
 
 
 def test_rehearse_forwards_to_the_rehearsal(capsys, tmp_path):

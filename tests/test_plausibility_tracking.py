@@ -135,7 +135,7 @@ SEGMENTED = replace(DEFAULT_BODY_THRESHOLDS, tracking_segment_s=0.5, tracking_le
 
 def test_segmented_run_puts_the_segments_judged_frames_together(walk_2s_retargeted) -> None:
     walk = walk_2s_retargeted
-    assert track(walk, assist=True, max_seconds=0.3).segments == 1  # the default: one run
+    assert track(walk, assist=True, max_seconds=0.3).segments == 1  # shorter than 4 s
     tr = track(walk, SEGMENTED, assist=True)
     n = len(walk.qpos)
     assert tr.success and tr.segments == 4 and tr.segments_failed == 0

@@ -50,9 +50,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "read BVH files with the thorax and wrist bones that the CMU conversions collapse "
         "put back (reader's repair; listed in each record's repairs); default: as written"))
     sco.add_argument("--tracking-segments", type=float, metavar="SECONDS", help=(
-        "judge physics tracking of long clips in segments of this many seconds, each "
-        "simulated from the captured state 1 s before it (default: the whole clip in one "
-        "run; docs/plausibility.md)"))
+        "judge physics tracking of clips longer than this in segments of this many "
+        "seconds, each simulated from the captured state 1 s before it (default 4; inf: "
+        "the whole clip in one run; docs/plausibility.md)"))
+    sco.add_argument("--tracking-attempts", type=int, metavar="N", help=(
+        "planner seeds a failed tracking run (segment) may try before the motion is blamed "
+        "(default 3; 1: one seed)"))
     sco.add_argument("--reference", nargs="+", action="extend", metavar="REAL_PATH", help=(
         "judge the clips relative to real data of the same source: score these real files or "
         "folders (or read their earlier --out .jsonl results), calibrate every metric on them "
@@ -91,16 +94,23 @@ def score_config(args: argparse.Namespace) -> ScoreConfig | None:
     for the defaults.
 
     Raises:
-        SimenvError: ``--tracking-segments`` not a positive number of seconds.
+        SimenvError: ``--tracking-segments`` not a positive number of seconds, or
+            ``--tracking-attempts`` below 1.
     """
-    if args.tracking_segments is None:
+    if args.tracking_segments is None and args.tracking_attempts is None:
         return None
     # The scorer's settings load MuJoCo: only when an option asks for them.
     from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
     from simenv.plausibility.metric import ScoreConfig
 
-    return ScoreConfig(body=dataclasses.replace(DEFAULT_BODY_THRESHOLDS,
-                                                tracking_segment_s=args.tracking_segments))
+    config = ScoreConfig()
+    if args.tracking_segments is not None:
+        config = dataclasses.replace(config, body=dataclasses.replace(
+            DEFAULT_BODY_THRESHOLDS, tracking_segment_s=args.tracking_segments))
+    if args.tracking_attempts is not None:
+        config = dataclasses.replace(config, mpc=dataclasses.replace(
+            config.mpc, attempts=args.tracking_attempts))
+    return config
 
 
 def run(args: argparse.Namespace) -> int:

@@ -34,6 +34,9 @@ from simenv.plausibility.pair_dynamics import pair_root_residual
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 
+#: Planner seeds the scorer's tracking may try per run or segment (``MPCConfig.attempts``).
+SCORER_ATTEMPTS = 3
+
 
 @dataclass(frozen=True)
 class ScoreConfig:
@@ -60,7 +63,11 @@ class ScoreConfig:
             real time) and report it in the details (``assisted_success``,
             ``assisted_time_to_failure_s``, ``assisted_mpjpe_mm``,
             ``assisted_force_mean``) when the judged run is unassisted.
-        mpc: settings of the MPC (:class:`simenv.control.MPCConfig`).
+        mpc: settings of the MPC (:class:`simenv.control.MPCConfig`); the scorer's
+            default tries a failed run (each failed segment) with up to
+            :data:`SCORER_ATTEMPTS` planner seeds before the motion is blamed: a tracked
+            run shows the body can do it, a failed one only that one seed found no way
+            (on real CMU clips single seeds disagree: docs/plausibility.md).
         joint_limits: run the joint-limit probe (one extra retargeting onto a
             body with widened ranges).
         contact_pairs: key joint pairs (person A keypoint, person B keypoint)
@@ -73,7 +80,7 @@ class ScoreConfig:
     tracking_assist: bool = False
     tracking_controller: str = "mpc"
     tracking_assisted_detail: bool = True
-    mpc: MPCConfig = field(default_factory=MPCConfig)
+    mpc: MPCConfig = field(default_factory=lambda: MPCConfig(attempts=SCORER_ATTEMPTS))
     joint_limits: bool = True
     contact_pairs: tuple[tuple[str, str], ...] = DEFAULT_CONTACT_PAIRS
 

@@ -32,13 +32,14 @@ Blow-ups never raise: a non-finite state, an acceleration beyond
 stops the simulation, marks the result failed and records a
 :class:`~simenv.core.errors.PhysicsError` message naming the frame.
 
-Long clips can be judged in segments (``BodyThresholds.tracking_segment_s``, off by
-default): each segment of the clip is a run of its own, simulated from the captured state
-``tracking_lead_s`` before it, and the clip is tracked when every segment is. A whole-clip
-run asks the controller to hold a 20 s clip without drifting; on the 23 s CMU 01_01 the
-MPC falls at 9.0 s, yet every 3 s stretch from 6 to 11.5 s is tracked from the captured
-state (measured). Segments ask less than a whole run -- the body is put back on the
-capture at each run-up -- and they say so in the details (``segments``). A run-up that
+Long clips are judged in segments (``BodyThresholds.tracking_segment_s``, 4 s by
+default; infinity for one run): each segment of the clip is a run of its own, simulated
+from the captured state ``tracking_lead_s`` before it, and the clip is tracked when every
+segment is. A whole-clip run asks the controller to hold a 20 s clip without drifting;
+on the 23 s CMU 01_01 the MPC falls at 9.0 s, yet every 3 s stretch from 6 to 11.5 s is
+tracked from the captured state (measured). Segments ask less than a whole run -- the
+body is put back on the capture at each run-up -- and they say so in the details
+(``segments``). A run-up that
 falls (a capture glitch met at speed) is not judged: the segment is simulated again from
 the frame before its judged ones.
 
