@@ -331,8 +331,9 @@ def tables(records: list[dict], expected: list[str] | None = None,
     default = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts)
     settings = sorted({setting_of(r) for r in records}, key=lambda n: (n != default, n))
     clean_all = [r for r in records if r["corruption"] == "none"]
-    lines = (_comparison_table(clean_all, settings)
-             if len({setting_of(r) for r in clean_all}) > 1 else [])
+    # Side by side: the settings that ran clean clips (some ran corrupted copies only).
+    compared = [n for n in settings if any(setting_of(r) == n for r in clean_all)]
+    lines = _comparison_table(clean_all, compared) if len(compared) > 1 else []
     for n in settings:
         mine = [r for r in records if setting_of(r) == n]
         clean = [r for r in mine if r["corruption"] == "none"]
