@@ -147,8 +147,8 @@ SEGMENT_ATTEMPTS = 3
 #: Trackers a calibration run can judge ``tracking`` with, and how the report names them.
 TRACKERS = {"pd-assisted": "the root-assisted PD servos (about real time; the scorer's default "
                            "when this calibration was first run)",
-"mpc": "the unassisted MPC, each clip in one run with one planner seed (the "
-                   "scorer's default when this calibration was run; tens of times real time)",
+            "mpc": "the unassisted MPC, each clip in one run with one planner seed (the "
+                   "scorer's default when that calibration was run; tens of times real time)",
             "mpc-segments": f"the unassisted MPC in {SEGMENT_S:g} s segments, each simulated "
                             "from the captured state 1 s before it (tracking_segment_s)",
             "mpc-segments-seeds": f"the unassisted MPC in {SEGMENT_S:g} s segments as above, "
