@@ -122,6 +122,17 @@ def test_benchmark_rejects_unknown_datasets(gesture_root: Path):
         run_benchmark("ntu", gesture_root)
     with pytest.raises(SimenvError, match="unknown joint set"):
         run_benchmark("msr_action3d", gesture_root, joints="kinect")  # type: ignore[arg-type]
+    with pytest.raises(SimenvError, match="unknown distance"):
+        run_benchmark("utkinect", gesture_root, neighbour="cosine")  # type: ignore[arg-type]
+
+
+def test_nearest_neighbour_baseline_runs_the_benchmark_protocol(gesture_root: Path):
+    r = run_benchmark("utkinect", gesture_root, neighbour="euclidean", progress=False)
+    assert r["method"] == "nearest neighbour (euclidean)" and r["mirror"] == "none"
+    assert [f["fold"] for f in r["folds"]] == [f"s{s:02d}" for s in range(1, 11)]
+    assert sum(f["n"] for f in r["folds"]) == r["clips"] == r["scores"]["n"]
+    # Ten classes: chance is 10 %; unseen people's actions are far above it, not perfect.
+    assert 0.5 < r["scores"]["accuracy"] < 1.0
 
 
 def test_native_msr_clips_carry_the_20_kinect_joints(gesture_root: Path):

@@ -18,7 +18,9 @@ protocol, next to published figures (:data:`PUBLISHED`):
 Whole sequences are classified (the network takes any length); training windows are
 random crops of up to :data:`BENCHMARK_FRAMES` frames (``whole_sequences``: up to the
 longest clip, i.e. whole sequences), never partial (the benchmarks classify segmented
-actions); ``members`` networks of consecutive seeds can be averaged (logits).
+actions); ``members`` networks of consecutive seeds can be averaged (logits). The simplest
+baseline runs the same protocols with no network: each test sequence takes the label of its
+nearest training sequence (``neighbour``: :mod:`simenv.learning.nearest_neighbour`).
 
 Joints (``joints``): ``gesture15`` (default; the room's joint set, measured by all three
 datasets) or ``native``, each dataset's own skeleton as its reader gives it
@@ -44,6 +46,7 @@ calibrates the probabilities it is judged with.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -69,6 +72,12 @@ from simenv.data.gestures import (
     split_subject_folds,
 )
 from simenv.io.msr_action3d import MSR_CLASSES
+from simenv.learning.nearest_neighbour import (
+    NEIGHBOUR_DISTANCES,
+    NeighbourDistance,
+    nearest_neighbour,
+    resample_sequences,
+)
 from simenv.learning.recognition import (
     SHORT_FRAMES,
     Forecaster,
@@ -242,9 +251,30 @@ def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]
     return normalise_windows(np.stack([w for w, _ in cut]), valid, joints=joints), valid
 
 
+def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str], x: np.ndarray,
+                  valid: np.ndarray, config: RecognitionConfig, seed: int, members: int,
+                  skeleton: Skeleton, mirror_copies: bool, extra: dict[str, Any]
+                  ) -> tuple[np.ndarray, float]:
+    """One benchmark fold's networks: ``members`` of consecutive seeds trained on ``train``
+    (plus its mirror images with ``mirror_copies``) on ``fold_labels``, their logits on the
+    test windows ``x`` averaged; returns (predicted index into ``fold_labels``, CPU s)."""
+    if mirror_copies:
+        train = list(train) + [mirror_clip(c, skeleton) for c in train]
+    logits: np.ndarray | float = 0.0
+    cpu = 0.0
+    for member in range(members):
+        model, history = train_recogniser(
+            train, fold_labels, lambda c: c.source_label, replace(config, seed=seed + member),
+            progress=False, extra=extra)
+        logits = logits + logits_of(model, x, valid) / members
+        cpu += history["train_cpu_s"]
+    return np.asarray(logits).argmax(1), cpu
+
+
 def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
                   *, members: int = 1, whole_sequences: bool = False,
                   joints: BenchmarkJoints = "gesture15",
+                  neighbour: NeighbourDistance | None = None,
                   progress: bool = True) -> dict[str, Any]:
     """Train and test ``dataset`` (``msr_action3d``, ``msr_action3d_sets``, ``utkinect`` or
     ``florence3d``) on its own classes with its standard protocol (each fold's network on
@@ -252,8 +282,12 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     module docstring); returns accuracy (pooled over folds), the mean of per-fold
     accuracies, per-fold numbers, training CPU time and the published figures.
 
+    ``neighbour`` (``euclidean`` or ``dtw``): the nearest-neighbour baseline instead of the
+    networks, on the fold's training clips (no augmentation; ``members`` and the training
+    windows do not apply, ``train_cpu_s`` is the CPU time of its distances).
+
     Raises:
-        SimenvError: unknown dataset or joint set, or no clips.
+        SimenvError: unknown dataset, joint set or distance, or no clips.
     """
     if dataset not in PUBLISHED:
         raise SimenvError(f"unknown benchmark {dataset!r}; expected one of "
@@ -263,6 +297,9 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                           f"{', '.join(BENCHMARK_JOINTS)}", field="joints")
     if members < 1:
         raise SimenvError(f"members must be >= 1; got {members}", field="members")
+    if neighbour is not None and neighbour not in NEIGHBOUR_DISTANCES:
+        raise SimenvError(f"unknown distance {neighbour!r}; expected one of "
+                          f"{', '.join(NEIGHBOUR_DISTANCES)}", field="neighbour")
     root = Path(root)
     config = config or RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES,
                                          epochs=60)
@@ -289,20 +326,19 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     y_all, p_all, per_fold, cpu = [], [], [], 0.0
     for name, train, test in tqdm(folds, desc=f"benchmark {dataset}", disable=not progress):
         x, valid = whole_windows(test)
-        logits = 0.0
-        fold_cpu = 0.0
-        if mirror_copies:
-            train = list(train) + [mirror_clip(c, skeleton) for c in train]
-        fold_labels = sorted({c.source_label for c in (*train, *test)})
-        for member in range(members):
-            model, history = train_recogniser(
-                train, fold_labels, lambda c: c.source_label,
-                replace(train_config, seed=config.seed + member), progress=False,
-                extra={"benchmark": dataset, "joints": joints})
-            logits = logits + logits_of(model, x, valid) / members
-            fold_cpu += history["train_cpu_s"]
-        pred = np.array([labels.index(fold_labels[k]) for k in np.asarray(logits).argmax(1)])
         y = np.array([labels.index(c.source_label) for c in test])
+        fold_labels = sorted({c.source_label for c in (*train, *test)})
+        if neighbour is not None:
+            start = time.process_time()
+            fold_pred = nearest_neighbour(
+                resample_sequences(x, valid), resample_sequences(*whole_windows(train)),
+                np.array([fold_labels.index(c.source_label) for c in train]), neighbour)
+            fold_cpu = time.process_time() - start
+        else:
+            fold_pred, fold_cpu = _network_fold(
+                train, fold_labels, x, valid, train_config, config.seed, members, skeleton,
+                mirror_copies, extra={"benchmark": dataset, "joints": joints})
+        pred = np.array([labels.index(fold_labels[k]) for k in fold_pred])
         per_fold.append({"fold": name, "n": len(test), "classes": len(fold_labels),
                          "accuracy": round(float((pred == y).mean()), 4),
                          "train_cpu_s": round(fold_cpu, 1)})
@@ -317,8 +353,10 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             "mean_fold_accuracy": round(float(np.mean([f["accuracy"] for f in per_fold])), 4),
             "folds": per_fold, "train_cpu_s": round(cpu, 1), "members": members,
             "whole_sequences": whole_sequences, "joints": joints,
+            "method": "network" if neighbour is None else f"nearest neighbour ({neighbour})",
             "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},
-            "mirror": ("clips (each training clip and its mirror image, half the epochs)"
+            "mirror": ("none" if neighbour is not None else
+                       "clips (each training clip and its mirror image, half the epochs)"
                        if mirror_copies else "windows" if config.mirror else "none"),
             "config": asdict(config), "train_config": asdict(train_config),
             "published": PUBLISHED[dataset]}

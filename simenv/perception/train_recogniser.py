@@ -26,7 +26,9 @@ on are in-sample; the protocol's numbers are the unseen-subject ones.
 ``benchmark [--dataset NAME] [--joints {gesture15,native}]``:
 :func:`simenv.learning.recognition_protocols.run_benchmark` on MSR Action3D, UTKinect and Florence
 3D, printed next to the published figures; ``--joints native`` trains and tests on each
-dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``).
+dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``);
+``--neighbour {euclidean,dtw}`` runs the nearest-neighbour baseline instead of the networks
+(:mod:`simenv.learning.nearest_neighbour`; results ``<dataset>_nn-<distance>.json``).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from simenv.data.gestures import (
     load_labelled,
     subject_fold,
 )
+from simenv.learning.nearest_neighbour import NEIGHBOUR_DISTANCES
 from simenv.learning.recognition import Forecaster, RecognitionConfig, logits_of, train_recogniser
 from simenv.learning.recognition_protocols import (
     BENCHMARK_JOINTS,
@@ -321,9 +324,13 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
     for r in results:
         figures = PUBLISHED.get(r["dataset"], r["published"])
         pub = "; ".join(f"{k} {v:.1f} %" for k, v in figures.items())
-        windows = ("whole sequences" if r.get("whole_sequences") else
-                   f"crops <= {r['config']['max_frames']} frames")
-        windows += f", {r.get('members', 1)} network(s), {r.get('joints', 'gesture15')}"
+        method = r.get("method", "network")
+        if method != "network":  # a baseline without training windows
+            windows = f"none: {method}, whole sequences, {r.get('joints', 'gesture15')}"
+        else:
+            windows = ("whole sequences" if r.get("whole_sequences") else
+                       f"crops <= {r['config']['max_frames']} frames")
+            windows += f", {r.get('members', 1)} network(s), {r.get('joints', 'gesture15')}"
         if r.get("joints", "gesture15") != "gesture15":
             windows += f" ({len(r['skeleton']['joint_names'])} joints)"
         classes = f"{len(r['classes'])}"
@@ -373,6 +380,9 @@ def _parser() -> argparse.ArgumentParser:
     p_bench.add_argument("--joints", choices=BENCHMARK_JOINTS, default="gesture15",
                          help="joint set: the room's gesture15, or each dataset's own "
                          "skeleton (native)")
+    p_bench.add_argument("--neighbour", choices=NEIGHBOUR_DISTANCES,
+                         help="the nearest-neighbour baseline (this distance) instead of "
+                         "the networks")
     p_bench.add_argument("--json", action="store_true")
     return parser
 
@@ -414,8 +424,10 @@ def _benchmark_command(args: argparse.Namespace) -> None:
     results = []
     for name in names:
         results.append(run_benchmark(name, data, members=args.members,
-                                     whole_sequences=args.whole_sequences, joints=args.joints))
-        tag = f"{name}_m{args.members}_w{int(args.whole_sequences)}"
+                                     whole_sequences=args.whole_sequences, joints=args.joints,
+                                     neighbour=args.neighbour))
+        tag = (f"{name}_nn-{args.neighbour}" if args.neighbour else
+               f"{name}_m{args.members}_w{int(args.whole_sequences)}")
         if args.joints != "gesture15":
             tag += f"_{args.joints}"
         (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
