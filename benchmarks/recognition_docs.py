@@ -35,12 +35,16 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from doc_sections import replace_section
+
 import simenv.models
 from simenv.perception.loop import DEFAULT_CLASSIFIER
 from simenv.perception.train_recogniser import benchmark_table, protocol_table
 
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- perception:begin (benchmarks/recognition_docs.py) -->", "<!-- perception:end -->"
+BENCH_BEGIN = "<!-- benchmarks:begin (benchmarks/recognition_docs.py) -->"
+BENCH_END = "<!-- benchmarks:end -->"
 #: The issue's goals, as (condition or loop key, comparison, value).
 GOALS = {"real_3s": 0.90, "real_1s": 0.75, "gain_points": 12.5, "greeted": 0.90,
          "false_greet": 0.03, "tick_ms": 11.0}
@@ -330,6 +334,48 @@ of the leave-subjects-out protocol, so every row is on subjects its networks nev
 """
 
 
+def benchmark_section(bench: list[dict[str, Any]], provenance: str) -> str:
+    """The benchmarks' section of docs/recognition.md between its markers (regenerated alone
+    by ``--benchmark`` without ``--train``; ``provenance`` names the command that made it)."""
+    table = benchmark_table(bench) if bench else "Not run for this document."
+    networks = {(r["dataset"], r.get("joints")): (r | e)["mean_fold_accuracy"] for r in bench
+                for e in [*r.get("smaller_ensembles", []), {}]
+                if r.get("method", "network") == "network" and (r | e).get("members", 1) == 1
+                and not r.get("whole_sequences")}
+    vs_nn = [f"{r['dataset']} {100 * networks[r['dataset'], r.get('joints')]:.1f} % against "
+             f"{100 * r['mean_fold_accuracy']:.1f} %" for r in bench
+             if r.get("method") == "nearest neighbour (dtw)"
+             and (r["dataset"], r.get("joints")) in networks]
+    nn_text = ("One network against the nearest neighbour with DTW (mean of folds): "
+               + "; ".join(vs_nn) + "." if vs_nn else "")
+    return f"""{BENCH_BEGIN}
+## Benchmarks, each dataset on its own classes with its standard protocol
+
+Section {provenance[0].lower()}{provenance[1:]}
+
+`python -m simenv.perception.train_recogniser benchmark` (`simenv eval classifier --benchmark`):
+MSR Action3D cross-subject on the 557-sequence list (our copy lacks subject 10: 4 test
+subjects instead of 5), MSR Action3D's three action sets of Li et al. 2010 (AS1-AS3, 8
+actions each, cross-subject, one network per set), UTKinect-Action3D and Florence 3D
+leave-one-subject-out. Whole sequences are classified. "Pooled" counts every test sequence
+once; "mean of folds" averages the folds' accuracies (what leave-one-subject-out papers
+usually report, and for the action sets the mean of the three that papers report). HBRNN's
+94.5 % is the action-set mean of its paper (Du et al. 2015), not a 20-class figure: it is
+compared with the action-set row, the Lie-group 89.5 % with the 20-class rows.
+
+The simplest baseline runs the same protocols with no network
+(`--neighbour euclidean|dtw`, `simenv.learning.nearest_neighbour`): each test sequence,
+normalised as the network sees it and resampled to 40 samples, takes the label of the
+nearest training sequence (mean joint distance, frames matched by time fraction or by
+dynamic time warping). An ensemble's row of k networks is the first k networks of the
+run with the most (consecutive seeds), so its rows share networks.
+
+{table}
+
+{nn_text}
+{BENCH_END}"""
+
+
 def recognition_doc(m: dict[str, Any], bench: list[dict[str, Any]],
                     forecast: dict[str, Any] | None, ticks: dict[str, Any] | None,
                     evals: dict[str, Any], header: str,
@@ -340,7 +386,6 @@ def recognition_doc(m: dict[str, Any], bench: list[dict[str, Any]],
     the page's one template, read top to bottom as the page is; the computed parts are
     the ``_*_text`` and ``_*_table`` helpers."""
     folds = m["protocol"]["folds"]
-    bench_text = benchmark_table(bench) if bench else "Not run for this document."
     eval_lines = "\n".join(
         f"* `{name}`: " + ", ".join(f"{c} {v['accuracy']:.3f} (balanced "
                                     f"{v['balanced_accuracy']:.3f})"
@@ -366,19 +411,7 @@ augmentation (mirror, rotation and sensor tilt, scale, jitter, dropped joints, s
 thesis's transformer (`gesture-classifier`) stays available; its evaluation is in
 [recognition_transformer.md](recognition_transformer.md).
 
-## Benchmarks, each dataset on its own classes with its standard protocol
-
-`python -m simenv.perception.train_recogniser benchmark` (`simenv eval classifier --benchmark`):
-MSR Action3D cross-subject on the 557-sequence list (our copy lacks subject 10: 4 test
-subjects instead of 5), MSR Action3D's three action sets of Li et al. 2010 (AS1-AS3, 8
-actions each, cross-subject, one network per set), UTKinect-Action3D and Florence 3D
-leave-one-subject-out. Whole sequences are classified. "Pooled" counts every test sequence
-once; "mean of folds" averages the folds' accuracies (what leave-one-subject-out papers
-usually report, and for the action sets the mean of the three that papers report). HBRNN's
-94.5 % is the action-set mean of its paper (Du et al. 2015), not a 20-class figure: it is
-compared with the action-set row, the Lie-group 89.5 % with the 20-class rows.
-
-{bench_text}
+{benchmark_section(bench, header)}
 
 ## The room's vocabulary on subjects it never saw
 
@@ -509,7 +542,8 @@ decided before the gesture ends.
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--train", required=True, type=Path)
+    parser.add_argument("--train", type=Path, help="without it, only the benchmarks' section "
+                        "of docs/recognition.md is regenerated (from --benchmark)")
     parser.add_argument("--benchmark", type=Path)
     parser.add_argument("--forecast", type=Path)
     parser.add_argument("--ticks", type=Path)
@@ -519,14 +553,22 @@ def main() -> int:
     args = parser.parse_args()
     command = "python benchmarks/recognition_docs.py " + " ".join(sys.argv[1:])
     header = _header(command)
-    m = json.loads((args.train / "metrics.json").read_text())
     bench = [json.loads(p.read_text()) for p in sorted(args.benchmark.glob("*.json"))] \
         if args.benchmark else []
+    docs = ROOT / "docs"
+    if args.train is None:
+        if not bench:
+            parser.error("--benchmark DIR with result files is needed without --train")
+        text = benchmark_section(bench, header)
+        replace_section(docs / "recognition.md", BENCH_BEGIN, BENCH_END,
+                        text.removeprefix(BENCH_BEGIN + "\n").removesuffix("\n" + BENCH_END))
+        print(f"wrote the benchmarks' section of {docs / 'recognition.md'}")
+        return 0
+    m = json.loads((args.train / "metrics.json").read_text())
     forecast = json.loads(args.forecast.read_text()) if args.forecast else None
     ticks = json.loads(args.ticks.read_text()) if args.ticks else None
     evals = {p.parent.name: json.loads(p.read_text())
              for p in sorted(args.eval.glob("*/metrics.json"))} if args.eval else {}
-    docs = ROOT / "docs"
     ablation = json.loads((args.ablation / "metrics.json").read_text()) \
         if args.ablation else None
     variants = load_variants(args.variants) if args.variants else None

@@ -169,7 +169,13 @@ def test_folds_keep_held_out_subjects_out(recordings) -> None:
 
 
 def test_short_training_lowers_the_loss_and_evaluates(recordings) -> None:
-    from simenv.learning.train_gesture_predictor import TrainConfig, eval_windows, evaluate, train
+    from simenv.learning.train_gesture_predictor import (
+        TrainConfig,
+        eval_windows,
+        evaluate,
+        retrieval_baselines,
+        train,
+    )
 
     train_recs = [r for r in recordings if r.fold != 0]
     model, history = train(train_recs, TrainConfig(steps=300, batch=64, seed=0),
@@ -177,9 +183,10 @@ def test_short_training_lowers_the_loss_and_evaluates(recordings) -> None:
     assert history["loss"][-1] < 0.9 * history["loss"][0]
     assert "utkinect/s01" not in history["subjects"]  # fold 0's subject stays out
     windows, names = eval_windows([r for r in recordings if r.fold == 0], stride=25)
-    result = evaluate(model, windows, names)
+    result = evaluate(model, windows, names, retrieval_baselines(train_recs))
     assert set(result) >= {"all", "utkinect", "msr_action3d"}
     table = result["all"]
-    for method in ("model-learned", "model-damped", "zero-velocity", "constant-velocity"):
+    for method in ("model-learned", "model-damped", "zero-velocity", "constant-velocity",
+                   "nearest-neighbour", "20-nearest-neighbours"):
         assert np.isfinite(table[method]["mpjpe_2s_mm"])
     assert table["zero-velocity"]["mpjs_mps"] == 0.0 and table["real_mpjs_mps"] > 0

@@ -126,6 +126,20 @@ def test_benchmark_rejects_unknown_datasets(gesture_root: Path):
         run_benchmark("utkinect", gesture_root, neighbour="cosine")  # type: ignore[arg-type]
 
 
+def test_an_ensemble_benchmark_reports_its_first_networks_alone(gesture_root: Path):
+    config = RecognitionConfig(partial_prob=0.0, max_frames=75, epochs=1)
+    pair = run_benchmark("msr_action3d", gesture_root, config, members=2, progress=False)
+    one = run_benchmark("msr_action3d", gesture_root, config, members=1, progress=False)
+    assert one["smaller_ensembles"] == []
+    (first,) = pair["smaller_ensembles"]
+    assert first["members"] == 1 and pair["members"] == 2
+    # The pair's first network is the single run's network (same seed), bit for bit.
+    assert first["scores"] == one["scores"]
+    assert first["mean_fold_accuracy"] == one["mean_fold_accuracy"]
+    assert 0 < first["train_cpu_s"] < pair["train_cpu_s"]
+    assert [f["fold"] for f in first["folds"]] == [f["fold"] for f in pair["folds"]]
+
+
 def test_nearest_neighbour_baseline_runs_the_benchmark_protocol(gesture_root: Path):
     r = run_benchmark("utkinect", gesture_root, neighbour="euclidean", progress=False)
     assert r["method"] == "nearest neighbour (euclidean)" and r["mirror"] == "none"

@@ -254,21 +254,28 @@ def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]
 def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str], x: np.ndarray,
                   valid: np.ndarray, config: RecognitionConfig, seed: int, members: int,
                   skeleton: Skeleton, mirror_copies: bool, extra: dict[str, Any]
-                  ) -> tuple[np.ndarray, float]:
+                  ) -> tuple[list[np.ndarray], list[float]]:
     """One benchmark fold's networks: ``members`` of consecutive seeds trained on ``train``
-    (plus its mirror images with ``mirror_copies``) on ``fold_labels``, their logits on the
-    test windows ``x`` averaged; returns (predicted index into ``fold_labels``, CPU s)."""
+    (plus its mirror images with ``mirror_copies``) on ``fold_labels``; returns, for each
+    k = 1..members, the predictions (index into ``fold_labels``) of the first k networks'
+    averaged logits on the test windows ``x``, and each network's training CPU s."""
     if mirror_copies:
         train = list(train) + [mirror_clip(c, skeleton) for c in train]
-    logits: np.ndarray | float = 0.0
-    cpu = 0.0
+    total: np.ndarray | float = 0.0
+    preds, cpu = [], []
     for member in range(members):
         model, history = train_recogniser(
             train, fold_labels, lambda c: c.source_label, replace(config, seed=seed + member),
             progress=False, extra=extra)
-        logits = logits + logits_of(model, x, valid) / members
-        cpu += history["train_cpu_s"]
-    return np.asarray(logits).argmax(1), cpu
+        total = total + logits_of(model, x, valid)
+        preds.append(np.asarray(total).argmax(1))  # the mean's argmax: the sum's
+        cpu.append(history["train_cpu_s"])
+    return preds, cpu
+
+
+def _ensemble_sizes(members: int) -> list[int]:
+    """Ensemble sizes a result reports besides its own: 1 and the odd sizes below it."""
+    return [k for k in range(1, members) if k == 1 or k % 2]
 
 
 def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
@@ -280,7 +287,9 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     ``florence3d``) on its own classes with its standard protocol (each fold's network on
     the classes of its fold: an action set's 8), on ``joints`` (``gesture15`` or ``native``,
     module docstring); returns accuracy (pooled over folds), the mean of per-fold
-    accuracies, per-fold numbers, training CPU time and the published figures.
+    accuracies, per-fold numbers, training CPU time and the published figures; with
+    ``members`` > 1 the same for the ensembles of its first k networks too
+    (``smaller_ensembles``: k = 1 and the odd k below ``members``).
 
     ``neighbour`` (``euclidean`` or ``dtw``): the nearest-neighbour baseline instead of the
     networks, on the fold's training clips (no augmentation; ``members`` and the training
@@ -323,35 +332,49 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     train_config = (replace(config, mirror=False, epochs=max(1, round(config.epochs / 2)))
                     if mirror_copies else config)
     folds = benchmark_folds(dataset, clips)
-    y_all, p_all, per_fold, cpu = [], [], [], 0.0
+    # Per ensemble size k (the first k networks; one entry for the nearest neighbour):
+    # predictions pooled over folds, per-fold rows, CPU seconds.
+    sizes = 1 if neighbour is not None else members
+    y_all: list[np.ndarray] = []
+    p_all: list[list[np.ndarray]] = [[] for _ in range(sizes)]
+    per_fold: list[list[dict[str, Any]]] = [[] for _ in range(sizes)]
+    cpu = np.zeros(sizes)
     for name, train, test in tqdm(folds, desc=f"benchmark {dataset}", disable=not progress):
         x, valid = whole_windows(test)
         y = np.array([labels.index(c.source_label) for c in test])
         fold_labels = sorted({c.source_label for c in (*train, *test)})
         if neighbour is not None:
             start = time.process_time()
-            fold_pred = nearest_neighbour(
+            fold_preds = [nearest_neighbour(
                 resample_sequences(x, valid), resample_sequences(*whole_windows(train)),
-                np.array([fold_labels.index(c.source_label) for c in train]), neighbour)
-            fold_cpu = time.process_time() - start
+                np.array([fold_labels.index(c.source_label) for c in train]), neighbour)]
+            fold_cpu = [time.process_time() - start]
         else:
-            fold_pred, fold_cpu = _network_fold(
+            fold_preds, fold_cpu = _network_fold(
                 train, fold_labels, x, valid, train_config, config.seed, members, skeleton,
                 mirror_copies, extra={"benchmark": dataset, "joints": joints})
-        pred = np.array([labels.index(fold_labels[k]) for k in fold_pred])
-        per_fold.append({"fold": name, "n": len(test), "classes": len(fold_labels),
-                         "accuracy": round(float((pred == y).mean()), 4),
-                         "train_cpu_s": round(fold_cpu, 1)})
-        cpu += fold_cpu
         y_all.append(y)
-        p_all.append(pred)
-    y, pred = np.concatenate(y_all), np.concatenate(p_all)
+        for k, fold_pred in enumerate(fold_preds):
+            pred = np.array([labels.index(fold_labels[i]) for i in fold_pred])
+            cpu[k:] += fold_cpu[k]
+            per_fold[k].append({"fold": name, "n": len(test), "classes": len(fold_labels),
+                                "accuracy": round(float((pred == y).mean()), 4),
+                                "train_cpu_s": round(float(np.sum(fold_cpu[:k + 1])), 1)})
+            p_all[k].append(pred)
+    y = np.concatenate(y_all)
+
+    def summary(k: int) -> dict[str, Any]:
+        return {"scores": classification_scores(y, np.concatenate(p_all[k]), labels),
+                "mean_fold_accuracy": round(float(np.mean([f["accuracy"]
+                                                           for f in per_fold[k]])), 4),
+                "folds": per_fold[k], "train_cpu_s": round(float(cpu[k]), 1)}
+
+    smaller = [] if neighbour is not None else _ensemble_sizes(members)
     return {"dataset": dataset, "protocol": BENCHMARK_PROTOCOLS.get(dataset,
                                                                     "leave-one-subject-out"),
             "classes": labels, "clips": len(clips), "excluded": excluded,
-            "scores": classification_scores(y, pred, labels),
-            "mean_fold_accuracy": round(float(np.mean([f["accuracy"] for f in per_fold])), 4),
-            "folds": per_fold, "train_cpu_s": round(cpu, 1), "members": members,
+            **summary(sizes - 1), "members": members,
+            "smaller_ensembles": [{"members": k} | summary(k - 1) for k in smaller],
             "whole_sequences": whole_sequences, "joints": joints,
             "method": "network" if neighbour is None else f"nearest neighbour ({neighbour})",
             "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},

@@ -61,7 +61,7 @@ import os
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -84,6 +84,7 @@ from simenv.data.gestures import (
 )
 from simenv.data.prediction_metrics import mean_per_joint_speed, per_frame_mpjpe_mm
 from simenv.io import load, utkinect
+from simenv.models.baselines import Predictor
 from simenv.models.gesture_predictor import (
     ROOT_MODES,
     UNIT,
@@ -94,6 +95,7 @@ from simenv.models.gesture_predictor import (
     position_velocity_loss,
     to_body,
 )
+from simenv.models.retrieval_forecaster import NearestNeighbourForecaster
 from simenv.models.training import cosine_lr
 
 #: Where fold checkpoints go (git-ignored).
@@ -102,6 +104,10 @@ OUT = Path("out/gesture-predictor")
 SHIPPED_NAME = "predictor-gesture-25-50"
 #: Stride of the evaluation windows, frames (0.2 s).
 EVAL_STRIDE = 5
+#: Neighbours averaged by the retrieval baselines (:func:`retrieval_baselines`): the
+#: nearest alone, and a mean of 20 (chosen on fold 0's held-out windows among 1, 5, 20 and
+#: 50: a choice that favours the baseline, not the model).
+RETRIEVAL_K = (1, 20)
 #: The forecaster's goals: forecast MPJS at least this fraction of the real one, and MPJPE
 #: at 1 s and 2 s at least this fraction below zero-velocity.
 GOAL_MPJS_RATIO = 0.5
@@ -391,13 +397,15 @@ def _scores(pred: np.ndarray, history: np.ndarray, future: np.ndarray, fps: floa
             "curve_mm": [round(float(c), 2) for c in curve]}
 
 
-def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray | None = None
-             ) -> dict[str, Any]:
+def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray | None = None,
+             baselines: Mapping[str, Predictor] | None = None) -> dict[str, Any]:
     """Scores of the model (each root mode), zero- and constant-velocity on world windows.
 
     Args:
         windows: (N, H + F, 15, 3) world positions, metres. datasets: (N,) keys to also
             score per dataset.
+        baselines: further forecasters by name (each given the model's H history frames,
+            forecasting its F), e.g. :func:`retrieval_baselines`.
 
     Returns:
         ``{"all": table, "<dataset>": table, ...}``; a table has ``windows``,
@@ -411,6 +419,8 @@ def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray 
              for m in ROOT_MODES}
     preds["zero-velocity"] = zero_velocity(hist, f)
     preds["constant-velocity"] = constant_velocity(hist, f)
+    for name, baseline in (baselines or {}).items():
+        preds[name] = baseline.predict(hist).astype(np.float64)
     groups = {"all": np.ones(len(windows), bool)}
     if datasets is not None:
         groups |= {d: datasets == d for d in sorted(set(datasets.tolist()))}
@@ -425,6 +435,15 @@ def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray 
                   **{k: _scores(p[mask], hist[mask], fut[mask], model.fps)
                      for k, p in preds.items()}}
     return out
+
+
+def retrieval_baselines(recordings: Sequence[Recording], history_len: int = 25,
+                        future_len: int = 50) -> dict[str, NearestNeighbourForecaster]:
+    """The nearest-neighbour forecasters (:data:`RETRIEVAL_K` neighbours each) whose bank is
+    every window of ``recordings`` (stride :data:`EVAL_STRIDE`), by table name."""
+    bank, _ = eval_windows(recordings, history_len + future_len)
+    return {("nearest-neighbour" if k == 1 else f"{k}-nearest-neighbours"):
+            NearestNeighbourForecaster(bank, history_len, k=k) for k in RETRIEVAL_K}
 
 
 def _pool(tables: Sequence[dict[str, Any]]) -> dict[str, Any]:
@@ -503,8 +522,10 @@ def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
         if held & trained_on:
             raise SimenvError(f"fold {k} checkpoint was trained on held-out subjects "
                               f"{sorted(held & trained_on)}", source=path)
-        windows, names = eval_windows(split_fold(recordings, k)[1])
-        result["folds"][k] = evaluate(model, windows, names)
+        train_recs, test_recs = split_fold(recordings, k)
+        windows, names = eval_windows(test_recs)
+        result["folds"][k] = evaluate(model, windows, names, retrieval_baselines(
+            train_recs, model.history_len, model.future_len))
         result["train_cpu_s"][k] = model.metadata.get("train_cpu_s")
     groups = sorted({g for t in result["folds"].values() for g in t})
     result["pooled"] = {g: _pool([t[g] for t in result["folds"].values() if g in t])
@@ -561,6 +582,24 @@ def root_mode_table(result: dict[str, Any]) -> str:
         cells = [f"{t[f'model-{m}']['mpjpe_1s_mm']:.0f} / {t[f'model-{m}']['mpjpe_2s_mm']:.0f}"
                  f" / {t[f'model-{m}']['mpjpe_mean_mm']:.0f}" for m in ROOT_MODES]
         lines.append(f"| {g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def baseline_table(result: dict[str, Any], root_mode: str = "learned") -> str:
+    """Pooled MPJPE and MPJS of the model against every baseline of the result."""
+    lines = ["| pooled | forecaster | MPJPE 1 s / 2 s / mean 0-2 s, mm | vs zero-velocity "
+             "(1 s / 2 s) | MPJS, m/s (real) |", "|---|---|---|---|---|"]
+    for g, t in result["pooled"].items():
+        z = t["zero-velocity"]
+        names = [f"model-{root_mode}"] + [k for k in t if isinstance(t[k], dict)
+                                          and not k.startswith("model-")]
+        for name in names:
+            a = t[name]
+            lines.append(
+                f"| {g} | {name} | {a['mpjpe_1s_mm']:.0f} / {a['mpjpe_2s_mm']:.0f} / "
+                f"{a['mpjpe_mean_mm']:.0f} | {_gain(a['mpjpe_1s_mm'], z['mpjpe_1s_mm'])} / "
+                f"{_gain(a['mpjpe_2s_mm'], z['mpjpe_2s_mm'])} | {a['mpjs_mps']:.2f} "
+                f"({t['real_mpjs_mps']:.2f}) |")
     return "\n".join(lines)
 
 
@@ -696,6 +735,13 @@ def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) 
         "spine velocity decaying with tau = 0.5 s, `still` = the spine stays. "
         "MPJPE 1 s / 2 s / mean, mm.", "",
         root_mode_table(result), "",
+        "## Against the simplest baselines (pooled)", "",
+        "Zero-velocity, constant-velocity and retrieval: the nearest neighbour "
+        "(`simenv.models.retrieval_forecaster`: the future of the training window whose "
+        "25-frame history, in its body frame, is nearest; its bank is every window of the "
+        "fold's training recordings, CMU included, stride 5) and the mean future of the "
+        f"{RETRIEVAL_K[-1]} nearest.", "",
+        baseline_table(result, root_mode), "",
         f"Training CPU time per fold: {', '.join(f'{c:.0f} s' for c in cpu)} (one thread).",
         "", "Skipped recordings: " + _skipped_summary(result["skipped"]) + ".", ""])
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -741,6 +787,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(verdict(result, args.root_mode))
         print()
         print(root_mode_table(result))
+        print()
+        print(baseline_table(result, args.root_mode))
         if args.doc:
             write_doc(args.doc, result, command, args.root_mode)
             print(f"wrote {args.doc}")

@@ -321,7 +321,10 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
     lines = ["| dataset | protocol | classes | clips | training windows | simenv accuracy "
              "(pooled) | mean of folds | published | training CPU s |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for r in results:
+    # An ensemble's result carries its smaller ensembles (first k networks): a row each.
+    rows = [r | smaller for r in results
+            for smaller in [*r.get("smaller_ensembles", []), {}]]
+    for r in rows:
         figures = PUBLISHED.get(r["dataset"], r["published"])
         pub = "; ".join(f"{k} {v:.1f} %" for k, v in figures.items())
         method = r.get("method", "network")
