@@ -31,6 +31,7 @@ from simenv.learning.recognition_protocols import (
     whole_windows,
     window_mirror_complete,
 )
+from simenv.perception.train_recogniser import benchmark_table
 
 
 @pytest.fixture(scope="module")
@@ -138,6 +139,12 @@ def test_an_ensemble_benchmark_reports_its_first_networks_alone(gesture_root: Pa
     assert first["mean_fold_accuracy"] == one["mean_fold_accuracy"]
     assert 0 < first["train_cpu_s"] < pair["train_cpu_s"]
     assert [f["fold"] for f in first["folds"]] == [f["fold"] for f in pair["folds"]]
+    # The same network judging each test clip and its mirror image (test-time augmentation).
+    both = run_benchmark("msr_action3d", gesture_root, config, mirror_test=True,
+                         progress=False)
+    assert both["mirror_test"] and not one["mirror_test"]
+    assert both["train_cpu_s"] > 0 and both["scores"]["n"] == one["scores"]["n"]
+    assert "test clip + its mirror" in benchmark_table([both])
 
 
 def test_nearest_neighbour_baseline_runs_the_benchmark_protocol(gesture_root: Path):

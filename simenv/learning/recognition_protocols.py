@@ -251,14 +251,15 @@ def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]
     return normalise_windows(np.stack([w for w, _ in cut]), valid, joints=joints), valid
 
 
-def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str], x: np.ndarray,
-                  valid: np.ndarray, config: RecognitionConfig, seed: int, members: int,
-                  skeleton: Skeleton, mirror_copies: bool, extra: dict[str, Any]
-                  ) -> tuple[list[np.ndarray], list[float]]:
+def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
+                  tests: Sequence[tuple[np.ndarray, np.ndarray]], config: RecognitionConfig,
+                  seed: int, members: int, skeleton: Skeleton, mirror_copies: bool,
+                  extra: dict[str, Any]) -> tuple[list[np.ndarray], list[float]]:
     """One benchmark fold's networks: ``members`` of consecutive seeds trained on ``train``
     (plus its mirror images with ``mirror_copies``) on ``fold_labels``; returns, for each
     k = 1..members, the predictions (index into ``fold_labels``) of the first k networks'
-    averaged logits on the test windows ``x``, and each network's training CPU s."""
+    logits averaged over the networks and over ``tests`` (views of the same test clips:
+    (windows, valid) each), and each network's training CPU s."""
     if mirror_copies:
         train = list(train) + [mirror_clip(c, skeleton) for c in train]
     total: np.ndarray | float = 0.0
@@ -267,7 +268,7 @@ def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str], x: n
         model, history = train_recogniser(
             train, fold_labels, lambda c: c.source_label, replace(config, seed=seed + member),
             progress=False, extra=extra)
-        total = total + logits_of(model, x, valid)
+        total = total + sum(logits_of(model, x, valid) for x, valid in tests)
         preds.append(np.asarray(total).argmax(1))  # the mean's argmax: the sum's
         cpu.append(history["train_cpu_s"])
     return preds, cpu
@@ -281,7 +282,7 @@ def _ensemble_sizes(members: int) -> list[int]:
 def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
                   *, members: int = 1, whole_sequences: bool = False,
                   joints: BenchmarkJoints = "gesture15",
-                  neighbour: NeighbourDistance | None = None,
+                  neighbour: NeighbourDistance | None = None, mirror_test: bool = False,
                   progress: bool = True) -> dict[str, Any]:
     """Train and test ``dataset`` (``msr_action3d``, ``msr_action3d_sets``, ``utkinect`` or
     ``florence3d``) on its own classes with its standard protocol (each fold's network on
@@ -294,6 +295,8 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     ``neighbour`` (``euclidean`` or ``dtw``): the nearest-neighbour baseline instead of the
     networks, on the fold's training clips (no augmentation; ``members`` and the training
     windows do not apply, ``train_cpu_s`` is the CPU time of its distances).
+    ``mirror_test``: a network's logits are averaged over each test clip and its mirror
+    image (test-time augmentation; the networks train with mirrored windows).
 
     Raises:
         SimenvError: unknown dataset, joint set or distance, or no clips.
@@ -350,8 +353,11 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                 np.array([fold_labels.index(c.source_label) for c in train]), neighbour)]
             fold_cpu = [time.process_time() - start]
         else:
+            tests = [(x, valid)]
+            if mirror_test:
+                tests.append(whole_windows([mirror_clip(c, skeleton) for c in test]))
             fold_preds, fold_cpu = _network_fold(
-                train, fold_labels, x, valid, train_config, config.seed, members, skeleton,
+                train, fold_labels, tests, train_config, config.seed, members, skeleton,
                 mirror_copies, extra={"benchmark": dataset, "joints": joints})
         y_all.append(y)
         for k, fold_pred in enumerate(fold_preds):
@@ -377,6 +383,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             "smaller_ensembles": [{"members": k} | summary(k - 1) for k in smaller],
             "whole_sequences": whole_sequences, "joints": joints,
             "method": "network" if neighbour is None else f"nearest neighbour ({neighbour})",
+            "mirror_test": mirror_test and neighbour is None,
             "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},
             "mirror": ("none" if neighbour is not None else
                        "clips (each training clip and its mirror image, half the epochs)"

@@ -334,6 +334,8 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
             windows = ("whole sequences" if r.get("whole_sequences") else
                        f"crops <= {r['config']['max_frames']} frames")
             windows += f", {r.get('members', 1)} network(s), {r.get('joints', 'gesture15')}"
+            if r.get("mirror_test"):
+                windows += ", test clip + its mirror"
         if r.get("joints", "gesture15") != "gesture15":
             windows += f" ({len(r['skeleton']['joint_names'])} joints)"
         classes = f"{len(r['classes'])}"
@@ -386,6 +388,8 @@ def _parser() -> argparse.ArgumentParser:
     p_bench.add_argument("--neighbour", choices=NEIGHBOUR_DISTANCES,
                          help="the nearest-neighbour baseline (this distance) instead of "
                          "the networks")
+    p_bench.add_argument("--mirror-test", action="store_true",
+                         help="average each network over the test clip and its mirror image")
     p_bench.add_argument("--json", action="store_true")
     return parser
 
@@ -428,11 +432,13 @@ def _benchmark_command(args: argparse.Namespace) -> None:
     for name in names:
         results.append(run_benchmark(name, data, members=args.members,
                                      whole_sequences=args.whole_sequences, joints=args.joints,
-                                     neighbour=args.neighbour))
+                                     neighbour=args.neighbour, mirror_test=args.mirror_test))
         tag = (f"{name}_nn-{args.neighbour}" if args.neighbour else
                f"{name}_m{args.members}_w{int(args.whole_sequences)}")
         if args.joints != "gesture15":
             tag += f"_{args.joints}"
+        if args.mirror_test and not args.neighbour:
+            tag += "_mirror-test"
         (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
     print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
                       | {"accuracy": r["scores"]["accuracy"]} for r in results])
