@@ -514,9 +514,8 @@ def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
     for k in folds:
         path = fold_dir(k, out) / "model.npz"
         if retrain or not path.is_file():
-            model, _ = run_fold(recordings, k, config, out, progress)
-        else:
-            model = GesturePredictor.load(path)
+            run_fold(recordings, k, config, out, progress)
+        model = GesturePredictor.load(path)  # with the metadata a fresh model lacks
         held = {r.subject_key for r in split_fold(recordings, k)[1]}
         trained_on = set(model.metadata.get("train_subjects", []))
         if held & trained_on:
