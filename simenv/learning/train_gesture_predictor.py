@@ -48,9 +48,10 @@ Metrics (:func:`evaluate`)
 MPJPE (mean per-joint position error over the 15 world-frame joints, mm) at frame 25
 (1 s), frame 50 (2 s) and the mean over the 50 frames, for the model (each root mode of
 :data:`simenv.models.gesture_predictor.ROOT_MODES`), zero-velocity (repeat the last
-frame) and constant-velocity (continue the last frame-to-frame step); MPJS (mean per-joint
-speed over the last observed frame and the 50 forecast frames, m/s) of each forecast and of
-the real future.
+frame), constant-velocity (continue the last frame-to-frame step) and, in the fold
+evaluation, retrieval (:func:`retrieval_baselines`: the future of the nearest training window,
+and the mean of the :data:`RETRIEVAL_K` nearest); MPJS (mean per-joint speed over the last
+observed frame and the 50 forecast frames, m/s) of each forecast and of the real future.
 """
 
 from __future__ import annotations

@@ -28,7 +28,9 @@ on are in-sample; the protocol's numbers are the unseen-subject ones.
 3D, printed next to the published figures; ``--joints native`` trains and tests on each
 dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``);
 ``--neighbour {euclidean,dtw}`` runs the nearest-neighbour baseline instead of the networks
-(:mod:`simenv.learning.nearest_neighbour`; results ``<dataset>_nn-<distance>.json``).
+(:mod:`simenv.learning.nearest_neighbour`; results ``<dataset>_nn-<distance>.json``);
+``--mirror-test`` averages each network over the test clip and its mirror image (results
+``..._mirror-test.json``).
 """
 
 from __future__ import annotations
