@@ -38,6 +38,7 @@ from typing import Any
 from doc_sections import replace_section
 
 import simenv.models
+from simenv.learning.recognition_protocols import PUBLISHED
 from simenv.perception.loop import DEFAULT_CLASSIFIER
 from simenv.perception.train_recogniser import benchmark_table, protocol_table
 
@@ -346,6 +347,20 @@ def benchmark_section(bench: list[dict[str, Any]], provenance: str) -> str:
              f"{100 * r['mean_fold_accuracy']:.1f} %" for r in bench
              if r.get("method") == "nearest neighbour (dtw)"
              and (r["dataset"], r.get("joints")) in networks]
+    verdicts = []
+    for r in bench:
+        if r.get("method", "network") != "network" or r.get("whole_sequences") \
+                or r.get("mirror_test") or r.get("joints", "gesture15") != "gesture15":
+            continue
+        best = max(PUBLISHED.get(r["dataset"], r["published"]).values())
+        sizes = ", ".join(f"{(r | e).get('members', 1)} network(s) "
+                          f"{100 * (r | e)['mean_fold_accuracy']:.1f} % "
+                          f"({_ok(100 * (r | e)['mean_fold_accuracy'] >= best)})"
+                          for e in [*r.get("smaller_ensembles", []), {}])
+        verdicts.append(f"* {r['dataset']} (published {best:.1f} %): {sizes}")
+    goal_text = ("Against the published figure (the goal: at or above it; 5-s crops, "
+                 "gesture15, no test mirror, mean of folds):\n\n" + "\n".join(verdicts)
+                 if verdicts else "")
     nn_text = ("One network (5-s crops, no test mirror) against the nearest neighbour with "
                "DTW (mean of folds): "
                + "; ".join(vs_nn) + "." if vs_nn else "")
@@ -372,6 +387,8 @@ dynamic time warping). An ensemble's row of k networks is the first k networks o
 run with the most (consecutive seeds), so its rows share networks.
 
 {table}
+
+{goal_text}
 
 {nn_text}
 {BENCH_END}"""
