@@ -338,7 +338,18 @@ of the leave-subjects-out protocol, so every row is on subjects its networks nev
 def benchmark_section(bench: list[dict[str, Any]], provenance: str) -> str:
     """The benchmarks' section of docs/recognition.md between its markers (regenerated alone
     by ``--benchmark`` without ``--train``; ``provenance`` names the command that made it)."""
+    room = [r for r in bench if r.get("room")]
+    bench = [r for r in bench if not r.get("room")]
     table = benchmark_table(bench) if bench else "Not run for this document."
+    room_lines = [f"* {r['method']}: " + ", ".join(
+        f"{name} {v['accuracy']:.3f} (balanced {v['balanced_accuracy']:.3f}, room-reaction "
+        f"{v['room_reaction_accuracy']:.3f})" for name, v in r["conditions"].items())
+        for r in room]
+    room_text = ("The room's vocabulary on unseen subjects with no network (`--benchmark room "
+                 "--neighbour D`: the leave-subjects-out folds of the next section, each "
+                 f"held-out window against the training clips' windows of its condition; "
+                 f"{room[0]['clips']} clips; the networks' figures are in the next section):"
+                 "\n\n" + "\n".join(room_lines) if room else "")
     networks = {(r["dataset"], r.get("joints")): (r | e)["mean_fold_accuracy"] for r in bench
                 for e in [*r.get("smaller_ensembles", []), {}]
                 if r.get("method", "network") == "network" and (r | e).get("members", 1) == 1
@@ -391,6 +402,8 @@ run with the most (consecutive seeds), so its rows share networks.
 {goal_text}
 
 {nn_text}
+
+{room_text}
 {BENCH_END}"""
 
 

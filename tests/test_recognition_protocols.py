@@ -26,6 +26,7 @@ from simenv.learning.recognition_protocols import (
     condition_windows,
     mirror_clip,
     native_clips,
+    room_nearest_neighbour,
     run_benchmark,
     run_room_protocol,
     whole_windows,
@@ -145,6 +146,18 @@ def test_an_ensemble_benchmark_reports_its_first_networks_alone(gesture_root: Pa
     assert both["mirror_test"] and not one["mirror_test"]
     assert both["train_cpu_s"] > 0 and both["scores"]["n"] == one["scores"]["n"]
     assert "test clip + its mirror" in benchmark_table([both])
+
+
+def test_room_nearest_neighbour_keeps_subjects_apart(utk):
+    r = room_nearest_neighbour(utk, "euclidean", progress=False)
+    assert r["room"] and r["clips"] == len(utk) == sum(f["clips"] for f in r["folds"])
+    # The folds of the room protocol: every subject tested once, by a fold without it.
+    tested = [s for f in r["folds"] for s in f["test_subjects"]]
+    assert sorted(tested) == sorted({c.subject_key for c in utk})
+    for name in ("real_3s", "real_1s"):
+        assert 0.3 < r["conditions"][name]["accuracy"] < 1.0  # chance: about 0.1
+    with pytest.raises(SimenvError, match="unknown distance"):
+        room_nearest_neighbour(utk, "cosine")  # type: ignore[arg-type]
 
 
 def test_nearest_neighbour_baseline_runs_the_benchmark_protocol(gesture_root: Path):

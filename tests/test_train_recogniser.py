@@ -66,3 +66,12 @@ def test_benchmark_table_lists_published_figures() -> None:
                              "folds": [{"fold": "AS1", "accuracy": 0.8, "classes": 2},
                                        {"fold": "AS2", "accuracy": 0.9, "classes": 2}]}])
     assert "| 2 per fold (4 in all) |" in sets and "(AS1 80.0, AS2 90.0)" in sets
+
+
+def test_room_baseline_needs_a_distance(tmp_path: Path, capsys, gesture_root: Path) -> None:
+    out = tmp_path / "bench"
+    args = ["eval", "classifier", "--benchmark", "room", "--data", str(gesture_root),
+            "--out", str(out)]
+    assert cli.main(args) == 2
+    assert "give --neighbour" in capsys.readouterr().err
+    assert not out.exists()

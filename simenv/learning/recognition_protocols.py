@@ -492,6 +492,56 @@ def run_room_protocol(clips: Sequence[GestureClip], config: RecognitionConfig, *
     return out
 
 
+def room_nearest_neighbour(clips: Sequence[GestureClip], distance: NeighbourDistance,
+                           *, folds: int | None = None, progress: bool = True
+                           ) -> dict[str, Any]:
+    """The nearest-neighbour baseline on the room vocabulary, leave-subjects-out on the folds
+    of :func:`run_room_protocol`: each held-out clip's ``real_3s`` / ``real_1s`` window takes
+    the label of the nearest training clip's window of the same condition
+    (:mod:`simenv.learning.nearest_neighbour`, real frames only).
+
+    Returns:
+        ``method``, ``clips``, ``conditions`` (per condition the pooled scores of
+        :func:`classification_scores`, room-reaction accuracy included) and ``folds``
+        (per fold its test subjects and accuracies).
+
+    Raises:
+        SimenvError: an unknown distance.
+    """
+    if distance not in NEIGHBOUR_DISTANCES:
+        raise SimenvError(f"unknown distance {distance!r}; expected one of "
+                          f"{', '.join(NEIGHBOUR_DISTANCES)}", field="neighbour")
+    labels = list(GESTURE_LABELS)
+    split = split_subject_folds(clips, **({} if folds is None else {"folds": folds}))
+    names = ("real_3s", "real_1s")
+    preds: dict[str, list[np.ndarray]] = {n: [] for n in names}
+    order: list[GestureClip] = []
+    per_fold = []
+    for k, (train, test) in enumerate(tqdm(split, desc="room nearest neighbour",
+                                           disable=not progress)):
+        bank, query = condition_windows(train, None), condition_windows(test, None)
+        y_train = np.array([labels.index(c.label) for c in train])
+        y = np.array([labels.index(c.label) for c in test])
+        row: dict[str, Any] = {"fold": k, "test_subjects": sorted({c.subject_key for c in test}),
+                               "clips": len(test)}
+        for n in names:
+            pred = nearest_neighbour(resample_sequences(*query[n]),
+                                     resample_sequences(*bank[n]), y_train, distance)
+            preds[n].append(pred)
+            row[n] = round(float((pred == y).mean()), 4)
+        per_fold.append(row)
+        order += test
+    y = np.array([labels.index(c.label) for c in order])
+    react = np.array([room_reaction(label) for label in labels])
+    conditions = {}
+    for n in names:
+        pred = np.concatenate(preds[n])
+        conditions[n] = classification_scores(y, pred, labels, [c.dataset for c in order])
+        conditions[n]["room_reaction_accuracy"] = round(float((react[y] == react[pred]).mean()), 4)
+    return {"room": True, "method": f"nearest neighbour ({distance})", "clips": len(order),
+            "conditions": conditions, "folds": per_fold}
+
+
 def calibrated(model: SkeletonTCN, temperature: float) -> SkeletonTCN:
     """``model`` with its softmax temperature set (in place; returned for chaining)."""
     model.config.temperature = float(temperature)

@@ -65,6 +65,7 @@ from simenv.learning.recognition_protocols import (
     calibrated,
     classification_scores,
     condition_windows,
+    room_nearest_neighbour,
     run_benchmark,
     run_room_protocol,
 )
@@ -377,7 +378,9 @@ def _parser() -> argparse.ArgumentParser:
     p_eval.add_argument("--json", action="store_true", help="print one JSON object")
     p_eval.add_argument("--out", help="also write metrics.json here")
     p_bench = sub.add_parser("benchmark", help="per-dataset protocols vs published figures")
-    p_bench.add_argument("--dataset", choices=("all", *PUBLISHED), default="all")
+    p_bench.add_argument("--dataset", choices=("all", "room", *PUBLISHED), default="all",
+                         help="a benchmark, all of them, or 'room': the room vocabulary's "
+                         "leave-subjects-out folds (with --neighbour only)")
     p_bench.add_argument("--data", help="gestures folder (default: the shared corpus)")
     p_bench.add_argument("--out", default="out/recognition-benchmark")
     p_bench.add_argument("--members", type=int, default=1,
@@ -427,8 +430,19 @@ def _eval_command(args: argparse.Namespace) -> None:
 
 def _benchmark_command(args: argparse.Namespace) -> None:
     data = Path(args.data) if args.data else _default_data()
-    names = list(PUBLISHED) if args.dataset == "all" else [args.dataset]
     out = Path(args.out)
+    if args.dataset == "room":
+        if not args.neighbour:
+            raise SimenvError("--dataset room runs the nearest-neighbour baseline only; "
+                              "give --neighbour (the networks: the train command)",
+                              field="neighbour")
+        result = room_nearest_neighbour(load_gesture_clips(data, idle=True), args.neighbour)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / f"room_nn-{args.neighbour}.json").write_text(json.dumps(result, indent=1))
+        print(json.dumps({k: {m: v[m] for m in ("accuracy", "balanced_accuracy")}
+                          for k, v in result["conditions"].items()}))
+        return
+    names = list(PUBLISHED) if args.dataset == "all" else [args.dataset]
     out.mkdir(parents=True, exist_ok=True)
     results = []
     for name in names:
