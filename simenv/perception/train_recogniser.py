@@ -31,6 +31,9 @@ dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``);
 (:mod:`simenv.learning.nearest_neighbour`; results ``<dataset>_nn-<distance>.json``);
 ``--mirror-test`` averages each network over the test clip and its mirror image (results
 ``..._mirror-test.json``).
+``--dataset room --neighbour D`` runs the nearest neighbour on the room vocabulary's
+leave-subjects-out folds (:func:`simenv.learning.recognition_protocols.room_nearest_neighbour`;
+``room_nn-<distance>.json``).
 """
 
 from __future__ import annotations
