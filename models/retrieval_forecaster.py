@@ -91,7 +91,11 @@ class NearestNeighbourForecaster:
         """The ``k`` nearest bank windows of each history: (N, k) indices, nearest first,
         and (N, k) distances, metres (module docstring). ``history`` as for :meth:`predict`."""
         h, _ = self._history(history)
-        origin, angle = body_frame(h, self.heading_frames)
+        return self._search(h, *body_frame(h, self.heading_frames))
+
+    def _search(self, h: np.ndarray, origin: np.ndarray, angle: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`neighbours` of checked histories ``h`` (N, H, 15, 3) in their body frames."""
         query = to_body(h, origin, angle).reshape(len(h), -1)
         index = np.empty((len(h), self.k), np.int64)
         dist = np.empty((len(h), self.k))
@@ -115,8 +119,8 @@ class NearestNeighbourForecaster:
                 with no horizontal separation (no heading).
         """
         h, batched = self._history(history)
-        index, _ = self.neighbours(h)
         origin, angle = body_frame(h, self.heading_frames)
+        index, _ = self._search(h, origin, angle)
         future = self._futures[index].astype(np.float64).mean(axis=1)
         out = from_body(future, origin, angle).astype(np.float32)
         return out if batched else out[0]

@@ -395,21 +395,28 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
 # -- the room's vocabulary --------------------------------------------------------------
 
 
+def real_windows(clips: Sequence[GestureClip]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The real conditions of the room protocol, ``real_3s`` and ``real_1s`` (module
+    docstring), of ``clips``: name -> (normalised windows (N, 75, J, 3), valid (N, 75))."""
+    joints = clip_skeleton(clips).joint_names
+    full = make_windows(clips, crop="centre", joints=joints)
+    short = make_windows(clips, crop="centre", real_frames=SHORT_FRAMES, joints=joints)
+    return {"real_3s": (full.x, full.valid), "real_1s": (short.x, short.valid)}
+
+
 def condition_windows(clips: Sequence[GestureClip], forecast: Forecaster | None
                       ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The room protocol's conditions (module docstring) of ``clips``:
     name -> (normalised windows (N, 75, J, 3), valid (N, 75))."""
-    joints = clip_skeleton(clips).joint_names
-    full = make_windows(clips, crop="centre", joints=joints)
-    short = make_windows(clips, crop="centre", real_frames=SHORT_FRAMES, joints=joints)
-    out = {"real_3s": (full.x, full.valid), "real_1s": (short.x, short.valid)}
-    rows = np.flatnonzero(short.valid.sum(1) < WINDOW_FRAMES)
+    out = real_windows(clips)
+    short_x, short_valid = out["real_1s"]
+    rows = np.flatnonzero(short_valid.sum(1) < WINDOW_FRAMES)
     if forecast is not None:
-        out["real_1s_pred_2s"] = continue_windows(short.x, short.valid, rows, forecast)
+        out["real_1s_pred_2s"] = continue_windows(short_x, short_valid, rows, forecast)
     out["real_1s_pred_2s_zv"] = continue_windows(
-        short.x, short.valid, rows, lambda h: np.repeat(h[:, -1:], WINDOW_FRAMES, axis=1))
+        short_x, short_valid, rows, lambda h: np.repeat(h[:, -1:], WINDOW_FRAMES, axis=1))
     out["real_1s_pred_2s_cv"] = continue_windows(
-        short.x, short.valid, rows, lambda h: h[:, -1:] + (h[:, -1:] - h[:, -2:-1])
+        short_x, short_valid, rows, lambda h: h[:, -1:] + (h[:, -1:] - h[:, -2:-1])
         * np.arange(1, WINDOW_FRAMES + 1, dtype=np.float32)[None, :, None, None])
     return out
 
@@ -513,13 +520,13 @@ def room_nearest_neighbour(clips: Sequence[GestureClip], distance: NeighbourDist
                           f"{', '.join(NEIGHBOUR_DISTANCES)}", field="neighbour")
     labels = list(GESTURE_LABELS)
     split = split_subject_folds(clips, **({} if folds is None else {"folds": folds}))
-    names = ("real_3s", "real_1s")
+    names = ("real_3s", "real_1s")  # the keys of real_windows
     preds: dict[str, list[np.ndarray]] = {n: [] for n in names}
     order: list[GestureClip] = []
     per_fold = []
     for k, (train, test) in enumerate(tqdm(split, desc="room nearest neighbour",
                                            disable=not progress)):
-        bank, query = condition_windows(train, None), condition_windows(test, None)
+        bank, query = real_windows(train), real_windows(test)
         y_train = np.array([labels.index(c.label) for c in train])
         y = np.array([labels.index(c.label) for c in test])
         row: dict[str, Any] = {"fold": k, "test_subjects": sorted({c.subject_key for c in test}),

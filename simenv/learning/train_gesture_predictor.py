@@ -517,12 +517,12 @@ def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
         if retrain or not path.is_file():
             run_fold(recordings, k, config, out, progress)
         model = GesturePredictor.load(path)  # with the metadata a fresh model lacks
-        held = {r.subject_key for r in split_fold(recordings, k)[1]}
+        train_recs, test_recs = split_fold(recordings, k)
+        held = {r.subject_key for r in test_recs}
         trained_on = set(model.metadata.get("train_subjects", []))
         if held & trained_on:
             raise SimenvError(f"fold {k} checkpoint was trained on held-out subjects "
                               f"{sorted(held & trained_on)}", source=path)
-        train_recs, test_recs = split_fold(recordings, k)
         windows, names = eval_windows(test_recs)
         result["folds"][k] = evaluate(model, windows, names, retrieval_baselines(
             train_recs, model.history_len, model.future_len))

@@ -320,6 +320,13 @@ def run_eval(paths: Sequence[str], *, checkpoint: str | None = None,
             "subjects": sorted({c.subject_key for c in clips})}
 
 
+def benchmark_rows(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per ensemble size: an ensemble's result carries its smaller ensembles (its
+    first k networks, ``smaller_ensembles``), each a copy of the result with its numbers;
+    the result itself comes last."""
+    return [r | smaller for r in results for smaller in [*r.get("smaller_ensembles", []), {}]]
+
+
 def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
     """Markdown: each benchmark's accuracy next to the published figures (today's
     :data:`PUBLISHED`, so a result written before a figure was corrected shows the
@@ -327,10 +334,7 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
     lines = ["| dataset | protocol | classes | clips | training windows | simenv accuracy "
              "(pooled) | mean of folds | published | training CPU s |",
              "|---|---|---|---|---|---|---|---|---|"]
-    # An ensemble's result carries its smaller ensembles (first k networks): a row each.
-    rows = [r | smaller for r in results
-            for smaller in [*r.get("smaller_ensembles", []), {}]]
-    for r in rows:
+    for r in benchmark_rows(results):
         figures = PUBLISHED.get(r["dataset"], r["published"])
         pub = "; ".join(f"{k} {v:.1f} %" for k, v in figures.items())
         method = r.get("method", "network")
