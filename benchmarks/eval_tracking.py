@@ -21,7 +21,9 @@ per rad^2; recorded as ``trunk_weight``, lines without it ran with 0) and
 ``--retries R`` the rewinds a run may use after a failure (:class:`simenv.control.MPCConfig`
 ``retries``; recorded as ``retries``, lines without it ran with 0) and ``--attempts A``
 the planner seeds a run may try (``attempts``; recorded as ``attempts``, lines without it
-ran with 1); a *setting* is the quadruple. ``docs`` tabulates each setting apart and puts
+ran with 1) and ``--temperature T`` the MPPI temperature (``temperature``; recorded as
+``temperature``, lines without it ran with 0: predictive sampling); a *setting* is the
+quintuple. ``docs`` tabulates each setting apart and puts
 the settings side by side clip by clip.
 
 Results go to a JSONL file one line per run as each finishes (a rerun skips
@@ -36,7 +38,15 @@ background::
     .venv/bin/python benchmarks/eval_tracking.py docs   # tables -> docs/plausibility.md
 
 ``docs`` writes the tables between the ``unassisted-tracking`` markers of
-``docs/plausibility.md`` and leaves the rest of the file alone.
+``docs/plausibility.md`` (``--section NAME``: the ``NAME`` markers) and leaves the rest of
+the file alone. The MPPI runs of 2026-12-04 have a section of their own, as the earlier
+settings' result files did not survive::
+
+    .venv/bin/python benchmarks/eval_tracking.py run --runs clean --out out/eval_tracking_mppi.jsonl
+    .venv/bin/python benchmarks/eval_tracking.py run --runs corrupt \
+        --out out/eval_tracking_corrupt_mppi.jsonl
+    .venv/bin/python benchmarks/eval_tracking.py docs --section unassisted-tracking-mppi \
+        --results out/eval_tracking_mppi.jsonl out/eval_tracking_corrupt_mppi.jsonl
 """
 
 from __future__ import annotations
@@ -70,9 +80,11 @@ DEFAULT_RESULTS = (DEFAULT_OUT, REPO / "out" / "eval_tracking_corrupt.jsonl",
                    REPO / "out" / "eval_tracking_corrupt_64.jsonl",
                    REPO / "out" / "eval_tracking_64_r3.jsonl",
                    REPO / "out" / "eval_tracking_corrupt_64_r3.jsonl",
-                   REPO / "out" / "eval_tracking_corrupt_64_a3.jsonl")
+                   REPO / "out" / "eval_tracking_corrupt_64_a3.jsonl",
+                   REPO / "out" / "eval_tracking_mppi.jsonl",
+                   REPO / "out" / "eval_tracking_corrupt_mppi.jsonl")
 DOCS = REPO / "docs" / "plausibility.md"
-BEGIN, END = "<!-- unassisted-tracking:begin -->", "<!-- unassisted-tracking:end -->"
+SECTION = "unassisted-tracking"
 
 #: Clips reported apart from the success rate (the issue's "acrobatics").
 ACROBATICS = ("49_06",)
@@ -130,24 +142,26 @@ def _record(tr: TrackingResult, fps: float) -> dict[str, float | bool | str | No
 
 
 #: An MPC setting of a run: (samples per replan, trunk cost weight per rad^2, retries,
-#: attempts).
-Setting = tuple[int, float, int, int]
+#: attempts, MPPI temperature).
+Setting = tuple[int, float, int, int, float]
 
 
 def setting_of(record: dict) -> Setting:
     """The MPC setting of a run (lines written before a setting was recorded
-    ran with 32 samples, no trunk term, no retries and one attempt)."""
+    ran with 32 samples, no trunk term, no retries, one attempt and predictive sampling)."""
     return (int(record.get("samples", 32)), float(record.get("trunk_weight", 0.0)),
-            int(record.get("retries", 0)), int(record.get("attempts", 1)))
+            int(record.get("retries", 0)), int(record.get("attempts", 1)),
+            float(record.get("temperature", 0.0)))
 
 
 def setting_label(setting: Setting) -> str:
     """``"64 samples"``, with ``", trunk weight W"`` when the trunk term is on and
     ``", R retries"`` when rewinds are allowed and ``", A seeds"`` with more than one
-    attempt."""
-    n, w, r, a = setting
+    attempt and ``", MPPI temperature T"`` unless it keeps the best sample."""
+    n, w, r, a, t = setting
     return f"{n} samples" + (f", trunk weight {w:g}" if w else "") + (
-        f", {r} retries" if r else "") + (f", {a} seeds" if a > 1 else "")
+        f", {r} retries" if r else "") + (f", {a} seeds" if a > 1 else "") + (
+        f", MPPI temperature {t:g}" if t else ", predictive sampling")
 
 
 def _done(out: Path) -> set[tuple[str, str, float, Setting]]:
@@ -164,9 +178,9 @@ def run(args: argparse.Namespace) -> None:
     desc = descriptions(args.data)
     cfg = MPCConfig(nthread=args.threads, seed=args.seed,
                     weights=CostWeights(trunk=args.trunk_weight), retries=args.retries,
-                    attempts=args.attempts,
+                    attempts=args.attempts, temperature=args.temperature,
                     **({} if args.samples is None else {"n_samples": args.samples}))
-    setting = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts)
+    setting = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature)
     paths = clips(args.data)
     if args.clips:
         # The named clips first, in the order given; the others follow with --all-clips.
@@ -197,7 +211,7 @@ def run(args: argparse.Namespace) -> None:
             "acrobatics": path.stem in ACROBATICS, "mass_kg": fitted.humanoid.total_mass,
             "mpc": _record(mpc, motion.fps), "samples": cfg.n_samples,
             "trunk_weight": cfg.weights.trunk, "retries": cfg.retries,
-            "attempts": cfg.attempts,
+            "attempts": cfg.attempts, "temperature": cfg.temperature,
             "threads": args.threads, "seed": args.seed,
             "load_average": os.getloadavg()[0],
         }
@@ -328,7 +342,7 @@ def tables(records: list[dict], expected: list[str] | None = None,
     records = sorted(records, key=lambda r: (order.get(r["clip"], len(order)), r["clip"],
                                              r["corruption"], r["strength"]))
     cfg = MPCConfig()
-    default = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts)
+    default = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature)
     settings = sorted({setting_of(r) for r in records}, key=lambda n: (n != default, n))
     clean_all = [r for r in records if r["corruption"] == "none"]
     # Side by side: the settings that ran clean clips (some ran corrupted copies only).
@@ -347,8 +361,12 @@ def tables(records: list[dict], expected: list[str] | None = None,
     return "\n".join(lines)
 
 
-def write_docs(records: list[dict], expected: list[str], data: Path, path: Path = DOCS) -> None:
-    replace_section(path, BEGIN, END, tables(records, expected, data))
+def write_docs(records: list[dict], expected: list[str], data: Path, path: Path = DOCS,
+               section: str = SECTION) -> None:
+    """The tables into ``path`` between the markers ``<!-- SECTION:begin -->`` and
+    ``<!-- SECTION:end -->``."""
+    replace_section(path, f"<!-- {section}:begin -->", f"<!-- {section}:end -->",
+                    tables(records, expected, data))
 
 
 def main() -> None:
@@ -358,6 +376,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="run: results JSONL")
     ap.add_argument("--results", type=Path, nargs="+", default=list(DEFAULT_RESULTS),
                     help="docs: the results JSONL files to tabulate")
+    ap.add_argument("--section", default=SECTION,
+                    help="docs: the marked section of docs/plausibility.md to write")
     ap.add_argument("--seconds", type=float, default=4.0, help="simulated seconds per clip")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
@@ -369,6 +389,8 @@ def main() -> None:
                     help="run: rewinds the MPC may use after a failure")
     ap.add_argument("--attempts", type=int, default=MPCConfig().attempts,
                     help="run: planner seeds a run may try (the first that tracks is kept)")
+    ap.add_argument("--temperature", type=float, default=MPCConfig().temperature,
+                    help="run: MPPI temperature of the MPC (0: keep the best sample)")
     ap.add_argument("--clips", nargs="*", default=[],
                     help="run: only these clip files (e.g. 05_02.bvh), in this order")
     ap.add_argument("--all-clips", action="store_true",
@@ -391,7 +413,8 @@ def main() -> None:
                     # A run repeated by a second process: the first one counts.
                     records.setdefault((r["clip"], r["corruption"], r["strength"],
                                         setting_of(r)), r)
-        write_docs(list(records.values()), [p.name for p in clips(args.data)], args.data)
+        write_docs(list(records.values()), [p.name for p in clips(args.data)], args.data,
+                   section=args.section)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ the body balances on its own feet. Every ``replan_steps`` physics steps it
    step, ``f`` the planning model's ``timestep_factor`` and ``delta_i`` the
    sample's spline (:class:`~simenv.control.sampling.Spline`);
 4. scores the rollouts (:class:`~simenv.control.costs.TrackingCost`) and
-   takes the cheapest (or the MPPI average) as the new nominal, which is
+   takes their MPPI average (or the cheapest) as the new nominal, which is
    applied until the next replan and then shifted forward in time to
    warm-start it. The carried-over nominal acts as the integral term a PD
    lacks: the stance-leg offsets that hold the body weight persist from plan
@@ -63,7 +63,13 @@ class MPCConfig:
             hinges get sampled offsets; the others follow the reference
             servo targets. Empty: every hinge.
         limit_rad: largest knot offset, radians.
-        temperature: 0 = predictive sampling (keep the best), > 0 = MPPI.
+        temperature: 0 = predictive sampling (keep the best), > 0 = MPPI, the
+            weighted mean of the samples (:class:`~simenv.control.sampling.Sampler`).
+            0.1 by default: on the first 4 s of the 20 non-acrobatic CMU clips of
+            the corpus (64 samples, seed 0) it tracks 18 as keeping the best did,
+            at 52 mm mean body error against 88 (walk 12_01: 131 -> 39 mm);
+            chosen on six of them among 0.03 / 0.1 / 0.3 (0.3 fell on two of six,
+            0.03 on one, with larger errors).
         constant_fraction: share of the samples offset by the same amount on
             every knot (:class:`~simenv.control.sampling.Sampler`).
         timestep_factor: planning timestep as a multiple of the physics step.
@@ -95,7 +101,7 @@ class MPCConfig:
     noise_scaling: float = 0.0
     sampled_parts: tuple[str, ...] = ("lumbar", "thigh", "shin", "foot", "toes")
     limit_rad: float = 0.8
-    temperature: float = 0.0
+    temperature: float = 0.1
     constant_fraction: float = 0.5
     timestep_factor: int = 2
     gain_scale: float = 1.0
