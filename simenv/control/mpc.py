@@ -131,7 +131,7 @@ class MPCConfig:
 
 
 class TrackingMPC:
-    """The predictive-sampling tracking controller (module docstring).
+    """The sampling-based (MPPI) tracking controller (module docstring).
 
     Args:
         humanoid: the simulated body (its spec is copied for the planning model).
