@@ -80,9 +80,7 @@ DEFAULT_RESULTS = (DEFAULT_OUT, REPO / "out" / "eval_tracking_corrupt.jsonl",
                    REPO / "out" / "eval_tracking_corrupt_64.jsonl",
                    REPO / "out" / "eval_tracking_64_r3.jsonl",
                    REPO / "out" / "eval_tracking_corrupt_64_r3.jsonl",
-                   REPO / "out" / "eval_tracking_corrupt_64_a3.jsonl",
-                   REPO / "out" / "eval_tracking_mppi.jsonl",
-                   REPO / "out" / "eval_tracking_corrupt_mppi.jsonl")
+                   REPO / "out" / "eval_tracking_corrupt_64_a3.jsonl")
 DOCS = REPO / "docs" / "plausibility.md"
 SECTION = "unassisted-tracking"
 
@@ -146,6 +144,11 @@ def _record(tr: TrackingResult, fps: float) -> dict[str, float | bool | str | No
 Setting = tuple[int, float, int, int, float]
 
 
+def setting_of_config(cfg: MPCConfig) -> Setting:
+    """The setting an :class:`MPCConfig` runs with."""
+    return (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature)
+
+
 def setting_of(record: dict) -> Setting:
     """The MPC setting of a run (lines written before a setting was recorded
     ran with 32 samples, no trunk term, no retries, one attempt and predictive sampling)."""
@@ -180,7 +183,7 @@ def run(args: argparse.Namespace) -> None:
                     weights=CostWeights(trunk=args.trunk_weight), retries=args.retries,
                     attempts=args.attempts, temperature=args.temperature,
                     **({} if args.samples is None else {"n_samples": args.samples}))
-    setting = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature)
+    setting = setting_of_config(cfg)
     paths = clips(args.data)
     if args.clips:
         # The named clips first, in the order given; the others follow with --all-clips.
@@ -341,8 +344,7 @@ def tables(records: list[dict], expected: list[str] | None = None,
     order = {p: i for i, p in enumerate(expected or [])}
     records = sorted(records, key=lambda r: (order.get(r["clip"], len(order)), r["clip"],
                                              r["corruption"], r["strength"]))
-    cfg = MPCConfig()
-    default = (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature)
+    default = setting_of_config(MPCConfig())
     settings = sorted({setting_of(r) for r in records}, key=lambda n: (n != default, n))
     clean_all = [r for r in records if r["corruption"] == "none"]
     # Side by side: the settings that ran clean clips (some ran corrupted copies only).

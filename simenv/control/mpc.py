@@ -68,8 +68,8 @@ class MPCConfig:
             0.1 by default: on the first 4 s of the 20 non-acrobatic CMU clips of
             the corpus (64 samples, seed 0) it tracks 18 as keeping the best did,
             at 52 mm mean body error against 88 (walk 12_01: 131 -> 39 mm);
-            chosen on six of them among 0.03 / 0.1 / 0.3 (0.3 fell on two of six,
-            0.03 on one, with larger errors).
+            chosen on six of them among 0.03 / 0.1 / 0.3 (0.3 fell on three of six,
+            0.03 on one, both with larger errors).
         constant_fraction: share of the samples offset by the same amount on
             every knot (:class:`~simenv.control.sampling.Sampler`).
         timestep_factor: planning timestep as a multiple of the physics step.
