@@ -122,9 +122,9 @@ def test_retries_rewind_to_states_the_body_reached_and_still_fail_the_impossible
 
 
 def test_attempts_try_further_seeds_until_one_tracks(walk_2s_retargeted) -> None:
-    """A run the first seed tracks is not simulated again; a 2 m teleport fails every seed,
-    and the run kept is the one that got furthest (the first of equals), the others' cost
-    counted."""
+    """A run the first seed tracks is not simulated again; a 2 m teleport fails every seed
+    (the further ones planning over ``retry_horizon_s``), and the run kept is the one that
+    got furthest (the first of equals), the others' cost counted."""
     easy = track(walk_2s_retargeted, controller="mpc", max_seconds=0.15, mpc=QUICK)
     tried = track(walk_2s_retargeted, controller="mpc", max_seconds=0.15,
                   mpc=replace(QUICK, attempts=3))
@@ -133,8 +133,9 @@ def test_attempts_try_further_seeds_until_one_tracks(walk_2s_retargeted) -> None
     q = walk_2s_retargeted.qpos.copy()
     q[60:, 0] += 2.0
     jumped = replace(walk_2s_retargeted, qpos=q)
-    seeds = [track(jumped, controller="mpc", max_seconds=0.7, mpc=replace(QUICK, seed=s))
-             for s in (0, 1)]
+    # The further attempts plan over the longer retry horizon.
+    seeds = [track(jumped, controller="mpc", max_seconds=0.7, mpc=replace(QUICK, seed=s, **kw))
+             for s, kw in ((0, {}), (1, {"horizon_s": QUICK.retry_horizon_s}))]
     both = track(jumped, controller="mpc", max_seconds=0.7, mpc=replace(QUICK, attempts=2))
     assert not both.success and both.runs == 2
     assert both.steps == seeds[0].steps + seeds[1].steps
@@ -156,7 +157,7 @@ def test_bad_tracking_options_raise_naming_the_field(walk_2s_retargeted, kwargs,
 
 @pytest.mark.parametrize("field", ["horizon_s", "n_samples", "replan_steps", "nthread",
                                    "timestep_factor", "temperature", "retries", "rewind_s",
-                                   "attempts"])
+                                   "attempts", "retry_horizon_s"])
 def test_bad_mpc_settings_raise_naming_the_field(field) -> None:
     with pytest.raises(PhysicsError) as err:
         MPCConfig(**{field: -1 if field in ("temperature", "retries") else 0})

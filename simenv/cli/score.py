@@ -54,8 +54,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "seconds, each simulated from the captured state 1 s before it (default 4; inf: "
         "the whole clip in one run; docs/plausibility.md)"))
     sco.add_argument("--tracking-attempts", type=int, metavar="N", help=(
-        "planner seeds a failed tracking run (segment) may try before the motion is blamed "
-        "(default 3; 1: one seed)"))
+        "planner seeds a failed tracking run (segment) may try before the motion is blamed, "
+        "the further ones planning 0.6 s ahead (default 3; 1: one seed)"))
     sco.add_argument("--reference", nargs="+", action="extend", metavar="REAL_PATH", help=(
         "judge the clips relative to real data of the same source: score these real files or "
         "folders (or read their earlier --out .jsonl results), calibrate every metric on them "

@@ -91,6 +91,13 @@ class MPCConfig:
             else the one that got furthest. A tracked run is a trajectory the body
             performed on its own, whichever seed found it; a failed one only says that
             this seed's search found none.
+        retry_horizon_s: planning horizon of the attempts after the first, seconds (None:
+            ``horizon_s``). A longer look-ahead prices a fall the short one does not see
+            coming, at ``retry_horizon_s / horizon_s`` times the cost, paid only where the
+            first attempt failed. 0.6 by default: the two real dances the calibration's
+            3 seeds failed at 0.45 s (the 05_02 one-leg balance at 7-8.7 s, the salsa 61_05
+            follower's spins at 7-12 s) are tracked at 0.6 s with each of seeds 0-2 (0.45 s:
+            no seed, 0.3 rad noise or 128 samples neither; docs/plausibility.md).
     """
 
     horizon_s: float = 0.45
@@ -113,6 +120,7 @@ class MPCConfig:
     retries: int = 0
     rewind_s: float = 1.0
     attempts: int = 1
+    retry_horizon_s: float | None = 0.6
 
     def __post_init__(self) -> None:
         checks = {
@@ -123,6 +131,7 @@ class MPCConfig:
             "cost_stride": self.cost_stride >= 1, "nthread": self.nthread >= 1,
             "retries": self.retries >= 0, "rewind_s": self.rewind_s > 0,
             "attempts": self.attempts >= 1,
+            "retry_horizon_s": self.retry_horizon_s is None or self.retry_horizon_s > 0,
         }
         for name, ok in checks.items():
             if not ok:

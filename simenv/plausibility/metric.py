@@ -65,9 +65,10 @@ class ScoreConfig:
             ``assisted_force_mean``) when the judged run is unassisted.
         mpc: settings of the MPC (:class:`simenv.control.MPCConfig`); the scorer's
             default tries a failed run (each failed segment) with up to
-            :data:`SCORER_ATTEMPTS` planner seeds before the motion is blamed: a tracked
-            run shows the body can do it, a failed one only that one seed found no way
-            (on real CMU clips single seeds disagree: docs/plausibility.md).
+            :data:`SCORER_ATTEMPTS` planner seeds, the further ones planning over the longer
+            ``retry_horizon_s``, before the motion is blamed: a tracked run shows the body
+            can do it, a failed one only that one search found no way (on real CMU clips
+            single seeds disagree: docs/plausibility.md).
         joint_limits: run the joint-limit probe (one extra retargeting onto a
             body with widened ranges).
         contact_pairs: key joint pairs (person A keypoint, person B keypoint)

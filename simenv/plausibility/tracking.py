@@ -44,7 +44,8 @@ falls (a capture glitch met at speed) is not judged: the segment is simulated ag
 the frame before its judged ones.
 
 The MPC is a stochastic search: :class:`~simenv.control.MPCConfig` ``attempts`` gives a run
-(each segment) further tries with other planner seeds, and the first that tracks is kept.
+(each segment) further tries with other planner seeds, planning further ahead
+(``retry_horizon_s``), and the first that tracks is kept.
 A tracked run is a trajectory the body performed with its own actuators, so one success
 shows the motion can be done; a failure only shows that this seed found no way.
 """
@@ -382,12 +383,14 @@ def track(result: RetargetResult, thresholds: BodyThresholds = DEFAULT_BODY_THRE
 
 
 def _attempt_configs(controller: str, mpc: MPCConfig | None) -> list[MPCConfig | None]:
-    """The planner settings of a run's attempts: seeds ``seed .. seed + attempts - 1``
-    (one attempt for the PD servos, which draw nothing)."""
+    """The planner settings of a run's attempts: seeds ``seed .. seed + attempts - 1``, the
+    first over ``horizon_s``, the others over ``retry_horizon_s`` (one attempt for the PD
+    servos, which draw nothing)."""
     if controller != "mpc":
         return [mpc]
     cfg = mpc or MPCConfig()
-    return [replace(cfg, seed=cfg.seed + i) for i in range(cfg.attempts)]
+    retry = replace(cfg, horizon_s=cfg.retry_horizon_s or cfg.horizon_s)
+    return [replace(retry if i else cfg, seed=cfg.seed + i) for i in range(cfg.attempts)]
 
 
 def _keep_best(runs: Iterable[tuple[TrackingResult, int, int]]
