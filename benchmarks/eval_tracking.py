@@ -21,10 +21,11 @@ per rad^2; recorded as ``trunk_weight``, lines without it ran with 0) and
 ``--retries R`` the rewinds a run may use after a failure (:class:`simenv.control.MPCConfig`
 ``retries``; recorded as ``retries``, lines without it ran with 0) and ``--attempts A``
 the planner seeds a run may try (``attempts``; recorded as ``attempts``, lines without it
-ran with 1) and ``--temperature T`` the MPPI temperature (``temperature``; recorded as
-``temperature``, lines without it ran with 0: predictive sampling); a *setting* is the
-quintuple. ``docs`` tabulates each setting apart and puts
-the settings side by side clip by clip.
+ran with 1; the further ones plan over ``MPCConfig.retry_horizon_s``, recorded as
+``retry_horizon_s``, lines without it over 0.45 s) and ``--temperature T`` the MPPI
+temperature (``temperature``; recorded as ``temperature``, lines without it ran with 0:
+predictive sampling); a *setting* is the sextuple (the retry horizon 0 for one attempt).
+``docs`` tabulates each setting apart and puts the settings side by side clip by clip.
 
 Results go to a JSONL file one line per run as each finishes (a rerun skips
 runs already there with the same setting), so the long run can go in the
@@ -140,30 +141,35 @@ def _record(tr: TrackingResult, fps: float) -> dict[str, float | bool | str | No
 
 
 #: An MPC setting of a run: (samples per replan, trunk cost weight per rad^2, retries,
-#: attempts, MPPI temperature).
-Setting = tuple[int, float, int, int, float]
+#: attempts, MPPI temperature, horizon of the further attempts in s (0: one attempt)).
+Setting = tuple[int, float, int, int, float, float]
 
 
 def setting_of_config(cfg: MPCConfig) -> Setting:
     """The setting an :class:`MPCConfig` runs with."""
-    return (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature)
+    retry = (cfg.retry_horizon_s or cfg.horizon_s) if cfg.attempts > 1 else 0.0
+    return (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature, retry)
 
 
 def setting_of(record: dict) -> Setting:
     """The MPC setting of a run (lines written before a setting was recorded
-    ran with 32 samples, no trunk term, no retries, one attempt and predictive sampling)."""
+    ran with 32 samples, no trunk term, no retries, one attempt and predictive sampling;
+    before the retry horizon was, further attempts planned over the 0.45 s of the first)."""
+    attempts = int(record.get("attempts", 1))
     return (int(record.get("samples", 32)), float(record.get("trunk_weight", 0.0)),
-            int(record.get("retries", 0)), int(record.get("attempts", 1)),
-            float(record.get("temperature", 0.0)))
+            int(record.get("retries", 0)), attempts, float(record.get("temperature", 0.0)),
+            float(record.get("retry_horizon_s", 0.45)) if attempts > 1 else 0.0)
 
 
 def setting_label(setting: Setting) -> str:
     """``"64 samples"``, with ``", trunk weight W"`` when the trunk term is on and
-    ``", R retries"`` when rewinds are allowed and ``", A seeds"`` with more than one
-    attempt and ``", MPPI temperature T"`` unless it keeps the best sample."""
-    n, w, r, a, t = setting
+    ``", R retries"`` when rewinds are allowed and ``", A seeds (the further ones over H
+    s)"`` with more than one attempt and ``", MPPI temperature T"`` unless it keeps the best
+    sample."""
+    n, w, r, a, t, h = setting
     return f"{n} samples" + (f", trunk weight {w:g}" if w else "") + (
-        f", {r} retries" if r else "") + (f", {a} seeds" if a > 1 else "") + (
+        f", {r} retries" if r else "") + (
+        f", {a} seeds (the further ones over {h:g} s)" if a > 1 else "") + (
         f", MPPI temperature {t:g}" if t else ", predictive sampling")
 
 
@@ -215,6 +221,7 @@ def run(args: argparse.Namespace) -> None:
             "mpc": _record(mpc, motion.fps), "samples": cfg.n_samples,
             "trunk_weight": cfg.weights.trunk, "retries": cfg.retries,
             "attempts": cfg.attempts, "temperature": cfg.temperature,
+            "retry_horizon_s": setting[5],
             "threads": args.threads, "seed": args.seed,
             "load_average": os.getloadavg()[0],
         }
