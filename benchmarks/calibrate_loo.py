@@ -55,6 +55,13 @@ Usage::
     .venv/bin/python benchmarks/calibrate_loo.py report      # docs only
     nohup nice .venv/bin/python benchmarks/calibrate_loo.py score --only cmu --tracker mpc \
         --out out/calibration_loo_mpc &                      # the MPC's verdicts, resumable
+
+The unassisted calibration of the CMU people (docs/calibration_unassisted.md)::
+
+    nohup nice .venv/bin/python benchmarks/calibrate_loo.py score --only cmu \
+        --tracker mpc-segments-seeds --out out/calibration_loo_mppi &
+    .venv/bin/python benchmarks/calibrate_loo.py report --out out/calibration_loo_mppi \
+        --docs docs/calibration_unassisted.md
 """
 
 from __future__ import annotations
@@ -151,9 +158,11 @@ TRACKERS = {"pd-assisted": "the root-assisted PD servos (about real time; the sc
                    "scorer's default when that calibration was run; tens of times real time)",
             "mpc-segments": f"the unassisted MPC in {SEGMENT_S:g} s segments, each simulated "
                             "from the captured state 1 s before it (tracking_segment_s)",
-            "mpc-segments-seeds": f"the unassisted MPC in {SEGMENT_S:g} s segments as above, "
-                                  f"each tried with up to {SEGMENT_ATTEMPTS} planner seeds "
-                                  "(MPCConfig.attempts; the scorer's default)"}
+            "mpc-segments-seeds": f"the unassisted MPC in {SEGMENT_S:g} s segments, each "
+                                  "simulated from the captured state 1 s before it and tried "
+                                  f"with up to {SEGMENT_ATTEMPTS} planner seeds, the further "
+                                  "ones planning further ahead (MPCConfig.attempts and "
+                                  "retry_horizon_s; the scorer's default)"}
 
 
 def score_config(tracker: str = "pd-assisted") -> ScoreConfig:
@@ -456,15 +465,19 @@ def markdown(real: list[dict[str, Any]], corrupt: list[dict[str, Any]],
                      + ", ".join(f"{n} {c}" for n, c in counts.most_common()))
     plausible = {(r["file"], r.get("clip", 0)) for r in real
                  if not r["_fail_loo"] and r.get("person", 0) == 0}
-    lines += ["", "## Corrupted copies caught", "",
-              "Caught = some metric fails. *Clean* = copies of clips whose real version is "
-              "plausible in its fold (a copy of a clip that already fails is no test). *Target* "
-              "= the corruption's target metric fails. Deciding metrics: how often each metric "
-              "fails on the caught clean copies.", "",
-              "| source | corruption | copies | caught, default thresholds "
-              "| caught, leave-clips-out | clean copies caught (LOO) | target caught, clean "
-              "| deciding metrics, clean |",
-              "|---|---|---|---|---|---|---|---|"]
+    lines += ["", "## Corrupted copies caught", ""]
+    if not corrupt:
+        lines.append("No corrupted copies were scored in this run (its `corrupt` stage did not "
+                     "run).")
+    else:
+        lines += ["Caught = some metric fails. *Clean* = copies of clips whose real version is "
+                  "plausible in its fold (a copy of a clip that already fails is no test). "
+                  "*Target* = the corruption's target metric fails. Deciding metrics: how often "
+                  "each metric fails on the caught clean copies.", "",
+                  "| source | corruption | copies | caught, default thresholds "
+                  "| caught, leave-clips-out | clean copies caught (LOO) | target caught, clean "
+                  "| deciding metrics, clean |",
+                  "|---|---|---|---|---|---|---|---|"]
     for src in sources:
         for kind, spec in CORRUPTIONS.items():
             recs = [r for r in corrupt if r["_source"] == src and r["corruption"] == kind
@@ -589,7 +602,8 @@ def main() -> None:
                     help="corrupt every N-th depth-camera clip (all CMU clips are corrupted)")
     ap.add_argument("--only", choices=tuple(SOURCES),
                     help="score and corrupt only this source (report: all)")
-    ap.add_argument("--docs", type=Path, default=REPO / "docs")
+    ap.add_argument("--docs", type=Path, default=REPO / "docs" / "calibration.md",
+                    help="report: the Markdown file written")
     ap.add_argument("--tracker", choices=tuple(TRACKERS),
                     help="what judges tracking (default: the run's recorded tracker, else "
                     "pd-assisted); one tracker per --out folder")
@@ -624,10 +638,10 @@ def main() -> None:
         text += "\n" + summarise(real_all, args.data).replace(
             "# Calibration of the plausibility scorer on real motion capture",
             "# Appendix: every real clip at the default thresholds", 1)
-        (args.docs / "calibration.md").write_text(text)
+        args.docs.write_text(text)
         (args.out / "summary.json").write_text(json.dumps(summary(real, corrupt, th, args.data),
                                                           indent=1))
-        print(f"wrote {args.docs / 'calibration.md'} and {args.out / 'summary.json'}")
+        print(f"wrote {args.docs} and {args.out / 'summary.json'}")
         for src, mods in summary(real, corrupt, th, args.data)["fields"].items():
             for module, values in mods.items():
                 if values:

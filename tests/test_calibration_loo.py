@@ -60,6 +60,10 @@ def test_no_clip_judges_itself(tmp_path: Path) -> None:
     assert all(not verdicts[f"{s}_01"] for s in (1, 2, 3, 4, 7))
     # Against the default threshold (10) every one of them fails.
     assert all(r["_fail_default"] for r in real)
+    # A run without corrupted copies says so instead of an empty table.
+    text = calibrate_loo.markdown(real, [], th, tmp_path, "mpc-segments-seeds")
+    assert "No corrupted copies were scored" in text and "| source | corruption |" not in text
+    assert calibrate_loo.TRACKERS["mpc-segments-seeds"] in text
 
 
 def test_depth_camera_profile_passes_a_real_kinect_clip_and_catches_a_slide(
