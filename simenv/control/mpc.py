@@ -96,8 +96,9 @@ class MPCConfig:
             coming, at ``retry_horizon_s / horizon_s`` times the cost, paid only where the
             first attempt failed. 0.6 by default: the two real dances the calibration's
             3 seeds failed at 0.45 s (the 05_02 one-leg balance at 7-8.7 s, the salsa 61_05
-            follower's spins at 7-12 s) are tracked at 0.6 s with each of seeds 0-2 (0.45 s:
-            no seed, 0.3 rad noise or 128 samples neither; docs/plausibility.md).
+            follower's spins at 7-12 s) are tracked at 0.6 s with every seed tried (2 and 3;
+            at 0.45 s neither 128 samples, finer noise nor the arms among the sampled parts
+            tracked them; docs/plausibility.md).
     """
 
     horizon_s: float = 0.45
