@@ -639,10 +639,10 @@ def main() -> None:
             "# Calibration of the plausibility scorer on real motion capture",
             "# Appendix: every real clip at the default thresholds", 1)
         args.docs.write_text(text)
-        (args.out / "summary.json").write_text(json.dumps(summary(real, corrupt, th, args.data),
-                                                          indent=1))
+        result = summary(real, corrupt, th, args.data)
+        (args.out / "summary.json").write_text(json.dumps(result, indent=1))
         print(f"wrote {args.docs} and {args.out / 'summary.json'}")
-        for src, mods in summary(real, corrupt, th, args.data)["fields"].items():
+        for src, mods in result["fields"].items():
             for module, values in mods.items():
                 if values:
                     print(f"{src} {module}: " + ", ".join(f"{k}={v:g}"

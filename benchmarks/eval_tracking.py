@@ -147,7 +147,7 @@ Setting = tuple[int, float, int, int, float, float]
 
 def setting_of_config(cfg: MPCConfig) -> Setting:
     """The setting an :class:`MPCConfig` runs with."""
-    retry = (cfg.retry_horizon_s or cfg.horizon_s) if cfg.attempts > 1 else 0.0
+    retry = cfg.attempt(1).horizon_s if cfg.attempts > 1 else 0.0
     return (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature, retry)
 
 

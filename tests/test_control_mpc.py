@@ -145,6 +145,13 @@ def test_attempts_try_further_seeds_until_one_tracks(walk_2s_retargeted) -> None
     assert r.passed is False and r.details["runs"] == 2.0
 
 
+def test_attempt_settings_move_the_seed_and_plan_further_ahead_after_the_first() -> None:
+    cfg = MPCConfig(seed=5, horizon_s=0.45, retry_horizon_s=0.6)
+    assert cfg.attempt(0) == cfg
+    assert (cfg.attempt(2).seed, cfg.attempt(2).horizon_s) == (7, 0.6)
+    assert replace(cfg, retry_horizon_s=None).attempt(1).horizon_s == 0.45
+
+
 @pytest.mark.parametrize(("kwargs", "field"), [
     ({"controller": "lqr"}, "controller"),
     ({"controller": "mpc", "assist": True}, "assist"),

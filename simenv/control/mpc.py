@@ -30,7 +30,7 @@ that runs them, and the noise comes from one seeded generator.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -138,6 +138,12 @@ class MPCConfig:
             if not ok:
                 raise PhysicsError(f"MPCConfig.{name} out of range: {getattr(self, name)!r}",
                                    field=name)
+
+    def attempt(self, i: int) -> MPCConfig:
+        """The settings of a tracking run's attempt ``i`` (0-based): seed ``seed + i``, and
+        from the second attempt on the horizon ``retry_horizon_s``."""
+        horizon = (self.retry_horizon_s or self.horizon_s) if i else self.horizon_s
+        return replace(self, seed=self.seed + i, horizon_s=horizon)
 
 
 class TrackingMPC:

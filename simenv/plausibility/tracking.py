@@ -389,8 +389,7 @@ def _attempt_configs(controller: str, mpc: MPCConfig | None) -> list[MPCConfig |
     if controller != "mpc":
         return [mpc]
     cfg = mpc or MPCConfig()
-    retry = replace(cfg, horizon_s=cfg.retry_horizon_s or cfg.horizon_s)
-    return [replace(retry if i else cfg, seed=cfg.seed + i) for i in range(cfg.attempts)]
+    return [cfg.attempt(i) for i in range(cfg.attempts)]
 
 
 def _keep_best(runs: Iterable[tuple[TrackingResult, int, int]]
