@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -61,9 +62,11 @@ def test_no_clip_judges_itself(tmp_path: Path) -> None:
     # Against the default threshold (10) every one of them fails.
     assert all(r["_fail_default"] for r in real)
     # A run without corrupted copies says so instead of an empty table.
-    text = calibrate_loo.markdown(real, [], th, tmp_path, "mpc-segments-seeds")
+    text = calibrate_loo.markdown(real, [], th, tmp_path, "mpc-segments-seeds",
+                                  calibrate_loo.mpc_settings("mpc-segments-seeds"))
     assert "No corrupted copies were scored" in text and "| source | corruption |" not in text
     assert calibrate_loo.TRACKERS["mpc-segments-seeds"] in text
+    assert f"{ScoreConfig().mpc.n_samples} samples per replan" in text
 
 
 def test_depth_camera_profile_passes_a_real_kinect_clip_and_catches_a_slide(
@@ -110,10 +113,20 @@ def test_one_tracker_per_run_folder(tmp_path: Path) -> None:
     default = ScoreConfig()
     assert (seeds.body.tracking_segment_s, seeds.mpc.attempts) == (
         default.body.tracking_segment_s, default.mpc.attempts)
-    assert calibrate_loo.run_tracker(tmp_path, None) == "pd-assisted"  # an old folder
-    assert calibrate_loo.run_tracker(tmp_path, "mpc") == "mpc"
-    assert calibrate_loo.run_tracker(tmp_path, None) == "mpc"
+    assert calibrate_loo.run_tracker(tmp_path, None) == ("pd-assisted", None)  # an old folder
+    settings = calibrate_loo.mpc_settings("mpc")
+    assert settings == {"n_samples": default.mpc.n_samples, "horizon_s": default.mpc.horizon_s,
+                        "retry_horizon_s": default.mpc.retry_horizon_s, "attempts": 1}
+    assert calibrate_loo.run_tracker(tmp_path, "mpc") == ("mpc", settings)
+    assert calibrate_loo.run_tracker(tmp_path, None) == ("mpc", settings)
     with pytest.raises(SimenvError, match="tracker 'mpc'"):
         calibrate_loo.run_tracker(tmp_path, "pd-assisted")
+    # A run scored with other planner settings is not resumed with the current ones.
+    record = tmp_path / "tracker.json"
+    record.write_text(json.dumps({"tracker": "mpc", "mpc": {**settings, "n_samples": 2}}))
+    with pytest.raises(SimenvError, match="the scorer now plans with"):
+        calibrate_loo.run_tracker(tmp_path, "mpc")
+    assert calibrate_loo.run_tracker(tmp_path, None)[1]["n_samples"] == 2
+    assert calibrate_loo.mpc_settings("pd-assisted") is None
     with pytest.raises(SimenvError, match="unknown tracker"):
         calibrate_loo.score_config("assisted")
