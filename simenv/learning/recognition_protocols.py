@@ -21,6 +21,12 @@ longest clip, i.e. whole sequences), never partial (the benchmarks classify segm
 actions); ``members`` networks of consecutive seeds can be averaged (logits). The simplest
 baseline runs the same protocols with no network: each test sequence takes the label of its
 nearest training sequence (``neighbour``: :mod:`simenv.learning.nearest_neighbour`).
+A second model family, covariance descriptors with a ridge classifier
+(:mod:`simenv.learning.covariance`, ``covariance``), runs alone or fused with the networks:
+the product of the networks' softmax (of their mean logits) and its probabilities, equal
+weights, no weight tuned; it chooses its descriptor (the ``gesture15`` or the native
+joints, with or without velocities) and regulariser by leave-one-training-subject-out
+accuracy and calibrates its probabilities on those held-out subjects.
 
 Joints (``joints``): ``gesture15`` (default; the room's joint set, measured by all three
 datasets) or ``native``, each dataset's own skeleton as its reader gives it
@@ -72,6 +78,7 @@ from simenv.data.gestures import (
     split_subject_folds,
 )
 from simenv.io.msr_action3d import MSR_CLASSES
+from simenv.learning.covariance import CovarianceClassifier, descriptors
 from simenv.learning.nearest_neighbour import (
     NEIGHBOUR_DISTANCES,
     NeighbourDistance,
@@ -113,6 +120,9 @@ BENCHMARK_FRAMES = 125
 #: Joint sets of the benchmarks (module docstring, *Joints*).
 BENCHMARK_JOINTS: tuple[str, ...] = ("gesture15", "native")
 BenchmarkJoints = Literal["gesture15", "native"]
+#: Ways :func:`run_benchmark` uses the covariance classifier (module docstring).
+COVARIANCE_MODES: tuple[str, ...] = ("alone", "fused")
+CovarianceMode = Literal["alone", "fused"]
 #: Conditions of the room protocol, in table order.
 ROOM_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s",
                                     "real_1s_pred_2s_zv", "real_1s_pred_2s_cv")
@@ -259,19 +269,55 @@ def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
     (plus its mirror images with ``mirror_copies``) on ``fold_labels``; returns, for each
     k = 1..members, the predictions (index into ``fold_labels``) of the first k networks'
     logits averaged over the networks and over ``tests`` (views of the same test clips:
-    (windows, valid) each), and each network's training CPU s."""
+    (windows, valid) each) -- (N, classes) each -- and each network's training CPU s."""
     if mirror_copies:
         train = list(train) + [mirror_clip(c, skeleton) for c in train]
     total: np.ndarray | float = 0.0
-    preds, cpu = [], []
+    means, cpu = [], []
     for member in range(members):
         model, history = train_recogniser(
             train, fold_labels, lambda c: c.source_label, replace(config, seed=seed + member),
             progress=False, extra=extra)
         total = total + sum(logits_of(model, x, valid) for x, valid in tests)
-        preds.append(np.asarray(total).argmax(1))  # the mean's argmax: the sum's
+        means.append(np.asarray(total) / ((member + 1) * len(tests)))
         cpu.append(history["train_cpu_s"])
-    return preds, cpu
+    return means, cpu
+
+
+def _log_softmax(logits: np.ndarray) -> np.ndarray:
+    """Row-wise log-softmax of (N, C) logits."""
+    z = logits - logits.max(1, keepdims=True)
+    return z - np.log(np.exp(z).sum(1, keepdims=True))
+
+
+def _descriptor_variants(clips: Sequence[GestureClip], native: Sequence[GestureClip] | None
+                         ) -> dict[str, np.ndarray]:
+    """The covariance classifier's candidate descriptors of ``clips`` (and of the same
+    clips on their native skeletons, when given): name -> (N, F)."""
+    sets = {"gesture15": clips} if native is None else {"gesture15": clips, "native": native}
+    out = {}
+    for joints, group in sets.items():
+        x, valid = whole_windows(group)
+        for velocity in (False, True):
+            out[f"{joints}{'+velocity' if velocity else ''}"] = descriptors(x, valid, velocity)
+    return out
+
+
+def _covariance_fold(train: Sequence[GestureClip], test: Sequence[GestureClip],
+                     fold_labels: Sequence[str], native: dict[str, GestureClip] | None
+                     ) -> tuple[np.ndarray, dict[str, Any]]:
+    """One benchmark fold's covariance classifier (module docstring): (N_test, classes)
+    probabilities and what it chose."""
+    def variants(group: Sequence[GestureClip]) -> dict[str, np.ndarray]:
+        return _descriptor_variants(group, None if native is None else
+                                    [native[c.name] for c in group])
+
+    clf = CovarianceClassifier(len(fold_labels)).fit(
+        variants(train), np.array([fold_labels.index(c.source_label) for c in train]),
+        np.array([c.subject for c in train]))
+    chosen = {"variant": clf.variant, "lambda": clf.lam, "temperature": clf.temperature,
+              "held_out_accuracy": clf.selection[clf.variant][clf.lam]}
+    return clf.predict_proba(variants(test)), chosen
 
 
 def _ensemble_sizes(members: int) -> list[int]:
@@ -283,6 +329,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                   *, members: int = 1, whole_sequences: bool = False,
                   joints: BenchmarkJoints = "gesture15",
                   neighbour: NeighbourDistance | None = None, mirror_test: bool = False,
+                  covariance: CovarianceMode | None = None,
                   progress: bool = True) -> dict[str, Any]:
     """Train and test ``dataset`` (``msr_action3d``, ``msr_action3d_sets``, ``utkinect`` or
     ``florence3d``) on its own classes with its standard protocol (each fold's network on
@@ -297,9 +344,13 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     windows do not apply, ``train_cpu_s`` is the CPU time of its distances).
     ``mirror_test``: a network's logits are averaged over each test clip and its mirror
     image (test-time augmentation; the networks train with mirrored windows).
+    ``covariance``: ``alone``, the covariance classifier instead of the networks (like
+    ``neighbour``); ``fused``, the networks' probabilities times its probabilities (module
+    docstring); each fold's choices in ``folds[i]["covariance"]``.
 
     Raises:
-        SimenvError: unknown dataset, joint set or distance, or no clips.
+        SimenvError: unknown dataset, joint set, distance or covariance mode, both a
+            neighbour and the covariance classifier alone, or no clips.
     """
     if dataset not in PUBLISHED:
         raise SimenvError(f"unknown benchmark {dataset!r}; expected one of "
@@ -312,6 +363,13 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     if neighbour is not None and neighbour not in NEIGHBOUR_DISTANCES:
         raise SimenvError(f"unknown distance {neighbour!r}; expected one of "
                           f"{', '.join(NEIGHBOUR_DISTANCES)}", field="neighbour")
+    if covariance is not None and covariance not in COVARIANCE_MODES:
+        raise SimenvError(f"unknown covariance mode {covariance!r}; expected one of "
+                          f"{', '.join(COVARIANCE_MODES)}", field="covariance")
+    if neighbour is not None and covariance is not None:
+        raise SimenvError("the nearest neighbour runs alone; drop covariance",
+                          field="covariance")
+    alone = neighbour is not None or covariance == "alone"
     root = Path(root)
     config = config or RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES,
                                          epochs=60)
@@ -324,6 +382,10 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         stem = {c.name: c.name.removesuffix("_skeleton3D") for c in clips}
         excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
         clips = [c for c in clips if stem[c.name] in stems]
+    # The covariance classifier may choose the native joints (the clips' own recordings).
+    native = ({c.name: n for c, n in zip(clips, native_clips(clips), strict=True)}
+              if covariance is not None and all(c.source is not None for c in clips)
+              and joints == "gesture15" else None)
     if joints == "native":
         clips = native_clips(clips)
     skeleton = clip_skeleton(clips)
@@ -335,9 +397,9 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     train_config = (replace(config, mirror=False, epochs=max(1, round(config.epochs / 2)))
                     if mirror_copies else config)
     folds = benchmark_folds(dataset, clips)
-    # Per ensemble size k (the first k networks; one entry for the nearest neighbour):
+    # Per ensemble size k (the first k networks; one entry for a model run alone):
     # predictions pooled over folds, per-fold rows, CPU seconds.
-    sizes = 1 if neighbour is not None else members
+    sizes = 1 if alone else members
     y_all: list[np.ndarray] = []
     p_all: list[list[np.ndarray]] = [[] for _ in range(sizes)]
     per_fold: list[list[dict[str, Any]]] = [[] for _ in range(sizes)]
@@ -346,26 +408,40 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         x, valid = whole_windows(test)
         y = np.array([labels.index(c.source_label) for c in test])
         fold_labels = sorted({c.source_label for c in (*train, *test)})
+        chosen: dict[str, Any] = {}
+        if covariance is not None:
+            start = time.process_time()
+            cov_p, chosen = _covariance_fold(train, test, fold_labels, native)
+            cov_cpu = time.process_time() - start
         if neighbour is not None:
             start = time.process_time()
             fold_preds = [nearest_neighbour(
                 resample_sequences(x, valid), resample_sequences(*whole_windows(train)),
                 np.array([fold_labels.index(c.source_label) for c in train]), neighbour)]
             fold_cpu = [time.process_time() - start]
+        elif covariance == "alone":
+            fold_preds, fold_cpu = [cov_p.argmax(1)], [cov_cpu]
         else:
             tests = [(x, valid)]
             if mirror_test:
                 tests.append(whole_windows([mirror_clip(c, skeleton) for c in test]))
-            fold_preds, fold_cpu = _network_fold(
+            fold_logits, fold_cpu = _network_fold(
                 train, fold_labels, tests, train_config, config.seed, members, skeleton,
                 mirror_copies, extra={"benchmark": dataset, "joints": joints})
+            if covariance == "fused":
+                fold_preds = [(_log_softmax(lg) + np.log(cov_p + 1e-300)).argmax(1)
+                              for lg in fold_logits]
+                fold_cpu[0] += cov_cpu
+            else:
+                fold_preds = [lg.argmax(1) for lg in fold_logits]
         y_all.append(y)
         for k, fold_pred in enumerate(fold_preds):
             pred = np.array([labels.index(fold_labels[i]) for i in fold_pred])
             cpu[k:] += fold_cpu[k]
             per_fold[k].append({"fold": name, "n": len(test), "classes": len(fold_labels),
                                 "accuracy": round(float((pred == y).mean()), 4),
-                                "train_cpu_s": round(float(np.sum(fold_cpu[:k + 1])), 1)})
+                                "train_cpu_s": round(float(np.sum(fold_cpu[:k + 1])), 1)}
+                               | ({"covariance": chosen} if chosen else {}))
             p_all[k].append(pred)
     y = np.concatenate(y_all)
 
@@ -375,17 +451,19 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                                                            for f in per_fold[k]])), 4),
                 "folds": per_fold[k], "train_cpu_s": round(float(cpu[k]), 1)}
 
-    smaller = [] if neighbour is not None else _ensemble_sizes(members)
+    smaller = [] if alone else _ensemble_sizes(members)
+    method = (f"nearest neighbour ({neighbour})" if neighbour is not None else
+              "covariance" if covariance == "alone" else
+              "network + covariance" if covariance == "fused" else "network")
     return {"dataset": dataset, "protocol": BENCHMARK_PROTOCOLS.get(dataset,
                                                                     "leave-one-subject-out"),
             "classes": labels, "clips": len(clips), "excluded": excluded,
             **summary(sizes - 1), "members": members,
             "smaller_ensembles": [{"members": k} | summary(k - 1) for k in smaller],
             "whole_sequences": whole_sequences, "joints": joints,
-            "method": "network" if neighbour is None else f"nearest neighbour ({neighbour})",
-            "mirror_test": mirror_test and neighbour is None,
+            "method": method, "mirror_test": mirror_test and not alone,
             "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},
-            "mirror": ("none" if neighbour is not None else
+            "mirror": ("none" if alone else
                        "clips (each training clip and its mirror image, half the epochs)"
                        if mirror_copies else "windows" if config.mirror else "none"),
             "config": asdict(config), "train_config": asdict(train_config),

@@ -30,7 +30,9 @@ dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``);
 ``--neighbour {euclidean,dtw}`` runs the nearest-neighbour baseline instead of the networks
 (:mod:`simenv.learning.nearest_neighbour`; results ``<dataset>_nn-<distance>.json``);
 ``--mirror-test`` averages each network over the test clip and its mirror image (results
-``..._mirror-test.json``).
+``..._mirror-test.json``); ``--covariance alone`` runs the covariance-descriptor classifier
+instead of the networks (:mod:`simenv.learning.covariance`; ``<dataset>_cov.json``),
+``--covariance fused`` multiplies the networks' probabilities with its (``..._cov.json``).
 ``--dataset room --neighbour D`` runs the nearest neighbour on the room vocabulary's
 leave-subjects-out folds (:func:`simenv.learning.recognition_protocols.room_nearest_neighbour`;
 ``room_nn-<distance>.json``).
@@ -63,6 +65,7 @@ from simenv.learning.nearest_neighbour import NEIGHBOUR_DISTANCES
 from simenv.learning.recognition import Forecaster, RecognitionConfig, logits_of, train_recogniser
 from simenv.learning.recognition_protocols import (
     BENCHMARK_JOINTS,
+    COVARIANCE_MODES,
     PUBLISHED,
     ROOM_CONDITIONS,
     calibrated,
@@ -338,7 +341,9 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
         figures = PUBLISHED.get(r["dataset"], r["published"])
         pub = "; ".join(f"{k} {v:.1f} %" for k, v in figures.items())
         method = r.get("method", "network")
-        if method != "network":  # a baseline without training windows
+        if method == "covariance":  # its descriptor's joints are its own choice
+            windows = "none: covariance descriptors (ridge), whole sequences"
+        elif method not in ("network", "network + covariance"):  # no training windows
             windows = f"none: {method}, whole sequences, {r.get('joints', 'gesture15')}"
         else:
             windows = ("whole sequences" if r.get("whole_sequences") else
@@ -346,6 +351,8 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
             windows += f", {r.get('members', 1)} network(s), {r.get('joints', 'gesture15')}"
             if r.get("mirror_test"):
                 windows += ", test clip + its mirror"
+            if method == "network + covariance":
+                windows += ", fused with the covariance classifier"
         if r.get("joints", "gesture15") != "gesture15":
             windows += f" ({len(r['skeleton']['joint_names'])} joints)"
         classes = f"{len(r['classes'])}"
@@ -400,6 +407,9 @@ def _parser() -> argparse.ArgumentParser:
     p_bench.add_argument("--neighbour", choices=NEIGHBOUR_DISTANCES,
                          help="the nearest-neighbour baseline (this distance) instead of "
                          "the networks")
+    p_bench.add_argument("--covariance", choices=COVARIANCE_MODES,
+                         help="the covariance-descriptor classifier alone, or fused with "
+                         "the networks (simenv.learning.covariance)")
     p_bench.add_argument("--mirror-test", action="store_true",
                          help="average each network over the test clip and its mirror image")
     p_bench.add_argument("--json", action="store_true")
@@ -455,13 +465,18 @@ def _benchmark_command(args: argparse.Namespace) -> None:
     for name in names:
         results.append(run_benchmark(name, data, members=args.members,
                                      whole_sequences=args.whole_sequences, joints=args.joints,
-                                     neighbour=args.neighbour, mirror_test=args.mirror_test))
-        tag = (f"{name}_nn-{args.neighbour}" if args.neighbour else
+                                     neighbour=args.neighbour, mirror_test=args.mirror_test,
+                                     covariance=args.covariance))
+        alone = args.neighbour or args.covariance == "alone"
+        tag = (f"{name}_nn-{args.neighbour}" if args.neighbour else f"{name}_cov"
+               if args.covariance == "alone" else
                f"{name}_m{args.members}_w{int(args.whole_sequences)}")
         if args.joints != "gesture15":
             tag += f"_{args.joints}"
-        if args.mirror_test and not args.neighbour:
+        if args.mirror_test and not alone:
             tag += "_mirror-test"
+        if args.covariance == "fused":
+            tag += "_cov"
         (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
     print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
                       | {"accuracy": r["scores"]["accuracy"]} for r in results])
