@@ -267,9 +267,9 @@ def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
                   extra: dict[str, Any]) -> tuple[list[np.ndarray], list[float]]:
     """One benchmark fold's networks: ``members`` of consecutive seeds trained on ``train``
     (plus its mirror images with ``mirror_copies``) on ``fold_labels``; returns, for each
-    k = 1..members, the predictions (index into ``fold_labels``) of the first k networks'
-    logits averaged over the networks and over ``tests`` (views of the same test clips:
-    (windows, valid) each) -- (N, classes) each -- and each network's training CPU s."""
+    k = 1..members, the first k networks' logits averaged over the networks and over
+    ``tests`` (views of the same test clips: (windows, valid) each), (N, classes) over
+    ``fold_labels``, and each network's training CPU s."""
     if mirror_copies:
         train = list(train) + [mirror_clip(c, skeleton) for c in train]
     total: np.ndarray | float = 0.0
@@ -304,13 +304,14 @@ def _descriptor_variants(clips: Sequence[GestureClip], native: Sequence[GestureC
 
 
 def _covariance_fold(train: Sequence[GestureClip], test: Sequence[GestureClip],
-                     fold_labels: Sequence[str], native: dict[str, GestureClip] | None
+                     fold_labels: Sequence[str], native: dict[int, GestureClip] | None
                      ) -> tuple[np.ndarray, dict[str, Any]]:
     """One benchmark fold's covariance classifier (module docstring): (N_test, classes)
-    probabilities and what it chose."""
+    probabilities and what it chose. ``native``: each clip's native counterpart, by the
+    clip's ``id``."""
     def variants(group: Sequence[GestureClip]) -> dict[str, np.ndarray]:
         return _descriptor_variants(group, None if native is None else
-                                    [native[c.name] for c in group])
+                                    [native[id(c)] for c in group])
 
     clf = CovarianceClassifier(len(fold_labels)).fit(
         variants(train), np.array([fold_labels.index(c.source_label) for c in train]),
@@ -383,7 +384,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
         clips = [c for c in clips if stem[c.name] in stems]
     # The covariance classifier may choose the native joints (the clips' own recordings).
-    native = ({c.name: n for c, n in zip(clips, native_clips(clips), strict=True)}
+    native = ({id(c): n for c, n in zip(clips, native_clips(clips), strict=True)}
               if covariance is not None and all(c.source is not None for c in clips)
               and joints == "gesture15" else None)
     if joints == "native":
