@@ -383,6 +383,12 @@ def benchmark_section(bench: list[dict[str, Any]], provenance: str) -> str:
     nn_text = ("One network (5-s crops, no test mirror) against the nearest neighbour with "
                "DTW (mean of folds): "
                + "; ".join(vs_nn) + "." if vs_nn else "")
+    vs_fused = [f"{r['dataset']} {100 * networks[r['dataset'], r.get('joints')]:.1f} % -> "
+                f"{100 * r['mean_fold_accuracy']:.1f} %" for r in fused
+                if r.get("members", 1) == 1 and (r["dataset"], r.get("joints")) in networks]
+    if vs_fused:
+        nn_text += ("\n\nOne network alone -> the same network fused with the covariance "
+                    "classifier (mean of folds): " + "; ".join(vs_fused) + ".")
     return f"""{BENCH_BEGIN}
 ## Benchmarks, each dataset on its own classes with its standard protocol
 
@@ -411,7 +417,7 @@ pyramid of each clip (Cov3DJ, Hussein et al. 2013) with a ridge classifier, its 
 (gesture15 or the dataset's own joints, with or without velocities) and regulariser chosen by
 leave-one-training-subject-out accuracy and its softmax temperature fitted on those held-out
 scores; "fused" multiplies the networks' probabilities with its, equal weights (no weight is
-tuned). It errs where the networks err differently.
+tuned).
 
 {table}
 
