@@ -290,11 +290,11 @@ def _log_softmax(logits: np.ndarray) -> np.ndarray:
     return z - np.log(np.exp(z).sum(1, keepdims=True))
 
 
-def _descriptor_variants(clips: Sequence[GestureClip], native: Sequence[GestureClip] | None
-                         ) -> dict[str, np.ndarray]:
-    """The covariance classifier's candidate descriptors of ``clips`` (and of the same
-    clips on their native skeletons, when given): name -> (N, F)."""
-    sets = {"gesture15": clips} if native is None else {"gesture15": clips, "native": native}
+def _descriptor_variants(clips: Sequence[GestureClip], joints: str,
+                         native: Sequence[GestureClip] | None) -> dict[str, np.ndarray]:
+    """The covariance classifier's candidate descriptors of ``clips`` (on the joint set
+    ``joints``) and of the same clips on their native skeletons, when given: name -> (N, F)."""
+    sets = {joints: clips} if native is None else {joints: clips, "native": native}
     out = {}
     for joints, group in sets.items():
         x, valid = whole_windows(group)
@@ -304,13 +304,13 @@ def _descriptor_variants(clips: Sequence[GestureClip], native: Sequence[GestureC
 
 
 def _covariance_fold(train: Sequence[GestureClip], test: Sequence[GestureClip],
-                     fold_labels: Sequence[str], native: dict[int, GestureClip] | None
-                     ) -> tuple[np.ndarray, dict[str, Any]]:
+                     fold_labels: Sequence[str], joints: str,
+                     native: dict[int, GestureClip] | None) -> tuple[np.ndarray, dict[str, Any]]:
     """One benchmark fold's covariance classifier (module docstring): (N_test, classes)
-    probabilities and what it chose. ``native``: each clip's native counterpart, by the
-    clip's ``id``."""
+    probabilities and what it chose. ``joints``: the clips' joint set; ``native``: each
+    clip's native counterpart, by the clip's ``id``."""
     def variants(group: Sequence[GestureClip]) -> dict[str, np.ndarray]:
-        return _descriptor_variants(group, None if native is None else
+        return _descriptor_variants(group, joints, None if native is None else
                                     [native[id(c)] for c in group])
 
     clf = CovarianceClassifier(len(fold_labels)).fit(
@@ -412,7 +412,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         chosen: dict[str, Any] = {}
         if covariance is not None:
             start = time.process_time()
-            cov_p, chosen = _covariance_fold(train, test, fold_labels, native)
+            cov_p, chosen = _covariance_fold(train, test, fold_labels, joints, native)
             cov_cpu = time.process_time() - start
         if neighbour is not None:
             start = time.process_time()
