@@ -19,7 +19,9 @@ others) on the standardised descriptors (each dimension to zero mean, unit varia
 the training clips), solved in the dual because clips are far fewer than dimensions:
 ``(K + lambda I) alpha = Y``, ``K = A A^T``, scores ``B A^T alpha``. The regulariser
 ``lambda`` and the descriptor variant (which joints, with or without velocities) are chosen
-by leave-one-training-subject-out accuracy, never on test clips; the held-out scores of the
+by leave-one-training-subject-out accuracy, never on test clips (the standardisation is
+computed once on all training clips, labels unused, so the held-out subject's Gram rows are
+read from one matrix); the held-out scores of the
 chosen setting then fit a softmax temperature (least negative log-likelihood), so that
 :meth:`CovarianceClassifier.predict_proba` gives probabilities calibrated on subjects the
 fit did not see, and can be multiplied with another model's.
@@ -128,6 +130,8 @@ class CovarianceClassifier:
         self.lam = 0.0
         self.temperature = 1.0
         self.selection: dict[str, dict[float, float]] = {}
+        # (mean, scale, standardised training descriptors, dual weights) once fitted.
+        self._fitted: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def _targets(self, y: np.ndarray) -> np.ndarray:
         t = -np.ones((len(y), self.num_classes))
@@ -165,12 +169,12 @@ class CovarianceClassifier:
                               f"least 2; got {len(subjects)}", field="groups")
         targets = self._targets(y)
         best: tuple[float, str, float, np.ndarray] | None = None
-        self._train: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        standardised: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         for name, a in variants.items():
             mean, scale = a.mean(0), a.std(0) + 1e-12
             z = (a - mean) / scale
             gram = z @ z.T
-            self._train[name] = (mean, scale, z)
+            standardised[name] = (mean, scale, z)
             self.selection[name] = {}
             for lam in self.lambdas:
                 held = np.zeros_like(targets)
@@ -186,10 +190,9 @@ class CovarianceClassifier:
         assert best is not None
         _, self.variant, self.lam, held = best
         self.temperature = _fit_temperature(held, y)
-        mean, scale, z = self._train[self.variant]
+        mean, scale, z = standardised[self.variant]
         self._fitted = (mean, scale, z,
                         np.linalg.solve(z @ z.T + self.lam * np.eye(len(z)), targets))
-        self._train = {}
         return self
 
     def predict_proba(self, variants: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -199,7 +202,7 @@ class CovarianceClassifier:
         Raises:
             SimenvError: not fitted, the variant missing, or the wrong descriptor size.
         """
-        if not self.variant:
+        if self._fitted is None:
             raise SimenvError("fit the classifier first", field="variant")
         if self.variant not in variants:
             raise SimenvError(f"descriptor variant {self.variant!r} missing; got "
