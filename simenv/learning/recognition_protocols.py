@@ -304,14 +304,14 @@ def _descriptor_variants(clips: Sequence[GestureClip], joints: str,
 
 
 def _covariance_fold(train: Sequence[GestureClip], test: Sequence[GestureClip],
-                     fold_labels: Sequence[str], joints: str,
-                     native: dict[int, GestureClip] | None) -> tuple[np.ndarray, dict[str, Any]]:
+                     fold_labels: Sequence[str], variants_all: dict[str, np.ndarray],
+                     row: dict[int, int]) -> tuple[np.ndarray, dict[str, Any]]:
     """One benchmark fold's covariance classifier (module docstring): (N_test, classes)
-    probabilities and what it chose. ``joints``: the clips' joint set; ``native``: each
-    clip's native counterpart, by the clip's ``id``."""
+    probabilities and what it chose. ``variants_all``: every clip's descriptors (a clip's
+    do not depend on the fold), its row in them by the clip's ``id`` in ``row``."""
     def variants(group: Sequence[GestureClip]) -> dict[str, np.ndarray]:
-        return _descriptor_variants(group, joints, None if native is None else
-                                    [native[id(c)] for c in group])
+        rows = np.array([row[id(c)] for c in group])
+        return {name: d[rows] for name, d in variants_all.items()}
 
     clf = CovarianceClassifier(len(fold_labels)).fit(
         variants(train), np.array([fold_labels.index(c.source_label) for c in train]),
@@ -384,12 +384,14 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         excluded = sorted(c.name for c in clips if stem[c.name] not in stems)
         clips = [c for c in clips if stem[c.name] in stems]
     # The covariance classifier may choose the native joints (the clips' own recordings).
-    native = ({id(c): n for c, n in zip(clips, native_clips(clips), strict=True)}
-              if covariance is not None and all(c.source is not None for c in clips)
-              and joints == "gesture15" else None)
+    native = (native_clips(clips) if covariance is not None and joints == "gesture15"
+              and all(c.source is not None for c in clips) else None)
     if joints == "native":
         clips = native_clips(clips)
     skeleton = clip_skeleton(clips)
+    if covariance is not None:
+        descriptor_variants = _descriptor_variants(clips, joints, native)
+        row = {id(c): i for i, c in enumerate(clips)}
     labels = sorted({c.source_label for c in clips})
     if whole_sequences:
         config = replace(config, max_frames=max(c.num_frames for c in clips))
@@ -412,7 +414,8 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         chosen: dict[str, Any] = {}
         if covariance is not None:
             start = time.process_time()
-            cov_p, chosen = _covariance_fold(train, test, fold_labels, joints, native)
+            cov_p, chosen = _covariance_fold(train, test, fold_labels, descriptor_variants,
+                                             row)
             cov_cpu = time.process_time() - start
         if neighbour is not None:
             start = time.process_time()
