@@ -17,7 +17,12 @@ from simenv.learning.covariance import (
     pyramid_windows,
 )
 from simenv.learning.recognition import RecognitionConfig
-from simenv.learning.recognition_protocols import run_benchmark, whole_windows
+from simenv.learning.recognition_protocols import (
+    FUSION_WEIGHTS,
+    fusion_weight,
+    run_benchmark,
+    whole_windows,
+)
 from simenv.perception.train_recogniser import benchmark_table
 
 
@@ -119,10 +124,42 @@ def test_the_benchmark_runs_it_alone_and_fused_with_a_network(gesture_root: Path
     assert fused["method"] == "network + covariance"
     assert fused["folds"][0]["covariance"] == fold["covariance"]  # the same classifier
     assert fused["scores"]["n"] == alone["scores"]["n"]
-    table = benchmark_table([alone, fused])
+    weighted = run_benchmark("msr_action3d", gesture_root, config, covariance="weighted",
+                             progress=False)
+    assert weighted["method"] == "network + covariance, weighted"
+    chosen = dict(weighted["folds"][0]["covariance"])
+    # The weight is chosen on the five training subjects, each held out once: every
+    # training clip classified once by models that never saw its subject.
+    fusion = chosen.pop("fusion")
+    assert chosen == fold["covariance"]
+    assert fusion["subjects"] == 5 and fusion["weight"] in FUSION_WEIGHTS
+    assert fusion["held_out_clips"] + weighted["scores"]["n"] == weighted["clips"]
+    assert fusion["held_out_accuracy"][f"{fusion['weight']:g}"] == max(
+        fusion["held_out_accuracy"].values())
+    table = benchmark_table([alone, fused, weighted])
     assert "covariance descriptors (ridge)" in table
     assert "fused with the covariance classifier" in table
+    assert f"weight from the training subjects ({fusion['weight']:g})" in table
     with pytest.raises(SimenvError, match="unknown covariance mode"):
         run_benchmark("msr_action3d", gesture_root, covariance="both")  # type: ignore[arg-type]
     with pytest.raises(SimenvError, match="runs alone"):
         run_benchmark("msr_action3d", gesture_root, neighbour="dtw", covariance="alone")
+
+
+def test_the_fusion_weight_is_the_one_that_classifies_held_out_clips_best():
+    y = np.array([0, 0, 0, 1, 1, 1])
+    # The network is sure of the first three and slightly wrong on the last three; the
+    # covariance model is slightly wrong on the first three and sure of the last three.
+    net = np.log(np.array([[0.9, 0.1]] * 3 + [[0.6, 0.4]] * 3))
+    cov = np.log(np.array([[0.45, 0.55]] * 3 + [[0.1, 0.9]] * 3))
+    weight, accuracy = fusion_weight(net, cov, y)
+    assert accuracy["0"] == accuracy["1"] == 0.5
+    assert 0.0 < weight < 1.0 and accuracy[f"{weight:g}"] == 1.0
+    assert set(accuracy) == {f"{w:g}" for w in FUSION_WEIGHTS}
+    # Ties in accuracy go to the weight whose fused softmax fits the labels best.
+    weight, _ = fusion_weight(net[:3], cov[:3], y[:3])
+    assert weight == 0.0
+    with pytest.raises(SimenvError, match="must both be"):
+        fusion_weight(net, cov[:, :1], y)
+    with pytest.raises(SimenvError, match="no held-out clips"):
+        fusion_weight(net[:0], cov[:0], y[:0])

@@ -24,9 +24,13 @@ nearest training sequence (``neighbour``: :mod:`simenv.learning.nearest_neighbou
 A second model family, covariance descriptors with a ridge classifier
 (:mod:`simenv.learning.covariance`, ``covariance``), runs alone or fused with the networks:
 the product of the networks' softmax (of their mean logits) and its probabilities, equal
-weights, no weight tuned; it chooses its descriptor (the ``gesture15`` or the native
-joints, with or without velocities) and regulariser by leave-one-training-subject-out
-accuracy and calibrates its probabilities on those held-out subjects.
+weights (``fused``), or ``weighted``: ``(1 - w) log p_net + w log p_cov`` with ``w``
+(:data:`FUSION_WEIGHTS`) chosen per fold on its training subjects alone, each held out in
+turn from one network and one covariance classifier trained on the others
+(:func:`fusion_weight`; no test clip is seen, at the price of a network per training
+subject). It chooses its descriptor (the ``gesture15`` or the native joints, with or
+without velocities) and regulariser by leave-one-training-subject-out accuracy and
+calibrates its probabilities on those held-out subjects.
 
 Joints (``joints``): ``gesture15`` (default; the room's joint set, measured by all three
 datasets) or ``native``, each dataset's own skeleton as its reader gives it
@@ -121,8 +125,11 @@ BENCHMARK_FRAMES = 125
 BENCHMARK_JOINTS: tuple[str, ...] = ("gesture15", "native")
 BenchmarkJoints = Literal["gesture15", "native"]
 #: Ways :func:`run_benchmark` uses the covariance classifier (module docstring).
-COVARIANCE_MODES: tuple[str, ...] = ("alone", "fused")
-CovarianceMode = Literal["alone", "fused"]
+COVARIANCE_MODES: tuple[str, ...] = ("alone", "fused", "weighted")
+CovarianceMode = Literal["alone", "fused", "weighted"]
+#: Weights of the covariance classifier's log-probabilities that the ``weighted`` fusion
+#: tries (the networks' get one minus it): 0 is the networks alone, 0.5 the equal product.
+FUSION_WEIGHTS: tuple[float, ...] = tuple(k / 10 for k in range(11))
 #: Conditions of the room protocol, in table order.
 ROOM_CONDITIONS: tuple[str, ...] = ("real_3s", "real_1s", "real_1s_pred_2s",
                                     "real_1s_pred_2s_zv", "real_1s_pred_2s_cv")
@@ -321,6 +328,73 @@ def _covariance_fold(train: Sequence[GestureClip], test: Sequence[GestureClip],
     return clf.predict_proba(variants(test)), chosen
 
 
+def fused_log_p(net_log_p: np.ndarray, cov_log_p: np.ndarray, weight: float) -> np.ndarray:
+    """``(1 - weight) net_log_p + weight cov_log_p``: (N, C) fused class scores of two
+    models' (N, C) log-probabilities (unnormalised; argmax is the fused decision)."""
+    return (1.0 - weight) * net_log_p + weight * cov_log_p
+
+
+def fusion_weight(net_log_p: np.ndarray, cov_log_p: np.ndarray, y: np.ndarray,
+                  weights: Sequence[float] = FUSION_WEIGHTS) -> tuple[float, dict[str, float]]:
+    """The weight of :func:`fused_log_p` that classifies held-out clips best.
+
+    Args:
+        net_log_p, cov_log_p: (N, C) the two models' log-probabilities of clips neither
+            trained on.
+        y: (N,) their class indices.
+        weights: the weights tried.
+
+    Returns:
+        The weight with the highest accuracy (ties: the lowest negative log-likelihood of
+        the fused scores' softmax) and each weight's accuracy, keyed by the weight.
+
+    Raises:
+        SimenvError: shapes that disagree or no clips.
+    """
+    if net_log_p.shape != cov_log_p.shape or net_log_p.ndim != 2 or len(y) != len(net_log_p):
+        raise SimenvError(f"log-probabilities {net_log_p.shape} and {cov_log_p.shape} must "
+                          f"both be (N, C) with N = {len(y)} labels", field="log_p")
+    if len(y) == 0:
+        raise SimenvError("no held-out clips to choose a fusion weight on", field="y")
+    accuracy, ranking = {}, []
+    for w in weights:
+        z = fused_log_p(net_log_p, cov_log_p, w)
+        acc = float((z.argmax(1) == y).mean())
+        nll = float(-_log_softmax(z)[np.arange(len(y)), y].mean())
+        accuracy[f"{w:g}"] = round(acc, 4)
+        ranking.append((-acc, nll, w))
+    return min(ranking)[2], accuracy
+
+
+def _fusion_weight_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
+                        config: RecognitionConfig, seed: int, skeleton: Skeleton,
+                        mirror_copies: bool, extra: dict[str, Any],
+                        variants_all: dict[str, np.ndarray], row: dict[int, int]
+                        ) -> tuple[float, dict[str, Any], float]:
+    """One benchmark fold's fusion weight, chosen on its training subjects alone: each held
+    out in turn, one network (seed ``seed``) and one covariance classifier trained on the
+    others classify it, and :func:`fusion_weight` picks on all those held-out clips.
+    Returns the weight, its record (weight, held-out accuracy per weight, inner networks'
+    accuracy) and the CPU s it took."""
+    start = time.process_time()
+    net, cov, y = [], [], []
+    subjects = sorted({c.subject for c in train})
+    for subject in tqdm(subjects, desc="fusion weight", leave=False):
+        inner = [c for c in train if c.subject != subject]
+        held = [c for c in train if c.subject == subject]
+        logits, _ = _network_fold(inner, fold_labels, [whole_windows(held)], config, seed, 1,
+                                  skeleton, mirror_copies, extra)
+        p, _ = _covariance_fold(inner, held, fold_labels, variants_all, row)
+        net.append(_log_softmax(logits[0]))
+        cov.append(np.log(p + 1e-300))
+        y.append([fold_labels.index(c.source_label) for c in held])
+    net_lp, cov_lp, y_all = np.concatenate(net), np.concatenate(cov), np.concatenate(y)
+    weight, accuracy = fusion_weight(net_lp, cov_lp, y_all)
+    record = {"weight": weight, "held_out_accuracy": accuracy, "held_out_clips": len(y_all),
+              "subjects": len(subjects)}
+    return weight, record, time.process_time() - start
+
+
 def _ensemble_sizes(members: int) -> list[int]:
     """Ensemble sizes a result reports besides its own: 1 and the odd sizes below it."""
     return [k for k in range(1, members) if k == 1 or k % 2]
@@ -346,8 +420,10 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     ``mirror_test``: a network's logits are averaged over each test clip and its mirror
     image (test-time augmentation; the networks train with mirrored windows).
     ``covariance``: ``alone``, the covariance classifier instead of the networks (like
-    ``neighbour``); ``fused``, the networks' probabilities times its probabilities (module
-    docstring); each fold's choices in ``folds[i]["covariance"]``.
+    ``neighbour``); ``fused``, the networks' probabilities times its probabilities;
+    ``weighted``, the two fused with a weight chosen on the fold's training subjects
+    (module docstring); each fold's choices in ``folds[i]["covariance"]`` (the weight's in
+    its ``"fusion"``).
 
     Raises:
         SimenvError: unknown dataset, joint set, distance or covariance mode, both a
@@ -432,9 +508,16 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             fold_logits, fold_cpu = _network_fold(
                 train, fold_labels, tests, train_config, config.seed, members, skeleton,
                 mirror_copies, extra={"benchmark": dataset, "joints": joints})
-            if covariance == "fused":
-                fold_preds = [(_log_softmax(lg) + np.log(cov_p + 1e-300)).argmax(1)
-                              for lg in fold_logits]
+            if covariance in ("fused", "weighted"):
+                weight = 0.5
+                if covariance == "weighted":
+                    weight, chosen["fusion"], weight_cpu = _fusion_weight_fold(
+                        train, fold_labels, train_config, config.seed, skeleton,
+                        mirror_copies, {"benchmark": dataset, "joints": joints},
+                        descriptor_variants, row)
+                    cov_cpu += weight_cpu
+                fold_preds = [fused_log_p(_log_softmax(lg), np.log(cov_p + 1e-300),
+                                          weight).argmax(1) for lg in fold_logits]
                 fold_cpu[0] += cov_cpu
             else:
                 fold_preds = [lg.argmax(1) for lg in fold_logits]
@@ -458,7 +541,8 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     smaller = [] if alone else _ensemble_sizes(members)
     method = (f"nearest neighbour ({neighbour})" if neighbour is not None else
               "covariance" if covariance == "alone" else
-              "network + covariance" if covariance == "fused" else "network")
+              "network + covariance" if covariance == "fused" else
+              "network + covariance, weighted" if covariance == "weighted" else "network")
     return {"dataset": dataset, "protocol": BENCHMARK_PROTOCOLS.get(dataset,
                                                                     "leave-one-subject-out"),
             "classes": labels, "clips": len(clips), "excluded": excluded,
@@ -637,8 +721,9 @@ def calibrated(model: SkeletonTCN, temperature: float) -> SkeletonTCN:
     return model
 
 
-__all__ = ["BENCHMARK_FRAMES", "BENCHMARK_JOINTS", "PUBLISHED", "ROOM_CONDITIONS",
-           "BenchmarkJoints", "NativeClip", "benchmark_folds", "classification_scores",
-           "calibrated", "condition_windows", "mirror_clip", "native_clips",
+__all__ = ["BENCHMARK_FRAMES", "BENCHMARK_JOINTS", "FUSION_WEIGHTS", "PUBLISHED",
+           "ROOM_CONDITIONS", "BenchmarkJoints", "NativeClip", "benchmark_folds",
+           "classification_scores", "calibrated", "condition_windows", "fused_log_p",
+           "fusion_weight", "mirror_clip", "native_clips",
            "native_skeleton", "run_benchmark", "run_room_protocol", "whole_windows",
            "window_mirror_complete"]

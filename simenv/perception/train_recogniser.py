@@ -32,7 +32,9 @@ dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``);
 ``--mirror-test`` averages each network over the test clip and its mirror image (results
 ``..._mirror-test.json``); ``--covariance alone`` runs the covariance-descriptor classifier
 instead of the networks (:mod:`simenv.learning.covariance`; ``<dataset>_cov.json``),
-``--covariance fused`` multiplies the networks' probabilities with its (``..._cov.json``).
+``--covariance fused`` multiplies the networks' probabilities with its (``..._cov.json``),
+``--covariance weighted`` weighs the two by a weight chosen on each fold's training subjects
+(a network per training subject more; ``..._covw.json``).
 ``--dataset room --neighbour D`` runs the nearest neighbour on the room vocabulary's
 leave-subjects-out folds (:func:`simenv.learning.recognition_protocols.room_nearest_neighbour`;
 ``room_nn-<distance>.json``).
@@ -343,7 +345,7 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
         method = r.get("method", "network")
         if method == "covariance":  # its descriptor's joints are its own choice
             windows = "none: covariance descriptors (ridge), whole sequences"
-        elif method not in ("network", "network + covariance"):  # no training windows
+        elif not method.startswith("network"):  # no training windows
             windows = f"none: {method}, whole sequences, {r.get('joints', 'gesture15')}"
         else:
             windows = ("whole sequences" if r.get("whole_sequences") else
@@ -353,6 +355,10 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
                 windows += ", test clip + its mirror"
             if method == "network + covariance":
                 windows += ", fused with the covariance classifier"
+            elif method == "network + covariance, weighted":
+                weights = sorted({f["covariance"]["fusion"]["weight"] for f in r["folds"]})
+                windows += (", fused with the covariance classifier, weight from the training "
+                            f"subjects ({', '.join(f'{w:g}' for w in weights)})")
         if r.get("joints", "gesture15") != "gesture15":
             windows += f" ({len(r['skeleton']['joint_names'])} joints)"
         classes = f"{len(r['classes'])}"
@@ -408,8 +414,9 @@ def _parser() -> argparse.ArgumentParser:
                          help="the nearest-neighbour baseline (this distance) instead of "
                          "the networks")
     p_bench.add_argument("--covariance", choices=COVARIANCE_MODES,
-                         help="the covariance-descriptor classifier alone, or fused with "
-                         "the networks (simenv.learning.covariance)")
+                         help="the covariance-descriptor classifier alone, fused with "
+                         "the networks at equal weights, or weighted by the training "
+                         "subjects (simenv.learning.covariance)")
     p_bench.add_argument("--mirror-test", action="store_true",
                          help="average each network over the test clip and its mirror image")
     p_bench.add_argument("--json", action="store_true")
@@ -475,8 +482,8 @@ def _benchmark_command(args: argparse.Namespace) -> None:
             tag += f"_{args.joints}"
         if args.mirror_test and not alone:
             tag += "_mirror-test"
-        if args.covariance == "fused":
-            tag += "_cov"
+        if args.covariance in ("fused", "weighted"):
+            tag += "_cov" if args.covariance == "fused" else "_covw"
         (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
     print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
                       | {"accuracy": r["scores"]["accuracy"]} for r in results])
