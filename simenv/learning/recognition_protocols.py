@@ -374,8 +374,9 @@ def _fusion_weight_fold(train: Sequence[GestureClip], fold_labels: Sequence[str]
     """One benchmark fold's fusion weight, chosen on its training subjects alone: each held
     out in turn, one network (seed ``seed``) and one covariance classifier trained on the
     others classify it, and :func:`fusion_weight` picks on all those held-out clips.
-    Returns the weight, its record (weight, held-out accuracy per weight, inner networks'
-    accuracy) and the CPU s it took."""
+    Returns the weight, its record (the weight, the held-out accuracy of every weight tried:
+    at 0 the network's alone, at 1 the covariance classifier's; the held-out clips and
+    subjects) and the CPU s it took."""
     start = time.process_time()
     net, cov, y = [], [], []
     subjects = sorted({c.subject for c in train})
