@@ -368,7 +368,8 @@ def benchmark_section(bench: list[dict[str, Any]], provenance: str) -> str:
              and not r.get("whole_sequences") and not r.get("mirror_test")]
 
     def fusion(r: dict[str, Any]) -> str:
-        return (" + covariance (weighted)" if r.get("method", "").endswith("weighted") else
+        weighted = r.get("method") == "network + covariance, weighted"
+        return (" + covariance (weighted)" if weighted else
                 " + covariance" if r in fused else "")
 
     verdicts = []

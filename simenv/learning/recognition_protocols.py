@@ -477,6 +477,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     train_config = (replace(config, mirror=False, epochs=max(1, round(config.epochs / 2)))
                     if mirror_copies else config)
     folds = benchmark_folds(dataset, clips)
+    extra = {"benchmark": dataset, "joints": joints}  # recorded with each network
     # Per ensemble size k (the first k networks; one entry for a model run alone):
     # predictions pooled over folds, per-fold rows, CPU seconds.
     sizes = 1 if alone else members
@@ -508,14 +509,13 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                 tests.append(whole_windows([mirror_clip(c, skeleton) for c in test]))
             fold_logits, fold_cpu = _network_fold(
                 train, fold_labels, tests, train_config, config.seed, members, skeleton,
-                mirror_copies, extra={"benchmark": dataset, "joints": joints})
+                mirror_copies, extra)
             if covariance in ("fused", "weighted"):
                 weight = 0.5
                 if covariance == "weighted":
                     weight, chosen["fusion"], weight_cpu = _fusion_weight_fold(
                         train, fold_labels, train_config, config.seed, skeleton,
-                        mirror_copies, {"benchmark": dataset, "joints": joints},
-                        descriptor_variants, row)
+                        mirror_copies, extra, descriptor_variants, row)
                     cov_cpu += weight_cpu
                 fold_preds = [fused_log_p(_log_softmax(lg), np.log(cov_p + 1e-300),
                                           weight).argmax(1) for lg in fold_logits]

@@ -482,8 +482,7 @@ def _benchmark_command(args: argparse.Namespace) -> None:
             tag += f"_{args.joints}"
         if args.mirror_test and not alone:
             tag += "_mirror-test"
-        if args.covariance in ("fused", "weighted"):
-            tag += "_cov" if args.covariance == "fused" else "_covw"
+        tag += {"fused": "_cov", "weighted": "_covw"}.get(args.covariance, "")
         (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
     print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
                       | {"accuracy": r["scores"]["accuracy"]} for r in results])
