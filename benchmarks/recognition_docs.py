@@ -6,7 +6,7 @@ Inputs (every number in the documents comes from them; nothing is typed in by ha
   ``metrics.json``: the leave-subjects-out protocol, the loop, the shipped network);
 * ``--benchmark DIR``: the output of ``python -m simenv.perception.train_recogniser benchmark``
   (``<dataset>.json``);
-* ``--forecast FILE``: the gesture predictor's fold evaluation (``metrics`` JSON written by
+* ``--forecast FILE``: the gesture predictor's fold evaluation (``folds.json`` written by
   ``python -m simenv.learning.train_gesture_predictor --evaluate``), optional;
 * ``--ticks FILE``: ``benchmarks/bench_perception.py --json`` output, optional;
 * ``--eval DIR``: ``simenv eval classifier --data ... --out`` results, one sub-folder a
@@ -49,6 +49,8 @@ from simenv.perception.train_recogniser import (
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- perception:begin (benchmarks/recognition_docs.py) -->", "<!-- perception:end -->"
 BENCH_BEGIN = "<!-- benchmarks:begin (benchmarks/recognition_docs.py) -->"
+FORECAST_BEGIN = "<!-- forecast:begin (benchmarks/recognition_docs.py) -->"
+FORECAST_END = "<!-- forecast:end -->"
 BENCH_END = "<!-- benchmarks:end -->"
 #: The issue's goals, as (condition or loop key, comparison, value).
 GOALS = {"real_3s": 0.90, "real_1s": 0.75, "gain_points": 12.5, "greeted": 0.90,
@@ -133,9 +135,15 @@ def _recall_table(m: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _forecast_text(forecast: dict[str, Any] | None) -> str:
+def _forecast_text(forecast: dict[str, Any] | None, alone: bool = False) -> str:
     """The forecaster's pooled held-out numbers (``folds.json`` of
-    ``python -m simenv.learning.train_gesture_predictor --evaluate``) as a table."""
+    ``python -m simenv.learning.train_gesture_predictor --evaluate``) as a table, between
+    its markers. ``alone``: regenerated without the recogniser's run, which the text says
+    (the recogniser's forecast rows keep the forecasters that run used)."""
+    return f"{FORECAST_BEGIN}\n{_forecast_body(forecast, alone)}\n{FORECAST_END}"
+
+
+def _forecast_body(forecast: dict[str, Any] | None, alone: bool) -> str:
     if not forecast:
         return "No forecaster evaluation was given to this script."
     pooled = forecast["pooled"]["all"]
@@ -148,12 +156,17 @@ def _forecast_text(forecast: dict[str, Any] | None) -> str:
                           for k in ("mpjpe_1s_mm", "mpjpe_2s_mm"))
         rows.append(f"| {name} | {r['mpjpe_1s_mm']:.0f} | {r['mpjpe_2s_mm']:.0f} | {gain} | "
                     f"{r['mpjs_mps']:.2f} |")
-    return (f"`predictor-gesture-25-50`, leave-subjects-out on the same folds, "
+    provenance = f" (forecasters evaluated at commit `{forecast['commit']}`)" \
+        if "commit" in forecast else ""
+    note = ("\n\nThis table was regenerated on its own: the recogniser's forecast rows above "
+            "(`real_1s_pred_2s`, the networks trained with forecast windows) keep the fold "
+            "forecasters of the recognition run in this page's header.") if alone else ""
+    return (f"`predictor-gesture-25-50`, leave-subjects-out on the same folds{provenance}, "
             f"{pooled['windows']} held-out windows; the real motion's MPJS is "
             f"{pooled['real_mpjs_mps']:.2f} m/s (full table: "
             "[gesture_prediction.md](gesture_prediction.md)). The goals were MPJPE at 1 s "
             "and 2 s at least 20 % below zero velocity and a forecast MPJS within half of "
-            "the real motion's.\n\n" + "\n".join(rows))
+            "the real motion's.\n\n" + "\n".join(rows) + note)
 
 
 def _ablation_text(m: dict[str, Any], ablation: dict[str, Any] | None) -> str:
@@ -606,8 +619,9 @@ decided before the gesture ends.
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--train", type=Path, help="without it, only the benchmarks' section "
-                        "of docs/recognition.md is regenerated (from --benchmark)")
+    parser.add_argument("--train", type=Path, help="without it, only the benchmarks' and "
+                        "the forecaster's sections of docs/recognition.md are regenerated "
+                        "(from --benchmark and --forecast)")
     parser.add_argument("--benchmark", type=Path)
     parser.add_argument("--forecast", type=Path)
     parser.add_argument("--ticks", type=Path)
@@ -620,16 +634,22 @@ def main() -> int:
     bench = [json.loads(p.read_text()) for p in sorted(args.benchmark.glob("*.json"))] \
         if args.benchmark else []
     docs = ROOT / "docs"
+    forecast = json.loads(args.forecast.read_text()) if args.forecast else None
     if args.train is None:
-        if not bench:
-            parser.error("--benchmark DIR with result files is needed without --train")
-        text = benchmark_section(bench, header)
-        replace_section(docs / "recognition.md", BENCH_BEGIN, BENCH_END,
-                        text.removeprefix(BENCH_BEGIN + "\n").removesuffix("\n" + BENCH_END))
-        print(f"wrote the benchmarks' section of {docs / 'recognition.md'}")
+        if not bench and not forecast:
+            parser.error("--benchmark DIR with result files or --forecast FILE is needed "
+                         "without --train")
+        if bench:
+            text = benchmark_section(bench, header)
+            replace_section(docs / "recognition.md", BENCH_BEGIN, BENCH_END,
+                            text.removeprefix(BENCH_BEGIN + "\n").removesuffix("\n" + BENCH_END))
+            print(f"wrote the benchmarks' section of {docs / 'recognition.md'}")
+        if forecast:
+            replace_section(docs / "recognition.md", FORECAST_BEGIN, FORECAST_END,
+                            _forecast_body(forecast, alone=True))
+            print(f"wrote the forecaster's section of {docs / 'recognition.md'}")
         return 0
     m = json.loads((args.train / "metrics.json").read_text())
-    forecast = json.loads(args.forecast.read_text()) if args.forecast else None
     ticks = json.loads(args.ticks.read_text()) if args.ticks else None
     evals = {p.parent.name: json.loads(p.read_text())
              for p in sorted(args.eval.glob("*/metrics.json"))} if args.eval else {}

@@ -8,7 +8,8 @@ works directly on the classifier's ``gesture15`` joints
 real Kinect recordings of the gesture corpus (:mod:`simenv.learning.train_gesture_predictor`).
 
 ``GesturePredictor.predict(history)``: (25, 15, 3) world positions, metres, Z up,
-25 fps -> (50, 15, 3) world positions of the next 50 frames.
+25 fps -> (50, 15, 3) world positions of the next 50 frames; with ``mirror_average``, the
+mean of that forecast and the mirrored forecast of the left-right mirrored history.
 """
 
 from __future__ import annotations
@@ -57,6 +58,8 @@ class GesturePredictorConfig:
         dct_out: DCT coefficients of the future predicted (the forecast is band-limited
             to ``dct_out / (2 F / fps)`` Hz).
         hidden: width of the MLP. blocks: residual blocks. dropout: in each block.
+        mirror_average: also forecast the left-right mirror of the history and average
+            the mirrored-back forecast in (see :class:`GesturePredictor`, step 8).
         heading_frames: last history frames whose mean shoulder axis gives the heading
             (a few, to damp Kinect jitter of the shoulders).
         root_mode: one of :data:`ROOT_MODES`. root_frames: history frames the root
@@ -72,6 +75,7 @@ class GesturePredictorConfig:
     hidden: int = 160
     blocks: int = 1
     dropout: float = 0.1
+    mirror_average: bool = False
     heading_frames: int = 3
     root_mode: str = "learned"
     root_frames: int = 5
@@ -217,6 +221,12 @@ class GesturePredictor(CheckpointMixin):
        the last ``root_frames`` history frames (m/s), ``τ = root_tau_s``; ``"still"``
        keeps the spine where it was (``d_k = 0``).
     7. **Back to the world:** ``x̂ = R_z(θ) b̂ / U + o``.
+    8. **Mirror average** (``mirror_average``): ``x̂ ← (x̂(x) + S x̂(S x)) / 2``, where
+       ``S`` mirrors left and right (world Y negated, left/right joints swapped). Training
+       sees mirrored motion as often as the original, so the ideal forecaster commutes
+       with ``S``; the average removes the part of the trained network's error that does
+       not, for a second forward pass. Like any average of forecasts it also moves a
+       little less than either.
 
     Training (:mod:`simenv.learning.train_gesture_predictor`): per-joint Euclidean error of the
     positions plus that of the frame-to-frame velocities (siMLPe's two terms), in the
@@ -334,24 +344,36 @@ class GesturePredictor(CheckpointMixin):
         return out if batched else out[0]
 
     @torch.no_grad()
-    def _predict(self, h: np.ndarray) -> np.ndarray:
+    def _world_forecast(self, h: np.ndarray) -> np.ndarray:
+        """Steps 1-7: (N, F, 15, 3) float64 world metres, the root as the network has it."""
         residual, last, origin, angle = self.inputs(h)
         self.net.eval()
         body = self.forward(residual, last).double().numpy() / UNIT
-        body = body.reshape(len(h), self.future_len, NUM_JOINTS, 3)
-        out = from_body(body, origin, angle)
+        return from_body(body.reshape(len(h), self.future_len, NUM_JOINTS, 3), origin, angle)
+
+    def _predict(self, h: np.ndarray) -> np.ndarray:
+        out = self._world_forecast(h)
+        if self.config.mirror_average:
+            out = 0.5 * (out + mirror_world(self._world_forecast(mirror_world(h))))
         if self.config.root_mode != "learned":
             spine = h[:, -1, _SPINE][:, None] + self._root_path(h)  # (N, F, 3)
             out = out - out[:, :, _SPINE:_SPINE + 1] + spine[:, :, None]
         return out.astype(np.float32)
 
-    def with_root_mode(self, mode: str, tau_s: float | None = None) -> GesturePredictor:
-        """A predictor sharing this network with another :data:`ROOT_MODES` root."""
-        config = GesturePredictorConfig(**{**asdict(self.config), "root_mode": mode})
-        if tau_s is not None:
-            config.root_tau_s = float(tau_s)
-        other = GesturePredictor.__new__(GesturePredictor)
+    def variant(self, *, root_mode: str | None = None, root_tau_s: float | None = None,
+                mirror_average: bool | None = None) -> GesturePredictor:
+        """A predictor sharing this network with other inference settings: another
+        :data:`ROOT_MODES` root (and decay time, s), mirror averaging on or off (None: as
+        this one).
+
+        Raises:
+            MotionError: an unknown root mode, a decay time <= 0.
+        """
+        changes = {k: v for k, v in (("root_mode", root_mode), ("root_tau_s", root_tau_s),
+                                     ("mirror_average", mirror_average)) if v is not None}
+        config = GesturePredictorConfig(**{**asdict(self.config), **changes})
         config.check()
+        other = GesturePredictor.__new__(GesturePredictor)
         other.config, other.net, other.name = config, self.net, self.name
         other.metadata = dict(self.metadata)
         return other

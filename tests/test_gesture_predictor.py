@@ -20,6 +20,7 @@ from simenv.models.gesture_predictor import (
     GesturePredictorConfig,
     body_frame,
     from_body,
+    mirror_world,
     to_body,
 )
 
@@ -119,18 +120,47 @@ def test_body_frame_faces_plus_x_and_round_trips(walk15) -> None:
 
 def test_root_modes(walk15) -> None:
     model = GesturePredictor(seed=0)
-    still = model.with_root_mode("still").predict(walk15[:25])
+    still = model.variant(root_mode="still").predict(walk15[:25])
     np.testing.assert_allclose(still[:, 0], np.repeat(walk15[24:25, 0], 50, axis=0), atol=1e-5)
-    damped = model.with_root_mode("damped", tau_s=0.5).predict(walk15[:25])
+    damped = model.variant(root_mode="damped", root_tau_s=0.5).predict(walk15[:25])
     step = np.linalg.norm(np.diff(damped[:, 0, :2], axis=0), axis=-1)
     assert step[0] > 0.02 and step[-1] < 0.3 * step[0]  # walking ~1.3 m/s, then slows
 
 
-def test_save_load_round_trip(tmp_path, walk15) -> None:
-    model = GesturePredictor(GesturePredictorConfig(hidden=32, root_mode="damped"), seed=5)
+def _perturb(model: GesturePredictor, seed: int = 1) -> GesturePredictor:
+    """Small random weights everywhere (the output layer starts at zero: zero velocity)."""
+    gen = torch.Generator().manual_seed(seed)
     with torch.no_grad():
         for p in model.net.parameters():
-            p.add_(0.01 * torch.randn(p.shape, generator=torch.Generator().manual_seed(1)))
+            p.add_(0.05 * torch.randn(p.shape, generator=gen))
+    return model
+
+
+def test_mirror_average(tmp_path, walk15) -> None:
+    model = _perturb(GesturePredictor(GesturePredictorConfig(hidden=32), seed=0))
+    history = walk15[:25]
+    mirrored = model.variant(mirror_average=True)
+    # The average of the forecast and the mirrored forecast of the mirrored history ...
+    np.testing.assert_allclose(
+        mirrored.predict(history),
+        0.5 * (model.predict(history) + mirror_world(model.predict(mirror_world(history)))),
+        atol=1e-5)
+    # ... commutes with the mirror, which the network alone does not.
+    np.testing.assert_allclose(mirrored.predict(mirror_world(history)),
+                               mirror_world(mirrored.predict(history)), atol=1e-5)
+    assert not np.allclose(model.predict(mirror_world(history)),
+                           mirror_world(model.predict(history)), atol=1e-3)
+    assert mirrored.net is model.net and not model.config.mirror_average
+    back = GesturePredictor.load(mirrored.save(tmp_path / "m.npz"))
+    assert back.config.mirror_average
+    np.testing.assert_array_equal(back.predict(history), mirrored.predict(history))
+    with pytest.raises(MotionError, match="root_mode"):
+        model.variant(root_mode="flying")
+
+
+def test_save_load_round_trip(tmp_path, walk15) -> None:
+    model = GesturePredictor(GesturePredictorConfig(hidden=32, root_mode="damped"), seed=5)
+    _perturb(model)
     path = model.save(tmp_path / "m.npz", metadata={"fold": 2})
     back = GesturePredictor.load(path)
     assert back.config == model.config and back.metadata["fold"] == 2
@@ -168,25 +198,33 @@ def test_folds_keep_held_out_subjects_out(recordings) -> None:
         assert windows.shape[1:] == (75, 15, 3) and len(names) == len(windows)
 
 
-def test_short_training_lowers_the_loss_and_evaluates(recordings) -> None:
+def test_short_training_lowers_the_loss_and_evaluates(recordings, tmp_path) -> None:
     from simenv.learning.train_gesture_predictor import (
         TrainConfig,
         eval_windows,
         evaluate,
         retrieval_baselines,
         train,
+        write_doc,
     )
 
     train_recs = [r for r in recordings if r.fold != 0]
-    model, history = train(train_recs, TrainConfig(steps=300, batch=64, seed=0),
-                           progress=False)
+    model, history = train(train_recs, TrainConfig(
+        steps=300, batch=64, seed=0, model={"mirror_average": True}), progress=False)
     assert history["loss"][-1] < 0.9 * history["loss"][0]
     assert "utkinect/s01" not in history["subjects"]  # fold 0's subject stays out
     windows, names = eval_windows([r for r in recordings if r.fold == 0], stride=25)
     result = evaluate(model, windows, names, retrieval_baselines(train_recs))
     assert set(result) >= {"all", "utkinect", "msr_action3d"}
     table = result["all"]
-    for method in ("model-learned", "model-damped", "zero-velocity", "constant-velocity",
-                   "nearest-neighbour", "20-nearest-neighbours"):
+    for method in ("model-learned", "model-damped", "model-unmirrored", "zero-velocity",
+                   "constant-velocity", "nearest-neighbour", "20-nearest-neighbours"):
         assert np.isfinite(table[method]["mpjpe_2s_mm"])
     assert table["zero-velocity"]["mpjs_mps"] == 0.0 and table["real_mpjs_mps"] > 0
+    # The mirror average moves the forecast, so the two rows differ.
+    assert table["model-learned"]["mpjpe_2s_mm"] != table["model-unmirrored"]["mpjpe_2s_mm"]
+    doc = tmp_path / "gesture_prediction.md"
+    write_doc(doc, {"folds": {0: result}, "pooled": result, "train_cpu_s": {0: 1.0},
+                    "skipped": []}, "pytest", "learned")
+    text = doc.read_text()
+    assert "## Mirror average (pooled)" in text and "the network alone" in text
