@@ -158,9 +158,10 @@ def _forecast_body(forecast: dict[str, Any] | None, alone: bool) -> str:
                     f"{r['mpjs_mps']:.2f} |")
     provenance = f" (forecasters evaluated at commit `{forecast['commit']}`)" \
         if "commit" in forecast else ""
-    note = ("\n\nThis table was regenerated on its own: the recogniser's forecast rows above "
-            "(`real_1s_pred_2s`, the networks trained with forecast windows) keep the fold "
-            "forecasters of the recognition run in this page's header.") if alone else ""
+    note = ("\n\nThis table was regenerated on its own: the recogniser's numbers with "
+            "forecasts on this page (the `real_1s_pred_2s` rows, the networks trained with "
+            "forecast windows, the `eval classifier` lines) keep the forecasters of the "
+            "recognition run in the page's header.") if alone else ""
     return (f"`predictor-gesture-25-50`, leave-subjects-out on the same folds{provenance}, "
             f"{pooled['windows']} held-out windows; the real motion's MPJS is "
             f"{pooled['real_mpjs_mps']:.2f} m/s (full table: "
