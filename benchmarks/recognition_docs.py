@@ -49,9 +49,9 @@ from simenv.perception.train_recogniser import (
 ROOT = Path(__file__).resolve().parents[1]
 BEGIN, END = "<!-- perception:begin (benchmarks/recognition_docs.py) -->", "<!-- perception:end -->"
 BENCH_BEGIN = "<!-- benchmarks:begin (benchmarks/recognition_docs.py) -->"
+BENCH_END = "<!-- benchmarks:end -->"
 FORECAST_BEGIN = "<!-- forecast:begin (benchmarks/recognition_docs.py) -->"
 FORECAST_END = "<!-- forecast:end -->"
-BENCH_END = "<!-- benchmarks:end -->"
 #: The issue's goals, as (condition or loop key, comparison, value).
 GOALS = {"real_3s": 0.90, "real_1s": 0.75, "gain_points": 12.5, "greeted": 0.90,
          "false_greet": 0.03, "tick_ms": 11.0}
@@ -135,15 +135,16 @@ def _recall_table(m: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _forecast_text(forecast: dict[str, Any] | None, alone: bool = False) -> str:
-    """The forecaster's pooled held-out numbers (``folds.json`` of
-    ``python -m simenv.learning.train_gesture_predictor --evaluate``) as a table, between
-    its markers. ``alone``: regenerated without the recogniser's run, which the text says
-    (the recogniser's forecast rows keep the forecasters that run used)."""
-    return f"{FORECAST_BEGIN}\n{_forecast_body(forecast, alone)}\n{FORECAST_END}"
+def _forecast_text(forecast: dict[str, Any] | None) -> str:
+    """The forecaster's section, between its markers (:func:`_forecast_body`)."""
+    return f"{FORECAST_BEGIN}\n{_forecast_body(forecast, alone=False)}\n{FORECAST_END}"
 
 
 def _forecast_body(forecast: dict[str, Any] | None, alone: bool) -> str:
+    """The forecaster's pooled held-out numbers (``folds.json`` of
+    ``python -m simenv.learning.train_gesture_predictor --evaluate``) as a table.
+    ``alone``: regenerated without the recogniser's run, which the text then says (the
+    page's recogniser numbers with forecasts keep the forecasters that run used)."""
     if not forecast:
         return "No forecaster evaluation was given to this script."
     pooled = forecast["pooled"]["all"]
