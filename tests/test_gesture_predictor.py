@@ -12,7 +12,12 @@ import torch
 
 import simenv.models
 from simenv.core.errors import MotionError
-from simenv.data.gestures import GESTURE_FPS, gesture_skeleton, to_gesture_joints
+from simenv.data.gestures import (
+    GESTURE15_JOINTS,
+    GESTURE_FPS,
+    gesture_skeleton,
+    to_gesture_joints,
+)
 from simenv.io import bvh
 from simenv.models.checkpoint import CheckpointError
 from simenv.models.gesture_predictor import (
@@ -228,3 +233,11 @@ def test_short_training_lowers_the_loss_and_evaluates(recordings, tmp_path) -> N
                     "skipped": []}, "pytest", "learned")
     text = doc.read_text()
     assert "## Mirror average (pooled)" in text and "the network alone" in text
+    assert "## Where the error is (pooled)" in text
+    # Zero velocity keeps the spine where it was: its spine error is the spine's travel.
+    spine, w = GESTURE15_JOINTS.index("spine"), windows.astype(np.float64)
+    travel = 1000 * np.linalg.norm(w[:, 74, spine] - w[:, 24, spine], axis=-1).mean()
+    zv = table["zero-velocity"]
+    assert zv["spine_curve_mm"][49] == pytest.approx(travel, abs=0.01)
+    for method in ("model-learned", "zero-velocity"):  # the pose error ignores the spine
+        assert 0 < table[method]["pose_curve_mm"][49] < table[method]["curve_mm"][49] + 1e-6

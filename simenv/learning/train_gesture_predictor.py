@@ -77,6 +77,7 @@ from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
 from simenv.data.gestures import (
     DATASETS,
+    GESTURE15_JOINTS,
     GESTURE_FPS,
     gesture_skeleton,
     load_gesture_clips,
@@ -115,6 +116,9 @@ GOAL_MPJS_RATIO = 0.5
 GOAL_GAIN = 0.20
 #: Result key of a mirror-averaging model's network scored without the average.
 UNMIRRORED = "model-unmirrored"
+#: Error curves of a score (:func:`_scores`), mm per future frame.
+CURVES = ("curve_mm", "spine_curve_mm", "pose_curve_mm")
+_SPINE = GESTURE15_JOINTS.index("spine")
 REPO = repo_root()
 
 
@@ -395,12 +399,20 @@ def _smooth(frames: np.ndarray, n: int = 5) -> np.ndarray:
 
 def _scores(pred: np.ndarray, history: np.ndarray, future: np.ndarray, fps: float
             ) -> dict[str, Any]:
+    """MPJPE at 1 s / 2 s / mean and its curve (mm), MPJS (m/s), and the curve split in
+    two: the spine's position error (``spine_curve_mm``: where the person is) and the
+    MPJPE about the spine (``pose_curve_mm``: both skeletons' spines moved to one point,
+    how the body is posed; the root-relative error of the motion-prediction literature)."""
     curve = per_frame_mpjpe_mm(pred, future)
     path = np.concatenate([history[:, -1:], pred], axis=1)
+    about = lambda x: x - x[:, :, _SPINE:_SPINE + 1]  # noqa: E731
+    rounded = lambda c: [round(float(v), 2) for v in c]  # noqa: E731
     return {"mpjpe_1s_mm": float(curve[int(fps) - 1]) if len(curve) >= fps else None,
             "mpjpe_2s_mm": float(curve[int(2 * fps) - 1]) if len(curve) >= 2 * fps else None,
             "mpjpe_mean_mm": float(curve.mean()), "mpjs_mps": mean_per_joint_speed(path, fps),
-            "curve_mm": [round(float(c), 2) for c in curve]}
+            "curve_mm": rounded(curve),
+            "spine_curve_mm": rounded(per_frame_mpjpe_mm(pred, future, joints=[_SPINE])),
+            "pose_curve_mm": rounded(per_frame_mpjpe_mm(about(pred), about(future)))}
 
 
 def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray | None = None,
@@ -466,12 +478,14 @@ def _pool(tables: Sequence[dict[str, Any]]) -> dict[str, Any]:
     for k in tables[0]:
         if k in out:
             continue
-        curve = sum(wi * np.array(t[k]["curve_mm"]) for wi, t in zip(w, tables, strict=True))
+        curves = {c: sum(wi * np.array(t[k][c]) for wi, t in zip(w, tables, strict=True))
+                  for c in CURVES if c in tables[0][k]}
+        curve = curves["curve_mm"]
         out[k] = {"mpjpe_1s_mm": float(curve[24]), "mpjpe_2s_mm": float(curve[49]),
                   "mpjpe_mean_mm": float(curve.mean()),
                   "mpjs_mps": float(sum(wi * t[k]["mpjs_mps"]
                                         for wi, t in zip(w, tables, strict=True))),
-                  "curve_mm": [round(float(c), 2) for c in curve]}
+                  **{c: [round(float(v), 2) for v in values] for c, values in curves.items()}}
     return out
 
 
@@ -608,6 +622,25 @@ def baseline_table(result: dict[str, Any], root_mode: str = "learned") -> str:
                 f"{a['mpjpe_mean_mm']:.0f} | {_gain(a['mpjpe_1s_mm'], z['mpjpe_1s_mm'])} / "
                 f"{_gain(a['mpjpe_2s_mm'], z['mpjpe_2s_mm'])} | {a['mpjs_mps']:.2f} "
                 f"({t['real_mpjs_mps']:.2f}) |")
+    return "\n".join(lines)
+
+
+def error_split_table(result: dict[str, Any], root_mode: str = "learned") -> str:
+    """Pooled error at 1 s and 2 s split into the spine's position error and the MPJPE
+    about the spine, for the model, its network alone (if mirror-averaged), zero velocity
+    and the retrieval baselines; empty for results scored before the split existed."""
+    t = result["pooled"]["all"]
+    names = [f"model-{root_mode}", UNMIRRORED, "zero-velocity",
+             *(k for k in t if isinstance(t[k], dict) and "neighbour" in k)]
+    names = [n for n in names if n in t and "spine_curve_mm" in t[n]]
+    if not names:
+        return ""
+    lines = ["| pooled all | MPJPE 1 s / 2 s | spine error 1 s / 2 s | MPJPE about the spine "
+             "1 s / 2 s |", "|---|---|---|---|"]
+    for n in names:
+        a = t[n]
+        cells = [f"{a[c][24]:.0f} / {a[c][49]:.0f}" for c in CURVES]
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -755,6 +788,18 @@ def _mirror_section(result: dict[str, Any]) -> list[str]:
             "", table, ""]
 
 
+def _error_split_section(result: dict[str, Any], root_mode: str) -> list[str]:
+    """The doc's lines on where the error is (:func:`error_split_table`)."""
+    table = error_split_table(result, root_mode)
+    if not table:
+        return []
+    return ["## Where the error is (pooled)", "",
+            "Each forecast's error split in two, in mm: the spine's position error (where "
+            "the person will be) and the MPJPE once both skeletons' spines are moved to "
+            "one point (how the body will be posed; the root-relative error most "
+            "motion-prediction papers report).", "", table, ""]
+
+
 def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) -> None:
     """``docs/gesture_prediction.md``: generated header + the tables."""
     cpu = [v for v in result["train_cpu_s"].values() if v is not None]
@@ -775,6 +820,7 @@ def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) 
         "MPJPE 1 s / 2 s / mean, mm.", "",
         root_mode_table(result), "",
         *_mirror_section(result),
+        *_error_split_section(result, root_mode),
         "## Against the simplest baselines (pooled)", "",
         "Zero-velocity, constant-velocity and retrieval: the nearest neighbour "
         "(`simenv.models.retrieval_forecaster`: the future of the training window whose "
