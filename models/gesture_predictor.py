@@ -352,9 +352,11 @@ class GesturePredictor(CheckpointMixin):
         return from_body(body.reshape(len(h), self.future_len, NUM_JOINTS, 3), origin, angle)
 
     def _predict(self, h: np.ndarray) -> np.ndarray:
-        out = self._world_forecast(h)
-        if self.config.mirror_average:
-            out = 0.5 * (out + mirror_world(self._world_forecast(mirror_world(h))))
+        if self.config.mirror_average:  # both histories in one batch: one network call
+            both = self._world_forecast(np.concatenate([h, mirror_world(h)]))
+            out = 0.5 * (both[:len(h)] + mirror_world(both[len(h):]))
+        else:
+            out = self._world_forecast(h)
         if self.config.root_mode != "learned":
             spine = h[:, -1, _SPINE][:, None] + self._root_path(h)  # (N, F, 3)
             out = out - out[:, :, _SPINE:_SPINE + 1] + spine[:, :, None]

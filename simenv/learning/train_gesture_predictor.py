@@ -397,6 +397,11 @@ def _smooth(frames: np.ndarray, n: int = 5) -> np.ndarray:
     return (c[:, hi] - c[:, lo]) / (hi - lo)[None, :, None, None]
 
 
+def _rounded(curve: np.ndarray) -> list[float]:
+    """A curve as JSON: floats to 0.01 mm."""
+    return [round(float(v), 2) for v in curve]
+
+
 def _scores(pred: np.ndarray, history: np.ndarray, future: np.ndarray, fps: float
             ) -> dict[str, Any]:
     """MPJPE at 1 s / 2 s / mean and its curve (mm), MPJS (m/s), and the curve split in
@@ -406,13 +411,12 @@ def _scores(pred: np.ndarray, history: np.ndarray, future: np.ndarray, fps: floa
     curve = per_frame_mpjpe_mm(pred, future)
     path = np.concatenate([history[:, -1:], pred], axis=1)
     about = lambda x: x - x[:, :, _SPINE:_SPINE + 1]  # noqa: E731
-    rounded = lambda c: [round(float(v), 2) for v in c]  # noqa: E731
     return {"mpjpe_1s_mm": float(curve[int(fps) - 1]) if len(curve) >= fps else None,
             "mpjpe_2s_mm": float(curve[int(2 * fps) - 1]) if len(curve) >= 2 * fps else None,
             "mpjpe_mean_mm": float(curve.mean()), "mpjs_mps": mean_per_joint_speed(path, fps),
-            "curve_mm": rounded(curve),
-            "spine_curve_mm": rounded(per_frame_mpjpe_mm(pred, future, joints=[_SPINE])),
-            "pose_curve_mm": rounded(per_frame_mpjpe_mm(about(pred), about(future)))}
+            "curve_mm": _rounded(curve),
+            "spine_curve_mm": _rounded(per_frame_mpjpe_mm(pred, future, joints=[_SPINE])),
+            "pose_curve_mm": _rounded(per_frame_mpjpe_mm(about(pred), about(future)))}
 
 
 def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray | None = None,
@@ -485,7 +489,7 @@ def _pool(tables: Sequence[dict[str, Any]]) -> dict[str, Any]:
                   "mpjpe_mean_mm": float(curve.mean()),
                   "mpjs_mps": float(sum(wi * t[k]["mpjs_mps"]
                                         for wi, t in zip(w, tables, strict=True))),
-                  **{c: [round(float(v), 2) for v in values] for c, values in curves.items()}}
+                  **{c: _rounded(values) for c, values in curves.items()}}
     return out
 
 
@@ -607,6 +611,14 @@ def root_mode_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _error_cells(a: dict[str, Any], z: dict[str, Any]) -> str:
+    """``1 s / 2 s / mean | gain 1 s / gain 2 s`` cells of score ``a`` against zero
+    velocity's ``z``."""
+    return (f"{a['mpjpe_1s_mm']:.0f} / {a['mpjpe_2s_mm']:.0f} / {a['mpjpe_mean_mm']:.0f} | "
+            f"{_gain(a['mpjpe_1s_mm'], z['mpjpe_1s_mm'])} / "
+            f"{_gain(a['mpjpe_2s_mm'], z['mpjpe_2s_mm'])}")
+
+
 def baseline_table(result: dict[str, Any], root_mode: str = "learned") -> str:
     """Pooled MPJPE and MPJS of the model against every baseline of the result."""
     lines = ["| pooled | forecaster | MPJPE 1 s / 2 s / mean 0-2 s, mm | vs zero-velocity "
@@ -617,11 +629,8 @@ def baseline_table(result: dict[str, Any], root_mode: str = "learned") -> str:
                                           and not k.startswith("model-")]
         for name in names:
             a = t[name]
-            lines.append(
-                f"| {g} | {name} | {a['mpjpe_1s_mm']:.0f} / {a['mpjpe_2s_mm']:.0f} / "
-                f"{a['mpjpe_mean_mm']:.0f} | {_gain(a['mpjpe_1s_mm'], z['mpjpe_1s_mm'])} / "
-                f"{_gain(a['mpjpe_2s_mm'], z['mpjpe_2s_mm'])} | {a['mpjs_mps']:.2f} "
-                f"({t['real_mpjs_mps']:.2f}) |")
+            lines.append(f"| {g} | {name} | {_error_cells(a, z)} | {a['mpjs_mps']:.2f} "
+                         f"({t['real_mpjs_mps']:.2f}) |")
     return "\n".join(lines)
 
 
@@ -656,9 +665,7 @@ def mirror_table(result: dict[str, Any]) -> str:
         for label, key in (("the network alone", UNMIRRORED),
                            ("mirror-averaged (the model)", "model-learned")):
             a = t[key]
-            lines.append(f"| {g} | {label} | {a['mpjpe_1s_mm']:.0f} / {a['mpjpe_2s_mm']:.0f} / "
-                         f"{a['mpjpe_mean_mm']:.0f} | {_gain(a['mpjpe_1s_mm'], z['mpjpe_1s_mm'])}"
-                         f" / {_gain(a['mpjpe_2s_mm'], z['mpjpe_2s_mm'])} | "
+            lines.append(f"| {g} | {label} | {_error_cells(a, z)} | "
                          f"{a['mpjs_mps'] / t['real_mpjs_mps']:.2f} |")
     return "\n".join(lines)
 
@@ -777,27 +784,9 @@ def _skipped_summary(skipped: Sequence[str]) -> str:
                       else []) + rest)
 
 
-def _mirror_section(result: dict[str, Any]) -> list[str]:
-    """The doc's lines on the mirror average (:func:`mirror_table`), none without it."""
-    table = mirror_table(result)
-    if not table:
-        return []
-    return ["## Mirror average (pooled)", "",
-            "The model averages its forecast with the mirrored forecast of the mirrored "
-            "history (`GesturePredictor`, step 8); its network alone on the same windows:",
-            "", table, ""]
-
-
-def _error_split_section(result: dict[str, Any], root_mode: str) -> list[str]:
-    """The doc's lines on where the error is (:func:`error_split_table`)."""
-    table = error_split_table(result, root_mode)
-    if not table:
-        return []
-    return ["## Where the error is (pooled)", "",
-            "Each forecast's error split in two, in mm: the spine's position error (where "
-            "the person will be) and the MPJPE once both skeletons' spines are moved to "
-            "one point (how the body will be posed; the root-relative error most "
-            "motion-prediction papers report).", "", table, ""]
+def _section(title: str, intro: str, table: str) -> list[str]:
+    """A doc section's lines, none for an empty table (a result without those scores)."""
+    return [f"## {title}", "", intro, "", table, ""] if table else []
 
 
 def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) -> None:
@@ -819,8 +808,15 @@ def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) 
         "spine velocity decaying with tau = 0.5 s, `still` = the spine stays. "
         "MPJPE 1 s / 2 s / mean, mm.", "",
         root_mode_table(result), "",
-        *_mirror_section(result),
-        *_error_split_section(result, root_mode),
+        *_section("Mirror average (pooled)",
+                  "The model averages its forecast with the mirrored forecast of the mirrored "
+                  "history (`GesturePredictor`, step 8); its network alone on the same "
+                  "windows:", mirror_table(result)),
+        *_section("Where the error is (pooled)",
+                  "Each forecast's error split in two, in mm: the spine's position error "
+                  "(where the person will be) and the MPJPE once both skeletons' spines are "
+                  "moved to one point (how the body will be posed; the root-relative error "
+                  "most motion-prediction papers report).", error_split_table(result, root_mode)),
         "## Against the simplest baselines (pooled)", "",
         "Zero-velocity, constant-velocity and retrieval: the nearest neighbour "
         "(`simenv.models.retrieval_forecaster`: the future of the training window whose "
