@@ -17,7 +17,11 @@ paper's best. The clip's descriptor is their concatenation, ``W D (D + 1) / 2`` 
 **Classifier.** Ridge regression of one-versus-rest targets (+1 for the class, -1 for the
 others) on the standardised descriptors (each dimension to zero mean, unit variance over
 the training clips), solved in the dual because clips are far fewer than dimensions:
-``(K + lambda I) alpha = Y``, ``K = A A^T``, scores ``B A^T alpha``. The regulariser
+``(K + lambda I) alpha = Y``, ``K = A A^T``, scores ``B A^T alpha``. A descriptor may be
+given as blocks (e.g. covariance and Lie-group descriptors of the same clips,
+:mod:`simenv.learning.lie_group`): each block ``b`` of ``F_b`` of the ``F`` dimensions is
+standardised and scaled by ``sqrt(F / (n_blocks F_b))``, so that every block weighs the same
+in ``K`` whatever its size (one block is left as it is). The regulariser
 ``lambda`` and the descriptor variant (which joints, with or without velocities) are chosen
 by leave-one-training-subject-out accuracy, never on test clips (the standardisation is
 computed once on all training clips, labels unused, so the held-out subject's Gram rows are
@@ -34,6 +38,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from simenv.core.errors import SimenvError
+
+#: A descriptor variant of N clips: one (N, F) array, or blocks of the same N clips.
+Descriptor = np.ndarray | tuple[np.ndarray, ...]
 
 #: Temporal pyramid levels (L): 1 + 3 + 7 windows.
 PYRAMID_LEVELS = 3
@@ -106,6 +113,30 @@ def _fit_temperature(scores: np.ndarray, y: np.ndarray) -> float:
     return float(TEMPERATURES[int(np.argmin(nll))])
 
 
+def _blocks(descriptor: Descriptor) -> tuple[np.ndarray, ...]:
+    return descriptor if isinstance(descriptor, tuple) else (descriptor,)
+
+
+def _block_weights(blocks: Sequence[np.ndarray]) -> list[float]:
+    """``sqrt(F / (n_blocks F_b))`` of each block (module docstring)."""
+    total = sum(b.shape[1] for b in blocks)
+    return [float(np.sqrt(total / (len(blocks) * b.shape[1]))) for b in blocks]
+
+
+class _Standardised:
+    """One block's training statistics and the Gram matrix of its standardised training
+    rows (a fit computes it once per block, since variants share blocks)."""
+
+    def __init__(self, block: np.ndarray) -> None:
+        block = np.asarray(block, np.float64)
+        self.mean, self.scale = block.mean(0), block.std(0) + 1e-12
+        z = self.apply(block)
+        self.gram = z @ z.T
+
+    def apply(self, block: np.ndarray) -> np.ndarray:
+        return (np.asarray(block, np.float64) - self.mean) / self.scale
+
+
 class CovarianceClassifier:
     """Ridge classifier on covariance descriptors (module docstring).
 
@@ -130,20 +161,23 @@ class CovarianceClassifier:
         self.lam = 0.0
         self.temperature = 1.0
         self.selection: dict[str, dict[float, float]] = {}
-        # (mean, scale, standardised training descriptors, dual weights) once fitted.
-        self._fitted: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        # Per block of the chosen variant (statistics, weight, standardised training rows)
+        # and the dual weights, once fitted.
+        self._fitted: tuple[list[tuple[_Standardised, float, np.ndarray]], np.ndarray] | None
+        self._fitted = None
 
     def _targets(self, y: np.ndarray) -> np.ndarray:
         t = -np.ones((len(y), self.num_classes))
         t[np.arange(len(y)), y] = 1.0
         return t
 
-    def fit(self, variants: Mapping[str, np.ndarray], y: np.ndarray,
+    def fit(self, variants: Mapping[str, Descriptor], y: np.ndarray,
             groups: np.ndarray) -> CovarianceClassifier:
         """Choose the variant and ``lambda``, fit the temperature and the final weights.
 
         Args:
-            variants: name -> (N, F_v) descriptors of the same N training clips.
+            variants: name -> (N, F_v) descriptors of the same N training clips, or a tuple
+                of such blocks (module docstring).
             y: (N,) int labels in 0 .. C-1.
             groups: (N,) subject of each clip (held out one at a time; at least 2).
 
@@ -154,13 +188,15 @@ class CovarianceClassifier:
         y, groups = np.asarray(y, int), np.asarray(groups)
         if not variants:
             raise SimenvError("no descriptor variant to fit", field="variants")
-        for name, a in variants.items():
-            if len(a) != len(y) or len(groups) != len(y):
-                raise SimenvError(f"variant {name!r}: {len(a)} descriptors, {len(y)} labels, "
-                                  f"{len(groups)} groups", field="variants")
-            if not np.isfinite(a).all():
-                raise SimenvError(f"variant {name!r} holds non-finite descriptors",
-                                  field="variants")
+        for name, d in variants.items():
+            for a in _blocks(d):
+                if a.ndim != 2 or len(a) != len(y) or len(groups) != len(y):
+                    raise SimenvError(f"variant {name!r}: {len(a)} descriptors of shape "
+                                      f"{a.shape[1:]} (expected one row each), {len(y)} "
+                                      f"labels, {len(groups)} groups", field="variants")
+                if not np.isfinite(a).all():
+                    raise SimenvError(f"variant {name!r} holds non-finite descriptors",
+                                      field="variants")
         if y.min() < 0 or y.max() >= self.num_classes:
             raise SimenvError(f"labels must be in 0..{self.num_classes - 1}", field="y")
         subjects = np.unique(groups)
@@ -169,12 +205,14 @@ class CovarianceClassifier:
                               f"least 2; got {len(subjects)}", field="groups")
         targets = self._targets(y)
         best: tuple[float, str, float, np.ndarray] | None = None
-        standardised: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        for name, a in variants.items():
-            mean, scale = a.mean(0), a.std(0) + 1e-12
-            z = (a - mean) / scale
-            gram = z @ z.T
-            standardised[name] = (mean, scale, z)
+        cache: dict[int, _Standardised] = {}
+        for name, d in variants.items():
+            blocks = _blocks(d)
+            for a in blocks:
+                if id(a) not in cache:
+                    cache[id(a)] = _Standardised(a)
+            gram = sum(w * w * cache[id(a)].gram
+                       for a, w in zip(blocks, _block_weights(blocks), strict=True))
             self.selection[name] = {}
             for lam in self.lambdas:
                 held = np.zeros_like(targets)
@@ -190,14 +228,16 @@ class CovarianceClassifier:
         assert best is not None
         _, self.variant, self.lam, held = best
         self.temperature = _fit_temperature(held, y)
-        mean, scale, z = standardised[self.variant]
-        self._fitted = (mean, scale, z,
-                        np.linalg.solve(z @ z.T + self.lam * np.eye(len(z)), targets))
+        blocks = _blocks(variants[self.variant])
+        fitted = [(cache[id(a)], w, w * cache[id(a)].apply(a))
+                  for a, w in zip(blocks, _block_weights(blocks), strict=True)]
+        gram = sum(z @ z.T for _, _, z in fitted)
+        self._fitted = (fitted, np.linalg.solve(gram + self.lam * np.eye(len(y)), targets))
         return self
 
-    def predict_proba(self, variants: Mapping[str, np.ndarray]) -> np.ndarray:
+    def predict_proba(self, variants: Mapping[str, Descriptor]) -> np.ndarray:
         """(N, C) class probabilities of clips given by their descriptors (the fitted
-        ``variant`` must be among ``variants``).
+        ``variant`` must be among ``variants``, in the same blocks).
 
         Raises:
             SimenvError: not fitted, the variant missing, or the wrong descriptor size.
@@ -207,9 +247,15 @@ class CovarianceClassifier:
         if self.variant not in variants:
             raise SimenvError(f"descriptor variant {self.variant!r} missing; got "
                               f"{sorted(variants)}", field="variants")
-        mean, scale, z, alpha = self._fitted
-        b = np.asarray(variants[self.variant], np.float64)
-        if b.ndim != 2 or b.shape[1] != len(mean):
-            raise SimenvError(f"descriptors must be (N, {len(mean)}); got {b.shape}",
-                              field="variants")
-        return _softmax((((b - mean) / scale) @ z.T @ alpha) / self.temperature)
+        fitted, alpha = self._fitted
+        blocks = _blocks(variants[self.variant])
+        widths = [len(st.mean) for st, _, _ in fitted]
+        if (len(blocks) != len(fitted)
+                or any(b.ndim != 2 or b.shape[1] != f for b, f in zip(blocks, widths,
+                                                                      strict=True))
+                or len({len(b) for b in blocks}) != 1):
+            raise SimenvError(f"descriptors must be blocks of (N, F) with F = {widths}; got "
+                              f"{[b.shape for b in blocks]}", field="variants")
+        scores = sum((w * st.apply(b)) @ z.T @ alpha
+                     for b, (st, w, z) in zip(blocks, fitted, strict=True))
+        return _softmax(scores / self.temperature)

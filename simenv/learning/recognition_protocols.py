@@ -30,7 +30,11 @@ turn from one network and one covariance classifier trained on the others
 (:func:`fusion_weight`; no test clip is seen, at the price of a network per training
 subject). It chooses its descriptor (the ``gesture15`` or the native joints, with or
 without velocities) and regulariser by leave-one-training-subject-out accuracy and
-calibrates its probabilities on those held-out subjects.
+calibrates its probabilities on those held-out subjects. With ``lie_group`` its candidates
+also hold the Lie-group descriptors of the same clips (:mod:`simenv.learning.lie_group`: the
+relative geometry of every pair of bones in a Fourier temporal pyramid, the representation
+of the Lie-group figures), alone and beside each covariance descriptor (the two as blocks
+of equal weight), among which it chooses in the same way.
 
 Joints (``joints``): ``gesture15`` (default; the room's joint set, measured by all three
 datasets) or ``native``, each dataset's own skeleton as its reader gives it
@@ -82,7 +86,8 @@ from simenv.data.gestures import (
     split_subject_folds,
 )
 from simenv.io.msr_action3d import MSR_CLASSES
-from simenv.learning.covariance import CovarianceClassifier, descriptors
+from simenv.learning.covariance import CovarianceClassifier, Descriptor, descriptors
+from simenv.learning.lie_group import lie_group_descriptors
 from simenv.learning.nearest_neighbour import (
     NEIGHBOUR_DISTANCES,
     NeighbourDistance,
@@ -298,27 +303,52 @@ def _log_softmax(logits: np.ndarray) -> np.ndarray:
 
 
 def _descriptor_variants(clips: Sequence[GestureClip], joints: str,
-                         native: Sequence[GestureClip] | None) -> dict[str, np.ndarray]:
+                         native: Sequence[GestureClip] | None, lie_group: bool = False
+                         ) -> dict[str, Descriptor]:
     """The covariance classifier's candidate descriptors of ``clips`` (on the joint set
-    ``joints``) and of the same clips on their native skeletons, when given: name -> (N, F)."""
+    ``joints``) and of the same clips on their native skeletons, when given: name -> (N, F)
+    or, with ``lie_group``, also each Lie-group descriptor (``lie:<joints>@<fraction>``) and
+    each covariance descriptor with it as blocks (``<covariance>&<lie>``; the blocks are the
+    same arrays as the variants alone, module docstring)."""
     sets = {joints: clips} if native is None else {joints: clips, "native": native}
-    out = {}
+    covariance: dict[str, Descriptor] = {}
+    lie: dict[str, Descriptor] = {}
     for joints, group in sets.items():
         x, valid = whole_windows(group)
         for velocity in (False, True):
-            out[f"{joints}{'+velocity' if velocity else ''}"] = descriptors(x, valid, velocity)
-    return out
+            covariance[f"{joints}{'+velocity' if velocity else ''}"] = descriptors(x, valid,
+                                                                                velocity)
+        if lie_group:
+            parents = clip_skeleton(group).parents
+            for fraction, d in lie_group_descriptors(x, valid, parents).items():
+                lie[f"lie:{joints}@{fraction:g}"] = d
+    pairs = {f"{c}&{m}": (a, b) for c, a in covariance.items() for m, b in lie.items()}
+    return covariance | lie | pairs
+
+
+def _variant_rows(variants_all: dict[str, Descriptor], rows: np.ndarray
+                  ) -> dict[str, Descriptor]:
+    """``variants_all`` restricted to clips ``rows``, each array indexed once, so that
+    variants sharing a block still share it (the classifier computes a block once)."""
+    taken: dict[int, np.ndarray] = {}
+
+    def take(a: np.ndarray) -> np.ndarray:
+        if id(a) not in taken:
+            taken[id(a)] = a[rows]
+        return taken[id(a)]
+
+    return {name: tuple(take(a) for a in d) if isinstance(d, tuple) else take(d)
+            for name, d in variants_all.items()}
 
 
 def _covariance_fold(train: Sequence[GestureClip], test: Sequence[GestureClip],
-                     fold_labels: Sequence[str], variants_all: dict[str, np.ndarray],
+                     fold_labels: Sequence[str], variants_all: dict[str, Descriptor],
                      row: dict[int, int]) -> tuple[np.ndarray, dict[str, Any]]:
     """One benchmark fold's covariance classifier (module docstring): (N_test, classes)
     probabilities and what it chose. ``variants_all``: every clip's descriptors (a clip's
     do not depend on the fold), its row in them by the clip's ``id`` in ``row``."""
-    def variants(group: Sequence[GestureClip]) -> dict[str, np.ndarray]:
-        rows = np.array([row[id(c)] for c in group])
-        return {name: d[rows] for name, d in variants_all.items()}
+    def variants(group: Sequence[GestureClip]) -> dict[str, Descriptor]:
+        return _variant_rows(variants_all, np.array([row[id(c)] for c in group]))
 
     clf = CovarianceClassifier(len(fold_labels)).fit(
         variants(train), np.array([fold_labels.index(c.source_label) for c in train]),
@@ -369,7 +399,7 @@ def fusion_weight(net_log_p: np.ndarray, cov_log_p: np.ndarray, y: np.ndarray,
 def _fusion_weight_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
                         config: RecognitionConfig, seed: int, skeleton: Skeleton,
                         mirror_copies: bool, extra: dict[str, Any],
-                        variants_all: dict[str, np.ndarray], row: dict[int, int]
+                        variants_all: dict[str, Descriptor], row: dict[int, int]
                         ) -> tuple[float, dict[str, Any], float]:
     """One benchmark fold's fusion weight, chosen on its training subjects alone: each held
     out in turn, one network (seed ``seed``) and one covariance classifier trained on the
@@ -405,7 +435,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                   *, members: int = 1, whole_sequences: bool = False,
                   joints: BenchmarkJoints = "gesture15",
                   neighbour: NeighbourDistance | None = None, mirror_test: bool = False,
-                  covariance: CovarianceMode | None = None,
+                  covariance: CovarianceMode | None = None, lie_group: bool = False,
                   progress: bool = True) -> dict[str, Any]:
     """Train and test ``dataset`` (``msr_action3d``, ``msr_action3d_sets``, ``utkinect`` or
     ``florence3d``) on its own classes with its standard protocol (each fold's network on
@@ -424,11 +454,14 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     ``neighbour``); ``fused``, the networks' probabilities times its probabilities;
     ``weighted``, the two fused with a weight chosen on the fold's training subjects
     (module docstring); each fold's choices in ``folds[i]["covariance"]`` (the weight's in
-    its ``"fusion"``).
+    its ``"fusion"``). ``lie_group``: the covariance classifier's candidates include the
+    Lie-group descriptors (module docstring; ``descriptors`` in the result names the
+    families).
 
     Raises:
         SimenvError: unknown dataset, joint set, distance or covariance mode, both a
-            neighbour and the covariance classifier alone, or no clips.
+            neighbour and the covariance classifier alone, Lie-group descriptors without
+            the covariance classifier, or no clips.
     """
     if dataset not in PUBLISHED:
         raise SimenvError(f"unknown benchmark {dataset!r}; expected one of "
@@ -447,6 +480,9 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
     if neighbour is not None and covariance is not None:
         raise SimenvError("the nearest neighbour runs alone; drop covariance",
                           field="covariance")
+    if lie_group and covariance is None:
+        raise SimenvError("the Lie-group descriptors are candidates of the covariance "
+                          "classifier; give a covariance mode", field="lie_group")
     alone = neighbour is not None or covariance == "alone"
     root = Path(root)
     config = config or RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES,
@@ -467,7 +503,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
         clips = native_clips(clips)
     skeleton = clip_skeleton(clips)
     if covariance is not None:
-        descriptor_variants = _descriptor_variants(clips, joints, native)
+        descriptor_variants = _descriptor_variants(clips, joints, native, lie_group)
         row = {id(c): i for i, c in enumerate(clips)}
     labels = sorted({c.source_label for c in clips})
     if whole_sequences:
@@ -551,6 +587,8 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
             "smaller_ensembles": [{"members": k} | summary(k - 1) for k in smaller],
             "whole_sequences": whole_sequences, "joints": joints,
             "method": method, "mirror_test": mirror_test and not alone,
+            "descriptors": ([] if covariance is None else
+                            ["covariance", "lie group"] if lie_group else ["covariance"]),
             "skeleton": {"name": skeleton.name, "joint_names": list(skeleton.joint_names)},
             "mirror": ("none" if alone else
                        "clips (each training clip and its mirror image, half the epochs)"

@@ -34,7 +34,9 @@ dataset's own skeleton (results ``<dataset>_m<members>_w<whole>_native.json``);
 instead of the networks (:mod:`simenv.learning.covariance`; ``<dataset>_cov.json``),
 ``--covariance fused`` multiplies the networks' probabilities with its (``..._cov.json``),
 ``--covariance weighted`` weighs the two by a weight chosen on each fold's training subjects
-(a network per training subject more; ``..._covw.json``).
+(a network per training subject more; ``..._covw.json``); with ``--lie-group`` the
+covariance classifier also chooses among Lie-group descriptors
+(:mod:`simenv.learning.lie_group`; the result's name ends in ``_lie``).
 ``--dataset room --neighbour D`` runs the nearest neighbour on the room vocabulary's
 leave-subjects-out folds (:func:`simenv.learning.recognition_protocols.room_nearest_neighbour`;
 ``room_nn-<distance>.json``).
@@ -343,8 +345,10 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
         figures = PUBLISHED.get(r["dataset"], r["published"])
         pub = "; ".join(f"{k} {v:.1f} %" for k, v in figures.items())
         method = r.get("method", "network")
+        family = ("covariance and Lie-group" if "lie group" in r.get("descriptors", [])
+                  else "covariance")
         if method == "covariance":  # its descriptor's joints are its own choice
-            windows = "none: covariance descriptors (ridge), whole sequences"
+            windows = f"none: {family} descriptors (ridge), whole sequences"
         elif not method.startswith("network"):  # no training windows
             windows = f"none: {method}, whole sequences, {r.get('joints', 'gesture15')}"
         else:
@@ -354,11 +358,11 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
             if r.get("mirror_test"):
                 windows += ", test clip + its mirror"
             if method == "network + covariance":
-                windows += ", fused with the covariance classifier"
+                windows += f", fused with the {family} classifier"
             elif method == "network + covariance, weighted":
                 weights = sorted({f["covariance"]["fusion"]["weight"] for f in r["folds"]})
-                windows += (", fused with the covariance classifier, weight from the training "
-                            f"subjects ({', '.join(f'{w:g}' for w in weights)})")
+                windows += (f", fused with the {family} classifier, weight from the "
+                            f"training subjects ({', '.join(f'{w:g}' for w in weights)})")
         if r.get("joints", "gesture15") != "gesture15":
             windows += f" ({len(r['skeleton']['joint_names'])} joints)"
         classes = f"{len(r['classes'])}"
@@ -417,6 +421,9 @@ def _parser() -> argparse.ArgumentParser:
                          help="the covariance-descriptor classifier alone, fused with "
                          "the networks at equal weights, or weighted by the training "
                          "subjects (simenv.learning.covariance)")
+    p_bench.add_argument("--lie-group", action="store_true",
+                         help="with --covariance: the classifier also chooses among Lie-group "
+                         "descriptors (simenv.learning.lie_group)")
     p_bench.add_argument("--mirror-test", action="store_true",
                          help="average each network over the test clip and its mirror image")
     p_bench.add_argument("--json", action="store_true")
@@ -473,7 +480,8 @@ def _benchmark_command(args: argparse.Namespace) -> None:
         results.append(run_benchmark(name, data, members=args.members,
                                      whole_sequences=args.whole_sequences, joints=args.joints,
                                      neighbour=args.neighbour, mirror_test=args.mirror_test,
-                                     covariance=args.covariance))
+                                     covariance=args.covariance,
+                                     lie_group=args.lie_group))
         alone = args.neighbour or args.covariance == "alone"
         tag = (f"{name}_nn-{args.neighbour}" if args.neighbour else f"{name}_cov"
                if args.covariance == "alone" else
@@ -483,6 +491,8 @@ def _benchmark_command(args: argparse.Namespace) -> None:
         if args.mirror_test and not alone:
             tag += "_mirror-test"
         tag += {"fused": "_cov", "weighted": "_covw"}.get(args.covariance, "")
+        if args.lie_group:
+            tag += "_lie"
         (out / f"{tag}.json").write_text(json.dumps(results[-1], indent=1, default=str))
     print(json.dumps([{k: r[k] for k in ("dataset", "mean_fold_accuracy")}
                       | {"accuracy": r["scores"]["accuracy"]} for r in results])
