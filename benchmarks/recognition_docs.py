@@ -6,6 +6,9 @@ Inputs (every number in the documents comes from them; nothing is typed in by ha
   ``metrics.json``: the leave-subjects-out protocol, the loop, the shipped network);
 * ``--benchmark DIR``: the output of ``python -m simenv.perception.train_recogniser benchmark``
   (``<dataset>.json``);
+* ``--lie-group DIR``: a ``benchmark`` output with the covariance classifier run with and
+  without ``--lie-group`` (alone and weighted with a network), optional: the Lie-group
+  section (regenerated alone when given without ``--train``);
 * ``--forecast FILE``: the gesture predictor's fold evaluation (``folds.json`` written by
   ``python -m simenv.learning.train_gesture_predictor --evaluate``), optional;
 * ``--ticks FILE``: ``benchmarks/bench_perception.py --json`` output, optional;
@@ -52,6 +55,8 @@ BENCH_BEGIN = "<!-- benchmarks:begin (benchmarks/recognition_docs.py) -->"
 BENCH_END = "<!-- benchmarks:end -->"
 FORECAST_BEGIN = "<!-- forecast:begin (benchmarks/recognition_docs.py) -->"
 FORECAST_END = "<!-- forecast:end -->"
+LIE_BEGIN = "<!-- lie-group:begin (benchmarks/recognition_docs.py) -->"
+LIE_END = "<!-- lie-group:end -->"
 #: The issue's goals, as (condition or loop key, comparison, value).
 GOALS = {"real_3s": 0.90, "real_1s": 0.75, "gain_points": 12.5, "greeted": 0.90,
          "false_greet": 0.03, "tick_ms": 11.0}
@@ -455,12 +460,93 @@ others (no test clip chooses it; the row lists the folds' weights).
 {BENCH_END}"""
 
 
+def _has_lie(r: dict[str, Any]) -> bool:
+    return "lie group" in r.get("descriptors", [])
+
+
+def _lie_comparison(rows: list[dict[str, Any]], method: str) -> str:
+    """"dataset a % -> b %" of each dataset's ``method`` rows, covariance descriptors alone
+    -> with the Lie-group ones (mean of folds), for the datasets run both ways."""
+    pairs = []
+    for dataset in dict.fromkeys(r["dataset"] for r in rows):
+        found = {_has_lie(r): r["mean_fold_accuracy"] for r in rows
+                 if r["dataset"] == dataset and r["method"] == method}
+        if len(found) == 2:
+            pairs.append(f"{dataset} {100 * found[False]:.1f} % -> {100 * found[True]:.1f} %")
+    return "; ".join(pairs) or "not run"
+
+
+def _lie_choices(rows: list[dict[str, Any]]) -> str:
+    """Per dataset, how many folds' classifiers chose a Lie-group variant, and which."""
+    out = []
+    for r in rows:
+        if not _has_lie(r) or r["method"] != "covariance":
+            continue
+        chosen = [f["covariance"]["variant"] for f in r["folds"]]
+        lie = [v for v in chosen if "lie:" in v]
+        names = ", ".join(f"`{v}` x{lie.count(v)}" for v in dict.fromkeys(lie))
+        out.append(f"* {r['dataset']}: {len(lie)} of {len(chosen)} folds"
+                   + (f" ({names})" if names else ""))
+    return "\n".join(out)
+
+
+def lie_group_section(rows: list[dict[str, Any]], provenance: str) -> str:
+    """The Lie-group section of docs/recognition.md, markers included (regenerated alone by
+    ``--lie-group`` without ``--train``)."""
+    if not rows:
+        return f"{LIE_BEGIN}\n## Lie-group descriptors\n\nNot run for this document.\n{LIE_END}"
+    rows = sorted(rows, key=lambda r: (r["dataset"], r["method"], _has_lie(r)))
+    verdicts = []
+    for dataset in dict.fromkeys(r["dataset"] for r in rows):
+        best_pub = max(PUBLISHED.get(dataset, rows[0]["published"]).values())
+        ours = [r for r in rows if r["dataset"] == dataset and _has_lie(r)]
+        verdicts.append(f"* {dataset} (published {best_pub:.1f} %): " + ", ".join(
+            f"{'descriptors alone' if r['method'] == 'covariance' else 'network + descriptors'}"
+            f" {100 * r['mean_fold_accuracy']:.1f} % "
+            f"({_ok(100 * r['mean_fold_accuracy'] >= best_pub)})" for r in ours))
+    return f"""{LIE_BEGIN}
+## Lie-group descriptors: the published figures' representation beside the covariance
+
+Section {provenance[0].lower()}{provenance[1:]}
+
+The Lie-group figures above come from a representation, not a network (Vemulapalli et al.
+2014): each skeleton as the relative 3D geometry of every pair of its bones (the rigid motion
+taking one bone onto the other, in its own bone's frame: a point of SE(3) x ... x SE(3)), a
+clip as a curve in the Lie algebra, described by a Fourier temporal pyramid
+(`simenv.learning.lie_group`, whose docstring states the maths). `--covariance MODE
+--lie-group` gives the covariance classifier these descriptors as further candidates, alone
+and beside each covariance descriptor (as two equally weighted blocks); it chooses among all
+of them, and the regulariser, by leave-one-training-subject-out accuracy as before, so no
+test clip chooses. Not reproduced: the paper's warping of every curve onto a per-class nominal
+curve (dynamic time warping) and its linear SVM (the ridge classifier takes the pyramid).
+Same protocols, clips and network seeds as the section above; each dataset run both ways:
+
+{benchmark_table(rows)}
+
+Descriptors alone (mean of folds), covariance -> covariance and Lie group: {
+_lie_comparison(rows, "covariance")}.
+
+A network fused with the descriptor classifier by the training subjects' weight, covariance
+-> covariance and Lie group: {_lie_comparison(rows, "network + covariance, weighted")}.
+
+Folds whose classifier chose a Lie-group descriptor (alone, or as a block beside a covariance
+one):
+
+{_lie_choices(rows)}
+
+Against the published figure (the goal: at or above it; mean of folds):
+
+{chr(10).join(verdicts)}
+{LIE_END}"""
+
+
 def recognition_doc(m: dict[str, Any], bench: list[dict[str, Any]],
                     forecast: dict[str, Any] | None, ticks: dict[str, Any] | None,
                     evals: dict[str, Any], header: str,
                     ablation: dict[str, Any] | None = None,
                     variants: dict[str, Any] | None = None,
-                    ens: dict[str, Any] | None = None) -> str:
+                    ens: dict[str, Any] | None = None,
+                    lie: list[dict[str, Any]] | None = None) -> str:
     """docs/recognition.md from the measured runs (module docstring). Long because it is
     the page's one template, read top to bottom as the page is; the computed parts are
     the ``_*_text`` and ``_*_table`` helpers."""
@@ -491,6 +577,8 @@ thesis's transformer (`gesture-classifier`) stays available; its evaluation is i
 [recognition_transformer.md](recognition_transformer.md).
 
 {benchmark_section(bench, header)}
+
+{lie_group_section(lie or [], header)}
 
 ## The room's vocabulary on subjects it never saw
 
@@ -626,6 +714,7 @@ def main() -> int:
                         "(from --benchmark and --forecast)")
     parser.add_argument("--benchmark", type=Path)
     parser.add_argument("--forecast", type=Path)
+    parser.add_argument("--lie-group", type=Path)
     parser.add_argument("--ticks", type=Path)
     parser.add_argument("--eval", type=Path)
     parser.add_argument("--ablation", type=Path)
@@ -637,10 +726,17 @@ def main() -> int:
         if args.benchmark else []
     docs = ROOT / "docs"
     forecast = json.loads(args.forecast.read_text()) if args.forecast else None
+    lie = [json.loads(p.read_text()) for p in sorted(args.lie_group.glob("*.json"))] \
+        if args.lie_group else []
     if args.train is None:
-        if not bench and not forecast:
-            parser.error("--benchmark DIR with result files or --forecast FILE is needed "
-                         "without --train")
+        if not bench and not forecast and not lie:
+            parser.error("--benchmark DIR or --lie-group DIR with result files or --forecast "
+                         "FILE is needed without --train")
+        if lie:
+            replace_section(docs / "recognition.md", LIE_BEGIN, LIE_END,
+                            lie_group_section(lie, header).removeprefix(LIE_BEGIN + "\n")
+                            .removesuffix("\n" + LIE_END))
+            print(f"wrote the Lie-group section of {docs / 'recognition.md'}")
         if bench:
             text = benchmark_section(bench, header)
             replace_section(docs / "recognition.md", BENCH_BEGIN, BENCH_END,
@@ -660,7 +756,8 @@ def main() -> int:
     variants = load_variants(args.variants) if args.variants else None
     ens = shipped_ensemble()
     (docs / "recognition.md").write_text(recognition_doc(m, bench, forecast, ticks, evals,
-                                                         header, ablation, variants, ens))
+                                                         header, ablation, variants, ens,
+                                                         lie))
     shutil.copyfile(args.train / "confusion.png", docs / "recognition_confusion.png")
     room = (docs / "room.md").read_text()
     section = room_section(m, header, ens)

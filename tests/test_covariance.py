@@ -140,6 +140,17 @@ def test_the_benchmark_runs_it_alone_and_fused_with_a_network(gesture_root: Path
     assert "covariance descriptors (ridge)" in table
     assert "fused with the covariance classifier" in table
     assert f"weight from the training subjects ({fusion['weight']:g})" in table
+    with_lie = run_benchmark("msr_action3d", gesture_root, covariance="alone",
+                             lie_group=True, progress=False)
+    assert with_lie["descriptors"] == ["covariance", "lie group"]
+    assert alone["descriptors"] == ["covariance"]
+    # The Lie-group descriptors are further candidates: the choice is made on the training
+    # subjects among more variants, so it can only do as well there or better.
+    chosen = with_lie["folds"][0]["covariance"]
+    assert chosen["held_out_accuracy"] >= fold["covariance"]["held_out_accuracy"]
+    assert "covariance and Lie-group descriptors (ridge)" in benchmark_table([with_lie])
+    with pytest.raises(SimenvError, match="give a covariance mode"):
+        run_benchmark("msr_action3d", gesture_root, lie_group=True)
     with pytest.raises(SimenvError, match="unknown covariance mode"):
         run_benchmark("msr_action3d", gesture_root, covariance="both")  # type: ignore[arg-type]
     with pytest.raises(SimenvError, match="runs alone"):

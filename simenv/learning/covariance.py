@@ -191,9 +191,9 @@ class CovarianceClassifier:
         for name, d in variants.items():
             for a in _blocks(d):
                 if a.ndim != 2 or len(a) != len(y) or len(groups) != len(y):
-                    raise SimenvError(f"variant {name!r}: {len(a)} descriptors of shape "
-                                      f"{a.shape[1:]} (expected one row each), {len(y)} "
-                                      f"labels, {len(groups)} groups", field="variants")
+                    raise SimenvError(f"variant {name!r}: {len(a)} descriptors, {len(y)} "
+                                      f"labels, {len(groups)} groups (descriptors must be "
+                                      f"(N, F); got {a.shape})", field="variants")
                 if not np.isfinite(a).all():
                     raise SimenvError(f"variant {name!r} holds non-finite descriptors",
                                       field="variants")
