@@ -519,7 +519,9 @@ and beside each covariance descriptor (as two equally weighted blocks); it choos
 of them, and the regulariser, by leave-one-training-subject-out accuracy as before, so no
 test clip chooses. Not reproduced: the paper's warping of every curve onto a per-class nominal
 curve (dynamic time warping) and its linear SVM (the ridge classifier takes the pyramid).
-Same protocols, clips and network seeds as the section above; each dataset run both ways:
+Same protocols, clips and network seeds as the section above; each dataset run both ways
+(`python -m simenv.perception.train_recogniser benchmark --dataset D --covariance MODE
+[--lie-group] --out DIR`, then `python benchmarks/recognition_docs.py --lie-group DIR`):
 
 {benchmark_table(rows)}
 

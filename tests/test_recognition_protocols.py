@@ -26,6 +26,7 @@ from simenv.learning.recognition_protocols import (
     condition_windows,
     mirror_clip,
     native_clips,
+    room_descriptors,
     room_nearest_neighbour,
     run_benchmark,
     run_room_protocol,
@@ -158,6 +159,21 @@ def test_room_nearest_neighbour_keeps_subjects_apart(utk):
         assert 0.3 < r["conditions"][name]["accuracy"] < 1.0  # chance: about 0.1
     with pytest.raises(SimenvError, match="unknown distance"):
         room_nearest_neighbour(utk, "cosine")  # type: ignore[arg-type]
+
+
+def test_room_descriptors_choose_on_training_subjects_only(utk):
+    r = room_descriptors(utk, lie_group=True, progress=False)
+    assert r["method"] == "covariance and Lie-group descriptors"
+    assert r["descriptors"] == ["covariance", "lie group"]
+    tested = [s for f in r["folds"] for s in f["test_subjects"]]
+    assert sorted(tested) == sorted({c.subject_key for c in utk})
+    for fold in r["folds"]:
+        for name in ("real_3s", "real_1s"):
+            chosen = fold["chosen"][name]
+            assert chosen["variant"].startswith(("gesture15", "lie:gesture15"))
+            assert 0.0 < chosen["held_out_accuracy"] <= 1.0
+    for name in ("real_3s", "real_1s"):
+        assert 0.3 < r["conditions"][name]["accuracy"] < 1.0  # chance: about 0.1
 
 
 def test_nearest_neighbour_baseline_runs_the_benchmark_protocol(gesture_root: Path):

@@ -704,6 +704,50 @@ def run_room_protocol(clips: Sequence[GestureClip], config: RecognitionConfig, *
     return out
 
 
+#: Classifies the room protocol's held-out windows: (training windows, held-out windows,
+#: training labels, training subjects) -> predicted labels; windows are
+#: (normalised (N, 75, J, 3), valid (N, 75)).
+RoomClassifier = Callable[[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray],
+                           np.ndarray, np.ndarray], np.ndarray]
+
+
+def _room_baseline(clips: Sequence[GestureClip], method: str, classify: RoomClassifier,
+                   folds: int | None, progress: bool) -> dict[str, Any]:
+    """A model with no network on the room vocabulary's leave-subjects-out folds of
+    :func:`run_room_protocol`: ``classify`` labels each held-out clip's ``real_3s`` /
+    ``real_1s`` window from the training clips' windows of the same condition. Returns what
+    :func:`room_nearest_neighbour` documents."""
+    labels = list(GESTURE_LABELS)
+    split = split_subject_folds(clips, **({} if folds is None else {"folds": folds}))
+    names = ("real_3s", "real_1s")  # the keys of real_windows
+    preds: dict[str, list[np.ndarray]] = {n: [] for n in names}
+    order: list[GestureClip] = []
+    per_fold = []
+    for k, (train, test) in enumerate(tqdm(split, desc=f"room {method}",
+                                           disable=not progress)):
+        bank, query = real_windows(train), real_windows(test)
+        y_train = np.array([labels.index(c.label) for c in train])
+        groups = np.array([c.subject_key for c in train])
+        y = np.array([labels.index(c.label) for c in test])
+        row: dict[str, Any] = {"fold": k, "test_subjects": sorted({c.subject_key for c in test}),
+                               "clips": len(test)}
+        for n in names:
+            pred = classify(bank[n], query[n], y_train, groups)
+            preds[n].append(pred)
+            row[n] = round(float((pred == y).mean()), 4)
+        per_fold.append(row)
+        order += test
+    y = np.array([labels.index(c.label) for c in order])
+    react = np.array([room_reaction(label) for label in labels])
+    conditions = {}
+    for n in names:
+        pred = np.concatenate(preds[n])
+        conditions[n] = classification_scores(y, pred, labels, [c.dataset for c in order])
+        conditions[n]["room_reaction_accuracy"] = round(float((react[y] == react[pred]).mean()), 4)
+    return {"room": True, "method": method, "clips": len(order),
+            "conditions": conditions, "folds": per_fold}
+
+
 def room_nearest_neighbour(clips: Sequence[GestureClip], distance: NeighbourDistance,
                            *, folds: int | None = None, progress: bool = True
                            ) -> dict[str, Any]:
@@ -723,35 +767,54 @@ def room_nearest_neighbour(clips: Sequence[GestureClip], distance: NeighbourDist
     if distance not in NEIGHBOUR_DISTANCES:
         raise SimenvError(f"unknown distance {distance!r}; expected one of "
                           f"{', '.join(NEIGHBOUR_DISTANCES)}", field="neighbour")
-    labels = list(GESTURE_LABELS)
-    split = split_subject_folds(clips, **({} if folds is None else {"folds": folds}))
-    names = ("real_3s", "real_1s")  # the keys of real_windows
-    preds: dict[str, list[np.ndarray]] = {n: [] for n in names}
-    order: list[GestureClip] = []
-    per_fold = []
-    for k, (train, test) in enumerate(tqdm(split, desc="room nearest neighbour",
-                                           disable=not progress)):
-        bank, query = real_windows(train), real_windows(test)
-        y_train = np.array([labels.index(c.label) for c in train])
-        y = np.array([labels.index(c.label) for c in test])
-        row: dict[str, Any] = {"fold": k, "test_subjects": sorted({c.subject_key for c in test}),
-                               "clips": len(test)}
-        for n in names:
-            pred = nearest_neighbour(resample_sequences(*query[n]),
-                                     resample_sequences(*bank[n]), y_train, distance)
-            preds[n].append(pred)
-            row[n] = round(float((pred == y).mean()), 4)
-        per_fold.append(row)
-        order += test
-    y = np.array([labels.index(c.label) for c in order])
-    react = np.array([room_reaction(label) for label in labels])
-    conditions = {}
-    for n in names:
-        pred = np.concatenate(preds[n])
-        conditions[n] = classification_scores(y, pred, labels, [c.dataset for c in order])
-        conditions[n]["room_reaction_accuracy"] = round(float((react[y] == react[pred]).mean()), 4)
-    return {"room": True, "method": f"nearest neighbour ({distance})", "clips": len(order),
-            "conditions": conditions, "folds": per_fold}
+
+    def classify(bank: tuple[np.ndarray, np.ndarray], query: tuple[np.ndarray, np.ndarray],
+                 y_train: np.ndarray, groups: np.ndarray) -> np.ndarray:
+        return nearest_neighbour(resample_sequences(*query), resample_sequences(*bank),
+                                 y_train, distance)
+
+    return _room_baseline(clips, f"nearest neighbour ({distance})", classify, folds, progress)
+
+
+def room_descriptors(clips: Sequence[GestureClip], *, lie_group: bool = False,
+                     folds: int | None = None, progress: bool = True) -> dict[str, Any]:
+    """The covariance classifier (:mod:`simenv.learning.covariance`; with ``lie_group``, the
+    Lie-group descriptors among its candidates too) on the room vocabulary, leave-subjects-out
+    on the folds of :func:`run_room_protocol`: per fold and condition (``real_3s``,
+    ``real_1s``) it is fitted on the training clips' windows, choosing its descriptor and
+    regulariser by leave-one-training-subject-out accuracy, and labels the held-out windows.
+    ``gesture15`` descriptors only (the room's joints). Returns what
+    :func:`room_nearest_neighbour` documents, each fold's choices under ``chosen``."""
+    chosen: list[dict[str, Any]] = []
+
+    def variants(window: tuple[np.ndarray, np.ndarray], parents: Sequence[int]
+                 ) -> dict[str, Descriptor]:
+        x, valid = window
+        covariance = {f"gesture15{'+velocity' if v else ''}": descriptors(x, valid, v)
+                      for v in (False, True)}
+        if not lie_group:
+            return dict(covariance)
+        lie = {f"lie:gesture15@{f:g}": d
+               for f, d in lie_group_descriptors(x, valid, parents).items()}
+        return covariance | lie | {f"{c}&{m}": (a, b) for c, a in covariance.items()
+                                   for m, b in lie.items()}
+
+    parents = clip_skeleton(clips).parents
+
+    def classify(bank: tuple[np.ndarray, np.ndarray], query: tuple[np.ndarray, np.ndarray],
+                 y_train: np.ndarray, groups: np.ndarray) -> np.ndarray:
+        clf = CovarianceClassifier(len(GESTURE_LABELS)).fit(variants(bank, parents), y_train,
+                                                             groups)
+        chosen.append({"variant": clf.variant, "lambda": clf.lam,
+                       "held_out_accuracy": clf.selection[clf.variant][clf.lam]})
+        return clf.predict_proba(variants(query, parents)).argmax(1)
+
+    method = "covariance and Lie-group descriptors" if lie_group else "covariance descriptors"
+    result = _room_baseline(clips, method, classify, folds, progress)
+    for k, row in enumerate(result["folds"]):
+        row["chosen"] = dict(zip(("real_3s", "real_1s"), chosen[2 * k:2 * k + 2], strict=True))
+    return result | {"descriptors": ["covariance", "lie group"] if lie_group
+                     else ["covariance"]}
 
 
 def calibrated(model: SkeletonTCN, temperature: float) -> SkeletonTCN:
@@ -764,5 +827,6 @@ __all__ = ["BENCHMARK_FRAMES", "BENCHMARK_JOINTS", "FUSION_WEIGHTS", "PUBLISHED"
            "ROOM_CONDITIONS", "BenchmarkJoints", "NativeClip", "benchmark_folds",
            "classification_scores", "calibrated", "condition_windows", "fused_log_p",
            "fusion_weight", "mirror_clip", "native_clips",
-           "native_skeleton", "run_benchmark", "run_room_protocol", "whole_windows",
+           "native_skeleton", "room_descriptors", "run_benchmark", "run_room_protocol",
+           "whole_windows",
            "window_mirror_complete"]

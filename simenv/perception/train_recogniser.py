@@ -39,7 +39,9 @@ covariance classifier also chooses among Lie-group descriptors
 (:mod:`simenv.learning.lie_group`; the result's name ends in ``_lie``).
 ``--dataset room --neighbour D`` runs the nearest neighbour on the room vocabulary's
 leave-subjects-out folds (:func:`simenv.learning.recognition_protocols.room_nearest_neighbour`;
-``room_nn-<distance>.json``).
+``room_nn-<distance>.json``), ``--dataset room --covariance alone [--lie-group]`` the
+covariance classifier (:func:`~simenv.learning.recognition_protocols.room_descriptors`;
+``room_cov[_lie].json``).
 """
 
 from __future__ import annotations
@@ -75,6 +77,7 @@ from simenv.learning.recognition_protocols import (
     calibrated,
     classification_scores,
     condition_windows,
+    room_descriptors,
     room_nearest_neighbour,
     run_benchmark,
     run_room_protocol,
@@ -404,7 +407,7 @@ def _parser() -> argparse.ArgumentParser:
     p_bench = sub.add_parser("benchmark", help="per-dataset protocols vs published figures")
     p_bench.add_argument("--dataset", choices=("all", "room", *PUBLISHED), default="all",
                          help="a benchmark, all of them, or 'room': the room vocabulary's "
-                         "leave-subjects-out folds (with --neighbour only)")
+                         "leave-subjects-out folds (with --neighbour or --covariance alone only)")
     p_bench.add_argument("--data", help="gestures folder (default: the shared corpus)")
     p_bench.add_argument("--out", default="out/recognition-benchmark")
     p_bench.add_argument("--members", type=int, default=1,
@@ -463,13 +466,19 @@ def _benchmark_command(args: argparse.Namespace) -> None:
     data = Path(args.data) if args.data else _default_data()
     out = Path(args.out)
     if args.dataset == "room":
-        if not args.neighbour:
-            raise SimenvError("--dataset room runs the nearest-neighbour baseline only; "
-                              "give --neighbour (the networks: the train command)",
-                              field="neighbour")
-        result = room_nearest_neighbour(load_gesture_clips(data, idle=True), args.neighbour)
+        if not args.neighbour and args.covariance != "alone":
+            raise SimenvError("--dataset room runs the models with no network only; give "
+                              "--neighbour or --covariance alone (the networks: the train "
+                              "command)", field="neighbour")
+        clips = load_gesture_clips(data, idle=True)
+        if args.neighbour:
+            result, name = (room_nearest_neighbour(clips, args.neighbour),
+                            f"room_nn-{args.neighbour}")
+        else:
+            result = room_descriptors(clips, lie_group=args.lie_group)
+            name = "room_cov_lie" if args.lie_group else "room_cov"
         out.mkdir(parents=True, exist_ok=True)
-        (out / f"room_nn-{args.neighbour}.json").write_text(json.dumps(result, indent=1))
+        (out / f"{name}.json").write_text(json.dumps(result, indent=1))
         print(json.dumps({k: {m: v[m] for m in ("accuracy", "balanced_accuracy")}
                           for k, v in result["conditions"].items()}))
         return
