@@ -465,15 +465,18 @@ def _has_lie(r: dict[str, Any]) -> bool:
 
 
 def _lie_comparison(rows: list[dict[str, Any]], method: str) -> str:
-    """"dataset a % -> b %" of each dataset's ``method`` rows, covariance descriptors alone
-    -> with the Lie-group ones (mean of folds), for the datasets run both ways."""
-    pairs = []
-    for dataset in dict.fromkeys(r["dataset"] for r in rows):
-        found = {_has_lie(r): r["mean_fold_accuracy"] for r in rows
-                 if r["dataset"] == dataset and r["method"] == method}
-        if len(found) == 2:
-            pairs.append(f"{dataset} {100 * found[False]:.1f} % -> {100 * found[True]:.1f} %")
-    return "; ".join(pairs) or "not run"
+    """"dataset (k networks) a % -> b %" of the ``method`` rows (one per ensemble size:
+    :func:`benchmark_rows`), covariance descriptors alone -> with the Lie-group ones (mean of
+    folds), for the datasets and sizes run both ways."""
+    found: dict[tuple[str, int], dict[bool, float]] = {}
+    for r in benchmark_rows(rows):
+        if r["method"] == method:
+            key = (r["dataset"], r.get("members", 1) if method != "covariance" else 0)
+            found.setdefault(key, {})[_has_lie(r)] = r["mean_fold_accuracy"]
+    return "; ".join(
+        f"{dataset}{f' ({k} network(s))' if k else ''} {100 * both[False]:.1f} % -> "
+        f"{100 * both[True]:.1f} %" for (dataset, k), both in found.items()
+        if len(both) == 2) or "not run"
 
 
 def _lie_choices(rows: list[dict[str, Any]]) -> str:
@@ -490,19 +493,33 @@ def _lie_choices(rows: list[dict[str, Any]]) -> str:
     return "\n".join(out)
 
 
+def _lie_label(r: dict[str, Any]) -> str:
+    """How a result used the descriptor classifier, in a few words."""
+    if r["method"] == "covariance":
+        return "descriptors alone"
+    nets = f"{r.get('members', 1)} network(s) + descriptors"
+    return nets + (", weighted" if r["method"].endswith("weighted") else ", equal weights")
+
+
 def lie_group_section(rows: list[dict[str, Any]], provenance: str) -> str:
     """The Lie-group section of docs/recognition.md, markers included (regenerated alone by
     ``--lie-group`` without ``--train``)."""
     if not rows:
         return f"{LIE_BEGIN}\n## Lie-group descriptors\n\nNot run for this document.\n{LIE_END}"
-    rows = sorted(rows, key=lambda r: (r["dataset"], r["method"], _has_lie(r)))
+    room = sorted((r for r in rows if r.get("room")), key=_has_lie)
+    rows = sorted((r for r in rows if not r.get("room")),
+                  key=lambda r: (r["dataset"], r["method"], _has_lie(r)))
+    room_lines = "\n".join(
+        f"* {r['method']}: " + ", ".join(
+            f"{name} {v['accuracy']:.3f} (balanced {v['balanced_accuracy']:.3f}, room-reaction "
+            f"{v['room_reaction_accuracy']:.3f})" for name, v in r["conditions"].items())
+        for r in room) or "Not run for this document."
     verdicts = []
     for dataset in dict.fromkeys(r["dataset"] for r in rows):
         best_pub = max(PUBLISHED.get(dataset, rows[0]["published"]).values())
-        ours = [r for r in rows if r["dataset"] == dataset and _has_lie(r)]
+        ours = [r for r in benchmark_rows(rows) if r["dataset"] == dataset and _has_lie(r)]
         verdicts.append(f"* {dataset} (published {best_pub:.1f} %): " + ", ".join(
-            f"{'descriptors alone' if r['method'] == 'covariance' else 'network + descriptors'}"
-            f" {100 * r['mean_fold_accuracy']:.1f} % "
+            f"{_lie_label(r)} {100 * r['mean_fold_accuracy']:.1f} % "
             f"({_ok(100 * r['mean_fold_accuracy'] >= best_pub)})" for r in ours))
     return f"""{LIE_BEGIN}
 ## Lie-group descriptors: the published figures' representation beside the covariance
@@ -528,8 +545,9 @@ Same protocols, clips and network seeds as the section above; each dataset run b
 Descriptors alone (mean of folds), covariance -> covariance and Lie group: {
 _lie_comparison(rows, "covariance")}.
 
-A network fused with the descriptor classifier by the training subjects' weight, covariance
--> covariance and Lie group: {_lie_comparison(rows, "network + covariance, weighted")}.
+A network fused with the descriptor classifier at equal weights, covariance -> covariance
+and Lie group: {_lie_comparison(rows, "network + covariance")}; by the training subjects'
+weight: {_lie_comparison(rows, "network + covariance, weighted")}.
 
 Folds whose classifier chose a Lie-group descriptor (alone, or as a block beside a covariance
 one):
@@ -539,6 +557,13 @@ one):
 Against the published figure (the goal: at or above it; mean of folds):
 
 {chr(10).join(verdicts)}
+
+The room's vocabulary on unseen subjects with no network (`--dataset room --covariance alone
+[--lie-group]`: the leave-subjects-out folds of the next section, gesture15 descriptors of
+each condition's windows, chosen per fold and condition on the training subjects; the
+networks' figures are in the next section):
+
+{room_lines}
 {LIE_END}"""
 
 
