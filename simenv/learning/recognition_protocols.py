@@ -314,16 +314,33 @@ def _descriptor_variants(clips: Sequence[GestureClip], joints: str,
     covariance: dict[str, Descriptor] = {}
     lie: dict[str, Descriptor] = {}
     for joints, group in sets.items():
-        x, valid = whole_windows(group)
-        for velocity in (False, True):
-            covariance[f"{joints}{'+velocity' if velocity else ''}"] = descriptors(x, valid,
-                                                                                velocity)
-        if lie_group:
-            parents = clip_skeleton(group).parents
-            for fraction, d in lie_group_descriptors(x, valid, parents).items():
-                lie[f"lie:{joints}@{fraction:g}"] = d
-    pairs = {f"{c}&{m}": (a, b) for c, a in covariance.items() for m, b in lie.items()}
-    return covariance | lie | pairs
+        cov_j, lie_j = _window_descriptors(*whole_windows(group), joints,
+                                           clip_skeleton(group).parents, lie_group)
+        covariance |= cov_j
+        lie |= lie_j
+    return _with_pairs(covariance, lie)
+
+
+def _window_descriptors(x: np.ndarray, valid: np.ndarray, joints: str,
+                        parents: Sequence[int], lie_group: bool
+                        ) -> tuple[dict[str, Descriptor], dict[str, Descriptor]]:
+    """The covariance descriptors (``<joints>[+velocity]``) and, with ``lie_group``, the
+    Lie-group ones (``lie:<joints>@<fraction>``) of normalised windows ``x`` (N, T, J, 3)
+    over their real frames ``valid`` (N, T)."""
+    covariance: dict[str, Descriptor] = {
+        f"{joints}{'+velocity' if v else ''}": descriptors(x, valid, v) for v in (False, True)}
+    lie: dict[str, Descriptor] = {
+        f"lie:{joints}@{f:g}": d
+        for f, d in (lie_group_descriptors(x, valid, parents) if lie_group else {}).items()}
+    return covariance, lie
+
+
+def _with_pairs(covariance: dict[str, Descriptor], lie: dict[str, Descriptor]
+                ) -> dict[str, Descriptor]:
+    """Every variant alone and each covariance descriptor with each Lie-group one as blocks
+    (``<covariance>&<lie>``, the same arrays)."""
+    return covariance | lie | {f"{c}&{m}": (a, b) for c, a in covariance.items()
+                               for m, b in lie.items()}
 
 
 def _variant_rows(variants_all: dict[str, Descriptor], rows: np.ndarray
@@ -787,19 +804,11 @@ def room_descriptors(clips: Sequence[GestureClip], *, lie_group: bool = False,
     :func:`room_nearest_neighbour` documents, each fold's choices under ``chosen``."""
     chosen: list[dict[str, Any]] = []
 
+    parents = clip_skeleton(clips).parents
+
     def variants(window: tuple[np.ndarray, np.ndarray], parents: Sequence[int]
                  ) -> dict[str, Descriptor]:
-        x, valid = window
-        covariance = {f"gesture15{'+velocity' if v else ''}": descriptors(x, valid, v)
-                      for v in (False, True)}
-        if not lie_group:
-            return dict(covariance)
-        lie = {f"lie:gesture15@{f:g}": d
-               for f, d in lie_group_descriptors(x, valid, parents).items()}
-        return covariance | lie | {f"{c}&{m}": (a, b) for c, a in covariance.items()
-                                   for m, b in lie.items()}
-
-    parents = clip_skeleton(clips).parents
+        return _with_pairs(*_window_descriptors(*window, "gesture15", parents, lie_group))
 
     def classify(bank: tuple[np.ndarray, np.ndarray], query: tuple[np.ndarray, np.ndarray],
                  y_train: np.ndarray, groups: np.ndarray) -> np.ndarray:
