@@ -7,7 +7,7 @@ Inputs (every number in the documents comes from them; nothing is typed in by ha
 * ``--benchmark DIR``: the output of ``python -m simenv.perception.train_recogniser benchmark``
   (``<dataset>.json``);
 * ``--lie-group DIR``: a ``benchmark`` output with the covariance classifier run with and
-  without ``--lie-group`` (alone and weighted with a network), optional: the Lie-group
+  without ``--lie-group`` (alone and fused with networks), optional: the Lie-group
   section (regenerated alone when given without ``--train``);
 * ``--forecast FILE``: the gesture predictor's fold evaluation (``folds.json`` written by
   ``python -m simenv.learning.train_gesture_predictor --evaluate``), optional;
@@ -530,8 +530,10 @@ def lie_group_section(rows: list[dict[str, Any]], provenance: str) -> str:
         for r in room) or "Not run for this document."
     verdicts = []
     for dataset in dict.fromkeys(r["dataset"] for r in rows):
-        best_pub = max(PUBLISHED.get(dataset, rows[0]["published"]).values())
         ours = [r for r in benchmark_rows(rows) if r["dataset"] == dataset and _has_lie(r)]
+        if not ours:
+            continue
+        best_pub = max(PUBLISHED.get(dataset, ours[0]["published"]).values())
         verdicts.append(f"* {dataset} (published {best_pub:.1f} %): " + ", ".join(
             f"{_lie_label(r)} {100 * r['mean_fold_accuracy']:.1f} % "
             f"({_ok(100 * r['mean_fold_accuracy'] >= best_pub)})" for r in ours))
