@@ -138,7 +138,8 @@ class _Standardised:
 
 
 class CovarianceClassifier:
-    """Ridge classifier on covariance descriptors (module docstring).
+    """Ridge classifier on covariance descriptors, or any descriptors of the same clips given
+    as blocks beside or instead of them (module docstring).
 
     Args:
         num_classes: C, labels are 0 .. C-1.

@@ -4,8 +4,10 @@ The representation behind the published figures the recognition benchmarks compa
 (89.5 % on MSR Action3D, 97.1 % on UTKinect, 90.9 % on Florence 3D): a skeleton as the
 relative 3D geometry of every pair of its bones, a point of the Lie group
 ``SE(3) x ... x SE(3)``, and a clip as a curve in its Lie algebra. It sees how each limb
-sits and turns relative to every other, whatever the body's place and heading; the ridge
-classifier of :mod:`simenv.learning.covariance` classifies it, alone or beside the
+sits and turns relative to every other, wherever the body stands (not whatever its heading:
+each bone's frame is fixed by the smallest rotation onto it, which depends on the bone's
+direction in the world, so the benchmarks describe clips normalised to face one way); the
+ridge classifier of :mod:`simenv.learning.covariance` classifies it, alone or beside the
 covariance descriptors.
 
 **Bones.** Bone ``m`` runs from a joint's parent ``a_m`` to the joint ``b_m`` (the
