@@ -360,16 +360,21 @@ of the leave-subjects-out protocol, so every row is on subjects its networks nev
 """
 
 
+def _room_lines(room: list[dict[str, Any]]) -> list[str]:
+    """One bullet per room-vocabulary result with no network: its conditions' accuracies."""
+    return [f"* {r['method']}: " + ", ".join(
+        f"{name} {v['accuracy']:.3f} (balanced {v['balanced_accuracy']:.3f}, room-reaction "
+        f"{v['room_reaction_accuracy']:.3f})" for name, v in r["conditions"].items())
+        for r in room]
+
+
 def benchmark_section(bench: list[dict[str, Any]], provenance: str) -> str:
     """The benchmarks' section of docs/recognition.md between its markers (regenerated alone
     by ``--benchmark`` without ``--train``; ``provenance`` names the command that made it)."""
     room = [r for r in bench if r.get("room")]
     bench = [r for r in bench if not r.get("room")]
     table = benchmark_table(bench) if bench else "Not run for this document."
-    room_lines = [f"* {r['method']}: " + ", ".join(
-        f"{name} {v['accuracy']:.3f} (balanced {v['balanced_accuracy']:.3f}, room-reaction "
-        f"{v['room_reaction_accuracy']:.3f})" for name, v in r["conditions"].items())
-        for r in room]
+    room_lines = _room_lines(room)
     room_text = ("The room's vocabulary on unseen subjects with no network (`--benchmark room "
                  "--neighbour D`: the leave-subjects-out folds of the next section, each "
                  f"held-out window against the training clips' windows of its condition; "
@@ -523,11 +528,7 @@ def lie_group_section(rows: list[dict[str, Any]], provenance: str) -> str:
     room = sorted((r for r in rows if r.get("room")), key=_has_lie)
     rows = sorted((r for r in rows if not r.get("room")),
                   key=lambda r: (r["dataset"], r["method"], _has_lie(r)))
-    room_lines = "\n".join(
-        f"* {r['method']}: " + ", ".join(
-            f"{name} {v['accuracy']:.3f} (balanced {v['balanced_accuracy']:.3f}, room-reaction "
-            f"{v['room_reaction_accuracy']:.3f})" for name, v in r["conditions"].items())
-        for r in room) or "Not run for this document."
+    room_lines = "\n".join(_room_lines(room)) or "Not run for this document."
     verdicts = []
     for dataset in dict.fromkeys(r["dataset"] for r in rows):
         ours = [r for r in benchmark_rows(rows) if r["dataset"] == dataset and _has_lie(r)]

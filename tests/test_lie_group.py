@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from simenv.core.errors import SimenvError
+from simenv.core.motion import resample_linear
 from simenv.learning.covariance import CovarianceClassifier
 from simenv.learning.lie_group import (
     CURVE_SAMPLES,
@@ -15,7 +16,6 @@ from simenv.learning.lie_group import (
     fourier_pyramid,
     lie_group_descriptors,
     relative_geometry,
-    resample_curve,
     rotation_from_x,
     se3_log_translation,
 )
@@ -112,7 +112,7 @@ def test_the_pyramid_keeps_low_frequencies_whatever_the_clip_length(utk):
                for s in np.array_split(np.arange(CURVE_SAMPLES), 2 ** level))
     assert d.shape == (kept * curve.shape[1],) and (d >= 0).all()
     # The same movement recorded at twice the frame rate gives (nearly) the same pyramid.
-    fine = resample_curve(curve, 2 * len(curve) - 1)
+    fine = resample_linear(curve, 2 * len(curve) - 1)
     np.testing.assert_allclose(fourier_pyramid(fine, 0.25), d, rtol=0.05, atol=0.05)
     # A still pose has only its mean (the zero frequency).
     still = fourier_pyramid(np.repeat(curve[:1], 30, axis=0), 0.25)[:16 * curve.shape[1]]

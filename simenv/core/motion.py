@@ -44,6 +44,17 @@ def resample_weights(num_frames: int, fps: float, new_fps: float) -> tuple[np.nd
     return i, ((t_new - t_old[i]) * fps).astype(np.float32)
 
 
+def resample_linear(x: np.ndarray, n: int) -> np.ndarray:
+    """``(T, ...)`` -> ``(n, ...)`` by linear interpolation over normalised time (first and
+    last frames kept; a single frame is repeated)."""
+    if len(x) == 1:
+        return np.repeat(x, n, axis=0)
+    s = np.linspace(0.0, len(x) - 1, n)
+    i0 = np.minimum(np.floor(s).astype(int), len(x) - 2)
+    a = (s - i0).reshape(-1, *([1] * (x.ndim - 1)))
+    return (1 - a) * x[i0] + a * x[i0 + 1]
+
+
 @dataclass(frozen=True, eq=False)
 class Motion:
     """One person's skeleton motion.

@@ -207,13 +207,16 @@ class CovarianceClassifier:
         targets = self._targets(y)
         best: tuple[float, str, float, np.ndarray] | None = None
         cache: dict[int, _Standardised] = {}
-        for name, d in variants.items():
-            blocks = _blocks(d)
+
+        def gram_of(blocks: tuple[np.ndarray, ...]) -> np.ndarray:
             for a in blocks:
                 if id(a) not in cache:
                     cache[id(a)] = _Standardised(a)
-            gram = sum(w * w * cache[id(a)].gram
+            return sum(w * w * cache[id(a)].gram
                        for a, w in zip(blocks, _block_weights(blocks), strict=True))
+
+        for name, d in variants.items():
+            gram = gram_of(_blocks(d))
             self.selection[name] = {}
             for lam in self.lambdas:
                 held = np.zeros_like(targets)
@@ -232,8 +235,8 @@ class CovarianceClassifier:
         blocks = _blocks(variants[self.variant])
         fitted = [(cache[id(a)], w, w * cache[id(a)].apply(a))
                   for a, w in zip(blocks, _block_weights(blocks), strict=True)]
-        gram = sum(z @ z.T for _, _, z in fitted)
-        self._fitted = (fitted, np.linalg.solve(gram + self.lam * np.eye(len(y)), targets))
+        self._fitted = (fitted, np.linalg.solve(gram_of(blocks) + self.lam * np.eye(len(y)),
+                                                targets))
         return self
 
     def predict_proba(self, variants: Mapping[str, Descriptor]) -> np.ndarray:

@@ -51,6 +51,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from simenv.core.errors import SimenvError
+from simenv.core.motion import resample_linear
 
 #: Samples each clip's curve is resampled to before the pyramid.
 CURVE_SAMPLES = 64
@@ -148,37 +149,38 @@ def relative_geometry(frames: np.ndarray, parents: Sequence[int]) -> np.ndarray:
     return np.concatenate([omega, se3_log_translation(omega, d)], -1).reshape(len(frames), -1)
 
 
-def resample_curve(curve: np.ndarray, samples: int = CURVE_SAMPLES) -> np.ndarray:
-    """(samples, F) linear resampling of a (T, F) curve over its duration (T >= 1)."""
-    t = np.linspace(0.0, len(curve) - 1, samples)
-    i0 = np.floor(t).astype(int)
-    i1 = np.minimum(i0 + 1, len(curve) - 1)
-    a = (t - i0)[:, None]
-    return curve[i0] * (1.0 - a) + curve[i1] * a
-
-
-def fourier_pyramid(curve: np.ndarray, fraction: float = 0.25, levels: int = FOURIER_LEVELS,
-                    samples: int = CURVE_SAMPLES) -> np.ndarray:
-    """The Fourier temporal pyramid of a (T, F) curve (module docstring).
+def fourier_pyramids(curve: np.ndarray, fractions: Sequence[float],
+                     levels: int = FOURIER_LEVELS, samples: int = CURVE_SAMPLES
+                     ) -> dict[float, np.ndarray]:
+    """The Fourier temporal pyramid of a (T, F) curve (module docstring) at each of
+    ``fractions``, from one resampling and one transform per segment.
 
     Returns:
-        (F sum_segments ceil(fraction n_segment),) float64 magnitudes.
+        fraction -> (F sum_segments ceil(fraction n_segment),) float64 magnitudes.
 
     Raises:
         SimenvError: a fraction outside (0, 1], fewer than 1 level or more segments than
             samples.
     """
-    if not 0.0 < fraction <= 1.0:
-        raise SimenvError(f"fraction must be in (0, 1]; got {fraction}", field="fraction")
+    for fraction in fractions:
+        if not 0.0 < fraction <= 1.0:
+            raise SimenvError(f"fraction must be in (0, 1]; got {fraction}", field="fraction")
     if levels < 1 or 2 ** (levels - 1) > samples:
         raise SimenvError(f"{levels} levels do not fit {samples} samples", field="levels")
-    resampled = resample_curve(np.asarray(curve, np.float64), samples)
-    out = []
+    resampled = resample_linear(np.asarray(curve, np.float64), samples)
+    out: dict[float, list[np.ndarray]] = {f: [] for f in fractions}
     for level in range(levels):
         for segment in np.array_split(resampled, 2 ** level):
-            keep = int(np.ceil(fraction * len(segment)))
-            out.append(np.abs(np.fft.fft(segment, axis=0)[:keep]).ravel())
-    return np.concatenate(out)
+            magnitude = np.abs(np.fft.fft(segment, axis=0))
+            for f in fractions:
+                out[f].append(magnitude[:int(np.ceil(f * len(segment)))].ravel())
+    return {f: np.concatenate(parts) for f, parts in out.items()}
+
+
+def fourier_pyramid(curve: np.ndarray, fraction: float = 0.25, levels: int = FOURIER_LEVELS,
+                    samples: int = CURVE_SAMPLES) -> np.ndarray:
+    """:func:`fourier_pyramids` at one fraction."""
+    return fourier_pyramids(curve, (fraction,), levels, samples)[fraction]
 
 
 def lie_group_descriptors(x: np.ndarray, valid: np.ndarray, parents: Sequence[int],
@@ -204,7 +206,6 @@ def lie_group_descriptors(x: np.ndarray, valid: np.ndarray, parents: Sequence[in
         real = seq[np.asarray(v, bool)]
         if len(real) == 0:
             raise SimenvError(f"window {i} has no real frame", field="valid")
-        curve = relative_geometry(real, parents)
-        for f in fractions:
-            out[f].append(fourier_pyramid(curve, f))
+        for f, d in fourier_pyramids(relative_geometry(real, parents), fractions).items():
+            out[f].append(d)
     return {f: np.stack(d) for f, d in out.items()}

@@ -806,17 +806,15 @@ def room_descriptors(clips: Sequence[GestureClip], *, lie_group: bool = False,
 
     parents = clip_skeleton(clips).parents
 
-    def variants(window: tuple[np.ndarray, np.ndarray], parents: Sequence[int]
-                 ) -> dict[str, Descriptor]:
+    def variants(window: tuple[np.ndarray, np.ndarray]) -> dict[str, Descriptor]:
         return _with_pairs(*_window_descriptors(*window, "gesture15", parents, lie_group))
 
     def classify(bank: tuple[np.ndarray, np.ndarray], query: tuple[np.ndarray, np.ndarray],
                  y_train: np.ndarray, groups: np.ndarray) -> np.ndarray:
-        clf = CovarianceClassifier(len(GESTURE_LABELS)).fit(variants(bank, parents), y_train,
-                                                             groups)
+        clf = CovarianceClassifier(len(GESTURE_LABELS)).fit(variants(bank), y_train, groups)
         chosen.append({"variant": clf.variant, "lambda": clf.lam,
                        "held_out_accuracy": clf.selection[clf.variant][clf.lam]})
-        return clf.predict_proba(variants(query, parents)).argmax(1)
+        return clf.predict_proba(variants(query)).argmax(1)
 
     method = "covariance and Lie-group descriptors" if lie_group else "covariance descriptors"
     result = _room_baseline(clips, method, classify, folds, progress)

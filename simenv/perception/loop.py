@@ -48,6 +48,7 @@ from tqdm import tqdm
 import simenv.models
 from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
+from simenv.core.motion import resample_linear
 from simenv.core.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE
 from simenv.data.gestures import (
     GESTURE15_JOINTS,
@@ -86,16 +87,6 @@ def _one_torch_thread() -> None:
 os.register_at_fork(after_in_child=_one_torch_thread)
 
 
-def _resample(x: np.ndarray, n: int) -> np.ndarray:
-    """(T, ...) -> (n, ...) by linear interpolation over normalised time."""
-    if len(x) == 1:
-        return np.repeat(x, n, axis=0)
-    s = np.linspace(0.0, len(x) - 1, n)
-    i0 = np.minimum(np.floor(s).astype(int), len(x) - 2)
-    a = (s - i0).reshape(-1, *([1] * (x.ndim - 1)))
-    return (1 - a) * x[i0] + a * x[i0 + 1]
-
-
 class TemplateClassifier:
     """Nearest-neighbour gesture classifier over labelled template windows.
 
@@ -127,7 +118,7 @@ class TemplateClassifier:
         valid = np.asarray(valid, dtype=bool)
         normed = normalise_windows(np.asarray(templates, np.float32), valid,
                                    joints=self.joint_names)
-        self._templates = np.stack([_resample(t[v], self.length)
+        self._templates = np.stack([resample_linear(t[v], self.length)
                                     for t, v in zip(normed, valid, strict=True)])
         self._class = np.array([self.labels.index(label) for label in labels])
 
@@ -155,7 +146,7 @@ class TemplateClassifier:
             raise SimenvError("window has no valid frame", field="valid")
         x = normalise_windows(np.asarray(window, np.float32)[None], valid[None],
                               joints=self.joint_names)[0]
-        q = _resample(x[valid], self.length)
+        q = resample_linear(x[valid], self.length)
         d = np.linalg.norm(self._templates - q[None], axis=-1).mean(axis=(1, 2))
         best = np.full(len(self.labels), np.inf)
         np.minimum.at(best, self._class, d)
