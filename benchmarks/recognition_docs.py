@@ -43,6 +43,7 @@ from doc_sections import replace_section
 
 import simenv.models
 from simenv.learning.recognition_protocols import PUBLISHED
+from simenv.learning.train_gesture_predictor import NO_OBSERVER
 from simenv.perception.loop import DEFAULT_CLASSIFIER
 from simenv.perception.train_recogniser import (
     benchmark_rows,
@@ -157,12 +158,15 @@ def _forecast_body(forecast: dict[str, Any] | None, alone: bool) -> str:
     zv = pooled["zero-velocity"]
     rows = ["| forecaster | MPJPE 1 s, mm | MPJPE 2 s, mm | vs zero velocity (1 s / 2 s) | "
             "MPJS, m/s |", "|---|---|---|---|---|"]
-    for name in ("model-learned", "zero-velocity", "constant-velocity"):
+    names = [n for n in ("model-learned", NO_OBSERVER) if n in pooled]
+    for name in (*names, "zero-velocity", "constant-velocity"):
         r = pooled[name]
         gain = " / ".join(f"{100 * (1 - r[k] / zv[k]):+.0f} %"
                           for k in ("mpjpe_1s_mm", "mpjpe_2s_mm"))
         rows.append(f"| {name} | {r['mpjpe_1s_mm']:.0f} | {r['mpjpe_2s_mm']:.0f} | {gain} | "
                     f"{r['mpjs_mps']:.2f} |")
+    observer = (f" `model-learned` is told where the observer (the Kinect sensor) stands, "
+                f"`{NO_OBSERVER}` is the same network not told.") if NO_OBSERVER in names else ""
     provenance = f" (forecasters evaluated at commit `{forecast['commit']}`)" \
         if "commit" in forecast else ""
     note = ("\n\nThis table was regenerated on its own: the recogniser's numbers with "
@@ -174,7 +178,7 @@ def _forecast_body(forecast: dict[str, Any] | None, alone: bool) -> str:
             f"{pooled['real_mpjs_mps']:.2f} m/s (full table: "
             "[gesture_prediction.md](gesture_prediction.md)). The goals were MPJPE at 1 s "
             "and 2 s at least 20 % below zero velocity and a forecast MPJS within half of "
-            "the real motion's.\n\n" + "\n".join(rows) + note)
+            "the real motion's." + observer + "\n\n" + "\n".join(rows) + note)
 
 
 def _ablation_text(m: dict[str, Any], ablation: dict[str, Any] | None) -> str:

@@ -29,7 +29,7 @@ from simenv.models.checkpoint import Checkpoint, CheckpointMixin
 from simenv.models.predictor_regression import dct_matrix
 
 __all__ = ["CHECKPOINT_FORMAT", "GesturePredictor", "GesturePredictorConfig", "ROOT_MODES",
-           "body_frame", "from_body", "to_body"]
+           "body_frame", "from_body", "observer_offset", "to_body"]
 
 #: Format tag of checkpoint files.
 CHECKPOINT_FORMAT = "simenv-gesture-predictor-1"
@@ -39,6 +39,9 @@ NUM_JOINTS = len(JOINTS)
 DIMS = 3 * NUM_JOINTS
 _SPINE = JOINTS.index("spine")
 _LS, _RS = JOINTS.index("left_shoulder"), JOINTS.index("right_shoulder")
+#: Observer input of the network: its horizontal offset from the person in the body
+#: frame (decimetres, 2) and whether it is known (1 or 0).
+OBSERVER_DIMS = 3
 #: Network unit: decimetres (positions of ~0.1-1 m become ~1-10, a good range for an MLP).
 UNIT = 10.0
 #: How the forecast's root (spine) moves: ``learned`` = as the network predicts it;
@@ -64,6 +67,10 @@ class GesturePredictorConfig:
             (a few, to damp Kinect jitter of the shoulders).
         root_mode: one of :data:`ROOT_MODES`. root_frames: history frames the root
             velocity of ``damped`` is measured over. root_tau_s: its decay time, s.
+        observer_input: the network also takes where the observer (the depth sensor
+            of a recording, the agent of the room) stands relative to the person
+            (:class:`GesturePredictor`, step 4): people walk up to what they face and stop
+            short of it, which one second of their own motion does not tell.
         info: free provenance (training command, data), JSON.
     """
 
@@ -80,6 +87,7 @@ class GesturePredictorConfig:
     root_mode: str = "learned"
     root_frames: int = 5
     root_tau_s: float = 0.5
+    observer_input: bool = False
     info: dict[str, Any] = field(default_factory=dict)
 
     def check(self) -> None:
@@ -163,8 +171,9 @@ class _Block(nn.Module):
 
 
 class GestureDCTMLP(nn.Module):
-    """(B, H, 45) residual history, (B, 45) last pose, decimetres -> (B, F, 45) residual
-    future, decimetres (see :class:`GesturePredictor` for the math)."""
+    """(B, H, 45) residual history, (B, 45) last pose, decimetres, with ``observer_input``
+    (B, 3) observer offset (decimetres) and known flag -> (B, F, 45) residual future,
+    decimetres (see :class:`GesturePredictor` for the math)."""
 
     def __init__(self, config: GesturePredictorConfig) -> None:
         super().__init__()
@@ -174,7 +183,8 @@ class GestureDCTMLP(nn.Module):
         self.register_buffer("idct_out", torch.as_tensor(
             dct_matrix(c.future_len)[: c.dct_out].T, dtype=torch.float32))
         self.dct_out = c.dct_out
-        self.fc_in = nn.Linear(c.dct_in * DIMS + DIMS, c.hidden)
+        self.fc_in = nn.Linear(c.dct_in * DIMS + DIMS + (OBSERVER_DIMS if c.observer_input
+                                                          else 0), c.hidden)
         self.blocks = nn.Sequential(*(_Block(c.hidden, c.dropout) for _ in range(c.blocks)))
         self.norm = nn.LayerNorm(c.hidden)
         self.fc_out = nn.Linear(c.hidden, c.dct_out * DIMS)
@@ -182,9 +192,11 @@ class GestureDCTMLP(nn.Module):
         nn.init.zeros_(self.fc_out.weight)
         nn.init.zeros_(self.fc_out.bias)
 
-    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+    def forward(self, residual: torch.Tensor, last: torch.Tensor,
+                observer: torch.Tensor | None = None) -> torch.Tensor:
         coeffs = (self.dct_in @ residual).flatten(1)  # (B, K_in * 45)
-        h = nn.functional.gelu(self.fc_in(torch.cat([coeffs, last], dim=1)))
+        parts = [coeffs, last] if observer is None else [coeffs, last, observer]
+        h = nn.functional.gelu(self.fc_in(torch.cat(parts, dim=1)))
         out = self.fc_out(self.norm(self.blocks(h))).view(-1, self.dct_out, DIMS)
         return self.idct_out @ out  # (B, F, 45)
 
@@ -209,7 +221,11 @@ class GesturePredictor(CheckpointMixin):
     3. **DCT.** ``C = (M_H r)[:K_in]`` with the orthonormal DCT-II matrix ``M_H``
        (H x H, :func:`simenv.models.predictor_regression.dct_matrix`), keeping the
        ``K_in`` lowest temporal frequencies (K_in x D).
-    4. **MLP.** ``z = GELU(W_in [vec C; b_H])``, ``blocks`` residual blocks
+    4. **MLP.** ``z = GELU(W_in [vec C; b_H])`` -- with ``observer_input``,
+       ``z = GELU(W_in [vec C; b_H; U·[R_z(-θ)(p - o)]_xy; 1])`` for an observer standing
+       at world ``p`` (the sensor of a recording, the agent of the room), or
+       ``[...; 0, 0; 0]`` when it is unknown (:func:`observer_offset`) -- then
+       ``blocks`` residual blocks
        ``z + Drop(GELU(W LN(z)))``, then ``Ĉ = W_out LN(z)`` reshaped to (K_out, D).
     5. **Inverse DCT and residual.** ``b̂_{H+k} = b_H + (M_F[:K_out]ᵀ Ĉ)_k``: the forecast
        is the last pose plus a band-limited change, so ``W_out = 0`` (the initialisation)
@@ -222,7 +238,8 @@ class GesturePredictor(CheckpointMixin):
        keeps the spine where it was (``d_k = 0``).
     7. **Back to the world:** ``x̂ = R_z(θ) b̂ / U + o``.
     8. **Mirror average** (``mirror_average``): ``x̂ ← (x̂(x) + S x̂(S x)) / 2``, where
-       ``S`` mirrors left and right (world Y negated, left/right joints swapped). Training
+       ``S`` mirrors left and right (world Y negated, left/right joints swapped; the
+       observer's Y negated too). Training
        sees mirrored motion as often as the original, so the ideal forecaster commutes
        with ``S``; the average removes the part of the trained network's error that does
        not, for a second forward pass. Like any average of forecasts it also moves a
@@ -268,24 +285,40 @@ class GesturePredictor(CheckpointMixin):
     def fps(self) -> float:
         return self.config.fps
 
+    @property
+    def uses_observer(self) -> bool:
+        """Whether :meth:`predict` uses its ``observer`` (``observer_input``)."""
+        return self.config.observer_input
+
     # -- tensors ------------------------------------------------------------------------
 
-    def inputs(self, history: np.ndarray) -> tuple[torch.Tensor, torch.Tensor, np.ndarray,
-                                                   np.ndarray]:
+    def inputs(self, history: np.ndarray, observer: np.ndarray | None = None
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, np.ndarray,
+                          np.ndarray]:
         """Network inputs of validated (N, H, 15, 3) world histories, metres: residual
-        (N, H, 45) and last pose (N, 45) in body-frame decimetres, origin (N, 3) metres
-        and heading (N,) radians."""
+        (N, H, 45) and last pose (N, 45) in body-frame decimetres, the observer input
+        (N, 3) (:func:`observer_offset`; None without ``observer_input``), origin (N, 3)
+        metres and heading (N,) radians. ``observer``: (N, 3) world metres, NaN rows
+        unknown, or None."""
         origin, angle = body_frame(history, self.config.heading_frames)
         b = to_body(history, origin, angle).reshape(len(history), history.shape[1], DIMS)
         b = b * UNIT
         last = b[:, -1]
+        obs = (torch.as_tensor(observer_offset(observer, origin, angle), dtype=torch.float32)
+               if self.config.observer_input else None)
         return (torch.as_tensor(b - last[:, None], dtype=torch.float32),
-                torch.as_tensor(last, dtype=torch.float32), origin, angle)
+                torch.as_tensor(last, dtype=torch.float32), obs, origin, angle)
 
-    def forward(self, residual: torch.Tensor, last: torch.Tensor) -> torch.Tensor:
+    def forward(self, residual: torch.Tensor, last: torch.Tensor,
+                observer: torch.Tensor | None = None) -> torch.Tensor:
         """Differentiable body-frame forecast (B, F, 45), decimetres (what training fits;
-        the root as the network predicts it)."""
-        return last[:, None, :] + self.net(residual, last)
+        the root as the network predicts it). ``observer``: (B, 3) observer input
+        (:func:`observer_offset`), used with ``observer_input`` (None: unknown)."""
+        if not self.config.observer_input:
+            observer = None
+        elif observer is None:
+            observer = torch.zeros(len(last), OBSERVER_DIMS)
+        return last[:, None, :] + self.net(residual, last, observer)
 
     def _root_path(self, history: np.ndarray) -> np.ndarray:
         """(N, F, 3) world displacement of the spine after the last frame, metres, for the
@@ -319,44 +352,71 @@ class GesturePredictor(CheckpointMixin):
             raise MotionError("history holds no window", field="history")
         return h[:, -self.history_len:], batched
 
+    def check_observer(self, observer: Any, n: int) -> np.ndarray | None:
+        """Validated (n, 3) float64 observer positions (one (3,) position is shared by the
+        n histories), or None.
+
+        Raises:
+            MotionError: not numeric, or neither (3,) nor (n, 3).
+        """
+        if observer is None:
+            return None
+        try:
+            obs = np.asarray(observer, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise MotionError(f"observer is not numeric: {exc}", field="observer") from None
+        if obs.shape == (3,):
+            obs = np.broadcast_to(obs, (n, 3))
+        if obs.shape != (n, 3):
+            raise MotionError(f"observer must be (3,) or ({n}, 3) world positions, metres; "
+                              f"got shape {obs.shape}", field="observer")
+        return obs
+
     @torch.no_grad()
-    def predict_batch(self, history: np.ndarray) -> np.ndarray:
+    def predict_batch(self, history: np.ndarray, observer: np.ndarray | None = None
+                      ) -> np.ndarray:
         """Forecast the F frames after each of N histories.
 
         Args:
             history: (N, H', 15, 3) world positions, metres, Z up, at :attr:`fps`,
                 H' >= H (the last H frames are used), ending at the last observed frame.
+            observer: where the observer stands, world metres, Z up: (3,) for every
+                history or (N, 3), a non-finite row for unknown; None: unknown. Used by a
+                model with ``observer_input`` (step 4), ignored by one without.
 
         Returns:
             (N, F, 15, 3) float32 world positions, metres.
 
         Raises:
-            MotionError: see :meth:`check`; shoulders on top of each other.
+            MotionError: see :meth:`check` and :meth:`check_observer`; shoulders on top
+                of each other.
         """
         h, _ = self.check(history if np.ndim(history) == 4 else np.asarray(history)[None])
-        return self._predict(h)
+        return self._predict(h, self.check_observer(observer, len(h)))
 
-    def predict(self, history: np.ndarray) -> np.ndarray:
+    def predict(self, history: np.ndarray, observer: np.ndarray | None = None) -> np.ndarray:
         """Forecast one history (H', 15, 3) -> (F, 15, 3), or a batch (N, H', 15, 3) ->
         (N, F, 15, 3); float32 world positions, metres (see :meth:`predict_batch`)."""
         h, batched = self.check(history)
-        out = self._predict(h)
+        out = self._predict(h, self.check_observer(observer, len(h)))
         return out if batched else out[0]
 
     @torch.no_grad()
-    def _world_forecast(self, h: np.ndarray) -> np.ndarray:
+    def _world_forecast(self, h: np.ndarray, observer: np.ndarray | None) -> np.ndarray:
         """Steps 1-7: (N, F, 15, 3) float64 world metres, the root as the network has it."""
-        residual, last, origin, angle = self.inputs(h)
+        residual, last, obs, origin, angle = self.inputs(h, observer)
         self.net.eval()
-        body = self.forward(residual, last).double().numpy() / UNIT
+        body = self.forward(residual, last, obs).double().numpy() / UNIT
         return from_body(body.reshape(len(h), self.future_len, NUM_JOINTS, 3), origin, angle)
 
-    def _predict(self, h: np.ndarray) -> np.ndarray:
+    def _predict(self, h: np.ndarray, observer: np.ndarray | None) -> np.ndarray:
         if self.config.mirror_average:  # both histories in one batch: one network call
-            both = self._world_forecast(np.concatenate([h, mirror_world(h)]))
+            both_obs = (None if observer is None or not self.config.observer_input
+                        else np.concatenate([observer, observer * (1.0, -1.0, 1.0)]))
+            both = self._world_forecast(np.concatenate([h, mirror_world(h)]), both_obs)
             out = 0.5 * (both[:len(h)] + mirror_world(both[len(h):]))
         else:
-            out = self._world_forecast(h)
+            out = self._world_forecast(h, observer)
         if self.config.root_mode != "learned":
             spine = h[:, -1, _SPINE][:, None] + self._root_path(h)  # (N, F, 3)
             out = out - out[:, :, _SPINE:_SPINE + 1] + spine[:, :, None]
@@ -402,6 +462,32 @@ class GesturePredictor(CheckpointMixin):
         config.check()
         return cls(config, seed=0,
                    name=str(checkpoint.metadata.get("name", "predictor-gesture-25-50")))
+
+
+def observer_offset(observer: np.ndarray | None, origin: np.ndarray, angle: np.ndarray
+                    ) -> np.ndarray:
+    """The network's observer input (step 4 of :class:`GesturePredictor`).
+
+    Args:
+        observer: (N, 3) world positions of the observer, metres (a non-finite row:
+            unknown), or None (all unknown).
+        origin: (N, 3) body-frame origins, metres. angle: (N,) headings, radians
+            (:func:`body_frame`).
+
+    Returns:
+        (N, 3) float64: ``U·[R_z(-θ)(p - o)]_xy`` (decimetres) and 1 where the observer is
+        known; 0, 0, 0 where it is not.
+    """
+    out = np.zeros((len(origin), OBSERVER_DIMS))
+    if observer is None:
+        return out
+    known = np.isfinite(observer).all(axis=1)
+    d = observer[known, :2] - origin[known, :2]
+    c, s = np.cos(angle[known]), np.sin(angle[known])
+    out[known, 0] = (c * d[:, 0] + s * d[:, 1]) * UNIT
+    out[known, 1] = (-s * d[:, 0] + c * d[:, 1]) * UNIT
+    out[known, 2] = 1.0
+    return out
 
 
 def mirror_world(windows: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from simenv.models.gesture_predictor import (
     body_frame,
     from_body,
     mirror_world,
+    observer_offset,
     to_body,
 )
 
@@ -163,6 +164,49 @@ def test_mirror_average(tmp_path, walk15) -> None:
         model.variant(root_mode="flying")
 
 
+def test_observer_offset_is_where_the_observer_stands_in_the_body_frame(walk15) -> None:
+    h = walk15[None, :25]
+    origin, angle = body_frame(h)
+    # An observer 2 m ahead of the person (body +X) and 1 m to its left (body +Y).
+    ahead = from_body(np.array([[[[2.0, 1.0, 0.5]]]]), origin, angle)[0, 0, 0]
+    np.testing.assert_allclose(observer_offset(ahead[None], origin, angle),
+                               [[20.0, 10.0, 1.0]], atol=1e-9)  # decimetres, known
+    for unknown in (None, np.full((1, 3), np.nan)):
+        np.testing.assert_array_equal(observer_offset(unknown, origin, angle), [[0, 0, 0]])
+
+
+def test_observer_input(tmp_path, walk15) -> None:
+    """The forecast depends on where the observer stands, turns and moves with the world,
+    commutes with the mirror when averaged, and survives save/load."""
+    config = GesturePredictorConfig(hidden=32, observer_input=True, mirror_average=True)
+    model = _perturb(GesturePredictor(config, seed=0))
+    history, near, far = walk15[:25], np.array([1.0, 0.5, 0.0]), np.array([6.0, -3.0, 0.0])
+    assert not np.allclose(model.predict(history, near), model.predict(history, far),
+                           atol=1e-3)
+    # Unknown: None, or a non-finite row of a batch.
+    both = model.predict(np.stack([history, history]), np.stack([near, np.full(3, np.nan)]))
+    np.testing.assert_allclose(both[0], model.predict(history, near), atol=1e-6)
+    np.testing.assert_allclose(both[1], model.predict(history), atol=1e-6)
+    turn, shift = 0.7, np.array([1.0, -2.0, 0.0])
+    c, s = np.cos(turn), np.sin(turn)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    np.testing.assert_allclose(model.predict(history @ rot.T + shift, near @ rot.T + shift),
+                               model.predict(history, near) @ rot.T + shift, atol=1e-4)
+    flip = np.array([1.0, -1.0, 1.0])
+    np.testing.assert_allclose(model.predict(mirror_world(history), near * flip),
+                               mirror_world(model.predict(history, near)), atol=1e-5)
+    back = GesturePredictor.load(model.save(tmp_path / "m.npz"))
+    assert back.config.observer_input
+    np.testing.assert_array_equal(back.predict(history, near), model.predict(history, near))
+    # A model without the input ignores the observer.
+    plain = _perturb(GesturePredictor(GesturePredictorConfig(hidden=32), seed=0))
+    np.testing.assert_array_equal(plain.predict(history, near), plain.predict(history))
+    with pytest.raises(MotionError, match="observer"):
+        model.predict(history, np.zeros((2, 3)))
+    with pytest.raises(MotionError, match="observer"):
+        model.predict(history, "left")
+
+
 def test_save_load_round_trip(tmp_path, walk15) -> None:
     model = GesturePredictor(GesturePredictorConfig(hidden=32, root_mode="damped"), seed=5)
     _perturb(model)
@@ -201,6 +245,30 @@ def test_folds_keep_held_out_subjects_out(recordings) -> None:
         assert all(int(s.rsplit("/s", 1)[1]) % 5 == (k + 1) % 5 for s in held)
         windows, names = eval_windows(test)
         assert windows.shape[1:] == (75, 15, 3) and len(names) == len(windows)
+
+
+def test_training_windows_carry_their_observer(recordings, walk15) -> None:
+    """Kinect windows see their sensor (the world origin, moved by the augmentation like
+    the body), CMU windows no observer; the network's flag says which."""
+    from simenv.learning.train_gesture_predictor import (
+        Recording,
+        WindowSampler,
+        training_tensors,
+    )
+
+    there_and_back = np.concatenate([walk15, walk15[::-1]]).astype(np.float32)  # >= 75 frames
+    cmu = Recording(there_and_back, "cmu", None, "cmu/02_01")
+    sampler = WindowSampler([recordings[0], cmu], 75, cmu_fraction=0.5, seed=0)
+    windows, observers = sampler.sample(64)
+    is_cmu = np.isnan(observers).all(axis=1)
+    assert 0 < is_cmu.sum() < 64
+    np.testing.assert_array_equal(observers[~is_cmu], 0.0)
+    model = GesturePredictor(GesturePredictorConfig(observer_input=True))
+    *_, observer, target = training_tensors(model, windows, np.zeros(64), observers)
+    np.testing.assert_array_equal(observer[:, 2].numpy(), (~is_cmu).astype(np.float32))
+    # The sensor stands in front of the Kinect subjects: 1.5-4 m ahead in the body frame.
+    ahead = observer[~is_cmu, 0].numpy() / 10
+    assert target.shape == (64, 50, 45) and np.median(ahead) > 1.0
 
 
 def test_short_training_lowers_the_loss_and_evaluates(recordings, tmp_path) -> None:

@@ -101,6 +101,29 @@ def test_loop_anticipates_with_the_prediction():
     assert blind.stage is None and blind.reaction is None
 
 
+def test_the_loop_tells_an_observer_aware_predictor_where_the_agent_stands():
+    import torch
+
+    from simenv.models.gesture_predictor import GesturePredictor, GesturePredictorConfig
+
+    model = GesturePredictor(GesturePredictorConfig(hidden=16, observer_input=True), seed=0)
+    gen = torch.Generator().manual_seed(1)
+    with torch.no_grad():  # small random weights: an untrained model is zero velocity
+        for p in model.net.parameters():
+            p.add_(0.05 * torch.randn(p.shape, generator=gen))
+    predictor = CanonicalPredictor(model, joints=GESTURE15_JOINTS, root_relative=False)
+    assert predictor.uses_observer and not CanonicalPredictor(ZeroVelocity(3)).uses_observer
+    loop = PerceptionLoop(load_scenario("default").behaviour, _LengthClassifier(), predictor)
+    h = _waving(30)
+    near, far, unknown = (loop.perceive(1.2, h, observer=o).predicted_motion_m
+                          for o in (np.array([1.0, 0.0, 0.0]), np.array([5.0, 3.0, 0.0]), None))
+    assert len({near, far, unknown}) == 3
+    # A predictor that does not use an observer is called as before.
+    blind = PerceptionLoop(load_scenario("default").behaviour, _LengthClassifier(),
+                           ConstantVelocity(50))
+    assert blind.perceive(1.0, h, observer=np.zeros(3)).stage == "predicted"
+
+
 def test_templates_from_real_clips_cross_subject(shared_data):
     """Florence 3D, odd subjects as templates, even subjects classified (3 s windows)."""
     clips = load_gesture_clips(shared_data / "gestures", datasets=("florence3d",))

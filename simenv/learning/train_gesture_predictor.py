@@ -41,6 +41,9 @@ probability ``1 - cmu_fraction``, recordings weighted by their length), a start 
 (uniform 0.85-1.15 about the world origin), and a **yaw** jitter of the body frame
 (normal, :attr:`TrainConfig.yaw_deg`: a world yaw is removed by the body frame, so the
 useful variant is an error of the estimated heading, as Kinect's shoulder jitter makes).
+An observer-conditioned model (``observer_input``) is told where each window's observer
+stands (:attr:`Recording.observer`: a Kinect window's sensor; unknown for CMU), moved by
+the same mirror and scale as the body.
 Loss: :func:`simenv.models.gesture_predictor.position_velocity_loss` (siMLPe).
 
 Metrics (:func:`evaluate`)
@@ -94,6 +97,7 @@ from simenv.models.gesture_predictor import (
     GesturePredictorConfig,
     body_frame,
     mirror_world,
+    observer_offset,
     position_velocity_loss,
     to_body,
 )
@@ -116,6 +120,8 @@ GOAL_MPJS_RATIO = 0.5
 GOAL_GAIN = 0.20
 #: Result key of a mirror-averaging model's network scored without the average.
 UNMIRRORED = "model-unmirrored"
+#: Row of an observer-conditioned model's forecast when it is not told the observer.
+NO_OBSERVER = "model-no-observer"
 #: Error curves of a score (:func:`_scores`), mm per future frame.
 CURVES = ("curve_mm", "spine_curve_mm", "pose_curve_mm")
 _SPINE = GESTURE15_JOINTS.index("spine")
@@ -137,6 +143,13 @@ class Recording:
     dataset: str
     subject_key: str | None
     name: str
+
+    @property
+    def observer(self) -> np.ndarray:
+        """(3,) world position of the observer, metres: the depth sensor of a Kinect
+        recording (the world origin lies on the floor below it,
+        :mod:`simenv.io.camera_frame`); NaN for CMU, whose studio has none."""
+        return np.full(3, np.nan) if self.dataset == "cmu" else np.zeros(3)
 
     @property
     def fold(self) -> int | None:
@@ -228,6 +241,12 @@ def eval_windows(recordings: Sequence[Recording], length: int = 75, stride: int 
     return np.stack(wins), np.array(names, dtype=object)
 
 
+def window_observers(datasets: np.ndarray) -> np.ndarray:
+    """(N, 3) observer of each window by its dataset key (:attr:`Recording.observer`)."""
+    return np.array([Recording(np.zeros(0), str(d), None, "").observer for d in datasets]
+                    ).reshape(-1, 3)
+
+
 class WindowSampler:
     """Seeded random training windows with speed, mirror and scale augmentation (module
     docstring, *Training*).
@@ -247,6 +266,7 @@ class WindowSampler:
         if not recordings:
             raise SimenvError("no training recording", field="recordings")
         self.frames = np.concatenate([r.positions for r in recordings]).astype(np.float64)
+        self.observers = np.stack([r.observer for r in recordings])
         lengths = np.array([len(r.positions) for r in recordings])
         self.base = np.concatenate([[0], np.cumsum(lengths)[:-1]])
         self.lengths = lengths
@@ -264,8 +284,9 @@ class WindowSampler:
         self.p = p / p.sum()
         self.rng = np.random.default_rng(seed)
 
-    def sample(self, n: int) -> np.ndarray:
-        """(n, length, 15, 3) float64 augmented world windows, metres."""
+    def sample(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """(n, length, 15, 3) float64 augmented world windows, metres, and (n, 3) their
+        observers (:attr:`Recording.observer`, augmented alike)."""
         rng = self.rng
         idx = rng.choice(len(self.p), size=n, p=self.p)
         span = self.length - 1
@@ -278,16 +299,22 @@ class WindowSampler:
         w = (t - lo)[..., None, None]
         base = self.base[idx][:, None]
         out = (1 - w) * self.frames[base + lo] + w * self.frames[base + hi]
+        observers = self.observers[idx].copy()
         if self.mirror:
             flip = rng.random(n) < 0.5
             out[flip] = mirror_world(out[flip])
-        return out * rng.uniform(*self.scale, n)[:, None, None, None]
+            observers[flip, 1] *= -1.0
+        scale = rng.uniform(*self.scale, n)
+        return out * scale[:, None, None, None], observers * scale[:, None]
 
 
-def training_tensors(model: GesturePredictor, windows: np.ndarray, yaw_rad: np.ndarray
-                     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Residual history (B, H, 45), last pose (B, 45) and future target (B, F, 45) of
-    world windows (B, H + F, 15, 3), body-frame decimetres; the body frame is turned by
+def training_tensors(model: GesturePredictor, windows: np.ndarray, yaw_rad: np.ndarray,
+                     observers: np.ndarray | None = None
+                     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Residual history (B, H, 45), last pose (B, 45), observer input (B, 3)
+    (:func:`simenv.models.gesture_predictor.observer_offset` of ``observers`` (B, 3) world
+    metres, NaN rows unknown; None: all unknown) and future target (B, F, 45) of world
+    windows (B, H + F, 15, 3), body-frame decimetres; the body frame is turned by
     ``yaw_rad`` (B,) (heading-error augmentation; zeros for none)."""
     h = model.history_len
     origin, angle = body_frame(windows[:, :h], model.config.heading_frames)
@@ -295,7 +322,8 @@ def training_tensors(model: GesturePredictor, windows: np.ndarray, yaw_rad: np.n
     b = b.reshape(len(windows), windows.shape[1], -1)
     last = b[:, h - 1]
     as_t = lambda a: torch.as_tensor(a, dtype=torch.float32)  # noqa: E731
-    return as_t(b[:, :h] - last[:, None]), as_t(last), as_t(b[:, h:])
+    return (as_t(b[:, :h] - last[:, None]), as_t(last),
+            as_t(observer_offset(observers, origin, angle + yaw_rad)), as_t(b[:, h:]))
 
 
 @dataclass
@@ -316,6 +344,10 @@ class TrainConfig:
     #: 0.56 to 0.50 (2-s MPJPE 396 -> 383 mm); with 2.0 the ratio stays at 0.55 (387 mm).
     horizon_weight: float = 1.0
     speed_weight: float = 2.0
+    #: Probability that a window's observer is hidden (told "unknown"), so that a model
+    #: with ``observer_input`` still forecasts Kinect motion well when not told (the room
+    #: without an observer); CMU windows never have one.
+    observer_drop: float = 0.3
     seed: int = 0
     model: dict[str, Any] = field(default_factory=dict)
 
@@ -335,6 +367,7 @@ def train(recordings: Sequence[Recording], config: TrainConfig | None = None, *,
     sampler = WindowSampler(recordings, model.history_len + model.future_len,
                             cmu_fraction=config.cmu_fraction, seed=config.seed)
     yaw_rng = np.random.default_rng(config.seed + 1)
+    drop_rng = np.random.default_rng(config.seed + 2)
     opt = torch.optim.AdamW(model.net.parameters(), lr=config.lr,
                             weight_decay=config.weight_decay)
     losses: list[float] = []
@@ -346,10 +379,11 @@ def train(recordings: Sequence[Recording], config: TrainConfig | None = None, *,
     for step in bar:
         for g in opt.param_groups:
             g["lr"] = cosine_lr(config.lr, step, config.steps)
-        windows = sampler.sample(config.batch)
+        windows, observers = sampler.sample(config.batch)
+        observers[drop_rng.random(config.batch) < config.observer_drop] = np.nan
         yaw = np.deg2rad(config.yaw_deg) * yaw_rng.standard_normal(config.batch)
-        residual, last, target = training_tensors(model, windows, yaw)
-        loss = position_velocity_loss(model.forward(residual, last), target,
+        residual, last, observer, target = training_tensors(model, windows, yaw, observers)
+        loss = position_velocity_loss(model.forward(residual, last, observer), target,
                                       horizon_weight=config.horizon_weight,
                                       speed_weight=config.speed_weight)
         opt.zero_grad()
@@ -425,7 +459,8 @@ def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray 
 
     Args:
         windows: (N, H + F, 15, 3) world positions, metres. datasets: (N,) keys to also
-            score per dataset.
+            score per dataset; they also give each window its observer
+            (:attr:`Recording.observer`; None: unknown).
         baselines: further forecasters by name (each given the model's H history frames,
             forecasting its F), e.g. :func:`retrieval_baselines`.
 
@@ -433,7 +468,8 @@ def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray 
         ``{"all": table, "<dataset>": table, ...}``; a table has ``windows``,
         ``real_mpjs_mps`` and per method (``model-<root mode>``, ``zero-velocity``,
         ``constant-velocity``; for a mirror-averaging model also :data:`UNMIRRORED`, its
-        network alone) :func:`_scores` (MPJPE at 1 s / 2 s / mean, mm; MPJS, m/s).
+        network alone; for an observer-conditioned one :data:`NO_OBSERVER`, its forecast
+        not told the observer) :func:`_scores` (MPJPE at 1 s / 2 s / mean, mm; MPJS, m/s).
     """
     h, f = model.history_len, model.future_len
     hist = windows[:, :h].astype(np.float64)
@@ -441,7 +477,11 @@ def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray 
     variants = {f"model-{m}": model.variant(root_mode=m) for m in ROOT_MODES}
     if model.config.mirror_average:
         variants[UNMIRRORED] = model.variant(mirror_average=False)
-    preds = {k: v.predict_batch(hist).astype(np.float64) for k, v in variants.items()}
+    observer = None if datasets is None else window_observers(datasets)
+    preds = {k: v.predict_batch(hist, observer).astype(np.float64)
+             for k, v in variants.items()}
+    if model.config.observer_input:
+        preds[NO_OBSERVER] = model.predict_batch(hist).astype(np.float64)
     preds["zero-velocity"] = zero_velocity(hist, f)
     preds["constant-velocity"] = constant_velocity(hist, f)
     for name, baseline in (baselines or {}).items():
@@ -653,21 +693,34 @@ def error_split_table(result: dict[str, Any], root_mode: str = "learned") -> str
     return "\n".join(lines)
 
 
-def mirror_table(result: dict[str, Any]) -> str:
-    """Pooled MPJPE and MPJS ratio of the network alone and mirror-averaged (the model,
-    learned root); empty for a model without the average."""
-    if UNMIRRORED not in result["pooled"]["all"]:
+def _variant_table(result: dict[str, Any], rows: Sequence[tuple[str, str]]) -> str:
+    """Pooled MPJPE and MPJS ratio of forecasts ``rows`` ((label, method)) by dataset
+    group; empty when the result lacks the first row's method."""
+    if rows[0][1] not in result["pooled"]["all"]:
         return ""
     lines = ["| pooled | forecast | MPJPE 1 s / 2 s / mean, mm | vs zero-velocity (1 s / 2 s) "
              "| MPJS ratio |", "|---|---|---|---|---|"]
     for g, t in result["pooled"].items():
         z = t["zero-velocity"]
-        for label, key in (("the network alone", UNMIRRORED),
-                           ("mirror-averaged (the model)", "model-learned")):
+        for label, key in rows:
             a = t[key]
             lines.append(f"| {g} | {label} | {_error_cells(a, z)} | "
                          f"{a['mpjs_mps'] / t['real_mpjs_mps']:.2f} |")
     return "\n".join(lines)
+
+
+def mirror_table(result: dict[str, Any]) -> str:
+    """Pooled MPJPE and MPJS ratio of the network alone and mirror-averaged (the model,
+    learned root); empty for a model without the average."""
+    return _variant_table(result, (("the network alone", UNMIRRORED),
+                                   ("mirror-averaged (the model)", "model-learned")))
+
+
+def observer_table(result: dict[str, Any]) -> str:
+    """Pooled MPJPE and MPJS ratio of the model not told and told where the observer
+    stands; empty for a model without the observer input."""
+    return _variant_table(result, (("not told where the sensor is", NO_OBSERVER),
+                                   ("told (the model)", "model-learned")))
 
 
 def verdict(result: dict[str, Any], root_mode: str = "learned") -> str:
@@ -730,6 +783,8 @@ def card(model: GesturePredictor, metrics: dict[str, Any], folds: dict[str, Any]
     title = SHIPPED_NAME if fold is None else f"gesture predictor, fold {fold}"
     split = ("all Kinect subjects" if fold is None
              else f"the Kinect subjects outside fold {fold}")
+    observer = ("; told where the observer stands (`predict(history, observer)`: a "
+                "recording's sensor; unknown when not given)" if c.observer_input else "")
     lines = [
         f"# {title}",
         "",
@@ -745,7 +800,7 @@ def card(model: GesturePredictor, metrics: dict[str, Any], folds: dict[str, Any]
         f"- Network: {model.num_parameters()} parameters; DCT {c.dct_in} history / "
         f"{c.dct_out} future coefficients, hidden {c.hidden}, {c.blocks} residual block(s), "
         f"dropout {c.dropout}; root mode `{c.root_mode}`"
-        f"{'; mirror-averaged' if c.mirror_average else ''}.",
+        f"{'; mirror-averaged' if c.mirror_average else ''}{observer}.",
         f"- Training data (split): {split} ({len(tr['subjects'])} subjects) + CMU; "
         f"recordings {tr['recordings']} (UTKinect "
         "whole sessions, MSR clips >= 3 s, CMU BVH; Florence has no 3-s clip).",
@@ -812,6 +867,12 @@ def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) 
                   "The model averages its forecast with the mirrored forecast of the mirrored "
                   "history (`GesturePredictor`, step 8); its network alone on the same "
                   "windows:", mirror_table(result)),
+        *_section("Where the observer is (pooled)",
+                  "The model is told where the observer stands (`GesturePredictor`, step 4): "
+                  "for these Kinect recordings the sensor, on the floor below it at the "
+                  "world origin; in the room, the agent. People walk up to what they face "
+                  "and stop short of it. The same networks not told (the input says "
+                  "unknown, as for the CMU clips of training):", observer_table(result)),
         *_section("Where the error is (pooled)",
                   "Each forecast's error split in two, in mm: the spine's position error "
                   "(where the person will be) and the MPJPE once both skeletons' spines are "
@@ -851,6 +912,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--mirror-average", action=argparse.BooleanOptionalAction,
                         default=True, help="average each forecast with the mirrored one "
                         "(the shipped model does)")
+    parser.add_argument("--observer-input", action=argparse.BooleanOptionalAction,
+                        default=True, help="tell the network where the observer (the "
+                        "recording's sensor) stands (the shipped model is)")
     parser.add_argument("--root-mode", choices=ROOT_MODES, default="learned",
                         help="root mode written into the shipped model / used for the table")
     parser.add_argument("--doc", type=Path, default=None, help="write the fold table here")
@@ -863,7 +927,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.argv[1:] if argv is None else argv)
     config = TrainConfig(steps=args.steps, seed=args.seed, horizon_weight=args.horizon_weight,
                          speed_weight=args.speed_weight,
-                         model={"hidden": args.hidden, "mirror_average": args.mirror_average})
+                         model={"hidden": args.hidden, "mirror_average": args.mirror_average,
+                                "observer_input": args.observer_input})
     if args.evaluate:
         result = evaluate_folds(data, out=args.out, config=config,
                                 progress=not args.no_progress)

@@ -16,7 +16,9 @@ Each stage is an interface: any object with ``predict(history) -> future``, ``hi
 and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
 :mod:`simenv.models.baselines` directly; the PredictiveMA-WGAN and the DCT-MLP, which work
 on the root-relative pred17 layout, through :class:`CanonicalPredictor`); any
-:class:`GestureModel` classifies.
+:class:`GestureModel` classifies. A predictor whose ``uses_observer`` is true is also told
+where the perceiving agent stands, ``predict(history, observer)``, when the tick is given it
+(the gesture forecaster: people walk up to what they face and stop short of it).
 
 Defaults (:func:`load_predictor`, :func:`default_classifier`): the shipped models when they
 are present -- the gesture-domain forecaster ``predictor-gesture-25-50``
@@ -342,6 +344,10 @@ class CanonicalPredictor:
         joints: the predictor's J joints, canonical keypoint names.
         root_relative: whether the predictor takes pelvis-relative positions.
         name: what the rehearsal summary calls it (default: the predictor's class).
+
+    Attributes:
+        uses_observer: the predictor takes ``predict(history, observer)`` (its own
+            ``uses_observer``); :meth:`predict` passes the observer on to it.
     """
 
     def __init__(self, predictor: Any, joints: Sequence[str] = PRED17_JOINTS,
@@ -354,6 +360,7 @@ class CanonicalPredictor:
         self.name = name or type(predictor).__name__
         self.history_len = int(predictor.history_len)
         self.future_len = int(predictor.future_len)
+        self.uses_observer = bool(getattr(predictor, "uses_observer", False))
         self._idx = [CANONICAL_KEYPOINTS.index(j) for j in joints]
         self._pelvis = CANONICAL_KEYPOINTS.index("pelvis")
         # Keypoints the predictor lacks, parents first (CANONICAL_KEYPOINTS is tree-ordered).
@@ -361,14 +368,19 @@ class CanonicalPredictor:
                          for k, name in enumerate(CANONICAL_KEYPOINTS)
                          if k not in self._idx and CANONICAL_TREE[name] is not None]
 
-    def predict(self, history: np.ndarray) -> np.ndarray:
-        """(H, 21, 3) canonical keypoints, m -> (F, 21, 3) float32."""
+    def predict(self, history: np.ndarray, observer: np.ndarray | None = None) -> np.ndarray:
+        """(H, 21, 3) canonical keypoints, m -> (F, 21, 3) float32. ``observer``: (3,)
+        world position of whoever perceives, m (None: unknown), for a predictor that
+        ``uses_observer`` (ignored otherwise)."""
         h = np.asarray(history, dtype=np.float32)
         sub = h[:, self._idx]
         root = h[-1, self._pelvis]
         if self.root_relative:
             sub = sub - h[:, self._pelvis][:, None]
-        future = np.asarray(self.predictor.predict(sub), dtype=np.float32)
+        if self.uses_observer and observer is not None and not self.root_relative:
+            future = np.asarray(self.predictor.predict(sub, observer), dtype=np.float32)
+        else:
+            future = np.asarray(self.predictor.predict(sub), dtype=np.float32)
         if self.root_relative:
             future = future + root
         out = np.repeat(h[-1:], len(future), axis=0)
@@ -521,9 +533,11 @@ class PerceptionLoop:
         """Whether frame index ``frame`` (0-based) ends a perception period."""
         return frame + 1 >= self.real_frames and (frame + 1) % self.period == 0
 
-    def perceive(self, t_s: float, history: np.ndarray) -> Perception:
+    def perceive(self, t_s: float, history: np.ndarray,
+                 observer: np.ndarray | None = None) -> Perception:
         """Run one tick on ``history`` (H >= real_frames, K = 21 canonical keypoints, 3)
-        ending at time ``t_s``."""
+        ending at time ``t_s``; ``observer``: (3,) world position of the perceiving agent,
+        m, for a predictor that ``uses_observer`` (None: unknown)."""
         start = time.perf_counter()
         h = np.asarray(history, dtype=np.float32)
         if h.ndim != 3 or h.shape[1:] != (len(CANONICAL_KEYPOINTS), 3) or len(h) < self.real_frames:
@@ -541,8 +555,11 @@ class PerceptionLoop:
         if p_real.max() >= self.threshold:
             stage = "real"
         elif self.predictor is not None and self.use_forecast:
-            future = np.asarray(self.predictor.predict(h[-int(self.predictor.history_len):]),
-                                dtype=np.float32)
+            recent = h[-int(self.predictor.history_len):]
+            future = np.asarray(
+                self.predictor.predict(recent, observer)
+                if observer is not None and getattr(self.predictor, "uses_observer", False)
+                else self.predictor.predict(recent), dtype=np.float32)
             motion = float(np.linalg.norm(future - h[-1][None], axis=-1).mean())
             both = np.concatenate([real, future[:, self._joints]])
             probs = self.classifier.classify(both, np.ones(len(both), bool))
