@@ -34,7 +34,9 @@ model that never saw its subject.
 Training (:func:`train`)
 ------------------------
 Seeded (weights, batches, augmentation), one torch thread, a fixed number of steps with
-Adam + cosine decay, tqdm bar. Each batch is drawn afresh: a recording (Kinect with
+Adam + cosine decay, tqdm bar; the model keeps the moving average of its weights over about
+the last quarter of the steps (:attr:`TrainConfig.ema_fraction`). Each batch is drawn
+afresh: a recording (Kinect with
 probability ``1 - cmu_fraction``, recordings weighted by their length), a start and a
 **speed** factor ``s`` (log-uniform in [0.8, 1.25]: 75 frames read at times
 ``t0 + k s`` with linear interpolation), **mirror** (p = 0.5, left-right), **scale**
@@ -43,7 +45,8 @@ probability ``1 - cmu_fraction``, recordings weighted by their length), a start 
 useful variant is an error of the estimated heading, as Kinect's shoulder jitter makes).
 An observer-conditioned model (``observer_input``) is told where each window's observer
 stands (:attr:`Recording.observer`: a Kinect window's sensor; unknown for CMU), moved by
-the same mirror and scale as the body.
+the same mirror and scale as the body, and hidden with probability
+:attr:`TrainConfig.observer_drop` (so that it also forecasts when not told).
 Loss: :func:`simenv.models.gesture_predictor.position_velocity_loss` (siMLPe).
 
 Metrics (:func:`evaluate`)
@@ -348,6 +351,11 @@ class TrainConfig:
     #: with ``observer_input`` still forecasts Kinect motion well when not told (the room
     #: without an observer); CMU windows never have one.
     observer_drop: float = 0.3
+    #: The model ends with an exponential moving average of its weights (Polyak
+    #: averaging, ``w̄ ← d w̄ + (1 - d) w`` after every step) over about this fraction of
+    #: the steps, ``d = 1 - 1 / (ema_fraction · steps)`` (0.999 for 4000 steps); 0: the
+    #: last weights. Less of the seed-to-seed noise of a deterministic forecast.
+    ema_fraction: float = 0.25
     seed: int = 0
     model: dict[str, Any] = field(default_factory=dict)
 
@@ -370,6 +378,9 @@ def train(recordings: Sequence[Recording], config: TrainConfig | None = None, *,
     drop_rng = np.random.default_rng(config.seed + 2)
     opt = torch.optim.AdamW(model.net.parameters(), lr=config.lr,
                             weight_decay=config.weight_decay)
+    params = list(model.net.parameters())
+    average = [p.detach().clone() for p in params] if config.ema_fraction > 0 else None
+    decay = 1.0 - 1.0 / max(config.ema_fraction * config.steps, 1.0)
     losses: list[float] = []
     cpu0, wall0 = time.process_time(), time.perf_counter()
     model.net.train()
@@ -389,11 +400,19 @@ def train(recordings: Sequence[Recording], config: TrainConfig | None = None, *,
         opt.zero_grad()
         loss.backward()
         opt.step()
+        if average is not None:
+            with torch.no_grad():
+                for a, p in zip(average, params, strict=True):
+                    a.mul_(decay).add_(p, alpha=1.0 - decay)
         running += loss.item()
         if (step + 1) % 50 == 0:
             losses.append(running / 50)
             bar.set_postfix(loss=f"{losses[-1]:.3f}")
             running = 0.0
+    if average is not None:
+        with torch.no_grad():
+            for a, p in zip(average, params, strict=True):
+                p.copy_(a)
     model.net.eval()
     counts: dict[str, int] = {}
     for r in recordings:
