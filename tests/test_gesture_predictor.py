@@ -271,6 +271,20 @@ def test_training_windows_carry_their_observer(recordings, walk15) -> None:
     assert target.shape == (64, 50, 45) and np.median(ahead) > 1.0
 
 
+def test_weight_average_leaves_training_alone(recordings) -> None:
+    """The moving average of the weights is what the model ends with; the steps that
+    train it are the same with or without it."""
+    from simenv.learning.train_gesture_predictor import TrainConfig, train
+
+    runs = [train(recordings, TrainConfig(steps=100, batch=16, ema_fraction=f),
+                  progress=False) for f in (0.0, 0.25)]
+    assert runs[0][1]["loss"] == runs[1][1]["loss"]
+    last, averaged = (m.net.fc_out.weight.detach().numpy() for m, _ in runs)
+    assert not np.allclose(last, averaged)
+    # The average lags the last weights: nearer the zero-velocity start (W_out = 0).
+    assert 0 < np.abs(averaged).sum() < np.abs(last).sum()
+
+
 def test_short_training_lowers_the_loss_and_evaluates(recordings, tmp_path) -> None:
     from simenv.learning.train_gesture_predictor import (
         TrainConfig,
@@ -283,24 +297,28 @@ def test_short_training_lowers_the_loss_and_evaluates(recordings, tmp_path) -> N
 
     train_recs = [r for r in recordings if r.fold != 0]
     model, history = train(train_recs, TrainConfig(
-        steps=300, batch=64, seed=0, model={"mirror_average": True}), progress=False)
+        steps=300, batch=64, seed=0, model={"mirror_average": True, "observer_input": True}),
+        progress=False)
     assert history["loss"][-1] < 0.9 * history["loss"][0]
     assert "utkinect/s01" not in history["subjects"]  # fold 0's subject stays out
     windows, names = eval_windows([r for r in recordings if r.fold == 0], stride=25)
     result = evaluate(model, windows, names, retrieval_baselines(train_recs))
     assert set(result) >= {"all", "utkinect", "msr_action3d"}
     table = result["all"]
-    for method in ("model-learned", "model-damped", "model-unmirrored", "zero-velocity",
-                   "constant-velocity", "nearest-neighbour", "20-nearest-neighbours"):
+    for method in ("model-learned", "model-damped", "model-unmirrored", "model-no-observer",
+                   "zero-velocity", "constant-velocity", "nearest-neighbour",
+                   "20-nearest-neighbours"):
         assert np.isfinite(table[method]["mpjpe_2s_mm"])
     assert table["zero-velocity"]["mpjs_mps"] == 0.0 and table["real_mpjs_mps"] > 0
-    # The mirror average moves the forecast, so the two rows differ.
-    assert table["model-learned"]["mpjpe_2s_mm"] != table["model-unmirrored"]["mpjpe_2s_mm"]
+    # The mirror average and the observer move the forecast, so the rows differ.
+    for other in ("model-unmirrored", "model-no-observer"):
+        assert table["model-learned"]["mpjpe_2s_mm"] != table[other]["mpjpe_2s_mm"]
     doc = tmp_path / "gesture_prediction.md"
     write_doc(doc, {"folds": {0: result}, "pooled": result, "train_cpu_s": {0: 1.0},
                     "skipped": []}, "pytest", "learned")
     text = doc.read_text()
     assert "## Mirror average (pooled)" in text and "the network alone" in text
+    assert "## Where the observer is (pooled)" in text and "not told" in text
     assert "## Where the error is (pooled)" in text
     # Zero velocity keeps the spine where it was: its spine error is the spine's travel.
     spine, w = GESTURE15_JOINTS.index("spine"), windows.astype(np.float64)
