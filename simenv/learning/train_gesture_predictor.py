@@ -804,6 +804,10 @@ def card(model: GesturePredictor, metrics: dict[str, Any], folds: dict[str, Any]
              else f"the Kinect subjects outside fold {fold}")
     observer = ("; told where the observer stands (`predict(history, observer)`: a "
                 "recording's sensor; unknown when not given)" if c.observer_input else "")
+    cfg = metrics["config"]
+    drop = (f", observer hidden with p {cfg.get('observer_drop', 0.0)}" if c.observer_input
+            else "")
+    ema = cfg.get("ema_fraction", 0.0)
     lines = [
         f"# {title}",
         "",
@@ -828,7 +832,8 @@ def card(model: GesturePredictor, metrics: dict[str, Any], folds: dict[str, Any]
         f"- Schedule: {metrics['config']['steps']} steps x batch {metrics['config']['batch']}, "
         f"AdamW lr {metrics['config']['lr']} cosine, seed {metrics['config']['seed']}; "
         "augmentation: speed 0.8-1.25, mirror, scale 0.85-1.15, heading jitter "
-        f"{metrics['config']['yaw_deg']} deg; loss: position + velocity (siMLPe).",
+        f"{metrics['config']['yaw_deg']} deg{drop}; loss: position + velocity (siMLPe); "
+        f"weights averaged over the last {ema:.0%} of the steps.",
         f"- Training time: {tr['cpu_s']:.0f} CPU s (one torch thread), {tr['wall_s']:.0f} s wall.",
     ]
     if latency:
