@@ -260,6 +260,27 @@ def test_session_recipe_as_the_user(shared_data):
     first = seen.index("wave")
     assert abs((first + 1) / PERCEPTION_FPS - wave.onset_s) <= 1 / PERCEPTION_FPS + 1e-9
     assert seen[-1] is None
+    # The recording's sensor, placed with its subject: as far from the user as in the
+    # recording, in front of them (a UTKinect subject faces the sensor).
+    track = env.track
+    ahead = track.observer[:2] - track.qpos[0, :2]
+    assert np.linalg.norm(ahead) == pytest.approx(np.linalg.norm(track.result.qpos[0, :2]))
+    yaw = np.deg2rad(env.scenario.user.yaw_deg)
+    assert ahead @ [np.cos(yaw), np.sin(yaw)] > 0.9 * np.linalg.norm(ahead)
+
+
+@pytest.mark.skipif("predictor-gesture-25-50" not in simenv.models.available(),
+                    reason="shipped gesture forecaster absent")
+def test_the_forecast_is_told_where_the_recordings_sensor_stands(shared_data):
+    env = InteractionRoomEnv("utkinect-s02-e01-wave", data=shared_data)
+    assert env.predictor.uses_observer and env.track.observer is not None
+    obs, _ = env.reset(seed=0)
+    history = env.user_keypoints()
+    np.testing.assert_allclose(obs["user_future"],
+                               env.predictor.predict(history, env.track.observer), atol=1e-6)
+    assert not np.allclose(obs["user_future"], env.predictor.predict(history), atol=1e-3)
+    # A recording that is not a depth sensor's (the bundled CMU walk) has no observer.
+    assert InteractionRoomEnv(gestures=[WAVE]).track.observer is None
 
 
 def test_bow_back_is_scored_by_the_bow_meter():

@@ -11,7 +11,8 @@ Observation (``Dict``, float32)
     ``user_future`` (F, K, 3): the predictor's F frames ahead of the history as it was at
     the latest prediction (default :func:`simenv.perception.loop.load_predictor`: the shipped
     gesture-domain forecaster ``predictor-gesture-25-50``, 2 s, run on the keypoints through
-    :class:`~simenv.perception.loop.CanonicalPredictor`; the constant-velocity baseline
+    :class:`~simenv.perception.loop.CanonicalPredictor` and told where the recording's sensor
+    stands, :attr:`simenv.room.session.UserTrack.observer`; the constant-velocity baseline
     ``constant-velocity-50`` when it is not shipped). It predicts at the perception loop's
     rate, every ``predict_every`` = 25 steps (1 s) and at reset, and holds the forecast in
     between: the WGAN takes ~14 ms a call on one core, more than the 25 steps' physics;
@@ -96,7 +97,7 @@ from simenv.assets import WALK
 from simenv.body.divergence import physics_problem, warning_counts
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
-from simenv.perception.loop import load_predictor
+from simenv.perception.loop import forecast, load_predictor
 from simenv.room.room import CHAIR_OFFSET
 from simenv.room.scenario import REACTIONS, Scenario, load_scenario
 from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, user_track
@@ -607,8 +608,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
     def _observe(self) -> dict[str, np.ndarray]:
         history = self._history[-self.history_frames:].copy()
         if self._future is None or self._step % self.predict_every == 0:
-            future = self.predictor.predict(self._history[-int(self.predictor.history_len):])
-            self._future = np.asarray(future, dtype=np.float32)
+            self._future = forecast(self.predictor, self._history, self.track.observer)
         d, room = self.data, self.room
         agent = np.concatenate([d.qpos[room.agent_qpos][2:], d.qvel[room.agent_qvel]])
         return {"user_history": history,

@@ -225,7 +225,7 @@ class _Episode:
         env, t = self.env, step / PERCEPTION_FPS
         tick = (step + 1) % 25 == 0 and step + 1 >= 25
         if self.loop is not None and tick and step - self.loop.real_frames < env.n_frames - 1:
-            self.last = self.loop.perceive(t, env.user_keypoints())
+            self.last = self.loop.perceive(t, env.user_keypoints(), env.track.observer)
             self.perceptions.append(self.last)
             if self.last.reaction in env.reactions:
                 return env.reactions.index(self.last.reaction)

@@ -390,6 +390,17 @@ class CanonicalPredictor:
         return out
 
 
+def forecast(predictor: Any, history: np.ndarray, observer: np.ndarray | None = None
+             ) -> np.ndarray:
+    """``predictor``'s (F, K, 3) float32 forecast after its last ``history_len`` frames of
+    ``history`` (H, K, 3), m; told ``observer`` ((3,) world position, m) when it
+    ``uses_observer`` and one is given."""
+    recent = history[-int(predictor.history_len):]
+    if observer is not None and getattr(predictor, "uses_observer", False):
+        return np.asarray(predictor.predict(recent, observer), dtype=np.float32)
+    return np.asarray(predictor.predict(recent), dtype=np.float32)
+
+
 #: The shipped predictor the room uses by default (1 s observed -> 2 s ahead): the
 #: gesture-domain forecaster, trained on Kinect recordings of people gesturing.
 DEFAULT_PREDICTOR = "predictor-gesture-25-50"
@@ -555,11 +566,7 @@ class PerceptionLoop:
         if p_real.max() >= self.threshold:
             stage = "real"
         elif self.predictor is not None and self.use_forecast:
-            recent = h[-int(self.predictor.history_len):]
-            future = np.asarray(
-                self.predictor.predict(recent, observer)
-                if observer is not None and getattr(self.predictor, "uses_observer", False)
-                else self.predictor.predict(recent), dtype=np.float32)
+            future = forecast(self.predictor, h, observer)
             motion = float(np.linalg.norm(future - h[-1][None], axis=-1).mean())
             both = np.concatenate([real, future[:, self._joints]])
             probs = self.classifier.classify(both, np.ones(len(both), bool))
@@ -622,16 +629,17 @@ def loop_readings(clips: Sequence[GestureClip], classifier: GestureModel, predic
             skipped.append(f"{clip.name}: no source motion")
             continue
         try:
-            kp = user_track(Session(clip.source), scenario).keypoints.astype(np.float32)
+            track = user_track(Session(clip.source), scenario)
         except SimenvError as exc:
             skipped.append(f"{clip.name}: {exc.detail}")
             continue
+        kp = track.keypoints.astype(np.float32)
         end = min(max(len(kp) - WINDOW_FRAMES, 0) // 2 + real_frames, len(kp))
         h = kp[max(end - need, 0):end]
         h = np.concatenate([np.repeat(h[:1], need - len(h), axis=0), h])
         real = h[-real_frames:][:, joints]
         p_real = classifier.classify(real, np.ones(len(real), bool))
-        future = np.asarray(predictor.predict(h[-int(predictor.history_len):]), np.float32)
+        future = forecast(predictor, h, track.observer)
         both = np.concatenate([real, future[:, joints]])
         p_pred = classifier.classify(both, np.ones(len(both), bool))
         readings.append(LoopReading(clip.name, clip.label, clip.subject_key,
@@ -739,7 +747,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 __all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR",
            "CanonicalPredictor", "GestureModel", "LoopReading", "Perception", "PerceptionLoop",
            "TemplateClassifier", "TrainedClassifier", "choose_threshold", "default_classifier",
-           "loop_decisions", "load_predictor", "loop_readings",
+           "forecast", "loop_decisions", "load_predictor", "loop_readings",
            "vocabulary_map"]
 
 

@@ -844,13 +844,24 @@ def place_on_floor(qpos: np.ndarray, position: Sequence[float], yaw: float) -> n
     """A free-root trajectory (T, nq) turned about z and shifted so that frame 0's root is
     at ``position`` (x, y, m; height kept) with heading ``yaw`` (rad); a copy."""
     q = np.array(qpos, dtype=float, copy=True)
-    turn = yaw - _heading(q[0, 3:7])
-    c, sn = np.cos(turn), np.sin(turn)
-    xy = q[:, :2] - q[0, :2]
-    q[:, 0] = c * xy[:, 0] - sn * xy[:, 1] + position[0]
-    q[:, 1] = sn * xy[:, 0] + c * xy[:, 1] + position[1]
-    q[:, 3:7] = _quat_mul(np.array(_yaw_quat(turn)), q[:, 3:7])
+    q[:, :3] = place_points(q[:, :3], q[0], position, yaw)
+    q[:, 3:7] = _quat_mul(np.array(_yaw_quat(yaw - _heading(q[0, 3:7]))), q[:, 3:7])
     return q
+
+
+def place_points(points: np.ndarray, q0: np.ndarray, position: Sequence[float], yaw: float
+                 ) -> np.ndarray:
+    """World points (N, 3), m, moved as :func:`place_on_floor` moves a trajectory whose
+    frame 0 is ``q0`` (nq,): turned about z by ``yaw`` minus ``q0``'s heading about
+    ``q0``'s root, which lands on ``position``; heights kept. E.g. where a recording's
+    sensor stands once its subject is placed in the room."""
+    p = np.array(points, dtype=float, copy=True)
+    turn = yaw - _heading(np.asarray(q0, dtype=float)[3:7])
+    c, sn = np.cos(turn), np.sin(turn)
+    xy = p[:, :2] - np.asarray(q0, dtype=float)[:2]
+    p[:, 0] = c * xy[:, 0] - sn * xy[:, 1] + position[0]
+    p[:, 1] = sn * xy[:, 0] + c * xy[:, 1] + position[1]
+    return p
 
 
 def _scaled_default(height: float) -> BodyDimensions:
@@ -910,4 +921,4 @@ def _look_at(parent: mujoco.MjsBody, name: str, eye: Sequence[float],
 
 __all__ = ["BOW_DIP_DEG", "BOW_RETURN_DEG", "GRASP_RADIUS", "GRASP_SITE", "GREET_FACING_DEG",
            "HANDS", "KNOB_GRIP_RADIUS", "KNOB_TRAVEL", "BowMeter", "Room", "RoomObject",
-           "place_on_floor"]
+           "place_on_floor", "place_points"]

@@ -55,7 +55,7 @@ from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
 from simenv.io import utkinect
 from simenv.io.loader import load
-from simenv.room.room import Room, place_on_floor
+from simenv.room.room import Room, place_on_floor, place_points
 from simenv.room.scenario import Scenario, load_scenario
 
 if sys.version_info >= (3, 11):
@@ -231,12 +231,18 @@ class UserTrack:
         keypoints: (T, K, 3) the avatar's canonical keypoints in the room, m.
         result: the retargeting result (fitted body, residuals).
         scenario: the scenario it was placed for.
+        observer: (3,) where the recording's depth sensor stands in the room, m (its floor
+            point), for a recording in a sensor's camera frame (metadata
+            ``camera_frame``, :mod:`simenv.io.camera_frame`: the sensor above the world
+            origin); None for others. The user's recorded motion answers to it (they walk
+            up to it and stop), so a forecaster is told it.
     """
 
     qpos: np.ndarray
     keypoints: np.ndarray
     result: RetargetResult
     scenario: Scenario
+    observer: np.ndarray | None = None
 
     def room(self) -> Room:
         """The scenario's room with this user's fitted body."""
@@ -255,6 +261,9 @@ def user_track(session: Session, scenario: Scenario | str = "default") -> UserTr
     result = retarget(m.resample(PERCEPTION_FPS) if m.fps != PERCEPTION_FPS else m)
     u = scenario.user
     qpos = place_on_floor(result.qpos, u.position, np.deg2rad(u.yaw_deg))
+    observer = (place_points(np.zeros((1, 3)), result.qpos[0], u.position,
+                             np.deg2rad(u.yaw_deg))[0]
+                if "camera_frame" in (m.metadata or {}) else None)
     h = result.humanoid
     data = mujoco.MjData(h.model)
     kp = np.empty((len(qpos), len(h.site_ids), 3))
@@ -262,7 +271,7 @@ def user_track(session: Session, scenario: Scenario | str = "default") -> UserTr
         data.qpos[:] = q
         mujoco.mj_kinematics(h.model, data)
         kp[t] = data.site_xpos[h.site_ids]
-    return UserTrack(qpos, kp, result, scenario)
+    return UserTrack(qpos, kp, result, scenario, observer)
 
 
 __all__ = ["PERCEPTION_FPS", "SESSIONS_DIR", "GestureEvent", "Session", "UserTrack",
