@@ -68,7 +68,7 @@ class GesturePredictorConfig:
         root_mode: one of :data:`ROOT_MODES`. root_frames: history frames the root
             velocity of ``damped`` is measured over. root_tau_s: its decay time, s.
         observer_input: the network also takes where the observer (the depth sensor
-            of a recording, the agent of the room) stands relative to the person
+            of a recording, the agent for a live user) stands relative to the person
             (:class:`GesturePredictor`, step 4): people walk up to what they face and stop
             short of it, which one second of their own motion does not tell.
         info: free provenance (training command, data), JSON.
@@ -223,7 +223,7 @@ class GesturePredictor(CheckpointMixin):
        ``K_in`` lowest temporal frequencies (K_in x D).
     4. **MLP.** ``z = GELU(W_in [vec C; b_H])`` -- with ``observer_input``,
        ``z = GELU(W_in [vec C; b_H; U·[R_z(-θ)(p - o)]_xy; 1])`` for an observer standing
-       at world ``p`` (the sensor of a recording, the agent of the room), or
+       at world ``p`` (the sensor of a recording, the agent for a live user), or
        ``[...; 0, 0; 0]`` when it is unknown (:func:`observer_offset`) -- then
        ``blocks`` residual blocks
        ``z + Drop(GELU(W LN(z)))``, then ``Ĉ = W_out LN(z)`` reshaped to (K_out, D).

@@ -149,10 +149,8 @@ class Recording:
 
     @property
     def observer(self) -> np.ndarray:
-        """(3,) world position of the observer, metres: the depth sensor of a Kinect
-        recording (the world origin lies on the floor below it,
-        :mod:`simenv.io.camera_frame`); NaN for CMU, whose studio has none."""
-        return np.full(3, np.nan) if self.dataset == "cmu" else np.zeros(3)
+        """(3,) world position of the observer, metres (:func:`dataset_observer`)."""
+        return dataset_observer(self.dataset)
 
     @property
     def fold(self) -> int | None:
@@ -244,10 +242,16 @@ def eval_windows(recordings: Sequence[Recording], length: int = 75, stride: int 
     return np.stack(wins), np.array(names, dtype=object)
 
 
+def dataset_observer(dataset: str) -> np.ndarray:
+    """(3,) world position of the observer of a recording of ``dataset``, metres: the depth
+    sensor of a Kinect dataset (the world origin lies on the floor below it,
+    :mod:`simenv.io.camera_frame`); NaN for ``cmu``, whose studio has none."""
+    return np.full(3, np.nan) if dataset == "cmu" else np.zeros(3)
+
+
 def window_observers(datasets: np.ndarray) -> np.ndarray:
-    """(N, 3) observer of each window by its dataset key (:attr:`Recording.observer`)."""
-    return np.array([Recording(np.zeros(0), str(d), None, "").observer for d in datasets]
-                    ).reshape(-1, 3)
+    """(N, 3) observer of each window by its dataset key (:func:`dataset_observer`)."""
+    return np.array([dataset_observer(str(d)) for d in datasets]).reshape(-1, 3)
 
 
 class WindowSampler:
@@ -894,9 +898,11 @@ def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) 
         *_section("Where the observer is (pooled)",
                   "The model is told where the observer stands (`GesturePredictor`, step 4): "
                   "for these Kinect recordings the sensor, on the floor below it at the "
-                  "world origin; in the room, the agent. People walk up to what they face "
-                  "and stop short of it. The same networks not told (the input says "
-                  "unknown, as for the CMU clips of training):", observer_table(result)),
+                  "world origin (in the room, that sensor placed with its subject: "
+                  "`UserTrack.observer`; measured there in docs/room.md). People walk up "
+                  "to what they face and stop short of it. The same networks not told (the "
+                  "input says unknown, as for the CMU clips and a share of the Kinect "
+                  "windows of training):", observer_table(result)),
         *_section("Where the error is (pooled)",
                   "Each forecast's error split in two, in mm: the spine's position error "
                   "(where the person will be) and the MPJPE once both skeletons' spines are "

@@ -17,8 +17,9 @@ and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
 :mod:`simenv.models.baselines` directly; the PredictiveMA-WGAN and the DCT-MLP, which work
 on the root-relative pred17 layout, through :class:`CanonicalPredictor`); any
 :class:`GestureModel` classifies. A predictor whose ``uses_observer`` is true is also told
-where the perceiving agent stands, ``predict(history, observer)``, when the tick is given it
-(the gesture forecaster: people walk up to what they face and stop short of it).
+where the observer the user faces stands, ``predict(history, observer)``, when the tick is
+given it: a recording's sensor (:attr:`simenv.room.session.UserTrack.observer`), the agent
+for a live user (the gesture forecaster: people walk up to what they face and stop short).
 
 Defaults (:func:`load_predictor`, :func:`default_classifier`): the shipped models when they
 are present -- the gesture-domain forecaster ``predictor-gesture-25-50``
@@ -347,7 +348,8 @@ class CanonicalPredictor:
 
     Attributes:
         uses_observer: the predictor takes ``predict(history, observer)`` (its own
-            ``uses_observer``); :meth:`predict` passes the observer on to it.
+            ``uses_observer``, on world positions: never root-relative); :meth:`predict`
+            passes the observer on to it.
     """
 
     def __init__(self, predictor: Any, joints: Sequence[str] = PRED17_JOINTS,
@@ -360,7 +362,8 @@ class CanonicalPredictor:
         self.name = name or type(predictor).__name__
         self.history_len = int(predictor.history_len)
         self.future_len = int(predictor.future_len)
-        self.uses_observer = bool(getattr(predictor, "uses_observer", False))
+        self.uses_observer = bool(getattr(predictor, "uses_observer", False)
+                                  and not self.root_relative)
         self._idx = [CANONICAL_KEYPOINTS.index(j) for j in joints]
         self._pelvis = CANONICAL_KEYPOINTS.index("pelvis")
         # Keypoints the predictor lacks, parents first (CANONICAL_KEYPOINTS is tree-ordered).
@@ -370,14 +373,14 @@ class CanonicalPredictor:
 
     def predict(self, history: np.ndarray, observer: np.ndarray | None = None) -> np.ndarray:
         """(H, 21, 3) canonical keypoints, m -> (F, 21, 3) float32. ``observer``: (3,)
-        world position of whoever perceives, m (None: unknown), for a predictor that
-        ``uses_observer`` (ignored otherwise)."""
+        world position of the observer the user faces, m (None: unknown), for a predictor
+        that ``uses_observer`` (ignored otherwise)."""
         h = np.asarray(history, dtype=np.float32)
         sub = h[:, self._idx]
         root = h[-1, self._pelvis]
         if self.root_relative:
             sub = sub - h[:, self._pelvis][:, None]
-        if self.uses_observer and observer is not None and not self.root_relative:
+        if self.uses_observer and observer is not None:
             future = np.asarray(self.predictor.predict(sub, observer), dtype=np.float32)
         else:
             future = np.asarray(self.predictor.predict(sub), dtype=np.float32)
@@ -547,8 +550,9 @@ class PerceptionLoop:
     def perceive(self, t_s: float, history: np.ndarray,
                  observer: np.ndarray | None = None) -> Perception:
         """Run one tick on ``history`` (H >= real_frames, K = 21 canonical keypoints, 3)
-        ending at time ``t_s``; ``observer``: (3,) world position of the perceiving agent,
-        m, for a predictor that ``uses_observer`` (None: unknown)."""
+        ending at time ``t_s``; ``observer``: (3,) world position of the observer the user
+        faces, m (module docstring), for a predictor that ``uses_observer`` (None:
+        unknown)."""
         start = time.perf_counter()
         h = np.asarray(history, dtype=np.float32)
         if h.ndim != 3 or h.shape[1:] != (len(CANONICAL_KEYPOINTS), 3) or len(h) < self.real_frames:
