@@ -483,7 +483,7 @@ def evaluate(model: GesturePredictor, windows: np.ndarray, datasets: np.ndarray 
     Args:
         windows: (N, H + F, 15, 3) world positions, metres. datasets: (N,) keys to also
             score per dataset; they also give each window its observer
-            (:attr:`Recording.observer`; None: unknown).
+            (:func:`dataset_observer`; None: unknown).
         baselines: further forecasters by name (each given the model's H history frames,
             forecasting its F), e.g. :func:`retrieval_baselines`.
 
