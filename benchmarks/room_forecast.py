@@ -55,6 +55,11 @@ def main() -> None:
     torch.set_num_threads(1)
     sessions = sorted((shared_data_root(args.data) / "gestures" / "utkinect" / "joints")
                       .glob("joints_s*_e*.txt"))
+    missing = [k for k in range(5) if not (args.folds / f"fold{k}" / "model.npz").is_file()]
+    if missing:
+        raise SystemExit(f"no fold forecaster {args.folds}/fold{{{','.join(map(str, missing))}}}"
+                         "/model.npz: train them with `python -m "
+                         "simenv.learning.train_gesture_predictor --fold K` (K = 0..4)")
     joints = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]
     curves: dict[str, list[np.ndarray]] = {"told": [], "not told": [], "zero velocity": []}
     for path in tqdm(sessions, desc="sessions"):
