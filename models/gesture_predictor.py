@@ -482,10 +482,8 @@ def observer_offset(observer: np.ndarray | None, origin: np.ndarray, angle: np.n
     if observer is None:
         return out
     known = np.isfinite(observer).all(axis=1)
-    d = observer[known, :2] - origin[known, :2]
-    c, s = np.cos(angle[known]), np.sin(angle[known])
-    out[known, 0] = (c * d[:, 0] + s * d[:, 1]) * UNIT
-    out[known, 1] = (-s * d[:, 0] + c * d[:, 1]) * UNIT
+    body = to_body(observer[known, None, None], origin[known], angle[known])[:, 0, 0]
+    out[known, :2] = body[:, :2] * UNIT
     out[known, 2] = 1.0
     return out
 
