@@ -19,15 +19,18 @@ the temperature) and the loop's stream readings of its avatar clips
 ``NAME_s<S>`` folders), with the protocol's cross-fitting: fold k's temperature is fitted
 on the other folds' held-out ``real_3s`` + ``real_1s`` logits and its threshold chosen on
 the other folds' loop readings (:func:`simenv.perception.protocol.cross_fitted_outcomes`,
-last 1 / 2 / 3 s real, no forecast stage). Prints waves / other / idle greeted and the
-decision time; ``--json`` appends the row to ``OUT/scores.jsonl``.
+last 1 / 2 / 3 s real, no forecast stage), the windows' probabilities combined by
+``--window-rule`` (:func:`simenv.perception.loop.real_stage`: ``max``, the most confident
+window, or ``mean``). Prints waves / other / idle greeted and the decision time; ``--json``
+appends the row to ``OUT/scores.jsonl``.
 
 ``ship MEMBER [MEMBER ...] [--name N] [--ship-dir DIR]``: the ensemble as the room ships
 it: each member variant trained once more on every subject (its ``config.json``, the shipped
 forecaster; ``DIR/<member>.npz``, kept across runs), the temperature fitted on all the
 members' out-of-fold mean logits, the loop threshold chosen on all out-of-fold loop readings
 (:func:`simenv.perception.protocol.choose_threshold`, as ``train_recogniser train`` does
-for one network), written as ``DIR/N.npz``
+for one network) under ``--window-rule``, which the checkpoint records
+(``loop_window_rule``: the room's loop combines its windows so), written as ``DIR/N.npz``
 (:class:`simenv.models.skeleton_tcn.SkeletonTCNEnsemble`) with its card ``DIR/N.md`` (the
 unseen-subject numbers of ``score``). Copy both into ``assets/models`` to ship.
 """
@@ -69,6 +72,7 @@ from simenv.models.skeleton_tcn import (  # noqa: E402
     SkeletonTCNEnsemble,
     fit_temperature,
 )
+from simenv.perception.loop import WINDOW_RULES  # noqa: E402
 from simenv.perception.protocol import (  # noqa: E402
     StreamReading,
     avatar_clips,
@@ -185,30 +189,31 @@ def _temperature(mean: list[dict[str, np.ndarray]], folds: list[int]) -> float:
     return fit_temperature(z, y)
 
 
-def score(members: list[Path]) -> dict[str, Any]:
+def score(members: list[Path], window_rule: str = "max") -> dict[str, Any]:
     """Cross-fitted loop outcomes of the ensemble ``members`` (module docstring)."""
-    return _cross_fitted(*_ensemble_readings(members))
+    return _cross_fitted(*_ensemble_readings(members), window_rule)
 
 
-def _cross_fitted(readings: list[Any], mean: list[dict[str, np.ndarray]]) -> dict[str, Any]:
+def _cross_fitted(readings: list[Any], mean: list[dict[str, np.ndarray]],
+                  window_rule: str) -> dict[str, Any]:
     """:func:`score` of readings already read."""
     temps = [_temperature(mean, [j for j in range(SUBJECT_FOLDS) if j != k])
              for k in range(SUBJECT_FOLDS)]
     out = cross_fitted_outcomes(readings, subject_fold, GESTURE_LABELS, temps,
-                                use_forecast=False)
+                                use_forecast=False, window_rule=window_rule)
     out["temperatures"] = [round(t, 4) for t in temps]
     return out
 
 
 def cmd_score(args: argparse.Namespace) -> None:
-    r = score([Path(args.out) / m for m in args.members])
+    r = score([Path(args.out) / m for m in args.members], args.window_rule)
     greeted = "  ".join(f"{name} {k}/{n} ({k / n:.1%})" for name, (k, n) in
                         zip(("waves", "other", "idle"), (r["greet_clips"], r["other_clips"],
                                                          r["idle_clips"]), strict=True))
     d = r["decision_after_onset_s"]
-    print(f"{'+'.join(args.members)}: {greeted}  decision median {d['median']} s, p90 "
-          f"{d['p90']} s  thresholds {[f['threshold'] for f in r['folds']]}  temperatures "
-          f"{r['temperatures']}")
+    print(f"{'+'.join(args.members)} ({args.window_rule}): {greeted}  decision median "
+          f"{d['median']} s, p90 {d['p90']} s  thresholds "
+          f"{[f['threshold'] for f in r['folds']]}  temperatures {r['temperatures']}")
     if args.json:
         with (Path(args.out) / "scores.jsonl").open("a") as fh:
             fh.write(json.dumps({"members": args.members, **r}) + "\n")
@@ -254,11 +259,13 @@ joints at 25 fps and the room's vocabulary ({', '.join(GESTURE_LABELS)}). Member
 {', '.join(metadata['members'])}: trained with loop-tick windows (`stream_prob`
 {metadata['config']['stream_prob']}), seeds {metadata['seeds']}, on every subject of the
 gesture corpus with "1 s real + forecast" windows from `predictor-gesture-25-50`, by
-`python benchmarks/loop_variants.py ship {' '.join(metadata['members'])}`.
+`python benchmarks/loop_variants.py ship {' '.join(metadata['members'])} --window-rule
+{metadata['loop_window_rule']}`.
 Temperature {metadata['temperature']:.3f} (fitted on the members' out-of-fold mean logits);
 loop threshold {metadata['loop_threshold']} (chosen on every out-of-fold loop reading: greetings
-on at most 2 % of non-wave clips); real windows {metadata['loop_windows']} frames, no forecast
-stage.
+on at most 2 % of non-wave clips); real windows {metadata['loop_windows']} frames, their
+probabilities combined by the `{metadata['loop_window_rule']}` rule
+(`simenv.perception.loop.real_stage`), no forecast stage.
 
 ## On subjects it never saw
 
@@ -282,15 +289,17 @@ def cmd_ship(args: argparse.Namespace) -> None:
     nets = [SkeletonTCN.load(p) for p in train_members(members, ship)]
     readings, mean = _ensemble_readings(members)
     temperature = _temperature(mean, list(range(SUBJECT_FOLDS)))
-    threshold = choose_threshold(readings, GESTURE_LABELS, temperature, use_forecast=False)
+    threshold = choose_threshold(readings, GESTURE_LABELS, temperature, use_forecast=False,
+                                 window_rule=args.window_rule)
     y = np.concatenate([m["y"] for m in mean])
     accuracy = {cond: classification_scores(y, np.concatenate(
         [m[key] for m in mean]).argmax(1), GESTURE_LABELS)
         for cond, key in (("real_3s", "z3"), ("real_1s", "z1"))}
-    loop = _cross_fitted(readings, mean)
+    loop = _cross_fitted(readings, mean, args.window_rule)
     configs = [json.loads((m / "config.json").read_text()) for m in members]
     metadata = {"loop_threshold": threshold, "loop_uses_forecast": False,
-                "loop_windows": list(LOOP_WINDOWS), "temperature": temperature,
+                "loop_windows": list(LOOP_WINDOWS), "loop_window_rule": args.window_rule,
+                "temperature": temperature,
                 "members": [m.name for m in members], "seeds": [c["seed"] for c in configs],
                 "config": configs[0],
                 "protocol_accuracy": {c: {k: a[k] for k in ("accuracy", "balanced_accuracy")}
@@ -325,12 +334,17 @@ def main() -> None:
     p = sub.add_parser("score")
     p.add_argument("members", nargs="+", help="NAME_s<S> folders under --out")
     p.add_argument("--json", action="store_true")
+    p.add_argument("--window-rule", choices=WINDOW_RULES, default="max",
+                   help="how a tick's real windows make the real stage (real_stage)")
     p = sub.add_parser("ship", help="train the members on every subject; write the "
                        "ensemble checkpoint (temperature and loop threshold from the "
                        "members' out-of-fold readings) and its card to --ship-dir")
     p.add_argument("members", nargs="+", help="NAME_s<S> folders under --out")
     p.add_argument("--name", default="gesture-tcn-ensemble")
     p.add_argument("--ship-dir", default="out/gesture-tcn-ensemble")
+    p.add_argument("--window-rule", choices=WINDOW_RULES, default="max",
+                   help="the real-window rule the threshold is chosen with and the "
+                   "checkpoint records")
     args = parser.parse_args()
     {"train": cmd_train, "import": cmd_import, "score": cmd_score,
      "ship": cmd_ship}[args.command](args)

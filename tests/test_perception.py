@@ -297,6 +297,13 @@ def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
     assert loop.use_forecast == classifier.model.metadata["loop_uses_forecast"]
     assert (loop.real_frames, *loop.context_frames) == tuple(
         classifier.model.metadata.get("loop_windows", (25,)))
+    assert loop.window_rule == classifier.model.metadata.get("loop_window_rule", "max")
+    # A window rule the classifier was not measured with can be asked for; a made-up one not.
+    other = "max" if loop.window_rule == "mean" else "mean"
+    assert PerceptionLoop(load_scenario("default").behaviour, classifier,
+                          window_rule=other).window_rule == other
+    with pytest.raises(SimenvError, match="window rule 'median'"):
+        PerceptionLoop(load_scenario("default").behaviour, classifier, window_rule="median")
     # Nothing shipped and no corpus: a clear error naming where to point.
     monkeypatch.setattr(simenv.models, "available", lambda: [])
     assert isinstance(load_predictor(), ConstantVelocity)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from simenv.data.gestures import GESTURE15_JOINTS, GESTURE_LABELS, subject_fold
 from simenv.perception.protocol import (
@@ -56,6 +57,40 @@ def test_the_most_confident_real_window_decides():
     assert loop_outcomes([two], GESTURE_LABELS, 0.5, use_forecast=False)["greet_clips"] == [1, 1]
 
 
+def test_the_mean_rule_averages_the_real_windows():
+    """Two windows, one sure of a wave (logit 6), one not (logit 0): the max rule greets at
+    0.8, the mean rule reads their average wave probability and does not."""
+    r = _reading("wave", "msr/s01", 0.0)
+    z = np.repeat(r.logits_real, 2, axis=1)
+    z[:, 1, WAVE] = 6.0
+    two = StreamReading(r.name, r.label, r.subject, r.dataset, r.duration_s, r.ticks_s, z,
+                        r.logits_pred)
+    e = np.exp(z[0])
+    mean_wave = float((e[:, WAVE] / e.sum(axis=1)).mean())
+    assert 0.5 < mean_wave < 0.8
+    for rule, greeted in (("max", 1), ("mean", 0)):
+        row = loop_outcomes([two], GESTURE_LABELS, 0.8, use_forecast=False, window_rule=rule)
+        assert row["greet_clips"] == [greeted, 1] and row["window_rule"] == rule
+    row = loop_outcomes([two], GESTURE_LABELS, mean_wave - 1e-6, use_forecast=False,
+                        window_rule="mean")
+    assert row["greet_clips"] == [1, 1]
+
+
+def test_real_stage_rules():
+    from simenv.core.errors import SimenvError
+    from simenv.perception.loop import real_stage
+
+    p = np.array([[[0.5, 0.3, 0.2], [0.1, 0.8, 0.1], [0.2, 0.2, 0.6]],
+                  [[0.9, 0.05, 0.05], [0.9, 0.05, 0.05], [0.4, 0.4, 0.2]]])  # (2, 3 windows, 3)
+    np.testing.assert_allclose(real_stage(p, "max"), [p[0, 1], p[1, 0]])  # ties: the first
+    np.testing.assert_allclose(real_stage(p, "mean"), p.mean(axis=1))
+    np.testing.assert_allclose(real_stage(p[0], "max"), p[0, 1])  # one tick, no leading axis
+    with pytest.raises(SimenvError, match="window rule"):
+        real_stage(p, "median")
+    with pytest.raises(SimenvError, match="W >= 1"):
+        real_stage(np.zeros((2, 0, 3)), "mean")
+
+
 def test_threshold_keeps_false_greetings_under_target():
     readings = [_reading("wave", f"utkinect/s0{i}", 3.0 + i) for i in range(1, 6)]
     readings += [_reading("other", f"utkinect/s0{i}", 2.0 + 0.3 * i) for i in range(1, 6)]
@@ -76,6 +111,9 @@ def test_cross_fitting_never_uses_the_held_out_fold():
                               use_forecast=False)
     assert a["folds"][0]["threshold"] == b["folds"][0]["threshold"]
     assert b["folds"][0]["other_clips"][0] > a["folds"][0]["other_clips"][0]
+    assert a["window_rule"] == "max"
+    assert cross_fitted_outcomes(base, subject_fold, GESTURE_LABELS, [1.0] * 5,
+                                 use_forecast=False, window_rule="mean")["window_rule"] == "mean"
 
 
 def test_avatar_clips_and_stream_readings_on_real_sessions(utkinect_clips):

@@ -177,6 +177,12 @@ def test_scripted_agent_runs_on_shipped_models_without_the_corpus(tmp_path: Path
     summary = rehearse(walk, tmp_path / "out", agent="scripted", render=False)
     assert summary["perception"]["classifier"] == "gesture-tcn-ensemble"
     assert summary["perception"]["predictor"] == "predictor-gesture-25-50"
+    # the loop settings the shipped recogniser's training chose are the ones it ran with
+    metadata = simenv.models.load("gesture-tcn-ensemble").metadata
+    assert summary["perception"]["threshold"] == metadata["loop_threshold"]
+    assert summary["perception"]["window_rule"] == metadata.get("loop_window_rule", "max")
+    assert [summary["perception"]["real_frames"], *summary["perception"]["context_frames"]] \
+        == list(metadata["loop_windows"])
     # 0.96 and 1.96 s; no tick on the pose held after the 2-s recording
     assert summary["perception_compute_s"]["n"] == 2
     rows = [json.loads(line) for line in (tmp_path / "out" / "log.jsonl").read_text()

@@ -170,7 +170,8 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
         summary["perception"] = {
             "classifier": getattr(classifier, "name", type(classifier).__name__),
             "predictor": getattr(ahead, "name", type(ahead).__name__),
-            "real_frames": loop.real_frames, "period": loop.period,
+            "real_frames": loop.real_frames, "context_frames": list(loop.context_frames),
+            "window_rule": loop.window_rule, "period": loop.period,
             "threshold": loop.threshold, "cooldown_s": loop.cooldown_s}
     summary["agent_physics"] = _physics(np.array(episode.depths), episode.assistance)
     _report(out, summary)

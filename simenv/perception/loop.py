@@ -3,7 +3,10 @@
 Every :attr:`PerceptionLoop.period` frames (25 = 1 s at 25 fps, the thesis's rate) the loop
 takes the user's last frames of canonical keypoints and
 
-1. **classifies the real frames alone**; when the top label's probability reaches
+1. **classifies the real frames alone** -- the last second, and the longer windows of real
+   motion ending now when the classifier was trained to read them (``context_frames``),
+   their probabilities combined by the ``window_rule`` (:func:`real_stage`: the most
+   confident window, or the windows' mean); when the top label's probability reaches
    ``threshold`` the decision is taken on real motion (stage ``"real"``);
 2. otherwise **predicts ahead** (:attr:`predictor`, e.g. the constant-velocity baseline or
    the PredictiveMA-WGAN) and classifies real + predicted frames; a confident label there is
@@ -283,8 +286,10 @@ class TrainedClassifier:
         metadata = getattr(self.model, "metadata", {})
         self.threshold = float(metadata.get("loop_threshold", type(self).threshold))
         self.uses_forecast = bool(metadata.get("loop_uses_forecast", True))
-        #: Real windows (frames) its loop threshold was chosen with.
+        #: Real windows (frames) its loop threshold was chosen with, and how they were
+        #: combined (:func:`real_stage`; a checkpoint that does not say: ``max``).
         self.loop_windows = tuple(int(w) for w in metadata.get("loop_windows", (25,)))
+        self.loop_window_rule = str(metadata.get("loop_window_rule", "max"))
         self.labels: tuple[str, ...] = tuple(dict.fromkeys(mapped))
         self._to = np.array([self.labels.index(m) for m in mapped])
 
@@ -409,10 +414,46 @@ def forecast(predictor: Any, history: np.ndarray, observer: np.ndarray | None = 
 DEFAULT_PREDICTOR = "predictor-gesture-25-50"
 #: The fallback when no learned predictor is shipped: the 2-s constant-velocity baseline.
 FALLBACK_PREDICTOR = "constant-velocity-50"
+#: How the real stage combines the probabilities of a tick's real windows
+#: (:func:`real_stage`).
+WINDOW_RULES = ("max", "mean")
 #: The shipped classifier the room uses by default: two skeleton TCNs run as one, measured
 #: on subjects they never saw (docs/recognition.md); ``gesture-tcn`` is one TCN alone,
 #: ``gesture-classifier`` the thesis's transformer.
 DEFAULT_CLASSIFIER = "gesture-tcn-ensemble"
+
+
+def real_stage(p: np.ndarray, rule: str = "max") -> np.ndarray:
+    """The real stage's probabilities from those of a tick's real windows.
+
+    ``max``: the window whose top label is the most probable speaks, its probabilities
+    as they are (ties: the first, the shortest window). ``mean``: the windows'
+    probabilities averaged, ``P = (1 / W) sum_w p_w``: one motion read at W time scales,
+    so that one window's overconfident read does not decide alone (the maximum of W
+    reads is biased high, and its threshold must be raised to keep false greetings
+    down).
+
+    Args:
+        p: (..., W, C) probabilities of the W windows (any leading axes).
+        rule: one of :data:`WINDOW_RULES`.
+
+    Returns:
+        (..., C) probabilities.
+
+    Raises:
+        SimenvError: an unknown rule or no window.
+    """
+    p = np.asarray(p)
+    if rule not in WINDOW_RULES:
+        raise SimenvError(f"unknown window rule {rule!r}; expected one of "
+                          f"{', '.join(WINDOW_RULES)}", field="window_rule")
+    if p.ndim < 2 or p.shape[-2] == 0:
+        raise SimenvError(f"window probabilities must be (..., W >= 1, C); got {p.shape}",
+                          field="p")
+    if rule == "mean":
+        return p.mean(axis=-2)
+    best = p.max(axis=-1).argmax(axis=-1)[..., None, None]
+    return np.take_along_axis(p, best, axis=-2)[..., 0, :]
 
 
 def load_predictor(spec: Any = None) -> Any:
@@ -503,8 +544,11 @@ class PerceptionLoop:
         real_frames: frames of real motion classified (25 = 1 s).
         context_frames: longer windows of real motion also classified at each tick, frames
             (None: the classifier's ``loop_windows`` beyond ``real_frames`` if it has
-            them, else none); the most confident window speaks for the real stage. A
-            history shorter than a window gives it what there is.
+            them, else none). A history shorter than a window gives it what there is.
+        window_rule: how the real windows' probabilities make the real stage's, one of
+            :data:`WINDOW_RULES` (:func:`real_stage`; None: the classifier's
+            ``loop_window_rule`` attribute if it has one -- the rule its threshold was
+            chosen with --, else ``max``).
         period: frames between ticks.
         threshold: probability at which a label is decided (None: the classifier's
             ``threshold`` attribute if it has one, else 0.6).
@@ -519,7 +563,8 @@ class PerceptionLoop:
                  *, real_frames: int = 25, period: int = 25, threshold: float | None = None,
                  cooldown_s: float = 3.0, fps: float = 25.0,
                  use_forecast: bool | None = None,
-                 context_frames: Sequence[int] | None = None) -> None:
+                 context_frames: Sequence[int] | None = None,
+                 window_rule: str | None = None) -> None:
         missing = [j for j in classifier.joint_names if j not in CANONICAL_KEYPOINTS]
         if missing:
             raise SimenvError(f"classifier joints {missing} are not canonical keypoints",
@@ -536,6 +581,12 @@ class PerceptionLoop:
             context_frames = [w for w in getattr(classifier, "loop_windows", ())
                               if w > self.real_frames]
         self.context_frames = tuple(sorted(int(w) for w in context_frames))
+        if window_rule is None:
+            window_rule = str(getattr(classifier, "loop_window_rule", "max"))
+        if window_rule not in WINDOW_RULES:
+            raise SimenvError(f"unknown window rule {window_rule!r}; expected one of "
+                              f"{', '.join(WINDOW_RULES)}", field="window_rule")
+        self.window_rule = window_rule
         self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
         self._last: dict[str, float] = {}
 
@@ -560,12 +611,9 @@ class PerceptionLoop:
                               f"{len(CANONICAL_KEYPOINTS)}, 3) canonical keypoints; got "
                               f"{h.shape}", field="history")
         real = h[-self.real_frames:][:, self._joints]
-        p_real = self.classifier.classify(real, np.ones(len(real), bool))
-        for w in self.context_frames:
-            longer = h[-w:][:, self._joints]
-            p = self.classifier.classify(longer, np.ones(len(longer), bool))
-            if p.max() > p_real.max():
-                p_real = p
+        windows = [real] + [h[-w:][:, self._joints] for w in self.context_frames]
+        p_real = real_stage(np.stack([self.classifier.classify(x, np.ones(len(x), bool))
+                                      for x in windows]), self.window_rule)
         stage, probs, motion = None, p_real, 0.0
         if p_real.max() >= self.threshold:
             stage = "real"
@@ -748,10 +796,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-__all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR",
+__all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR", "WINDOW_RULES",
            "CanonicalPredictor", "GestureModel", "LoopReading", "Perception", "PerceptionLoop",
            "TemplateClassifier", "TrainedClassifier", "choose_threshold", "default_classifier",
-           "forecast", "loop_decisions", "load_predictor", "loop_readings",
+           "forecast", "loop_decisions", "load_predictor", "loop_readings", "real_stage",
            "vocabulary_map"]
 
 

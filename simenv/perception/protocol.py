@@ -16,8 +16,10 @@ motion -- the thesis's 1 s, and optionally longer windows ending at the tick
 continue until the tick whose second holds the clip's last frame.
 
 Decisions (:func:`loop_outcomes`), the loop's rule: a tick decides when the top class of
-the real stage (its most confident window) reaches the threshold, else when that of the
-real + predicted stage does;
+the real stage reaches the threshold, else when that of the real + predicted stage does;
+the real stage's probabilities are its windows' combined by the window rule
+(:func:`simenv.perception.loop.real_stage`: the most confident window, ``max``, or the
+windows' mean, ``mean``);
 a clip is *greeted* when any of its ticks decides ``wave``. Reported: waves greeted,
 other labelled clips greeted, idle clips greeted, the decision's time after the gesture's
 onset (median, p90) and the share of greeted waves decided before the gesture ended.
@@ -40,6 +42,7 @@ from simenv.core.errors import SimenvError
 from simenv.core.skeletons import CANONICAL_KEYPOINTS
 from simenv.data.gestures import GESTURE15_JOINTS, GestureClip, normalise_windows
 from simenv.learning.recognition import SHORT_FRAMES, Forecaster, logits_of
+from simenv.perception.loop import real_stage
 
 #: Frames between perception ticks (1 s at 25 fps, the thesis's rate).
 TICK_FRAMES = 25
@@ -183,17 +186,17 @@ def _probabilities(readings: Sequence[StreamReading], temperature: float,
 
 def _outcomes(readings: Sequence[StreamReading],
               probabilities: Sequence[tuple[np.ndarray, np.ndarray | None]],
-              labels: Sequence[str], threshold: float, greet: str) -> list[_Outcome]:
+              labels: Sequence[str], threshold: float, greet: str,
+              window_rule: str = "max") -> list[_Outcome]:
     """The loop's rule (module docstring) on each reading at ``threshold``."""
     k = labels.index(greet)
     out = []
-    for r, (p_real, p_pred) in zip(readings, probabilities, strict=True):
+    for r, (p_windows, p_pred) in zip(readings, probabilities, strict=True):
         decided = []
+        p_real = real_stage(p_windows, window_rule)
         for t in range(len(r.ticks_s)):
-            # The most confident of the tick's real windows speaks for the real stage.
-            w = int(p_real[t].max(axis=-1).argmax())
-            if p_real[t, w].max() >= threshold:
-                decided.append((int(p_real[t, w].argmax()), "real", r.ticks_s[t]))
+            if p_real[t].max() >= threshold:
+                decided.append((int(p_real[t].argmax()), "real", r.ticks_s[t]))
             elif p_pred is not None and p_pred[t].max() >= threshold:
                 decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
         greets = [(float(t), stage) for c, stage, t in decided if c == k]
@@ -232,8 +235,9 @@ def _summary(outcomes: Sequence[_Outcome]) -> dict[str, Any]:
 
 def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], threshold: float,
                   temperature: float = 1.0, *, use_forecast: bool = True,
-                  greet: str = GREET_LABEL) -> dict[str, Any]:
-    """What the loop decides on ``readings`` at ``threshold`` (module docstring).
+                  greet: str = GREET_LABEL, window_rule: str = "max") -> dict[str, Any]:
+    """What the loop decides on ``readings`` at ``threshold`` (module docstring), its real
+    windows combined by ``window_rule``.
 
     Returns:
         ``greet_clips`` / ``other_clips`` / ``idle_clips``: [greeted, clips];
@@ -244,19 +248,21 @@ def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], thre
     """
     probabilities = _probabilities(readings, temperature, use_forecast)
     return {"threshold": float(threshold), "temperature": float(temperature),
-            "use_forecast": use_forecast,
-            **_summary(_outcomes(readings, probabilities, labels, threshold, greet))}
+            "use_forecast": use_forecast, "window_rule": window_rule,
+            **_summary(_outcomes(readings, probabilities, labels, threshold, greet,
+                                 window_rule))}
 
 
 def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
                      temperature: float = 1.0, *, use_forecast: bool = True,
                      grid: Sequence[float] = THRESHOLD_GRID,
-                     target: float = FALSE_GREET_TARGET) -> float:
-    """The lowest grid threshold whose false-greeting rate on ``readings`` is at most
-    ``target`` (the highest grid value when none is)."""
+                     target: float = FALSE_GREET_TARGET, window_rule: str = "max") -> float:
+    """The lowest grid threshold whose false-greeting rate on ``readings`` (real windows
+    combined by ``window_rule``) is at most ``target`` (the highest grid value when none
+    is)."""
     probabilities = _probabilities(readings, temperature, use_forecast)
     for t in sorted(grid):
-        outcomes = _outcomes(readings, probabilities, labels, t, GREET_LABEL)
+        outcomes = _outcomes(readings, probabilities, labels, t, GREET_LABEL, window_rule)
         if _summary(outcomes)["false_greet_rate"] <= target:
             return float(t)
     return float(max(grid))
@@ -264,23 +270,26 @@ def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
 
 def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[str], int],
                           labels: Sequence[str], temperatures: Sequence[float], *,
-                          use_forecast: bool = True) -> dict[str, Any]:
+                          use_forecast: bool = True, window_rule: str = "max"
+                          ) -> dict[str, Any]:
     """Loop outcomes on every held-out fold, each with the threshold chosen on the other
     folds' readings (``fold_of(subject_key)``) and its own cross-fitted temperature;
-    pooled over folds, with each fold's threshold."""
+    pooled over folds, with each fold's threshold; real windows combined by
+    ``window_rule``."""
     pooled: list[_Outcome] = []
     per_fold = []
     for k in sorted({fold_of(r.subject) for r in readings}):
         held = [r for r in readings if fold_of(r.subject) == k]
         calib = [r for r in readings if fold_of(r.subject) != k]
-        t = choose_threshold(calib, labels, temperatures[k], use_forecast=use_forecast)
+        t = choose_threshold(calib, labels, temperatures[k], use_forecast=use_forecast,
+                             window_rule=window_rule)
         outcomes = _outcomes(held, _probabilities(held, temperatures[k], use_forecast),
-                             labels, t, GREET_LABEL)
+                             labels, t, GREET_LABEL, window_rule)
         pooled += outcomes
         row = _summary(outcomes)
         per_fold.append({"fold": k, "threshold": t, **{g: row[g] for g in _GROUPS}})
     summary = _summary(pooled)
-    return {"use_forecast": use_forecast, "folds": per_fold,
+    return {"use_forecast": use_forecast, "window_rule": window_rule, "folds": per_fold,
             **{key: summary[key] for key in (*_GROUPS, "greeted_rate", "other_greet_rate",
                                              "idle_greet_rate", "decision_after_onset_s",
                                              "decided_before_end", "stages")}}
