@@ -372,15 +372,24 @@ def test_recipe_rehearsal_greets_through_the_loop(recipe_rehearsals):
     "utkinect-s02-e01-wave", "utkinect-s04-e02-wave",
     pytest.param("utkinect-s06-e01-wave", marks=pytest.mark.xfail(
         strict=True, reason="measured with gesture-tcn-ensemble: the greeting is decided at "
-        "the tick ending 1.96 s (P(wave) 0.98 on the real stage), 1.0 s before the labelled "
-        "onset 2.967 s (gesture-tcn alone: the same tick, 0.94; the transformer: 7 ms "
-        "before it)")),
+        "the tick ending 1.96 s (P(wave) 0.97 on the real stage; 0.98 with the ensemble of "
+        "2026-12-04), 1.0 s before the labelled onset 2.967 s (on 2026-12-04 gesture-tcn "
+        "alone: the same tick, 0.94; the transformer: 7 ms before it)")),
     "utkinect-s10-e01-wave"])
-def test_recipe_rehearsal_greets_after_the_labelled_onset(recipe_rehearsals, recipe):
+def test_recipe_rehearsal_greets_after_the_labelled_onset(recipe_rehearsals, recipe,
+                                                         shared_data):
     """No greeting in the unlabelled lead-in: the first greeting is decided after the
-    labelled wave starts and before it ends."""
+    labelled wave starts and before it ends -- to the recording's own time resolution: the
+    loop's 25-fps frames are interpolated linearly from the recording's samples (UTKinect:
+    15 fps), so a tick less than one sample before the labelled onset already sees the
+    recording's first sample at or after it (utkinect-s02-e01-wave: the tick ending
+    1.96 s, onset 1.967 s, P(wave) 0.69 on the windows' mean with gesture-tcn-ensemble of
+    2026-12-05)."""
+    from simenv.room.session import Session
+
     summary = recipe_rehearsals[recipe]
     wave = summary["gestures"][0]
     greets = [d for d in summary["decisions"] if d["reaction"] == "greet"]
     assert greets
-    assert wave["onset_s"] <= greets[0]["t_decision"] <= wave["end_s"]
+    sample_s = 1.0 / Session.load(recipe, data=shared_data).motion.fps
+    assert wave["onset_s"] - sample_s < greets[0]["t_decision"] <= wave["end_s"]
