@@ -392,8 +392,9 @@ of the leave-subjects-out protocol, so every row is on subjects its networks nev
 
 Each set is scored with both **window rules** of the real stage
 (`simenv.perception.loop.real_stage`, `PerceptionLoop(window_rule=...)`): `max`, the
-window (1, 2 or 3 s) whose top label is the most probable speaks alone -- the loop's rule
-until now --, and `mean`, the three windows' probabilities averaged. The maximum of three
+window (1, 2 or 3 s) whose top label is the most probable speaks alone -- the rule of a
+checkpoint that records none, as `gesture-tcn` --, and `mean`, the three windows'
+probabilities averaged. The maximum of three
 reads is biased high on every clip, waves or not, so its threshold must sit high to keep
 false greetings down; the mean is one calibrated read of the same motion at three time
 scales.
