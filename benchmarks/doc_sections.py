@@ -18,3 +18,12 @@ def replace_section(path: Path, begin: str, end: str, body: str) -> None:
     head, rest = text.split(begin, 1)
     _, tail = rest.split(end, 1)
     path.write_text(f"{head}{begin}\n{body}\n{end}{tail}")
+
+
+def section(text: str, begin: str, end: str) -> str:
+    """The text from ``begin`` through ``end`` of ``text``, markers included.
+
+    Raises:
+        ValueError: ``text`` lacks one of the markers.
+    """
+    return text[text.index(begin):text.index(end) + len(end)]

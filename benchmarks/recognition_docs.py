@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 from doc_sections import replace_section
+from doc_sections import section as marked_section
 
 import simenv.models
 from simenv.learning.recognition_protocols import PUBLISHED
@@ -812,11 +813,6 @@ decided before the gesture ends.
 """
 
 
-def _section(text: str, begin: str, end: str) -> str:
-    """The marked section of ``text``, markers included."""
-    return text[text.index(begin):text.index(end) + len(end)]
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", type=Path, help="without it, only the benchmarks', the "
@@ -872,7 +868,8 @@ def main() -> int:
     for given, begin, end in ((bench, BENCH_BEGIN, BENCH_END), (lie, LIE_BEGIN, LIE_END),
                               (forecast, FORECAST_BEGIN, FORECAST_END)):
         if not given and begin in current:  # results not given: the page keeps its section
-            page = page.replace(_section(page, begin, end), _section(current, begin, end))
+            page = page.replace(marked_section(page, begin, end),
+                                marked_section(current, begin, end))
     (docs / "recognition.md").write_text(page)
     shutil.copyfile(args.train / "confusion.png", docs / "recognition_confusion.png")
     room = (docs / "room.md").read_text()

@@ -423,6 +423,18 @@ WINDOW_RULES = ("max", "mean")
 DEFAULT_CLASSIFIER = "gesture-tcn-ensemble"
 
 
+def check_window_rule(rule: str) -> str:
+    """``rule`` if it is one of :data:`WINDOW_RULES`.
+
+    Raises:
+        SimenvError: naming the unknown rule and the known ones.
+    """
+    if rule not in WINDOW_RULES:
+        raise SimenvError(f"unknown window rule {rule!r}; expected one of "
+                          f"{', '.join(WINDOW_RULES)}", field="window_rule")
+    return rule
+
+
 def real_stage(p: np.ndarray, rule: str = "max") -> np.ndarray:
     """The real stage's probabilities from those of a tick's real windows.
 
@@ -444,9 +456,7 @@ def real_stage(p: np.ndarray, rule: str = "max") -> np.ndarray:
         SimenvError: an unknown rule or no window.
     """
     p = np.asarray(p)
-    if rule not in WINDOW_RULES:
-        raise SimenvError(f"unknown window rule {rule!r}; expected one of "
-                          f"{', '.join(WINDOW_RULES)}", field="window_rule")
+    check_window_rule(rule)
     if p.ndim < 2 or p.shape[-2] == 0:
         raise SimenvError(f"window probabilities must be (..., W >= 1, C); got {p.shape}",
                           field="p")
@@ -583,10 +593,7 @@ class PerceptionLoop:
         self.context_frames = tuple(sorted(int(w) for w in context_frames))
         if window_rule is None:
             window_rule = str(getattr(classifier, "loop_window_rule", "max"))
-        if window_rule not in WINDOW_RULES:
-            raise SimenvError(f"unknown window rule {window_rule!r}; expected one of "
-                              f"{', '.join(WINDOW_RULES)}", field="window_rule")
-        self.window_rule = window_rule
+        self.window_rule = check_window_rule(window_rule)
         self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
         self._last: dict[str, float] = {}
 
@@ -798,9 +805,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 __all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR", "WINDOW_RULES",
            "CanonicalPredictor", "GestureModel", "LoopReading", "Perception", "PerceptionLoop",
-           "TemplateClassifier", "TrainedClassifier", "choose_threshold", "default_classifier",
-           "forecast", "loop_decisions", "load_predictor", "loop_readings", "real_stage",
-           "vocabulary_map"]
+           "TemplateClassifier", "TrainedClassifier", "check_window_rule", "choose_threshold",
+           "default_classifier", "forecast", "loop_decisions", "load_predictor",
+           "loop_readings", "real_stage", "vocabulary_map"]
 
 
 if __name__ == "__main__":

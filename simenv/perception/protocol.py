@@ -174,26 +174,26 @@ class _Outcome:
 
 
 def _probabilities(readings: Sequence[StreamReading], temperature: float,
-                   use_forecast: bool) -> list[tuple[np.ndarray, np.ndarray | None]]:
-    """Each reading's (real (K, W, C), real + forecast (K, C) or None) probabilities."""
+                   use_forecast: bool, window_rule: str
+                   ) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Each reading's (real stage (K, C), its windows combined by ``window_rule``; real +
+    forecast (K, C) or None) probabilities."""
     out = []
     for r in readings:
         p_pred = _softmax(r.logits_pred, temperature) if use_forecast and \
             np.isfinite(r.logits_pred).all() else None
-        out.append((_softmax(r.logits_real, temperature), p_pred))
+        out.append((real_stage(_softmax(r.logits_real, temperature), window_rule), p_pred))
     return out
 
 
 def _outcomes(readings: Sequence[StreamReading],
               probabilities: Sequence[tuple[np.ndarray, np.ndarray | None]],
-              labels: Sequence[str], threshold: float, greet: str,
-              window_rule: str = "max") -> list[_Outcome]:
+              labels: Sequence[str], threshold: float, greet: str) -> list[_Outcome]:
     """The loop's rule (module docstring) on each reading at ``threshold``."""
     k = labels.index(greet)
     out = []
-    for r, (p_windows, p_pred) in zip(readings, probabilities, strict=True):
+    for r, (p_real, p_pred) in zip(readings, probabilities, strict=True):
         decided = []
-        p_real = real_stage(p_windows, window_rule)
         for t in range(len(r.ticks_s)):
             if p_real[t].max() >= threshold:
                 decided.append((int(p_real[t].argmax()), "real", r.ticks_s[t]))
@@ -246,11 +246,10 @@ def loop_outcomes(readings: Sequence[StreamReading], labels: Sequence[str], thre
         ``stages`` (which stage took the greetings of waves), ``decided_right`` (share of
         clips whose first decision is their own label).
     """
-    probabilities = _probabilities(readings, temperature, use_forecast)
+    probabilities = _probabilities(readings, temperature, use_forecast, window_rule)
     return {"threshold": float(threshold), "temperature": float(temperature),
             "use_forecast": use_forecast, "window_rule": window_rule,
-            **_summary(_outcomes(readings, probabilities, labels, threshold, greet,
-                                 window_rule))}
+            **_summary(_outcomes(readings, probabilities, labels, threshold, greet))}
 
 
 def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
@@ -260,9 +259,9 @@ def choose_threshold(readings: Sequence[StreamReading], labels: Sequence[str],
     """The lowest grid threshold whose false-greeting rate on ``readings`` (real windows
     combined by ``window_rule``) is at most ``target`` (the highest grid value when none
     is)."""
-    probabilities = _probabilities(readings, temperature, use_forecast)
+    probabilities = _probabilities(readings, temperature, use_forecast, window_rule)
     for t in sorted(grid):
-        outcomes = _outcomes(readings, probabilities, labels, t, GREET_LABEL, window_rule)
+        outcomes = _outcomes(readings, probabilities, labels, t, GREET_LABEL)
         if _summary(outcomes)["false_greet_rate"] <= target:
             return float(t)
     return float(max(grid))
@@ -283,8 +282,8 @@ def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[
         calib = [r for r in readings if fold_of(r.subject) != k]
         t = choose_threshold(calib, labels, temperatures[k], use_forecast=use_forecast,
                              window_rule=window_rule)
-        outcomes = _outcomes(held, _probabilities(held, temperatures[k], use_forecast),
-                             labels, t, GREET_LABEL, window_rule)
+        outcomes = _outcomes(held, _probabilities(held, temperatures[k], use_forecast,
+                                                  window_rule), labels, t, GREET_LABEL)
         pooled += outcomes
         row = _summary(outcomes)
         per_fold.append({"fold": k, "threshold": t, **{g: row[g] for g in _GROUPS}})
