@@ -5,8 +5,11 @@ demo-check` installs it and checks the full demo's page)."""
 
 from __future__ import annotations
 
+import os
 import shutil
+from html.parser import HTMLParser
 from pathlib import Path
+from urllib.parse import unquote, urlsplit
 
 import cv2
 import numpy as np
@@ -28,37 +31,92 @@ from simenv.cli.demo_page import (
 )
 from simenv.cli.main import main
 from simenv.core.errors import SimenvError
+from simenv.envs.rehearsal import rehearse
 from simenv.io.loader import load
-from simenv.plausibility.html_report import write_report
+from simenv.plausibility.html_report import report_score, write_index, write_report
 from simenv.plausibility.report import score
+from simenv.room.session import GestureEvent, Session
 
 needs_chromium = pytest.mark.skipif(find_chromium() is None, reason=(
     "no chromium (Debian: apt-get install chromium; `make demo-check` installs it)"))
 
 
+#: The demo folder as `make demo DEMO_OUT=out/walk/demo` names it: nested, and relative to
+#: the working directory (the report index once linked its pages relative to the latter).
+NESTED_OUT = Path("out", "walk", "demo")
+
+
 @pytest.fixture(scope="module")
 def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A small demo folder written as run_demo writes it, then moved elsewhere: 0.5 s of
-    the bundled walk retargeted, 3 frames rendered (MP4 + WebM + poster), scored without
-    physics into a report, exported to GLB."""
-    out = tmp_path_factory.mktemp("demo") / "demo"
-    clip = load(asset_path(WALK)).slice(0, 60)
-    result = retarget(clip)
-    entry = summary(result)
-    video = render_result(result, out / "walk.mp4", stride=20, web=True)
-    scored = score(clip, physics=False)
-    page = write_report(scored, out / "report" / "walk", video=False)
-    entry.update(asset=WALK, npz=str(save_npz(result, out / "walk.npz")),
-                 glb=str(export_glb(result, out / "walk.glb")), video=str(video),
-                 poster=write_poster(video), render_stride=20,
-                 plausibility={"verdict": scored.verdict, "report": str(page), "people": [
-                     {"name": p.name, "verdict": p.verdict, "score": p.score, "failed": []}
-                     for p in scored.people]})
-    write_page(out, {"clips": {"walk": entry}, "total_seconds": 1.0,
-                     "data_acknowledgement": "mocap.cs.cmu.edu"})
-    moved = out.parent / "moved" / "elsewhere"
-    shutil.move(str(out), str(moved))
+    """A small demo folder written as run_demo writes it, into :data:`NESTED_OUT` under the
+    working directory, then moved elsewhere: 0.5 s of the bundled walk retargeted, 3 frames
+    rendered (MP4 + WebM + poster), scored without physics into a report and the reports'
+    index, exported to GLB, and the same 0.5 s rehearsed in the room (labelled "smell")
+    with its report and video."""
+    root = tmp_path_factory.mktemp("demo")
+    cwd = os.getcwd()
+    os.chdir(root)  # paths as run_demo gets them: relative to the working directory
+    try:
+        out = NESTED_OUT
+        clip = load(asset_path(WALK)).slice(0, 60)
+        result = retarget(clip)
+        entry = summary(result)
+        video = render_result(result, out / "walk.mp4", stride=20, web=True)
+        scored = score(clip, physics=False)
+        page = write_report(scored, out / "report" / "walk", video=False)
+        write_index([(WALK, page, report_score(scored), scored.verdict)], out / "report")
+        entry.update(asset=WALK, npz=str(save_npz(result, out / "walk.npz")),
+                     glb=str(export_glb(result, out / "walk.glb")), video=str(video),
+                     poster=write_poster(video), render_stride=20,
+                     plausibility={"verdict": scored.verdict, "report": str(page), "people": [
+                         {"name": p.name, "verdict": p.verdict, "score": p.score, "failed": []}
+                         for p in scored.people]})
+        gesture = ("smell", 0.2, 0.5)
+        folder = out / "rehearsal"
+        reh = rehearse(Session(clip, (GestureEvent(*gesture),)), folder,
+                       scenario="discomfort", agent="labels", width=160, height=120)
+        rehearsal = {"session": WALK, "gesture": list(gesture), "reactions": reh["reactions"],
+                     "folder": str(folder), "report": str(folder / "report.html"),
+                     "video": str(folder / "rehearsal.mp4"),
+                     "poster": write_poster(folder / "rehearsal.mp4"), "glb": None}
+        write_page(out, {"clips": {"walk": entry}, "rehearsal": rehearsal,
+                         "total_seconds": 1.0, "data_acknowledgement": "mocap.cs.cmu.edu"})
+    finally:
+        os.chdir(cwd)
+    moved = root / "moved" / "elsewhere"
+    shutil.move(str(root / out), str(moved))
     return moved
+
+
+class _Links(HTMLParser):
+    """Every ``href``, ``src`` and ``poster`` attribute of a page, as the browser reads it
+    (entities decoded)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.links: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.links += [v for k, v in attrs if k in ("href", "src", "poster") and v]
+
+
+def test_every_page_links_relative_to_its_own_folder(demo_dir: Path):
+    pages = sorted(demo_dir.rglob("*.html"))
+    # The demo page, the clip's report, the reports' index and the rehearsal's report.
+    assert [p.relative_to(demo_dir).as_posix() for p in pages] == [
+        "index.html", "rehearsal/report.html", "report/index.html", "report/walk/report.html"]
+    resolved = 0
+    for page in pages:
+        parser = _Links()
+        parser.feed(page.read_text(encoding="utf-8"))
+        for link in parser.links:
+            parts = urlsplit(link)
+            if link.startswith("#") or parts.scheme == "data":
+                continue
+            assert not (parts.scheme or parts.netloc or link.startswith("/")), (page, link)
+            assert (page.parent / unquote(parts.path)).is_file(), (page, link)
+            resolved += 1
+    assert resolved > 20
 
 
 def test_page_links_are_relative_and_survive_a_move(demo_dir: Path):
@@ -69,8 +127,9 @@ def test_page_links_are_relative_and_survive_a_move(demo_dir: Path):
         assert name in links
     assert not any(str(demo_dir.parent.parent) in link for link in links)
     checked = check_links(page)
-    # The page and the clip's plausibility report with its timeline PNGs.
-    assert checked["pages"] == 2 and checked["links"] > 10
+    # The page, the clip's plausibility report with its timeline PNGs, the reports' index
+    # and the rehearsal's report.
+    assert checked["pages"] == 4 and checked["links"] > 10
     text = page.read_text()
     assert "<video" in text and "type='video/webm'" in text
     assert text.index("walk.webm") < text.index("walk.mp4'")  # browsers play VP8, not mp4v

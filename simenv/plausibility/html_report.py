@@ -13,8 +13,9 @@ API (stable; used by ``simenv score --report DIR``)
 
         * ``file``: the file scored (shown as given);
         * ``page``: path of the clip's page as returned by :func:`write_report`
-          (absolute, or relative to ``out_dir``), or None for a file that
-          could not be scored;
+          (absolute, or relative to the working directory like any path), or None
+          for a file that could not be scored; the index links it relative to
+          ``out_dir``, so the folder can be moved;
         * ``score``: 0-100 (e.g. :func:`report_score`), or None;
         * ``status``: the verdict (``"plausible"`` / ``"implausible"``) or, for a
           row whose ``page`` is None, the error message.
@@ -196,8 +197,9 @@ def write_index(entries: Iterable[IndexEntry], out_dir: str | os.PathLike[str]) 
                         f"<td class='small'>{_e(status)}</td></tr>")
             continue
         counts[status] = counts.get(status, 0) + 1
-        target = Path(page) if Path(page).is_absolute() else out / page
-        href = quote(Path(os.path.relpath(target, out)).as_posix())
+        # Both absolute: a page named relative to the working directory is linked from
+        # the index's own folder, wherever that is.
+        href = quote(Path(os.path.relpath(Path(page).absolute(), out.absolute())).as_posix())
         shown = "" if score is None else f"{score:.1f}"
         rows.append(f"<tr><td><a href='{_e(href)}'>{_e(file)}</a></td>"
                     f"<td class='{_e(status)}'>{_e(status)}</td><td class='num'>{shown}</td>"
