@@ -18,6 +18,7 @@ import numpy as np
 
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import CANONICAL_KEYPOINTS
 
 #: Exit status of a user error (:class:`~simenv.core.errors.SimenvError`), as argparse's.
 EXIT_USER_ERROR = 2
@@ -27,6 +28,24 @@ PATH_HELP = (
     "a motion file (BVH, ASF/AMC, Kinect text, NPZ), a folder with a two-person recording, "
     "or the two files of one"
 )
+
+#: Help of ``--joint-map``, shared by every command that reads motion.
+JOINT_MAP_HELP = (
+    "a TOML file mapping the canonical keypoints to the file's joints ([canonical] "
+    "left_hip = \"UpperLeg_L\", ...), instead of the automatic mapping; `simenv info FILE "
+    "--write-joint-map MAP.toml` writes one to edit")
+
+
+def add_joint_map_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--joint-map FILE.toml`` (see :data:`JOINT_MAP_HELP`)."""
+    parser.add_argument("--joint-map", metavar="FILE.toml", help=JOINT_MAP_HELP)
+
+
+def read_options(args: argparse.Namespace) -> dict[str, Any]:
+    """Reader options of a command's arguments (``joint_map=`` when given)."""
+    joint_map = getattr(args, "joint_map", None)
+    return {} if joint_map is None else {"joint_map": joint_map}
+
 
 #: The model kinds of ``train`` and ``eval``.
 MODEL_KINDS = ("predictor", "classifier", "recogniser", "interaction")
@@ -76,6 +95,19 @@ def _stature(motion: Motion) -> float | None:
         return None
 
 
+def joint_map_record(motion: Motion) -> dict[str, Any]:
+    """How the motion's joints map onto the canonical keypoints: ``canonical`` (keypoint ->
+    joint), ``how`` (keypoint -> how it was found), ``convention``, ``missing``, ``notes``.
+    A skeleton whose reader knows it (CMU, Kinect, SMPL, ...) reads ``how`` = ``reader``."""
+    recorded = motion.metadata.get("joint_map")
+    if recorded is not None:
+        return dict(recorded)
+    canonical = dict(motion.skeleton.canonical)
+    return {"convention": motion.skeleton.name, "canonical": canonical,
+            "how": {k: "reader" for k in canonical},
+            "missing": [k for k in CANONICAL_KEYPOINTS if k not in canonical], "notes": []}
+
+
 def _person_info(motion: Motion) -> dict[str, Any]:
     """``height_m`` is the joint span (highest minus lowest joint, 95th percentile over
     frames); ``stature_m`` the standing height of the fitted body, when one can be fitted."""
@@ -89,6 +121,7 @@ def _person_info(motion: Motion) -> dict[str, Any]:
         "height_m": round(motion.height(), 3),
         "stature_m": _stature(motion),
         "units_in_file": meta.get("units"),
+        "joint_map": joint_map_record(motion),
         "quirks": list(meta.get("quirks", [])),
         "repairs": list(meta.get("repairs", [])),
     }
@@ -201,5 +234,7 @@ def _residuals(result: Any) -> np.ndarray:
     return np.concatenate([np.asarray(p.residuals) for p in people], axis=1)
 
 
-__all__ = ["EXIT_USER_ERROR", "MODEL_KINDS", "PATH_HELP", "add_model_command", "check_suffix",
-           "describe", "positive_int", "retarget_clip", "save_npz", "summary"]
+__all__ = ["EXIT_USER_ERROR", "JOINT_MAP_HELP", "MODEL_KINDS", "PATH_HELP",
+           "add_joint_map_option", "add_model_command", "check_suffix", "describe",
+           "joint_map_record",
+           "positive_int", "read_options", "retarget_clip", "save_npz", "summary"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from simenv.cli.common import PATH_HELP, positive_int
+from simenv.cli.common import PATH_HELP, add_joint_map_option, positive_int, read_options
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -23,6 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      help="export this room (bundled name or TOML); with FILE, as its user")
     exp.add_argument("--stride", type=positive_int, default=1,
                      help="keep every S-th frame of the animation (default 1)")
+    add_joint_map_option(exp)
     exp.set_defaults(func=run)
 
 
@@ -32,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
     from simenv.io.gltf import check_gltf
     from simenv.room.export import export
 
-    path = export(args.paths, args.to, scenario=args.scenario, stride=args.stride)
+    path = export(args.paths, args.to, scenario=args.scenario, stride=args.stride,
+                  **read_options(args))
     info = check_gltf(path)
     print(f"wrote {path}: {info['meshes']} meshes, {info['vertices']} vertices"
           + (f", animation of {info['frames']} frames ({info['duration_s']:.2f} s, "

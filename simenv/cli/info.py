@@ -1,24 +1,49 @@
 """``simenv info``: describe motion files (format, people, joints, frames, fps, duration,
-heights, and the quirks found and repairs made while reading)."""
+heights, how the joints map onto the canonical keypoints, and the quirks found and repairs
+made while reading)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
-from simenv.cli.common import PATH_HELP, describe
+from simenv.cli.common import PATH_HELP, add_joint_map_option, describe, read_options
+from simenv.core.errors import SimenvError
+from simenv.core.joint_map import JointMapping, joint_map_template
+from simenv.core.motion import Interaction
 from simenv.io.loader import load_any
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Add ``simenv info``."""
     info = subparsers.add_parser("info", help="describe a motion file", description=(
-        "Format, people, joints, frames, fps, duration, height estimate per person, and the "
-        "quirks found and repairs made while reading."))
+        "Format, people, joints, frames, fps, duration, height estimate per person, how the "
+        "joints map onto the canonical keypoints (and how each was found), and the quirks "
+        "found and repairs made while reading."))
     info.add_argument("paths", nargs="+", metavar="FILE|FOLDER", help=PATH_HELP)
     info.add_argument("--json", action="store_true", help="print one JSON object")
+    info.add_argument("--write-joint-map", metavar="MAP.toml", help=(
+        "write the first person's joint map as a TOML file to edit and pass back with "
+        "--joint-map (every keypoint listed, the unmapped ones commented out)"))
+    add_joint_map_option(info)
     info.set_defaults(func=run)
+
+
+def _print_mapping(record: dict[str, Any]) -> None:
+    canonical, how = record["canonical"], record["how"]
+    by_how: dict[str, list[str]] = {}
+    for key, joint in canonical.items():
+        by_how.setdefault(how.get(key, ""), []).append(f"{key}={joint}")
+    print(f"    joint map ({len(canonical)} of {len(canonical) + len(record['missing'])} "
+          f"keypoints; convention {record['convention'] or 'none'}):")
+    for found, entries in by_how.items():
+        print(f"      by {found}: {', '.join(entries)}")
+    if record["missing"]:
+        print(f"      unmapped: {', '.join(record['missing'])}")
+    for note in record["notes"]:
+        print(f"      note: {note}")
 
 
 def _print_info(info: dict[str, Any]) -> None:
@@ -39,18 +64,36 @@ def _print_info(info: dict[str, Any]) -> None:
             + (f"stature ~{stature:.2f} m (fitted body), " if stature else "")
             + f"units in file {person['units_in_file']}"
         )
+        _print_mapping(person["joint_map"])
         for note in person["quirks"]:
             print(f"    quirk: {note}")
         for note in person["repairs"]:
             print(f"    repair: {note}")
 
 
+def _write_template(clip: Any, path: Path) -> None:
+    person = clip.people[0] if isinstance(clip, Interaction) else clip
+    record = describe(clip)["persons"][0]["joint_map"]
+    mapping = JointMapping(record["canonical"], record["how"], record["convention"])
+    if path.suffix.lower() != ".toml":
+        raise SimenvError(f"--write-joint-map must end with .toml; got {path.name!r}",
+                          field="--write-joint-map")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(joint_map_template(person.skeleton.joint_names, mapping,
+                                       source=str(person.metadata.get("source", ""))),
+                    encoding="utf-8")
+    print(f"wrote {path}: edit it and pass it with --joint-map")
+
+
 def run(args: argparse.Namespace) -> int:
     """Print each clip's description (``--json``: one object, or ``{"clips": [...]}``)."""
-    infos = [describe(clip) for clip in load_any(args.paths)]
+    clips = load_any(args.paths, **read_options(args))
+    infos = [describe(clip) for clip in clips]
     if args.json:
         print(json.dumps(infos[0] if len(infos) == 1 else {"clips": infos}))
     else:
         for info in infos:
             _print_info(info)
+    if args.write_joint_map:
+        _write_template(clips[0], Path(args.write_joint_map))
     return 0

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import argparse
 
-from simenv.cli.common import PATH_HELP, check_suffix, positive_int, retarget_clip
+from simenv.cli.common import (
+    PATH_HELP,
+    add_joint_map_option,
+    check_suffix,
+    positive_int,
+    read_options,
+    retarget_clip,
+)
 from simenv.io.loader import load_one
 
 
@@ -22,6 +29,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      help="render every S-th frame (default 1)")
     ren.add_argument("--width", type=positive_int, default=320, help="pixels (default 320)")
     ren.add_argument("--height", type=positive_int, default=240, help="pixels (default 240)")
+    add_joint_map_option(ren)
     ren.set_defaults(func=run)
 
 
@@ -30,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from simenv.body.render import render_result  # MuJoCo and OpenCV: only to render
 
     out = check_suffix(args.out, ".mp4", "--out")
-    clip = load_one(args.paths)
+    clip = load_one(args.paths, **read_options(args))
     if args.max_frames is not None:
         # Only the frames that will be shown need retargeting.
         clip = clip.slice(0, args.max_frames * args.stride)

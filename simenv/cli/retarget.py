@@ -8,8 +8,10 @@ import json
 
 from simenv.cli.common import (
     PATH_HELP,
+    add_joint_map_option,
     check_suffix,
     positive_int,
+    read_options,
     retarget_clip,
     save_npz,
     summary,
@@ -32,6 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ret.add_argument("--json", action="store_true", help=(
         "print one JSON object: frames, fps, people, mean_residual_m, p95_residual_m, "
         "max_residual_m, seconds"))
+    add_joint_map_option(ret)
     ret.set_defaults(func=run)
 
 
@@ -39,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     """Retarget, write ``--out`` (and ``--video``), print the residuals."""
     out = check_suffix(args.out, ".npz", "--out")
     video = check_suffix(args.video, ".mp4", "--video") if args.video else None
-    result = retarget_clip(load_one(args.paths))
+    result = retarget_clip(load_one(args.paths, **read_options(args)))
     save_npz(result, out)
     if video is not None:
         from simenv.body.render import render_result  # MuJoCo and OpenCV: only to render

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from simenv.cli.common import EXIT_USER_ERROR, positive_int
+from simenv.cli.common import EXIT_USER_ERROR, add_joint_map_option, positive_int
 from simenv.core.errors import SimenvError
 
 if TYPE_CHECKING:  # the scorer's settings load MuJoCo
@@ -62,6 +62,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(percentiles) and report per clip and for the set where the scored clips fall "
         "(records get 'reference'; a summary line, REPORT/reference.html and "
         "OUT.reference.json). Put it after the scored PATHs"))
+    add_joint_map_option(sco)
     sco.set_defaults(func=run)
 
 
@@ -134,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
         report_dir.mkdir(parents=True, exist_ok=True)
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
                    else str(report_dir), config=score_config(args),
-                   restore_collapsed_bones=args.restore_collapsed_bones)
+                   restore_collapsed_bones=args.restore_collapsed_bones,
+                   joint_map=args.joint_map)
     progress = sys.stderr.isatty() or args.progress
     if args.reference:
         reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,

@@ -223,11 +223,29 @@ def detect_units(
 
 def rest_extent(parents: Sequence[int], offsets: np.ndarray) -> float:
     """Largest side of the bounding box of the rest pose (all rotations
-    identity), in the units of ``offsets``."""
+    identity), in the units of ``offsets``, over the body only: the joints at
+    and below the first joint with several children (the pelvis). The offsets
+    on the way down to it place the body in the room (some exporters write the
+    actor's start position, metres away, into a root or hip OFFSET), so they
+    say nothing of its size."""
     rest = np.zeros((1, len(parents), 3, 3))
     rest[:] = np.eye(3)
     pos, _ = forward_kinematics(parents, offsets, rest)
-    return float(np.ptp(pos[0], axis=0).max())
+    children: dict[int, list[int]] = {}
+    for j, p in enumerate(parents):
+        children.setdefault(int(p), []).append(j)
+    roots = children.get(-1, [])
+    body = list(range(len(parents)))
+    if len(roots) == 1:
+        hub = roots[0]
+        while len(children.get(hub, [])) == 1:
+            hub = children[hub][0]
+        body, stack = [], [hub]
+        while stack:
+            j = stack.pop()
+            body.append(j)
+            stack.extend(children.get(j, []))
+    return float(np.ptp(pos[0][body], axis=0).max())
 
 
 def tpose_jump(positions: np.ndarray) -> tuple[float, float, float] | None:

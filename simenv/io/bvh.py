@@ -34,13 +34,21 @@ rates that were overridden, unusual sizes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from simenv.core.errors import FormatError
+from simenv.core.joint_map import (
+    JointMapping,
+    JointMapSource,
+    apply_user_map,
+    infer_joint_map,
+    read_joint_map,
+)
 from simenv.core.motion import Motion
 from simenv.core.skeletons import (
     CANONICAL_TREE,
@@ -412,6 +420,24 @@ def canonical_map(names: list[str]) -> dict[str, str]:
     return cmu_canonical_map(names)
 
 
+def _joint_map(bvh: BvhFile, pos: np.ndarray, joint_map: JointMapSource | None, path: Path
+               ) -> tuple[dict[str, str], JointMapping | None]:
+    """The canonical map of every joint of the file (End Sites included, as
+    ``<parent>_end``) and, when it did not come from the CMU/Poser tables, how it was
+    found: the user's ``joint_map``, or, for any skeleton but the CMU conversions',
+    :func:`~simenv.core.joint_map.infer_joint_map` on the names, the hierarchy and ``pos``
+    (T, J, 3) metres, Z up."""
+    if joint_map is not None:
+        user = read_joint_map(joint_map)
+        where = None if isinstance(joint_map, Mapping) else str(joint_map)
+        mapping = apply_user_map(bvh.joints, user, source=where or str(path))
+        return dict(mapping.canonical), mapping
+    if skeleton_variant(bvh.joints) != "bvh":  # a CMU conversion: its own tables
+        return canonical_map(bvh.joints), None
+    mapping = infer_joint_map(bvh.joints, bvh.parents, pos)
+    return dict(mapping.canonical), mapping
+
+
 def _avoid_coincident(
     canon: dict[str, str], names: list[str], parents: list[int], rest: np.ndarray
 ) -> tuple[dict[str, str], list[str]]:
@@ -569,6 +595,7 @@ def read(
     end_sites: bool | None = None,
     name: str | None = None,
     restore_collapsed_bones: bool = False,
+    joint_map: JointMapSource | None = None,
 ) -> Motion:
     """Read a BVH file as a :class:`Motion` (metres, Z-up).
 
@@ -600,6 +627,11 @@ def read(
             and said so in ``metadata["quirks"]``. Units are detected from
             the file's own offsets either way. Default False: the file as
             written.
+        joint_map: the canonical map to use (a TOML file or a mapping, see
+            :func:`simenv.core.joint_map.read_joint_map`; End Sites are
+            ``<parent>_end``). Default: the CMU/Poser tables for those
+            skeletons, else :func:`simenv.core.joint_map.infer_joint_map`
+            (names, hierarchy, pose), recorded in ``metadata["joint_map"]``.
 
     Returns:
         Motion with positions (T, J, 3) float32 metres, rotations (T, J, 4)
@@ -626,6 +658,7 @@ def read(
             end_sites=end_sites,
             name=name,
             restore_collapsed_bones=restore_collapsed_bones,
+            joint_map=joint_map,
         )
 
 
@@ -641,14 +674,9 @@ def _to_motion(
     end_sites: bool | None,
     name: str | None,
     restore_collapsed_bones: bool = False,
+    joint_map: JointMapSource | None = None,
 ) -> Motion:
     quirks: list[str] = []
-    all_canon = canonical_map(bvh.joints)
-    needed = set(all_canon.values())
-    keep = [
-        not es or end_sites is True or (end_sites is None and n in needed)
-        for n, es in zip(bvh.joints, bvh.end_site, strict=True)
-    ]
     height = rest_extent(bvh.parents, bvh.offsets)
     unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units, scale=scale)
     quirks += unit_quirks
@@ -662,6 +690,12 @@ def _to_motion(
     pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
     pos, local, offsets_m = to_z_up_metres(pos, local, file_offsets, up, s)
 
+    all_canon, mapping = _joint_map(bvh, pos, joint_map, path)
+    needed = set(all_canon.values())
+    keep = [
+        not es or end_sites is True or (end_sites is None and n in needed)
+        for n, es in zip(bvh.joints, bvh.end_site, strict=True)
+    ]
     idx = [k for k in range(len(bvh.joints)) if keep[k]]
     remap = {old: new for new, old in enumerate(idx)}
     names = [bvh.joints[k] for k in idx]
@@ -675,7 +709,10 @@ def _to_motion(
     canon, canon_notes = _avoid_coincident(
         {k: v for k, v in all_canon.items() if v in names}, names, parents, rest_pos[0]
     )
-    quirks += canon_notes
+    if joint_map is not None:
+        canon = {k: v for k, v in all_canon.items() if v in names}  # the user's word stands
+    else:
+        quirks += canon_notes
     variant = skeleton_variant(names)
     if variant == "poser":
         quirks.append(
@@ -698,6 +735,9 @@ def _to_motion(
     }
     if repairs is not None:
         meta["repairs"] = repairs
+    if mapping is not None:
+        meta["joint_map"] = replace(mapping, canonical=canon,
+                                    how={k: mapping.how.get(k, "") for k in canon}).as_metadata()
     if unit_name == "cmu":
         meta["units_note"] = f"CMU skeleton units: 1 unit = 0.0254/0.45 m = {CMU_UNIT_M:.5f} m"
     skeleton = Skeleton(f"{variant}{len(names)}", tuple(names), tuple(parents), canon)

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from simenv.core.errors import MotionError, SimenvError, UnknownFormatError
+from simenv.core.joint_map import JointMapSource, map_motion
 from simenv.core.motion import Interaction, Motion
 
 #: Reader modules of :mod:`simenv.io`, in detection priority order.
@@ -47,10 +48,11 @@ READERS: tuple[str, ...] = (
     "florence3d",
     "nuisi",
     "ntu",
-    # Before h36m: all three claim .npy, and an unrecognised .npy gets humanml3d's
-    # error, which names every .npy layout simenv reads (humanml3d's sniff leaves
-    # person1/ and person2/ files to intergen).
+    # Before h36m: all four claim .npy, and an unrecognised .npy gets humanml3d's
+    # error, which names every .npy layout simenv reads (the sniffs of humanml3d
+    # and humanml3d_features leave person1/ and person2/ files to intergen).
     "humanml3d",
+    "humanml3d_features",
     "intergen",
     "h36m",
 )
@@ -138,6 +140,8 @@ def detect(path: Path) -> tuple[str, ModuleType]:
 
 def _read(path: Path, name: str, mod: ModuleType, kwargs: dict[str, Any]) -> Loaded:
     params = inspect.signature(mod.read).parameters
+    if "joint_map" not in params:  # applied by load() to what the reader returns
+        kwargs = {k: v for k, v in kwargs.items() if k != "joint_map"}
     takes_any = any(p.kind is p.VAR_KEYWORD for p in params.values())
     unknown = [k for k in kwargs if k not in params and not takes_any]
     if unknown:
@@ -158,7 +162,12 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
             otherwise every motion file in it -> list); or a sequence of two
             files, one per person -> Interaction.
         **kwargs: passed to the reader (e.g. ``units=``, ``fps=``,
-            ``drop_tpose=`` for BVH, ``asf=`` for AMC).
+            ``drop_tpose=`` for BVH, ``asf=`` for AMC); ``joint_map=`` (a TOML
+            file or a mapping, see :func:`simenv.core.joint_map.read_joint_map`)
+            maps every person's joints onto the canonical keypoints instead of
+            the reader's map. Without it, a skeleton the reader does not know
+            is mapped by :func:`simenv.core.joint_map.map_motion` (names,
+            hierarchy, pose), recorded in ``metadata["joint_map"]``.
 
     Returns:
         Motion, Interaction, or a list of them (files/folders with many
@@ -168,6 +177,20 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
         UnknownFormatError: no reader recognises the file or folder content.
         SimenvError: any reader error, naming file, line and field.
     """
+    return _mapped(_load(path, kwargs), kwargs.get("joint_map"))
+
+
+def _mapped(loaded: Loaded, joint_map: JointMapSource | None) -> Loaded:
+    """Every person of ``loaded`` through :func:`map_motion`."""
+    if isinstance(loaded, list):
+        return [_mapped(x, joint_map) for x in loaded]  # type: ignore[misc]
+    if isinstance(loaded, Interaction):
+        return replace(loaded, actor=map_motion(loaded.actor, joint_map),
+                       reactor=map_motion(loaded.reactor, joint_map))
+    return map_motion(loaded, joint_map)
+
+
+def _load(path: str | Path | Sequence[str | Path], kwargs: dict[str, Any]) -> Loaded:
     if isinstance(path, (list, tuple)):
         if len(path) != 2:
             raise MotionError(
@@ -406,8 +429,9 @@ def pair(a: Motion, b: Motion, *, folder: Path | None = None) -> Interaction:
     return Interaction(a, b, label=label, roles_known=roles_known, name=name, metadata=meta)
 
 
-def load_any(paths: Sequence[str | Path]) -> list[Motion | Interaction]:
-    """Load one motion file or folder, or the two files of one two-person recording.
+def load_any(paths: Sequence[str | Path], **kwargs: Any) -> list[Motion | Interaction]:
+    """Load one motion file or folder, or the two files of one two-person recording
+    (``kwargs`` as for :func:`load`, e.g. ``joint_map=``).
 
     Returns:
         The clips found (usually one; a folder of unrelated files gives several).
@@ -421,17 +445,17 @@ def load_any(paths: Sequence[str | Path]) -> list[Motion | Interaction]:
             f"got {len(paths)} paths; expected one file or folder, or the two files of one "
             "two-person recording"
         )
-    loaded = load(paths[0]) if len(paths) == 1 else load(paths)
+    loaded = load(paths[0], **kwargs) if len(paths) == 1 else load(paths, **kwargs)
     return list(loaded) if isinstance(loaded, list) else [loaded]
 
 
-def load_one(paths: Sequence[str | Path]) -> Motion | Interaction:
+def load_one(paths: Sequence[str | Path], **kwargs: Any) -> Motion | Interaction:
     """The one clip of :func:`load_any`'s ``paths``.
 
     Raises:
         SimenvError: the paths hold several clips.
     """
-    clips = load_any(paths)
+    clips = load_any(paths, **kwargs)
     if len(clips) != 1:
         raise SimenvError(
             f"holds {len(clips)} clips; this command needs one (use `simenv info` to list them)",

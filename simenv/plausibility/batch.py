@@ -98,6 +98,9 @@ class ScoreJob:
         reference: a real corpus calibrated by :func:`calibrate_reference`;
             each record then also says where it falls in it (``reference``,
             :meth:`~simenv.plausibility.reference.Reference.judge`).
+        joint_map: a TOML joint map applied to every target (see
+            :func:`simenv.core.joint_map.read_joint_map`), or None for the
+            automatic mapping.
     """
 
     physics: bool = True
@@ -105,16 +108,18 @@ class ScoreJob:
     config: ScoreConfig | None = None
     restore_collapsed_bones: bool = False
     reference: Reference | None = None
+    joint_map: str | None = None
 
 
 def _read_options(target: Path, job: ScoreJob) -> dict[str, Any]:
     """Reader options of ``job`` that apply to ``target`` (BVH-only ones to BVH only)."""
+    options: dict[str, Any] = {} if job.joint_map is None else {"joint_map": job.joint_map}
     if not job.restore_collapsed_bones:
-        return {}
+        return options
     files = sorted(target.iterdir()) if target.is_dir() else [target]
     files = [f for f in files if f.is_file() and not f.name.startswith(".")]
     bvh_only = bool(files) and all(f.suffix.lower() == ".bvh" for f in files)
-    return {"restore_collapsed_bones": True} if bvh_only else {}
+    return options | ({"restore_collapsed_bones": True} if bvh_only else {})
 
 
 def _report_name(target: Path) -> str:

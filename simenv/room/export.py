@@ -23,6 +23,7 @@ import numpy as np
 
 from simenv.body.retarget import retarget
 from simenv.core.errors import SimenvError
+from simenv.core.joint_map import JointMapSource
 from simenv.core.motion import Interaction, Motion
 from simenv.io.gltf import body_poses, write_gltf
 from simenv.io.loader import load_one
@@ -76,9 +77,11 @@ def export_room(scenario: Any, path: str | os.PathLike[str], motion: Motion | No
 
 
 def export(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str], *,
-           scenario: str | os.PathLike[str] | None = None, stride: int = 1) -> Path:
+           scenario: str | os.PathLike[str] | None = None, stride: int = 1,
+           joint_map: JointMapSource | None = None) -> Path:
     """The ``simenv export`` job: ``paths`` (a motion file or two-person recording, or
-    a scenario TOML) and/or ``scenario`` to ``out`` (see the module docstring)."""
+    a scenario TOML) and/or ``scenario`` to ``out`` (see the module docstring);
+    ``joint_map`` as for :func:`simenv.io.loader.load`."""
     paths = [Path(p) for p in paths]
     if paths and paths[0].suffix.lower() == ".toml":
         if scenario is not None or len(paths) > 1:
@@ -90,7 +93,7 @@ def export(paths: Sequence[str | os.PathLike[str]], out: str | os.PathLike[str],
             raise SimenvError("nothing to export: give a motion file, a scenario TOML or "
                               "--scenario NAME")
         return export_room(scenario, out, stride=stride)
-    clip = load_one(paths)
+    clip = load_one(paths, **({} if joint_map is None else {"joint_map": joint_map}))
     if scenario is None:
         return export_result(retarget(clip), out, stride=stride)
     if isinstance(clip, Interaction):
