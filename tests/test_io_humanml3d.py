@@ -229,10 +229,14 @@ def test_axis_layouts_are_named(tmp_path: Path, walk20: Motion, axes, match) -> 
         simenv.load(f)
 
 
-def test_feature_vectors_and_pickles_are_refused(tmp_path: Path, walk20: Motion) -> None:
+def test_feature_vectors_go_to_their_reader_and_pickles_are_refused(
+        tmp_path: Path, walk20: Motion) -> None:
+    # (T, 263) rows are features, read by humanml3d_features (tests/test_io_humanml3d_features.py);
+    # handed to the positions reader they are named as such.
     vecs = save(tmp_path / "vecs.npy", np.zeros((walk20.num_frames, 263), np.float32))
-    with pytest.raises(FormatError, match="new_joint_vecs"):
-        simenv.load(vecs)
+    assert loader.detect(vecs)[0] == "humanml3d_features"
+    with pytest.raises(FormatError, match="new_joint_vecs features"):
+        humanml3d.from_array(np.load(vecs))
     # A pickled dict under another name is never unpickled.
     data = {"motion": y_up(walk20.positions).transpose(1, 2, 0)[None]}
     with pytest.raises(FormatError, match=r"results\*\.npy"):

@@ -15,7 +15,8 @@ Layouts, as verified against their sources:
   ``data[..., 0] *= -1``: a proper rotation), and the sample clip's bodies are
   not mirrored (the toes point along up x (right hip - left hip), as in a
   right-handed frame).
-  ``new_joint_vecs`` (T, 263) are features, not positions: refused with a hint.
+  ``new_joint_vecs`` (T, 263) are features, not positions: read by
+  :mod:`simenv.io.humanml3d_features`, which recovers the positions.
 * **MDM** ``results.npy`` (github.com/GuyTevet/motion-diffusion-model,
   ``sample/generate.py``): ``np.save`` of a dict, so a pickled 0-d object
   array, with ``motion`` (N, 22, 3, T) float32 positions in the HumanML3D
@@ -63,8 +64,9 @@ EXTENSIONS = (".npy",)
 HUMANML3D_FPS = 20.0
 MDM_FPS = 20.0
 N_JOINTS = 22
-#: Width of HumanML3D's ``new_joint_vecs`` feature rows (not positions).
+#: Widths of HumanML3D's and KIT-ML's ``new_joint_vecs`` feature rows (not positions).
 HML_VEC_DIM = 263
+KIT_VEC_DIM = 251
 
 #: simenv (Z up) = Y_UP_TO_Z_UP @ source (Y up): ``(x, y, z) -> (x, -z, y)``.
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -113,11 +115,11 @@ def npy_header(path: Path) -> tuple[tuple[int, ...], np.dtype] | None:
 def _layout_error(shape: tuple[int, ...], source: str | None, what: str) -> SimenvError:
     """The clearest error for an array that is not (T, 22, 3) positions."""
     where = f"{what} " if what else ""
-    if len(shape) == 2 and shape[1] == HML_VEC_DIM:
+    if len(shape) == 2 and shape[1] in (HML_VEC_DIM, KIT_VEC_DIM):
         return FormatError(
-            f"{where}has shape {shape}: HumanML3D's 263-feature new_joint_vecs representation "
-            "(root velocity, local joint data, foot contacts), not joint positions; read the "
-            "matching new_joints/ file, or recover positions with HumanML3D's recover_from_ric",
+            f"{where}has shape {shape}: HumanML3D / KIT-ML new_joint_vecs features (root "
+            "velocity, local joint data, foot contacts), not joint positions; simenv.load reads "
+            "such a file, or simenv.io.humanml3d_features.from_features such an array",
             source=source, field="positions")
     if len(shape) == 3:
         t, a, b = shape
@@ -243,9 +245,9 @@ def _is_pickle_header(header: tuple[tuple[int, ...], np.dtype] | None) -> bool:
 
 
 def sniff(path: Path, head: bytes) -> bool:
-    """A ``.npy`` holding (T, 22, 3) / (T, 263) numbers, or an MDM pickled dict
-    named ``results*.npy``. Files in ``person1``/``person2`` folders are left to
-    :mod:`simenv.io.intergen`."""
+    """A ``.npy`` holding (T, 22, 3) numbers, or an MDM pickled dict named
+    ``results*.npy``. Files in ``person1``/``person2`` folders are left to
+    :mod:`simenv.io.intergen`, feature rows to :mod:`simenv.io.humanml3d_features`."""
     path = Path(path)
     if path.suffix.lower() != ".npy" or not head.startswith(_NPY_MAGIC):
         return False
@@ -257,8 +259,7 @@ def sniff(path: Path, head: bytes) -> bool:
     shape, dtype = header
     if dtype.hasobject or path.parent.name.lower() in ("person1", "person2"):
         return False
-    return (len(shape) == 3 and shape[1:] == (N_JOINTS, 3)) or (
-        len(shape) == 2 and shape[1] == HML_VEC_DIM)
+    return len(shape) == 3 and shape[1:] == (N_JOINTS, 3)
 
 
 def load_plain_npy(path: Path) -> np.ndarray:
