@@ -128,6 +128,9 @@ def test_normalised_array_is_refused_then_read_with_statistics(tmp_path: Path, c
     with pytest.raises(FormatError, match=r"look normalised.*mean='Mean.npy'") as err:
         simenv.load(f)
     assert err.value.source == str(f)
+    # Read as raw anyway, it is no body either (about 4 m across).
+    with pytest.raises(UnitsError, match=r"spans [34]\.\d+ m.*normalised"):
+        simenv.load(f, check_raw=False)
     m = simenv.load(f, mean=MEAN, std=STD)
     assert m.metadata["denormalised"]
     np.testing.assert_allclose(m.positions, simenv.load(clip).positions, atol=1e-5)

@@ -43,10 +43,10 @@ Datasets (:data:`HUMANML3D`, :data:`KITML`):
 * **KIT-ML**: 12.5 fps (100 Hz capture, every 8th frame kept), the 21-joint MMM
   skeleton of :func:`kit21_skeleton`. *Units*: KIT-ML joints are not the
   actor's millimetres: every clip is retargeted onto one height-normalised MMM
-  body (``uniform_skeleton`` to clip 03950), whose mean root height in the
-  dataset's ``Mean.npy`` is 559.6 units. simenv reads 1 unit as 0.75/480 m
-  (:data:`KIT_METRES_PER_UNIT`, 1.5625 mm: the MMM-to-SMPL-H factor TEMOS, MLD
-  and MotionGPT use for these joints), a 0.87 m mean root height; read as
+  body (``uniform_skeleton`` to clip 03950), whose mean root height in KIT-ML's
+  mean feature row (as MDM ships it) is 559.6 units. simenv reads 1 unit as 0.75/480 m
+  (:data:`KIT_METRES_PER_UNIT`, 1.5625 mm: the MMM-to-SMPL-H factor defined by
+  TEMOS and reused by MLD and MotionGPT), a 0.87 m mean root height; read as
   millimetres the body would be a 1 m child. Limb lengths of the mean pose
   suggest 1.5-1.8 mm per unit, so the size is uncertain by about 10 %;
   ``units=`` overrides it. *Handedness*: the stored KIT-ML bodies are mirrored.
@@ -54,8 +54,8 @@ Datasets (:data:`HUMANML3D`, :data:`KITML`):
   source files' order, as the MDM and TEMOS maintainers list it), and
   HumanML3D's own ``kit_raw_offsets`` put them along +X with the toes along +Z
   (a right-handed body), yet in the stored features those joints lie at -X
-  while the toes point +Z; TEMOS's and MLD's renderers negate an axis of these
-  joints to "make left/right correct". simenv negates x on reading (noted in
+  while the toes point +Z; MLD's renderer negates an axis of MMM joints to
+  "make left/right correct". simenv negates x on reading (noted in
   ``metadata["quirks"]``) so MMM's left joints are on the body's left.
 
 Reading into simenv: positions in metres, mirrored back for KIT-ML, then Y up
@@ -71,10 +71,11 @@ pi/2 (it is an arcsin), or a ``root_height`` below the floor in most frames
 normalised array (a :class:`FormatError`), never repaired by guessing
 statistics. On HumanML3D's sample clips 012314 and 000612 normalised with the
 dataset's statistics, every window of 10, 20 or 40 frames shows at least one of
-the two, the raw clips neither. An array that shows neither but is still not a
-body (e.g. a normalised clip of someone standing still) fails the person-size
-check with a :class:`UnitsError` that names normalisation. ``check_raw=False``
-skips the check for a raw array it misjudges.
+the two, the raw clips neither. An array that shows neither is read as raw;
+when it is not a body, the person-size check fails with a :class:`UnitsError`
+that names normalisation (read as raw, the two normalised clips span 3.8 and
+4.1 m, beyond the 3.5 m limit), though a normalised clip could also pass it.
+``check_raw=False`` skips the check for a raw array it misjudges.
 """
 
 from __future__ import annotations
@@ -101,7 +102,8 @@ from simenv.io.humanml3d import (
 FORMAT = "humanml3d_features"
 EXTENSIONS = (".npy",)
 
-#: KIT-ML length unit in metres (TEMOS/MLD/MotionGPT ``mmm_to_smplh_scaling_factor``).
+#: KIT-ML length unit in metres (TEMOS's ``mmm_to_smplh_scaling_factor``, also in MLD and
+#: MotionGPT).
 KIT_METRES_PER_UNIT = 0.75 / 480
 
 #: KIT-ML's 21 MMM joints, in the order of its files (root, pelvis, thorax, lower
