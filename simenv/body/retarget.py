@@ -283,10 +283,14 @@ def _canonical(motion: Motion) -> Motion:
     canon = motion.to_canonical()
     missing = [k for k in REQUIRED_KEYPOINTS if k not in canon.skeleton.joint_names]
     if missing:
+        source = motion.metadata.get("source")
         raise RetargetError(
             f"motion {motion.name!r} (skeleton {motion.skeleton.name!r}) lacks required "
-            f"keypoint(s) {missing}; retargeting needs {list(REQUIRED_KEYPOINTS)}",
-            source=motion.metadata.get("source"), field=missing[0])
+            f"keypoint(s) {missing}; retargeting needs {list(REQUIRED_KEYPOINTS)}. Its joints "
+            f"are {', '.join(motion.skeleton.joint_names)}. Map them yourself: `simenv info "
+            f"{source or 'FILE'} --write-joint-map map.toml` writes a map to edit, then pass "
+            "--joint-map map.toml (Python: simenv.load(path, joint_map='map.toml'))",
+            source=source, field=missing[0])
     return canon
 
 

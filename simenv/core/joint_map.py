@@ -352,7 +352,9 @@ def _by_names(tree: _Tree, prefix: str) -> tuple[dict[str, str], dict[str, str],
     for conv in CONVENTIONS:
         found = {k: j for k in CANONICAL_KEYPOINTS if (j := find(conv, k)) is not None}
         scores.append((len(found), conv, found))
-    best = max(scores, key=lambda s: s[0])
+    # On a tie the convention whose namespace the names carry wins (Mixamo's mixamorig:).
+    best = max(scores, key=lambda s: (s[0], bool(s[1].prefix) and any(
+        n.lower().startswith(s[1].prefix.lower().split(":")[0]) for n in tree.names)))
     if best[0] == 0:
         return {}, {}, None
     canonical: dict[str, str] = {}
@@ -434,6 +436,22 @@ def _spine_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tr
             canonical["spine"], how["spine"] = tree.names[between[0]], HOW_TOPOLOGY
 
 
+def _ends_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
+                      rest: np.ndarray) -> None:
+    """A hand or toe the names did not give: the first joint at least 3 % of the body's
+    height beyond the wrist or ankle, along the child that reaches furthest (the middle
+    finger's knuckle, the ball of the foot)."""
+    size = float(np.ptp(rest[:, 2])) or 1.0
+    for side in ("left", "right"):
+        for outer, inner in (("wrist", "hand"), ("ankle", "toe")):
+            base = canonical.get(f"{side}_{outer}")
+            if base is None or f"{side}_{inner}" in canonical:
+                continue
+            j = _distal(tree, tree.index[base], rest, 0.03 * size)
+            if j is not None and tree.names[j] not in canonical.values():
+                canonical[f"{side}_{inner}"], how[f"{side}_{inner}"] = tree.names[j], HOW_TOPOLOGY
+
+
 def _segments(chain: list[int], pos: np.ndarray) -> list[tuple[int, int, float]]:
     """The chain cut into straight segments (start, end, length in metres): consecutive bones
     within 5 degrees of each other over the clip are one segment (twist and roll joints lie on
@@ -479,13 +497,14 @@ def _limb(tree: _Tree, hub: int, start: int, leaf: int, pos: np.ndarray
 
 
 def _distal(tree: _Tree, j: int, rest: np.ndarray, min_len: float) -> int | None:
-    """The first joint below ``j`` at least ``min_len`` from it, following the child whose
-    subtree reaches furthest (the middle finger, the toes); else the last joint of that path
-    if it is at least a fifth of ``min_len`` away (a short hand), else None."""
+    """The first joint below ``j`` at least ``min_len`` from it, following the child with the
+    most joints below it, then the one reaching furthest (the fingers rather than the thumb,
+    the middle finger, the toes); else the last joint of that path if it is at least a fifth
+    of ``min_len`` away (a short hand), else None."""
     k = j
     while tree.children[k]:
-        k = max(tree.children[k], key=lambda c: max(
-            float(np.linalg.norm(rest[s] - rest[j])) for s in tree.subtree(c)))
+        k = max(tree.children[k], key=lambda c: (len(tree.subtree(c)), max(
+            float(np.linalg.norm(rest[s] - rest[j])) for s in tree.subtree(c))))
         if np.linalg.norm(rest[k] - rest[j]) >= min_len:
             return k
     return k if k != j and np.linalg.norm(rest[k] - rest[j]) >= 0.2 * min_len else None
@@ -653,6 +672,8 @@ def infer_joint_map(names: Sequence[str], parents: Sequence[int],
                          "and head were found from the hierarchy and the pose")
     _check_chains(canonical, how, tree, notes)
     _spine_by_topology(canonical, how, tree, rest)
+    if rest is not None:
+        _ends_by_topology(canonical, how, tree, rest)
     ordered = {k: canonical[k] for k in CANONICAL_KEYPOINTS if k in canonical}
     return JointMapping(ordered, {k: how[k] for k in ordered}, convention, tuple(notes))
 
