@@ -13,14 +13,18 @@ import simenv
 from simenv.assets import WALK, asset_path
 from simenv.core.errors import MotionError, SimenvError
 from simenv.core.motion import Motion
-from simenv.plausibility import KINEMATIC_METRICS, floating, foot_skate
+from simenv.plausibility import KINEMATIC_METRICS, bone_length, bone_lengths, floating, foot_skate
 from simenv.plausibility.corrupt import (
     CORRUPTIONS,
     MIN_FRAMES,
     STRENGTH_UNITS,
+    STRETCH_BONES,
     bone_stretch,
     float_,
 )
+
+#: Real HumanML3D ``new_joints`` clip (AMASS on the SMPL body; tests/data/humanml3d/SOURCES.md).
+HUMANML3D = Path(__file__).parent / "data" / "humanml3d" / "new_joints" / "012314.npy"
 
 #: Real clips (path under shared/data/cmu, frames kept): a walk, jumps and
 #: hops, a karate kata, a dance with pirouettes, a run. A few seconds each.
@@ -131,6 +135,15 @@ def test_time_warp_keeps_the_ends_and_speeds_up(walk: Motion) -> None:
 
 def test_bone_stretch_lengthens_exactly_the_chosen_bone(walk: Motion) -> None:
     out = bone_stretch(walk, 0.2, seed=0, bone="left_knee")
+    # It is the source skeleton's thigh bone, which bone_length measures; every
+    # other measured bone keeps its length.
+    assert out.metadata["corruptions"][-1]["source_bone"] == "LeftUpLeg->LeftLeg"
+    names, before = bone_lengths(walk)
+    after = bone_lengths(out)[1]
+    k = names.index("LeftUpLeg->LeftLeg")
+    assert (after[:, k] / before[:, k]).max() == pytest.approx(1.2, abs=1e-3)
+    np.testing.assert_allclose(np.delete(after, k, axis=1), np.delete(before, k, axis=1),
+                               atol=2e-5)
     canon_in, canon_out = walk.to_canonical(), out.to_canonical()
     hip, knee = (canon_in.skeleton.index(n) for n in ("left_hip", "left_knee"))
     ratio = (np.linalg.norm(canon_out.positions[:, knee] - canon_out.positions[:, hip], axis=-1)
@@ -143,6 +156,20 @@ def test_bone_stretch_lengthens_exactly_the_chosen_bone(walk: Motion) -> None:
         np.linalg.norm(canon_in.positions[:, shin] - canon_in.positions[:, knee], axis=-1),
         atol=1e-5,
     )
+
+
+@pytest.mark.parametrize("bone", STRETCH_BONES)
+def test_bone_stretch_of_a_real_smpl_clip_is_caught(bone: str) -> None:
+    """Each limb bone of the real HumanML3D clip 012314 (SMPL joints), stretched
+    at the moderate 10 %, fails bone_length; the clip itself passes."""
+    smpl = simenv.load(HUMANML3D, fps=20)
+    assert bone_length(smpl).passed
+    out = bone_stretch(smpl, CORRUPTIONS["bone_stretch"].moderate, seed=0, bone=bone)
+    record = out.metadata["corruptions"][-1]
+    assert record["source_bone"] == f"{smpl.skeleton.canonical[record['parent']]}->" \
+        f"{smpl.skeleton.canonical[bone]}"
+    r = bone_length(out)
+    assert r.passed is False and r.details["max_rel_deviation"] == pytest.approx(0.1, abs=1e-3)
 
 
 def test_foot_slide_is_flagged_at_skating_speed_only(walk: Motion) -> None:

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import simenv
 from simenv.core.errors import MotionError, SimenvError
 from simenv.core.motion import Motion
+from simenv.core.skeletons import Skeleton, kinect_v2_skeleton
 from simenv.io import bvh
 from simenv.plausibility import (
     Thresholds,
@@ -21,7 +24,14 @@ from simenv.plausibility import (
     velocity,
 )
 from simenv.plausibility.clips import norm3
-from simenv.plausibility.kinematic import speed_limits, windowed_normalized_jerk
+from simenv.plausibility.kinematic import (
+    bone_deviations,
+    bone_names,
+    speed_limits,
+    windowed_normalized_jerk,
+)
+
+HUMANML3D = Path(__file__).parent / "data" / "humanml3d" / "new_joints" / "012314.npy"
 
 
 @pytest.fixture(scope="module")
@@ -64,9 +74,11 @@ def test_bone_stretched_over_time_fails(walk) -> None:
 
 
 def test_bone_length_error_against_reference(walk, shared_data) -> None:
+    # The reference is keyed by canonical keypoint pairs, whatever the source's bones.
     ref = reference_lengths(walk)
-    assert ref["left_knee"] == pytest.approx(
-        float(np.median(bone_lengths(walk)[1][:, bone_lengths(walk)[0].index("left_knee")])))
+    hip, knee = (walk.skeleton.index(n) for n in ("LeftUpLeg", "LeftLeg"))
+    assert ref["left_knee"] == pytest.approx(float(np.median(
+        norm3(walk.positions[:, knee].astype(np.float64) - walk.positions[:, hip]))))
     same = bone_length_error(walk, ref)
     assert same.passed and same.value < 1.0
     other = bvh.read(shared_data / "cmu/bvh/131_01.bvh").slice(0, 100)
@@ -78,6 +90,73 @@ def test_bone_length_error_against_reference(walk, shared_data) -> None:
         bone_length_error(walk, {"tail": 0.3})
     with pytest.raises(MotionError, match="positive bone length"):
         bone_length_error(walk, {"left_knee": -0.4})
+
+
+@pytest.fixture(scope="module")
+def humanml3d() -> Motion:
+    """Real HumanML3D ``new_joints`` clip 012314 (AMASS tennis serve on the SMPL
+    body, 170 frames at 20 fps; tests/data/humanml3d/SOURCES.md)."""
+    return simenv.load(HUMANML3D, fps=20)
+
+
+def test_real_smpl_clip_passes_on_its_own_bones(humanml3d) -> None:
+    # Every SMPL bone is rigid; the canonical chest-to-shoulder pair spans the
+    # collar joint, so its length changes (the canonical pairs failed this clip
+    # at 2.8 tolerances).
+    names, lengths = bone_lengths(humanml3d)
+    assert len(names) == 21 and "left_collar->left_shoulder" in names
+    assert "spine3->left_shoulder" not in names
+    rel = np.abs(lengths / np.median(lengths, axis=0) - 1)
+    assert rel.max() < 1e-4
+    s = humanml3d.skeleton
+    assert s.canonical["chest"] == "spine3"
+    span = norm3(humanml3d.positions[:, s.index("left_shoulder")].astype(np.float64)
+                 - humanml3d.positions[:, s.index("spine3")])
+    assert np.abs(span / np.median(span) - 1).max() > 0.1
+    r = bone_length(humanml3d)
+    assert r.passed and r.value < 1e-3 and r.details["bones_checked"] == 21
+
+
+def test_a_stretched_source_bone_fails_and_is_named(humanml3d) -> None:
+    pos = humanml3d.positions.copy()
+    s = humanml3d.skeleton
+    collar, shoulder = s.index("left_collar"), s.index("left_shoulder")
+    below = [shoulder, *(s.index(n) for n in ("left_elbow", "left_wrist"))]
+    # The collar bone grows by 20 % over the last 40 % of the clip.
+    grow = np.zeros(len(pos), dtype=np.float32)
+    grow[-len(pos) * 2 // 5:] = 0.2
+    pos[:, below] += (grow[:, None] * (pos[:, shoulder] - pos[:, collar]))[:, None]
+    moved = humanml3d.with_positions(pos)
+    r = bone_length(moved)
+    assert r.passed is False and r.details["max_rel_deviation"] == pytest.approx(0.2, abs=1e-3)
+    worst = max(bone_deviations(moved), key=lambda d: d["p95_tolerances"])
+    assert worst["bone"] == "left_collar->left_shoulder" and worst["checked"]
+    assert worst["p95_tolerances"] == pytest.approx(4.0, rel=1e-3)
+
+
+def test_measured_bones_follow_the_tree_not_the_canonical_map(shared_data) -> None:
+    # Extremity fans (two or more end joints on one parent) are left out: the
+    # Poser head's eyes, Kinect v2's hand tip and thumb; a lone end joint (the
+    # ASF thumb and fingers, a toe, the head) is measured.
+    amc = simenv.load(shared_data / "cmu/asf_amc/02_01.amc").slice(0, 240)
+    names = bone_names(amc.skeleton)
+    assert len(names) == len(amc.skeleton.bones) == 30
+    assert {"lowerneck->upperneck", "upperneck->head", "lwrist->lthumb"} <= set(names)
+    salsa = simenv.load(shared_data / "cmu/two_person/60_61_salsa_10").actor
+    assert {"head->leftEye", "head->rightEye"} & set(bone_names(salsa.skeleton)) == set()
+    assert "lFoot->lFoot_end" in bone_names(salsa.skeleton)
+    assert not [n for n in bone_names(kinect_v2_skeleton()) if "Tip" in n or "Thumb" in n]
+    # The canonical map decides nothing but the head's tolerance: with three
+    # keypoints mapped the same bones are checked, with the same values.
+    full = bone_length(amc)
+    keep = {k: amc.skeleton.canonical[k] for k in ("pelvis", "head", "left_toe")}
+    sparse = Skeleton("sparse", amc.skeleton.joint_names, amc.skeleton.parents, keep)
+    r = bone_length(Motion(amc.positions, amc.fps, sparse, "sparse"))
+    assert r.details == full.details and r.value == full.value
+    # Every real CMU bone is rigid, the neck included (the canonical neck-head pair
+    # spans the upper neck, which CMU 02_04 nods by 6 %).
+    nod = simenv.load(shared_data / "cmu/asf_amc/02_04.amc")
+    assert bone_length(nod).details["max_rel_deviation"] < 1e-4
 
 
 @pytest.mark.parametrize("sigma", [0.005, 0.01])

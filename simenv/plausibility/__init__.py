@@ -74,7 +74,9 @@ def _plan(batch: ClipBatch, thresholds: Thresholds) -> Plan:
     """The six metrics' plan for batches of this layout, rate, length and
     thresholds, prepared once (the specs' lookups cost as much as the
     kernels on a short clip)."""
-    key = (batch.skeleton, batch.fps, batch.num_frames, thresholds)
+    # The source skeleton too: bone_length measures its bones, and skeletons
+    # with other bones share a canonical layout.
+    key = (batch.skeleton, batch.motions[0].skeleton, batch.fps, batch.num_frames, thresholds)
     plan = _PLANS.get(key)
     if plan is None:
         if len(_PLANS) >= 256:

@@ -41,6 +41,7 @@ import numpy as np
 from simenv.body.foot_contact import foot_contacts
 from simenv.core.errors import MotionError, SimenvError
 from simenv.core.motion import Motion
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
 
 #: Fewest frames a corruption accepts: its segment, ramps and finite
 #: differences need a few frames to be meaningful.
@@ -55,8 +56,12 @@ RAMP_S = 0.2
 #: rises 30 cm), so it would be a jump, not floating.
 HOVER_MIN_S = 1.0
 
-#: Canonical bones :func:`bone_stretch` chooses from (by child keypoint):
-#: thighs, shins, upper arms and forearms.
+#: Shortest source bone :func:`bone_stretch` stretches (metres): the bones
+#: :func:`~simenv.plausibility.kinematic.bone_length` skips are shorter.
+BONE_MIN_LENGTH_M = DEFAULT_THRESHOLDS.bone_min_length_m
+
+#: Limb bones :func:`bone_stretch` chooses from, by the canonical keypoint at
+#: their lower end: thighs, shins, upper arms and forearms.
 STRETCH_BONES: tuple[str, ...] = (
     "left_knee", "left_ankle", "right_knee", "right_ankle",
     "left_elbow", "left_wrist", "right_elbow", "right_wrist",
@@ -194,30 +199,40 @@ def foot_slide(motion: Motion, strength: float, *, seed: int = 0) -> Motion:
 
 def bone_stretch(motion: Motion, strength: float, *, seed: int = 0,
                  bone: str | None = None) -> Motion:
-    """Lengthen one limb bone over part of the clip.
+    """Lengthen one limb bone of the source skeleton over part of the clip.
 
-    The bone from canonical keypoint ``parent(bone)`` to ``bone`` grows by
-    ``strength`` of its length, ``L' = (1 + strength) L``, by translating the
-    child joint and everything below it along the bone. The stretch ramps in
-    and out (:data:`RAMP_S`) over a seeded segment covering 25-40 % of the
-    clip, so that the stretch itself is smooth (no teleport).
+    The bone is the source bone (``motion.skeleton.parents``) that ends at the
+    joint of canonical keypoint ``bone``: the thigh ``LeftUpLeg->LeftLeg`` of
+    a CMU BVH for ``"left_knee"``, ``left_hip->left_knee`` of SMPL. When that
+    bone is shorter than ``bone_min_length_m`` (a converter's collapsed joint
+    at the child end) the one above it is taken. It grows by ``strength`` of
+    its length, ``L' = (1 + strength) L``, by translating its child joint and
+    everything below it along the bone, so it is one of the bones
+    :func:`~simenv.plausibility.kinematic.bone_length` measures and every
+    other bone keeps its length. The stretch ramps in and out
+    (:data:`RAMP_S`) over a seeded segment covering 25-40 % of the clip, so
+    that the stretch itself is smooth (no teleport).
 
     Args:
         strength: relative lengthening as a **fraction**,
             ``0 < strength <= 1``. Moderate: 0.10 (twice the 5 % tolerance).
         seed: chooses the segment and, unless ``bone`` is given, the bone
             among :data:`STRETCH_BONES`.
-        bone: canonical child keypoint naming the bone (``"left_knee"`` is
+        bone: canonical keypoint at the bone's lower end (``"left_knee"`` is
             the thigh).
 
+    The record names the bone (``bone``, canonical), its canonical ``parent``
+    and ``source_bone`` (``"parent->child"`` in the source's joint names).
     Targets ``bone_length``. Raises :class:`MotionError` when the skeleton
     lacks the bone.
     """
     name = "bone_stretch"
     value = _check(name, motion, strength, 0.0, 1.0, "fraction", seed)
     canon = motion.to_canonical().skeleton
+    skel = motion.skeleton
     available = [b for b in STRETCH_BONES
-                 if b in canon.joint_names and canon.parents[canon.index(b)] >= 0]
+                 if b in canon.joint_names and canon.parents[canon.index(b)] >= 0
+                 and skel.parents[skel.index(skel.canonical[b])] >= 0]
     rng = np.random.default_rng(seed)
     if bone is None:
         if not available:
@@ -232,19 +247,22 @@ def bone_stretch(motion: Motion, strength: float, *, seed: int = 0,
             field="bone",
         )
     parent_name = canon.joint_names[canon.parents[canon.index(bone)]]
-    skel = motion.skeleton
+    pos = motion.positions.astype(np.float64)
     child = skel.index(skel.canonical[bone])
-    parent = skel.index(skel.canonical[parent_name])
+    parent = skel.parents[child]
+    while skel.parents[parent] >= 0 and not np.median(
+            np.linalg.norm(pos[:, child] - pos[:, parent], axis=-1)) >= BONE_MIN_LENGTH_M:
+        child, parent = parent, skel.parents[parent]
     subtree = np.zeros(skel.num_joints, dtype=bool)
     subtree[child] = True
     for j in range(child + 1, skel.num_joints):  # parents precede children
         subtree[j] = skel.parents[j] >= 0 and subtree[skel.parents[j]]
     start, stop = _segment(rng, motion.num_frames, 0.25, 0.40)
     w = _bump(motion.num_frames, start, stop, _ramp_frames(motion))
-    pos = motion.positions.astype(np.float64)
     shift = (value * w)[:, None] * (pos[:, child] - pos[:, parent])  # (T, 3)
     pos[:, subtree] += shift[:, None, :]
-    return _finish(motion, pos, name, value, seed, w > 0, bone=bone, parent=parent_name)
+    return _finish(motion, pos, name, value, seed, w > 0, bone=bone, parent=parent_name,
+                   source_bone=f"{skel.joint_names[parent]}->{skel.joint_names[child]}")
 
 
 def sink(motion: Motion, strength: float, *, seed: int = 0) -> Motion:

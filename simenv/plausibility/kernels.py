@@ -4,10 +4,11 @@
 the canonical keypoints once into float32 coordinate planes ``p`` (3, J, T)
 (x, y, z; keypoints; frames; exact copies of the float32 clip, which every
 metric converts to float64 as it reads them) that stay in cache, runs every
-enabled metric on them (:func:`bone_length`, :func:`foot_skate`,
-:func:`ground_penetration`, :func:`floating`, :func:`jitter`,
-:func:`velocity`: one function per metric and clip, frame axis innermost
-and contiguous so LLVM vectorises the elementwise loops) and turns each
+enabled metric on them (:func:`foot_skate`, :func:`ground_penetration`,
+:func:`floating`, :func:`jitter`, :func:`velocity`: one function per metric
+and clip, frame axis innermost and contiguous so LLVM vectorises the
+elementwise loops; :func:`bone_length` reads the clip's source joints
+instead, since its bones are the source skeleton's) and turns each
 float64 timeline into the float32 result timeline and its violation runs,
 all into the caller's arrays. :func:`simenv.plausibility.clips.score`
 allocates them and turns them into results.
@@ -464,10 +465,10 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
             metres: a (B, T, S, 3) array or a typed list of (T, S, 3) arrays.
         idx: (J,) int64 source joint of each canonical keypoint.
         enabled: (6,) bool per metric slot (:data:`BONE` ... :data:`VELOCITY`).
-        bone, foot, flt, jit, vel: arguments of :func:`bone_length`,
-            :func:`foot_skate`, :func:`floating`, :func:`jitter` and
-            :func:`velocity` after their planes (unused when disabled, but
-            always of the same types).
+        bone, foot, flt, jit, vel: arguments of :func:`bone_length` (after
+            its clip), :func:`foot_skate`, :func:`floating`, :func:`jitter`
+            and :func:`velocity` (after their planes); unused when disabled,
+            but always of the same types.
         frame_thresholds: (6,) per-frame limit of each metric's timeline;
             in_float32: (6,) bool, compare in float32 (see
             :func:`_violations`).
@@ -495,7 +496,7 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
             if enabled[m]:
                 det = details[m, b]
                 if m == BONE:
-                    value[m, b], available[b] = bone_length(p, *bone, line, det)
+                    value[m, b], available[b] = bone_length(positions[b], *bone, line, det)
                 elif m == FOOT:
                     value[m, b] = foot_skate(p, zmin, *foot, line, det)
                 elif m == GROUND:
@@ -516,14 +517,19 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
 
 
 @njit(cache=True)
-def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.ndarray,
+def bone_length(clip: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.ndarray,
                 min_length: float, q: float, tl: np.ndarray, details: np.ndarray
                 ) -> tuple[float, bool]:
-    """Bone-length consistency of one clip (see
+    """Bone-length consistency of one clip on its source skeleton's bones (see
     :func:`simenv.plausibility.kinematic.bone_length`).
 
+    Reads the clip's own joints, not the canonical planes: a source bone may
+    join joints that are no canonical keypoint (SMPL's collars, CMU's
+    ``LHipJoint``).
+
     Args:
-        p: (3, J, T) planes. parent, child: (K,) keypoints of each bone.
+        clip: (T, S, 3) float32 source-skeleton joints, metres. parent,
+            child: (K,) source joints of each bone.
         tol: (K,) relative tolerance per bone. min_length: metres, bones
             with a shorter median are skipped. q: percentile of the value
             as a fraction (0.95).
@@ -533,7 +539,7 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
     Returns:
         The value, and whether a bone was checked.
     """
-    t_count = p.shape[2]
+    t_count = clip.shape[0]
     length = np.empty(t_count)
     buf = np.empty(t_count)
     tmp = np.empty(t_count)
@@ -547,12 +553,11 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
     dev_group = np.zeros((g_count, t_count))
     checked = 0
     for k in range(parent.shape[0]):
-        xp, yp, zp = p[0, parent[k]], p[1, parent[k]], p[2, parent[k]]
-        xc, yc, zc = p[0, child[k]], p[1, child[k]], p[2, child[k]]
+        a, c = parent[k], child[k]
         for t in range(t_count):
-            dx = np.float64(xc[t]) - np.float64(xp[t])
-            dy = np.float64(yc[t]) - np.float64(yp[t])
-            dz = np.float64(zc[t]) - np.float64(zp[t])
+            dx = np.float64(clip[t, c, 0]) - np.float64(clip[t, a, 0])
+            dy = np.float64(clip[t, c, 1]) - np.float64(clip[t, a, 1])
+            dz = np.float64(clip[t, c, 2]) - np.float64(clip[t, a, 2])
             length[t] = np.sqrt((dx * dx + dy * dy) + dz * dz)
         buf[:] = length
         m = median(buf, t_count, tmp)
@@ -575,6 +580,8 @@ def bone_length(p: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np.nd
     details[1] = dev_max.max()
     details[2] = checked
     return percentile(buf, t_count, q, tmp), checked > 0
+
+
 # -- jitter --------------------------------------------------------------------
 
 

@@ -1,7 +1,8 @@
 """Joint-level kinematic plausibility metrics: bone length, jitter, velocity.
 
-All metrics work on the canonical keypoints (:meth:`Motion.to_canonical`) in
-metres and seconds, world Z-up, are vectorised over frames and keypoints, and
+All metrics work in metres and seconds, world Z-up: :func:`bone_length` on
+the source skeleton's own bones, the others on the canonical keypoints
+(:meth:`Motion.to_canonical`). They are vectorised over frames and joints, and
 return a :class:`~simenv.plausibility.timeline.MetricResult` with one timeline
 value per frame.
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from simenv.core.errors import MotionError
 from simenv.core.motion import Motion, resample_weights
-from simenv.core.skeletons import CANONICAL_TREE
+from simenv.core.skeletons import CANONICAL_TREE, Skeleton
 from simenv.plausibility import kernels
 from simenv.plausibility.clips import ClipBatch, MetricSpec, norm3, score_clip
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
@@ -63,14 +64,87 @@ def _limited(name: str, reason: str, num_frames: int, unit: str, threshold: floa
 # -- bone length ---------------------------------------------------------------
 
 
+def measured_bones(skeleton: Skeleton) -> list[tuple[int, int]]:
+    """The source bones :func:`bone_length` measures: every parent-child pair
+    of ``skeleton.parents`` (:attr:`Skeleton.bones`, in joint order) except
+    those of an *extremity fan*.
+
+    An extremity fan is two or more end joints (leaves of the tree) on one
+    parent: a hand's tip and thumb (Kinect v2 ``HandTipLeft`` and
+    ``ThumbLeft``, Azure Kinect ``HANDTIP_LEFT`` and ``THUMB_LEFT``), eyes
+    and ears on a head (Poser ``leftEye`` and ``rightEye``, Azure ``EYE_LEFT``,
+    ``EAR_LEFT``, ...). A depth camera estimates such points each on its own
+    a few centimetres from their parent, so their relative deviation is
+    sensor noise; marker capture and body models keep them rigid, so leaving
+    them out costs no check of the limbs. A lone end joint (a toe, the head,
+    CMU ASF ``lthumb``, the wrist of SMPL's 22 joints) is measured. Only the
+    tree decides, never the canonical map. Bones whose clip median is shorter than
+    ``bone_min_length_m`` (a converter's collapsed bones) are skipped when
+    scoring.
+    """
+    parents = skeleton.parents
+    children: list[list[int]] = [[] for _ in parents]
+    for j, p in enumerate(parents):
+        if p >= 0:
+            children[p].append(j)
+    fan = [sum(not children[c] for c in kids) > 1 for kids in children]
+    return [(p, j) for j, p in enumerate(parents)
+            if p >= 0 and not (fan[p] and not children[j])]
+
+
+def bone_names(skeleton: Skeleton) -> list[str]:
+    """Names of :func:`measured_bones`, ``"parent->child"`` in the source's
+    own joint names (``"left_collar->left_shoulder"``, ``"LeftArm->LeftForeArm"``)."""
+    names = skeleton.joint_names
+    return [f"{names[p]}->{names[c]}" for p, c in measured_bones(skeleton)]
+
+
 def bone_lengths(motion: Motion) -> tuple[list[str], np.ndarray]:
-    """Per-frame lengths of the canonical bones.
+    """Per-frame lengths of the source bones :func:`bone_length` measures.
 
     Returns:
-        (bone names, lengths) where each bone is named by its child keypoint
-        (``"left_knee"`` is the thigh, hip to knee) and ``lengths`` is
-        (T, B) float64 metres.
+        (bone names as :func:`bone_names`, lengths (T, B) float64 metres).
     """
+    bones = measured_bones(motion.skeleton)
+    names = bone_names(motion.skeleton)
+    if not bones:
+        return names, np.zeros((motion.num_frames, 0))
+    parent, child = np.array(bones).T
+    pos = motion.positions.astype(np.float64)
+    return names, norm3(pos[:, child] - pos[:, parent])
+
+
+def bone_deviations(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
+                    ) -> list[dict[str, float | str | bool]]:
+    """Per-bone breakdown of :func:`bone_length`: which source bone moves.
+
+    Returns:
+        One dict per bone of :func:`measured_bones`, in joint order: ``bone``
+        (its name), ``median_m`` (reference length: median over the clip,
+        metres), ``tolerance`` (relative), ``max_rel_deviation`` (largest
+        ``|L(t) / median - 1|``), ``p95_tolerances`` (95th percentile over
+        frames of the deviation in tolerances: the bone's own share of the
+        metric's value) and ``checked`` (False for a bone shorter than
+        ``bone_min_length_m``, whose deviations are then 0).
+    """
+    names, lengths = bone_lengths(motion)
+    _, _, tol = _bones(motion.skeleton, thresholds)
+    out: list[dict[str, float | str | bool]] = []
+    for k, name in enumerate(names):
+        med = float(np.median(lengths[:, k]))
+        checked = bool(med >= thresholds.bone_min_length_m)
+        dev = np.abs(lengths[:, k] / med - 1.0) if checked else np.zeros(len(lengths))
+        out.append({"bone": name, "median_m": med, "tolerance": float(tol[k]),
+                    "max_rel_deviation": float(dev.max(initial=0.0)),
+                    "p95_tolerances": float(np.percentile(dev / tol[k], 95)),
+                    "checked": checked})
+    return out
+
+
+def _canonical_bone_lengths(motion: Motion) -> tuple[list[str], np.ndarray]:
+    """Per-frame lengths (T, B) float64 metres of the canonical keypoint
+    pairs, named by child keypoint (``"left_knee"`` is hip to knee): the
+    skeleton-independent bones :func:`bone_length_error` compares."""
     canon, reason = canonical_or_reason(motion)
     if canon is None:
         raise MotionError(reason or "no canonical keypoints", source=motion.metadata.get("source"))
@@ -84,29 +158,46 @@ def bone_lengths(motion: Motion) -> tuple[list[str], np.ndarray]:
 
 
 def reference_lengths(motion: Motion) -> dict[str, float]:
-    """Median length (metres) of each canonical bone over the clip, keyed by
-    child keypoint: a reference skeleton for :func:`bone_length_error`."""
-    names, lengths = bone_lengths(motion)
+    """Median length (metres) of each canonical keypoint pair over the clip,
+    keyed by child keypoint (``"left_knee"`` = thigh): a reference skeleton
+    for :func:`bone_length_error`, comparable across source skeletons.
+
+    Raises:
+        MotionError: the skeleton maps no canonical keypoint.
+    """
+    names, lengths = _canonical_bone_lengths(motion)
     return {n: float(v) for n, v in zip(names, np.median(lengths, axis=0), strict=True)}
 
 
 def bone_length(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
-    """Bone-length consistency over time.
+    """Bone-length consistency over time, on the source skeleton's own bones.
 
-    For each canonical bone b (parent keypoint to child keypoint) with median
-    length ``m_b`` over the clip, the relative deviation at frame t is
-    ``d_b(t) = |L_b(t) / m_b - 1|``, compared with the bone's tolerance
-    ``tol_b``: ``bone_length_rel_max`` (5 %), or ``bone_length_head_rel_max``
-    (15 %) for the neck-to-head pair, which spans the upper-neck joint in
-    mocap skeletons (CMU 02_04 nods its head by 6 %). Timeline:
-    ``max_b d_b(t) / tol_b`` (fraction of tolerance, violation above 1).
-    Value: the 95th percentile of the timeline over frames (robust to a
-    single bad frame, which :func:`velocity` catches); passes when at most 1.
-    Details: ``max`` (of the timeline), ``max_rel_deviation`` (largest
-    ``d_b``), ``bones_checked``. Bones shorter than ``bone_min_length_m`` are
-    skipped. The per-clip form of the seeds' bone-length consistency terms
-    (MA-GAN's bone-length loss, the reactive GAN's bone constraint); works on
-    one frame (the value is then 0).
+    The bones are the parent-child pairs of ``motion.skeleton.parents``
+    (:func:`measured_bones`): each is one rigid segment in every source that
+    keeps segments rigid (BVH and ASF/AMC forward kinematics, SMPL / AMASS
+    joints), so a rigid source scores 0 and any change of a bone's length is
+    the motion's. Canonical keypoint pairs are not measured: one may span a
+    joint the source moves (SMPL's collar between chest and shoulder, CMU's
+    upper neck between neck and head), whose length legitimately changes.
+    For each bone b with median length ``m_b`` over the clip (its reference
+    length) the relative deviation at frame t is ``d_b(t) = |L_b(t) / m_b -
+    1|``, compared with the bone's tolerance ``tol_b``:
+    ``bone_length_rel_max`` (5 %), or ``bone_length_head_rel_max`` (15 %)
+    for a bone that ends at the joint the skeleton maps to canonical
+    ``head`` (a head-centre estimate on depth cameras; the tolerance is the
+    only use of the canonical map). Timeline: ``max_b d_b(t) / tol_b``
+    (fraction of tolerance, violation above 1: the worst bone). Value: the
+    95th percentile of the timeline over frames (robust to a single bad
+    frame, which :func:`velocity` catches); passes when at most 1. Details:
+    ``max`` (of the timeline), ``max_rel_deviation`` (largest ``d_b``),
+    ``bones_checked``; :func:`bone_deviations` names the bone behind them.
+    Bones with a median shorter than ``bone_min_length_m`` are skipped. Depth
+    cameras estimate every joint independently, so their bones are not rigid:
+    judge them with their sensor's profile
+    (:data:`~simenv.plausibility.thresholds.SOURCE_THRESHOLDS`) or reference.
+    The per-clip form of the seeds' bone-length consistency terms (MA-GAN's
+    bone-length loss, the reactive GAN's bone constraint); works on one frame
+    (the value is then 0).
     """
     return score_clip(motion, bone_length_spec, thresholds)
 
@@ -114,25 +205,32 @@ def bone_length(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> 
 def bone_length_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS
                      ) -> MetricSpec:
     """:func:`bone_length` as :func:`~simenv.plausibility.clips.score` runs it."""
-    reason = "needs two canonical keypoints joined by a bone of non-zero length"
+    reason = "needs two joints joined by a bone (skeleton.parents) of non-zero length"
     args = None
-    if batch.skeleton is not None and batch.skeleton.bones:
-        parent, child, tol = _bones(batch.names, tuple(batch.skeleton.bones), thresholds)
-        args = (parent, child, tol, float(thresholds.bone_min_length_m), 95 / 100)
-    elif batch.skeleton is None:
+    if batch.skeleton is None:
+        # No canonical layout: the batch holds no positions; each clip says why.
         reason = ""
+    else:
+        parent, child, tol = _bones(batch.motions[0].skeleton, thresholds)
+        if len(parent):
+            args = (parent, child, tol, float(thresholds.bone_min_length_m), 95 / 100)
     return MetricSpec(kernels.BONE, "bone_length", "fraction of tolerance", 1.0, args,
                       ("max", "max_rel_deviation", "bones_checked"), reason=reason)
 
 
 @lru_cache(maxsize=64)
-def _bones(names: tuple[str, ...], bones: tuple[tuple[int, int], ...], thresholds: Thresholds
+def _bones(skeleton: Skeleton, thresholds: Thresholds
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(K,) parent and child keypoints and relative tolerance of each bone of
-    a layout, computed once per layout and thresholds."""
-    parent, child = (np.ascontiguousarray(a) for a in np.array(bones, dtype=np.int64).T)
-    tol = np.array([thresholds.bone_length_head_rel_max if names[c] == "head"
-                    else thresholds.bone_length_rel_max for c in child], dtype=np.float64)
+    """(K,) int64 parent and child source joints and float64 relative
+    tolerance of each of :func:`measured_bones`, once per skeleton and
+    thresholds (shared: never modified)."""
+    bones = measured_bones(skeleton)
+    parent = np.array([p for p, _ in bones], dtype=np.int64)
+    child = np.array([c for _, c in bones], dtype=np.int64)
+    head = skeleton.canonical.get("head")
+    names = skeleton.joint_names
+    tol = np.array([thresholds.bone_length_head_rel_max if head in (names[p], names[c])
+                    else thresholds.bone_length_rel_max for p, c in bones], dtype=np.float64)
     return parent, child, tol
 
 
@@ -178,7 +276,7 @@ def bone_length_error(
     canon, reason = canonical_or_reason(motion)
     if canon is None:
         return _limited(name, reason or "", motion.num_frames, unit, thr)
-    names, lengths = bone_lengths(canon)
+    names, lengths = _canonical_bone_lengths(canon)
     common = [i for i, n in enumerate(names) if n in ref]
     if not common:
         return _limited(
