@@ -382,3 +382,20 @@ def test_restored_handshake_hands_meet() -> None:
         assert len(person.metadata["repairs"]) == 3
     assert len(pair.metadata["repairs"]) == 6
     assert "repairs" not in simenv.load(folder).metadata
+
+
+def test_z_up_file_detected_from_its_rest_pose() -> None:
+    """A real Z-up BVH (tests/data/conventions/other, see its SOURCES.md) stands upright
+    without up='z': the head above the ankles in every frame, the detection noted; forcing
+    up='y' lays the same person down."""
+    path = Path(__file__).parent / "data" / "conventions" / "other" / "fair1_dab_zup.bvh"
+    if not path.exists():
+        pytest.skip(f"{path} absent")
+    motion = bvh.read(path)
+    assert any(q.startswith("up axis Z") for q in motion.metadata["quirks"])
+    head = motion.joint(motion.skeleton.canonical["head"])[:, 2]
+    ankles = np.maximum(motion.joint(motion.skeleton.canonical["left_ankle"])[:, 2],
+                        motion.joint(motion.skeleton.canonical["right_ankle"])[:, 2])
+    assert (head - ankles > 0.5 * motion.height()).all()
+    lying = bvh.read(path, up="y")
+    assert lying.height() < 0.6 * motion.height()

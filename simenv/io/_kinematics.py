@@ -222,12 +222,17 @@ def detect_units(
 
 
 def rest_extent(parents: Sequence[int], offsets: np.ndarray) -> float:
-    """Largest side of the bounding box of the rest pose (all rotations
-    identity), in the units of ``offsets``, over the body only: the joints at
-    and below the first joint with several children (the pelvis). The offsets
-    on the way down to it place the body in the room (some exporters write the
-    actor's start position, metres away, into a root or hip OFFSET), so they
-    say nothing of its size."""
+    """Largest side of :func:`rest_extents`, in the units of ``offsets``."""
+    return float(rest_extents(parents, offsets).max())
+
+
+def rest_extents(parents: Sequence[int], offsets: np.ndarray) -> np.ndarray:
+    """(3,) sides of the bounding box of the rest pose (all rotations
+    identity), in the units and axes of ``offsets``, over the body only: the
+    joints at and below the first joint with several children (the pelvis).
+    The offsets on the way down to it place the body in the room (some
+    exporters write the actor's start position, metres away, into a root or
+    hip OFFSET), so they say nothing of its size."""
     rest = np.zeros((1, len(parents), 3, 3))
     rest[:] = np.eye(3)
     pos, _ = forward_kinematics(parents, offsets, rest)
@@ -245,7 +250,7 @@ def rest_extent(parents: Sequence[int], offsets: np.ndarray) -> float:
             j = stack.pop()
             body.append(j)
             stack.extend(children.get(j, []))
-    return float(np.ptp(pos[0][body], axis=0).max())
+    return np.ptp(pos[0][body], axis=0)
 
 
 def tpose_jump(positions: np.ndarray) -> tuple[float, float, float] | None:

@@ -65,6 +65,7 @@ from simenv.io._kinematics import (
     is_tpose_frame0,
     matrices_to_quaternions,
     rest_extent,
+    rest_extents,
     to_z_up_metres,
     units_metadata,
 )
@@ -420,6 +421,18 @@ def canonical_map(names: list[str]) -> dict[str, str]:
     return cmu_canonical_map(names)
 
 
+def _detect_up(bvh: BvhFile, quirks: list[str]) -> str:
+    """The file's up axis: ``"y"`` (the BVH standard) unless the rest pose stands along Z
+    (its Z side over 1.5 times its Y side; a T-pose's depth is a fraction of its height),
+    as Z-up exporters (Blender, 3ds Max, some capture suites) write it."""
+    sides = rest_extents(bvh.parents, bvh.offsets)
+    if sides[2] > 1.5 * sides[1]:
+        quirks.append(f"up axis Z: the rest pose stands along Z ({sides[2]:.3g} file units) "
+                      f"and is {sides[1]:.3g} deep along Y (read with up='y' to override)")
+        return "z"
+    return "y"
+
+
 def _joint_map(bvh: BvhFile, pos: np.ndarray, joint_map: JointMapSource | None, path: Path
                ) -> tuple[dict[str, str], JointMapping | None]:
     """The canonical map of every joint of the file (End Sites included, as
@@ -589,7 +602,7 @@ def read(
     *,
     units: str | None = None,
     scale: float | None = None,
-    up: str = "y",
+    up: str | None = None,
     drop_tpose: bool = True,
     fps: float | None = None,
     end_sites: bool | None = None,
@@ -604,7 +617,9 @@ def read(
         units: force a length unit (``"m"``, ``"cm"``, ``"mm"``, ``"inch"``,
             ``"cmu"``) instead of detecting it from the skeleton size.
         scale: force metres per file unit (overrides ``units``).
-        up: up axis of the file, ``"y"`` (BVH standard) or ``"z"``.
+        up: up axis of the file, ``"y"`` (BVH standard) or ``"z"``; None
+            detects it from the rest pose (Y unless the body stands along Z,
+            noted in ``metadata["quirks"]``).
         drop_tpose: drop a detected converter T-pose at frame 0 (noted in
             ``metadata["quirks"]``); when False it is kept and still noted.
         fps: override the header frame rate (noted as a quirk).
@@ -643,8 +658,8 @@ def read(
         then holds the restored offsets).
     """
     path = Path(path)
-    if up.lower() not in ("y", "z"):
-        raise FormatError(f"up must be 'y' or 'z'; got {up!r}", source=path)
+    if up is not None and up.lower() not in ("y", "z"):
+        raise FormatError(f"up must be 'y', 'z' or None (detect); got {up!r}", source=path)
     bvh = parse(path)
     with np.errstate(all="ignore"):
         return _to_motion(
@@ -652,7 +667,7 @@ def read(
             path,
             units=units,
             scale=scale,
-            up=up.lower(),
+            up=None if up is None else up.lower(),
             drop_tpose=drop_tpose,
             fps=fps,
             end_sites=end_sites,
@@ -668,7 +683,7 @@ def _to_motion(
     *,
     units: str | None,
     scale: float | None,
-    up: str,
+    up: str | None,
     drop_tpose: bool,
     fps: float | None,
     end_sites: bool | None,
@@ -678,6 +693,8 @@ def _to_motion(
 ) -> Motion:
     quirks: list[str] = []
     height = rest_extent(bvh.parents, bvh.offsets)
+    if up is None:
+        up = _detect_up(bvh, quirks)
     unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units, scale=scale)
     quirks += unit_quirks
 
