@@ -203,3 +203,36 @@ def test_import_simenv_picks_a_headless_backend(tmp_path: Path):
         env=env, cwd=tmp_path, capture_output=True, text=True,
     )
     assert run.stdout.strip() == "None"  # with a display MuJoCo's own default is kept
+
+
+def test_choosing_the_encoders_prints_nothing(tmp_path: Path):
+    """Rendering a real clip to MP4 + WebM writes nothing to the process's stderr (file
+    descriptor 2, where FFmpeg and OpenCV print while OpenCV tries encoders), and the
+    files play back with every frame."""
+    code = (
+        "import simenv\n"
+        "from simenv.assets import WALK, asset_path\n"
+        "from simenv.body.render import render_result\n"
+        "from simenv.body.retarget import retarget\n"
+        "clip = simenv.load(asset_path(WALK)).slice(0, 60)\n"
+        "render_result(retarget(clip), 'walk.mp4', stride=20, width=160, height=120, web=True)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                         text=True, env={**os.environ, "MUJOCO_GL": "osmesa"})
+    assert run.returncode == 0, run.stderr
+    for noise in ("h264_v4l2m2m", "Could not find a valid device", "can't configure encoder",
+                  "is not supported", "FFMPEG", "[ERROR"):
+        assert noise not in run.stderr, run.stderr
+    assert run.stderr.strip() == ""
+    for name in ("walk.mp4", "walk.webm"):
+        if name == "walk.webm" and not (tmp_path / name).exists():
+            continue  # an H.264 MP4 needs no WebM copy
+        cap = cv2.VideoCapture(str(tmp_path / name))
+        try:
+            frames = []
+            while (frame := cap.read()[1]) is not None:
+                frames.append(frame)
+        finally:
+            cap.release()
+        assert len(frames) == 3 and frames[0].shape == (120, 160, 3), name
+        assert frames[0].std() > 5, name

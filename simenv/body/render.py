@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
+import tempfile
 from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -355,11 +358,46 @@ def render_frames(
         renderer.close()
 
 
+@contextmanager
+def _native_stderr_captured() -> Iterator[list[str]]:
+    """Capture what native code writes to file descriptor 2 inside the block, and log it at
+    DEBUG level instead; the list yielded holds those lines once the block ends.
+
+    OpenCV opens an encoder by trying it: FFmpeg reports each encoder it cannot open
+    (``[h264_v4l2m2m @ ...] Could not find a valid device``, ``can't configure encoder``
+    when the OpenCV wheel has no H.264) and OpenCV reports the WebM container's tags
+    (``tag 'VP80' is not supported``, yet it writes VP8), both straight to the C stderr,
+    which neither OpenCV's log level nor Python's ``sys.stderr`` governs. Without a
+    descriptor 2 (or where it cannot be duplicated) nothing is captured.
+    """
+    said: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no stderr to capture
+        yield said
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            said += [line for line in sink.read().decode(errors="replace").splitlines()
+                     if line.strip()]
+            for line in said:
+                log.debug("video encoder: %s", line)
+
+
 class VideoFile:
-    """An MP4 file written one RGB frame at a time, so that no frame is kept in memory.
+    """A video file written one RGB frame at a time, so that no frame is kept in memory.
 
     The first frame fixes the size; the file opens with the first of ``codecs`` this OpenCV
-    build can encode. Use it as a context manager (or call :meth:`close`).
+    build can encode, chosen without printing: what FFmpeg says while OpenCV tries the
+    encoders is logged at DEBUG level (:func:`_native_stderr_captured`), and is part of the
+    error when none opens. Use it as a context manager (or call :meth:`close`).
 
     Args:
         path: output file; its folder is created. Use the ``.mp4`` suffix.
@@ -417,17 +455,19 @@ class VideoFile:
         # A missing encoder is expected (pip wheels have no H.264): OpenCV need not log it.
         cv_log.setLogLevel(cv_log.LOG_LEVEL_SILENT)
         try:
-            for codec in self.codecs:
-                writer = cv2.VideoWriter(
-                    str(self.path), cv2.VideoWriter_fourcc(*codec), self.fps, size
-                )
-                if writer.isOpened():
-                    return writer, codec
-                writer.release()
+            with _native_stderr_captured() as said:
+                for codec in self.codecs:
+                    writer = cv2.VideoWriter(
+                        str(self.path), cv2.VideoWriter_fourcc(*codec), self.fps, size
+                    )
+                    if writer.isOpened():
+                        return writer, codec
+                    writer.release()
         finally:
             cv_log.setLogLevel(level)
         raise SimenvError(
-            f"OpenCV cannot open the file for MP4 writing with any of the codecs {self.codecs}",
+            f"OpenCV cannot open the file for writing with any of the codecs {self.codecs}"
+            + (f"; FFmpeg said: {' / '.join(said)}" if said else ""),
             source=self.path,
         )
 

@@ -504,16 +504,14 @@ def _video_section(report: PlausibilityReport, out: Path, max_frames: int) -> st
 def _write_webm(frames: Sequence[np.ndarray], path: Path, fps: float) -> Path | None:
     """VP8 WebM of RGB frames (browsers play it, unlike OpenCV's ``mp4v``); None when
     this OpenCV build cannot encode VP8."""
-    import cv2  # only when a video is rendered
+    # The video writer of every render: it opens the encoder without printing.
+    from simenv.body.render import WEBM_CODECS, VideoFile
 
-    h, w = frames[0].shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"VP80"), fps, (w, h))
-    if not writer.isOpened():
-        log.warning("OpenCV cannot write VP8 WebM; the page links the MP4 only")
-        return None
     try:
-        for frame in frames:
-            writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
-    finally:
-        writer.release()
+        with VideoFile(path, fps, WEBM_CODECS) as video:
+            for frame in frames:
+                video.write(frame)
+    except SimenvError as exc:
+        log.warning("no VP8 WebM (%s); the page links the MP4 only", exc)
+        return None
     return path
