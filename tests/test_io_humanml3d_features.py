@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import simenv
+from simenv.core import skeletons
 from simenv.core.errors import FormatError, MotionError, UnitsError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import CANONICAL_KEYPOINTS, SMPL22_JOINTS, SMPL22_PARENTS
@@ -72,8 +73,8 @@ def test_kit21_skeleton_follows_kit_chain() -> None:
     for chain in KIT_CHAIN:
         for prev, j in zip(chain, chain[1:], strict=False):
             parents[j] = prev
-    skel = hf.kit21_skeleton()
-    assert skel.parents == hf.KIT21_PARENTS == tuple(parents) and skel.num_joints == 21
+    skel = skeletons.kit21_skeleton()
+    assert skel.parents == skeletons.KIT21_PARENTS == tuple(parents) and skel.num_joints == 21
     # Everything retargeting uses except the hand ends, which KIT-ML lacks.
     assert set(skel.canonical) == set(CANONICAL_KEYPOINTS) - {"left_hand", "right_hand"}
 
@@ -214,7 +215,7 @@ def kit_rows_from_humanml3d(feats: np.ndarray) -> tuple[np.ndarray, dict[str, st
     kit[:, 0] = -feats[:, 0]
     kit[:, 1] = -feats[:, 1] / unit
     kit[:, 2:4] = feats[:, 2:4] / unit
-    for j, name in enumerate(hf.KIT21_JOINTS[1:]):
+    for j, name in enumerate(skeletons.KIT21_JOINTS[1:]):
         kit[:, 4 + 3 * j: 7 + 3 * j] = ric[:, SMPL22_JOINTS.index(smpl[name]) - 1]
     return kit, smpl
 

@@ -220,7 +220,7 @@ def test_unnamed_skeleton_mapped_from_hierarchy_and_pose(tmp_path: Path, clip: s
     for key in ("pelvis", "left_hip", "right_hip", "left_knee", "right_knee", "left_ankle",
                 "right_ankle", "left_toe", "right_toe", "chest", "left_shoulder",
                 "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
-                "head"):
+                "spine", "neck", "head"):
         assert np.allclose(got[key], want[key], atol=1e-5), key
 
 

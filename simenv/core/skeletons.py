@@ -485,6 +485,36 @@ SMPL22_PARENTS: tuple[int, ...] = (
 )
 
 
+#: KIT-ML's 21 MMM joints, in the order of its files (root, pelvis, thorax, lower
+#: neck, upper neck; left then right shoulder, elbow, wrist; left then right hip,
+#: knee, ankle, mid-foot, toe).
+KIT21_JOINTS: tuple[str, ...] = (
+    "root", "BP", "BT", "BLN", "BUN", "LS", "LE", "LW", "RS", "RE", "RW",
+    "LH", "LK", "LA", "LMrot", "LF", "RH", "RK", "RA", "RMrot", "RF",
+)
+#: Parents from HumanML3D's ``kit_kinematic_chain`` (parent = previous in chain):
+#: [[0, 11, 12, 13, 14, 15], [0, 16, 17, 18, 19, 20], [0, 1, 2, 3, 4], [3, 5, 6, 7],
+#: [3, 8, 9, 10]].
+KIT21_PARENTS: tuple[int, ...] = (
+    -1, 0, 1, 2, 3, 3, 5, 6, 3, 8, 9, 0, 11, 12, 13, 14, 0, 16, 17, 18, 19,
+)
+
+
+@cache
+def kit21_skeleton() -> Skeleton:
+    """KIT-ML's 21-joint MMM skeleton. Canonical map: ``BP`` (lumbar) is the
+    spine, ``BT`` (thorax) the chest, ``BLN`` the neck base, ``BUN`` (upper
+    neck, the skull base) the head, ``LF``/``RF`` (the foot's front joint) the
+    toes; KIT has no hand ends."""
+    canonical = {"pelvis": "root", "spine": "BP", "chest": "BT", "neck": "BLN", "head": "BUN"}
+    for side, s in (("left", "L"), ("right", "R")):
+        canonical |= {f"{side}_shoulder": f"{s}S", f"{side}_elbow": f"{s}E",
+                      f"{side}_wrist": f"{s}W", f"{side}_hip": f"{s}H",
+                      f"{side}_knee": f"{s}K", f"{side}_ankle": f"{s}A",
+                      f"{side}_toe": f"{s}F"}
+    return Skeleton("kit21", KIT21_JOINTS, KIT21_PARENTS, canonical)
+
+
 def _sided(mapping: dict[str, str], left: str, right: str) -> dict[str, str]:
     """Expand ``{"shoulder": "Shoulder{s}"}``-style entries for both sides."""
     out: dict[str, str] = {}
@@ -591,6 +621,7 @@ def _registry() -> dict[str, Callable[[], Skeleton]]:
         "gesture9": gesture9_skeleton,
         "cmu31": cmu31_skeleton,
         "smpl22": smpl22_skeleton,
+        "kit21": kit21_skeleton,
     }
     return entries
 
@@ -605,6 +636,7 @@ SKELETON_ALIASES: dict[str, str] = {
     "h36m": "h36m17", "h36m_17": "h36m17", "gesture": "gesture9", "gesture_9": "gesture9",
     "cmu": "cmu31", "cmu_31": "cmu31",
     "smpl": "smpl22", "smpl_22": "smpl22", "humanml3d": "smpl22", "t2m": "smpl22",
+    "kit": "kit21", "kit_ml": "kit21", "kitml": "kit21", "mmm": "kit21",
 }
 
 

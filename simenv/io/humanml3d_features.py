@@ -82,7 +82,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -90,7 +89,7 @@ import numpy as np
 
 from simenv.core.errors import FormatError, MotionError, UnitsError
 from simenv.core.motion import MAX_PERSON_EXTENT_M, MIN_PERSON_EXTENT_M, Motion
-from simenv.core.skeletons import Skeleton, smpl22_skeleton
+from simenv.core.skeletons import Skeleton, kit21_skeleton, smpl22_skeleton
 from simenv.io.humanml3d import (
     UNIT_SCALE,
     Y_UP_TO_Z_UP,
@@ -105,36 +104,6 @@ EXTENSIONS = (".npy",)
 #: KIT-ML length unit in metres (TEMOS's ``mmm_to_smplh_scaling_factor``, also in MLD and
 #: MotionGPT).
 KIT_METRES_PER_UNIT = 0.75 / 480
-
-#: KIT-ML's 21 MMM joints, in the order of its files (root, pelvis, thorax, lower
-#: neck, upper neck; left then right shoulder, elbow, wrist; left then right hip,
-#: knee, ankle, mid-foot, toe).
-KIT21_JOINTS: tuple[str, ...] = (
-    "root", "BP", "BT", "BLN", "BUN", "LS", "LE", "LW", "RS", "RE", "RW",
-    "LH", "LK", "LA", "LMrot", "LF", "RH", "RK", "RA", "RMrot", "RF",
-)
-#: Parents from HumanML3D's ``kit_kinematic_chain`` (parent = previous in chain):
-#: [[0, 11, 12, 13, 14, 15], [0, 16, 17, 18, 19, 20], [0, 1, 2, 3, 4], [3, 5, 6, 7],
-#: [3, 8, 9, 10]].
-KIT21_PARENTS: tuple[int, ...] = (
-    -1, 0, 1, 2, 3, 3, 5, 6, 3, 8, 9, 0, 11, 12, 13, 14, 0, 16, 17, 18, 19,
-)
-
-
-@cache
-def kit21_skeleton() -> Skeleton:
-    """KIT-ML's 21-joint MMM skeleton. Canonical map: ``BP`` (lumbar) is the
-    spine, ``BT`` (thorax) the chest, ``BLN`` the neck base, ``BUN`` (upper
-    neck, the skull base) the head, ``LF``/``RF`` (the foot's front joint) the
-    toes; KIT has no hand ends."""
-    canonical = {"pelvis": "root", "spine": "BP", "chest": "BT", "neck": "BLN", "head": "BUN"}
-    for side, s in (("left", "L"), ("right", "R")):
-        canonical |= {f"{side}_shoulder": f"{s}S", f"{side}_elbow": f"{s}E",
-                      f"{side}_wrist": f"{s}W", f"{side}_hip": f"{s}H",
-                      f"{side}_knee": f"{s}K", f"{side}_ankle": f"{s}A",
-                      f"{side}_toe": f"{s}F"}
-    return Skeleton("kit21", KIT21_JOINTS, KIT21_PARENTS, canonical)
-
 
 def feature_width(n_joints: int) -> int:
     """Row width of the representation for ``n_joints`` joints."""
