@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -11,9 +12,13 @@ import pytest
 from conftest import SHARED_DATA
 
 import simenv
+from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.core.errors import FormatError, MotionError, UnknownFormatError
 from simenv.core.motion import Interaction, Motion
 from simenv.io import loader
+from simenv.io.humanml3d import to_smpl22, write_humanml3d, write_mdm_results
+from simenv.io.intergen import write_intergen
+from simenv.io.npz import write_npz
 
 DOCS = {".md", ".tsv", ".csv", ".md5"}
 #: Companion files of the gesture sets (class names, label lists), not motion.
@@ -177,3 +182,121 @@ def test_nuisi_pair_uses_its_format_pairing(shared_data: Path, tmp_path: Path) -
     (tmp_path / "Other_p2.txt").write_bytes((folder / "Rocket_p2.txt").read_bytes())
     with pytest.raises(MotionError, match="not the partner"):
         simenv.load([tmp_path / "Rocket_p1.txt", tmp_path / "Other_p2.txt"])
+
+
+# -- round trips: what simenv writes, simenv reads back, from the file and from its folder ----
+
+Clip = Motion | Interaction
+
+
+@pytest.fixture(scope="module")
+def walk() -> Motion:
+    """The bundled real CMU 02_01 walk, as read (120 fps, CMU skeleton)."""
+    return simenv.load(asset_path(WALK))
+
+
+@pytest.fixture(scope="module")
+def handshake() -> Interaction:
+    """The bundled real CMU 18_01 + 19_01 handshake pair, as read (120 fps)."""
+    return simenv.load(asset_path(HANDSHAKE_PAIR))
+
+
+def _smpl(motion: Motion, fps: float) -> Motion:
+    """What the SMPL-22 writers store: the motion on SMPL-22 at their frame rate."""
+    return to_smpl22(motion.resample(fps))
+
+
+def _pair(pair: Interaction, fps: float) -> Interaction:
+    return Interaction(*(_smpl(m, fps) for m in pair.people), name=pair.name)
+
+
+#: What a writer wrote into a folder: each file with the clips it holds, and the clips of
+#: the folder in the order simenv.load gives them (file names, sorted).
+Written = tuple[dict[Path, list[Clip]], list[Clip]]
+
+
+def _write_npz(folder: Path, walk: Motion, handshake: Interaction) -> Written:
+    files = {write_npz(walk, folder / "walk.npz"): [walk],
+             write_npz(handshake, folder / "pair.npz"): [handshake]}
+    return files, [handshake, walk]
+
+
+def _write_humanml3d(folder: Path, walk: Motion, handshake: Interaction) -> Written:
+    clip = _smpl(walk, 20.0)
+    return {write_humanml3d(walk, folder / "walk.npy", resample=True): [clip]}, [clip]
+
+
+def _write_mdm(folder: Path, walk: Motion, handshake: Interaction) -> Written:
+    clips = [_smpl(walk, 20.0), _smpl(walk, 20.0).slice(10, 40)]
+    return {write_mdm_results(clips, folder / "results.npy"): clips}, clips
+
+
+def _write_intergen(folder: Path, walk: Motion, handshake: Interaction) -> Written:
+    pair = _pair(handshake, 30.0)
+    # Each person's file reads with its partner, as the pair.
+    return dict.fromkeys(write_intergen(handshake, folder, resample=True), [pair]), [pair]
+
+
+def _write_intergen_two(folder: Path, walk: Motion, handshake: Interaction) -> Written:
+    first, second = handshake.slice(0, 120), handshake.slice(120, 303)
+    pairs = [_pair(first, 30.0), _pair(second, 30.0)]
+    files = {**dict.fromkeys(write_intergen(first, folder, "a", resample=True), pairs[:1]),
+             **dict.fromkeys(write_intergen(second, folder, "b", resample=True), pairs[1:])}
+    return files, pairs
+
+
+WRITERS: dict[str, Callable[[Path, Motion, Interaction], Written]] = {
+    "npz": _write_npz,
+    "humanml3d": _write_humanml3d,
+    "mdm_results": _write_mdm,
+    "intergen": _write_intergen,
+    "intergen_two_clips": _write_intergen_two,
+}
+
+
+def _clips(loaded: object) -> list[Clip]:
+    return list(loaded) if isinstance(loaded, list) else [loaded]  # type: ignore[list-item]
+
+
+def _same(got: list[Clip], ref: list[Clip]) -> None:
+    """Same clips: kinds, people, frame rates, joints and positions (float32: 1e-5 m)."""
+    assert [type(c) for c in got] == [type(c) for c in ref]
+    for g_clip, r_clip in zip(got, ref, strict=True):
+        g_people = g_clip.people if isinstance(g_clip, Interaction) else (g_clip,)
+        r_people = r_clip.people if isinstance(r_clip, Interaction) else (r_clip,)
+        for g, r in zip(g_people, r_people, strict=True):
+            assert g.fps == r.fps and g.skeleton.joint_names == r.skeleton.joint_names
+            np.testing.assert_allclose(g.positions, r.positions, atol=1e-5)
+
+
+@pytest.mark.parametrize("writer", sorted(WRITERS))
+def test_what_simenv_writes_loads_back(writer: str, walk: Motion, handshake: Interaction,
+                                       tmp_path: Path) -> None:
+    folder = tmp_path / "written" / writer  # nested, as users name output folders
+    folder.mkdir(parents=True)  # write_intergen creates its folders; the others do not
+    files, clips = WRITERS[writer](folder, walk, handshake)
+    for path, held in files.items():
+        _same(_clips(simenv.load(path)), held)
+    # The folder: one recording loads as that clip (the InterGen pair as its Interaction,
+    # as a CMU pair folder does), anything else as the list of its clips.
+    loaded = simenv.load(folder)
+    assert isinstance(loaded, Interaction) if writer == "intergen" else isinstance(loaded, list)
+    _same(_clips(loaded), clips)
+
+
+def test_intergen_folder_with_loose_files_and_a_lone_person(handshake: Interaction, walk: Motion,
+                                                            tmp_path: Path) -> None:
+    pair = _pair(handshake, 30.0)
+    p1, p2 = write_intergen(pair, tmp_path / "ig", "0")
+    # Options reach the folder's reader; ones it does not take are named.
+    assert simenv.load(tmp_path / "ig", fps=60.0).fps == 60.0
+    with pytest.raises(TypeError, match="does not take drop_tpose"):
+        simenv.load(tmp_path / "ig", drop_tpose=False)
+    # InterGen subfolders and a loose file: every clip, in a list.
+    write_npz(walk, tmp_path / "ig" / "walk.npz")
+    _same(simenv.load(tmp_path / "ig"), [pair, walk])
+    # A clip written for one person only reads as that person, with a note.
+    shutil.copy(p2, p2.with_name("1.npy"))
+    lone = [c for c in simenv.load(tmp_path / "ig") if c.name == "1_person2"]
+    assert len(lone) == 1 and "not found" in lone[0].metadata["quirks"][-1]
+    _same(lone, [pair.reactor])

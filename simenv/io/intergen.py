@@ -23,6 +23,9 @@ exact inverse of InterGen's ``trans_matrix``, so raw InterHuman files and the
 262-wide representation land in the same frame. ``up=`` overrides the axis,
 ``fps=`` the 30 fps, ``units=`` the metres. Arrays are loaded without pickle.
 
+A folder holding ``person1/`` and ``person2/`` (what :func:`write_intergen` writes,
+InterHuman's ``motions_processed/``) loads as its clips: :func:`read_folder`.
+
 Persons: person1 is the Interaction's actor, person2 the reactor;
 ``roles_known`` is False (InterHuman annotates no roles). When an
 InterHuman ``annots/<id>.txt`` sits beside ``motions_processed``, its
@@ -183,6 +186,56 @@ def read(
     return m
 
 
+def _person_dirs(folder: Path) -> list[Path]:
+    """``folder``'s ``person1`` and ``person2`` subfolders (any case), in that order."""
+    found = {d.name.lower(): d for d in folder.iterdir() if d.is_dir()}
+    return [found[name] for name in PERSON_DIRS if name in found]
+
+
+def _person_files(folder: Path) -> dict[str, Path]:
+    """Clip id -> one person's file (person1's when both have it) of an InterGen folder."""
+    clips: dict[str, Path] = {}
+    for person in reversed(_person_dirs(folder)):  # person1 last: its file wins
+        for path in sorted(person.glob("*.npy")):
+            if sniff(path, b""):
+                clips[path.stem] = path
+    return dict(sorted(clips.items()))
+
+
+def sniff_folder(folder: Path) -> bool:
+    """A folder laid out as :func:`write_intergen` writes it and as InterHuman's
+    ``motions_processed/`` is: ``person1/`` and ``person2/`` subfolders holding
+    per-person ``.npy`` files."""
+    folder = Path(folder)
+    return len(_person_dirs(folder)) == 2 and bool(_person_files(folder))
+
+
+def read_folder(
+    folder: Path,
+    *,
+    fps: float | None = None,
+    units: Units = "m",
+    up: Up | None = None,
+) -> Interaction | Motion | list[Interaction | Motion]:
+    """Every clip of an InterGen folder (:func:`sniff_folder`), by file name: each file of
+    ``person1/`` with its namesake in ``person2/`` as an :class:`Interaction` (a file
+    without its partner as one :class:`Motion`, noted, as :func:`read` does).
+
+    Returns:
+        The one clip of a folder that holds one (what :func:`write_intergen` writes), else
+        the list of clips in file-name order. Options as in :func:`read_person`.
+
+    Raises:
+        FormatError: the folder holds no per-person file. Other errors as :func:`read`.
+    """
+    folder = Path(folder)
+    if not (folder.is_dir() and sniff_folder(folder)):
+        raise FormatError("holds no person1/ and person2/ folders of InterGen .npy files",
+                          source=folder)
+    clips = [read(path, fps=fps, units=units, up=up) for path in _person_files(folder).values()]
+    return clips[0] if len(clips) == 1 else clips
+
+
 def write_intergen(
     interaction: Interaction,
     folder: str | Path,
@@ -194,7 +247,8 @@ def write_intergen(
     (actor) and ``folder/person2/<name>.npy`` (reactor), each (T, 22, 3)
     float32, metres, Y up, 30 fps (``resample=True`` converts other rates).
     People on other skeletons are mapped by
-    :func:`simenv.io.humanml3d.to_smpl22`. Returns the two paths."""
+    :func:`simenv.io.humanml3d.to_smpl22`. Returns the two paths; ``simenv.load(folder)``
+    reads the pair back (with any other clips written there)."""
     folder = Path(folder)
     paths = []
     for person, m in zip(PERSON_DIRS, interaction.people, strict=True):

@@ -4,8 +4,10 @@ Readers live in :mod:`simenv.io` modules listed in :data:`READERS`. Each
 exposes ``sniff(path, head) -> bool`` (``head`` = the first
 :data:`HEAD_BYTES` bytes) and ``read(path, **kwargs)`` returning a
 :class:`Motion`, an :class:`Interaction` or a list of them; it may declare
-``EXTENSIONS``. Modules are imported lazily; one that does not exist (yet)
-is skipped.
+``EXTENSIONS``, and, for a format that lays a recording out in subfolders (InterGen's
+``person1/`` + ``person2/``), ``sniff_folder(folder) -> bool`` and
+``read_folder(folder, **kwargs)``, which read a folder they accept. Modules are
+imported lazily; one that does not exist (yet) is skipped.
 
 Detection order for a file: readers claiming the file's extension first,
 then the others; the first whose ``sniff`` accepts the head reads it. When
@@ -138,8 +140,12 @@ def detect(path: Path) -> tuple[str, ModuleType]:
     )
 
 
-def _read(path: Path, name: str, mod: ModuleType, kwargs: dict[str, Any]) -> Loaded:
-    params = inspect.signature(mod.read).parameters
+def _read(path: Path, name: str, mod: ModuleType, kwargs: dict[str, Any], *,
+          folder: bool = False) -> Loaded:
+    """``mod.read(path, **kwargs)`` (``mod.read_folder`` with ``folder``), naming the
+    options the reader does not take."""
+    read = mod.read_folder if folder else mod.read
+    params = inspect.signature(read).parameters
     if "joint_map" not in params:  # applied by load() to what the reader returns
         kwargs = {k: v for k, v in kwargs.items() if k != "joint_map"}
     takes_any = any(p.kind is p.VAR_KEYWORD for p in params.values())
@@ -150,7 +156,7 @@ def _read(path: Path, name: str, mod: ModuleType, kwargs: dict[str, Any]) -> Loa
             f"{path}: the {name} reader does not take {', '.join(unknown)}; it accepts "
             f"{', '.join(accepted) or 'no options'}"
         )
-    return mod.read(path, **kwargs)
+    return read(path, **kwargs)
 
 
 def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
@@ -158,8 +164,9 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
 
     Args:
         path: a motion file (format detected by extension and content); a
-            folder (two files of one CMU two-person trial -> Interaction,
-            otherwise every motion file in it -> list); or a sequence of two
+            folder (two files of one CMU two-person trial, or an InterGen
+            folder of one clip -> Interaction, otherwise every motion file in it
+            -> list); or a sequence of two
             files, one per person -> Interaction.
         **kwargs: passed to the reader (e.g. ``units=``, ``fps=``,
             ``drop_tpose=`` for BVH, ``asf=`` for AMC); ``joint_map=`` (a TOML
@@ -264,9 +271,20 @@ def _trial(path: Path) -> tuple[str, str] | None:
     return (m.group(1), m.group(2)) if m else None
 
 
+def _folder_readers(folder: Path) -> list[tuple[str, ModuleType]]:
+    """Readers whose format lays a recording out as a folder (``sniff_folder`` and
+    ``read_folder``, e.g. InterGen's ``person1/`` + ``person2/``) and accept ``folder``."""
+    return [(n, m) for n in READERS if (m := _module(n)) is not None
+            and hasattr(m, "sniff_folder") and m.sniff_folder(folder)]
+
+
 def _load_folder(folder: Path, kwargs: dict[str, Any]) -> Loaded:
     files = motion_files(folder)
-    if not files:
+    # Clips of formats laid out in subfolders; with loose files too, every clip in a list.
+    laid_out = [_read(folder, n, m, kwargs, folder=True) for n, m in _folder_readers(folder)]
+    if not files and len(laid_out) == 1:
+        return laid_out[0]
+    if not files and not laid_out:
         tried = ", ".join(available_readers())
         raise UnknownFormatError(
             f"folder holds no file any reader recognises (tried {tried})", source=folder
@@ -279,17 +297,18 @@ def _load_folder(folder: Path, kwargs: dict[str, Any]) -> Loaded:
         # CMU two-person trials pair consecutive subject numbers (18/19, 60/61, ...).
         and abs(int(trials[0][0]) - int(trials[1][0])) == 1  # type: ignore[index]
     )
-    if len(files) == 2:
+    if len(files) == 2 and not laid_out:
         paired = _format_pair(files[0][0], files[1][0], kwargs)
         if paired is not None:
             return paired
-    if is_pair:
+    if is_pair and not laid_out:
         a, b = (_load_single_person(p, kwargs) for p, _ in files)
         return pair(a, b, folder=folder)
+    loaded = laid_out + [_read(p, name, _module(name), kwargs)  # type: ignore[arg-type]
+                         for p, name in files]
     out: list[Motion | Interaction] = []
-    for p, name in files:
-        loaded = _read(p, name, _module(name), kwargs)  # type: ignore[arg-type]
-        out.extend(loaded if isinstance(loaded, list) else [loaded])
+    for clips in loaded:
+        out.extend(clips if isinstance(clips, list) else [clips])
     return out
 
 
