@@ -46,6 +46,29 @@ def _print_mapping(record: dict[str, Any]) -> None:
         print(f"      note: {note}")
 
 
+#: Shortest text (characters) several quirks must share for ``info`` to print it once.
+MIN_SHARED_QUIRK = 60
+
+
+def _grouped(notes: list[str]) -> list[tuple[str, list[str]]]:
+    """Quirks that end in the same explanation (one per joint, such as the collapsed bones of
+    a CMU BVH conversion) as ``(", " + shared text, [each one's own beginning])``, in order
+    of first appearance; any other quirk is ``("", [quirk])``. The shared text starts after
+    a ", " and is at least :data:`MIN_SHARED_QUIRK` characters long."""
+    tails = [[n[i:] for i in range(len(n)) if n.startswith(", ", i)
+              and len(n) - i - 2 >= MIN_SHARED_QUIRK] for n in notes]
+    counts: dict[str, int] = {}
+    for own in tails:
+        for tail in set(own):
+            counts[tail] = counts.get(tail, 0) + 1
+    groups: dict[str, list[str]] = {}
+    for note, own in zip(notes, tails, strict=True):
+        # The longest tail: the earliest ", " after which the notes agree.
+        shared = next((t for t in own if counts[t] > 1), "")
+        groups.setdefault(shared or note, []).append(note[:len(note) - len(shared)])
+    return [(key if heads[0] != key else "", heads) for key, heads in groups.items()]
+
+
 def _print_info(info: dict[str, Any]) -> None:
     print(f"{info['name']}  ({info['format']}, {info['source']})")
     print(
@@ -65,8 +88,17 @@ def _print_info(info: dict[str, Any]) -> None:
             + f"units in file {person['units_in_file']}"
         )
         _print_mapping(person["joint_map"])
-        for note in person["quirks"]:
-            print(f"    quirk: {note}")
+        # The clip's quirks already name the person's share of the pair's repairs.
+        shown = set(info.get("quirks", []))
+        notes = [q for q in person["quirks"]
+                 if q not in shown and f"{person['name']}: {q}" not in shown]
+        for shared, heads in _grouped(notes):
+            if len(heads) == 1:
+                print(f"    quirk: {heads[0]}{shared}")
+            else:
+                print(f"    quirk, {len(heads)} alike: {shared.lstrip(', ')}")
+                for head in heads:
+                    print(f"      {head}")
         for note in person["repairs"]:
             print(f"    repair: {note}")
 
