@@ -554,11 +554,17 @@ def bone_length(clip: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np
     checked = 0
     for k in range(parent.shape[0]):
         a, c = parent[k], child[k]
+        longest = 0.0
         for t in range(t_count):
             dx = np.float64(clip[t, c, 0]) - np.float64(clip[t, a, 0])
             dy = np.float64(clip[t, c, 1]) - np.float64(clip[t, a, 1])
             dz = np.float64(clip[t, c, 2]) - np.float64(clip[t, a, 2])
             length[t] = np.sqrt((dx * dx + dy * dy) + dz * dz)
+            longest = max(longest, length[t])
+        # A collapsed bone (never min_length long) is skipped without its
+        # median, which is at most its longest frame: same result.
+        if not longest >= min_length:
+            continue
         buf[:] = length
         m = median(buf, t_count, tmp)
         if not m >= min_length:
