@@ -452,7 +452,8 @@ def _joint_map(bvh: BvhFile, pos: np.ndarray, joint_map: JointMapSource | None, 
 
 
 def _avoid_coincident(
-    canon: dict[str, str], names: list[str], parents: list[int], rest: np.ndarray
+    canon: dict[str, str], names: list[str], parents: list[int], rest: np.ndarray,
+    cmu: bool = True,
 ) -> tuple[dict[str, str], list[str]]:
     """Keep canonical keypoints off zero-length bones.
 
@@ -461,7 +462,8 @@ def _avoid_coincident(
     the canonical neck/hand would coincide with chest/wrist. Such a keypoint
     moves down its joint's single-child chain to the first joint that is
     apart from the canonical parent (``Neck1``, ``LeftHandIndex1``); with no
-    such chain it is declared missing. Returns the map and quirk notes.
+    such chain it is declared missing. Returns the map and quirk notes (``cmu``: the
+    notes explain the CMU converters' collapsed bones; else they only say what moved).
     """
     index = {n: i for i, n in enumerate(names)}
     children: dict[int, list[int]] = {}
@@ -488,6 +490,10 @@ def _avoid_coincident(
                 f"canonical {key} dropped: joint {joint} coincides with "
                 f"{canon[parent_key]} ({parent_key})"
             )
+        elif names[j] != joint and not cmu:
+            out[key] = names[j]
+            notes.append(f"canonical {key} -> {names[j]}: {joint} coincides with "
+                         f"{canon[parent_key]} ({parent_key}) in the file")
         elif names[j] != joint:
             out[key] = names[j]
             notes.append(
@@ -724,7 +730,8 @@ def _to_motion(
         parents, offsets_m, np.broadcast_to(np.eye(3), (1, len(idx), 3, 3))
     )
     canon, canon_notes = _avoid_coincident(
-        {k: v for k, v in all_canon.items() if v in names}, names, parents, rest_pos[0]
+        {k: v for k, v in all_canon.items() if v in names}, names, parents, rest_pos[0],
+        cmu=mapping is None,
     )
     if joint_map is not None:
         canon = {k: v for k, v in all_canon.items() if v in names}  # the user's word stands
