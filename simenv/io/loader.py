@@ -57,6 +57,7 @@ READERS: tuple[str, ...] = (
     "humanml3d_features",
     "intergen",
     "h36m",
+    "joint_csv",
 )
 
 #: Bytes of a file handed to each reader's ``sniff``.
