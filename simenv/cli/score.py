@@ -16,6 +16,10 @@ from simenv.core.errors import SimenvError
 if TYPE_CHECKING:  # the scorer's settings load MuJoCo
     from simenv.plausibility.metric import ScoreConfig
 
+#: ``--source`` choices: simenv.plausibility.profiles.DECLARABLE_SOURCES, written out so that
+#: parsing the command line does not load the scorer (tests/test_profiles.py checks they agree).
+SOURCE_CHOICES = ("auto", "mocap", "body_model", "kinect_v1", "kinect_v2", "generated")
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Add ``simenv score``."""
@@ -62,6 +66,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(percentiles) and report per clip and for the set where the scored clips fall "
         "(records get 'reference'; a summary line, REPORT/reference.html and "
         "OUT.reference.json). Put it after the scored PATHs"))
+    sco.add_argument("--source", default="auto", choices=SOURCE_CHOICES, help=(
+        "what the clips are, which picks the thresholds' profile: auto (default: from the "
+        "skeleton; depth-camera clips are judged by their sensor family's real data), mocap "
+        "and body_model (the motion-capture thresholds), kinect_v1, kinect_v2, generated (by "
+        "the profile of the family its skeleton comes from); records name it in 'profile'"))
     add_joint_map_option(sco)
     sco.set_defaults(func=run)
 
@@ -136,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
                    else str(report_dir), config=score_config(args),
                    restore_collapsed_bones=args.restore_collapsed_bones,
-                   joint_map=args.joint_map)
+                   joint_map=args.joint_map, source=args.source)
     progress = sys.stderr.isatty() or args.progress
     if args.reference:
         reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,

@@ -101,6 +101,9 @@ class ScoreJob:
         joint_map: a TOML joint map applied to every target (see
             :func:`simenv.core.joint_map.read_joint_map`), or None for the
             automatic mapping.
+        source: the source kind of every target (``"auto"``: detected per clip;
+            :data:`simenv.plausibility.profiles.DECLARABLE_SOURCES`), which picks the
+            thresholds' profile.
     """
 
     physics: bool = True
@@ -109,6 +112,7 @@ class ScoreJob:
     restore_collapsed_bones: bool = False
     reference: Reference | None = None
     joint_map: str | None = None
+    source: str = "auto"
 
 
 def _read_options(target: Path, job: ScoreJob) -> dict[str, Any]:
@@ -151,7 +155,8 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
     try:
         loaded = load(target, **_read_options(target, job))
         clips = loaded if isinstance(loaded, list) else [loaded]
-        reports = [score(clip, physics=job.physics, config=job.config) for clip in clips]
+        reports = [score(clip, physics=job.physics, config=job.config,
+                         source=job.source) for clip in clips]
     except SimenvError as exc:
         return [{"file": str(target), "error": str(exc),
                  "error_type": type(exc).__name__}]

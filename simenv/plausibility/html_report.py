@@ -244,6 +244,17 @@ def _verdict_span(verdict: str) -> str:
     return f"<span class='{_e(verdict)}'>{_e(verdict)}</span>"
 
 
+def _profile_row(report: PlausibilityReport) -> list[tuple[str, str]]:
+    """The "judged by" row: the thresholds' profile and the source kind behind it."""
+    kind = report.source_kind
+    if kind is None:
+        return []
+    what = ("the motion-capture thresholds (defaults)" if kind.profile == "mocap" else
+            f"the {kind.profile} depth-camera profile (thresholds from that sensor family's "
+            "real clips)")
+    return [("judged by", f"{_e(what)}; source kind {_e(kind.kind)} ({_e(kind.how)})")]
+
+
 def _header(report: PlausibilityReport) -> str:
     p0 = report.people[0]
     names = ", ".join(p.name for p in report.people)
@@ -254,6 +265,7 @@ def _header(report: PlausibilityReport) -> str:
         ("frames", f"{p0.frames} ({p0.frames / p0.fps:.2f} s)" if p0.fps else str(p0.frames)),
         ("fps", _fmt(p0.fps)),
         ("physics", "on" if report.physics else "off (joint-level metrics only)"),
+        *_profile_row(report),
         ("verdict", _verdict_span(report.verdict)),
         ("score", f"{report_score(report):.1f} / 100"),
         ("scored in", f"{report.seconds:.1f} s"),

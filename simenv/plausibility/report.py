@@ -90,6 +90,7 @@ from simenv.plausibility.metric_registry import (
     PERSON_REGISTRY,
     alternatives,
 )
+from simenv.plausibility.profiles import SourceKind, apply_profile, detect_source, profile_for
 from simenv.plausibility.published import published_record
 from simenv.plausibility.timeline import MetricResult
 
@@ -205,6 +206,8 @@ class PlausibilityReport:
         interaction: pairwise metrics (name -> result) for two people, else None.
         physics: whether the body-level metrics were requested.
         seconds: wall time of the scoring.
+        source_kind: what the clip is and which profile judged it
+            (:func:`simenv.plausibility.profiles.detect_source`); None: not recorded.
     """
 
     source: str
@@ -213,6 +216,13 @@ class PlausibilityReport:
     physics: bool
     seconds: float
     interaction_basis: dict[str, str] = field(default_factory=dict)
+    source_kind: SourceKind | None = None
+
+    @property
+    def profile(self) -> str | None:
+        """Name of the profile whose thresholds judged the clip (``"mocap"``: the
+        defaults; ``"kinect_v1"``, ``"kinect_v2"``: a depth-camera family's)."""
+        return None if self.source_kind is None else self.source_kind.profile
 
     @property
     def verdict(self) -> str:
@@ -229,8 +239,9 @@ class PlausibilityReport:
         ``basis``, ``details``, ``reason``}}, ``violations`` [{``metric``,
         ``start_frame``, ``end_frame``, ``worst_value``}], ``published`` (the
         papers' metrics: {name: {``value``, ``unit``}}, ``feet``, ``fps``,
-        ``floor``, or {``reason``}); for two people also
-        ``interaction`` {``verdict``, ``metrics``, ``violations``}."""
+        ``floor``, or {``reason``}); ``profile`` (the thresholds' profile: ``mocap``,
+        ``kinect_v1``, ``kinect_v2``) and ``source_kind`` {``kind``, ``profile``, ``how``};
+        for two people also ``interaction`` {``verdict``, ``metrics``, ``violations``}."""
         pair = None
         if self.interaction is not None:
             pair = {
@@ -249,6 +260,9 @@ class PlausibilityReport:
                 "violations": p.violations,
                 "published": p.published,
             }
+            if self.source_kind is not None:
+                rec["profile"] = self.source_kind.profile
+                rec["source_kind"] = self.source_kind.record()
             if pair is not None:
                 rec["interaction"] = pair
             records.append(rec)
@@ -307,7 +321,7 @@ def _load_clip(path: str | Path) -> Motion | Interaction:
 
 
 def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = True,
-          config: ScoreConfig | None = None) -> PlausibilityReport:
+          config: ScoreConfig | None = None, source: str = "auto") -> PlausibilityReport:
     """Score a motion's physical plausibility: load, retarget once, every metric.
 
     The clip is retargeted once (both people into one scene for two); each
@@ -324,14 +338,20 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
         physics: also retarget onto a fitted MuJoCo humanoid and run the
             body-level, inverse-dynamics and physics-tracking metrics.
         config: thresholds and switches (:class:`ScoreConfig`).
+        source: the source kind (:data:`simenv.plausibility.profiles.DECLARABLE_SOURCES`):
+            ``"auto"`` detects it from the skeleton; a depth-camera clip is judged by its
+            sensor family's profile (:func:`simenv.plausibility.profiles.apply_profile`: the
+            profile's fields replace those ``config`` leaves at their defaults).
 
     Returns:
         :class:`PlausibilityReport` (see the module docstring for verdict and score).
 
     Raises:
-        SimenvError: the path cannot be read, or holds several clips.
+        SimenvError: the path cannot be read, or holds several clips, or ``source`` is not a
+            known kind.
     """
     config = config or DEFAULT_SCORE_CONFIG
+    declared = source  # ``source`` names the scored file below
     t0 = time.perf_counter()
     if isinstance(motion_or_path, (str, Path)):
         source = str(motion_or_path)
@@ -344,6 +364,8 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
     else:
         raise SimenvError(f"score expects a Motion, an Interaction or a path; got "
                           f"{type(motion_or_path).__name__}")
+    kind = detect_source(clip, declared)
+    config = apply_profile(config, profile_for(kind))
     fitted, missing = _fit(clip) if physics else (None, "physics=False")
     if isinstance(clip, Interaction):
         scene = fitted if isinstance(fitted, InteractionRetargetResult) else None
@@ -358,4 +380,4 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
         interaction, pair_basis = None, {}
     return PlausibilityReport(source=source, people=people, interaction=interaction,
                               physics=physics, seconds=time.perf_counter() - t0,
-                              interaction_basis=pair_basis)
+                              interaction_basis=pair_basis, source_kind=kind)

@@ -1,0 +1,132 @@
+"""Source kinds and depth-camera profiles (simenv.plausibility.profiles), on real clips: a real
+NTU RGB+D (Kinect v2) clip, real Kinect v1 clips (MSR Action3D, Florence 3D), real CMU motion
+capture. Physics off: the metrics under test are joint-level."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from simenv.cli import score as score_cli
+from simenv.core.errors import SimenvError
+from simenv.io.loader import load
+from simenv.plausibility.corrupt import CORRUPTIONS
+from simenv.plausibility.metric import ScoreConfig
+from simenv.plausibility.profiles import (
+    DECLARABLE_SOURCES,
+    apply_profile,
+    detect_source,
+    load_profiles,
+    profile_for,
+    profile_path,
+)
+from simenv.plausibility.report import score
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
+
+NTU = Path(__file__).parent / "data" / "ntu" / "S001C001P001R001A001.skeleton"
+MSR = "gestures/msr_action3d/a01_s01_e01_skeleton3D.txt"
+
+
+def test_bundled_profiles_name_their_calibration() -> None:
+    profiles = load_profiles()
+    assert set(profiles) == {"kinect_v1", "kinect_v2"}
+    for p in profiles.values():
+        assert p.thresholds["bone_length_rel_max"] > DEFAULT_THRESHOLDS.bone_length_rel_max
+        assert p.provenance["script"] == "benchmarks/depth_camera_profiles.py"
+        assert p.provenance["calibration_sources"]
+    # The held-out sources never enter a calibration.
+    assert "ntu" not in profiles["kinect_v2"].provenance["calibration_sources"]
+    assert not {"florence3d", "sbu"} & set(profiles["kinect_v1"].provenance["calibration_sources"])
+
+
+def test_real_kinect_v2_clip_is_judged_by_its_profile_by_default() -> None:
+    clip = load(NTU)
+    kind = detect_source(clip)
+    assert kind.record() == {"kind": "kinect_v2", "profile": "kinect_v2",
+                             "how": "skeleton kinect_v2_25"}
+    before = score(clip, physics=False, source="mocap").to_records()[0]
+    after = score(clip, physics=False).to_records()[0]
+    assert before["profile"] == "mocap" and before["verdict"] == "implausible"
+    assert before["metrics"]["bone_length"]["passed"] is False
+    assert after["profile"] == "kinect_v2"
+    assert after["source_kind"] == {"kind": "kinect_v2", "profile": "kinect_v2",
+                                    "how": "skeleton kinect_v2_25"}
+    assert after["verdict"] == "plausible"
+    assert after["metrics"]["bone_length"]["value"] == pytest.approx(
+        before["metrics"]["bone_length"]["value"] * DEFAULT_THRESHOLDS.bone_length_rel_max
+        / load_profiles()["kinect_v2"].thresholds["bone_length_rel_max"], rel=1e-6)
+
+
+def test_corrupted_kinect_clip_fails_its_profile() -> None:
+    clip = load(NTU)
+    bad = CORRUPTIONS["jitter"].fn(clip, CORRUPTIONS["jitter"].moderate, seed=0)
+    rec = score(bad, physics=False).to_records()[0]
+    assert rec["profile"] == "kinect_v2"
+    assert rec["verdict"] == "implausible" and rec["metrics"]["jitter"]["passed"] is False
+
+
+def test_real_kinect_v1_clips_pick_the_kinect_v1_profile(shared_data: Path) -> None:
+    msr = load(shared_data / MSR)
+    assert detect_source(msr).profile == "kinect_v1"
+    florence = load(shared_data / "gestures/florence3d/skeletal_data.mat")[0]
+    assert detect_source(florence).how == "skeleton florence15"
+    rec = score(msr, physics=False).to_records()[0]
+    assert rec["profile"] == "kinect_v1"
+
+
+def test_cmu_clip_keeps_the_mocap_thresholds(shared_data: Path) -> None:
+    clip = load(shared_data / "cmu/bvh/02_01.bvh")
+    kind = detect_source(clip)
+    assert (kind.kind, kind.profile) == ("mocap", "mocap")
+    assert profile_for(kind) is None
+    report = score(clip, physics=False)
+    rec = report.to_records()[0]
+    assert rec["profile"] == "mocap"
+    assert rec["metrics"]["bone_length"]["threshold"] == 1.0
+    declared = score(clip, physics=False, source="mocap").to_records()[0]
+    assert rec["metrics"] == declared["metrics"]
+
+
+def test_declared_kinds() -> None:
+    clip = load(NTU)
+    assert detect_source(clip, "mocap").profile == "mocap"
+    assert detect_source(clip, "mocap").how == "declared"
+    # A generated clip on a depth camera's skeleton: that family's profile.
+    gen = detect_source(clip, "generated")
+    assert (gen.kind, gen.profile) == ("generated", "kinect_v2")
+    assert detect_source(clip, "kinect_v1").profile == "kinect_v1"
+    with pytest.raises(SimenvError, match="unknown source kind 'kinect3'"):
+        detect_source(clip, "kinect3")
+    assert score_cli.SOURCE_CHOICES == DECLARABLE_SOURCES
+
+
+def test_explicit_thresholds_stay_the_users() -> None:
+    profile = load_profiles()["kinect_v2"]
+    mine = replace(DEFAULT_THRESHOLDS, bone_length_rel_max=0.5)
+    config = apply_profile(ScoreConfig(thresholds=mine), profile)
+    assert config.thresholds.bone_length_rel_max == 0.5
+    assert config.thresholds.speed_limit_trunk_mps == profile.thresholds["speed_limit_trunk_mps"]
+
+
+def test_bad_profiles_file(tmp_path: Path) -> None:
+    bad = tmp_path / "p.json"
+    bad.write_text(json.dumps({"profiles": {"x": {"thresholds": {"bone_length_rel_max": -1}}}}))
+    with pytest.raises(SimenvError, match="x.thresholds.bone_length_rel_max"):
+        load_profiles(bad)
+    with pytest.raises(SimenvError, match="missing"):
+        load_profiles(tmp_path / "none.json")
+    assert profile_path().is_file()
+
+
+def test_cli_records_the_profile(capsys: pytest.CaptureFixture[str]) -> None:
+    from simenv.cli.main import main
+
+    assert main(["score", str(NTU), "--no-physics", "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out.strip().splitlines()[0])
+    assert rec["profile"] == "kinect_v2" and rec["verdict"] == "plausible"
+    assert main(["score", str(NTU), "--no-physics", "--json", "--source", "mocap"]) == 0
+    rec = json.loads(capsys.readouterr().out.strip().splitlines()[0])
+    assert rec["profile"] == "mocap" and rec["verdict"] == "implausible"
