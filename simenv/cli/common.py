@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from simenv.core.errors import SimenvError
+from simenv.core.joint_map import JOINT_MAP_HELP
 from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import CANONICAL_KEYPOINTS
 
@@ -28,13 +29,6 @@ PATH_HELP = (
     "a motion file (BVH, ASF/AMC, Kinect text, NPZ), a folder with a two-person recording, "
     "or the two files of one"
 )
-
-#: Help of ``--joint-map``, shared by every command that reads motion.
-JOINT_MAP_HELP = (
-    "a TOML file mapping the canonical keypoints to the file's joints ([canonical] "
-    "left_hip = \"UpperLeg_L\", ...), instead of the automatic mapping; `simenv info FILE "
-    "--write-joint-map MAP.toml` writes one to edit")
-
 
 def add_joint_map_option(parser: argparse.ArgumentParser) -> None:
     """Add ``--joint-map FILE.toml`` (see :data:`JOINT_MAP_HELP`)."""

@@ -48,6 +48,12 @@ from simenv.core.skeletons import CANONICAL_KEYPOINTS, CANONICAL_TREE, Skeleton
 #: Keypoints without which no humanoid can be fitted or retargeted.
 REQUIRED_FOR_BODY: tuple[str, ...] = ("pelvis", "left_hip", "right_hip")
 
+#: Help of every command's ``--joint-map`` option.
+JOINT_MAP_HELP = (
+    "a TOML file mapping the canonical keypoints to the file's joints ([canonical] "
+    "left_hip = \"UpperLeg_L\", ...), instead of the automatic mapping; `simenv info FILE "
+    "--write-joint-map MAP.toml` writes one to edit")
+
 #: How a keypoint was found, as written in :attr:`JointMapping.how`.
 HOW_NAME, HOW_TOPOLOGY, HOW_REST_POSE, HOW_USER = "name", "topology", "rest pose", "user map"
 
@@ -812,7 +818,7 @@ def map_motion(motion: Motion, joint_map: JointMapSource | None = None) -> Motio
     return remap_motion(motion, mapping)
 
 
-__all__ = ["CONVENTIONS", "HOW_NAME", "HOW_REST_POSE", "HOW_TOPOLOGY", "HOW_USER",
+__all__ = ["CONVENTIONS", "HOW_NAME", "JOINT_MAP_HELP", "HOW_REST_POSE", "HOW_TOPOLOGY", "HOW_USER",
            "REQUIRED_FOR_BODY", "JointMapSource", "JointMapping", "NamingConvention",
            "NormalisedName",
            "apply_user_map", "common_prefix", "infer_joint_map", "joint_map_template",

@@ -78,6 +78,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from simenv.core.errors import SimenvError
+from simenv.core.joint_map import JOINT_MAP_HELP
 from simenv.core.motion import Motion
 from simenv.core.skeletons import canonical_skeleton
 from simenv.data.gestures import GESTURE_LABELS, load_gesture_clips
@@ -519,6 +520,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "(.toml or a bundled recipe name: "
                         f"{', '.join(session_recipes()) or 'none'})")
     parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--joint-map", metavar="FILE.toml", help=JOINT_MAP_HELP)
     parser.add_argument("--agent", choices=AGENTS, default="labels")
     parser.add_argument("--scenario", default="default", help="bundled name or TOML file")
     parser.add_argument("--gesture", action="append", type=_gesture, default=[],
@@ -547,7 +549,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                                                    vocabulary_map(GESTURE_LABELS, vocabulary))
     elif args.classifier:
         classifier = TrainedClassifier.shipped(args.classifier, vocabulary)
-    session = Session.load(args.session, args.gesture, data=args.data)
+    session = Session.load(args.session, args.gesture, data=args.data,
+                           joint_map=args.joint_map)
     summary = rehearse(session, args.out, scenario=scenario, agent=args.agent,
                        classifier=classifier, predictor=args.predictor,
                        render=not args.no_render, width=args.width,

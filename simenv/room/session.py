@@ -52,6 +52,7 @@ from simenv.assets import asset_path, assets_root, list_assets
 from simenv.body.retarget import RetargetResult, retarget
 from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
+from simenv.core.joint_map import JointMapSource
 from simenv.core.motion import Motion
 from simenv.io import utkinect
 from simenv.io.loader import load
@@ -101,11 +102,13 @@ class Session:
     @classmethod
     def load(cls, source: str | os.PathLike[str] | Motion,
              gestures: Sequence[GestureEvent] = (), *,
-             data: str | os.PathLike[str] | None = None) -> Session:
+             data: str | os.PathLike[str] | None = None,
+             joint_map: JointMapSource | None = None) -> Session:
         """A session from a motion file, a bundled asset name, a session recipe (a
         ``.toml`` file or a bundled recipe name, :func:`session_recipes`; its recording is
         read from the corpus at ``data``, see :func:`shared_data_root`) or a Motion.
-        ``gestures`` are added to a recipe's own."""
+        ``gestures`` are added to a recipe's own; ``joint_map`` maps a motion file's joints
+        (see :func:`simenv.io.loader.load`)."""
         if isinstance(source, Motion):
             return cls(source, tuple(gestures))
         name = os.fspath(source)
@@ -118,7 +121,7 @@ class Session:
         if not path.exists():
             raise SimenvError(f"no session file {name!r} and no bundled asset of that name",
                               source=name)
-        motion = load(path)
+        motion = load(path, **({} if joint_map is None else {"joint_map": joint_map}))
         if not isinstance(motion, Motion):
             raise SimenvError(f"a session is one person; {name!r} holds two", source=name)
         return cls(motion, tuple(gestures))
