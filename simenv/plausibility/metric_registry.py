@@ -118,9 +118,10 @@ def _root_force(config: ScoreConfig) -> tuple[float, float]:
 class BoneLength(_Keypoints):
     """Bone-length consistency (:func:`simenv.plausibility.kinematic.bone_length`).
 
-    Per frame ``max_b |L_b(t) / median_t L_b - 1| / tol_b`` over the canonical
-    bones (fraction of the bone's tolerance: 5 %, 15 % neck to head); value:
-    its 95th percentile over frames; passes at <= 1.
+    Per frame ``max_b |L_b(t) / median_t L_b - 1| / tol_b`` over the source
+    skeleton's own parent-child bones (fraction of the bone's tolerance: 5 %,
+    15 % for the bone ending at the head); value: its 95th percentile over
+    frames; passes at <= 1.
     """
 
     name, family, unit = "bone_length", "kinematic", "fraction of tolerance"
