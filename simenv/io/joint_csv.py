@@ -22,13 +22,13 @@ not this format.
 :data:`TIME_UNITS` in which the step is a capture rate within :data:`PLAUSIBLE_FPS`. The frame
 rate is measured: the mean step over the steps within half the median step of it (so a
 millisecond clock at 240 Hz, stepping 4 or 5 ms, gives 239.96 Hz), rounded to a nominal rate
-of :data:`NOMINAL_FPS` when that rate lies within the clock's rounding (two units of its last
-written digit over the clip). A clock that stands still or goes backwards is a
-:class:`FormatError` naming the line; a step more than half a nominal step off (dropped
-frames) is a :class:`FormatError` too, unless ``irregular_time="resample"``, which resamples
-the positions linearly onto a regular grid at the measured rate (logged in
-``metadata["repairs"]``). Frame numbers give no rate: ``fps=`` is then required; ``fps=``
-given with a clock overrides it (noted when they disagree).
+of :data:`NOMINAL_FPS` when that rate lies within the clock's rounding (two units of its grain
+over the clip; the grain is the last digit written, or the spacing of the step values when
+coarser). A clock that stands still or goes backwards is a :class:`FormatError` naming the
+line; a step more than half a nominal step off (dropped frames) is a :class:`FormatError` too,
+unless ``irregular_time="resample"``, which resamples the positions linearly onto a regular
+grid at the measured rate (logged in ``metadata["repairs"]``). Frame numbers give no rate:
+``fps=`` is then required; ``fps=`` given with a clock overrides it (noted when they disagree).
 
 **Cells.** Empty and ``NaN`` coordinates are gaps: a :class:`MotionError` naming the line,
 frame and column, unless ``gaps="interpolate"`` (each joint filled linearly between its
@@ -486,14 +486,19 @@ class Clock:
     irregular: np.ndarray
 
 
-def _resolution(tokens: Sequence[str]) -> float:
-    """The clock's rounding: one unit of the last digit written (1 for integers)."""
+def _resolution(tokens: Sequence[str], steps: np.ndarray) -> float:
+    """The clock's rounding: one unit of the last digit written (1 for integers), or the
+    spacing of the step values it takes when coarser (a millisecond clock written in seconds
+    with six decimals steps 0.004 or 0.005: its grain is 0.001)."""
     decimals = 0
     for tok in tokens:
         mantissa = tok.lower().split("e")[0]
         if "." in mantissa:
             decimals = max(decimals, len(mantissa.split(".")[1]))
-    return 10.0 ** -decimals
+    written = 10.0 ** -decimals
+    values = np.unique(np.round(steps / written))
+    grain = float(np.diff(values).min()) * written if len(values) > 1 else 0.0
+    return max(written, grain)
 
 
 def _time_unit(name: str, step: float, path: Path) -> tuple[str, str]:
@@ -540,7 +545,7 @@ def measure_clock(table: Table, header_name: str | None, is_frame: bool, fps: fl
     median = float(np.median(steps))
     regular = np.abs(steps - median) <= IRREGULAR_STEP_FRACTION * median
     nominal_step = float(steps[regular].mean())
-    resolution = _resolution(table.time_tokens)
+    resolution = _resolution(table.time_tokens, steps)
     irregular = np.flatnonzero(np.abs(steps - nominal_step)
                                > IRREGULAR_STEP_FRACTION * nominal_step + resolution) + 1
     if is_frame:
