@@ -11,12 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import simenv
 from simenv.body.retarget import retarget
 from simenv.core.errors import FormatError, MotionError, SkeletonError
 from simenv.core.motion import Motion
 from simenv.io import joint_csv, loader
+from simenv.io.camera_frame import FOOT_NOISE_M, KINECT_TO_ZUP
 
 MVN_CSV = (Path(__file__).parent / "data" / "conventions" / "xsens_mvn"
            / "emokine_mvn_segment_positions.csv")
@@ -243,3 +245,36 @@ def test_dropped_frames_are_an_error_or_a_logged_resampling(tmp_path: Path,
     assert abs(m.num_frames - mvn.num_frames) <= 1
     # Away from the hole the grid meets the real frames within one clock tick of motion.
     np.testing.assert_allclose(m.positions[:100], mvn.positions[:100], atol=5e-3)
+
+
+def test_depth_camera_coordinates_are_levelled_onto_the_floor(tmp_path: Path,
+                                                               mvn: Motion) -> None:
+    # The real motion as a depth camera would see it: sensor 2.5 m in front, 1.1 m high,
+    # pitched 12 deg down, y down (Azure Kinect / OpenCV), millimetres.
+    ms, pos = _file_positions()
+    header, _ = _table()
+    sensor = (Rotation.from_euler("z", 180, degrees=True)
+              * Rotation.from_euler("y", 12, degrees=True)).as_matrix()
+    cam = ((pos - [2.5, 0.1, 1.1]) @ sensor @ KINECT_TO_ZUP @ joint_csv.Y_DOWN_TO_Y_UP) * 1000
+    rows = [[f"{t:.0f}", *(f"{v:.3f}" for v in c.ravel())] for t, c in zip(ms, cam, strict=True)]
+    path = _write(tmp_path / "camera.csv", ["ms", *header[2:]], rows)
+    m = simenv.load(path, frame="camera")
+    assert m.metadata["up_axis_in_file"] == "-Y" and m.metadata["units"] == "mm"
+    assert "camera_frame" in m.metadata and m.fps == 240
+    w = m.positions.astype(np.float64)
+    dist = np.linalg.norm(w[:, :, None] - w[:, None], axis=-1)
+    ref = np.linalg.norm(mvn.positions[:, :, None] - mvn.positions[:, None], axis=-1)
+    np.testing.assert_allclose(dist, ref, atol=1e-4)  # a rigid motion of the real clip
+    # Levelled onto the floor from the feet: heights as captured, within the foot noise.
+    assert np.abs(w[..., 2] - mvn.positions[..., 2]).max() < FOOT_NOISE_M
+
+
+def test_a_preamble_above_the_header_is_skipped(tmp_path: Path, mvn: Motion) -> None:
+    # LSL Kinect writes "Software : LSL_Kinect,Version : ...,Stream nominal rate : 15" and a
+    # blank line above its header.
+    path = tmp_path / "preamble.csv"
+    path.write_text("Software : recorder,Version : 1.0,Stream nominal rate : 240\n\n"
+                    + MVN_CSV.read_text())
+    assert joint_csv.sniff(path, b"")
+    m = simenv.load(path)
+    np.testing.assert_array_equal(m.positions, mvn.positions)

@@ -43,11 +43,13 @@ file axis along which the body stands over the clip: the median direction from t
 sign, is up; a table whose names give neither end falls back to the axis of the largest
 per-frame extent, positive. ``up=`` (``"x"``, ``"-y"``, ...) overrides. The conversion is the
 smallest proper rotation taking that axis to +Z (:data:`UP_TO_Z_UP`; a Y-up file maps
-``(x, y, z) -> (x, -z, y)`` as in every simenv reader), never a mirror. ``frame="camera"``
-declares depth-camera coordinates instead (up along +Y or -Y, the sensor tilted and above the
-floor): after the axis turn that makes up +Y, the floor is estimated from the feet and the
-sensor levelled (:mod:`simenv.io.camera_frame`). With ``frame="world"`` (default) the table's
-origin is kept; feet far from z = 0 are noted as a quirk.
+``(x, y, z) -> (x, -z, y)`` as in every simenv reader), never a mirror. Depth-camera coordinates
+(``frame="camera"``; up along +Y or -Y, the sensor tilted and above the floor) are turned so
+that up is +Y, then levelled and put on the floor from the feet (:mod:`simenv.io.camera_frame`).
+By default (``frame=None``) a table of a depth camera's declared layout (Azure Kinect, Kinect
+v2, Kinect v1, Nuitrack: their SDKs write camera coordinates) is read as camera coordinates and
+any other as a world frame (``frame="world"``), whose origin is kept; feet far from z = 0 are
+then noted as a quirk.
 
 **Hierarchy.** A table has none, so the reader gives the skeleton its tree:
 
@@ -125,6 +127,9 @@ DELIMITERS: tuple[str, ...] = (",", ";", "\t")
 
 #: Bytes of a file read to sniff it (a 32-joint header is ~1.5 kB; room for a long one).
 SNIFF_BYTES = 65536
+
+#: Non-blank lines searched for the header row (the lines above it are a preamble).
+HEADER_SEARCH_LINES = 20
 
 #: A table must have at least this many complete joints to be taken for joint positions.
 MIN_JOINTS = 3
@@ -242,6 +247,10 @@ def azure_kinect_skeleton() -> Skeleton:
     return Skeleton("azure_kinect32", AZURE_KINECT_JOINTS, AZURE_KINECT_PARENTS)
 
 
+#: Names of the declared layouts whose tables are depth-camera coordinates.
+DEPTH_CAMERA_LAYOUTS: tuple[str, ...] = ("azure_kinect32", "kinect_v2_25", "kinect_v1_20",
+                                         "nuitrack")
+
 #: Declared skeletons a table's joint names are matched against, in order.
 DECLARED_LAYOUTS: tuple[Callable[[], Skeleton], ...] = (
     mvn_skeleton, azure_kinect_skeleton, kinect_v2_skeleton, kinect_v1_skeleton,
@@ -287,15 +296,40 @@ def _cells(line: str, delimiter: str) -> list[str]:
     return [c.strip().strip('"').strip() for c in next(csv.reader([line], delimiter=delimiter))]
 
 
-def parse_header(lines: Sequence[str]) -> Header | None:
-    """The header of a table: the first non-blank line not starting with ``#``, split by the
-    delimiter of :data:`DELIMITERS` that gives the most columns. None when that line holds
-    no coordinate column (a headerless table of numbers, or not a table)."""
-    i = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")),
-             None)
-    if i is None:
-        return None
-    line = lines[i]
+def _is_numbers(line: str) -> bool:
+    cells = [c for c in re.split(r"[,;\t\s]+", line.strip()) if c]
+    try:
+        [float(c) for c in cells]
+    except ValueError:
+        return False
+    return bool(cells)
+
+
+def parse_header(lines: Sequence[str], source: Path | None = None) -> Header | None:
+    """The header of a table: the first of its first :data:`HEADER_SEARCH_LINES` non-blank
+    lines (``#`` comments skipped) that names a coordinate column, split by the delimiter of
+    :data:`DELIMITERS` that gives the most columns; lines above it are a preamble (LSL Kinect
+    writes ``Software : LSL_Kinect,...`` and a blank line first). None when no such line
+    comes before the first row of numbers (a headerless table) or at all.
+
+    Raises:
+        FormatError: a joint with two columns of one axis.
+    """
+    seen = 0
+    for i, line in enumerate(lines):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        if _is_numbers(line) or seen == HEADER_SEARCH_LINES:
+            return None
+        seen += 1
+        header = _header_line(line, i + 1, source)
+        if header is not None:
+            return header
+    return None
+
+
+def _header_line(line: str, number: int, source: Path | None) -> Header | None:
+    """The header of one line (see :func:`parse_header`), or None without coordinates."""
     delimiter = max(DELIMITERS, key=lambda d: len(_cells(line, d)))
     columns = _cells(line, delimiter)
     joints: dict[str, dict[str, int]] = {}
@@ -313,7 +347,8 @@ def parse_header(lines: Sequence[str]) -> Header | None:
             if axis in axes:
                 raise FormatError(
                     f"joint {joint!r} has two {axis} columns ({columns[axes[axis]]!r} and "
-                    f"{col!r}); expected one column per joint and axis", line=i + 1, field=col)
+                    f"{col!r}); expected one column per joint and axis", source=source,
+                    line=number, field=col)
             axes[axis] = c
             continue
         key = _key(col)
@@ -324,7 +359,7 @@ def parse_header(lines: Sequence[str]) -> Header | None:
             frame = c
     if not joints:
         return None
-    return Header(delimiter, i + 1, tuple(columns), joints, time, frame)
+    return Header(delimiter, number, tuple(columns), joints, time, frame)
 
 
 def _head_lines(path: Path) -> list[str]:
@@ -401,7 +436,7 @@ def read_table(path: Path) -> Table:
         MotionError: fewer than two rows.
     """
     lines = split_lines(read_text(path))
-    header = parse_header(lines)
+    header = parse_header(lines, path)
     if header is None:
         first = next((ln for ln in lines if ln.strip()), "")
         raise FormatError(
@@ -735,7 +770,7 @@ def read(
     scale: float | None = None,
     up: str | None = None,
     fps: float | None = None,
-    frame: Literal["world", "camera"] = "world",
+    frame: Literal["world", "camera"] | None = None,
     irregular_time: Literal["error", "resample"] = "error",
     gaps: Literal["error", "interpolate"] = "error",
     joint_map: JointMapSource | None = None,
@@ -752,8 +787,9 @@ def read(
             detects it from the body.
         fps: frame rate; required when the table has no clock, else overrides the measured
             rate (noted when they differ by over 1 %).
-        frame: ``"world"`` (the table's origin kept) or ``"camera"`` (depth-camera
-            coordinates, up along +Y or -Y: levelled and put on the floor from the feet).
+        frame: ``"world"`` (the table's origin kept), ``"camera"`` (depth-camera
+            coordinates, up along +Y or -Y: levelled and put on the floor from the feet) or
+            None: camera for a depth camera's declared layout, else world.
         irregular_time: ``"error"`` or ``"resample"`` (onto a regular grid, logged).
         gaps: ``"error"`` or ``"interpolate"`` empty / NaN coordinates (logged).
         joint_map: canonical keypoint -> column joint name (a TOML file or a mapping, see
@@ -774,8 +810,9 @@ def read(
         UnitsError: a body of no plausible size in any unit.
     """
     path = Path(path)
-    if frame not in ("world", "camera"):
-        raise FormatError(f"frame must be 'world' or 'camera'; got {frame!r}", source=path)
+    if frame not in ("world", "camera", None):
+        raise FormatError(f"frame must be 'world', 'camera' or None (detect); got {frame!r}",
+                          source=path)
     if irregular_time not in ("error", "resample"):
         raise FormatError(f"irregular_time must be 'error' or 'resample'; got "
                           f"{irregular_time!r}", source=path)
@@ -846,6 +883,13 @@ def read(
     }
     if clock.times is not None and table.time is not None:
         meta["time_start"] = table.time_tokens[0]
+    if frame is None:
+        frame = "camera" if declared is not None and declared.name.startswith(
+            DEPTH_CAMERA_LAYOUTS) else "world"
+        meta["frame_reason"] = (f"{declared.name}: a depth camera's layout, camera coordinates"
+                                if frame == "camera" else "world frame (the table's origin)")
+    else:
+        meta["frame_reason"] = f"frame={frame!r} given by the caller"
     if frame == "camera":
         if up_axis not in ("y", "-y"):
             raise FormatError(f"frame='camera' needs a camera up axis along +Y or -Y; the body "
