@@ -373,7 +373,10 @@ def sniff(path: Path, head: bytes) -> bool:
     columns and whose first data row is numbers in those columns."""
     del head  # a long header can exceed the loader's head; read up to SNIFF_BYTES instead
     lines = _head_lines(path)
-    header = parse_header(lines)
+    try:
+        header = parse_header(lines)
+    except FormatError:
+        return False
     if header is None or len(header.complete) < MIN_JOINTS:
         return False
     row = next((ln for ln in lines[header.line:] if ln.strip()), None)
