@@ -73,7 +73,8 @@ from simenv.core.motion import Interaction, Motion
 from simenv.io.loader import load
 from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, SOURCE_BODY_THRESHOLDS
-from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES
+from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES, STRETCH_BONES
+from simenv.plausibility.kinematic import bone_deviations, measured_bones
 from simenv.plausibility.profiles import PROFILE_FILE, Profile, detect_source
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 
@@ -308,6 +309,42 @@ def corruptions(people: Sequence[Person], profile: Profile) -> dict[str, dict[st
     return out
 
 
+def limb_noise(m: Motion) -> float:
+    """Largest 95th-percentile relative deviation over frames of the clip's limb bones (the
+    source bones ending at a canonical knee, ankle, elbow or wrist: what ``bone_stretch``
+    stretches); NaN without one."""
+    sk = m.skeleton
+    role = {v: k for k, v in sk.canonical.items()}
+    limb = [d["p95_tolerances"] * d["tolerance"]
+            for (_, c), d in zip(measured_bones(sk), bone_deviations(m), strict=True)
+            if d["checked"] and role.get(sk.joint_names[c]) in STRETCH_BONES]
+    return max(limb) if limb else float("nan")
+
+
+def goals(res: dict[str, Any]) -> list[str]:
+    """The issue's goals against the held-out numbers, met or not."""
+    lines = ["| held-out source | real clips inside (goal >= 90 %) | corruptions outside, "
+             "moderate / 3x (goal >= 90 %) | caught by the targeted metric, moderate / 3x |",
+             "|---|---|---|---|"]
+    for s in SOURCES:
+        if s.role != "held_out":
+            continue
+        r = res["sources"][s.name]
+        share = r["inside_profile"] / r["people"]
+        tot = {lv: [0, 0, 0] for lv in ("moderate", "strong")}
+        for key, c in res["corruptions"][s.name].items():
+            for i, k in enumerate(("copies", "outside", "caught")):
+                tot[key.split("/")[1]][i] += c[k]
+        cells = []
+        for i in (1, 2):
+            cells.append(" / ".join(
+                f"{100 * t[i] / t[0]:.1f} %{'' if t[i] / t[0] >= 0.9 else ' (not met)'}"
+                if t[0] else "-" for t in tot.values()))
+        lines.append(f"| {s.name} ({r['people']} people) | {100 * share:.1f} %"
+                     f"{'' if share >= 0.9 else ' (not met)'} | {cells[0]} | {cells[1]} |")
+    return lines
+
+
 def cmu_profiles() -> dict[str, int]:
     """Profiles picked for the shared CMU clips (all should be ``mocap``)."""
     counts: dict[str, int] = {}
@@ -334,6 +371,11 @@ def evaluate(people: dict[str, list[Person]], profiles: dict[str, Profile],
     out["reverse"]["corruptions"] = {
         s: corruptions(people[s], reverse) for s in REVERSE["held_out"]}
     out["cmu_profiles"] = cmu_profiles()
+    out["limb_noise"] = {}
+    for s in SOURCES:
+        v = np.array([limb_noise(p.motion) for p in people[s.name]])
+        v = v[np.isfinite(v)]
+        out["limb_noise"][s.name] = {q: float(np.percentile(v, q)) for q in (10, 50, 90, 99)}
     return out
 
 
@@ -436,6 +478,25 @@ def markdown(profiles: dict[str, dict[str, Any]], res: dict[str, Any], seconds: 
               *_source_rows(res["reverse"]["sources"],
                             {s: "**held out**" for s in REVERSE["held_out"]}), "",
               *_corruption_rows(res["reverse"]["corruptions"]), "",
+              "Why `bone_stretch` and `sink` go unseen: the limb bones `bone_stretch` "
+              "lengthens (those ending at a canonical knee, ankle, elbow or wrist) already "
+              "change length this much on real clips (per clip the worst limb bone's 95th "
+              "percentile over frames of `|L / median - 1|`), so a 10-30 % stretch over a "
+              "quarter of the clip is within the sensor's own noise, and no single tolerance "
+              "fits the Kinect SDK and OpenNI skeletons alike (Florence's limbs wander 7x more "
+              "than MSR's); `sink` and `float` move the whole body against a floor that the "
+              "readers estimate from the feet in the camera frame, which real clips already "
+              "miss by up to half a metre (`ground_penetration` p99 above).", "",
+              "| source | p10 | p50 | p90 | p99 |", "|---|---|---|---|---|",
+              *[f"| {s} | " + " | ".join(f"{v[q]:.3f}" for q in (10, 50, 90, 99)) + " |"
+                for s, v in res["limb_noise"].items()], "",
+              "Goals of issue 33 on the held-out sources (physics off):", "",
+              *goals(res), "",
+              "The reference-percentile machinery (`simenv.plausibility.reference`, `simenv "
+              "score --reference`) was not used for the default: it judges only clips at the "
+              "reference's frame rate (Florence 3D is 20 fps, MSR Action3D and UTKinect 15), "
+              "and it scores the same metric values against the same upper tail, so it cannot "
+              "see what these values do not; thresholds in SI units hold at any rate.", "",
               "CMU clips of the shared corpus (BVH and ASF/AMC) and the profile detected: " +
               ", ".join(f"`{k}` {v}" for k, v in res["cmu_profiles"].items()) +
               " (motion capture keeps the default thresholds)."]

@@ -134,7 +134,11 @@ def utkinect(shared_data: Path) -> dict[str, Any]:
     train, test = split_cross_subject(clips)
 
     def rec(motion: Any, clip: Any) -> dict[str, Any]:
-        out = score(motion, physics=False).to_records()[0]
+        # Values at the default thresholds (`--source mocap`): the kinect_v1 profile's looser
+        # floating height cuts that metric to 0 on most real clips, and with it a tail the
+        # reference reads (beyond its p99 with the profile's values: foot slides 0 %,
+        # teleports 46 %).
+        out = score(motion, physics=False, source="mocap").to_records()[0]
         out["file"] = f"{clip.subject_key}/{clip.name}"
         return out
 
@@ -163,7 +167,8 @@ def test_held_out_real_kinect_subjects_fall_inside(utkinect: dict[str, Any]) -> 
     assert real["generated"]["people"] > 80
     assert real["overall"]["share_beyond_p99"] <= 0.03
     assert real["verdict"] == VERDICT_INSIDE
-    # The absolute thresholds (calibrated on marker mocap) call nearly all of them implausible.
+    # The absolute thresholds (calibrated on marker mocap) call nearly all of them implausible
+    # (by default a Kinect clip is judged by its family's profile: tests/test_profiles.py).
     implausible = [r["verdict"] == "implausible" for r in utkinect["sets"]["real"]]
     assert np.mean(implausible) > 0.9
 

@@ -70,7 +70,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "what the clips are, which picks the thresholds' profile: auto (default: from the "
         "skeleton; depth-camera clips are judged by their sensor family's real data), mocap "
         "and body_model (the motion-capture thresholds), kinect_v1, kinect_v2, generated (by "
-        "the profile of the family its skeleton comes from); records name it in 'profile'"))
+        "the profile of the family its skeleton comes from); records name it in 'profile'. "
+        "With --reference on depth-camera clips, --source mocap measures the values the "
+        "reference compares at the default thresholds, where they are not cut to 0"))
     add_joint_map_option(sco)
     sco.set_defaults(func=run)
 
