@@ -367,8 +367,10 @@ def _native_stderr_captured() -> Iterator[list[str]]:
     (``[h264_v4l2m2m @ ...] Could not find a valid device``, ``can't configure encoder``
     when the OpenCV wheel has no H.264) and OpenCV reports the WebM container's tags
     (``tag 'VP80' is not supported``, yet it writes VP8), both straight to the C stderr,
-    which neither OpenCV's log level nor Python's ``sys.stderr`` governs. Without a
-    descriptor 2 (or where it cannot be duplicated) nothing is captured.
+    which neither OpenCV's log level nor Python's ``sys.stderr`` governs. The block lasts
+    while OpenCV opens one file (milliseconds); what another thread prints meanwhile goes to
+    the same DEBUG log. Without a descriptor 2 (or where it cannot be duplicated) nothing is
+    captured.
     """
     said: list[str] = []
     try:
