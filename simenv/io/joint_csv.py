@@ -120,6 +120,9 @@ from simenv.io.camera_frame import camera_to_world
 
 #: Extensions this reader claims when no sniffer accepts a file.
 EXTENSIONS = (".csv",)
+#: In a folder, a ``.csv`` counts as motion only when :func:`sniff` accepts it (an index or
+#: label table beside the recordings is not a malformed motion).
+FOLDER_NEEDS_SNIFF = True
 FORMAT = "joint_csv"
 
 #: Column delimiters tried on the header row.

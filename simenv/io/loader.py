@@ -248,14 +248,19 @@ def _load_single_person(path: Path, kwargs: dict[str, Any]) -> Motion:
 def motion_files(folder: Path) -> list[tuple[Path, str]]:
     """Files in ``folder`` (not recursive) that a reader recognises, with the
     reader name. ASF skeletons are left out when AMC motions are present
-    (they are read through the AMCs)."""
+    (they are read through the AMCs); files of a reader that sets
+    ``FOLDER_NEEDS_SNIFF`` count only when its ``sniff`` accepts them."""
     found = []
     for p in sorted(folder.iterdir()):
         if not p.is_file() or p.name.startswith("."):
             continue
         try:
-            name, _ = detect(p)
+            name, mod = detect(p)
         except UnknownFormatError:
+            continue
+        # A generic extension (.csv) is claimed for its error messages, not for folder walks:
+        # a folder's index or label table is not a motion its reader failed to recognise.
+        if getattr(mod, "FOLDER_NEEDS_SNIFF", False) and not mod.sniff(p, _head(p)):
             continue
         found.append((p, name))
     if any(p.suffix.lower() == ".amc" for p, _ in found):
