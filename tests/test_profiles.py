@@ -130,3 +130,10 @@ def test_cli_records_the_profile(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["score", str(NTU), "--no-physics", "--json", "--source", "mocap"]) == 0
     rec = json.loads(capsys.readouterr().out.strip().splitlines()[0])
     assert rec["profile"] == "mocap" and rec["verdict"] == "implausible"
+
+
+def test_html_report_says_which_profile_judged(tmp_path: Path) -> None:
+    from simenv.plausibility.html_report import write_report
+
+    page = write_report(score(load(NTU), physics=False), tmp_path / "ntu").read_text()
+    assert "judged by" in page and "kinect_v2 depth-camera profile" in page

@@ -86,7 +86,8 @@ def _print_score(rec: dict[str, Any]) -> None:
     where = f"clip {rec['clip']}, person {rec['person']}" if "clip" in rec \
         else f"person {rec['person']}"
     line = (f"{rec['file']} [{where}]: {rec['verdict']} (score "
-            f"{rec['score']:.1f}, {rec['frames']} frames at {rec['fps']:g} fps)")
+            f"{rec['score']:.1f}, {rec['frames']} frames at {rec['fps']:g} fps, "
+            f"{rec.get('profile', 'mocap')} thresholds)")
     if failed:
         line += "; failed: " + ", ".join(failed)
     if na:
