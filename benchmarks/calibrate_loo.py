@@ -313,8 +313,8 @@ def run_corruptions(data: Path, out: Path, depth_every: int, only: str | None = 
                         "strength": spec.moderate, "seed": 0, "targets": list(spec.targets)}
                 try:
                     bad = spec.fn(motion, spec.moderate, seed=0)
-                    rec = {**score(bad, physics=True,
-                                   config=score_config(tracker)).to_records()[0], **base}
+                    rec = {**score(bad, physics=True, config=score_config(tracker),
+                                   source="mocap").to_records()[0], **base}
                 except SimenvError as exc:
                     rec = {**base, "error": str(exc)}
                 rec["seconds"] = round(time.perf_counter() - t0, 2)
@@ -649,8 +649,9 @@ def main() -> None:
             targets = [t for t in targets if source_of(str(t), args.data) == args.only]
         done = done_files(real_path)
         print(f"{len(targets)} targets, {sum(str(t) in done for t in targets)} already scored")
-        score_batch(targets, ScoreJob(physics=True, config=score_config(tracker)),
-                    out=real_path)
+        # Values at the defaults (no depth-camera profile): the folds set the thresholds.
+        score_batch(targets, ScoreJob(physics=True, config=score_config(tracker),
+                                      source="mocap"), out=real_path)
     if "corrupt" in args.stages:
         run_corruptions(args.data, corrupt_path, args.depth_every, args.only, tracker)
     if "report" in args.stages:

@@ -172,7 +172,8 @@ def main() -> None:
         [args.data / "cmu", args.data / "other", args.data / "gestures"]
     if not args.report_only:
         targets = find_targets([r for r in roots if r.exists()])
-        score_batch(targets, ScoreJob(physics=True), jobs=args.jobs, out=args.out)
+        score_batch(targets, ScoreJob(physics=True, source="mocap"), jobs=args.jobs,
+                    out=args.out)
     records = [json.loads(line) for line in args.out.read_text().splitlines() if line.strip()]
     args.docs.mkdir(exist_ok=True)
     (args.docs / "calibration.md").write_text(summarise(records, args.data))
