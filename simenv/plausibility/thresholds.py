@@ -235,6 +235,9 @@ DEFAULT_THRESHOLDS = Thresholds()
 #: and for OpenNI at the hips) the share of real clips within them is unchanged:
 #: 99.4 % (MSR Action3D), 100 % (UTKinect), 100 % (Florence 3D)
 #: (``benchmarks/bone_length_sources.py``, docs/plausibility.md).
+#: These per-corpus profiles serve the leave-clips-out calibration; by default the scorer
+#: judges a depth-camera clip by its *sensor family's* profile instead
+#: (:mod:`simenv.plausibility.profiles`, calibrated on whole corpora and checked on others).
 #: Use with the body-level profile of the same name
 #: (:data:`simenv.plausibility.body_thresholds.SOURCE_BODY_THRESHOLDS`)::
 #:
