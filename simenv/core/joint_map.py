@@ -180,7 +180,7 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
 )
 
 # Rig prefixes that precede a name with a separator ("Bip01 L Thigh", "Character1_Hips").
-_RIG_PREFIX = re.compile(r"^(?:bip0*1|bip001|character\d*|jnt|joint|def|mch|org|b)[\s_.\-]+",
+_RIG_PREFIX = re.compile(r"^(?:bip0*1|character\d*|jnt|joint|def|mch|org|b)[\s_.\-]+",
                          re.IGNORECASE)
 _SEPARATORS = re.compile(r"[\s_.\-:|]+")
 _WORDS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+|\d+")
@@ -248,6 +248,7 @@ def common_prefix(names: Sequence[str]) -> str:
 
 
 def _declared(name: str, side: str | None) -> NormalisedName:
+    """A convention's (left-side) name as it reads for ``side``."""
     n = normalise(name)
     if n.side is None or side is None:
         return n
@@ -346,10 +347,7 @@ def _by_names(tree: _Tree, prefix: str) -> tuple[dict[str, str], dict[str, str],
         side = "left" if key.startswith("left_") else "right" if key.startswith("right_") else None
         declared = convention.keypoints.get(key.replace("right_", "left_"))
         for alias in declared or ():
-            want = _declared(alias, side)
-            if key.startswith("right_") and want.side == "left":
-                want = NormalisedName("right", want.stem)
-            hits = lookup.get(want, [])
+            hits = lookup.get(_declared(alias, side), [])
             if len(hits) == 1:
                 return hits[0]
         return None
@@ -597,10 +595,11 @@ def _by_rest_pose(tree: _Tree, positions: np.ndarray, prefix: str,
             canonical[f"{side}_hand"] = tree.names[hand]
     if head_root is not None:
         chain = tree.path(head_root, max(tree.subtree(head_root), key=lambda s: height[s]))
-        if len(chain) >= 2:
-            canonical["neck"] = tree.names[chain[0]]
         tip = normalise(tree.names[chain[-1]], prefix).stem.endswith(_TIP_WORDS)
-        canonical["head"] = tree.names[chain[-2] if tip and len(chain) >= 2 else chain[-1]]
+        head = len(chain) - (2 if tip and len(chain) >= 2 else 1)
+        canonical["head"] = tree.names[chain[head]]
+        if head > 0:
+            canonical["neck"] = tree.names[chain[0]]
     return canonical, {k: HOW_REST_POSE for k in canonical}
 
 
