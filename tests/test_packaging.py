@@ -108,6 +108,20 @@ def test_wheel_holds_one_namespace_and_the_assets(installed: dict):
         assert required in names
 
 
+def test_every_asset_file_is_in_the_wheel(installed: dict):
+    """Whatever assets/ holds (clips, checkpoints, scenarios, profiles) ships: a file type
+    missing from pyproject.toml's package-data would work in the checkout and fail installed."""
+    names = set(zipfile.ZipFile(installed["wheel"]).namelist())
+    tracked = subprocess.run(["git", "ls-files", "assets"], cwd=REPO, capture_output=True,
+                             text=True)
+    files = ([REPO / f for f in tracked.stdout.split()] if tracked.returncode == 0
+             else [p for p in (REPO / "assets").rglob("*") if p.is_file()])
+    missing = [f.relative_to(REPO).as_posix() for f in files
+               if "__pycache__" not in f.parts
+               and f"simenv/{f.relative_to(REPO).as_posix()}" not in names]
+    assert not missing, f"not in the wheel (add to [tool.setuptools.package-data]): {missing}"
+
+
 def test_every_subpackage_is_in_the_wheel(installed: dict):
     """pyproject.toml lists packages explicitly (for the models/agents/assets mapping)."""
     names = set(zipfile.ZipFile(installed["wheel"]).namelist())
