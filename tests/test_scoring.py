@@ -45,6 +45,19 @@ def test_find_targets_walks_folders_and_keeps_pairs_whole(corpus):
         find_targets([corpus / "absent"])
 
 
+def test_intergen_folder_is_one_target_scored_once(tmp_path):
+    """A folder laid out as InterGen's person1/ + person2/ (the real handshake pair written by
+    write_intergen) is one target: the pair, not each person's file (each of which would load
+    its partner again)."""
+    from simenv.io.intergen import write_intergen
+
+    folder = tmp_path / "clips" / "intergen"
+    write_intergen(load(asset_path(HANDSHAKE_PAIR)), folder, resample=True)
+    assert find_targets([tmp_path / "clips"]) == [folder]
+    records = score_target(folder, FAST)
+    assert sorted(r["person"] for r in records) == [0, 1]
+
+
 def test_bad_file_becomes_an_error_record(corpus):
     (rec,) = score_target(corpus / "nested" / "broken.bvh", FAST)
     assert rec["file"].endswith("broken.bvh")

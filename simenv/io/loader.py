@@ -284,6 +284,12 @@ def _folder_readers(folder: Path) -> list[tuple[str, ModuleType]]:
             and hasattr(m, "sniff_folder") and m.sniff_folder(folder)]
 
 
+def is_laid_out_recording(folder: Path) -> bool:
+    """Whether a reader reads ``folder`` as recordings laid out in subfolders (InterGen's
+    ``person1/`` + ``person2/``): it is then one target, not its files one by one."""
+    return bool(_folder_readers(Path(folder)))
+
+
 def _load_folder(folder: Path, kwargs: dict[str, Any]) -> Loaded:
     files = motion_files(folder)
     # Clips of formats laid out in subfolders; with loose files too, every clip in a list.

@@ -27,7 +27,7 @@ from tqdm import tqdm
 
 from simenv.core.errors import ReferenceDataError, SimenvError
 from simenv.core.motion import Interaction
-from simenv.io.loader import load, motion_files
+from simenv.io.loader import is_laid_out_recording, load, motion_files
 from simenv.plausibility.distributed import ray_map
 from simenv.plausibility.reference import Reference, calibrate, read_records
 
@@ -48,7 +48,7 @@ def _pair_folder(folder: Path) -> bool:
 
 
 def _walk(folder: Path) -> Iterator[Path]:
-    if _pair_folder(folder):
+    if _pair_folder(folder) or is_laid_out_recording(folder):
         yield folder
         return
     for path, _ in motion_files(folder):
