@@ -272,8 +272,7 @@ def _same(got: list[Clip], ref: list[Clip]) -> None:
 @pytest.mark.parametrize("writer", sorted(WRITERS))
 def test_what_simenv_writes_loads_back(writer: str, walk: Motion, handshake: Interaction,
                                        tmp_path: Path) -> None:
-    folder = tmp_path / "written" / writer  # nested, as users name output folders
-    folder.mkdir(parents=True)  # write_intergen creates its folders; the others do not
+    folder = tmp_path / "written" / writer  # nested and absent: every writer creates it
     files, clips = WRITERS[writer](folder, walk, handshake)
     for path, held in files.items():
         _same(_clips(simenv.load(path)), held)

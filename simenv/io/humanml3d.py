@@ -530,6 +530,7 @@ def export_positions(motion: Motion, fps: float, fmt: str, *, resample: bool = F
 
 def _save_npy(path: Path, obj: Any, *, allow_pickle: bool) -> Path:
     # Through a handle: np.save(path) would append ".npy" to other suffixes.
+    path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("wb") as fh:
         np.save(fh, obj, allow_pickle=allow_pickle)
     return path

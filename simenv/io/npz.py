@@ -98,6 +98,7 @@ def write_npz(obj: Motion | Interaction, path: str | Path) -> Path:
         arrays["metadata"] = _dumps(obj.metadata, "metadata")
     else:
         raise TypeError(f"write_npz takes a Motion or an Interaction, not {type(obj).__name__}")
+    path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("wb") as fh:
         np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
     return path
