@@ -65,14 +65,38 @@ def check_suffix(path: str, suffix: str, option: str) -> Path:
     return out
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse help that states each option's default, ``(default: X)``, unless its help
+    already names one or there is nothing to state (a flag that is off, an option unset)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        default = action.default
+        if (default is None or default is False or default is argparse.SUPPRESS
+                or default == [] or "default" in text
+                or (not action.option_strings and action.nargs not in ("?", "*"))):
+            return text
+        return f"{text} (default: %(default)s)".lstrip()
+
+
+def command_parser(prog: str, description: str | None) -> argparse.ArgumentParser:
+    """An empty parser of a second-level command (``simenv train predictor``, ``simenv
+    rehearse``) whose options the script that runs it adds: help and usage errors name
+    ``prog`` and every option's default (:class:`HelpFormatter`)."""
+    return argparse.ArgumentParser(prog=prog, description=description,
+                                   formatter_class=HelpFormatter)
+
+
 def add_model_command(subparsers: argparse._SubParsersAction, verb: str, text: str,
                       run: Callable[[argparse.Namespace], int]) -> None:
-    """Add ``simenv VERB KIND ...`` (``train``, ``eval``): the options after KIND go, as
-    they are, to the script of that kind (``args.kind``, ``args.options``)."""
+    """Add ``simenv VERB KIND ...`` (``train``, ``eval``): the options after KIND go to the
+    parser of that kind (``args.kind``, ``args.options``), which ``run`` builds (importing
+    the kind's script, PyTorch included, only then) with :func:`command_parser`, so that
+    ``simenv VERB KIND --help`` and its usage errors come from the parser that runs it."""
     cmd = subparsers.add_parser(verb, help=text.split(" (")[0].split(":")[0], description=text)
     cmd.add_argument("kind", choices=MODEL_KINDS, metavar="KIND", help=" or ".join(MODEL_KINDS))
     cmd.add_argument("options", nargs=argparse.REMAINDER, metavar="...",
-                     help="options of the training/evaluation script")
+                     help=f"options of that kind (simenv {verb} KIND --help)")
     cmd.set_defaults(func=run)
 
 
@@ -228,7 +252,8 @@ def _residuals(result: Any) -> np.ndarray:
     return np.concatenate([np.asarray(p.residuals) for p in people], axis=1)
 
 
-__all__ = ["EXIT_USER_ERROR", "JOINT_MAP_HELP", "MODEL_KINDS", "PATH_HELP",
-           "add_joint_map_option", "add_model_command", "check_suffix", "describe",
+__all__ = ["EXIT_USER_ERROR", "JOINT_MAP_HELP", "MODEL_KINDS", "PATH_HELP", "HelpFormatter",
+           "add_joint_map_option", "add_model_command", "check_suffix", "command_parser",
+           "describe",
            "joint_map_record",
            "positive_int", "read_options", "retarget_clip", "save_npz", "summary"]

@@ -15,7 +15,7 @@ import sys
 from collections.abc import Sequence
 
 from simenv.cli import demo, evaluate, export, info, rehearse, render, retarget, score, train
-from simenv.cli.common import EXIT_USER_ERROR
+from simenv.cli.common import EXIT_USER_ERROR, HelpFormatter
 from simenv.core.errors import SimenvError
 
 #: The commands in the order ``simenv --help`` lists them.
@@ -31,18 +31,23 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in COMMANDS:
         command.add_parser(sub)
+    for cmd in sub.choices.values():
+        # Every option's default in its help; usage errors name the subcommand's usage.
+        cmd.formatter_class = HelpFormatter
+        cmd.set_defaults(command_parser=cmd)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``simenv`` command; returns the exit status (2 on a user error)."""
     parser = build_parser()
-    # `rehearse` forwards everything, its --help included, to the rehearsal's own parser.
+    # `rehearse` forwards everything, its --help included, to the rehearsal's parser
+    # (simenv.cli.rehearse builds it); `train`/`eval` forward what follows KIND likewise.
     args, extra = parser.parse_known_args(argv)
     if args.command == "rehearse":
         args.options = [*extra, *args.options]
     elif extra:
-        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        args.command_parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return args.func(args)
     except SimenvError as err:

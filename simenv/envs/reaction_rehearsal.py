@@ -208,7 +208,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, help="only the first SECONDS of the session")
     ap.add_argument("--shared", help="corpus root for the start pose")
     ap.add_argument("--no-render", action="store_true", help="no video in the report")
-    args = ap.parse_args(argv)
+    return run_args(ap.parse_args(argv))
+
+
+def run_args(args: argparse.Namespace) -> int:
+    """Rehearse with parsed options (``session``, ``agent``, ``out``, ``seconds``,
+    ``shared``, ``no_render``: those of :func:`main`), print the one-line summary; 2 on a
+    user error."""
     import torch  # heavy; the generator loaded later imports it anyway, here it gets 1 thread
 
     torch.set_num_threads(1)

@@ -512,16 +512,21 @@ def _gesture(text: str) -> GestureEvent:
                           field="gesture") from None
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m simenv.envs.rehearsal SESSION --out DIR [...]`` (``--help`` lists options)."""
-    parser = argparse.ArgumentParser(prog="python -m simenv.envs.rehearsal",
-                                     description=__doc__.splitlines()[0])
+def add_arguments(parser: argparse.ArgumentParser, generators: Sequence[str] = ()) -> None:
+    """The rehearsal's options, on ``parser``; ``generators`` (reaction generator names,
+    which ``simenv rehearse`` hands to :mod:`simenv.envs.reaction_rehearsal`) join the
+    choices of ``--agent``."""
     parser.add_argument("session", help="motion file, bundled asset name, or session recipe "
                         "(.toml or a bundled recipe name: "
                         f"{', '.join(session_recipes()) or 'none'})")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--joint-map", metavar="FILE.toml", help=JOINT_MAP_HELP)
-    parser.add_argument("--agent", choices=AGENTS, default="labels")
+    parser.add_argument("--agent", choices=(*AGENTS, *generators), default="labels",
+                        help="who reacts: scripted (perceives with the recogniser and the "
+                        "forecaster), labels (an oracle acting on the labelled gestures) or "
+                        "random (a seeded random reaction each second)"
+                        + (f"; {', '.join(generators)}: a reaction generator answers the "
+                           "session on open floor (tracked and scored)" if generators else ""))
     parser.add_argument("--scenario", default="default", help="bundled name or TOML file")
     parser.add_argument("--gesture", action="append", type=_gesture, default=[],
                         metavar="LABEL:ONSET_S:END_S", help="a labelled gesture (repeatable)")
@@ -540,7 +545,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "(default 480; e.g. 640 with --height 480)")
     parser.add_argument("--height", type=int, default=360, help="video height, pixels "
                         "(default 360)")
-    args = parser.parse_args(argv)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m simenv.envs.rehearsal SESSION --out DIR [...]`` (``--help`` lists options)."""
+    parser = argparse.ArgumentParser(prog="python -m simenv.envs.rehearsal",
+                                     description=__doc__.splitlines()[0])
+    add_arguments(parser)
+    return run_args(parser.parse_args(argv))
+
+
+def run_args(args: argparse.Namespace) -> int:
+    """Rehearse with the options of :func:`add_arguments`; prints the summary line, 0."""
     scenario = load_scenario(args.scenario)
     vocabulary = scenario.behaviour.vocabulary
     classifier = None
@@ -561,7 +577,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
-__all__ = ["AGENTS", "VIDEO_SIZE_RANGE", "main", "rehearse"]
+__all__ = ["AGENTS", "VIDEO_SIZE_RANGE", "add_arguments", "main", "rehearse", "run_args"]
 
 
 if __name__ == "__main__":

@@ -654,10 +654,12 @@ def plot(res: Mapping[str, Any], path: Path) -> Path:
     return path
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line entry point (see the module docstring)."""
-    ap = argparse.ArgumentParser(prog="python -m simenv.learning.eval_interaction",
-                                 description=__doc__.split("\n\n")[0])
+def main(argv: Sequence[str] | None = None,
+         parser: argparse.ArgumentParser | None = None) -> int:
+    """Command line entry point (see the module docstring; options on ``parser`` when
+    given, e.g. ``simenv eval interaction``)."""
+    ap = parser or argparse.ArgumentParser(prog="python -m simenv.learning.eval_interaction",
+                                           description=__doc__.split("\n\n")[0])
     ap.add_argument("--shared", default=str(SHARED), help="shared/data folder (training "
                     "data, and the default test split)")
     ap.add_argument("--data", nargs="*", help="two-person files/folders to evaluate on "
@@ -666,7 +668,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--model", nargs="*", metavar="NAME", help="two-person generators to "
                     "evaluate next to the baselines (default: every shipped one)")
     ap.add_argument("--no-physics", action="store_true", help="skip simenv.score")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0,
+                    help="seed of the generators' sampling and of the metrics' random pairs")
     ap.add_argument("--out", default=str(DOCS), help="folder of interaction.md/.json/.png")
     ap.add_argument("--json", action="store_true", help="print the JSON results")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")

@@ -604,43 +604,74 @@ def _print_summary(results: dict[str, Any]) -> None:
               f"  room {r['room_reaction_accuracy']:.3f}  (n={r['n']})")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``train`` / ``eval`` entry point (see the module docstring)."""
-    parser = argparse.ArgumentParser(prog="python -m simenv.learning.train_classifier",
-                                     description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    p_train = sub.add_parser("train", help="train on the gesture corpus and evaluate")
-    p_train.add_argument("--config", help="TOML or JSON file with TrainConfig options")
-    p_train.add_argument("--data", help=f"gestures folder (default {DEFAULT_DATA})")
-    p_train.add_argument("--out", default="out/gesture-classifier", help="output folder")
-    p_train.add_argument("--epochs", type=int)
-    p_train.add_argument("--seed", type=int)
-    p_train.add_argument("--max-minutes", type=float)
-    p_eval = sub.add_parser("eval", help="evaluate a checkpoint on the test subjects")
-    p_eval.add_argument("--model", default="gesture-classifier",
-                        help="shipped classifier name (default gesture-classifier)")
-    p_eval.add_argument("--checkpoint", help="a checkpoint file instead of a shipped model")
-    p_eval.add_argument("--data", default=str(DEFAULT_DATA))
-    p_eval.add_argument("--out", default="out/gesture-classifier-eval")
-    args = parser.parse_args(argv)
+def add_train_arguments(parser: argparse.ArgumentParser) -> None:
+    """The training options (``simenv train classifier``), on ``parser``."""
+    parser.add_argument("--config", help="TOML or JSON file with TrainConfig options")
+    parser.add_argument("--data", help=f"gestures folder (default {DEFAULT_DATA})")
+    parser.add_argument("--out", default="out/gesture-classifier", help="output folder")
+    parser.add_argument("--epochs", type=int,
+                        help=f"training epochs (default: --config's, else {TrainConfig.epochs})")
+    parser.add_argument("--seed", type=int,
+                        help=f"seed (default: --config's, else {TrainConfig.seed})")
+    parser.add_argument("--max-minutes", type=float, help="CPU-time budget (default: "
+                        f"--config's, else {TrainConfig.max_minutes})")
+
+
+def add_eval_arguments(parser: argparse.ArgumentParser) -> None:
+    """The evaluation options of ``python -m simenv.learning.train_classifier eval``."""
+    parser.add_argument("--model", default="gesture-classifier",
+                        help="shipped classifier name")
+    parser.add_argument("--checkpoint", help="a checkpoint file instead of a shipped model")
+    parser.add_argument("--data", default=str(DEFAULT_DATA), help="gestures folder")
+    parser.add_argument("--out", default="out/gesture-classifier-eval", help="output folder")
+
+
+def train_command(args: argparse.Namespace) -> int:
+    """Train with the options of :func:`add_train_arguments`; 2 on a user error."""
+    overrides = {k: v for k, v in (("data", args.data), ("epochs", args.epochs),
+                                   ("seed", args.seed), ("max_minutes", args.max_minutes))
+                 if v is not None}
     try:
-        if args.command == "train":
-            overrides = {k: v for k, v in (("data", args.data), ("epochs", args.epochs),
-                                           ("seed", args.seed),
-                                           ("max_minutes", args.max_minutes)) if v is not None}
-            config = (TrainConfig.from_file(args.config, **overrides) if args.config
-                      else TrainConfig(**overrides))
-            metrics = run_training(config, Path(args.out))
-        else:
-            checkpoint = Path(args.checkpoint) if args.checkpoint else \
-                checkpoint_path(args.model)
-            metrics = run_evaluation(checkpoint, Path(args.data), Path(args.out))
+        config = (TrainConfig.from_file(args.config, **overrides) if args.config
+                  else TrainConfig(**overrides))
+        metrics = run_training(config, Path(args.out))
     except SimenvError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     _print_summary(metrics["test"])
     print(f"outputs in {args.out}")
     return 0
+
+
+def eval_command(checkpoint: Path, data: Path, out: Path) -> int:
+    """Evaluate ``checkpoint`` on the test subjects of ``data``, write to ``out`` and print
+    the summary; 2 on a user error."""
+    try:
+        metrics = run_evaluation(checkpoint, data, out)
+    except SimenvError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    _print_summary(metrics["test"])
+    print(f"outputs in {out}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``train`` / ``eval`` entry point (see the module docstring)."""
+    parser = argparse.ArgumentParser(prog="python -m simenv.learning.train_classifier",
+                                     description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_train_arguments(sub.add_parser("train", help="train on the gesture corpus and evaluate"))
+    add_eval_arguments(sub.add_parser("eval", help="evaluate a checkpoint on the test subjects"))
+    args = parser.parse_args(argv)
+    if args.command == "train":
+        return train_command(args)
+    try:
+        checkpoint = Path(args.checkpoint) if args.checkpoint else checkpoint_path(args.model)
+    except SimenvError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return eval_command(checkpoint, Path(args.data), Path(args.out))
 
 
 if __name__ == "__main__":

@@ -228,16 +228,25 @@ def run(name: str, *, config: Any = None, shared: str | Path = SHARED,
             "metrics": metrics, "cpu_seconds": time.process_time() - t0}
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line entry point (see the module docstring); 2 on a user error."""
-    ap = argparse.ArgumentParser(prog="simenv train interaction",
-                                 description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", required=True, choices=list(INTERACTION_MODELS))
+def add_arguments(ap: argparse.ArgumentParser) -> None:
+    """The options of ``simenv train interaction``, on ``ap``."""
+    ap.add_argument("--model", required=True, choices=list(INTERACTION_MODELS),
+                    help="the two-person model to train")
     ap.add_argument("--config", help="TOML/JSON table of the model's configuration fields")
     ap.add_argument("--shared", default=str(SHARED), help="shared/data folder")
     ap.add_argument("--out", help="output folder (default out/train-interaction/MODEL)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="seed of the initialisation and "
+                    "the batches")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def main(argv: Sequence[str] | None = None,
+         parser: argparse.ArgumentParser | None = None) -> int:
+    """Command line entry point (see the module docstring; options on ``parser`` when
+    given); 2 on a user error."""
+    ap = parser or argparse.ArgumentParser(prog="python -m simenv.learning.train_interaction",
+                                           description=__doc__.split("\n\n")[0])
+    add_arguments(ap)
     args = ap.parse_args(argv)
     import torch  # heavy; the model trained later imports it anyway, here it gets 1 thread
 

@@ -1149,18 +1149,39 @@ def summary_json(metrics: dict) -> dict:
             "clips": metrics["clips"], "windows": metrics["windows"], "mpjpe_mm": rows}
 
 
-def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    """Options; ``--config FILE`` (TOML/JSON, :mod:`simenv.core.config`) sets defaults that
-    explicit command-line options override.
+def add_train_arguments(ap: argparse.ArgumentParser) -> None:
+    """The training options (``simenv train predictor``), on ``ap``."""
+    _data_options(ap)
+    _model_options(ap)
+    _run_options(ap)
+
+
+def add_eval_arguments(ap: argparse.ArgumentParser) -> None:
+    """The evaluation options (``simenv eval predictor [NAME]``), on ``ap``."""
+    ap.add_argument("name", nargs="?", default="predictor-25-25", metavar="NAME",
+                    help="shipped predictor (e.g. predictor-10-10, predictor-dctmlp-25-25)")
+    ap.add_argument("--data", nargs="*", help="motion files/folders to evaluate on "
+                    "(default: the model's own held-out CMU clips)")
+    ap.add_argument("--shared", default=str(SHARED), help="shared corpus root")
+    ap.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    ap.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads")
+    ap.add_argument("--out", help="output folder of metrics.json and error_curve.png "
+                    "(default out/eval-NAME)")
+
+
+def parse_args(argv: Sequence[str] | None = None,
+               parser: argparse.ArgumentParser | None = None) -> argparse.Namespace:
+    """Training options, parsed by ``parser`` (an empty one the caller names, e.g.
+    ``simenv train predictor``; default ``python -m simenv.learning.train_predictor``);
+    ``--config FILE`` (TOML/JSON, :mod:`simenv.core.config`) sets defaults that explicit
+    command-line options override.
 
     Raises:
         SimenvError: unreadable config or an unknown key in it.
     """
-    ap = argparse.ArgumentParser(prog="simenv train predictor",
-                                 description=__doc__.split("\n")[0])
-    _data_options(ap)
-    _model_options(ap)
-    _run_options(ap)
+    ap = parser or argparse.ArgumentParser(prog="python -m simenv.learning.train_predictor",
+                                           description=__doc__.split("\n")[0])
+    add_train_arguments(ap)
     args = ap.parse_args(argv)
     if args.config:
         options = {k.replace("-", "_"): v for k, v in read_options(args.config).items()}
@@ -1175,20 +1196,17 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 
 def _data_options(ap: argparse.ArgumentParser) -> None:
-    """Window lengths, data, evaluation of a shipped model, model kind and validation."""
+    """Window lengths, data, model kind and validation."""
     ap.add_argument("--config", help="TOML/JSON file of option values")
     ap.add_argument("--past", type=int, default=25, help="observed frames P (25 fps)")
     ap.add_argument("--future", type=int, default=25, help="predicted frames F")
     ap.add_argument("--data", nargs="*", help="motion files/folders (default: shared CMU)")
     ap.add_argument("--shared", default=str(SHARED), help="shared corpus root")
-    ap.add_argument("--evaluate", metavar="NAME",
-                    help="evaluate a shipped model (e.g. predictor-25-25) instead of training")
-    ap.add_argument("--json", action="store_true",
-                    help="with --evaluate: print the summary as one JSON object")
-    ap.add_argument("--iterations", type=int, default=20000)
+    ap.add_argument("--iterations", type=int, default=20000,
+                    help="training iterations (the time budget may end training first)")
     ap.add_argument("--minutes", type=float, default=6.0, help="training CPU-time budget")
     ap.add_argument("--model", choices=("gan", "regression"), default="gan",
-                    help="PredictiveMA-WGAN (default) or the DCT-residual MLP regression "
+                    help="PredictiveMA-WGAN (gan) or the DCT-residual MLP regression "
                     "predictor (simenv.models.predictor_regression)")
     ap.add_argument("--validation", type=float, default=0.0,
                     help="share of the training windows held out by clip group for "
@@ -1251,47 +1269,69 @@ def _run_options(ap: argparse.ArgumentParser) -> None:
                     help="speed augmentation factors of the training clips")
     ap.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=True,
                     help="add left-right mirrored training windows")
-    ap.add_argument("--dropout", type=float, default=0.2)
-    ap.add_argument("--test-fraction", type=float, default=0.25)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--out", help="output folder (metrics.json, error_curve.png and, when "
-                    "training, model.npz; default out/predictor or out/eval-NAME)")
+    ap.add_argument("--dropout", type=float, default=0.2, help="dropout of the networks")
+    ap.add_argument("--test-fraction", type=float, default=0.25,
+                    help="share of the clip groups held out for the test")
+    ap.add_argument("--seed", type=int, default=0,
+                    help="seed of the split, the initialisation and the batches")
+    ap.add_argument("--threads", type=int, default=1, help="PyTorch CPU threads")
+    ap.add_argument("--out", help="output folder of metrics.json, error_curve.png, model.npz "
+                    "and the shipped checkpoint and card (default out/predictor)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Train (default) or, with ``--evaluate NAME``, evaluate; returns the exit status
-    (2 on a user error)."""
+def main(argv: Sequence[str] | None = None,
+         parser: argparse.ArgumentParser | None = None) -> int:
+    """Train (options: :func:`parse_args`, on ``parser`` when given); returns the exit
+    status (2 on a user error)."""
     try:
-        args = parse_args(argv)
-        if args.evaluate:
-            torch.set_num_threads(args.threads)
-            model = load_model(args.evaluate)
-            args.out = args.out or f"out/eval-{args.evaluate}"
-            metrics = run_evaluation(model, eval_motions(model, args.data, args.shared),
-                                     args.out)
-            result = summary_json(metrics)
-            if args.json:
-                print(json.dumps(result))
-            else:
-                print(f"{result['clips']} clips, {result['windows']} windows; per-frame "
-                      f"MPJPE [mm] at {result['horizons_ms']} ms (metrics.json and "
-                      f"error_curve.png in {args.out})")
-                for name, row in result["mpjpe_mm"].items():
-                    print(f"{name:>18s} " + " ".join(
-                        "    n/a" if v is None else f"{v:7.1f}" for v in row))
-            return 0
+        args = parse_args(argv, parser)
         args.out = args.out or "out/predictor"
         metrics = run(args)
     except SimenvError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    for name, m in metrics["overall"].items():
-        row = " ".join(f"{m['mpjpe_mm'].get(h, float('nan')):7.1f}" for h in pm.HORIZONS_MS)
-        print(f"{name:>26s} {row}")
+    _print_table(metrics["overall"])
     print(f"outputs in {args.out}")
     return 0
+
+
+def evaluate_main(argv: Sequence[str] | None = None,
+                  parser: argparse.ArgumentParser | None = None) -> int:
+    """Evaluate a shipped model (options: :func:`add_eval_arguments`, on ``parser`` when
+    given, e.g. ``simenv eval predictor``); returns the exit status (2 on a user error)."""
+    ap = parser or argparse.ArgumentParser(prog="simenv eval predictor",
+                                           description="Evaluate a shipped predictor.")
+    add_eval_arguments(ap)
+    args = ap.parse_args(argv)
+    try:
+        torch.set_num_threads(args.threads)
+        model = load_model(args.name)
+        args.out = args.out or f"out/eval-{args.name}"
+        metrics = run_evaluation(model, eval_motions(model, args.data, args.shared), args.out)
+    except SimenvError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    result = summary_json(metrics)
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"{result['clips']} clips, {result['windows']} windows; per-frame MPJPE [mm] "
+          f"(metrics.json and error_curve.png in {args.out})")
+    _print_table({name: {"mpjpe_mm": dict(zip(result["horizons_ms"], row, strict=True))}
+                  for name, row in result["mpjpe_mm"].items()})
+    return 0
+
+
+def _print_table(overall: dict[str, dict]) -> None:
+    """The per-frame MPJPE table (mm; a row per method, a column per horizon, ``n/a`` beyond
+    the model's future), with its header."""
+    width = max(len(name) for name in overall)
+    print(f"{'MPJPE [mm] at':>{width}s} " + " ".join(f"{h:>5d} ms" for h in pm.HORIZONS_MS))
+    for name, m in overall.items():
+        row = [m["mpjpe_mm"].get(h) for h in pm.HORIZONS_MS]
+        print(f"{name:>{width}s} " + " ".join(
+            "    n/a " if v is None or v != v else f"{v:8.1f}" for v in row))
 
 
 if __name__ == "__main__":

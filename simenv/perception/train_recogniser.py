@@ -382,58 +382,85 @@ def benchmark_table(results: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def add_train_arguments(p: argparse.ArgumentParser) -> None:
+    """The training options (``simenv train recogniser``), on ``p``."""
+    p.add_argument("--data", help="gestures folder (default: the shared corpus)")
+    p.add_argument("--out", default="out/gesture-tcn", help="output folder")
+    p.add_argument("--config", help="TOML or JSON file of RecognitionConfig options")
+    p.add_argument("--epochs", type=int, help="training epochs (default: --config's, else "
+                   f"{RecognitionConfig.epochs})")
+    p.add_argument("--seed", type=int,
+                   help=f"seed (default: --config's, else {RecognitionConfig.seed})")
+    p.add_argument("--forecasters", help="folder of per-fold gesture predictors "
+                   "(fold<k>/model.npz; default: none, the protocol's folds and the loop "
+                   "run without a forecast)")
+
+
+def add_eval_options(p: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """The evaluation options besides the data, model, output and ``--json``."""
+    p.add_argument("--checkpoint", help="a SkeletonTCN checkpoint file instead of a "
+                   "shipped recogniser")
+    p.add_argument("--predictor", default=FORECASTER,
+                   help="forecaster of real_1s_pred_2s ('none' to skip)")
+
+
+def add_benchmark_options(p: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """The benchmark options besides the dataset, data, output and ``--json``."""
+    p.add_argument("--members", type=int, default=1,
+                   help="networks of consecutive seeds averaged per fold")
+    p.add_argument("--whole-sequences", action="store_true",
+                   help="train on whole sequences instead of 5-s crops")
+    p.add_argument("--joints", choices=BENCHMARK_JOINTS, default="gesture15",
+                   help="joint set: the room's gesture15, or each dataset's own skeleton "
+                   "(native)")
+    p.add_argument("--neighbour", choices=NEIGHBOUR_DISTANCES,
+                   help="the nearest-neighbour baseline (this distance) instead of the "
+                   "networks")
+    p.add_argument("--covariance", choices=COVARIANCE_MODES,
+                   help="the covariance-descriptor classifier alone, fused with the networks "
+                   "at equal weights, or weighted by the training subjects "
+                   "(simenv.learning.covariance)")
+    p.add_argument("--lie-group", action="store_true",
+                   help="with --covariance: the classifier also chooses among Lie-group "
+                   "descriptors (simenv.learning.lie_group)")
+    p.add_argument("--mirror-test", action="store_true",
+                   help="average each network over the test clip and its mirror image")
+
+
+#: ``benchmark``'s datasets: a benchmark, all of them, or the room vocabulary's folds.
+BENCHMARK_DATASETS: tuple[str, ...] = ("all", "room", *PUBLISHED)
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m simenv.perception.train_recogniser",
                                      description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    p_train = sub.add_parser("train", help="protocol, loop and the shipped network")
-    p_train.add_argument("--data", help="gestures folder (default: the shared corpus)")
-    p_train.add_argument("--out", default="out/gesture-tcn")
-    p_train.add_argument("--config", help="TOML or JSON file of RecognitionConfig options")
-    p_train.add_argument("--epochs", type=int)
-    p_train.add_argument("--seed", type=int)
-    p_train.add_argument("--forecasters", help="folder of per-fold gesture predictors "
-                         "(fold<k>/model.npz)")
+    add_train_arguments(sub.add_parser("train", help="protocol, loop and the shipped network"))
     p_eval = sub.add_parser("eval", help="evaluate on labelled recordings")
     p_eval.add_argument("--data", nargs="+", help="corpus roots, dataset folders or files "
                         "(default: the shared corpus; in-sample for the shipped model)")
     p_eval.add_argument("--model", default=DEFAULT_CLASSIFIER,
                         help=f"shipped recogniser (default {DEFAULT_CLASSIFIER}, the room's)")
-    p_eval.add_argument("--checkpoint", help="a SkeletonTCN checkpoint file instead")
-    p_eval.add_argument("--predictor", default=FORECASTER,
-                        help="forecaster of real_1s_pred_2s ('none' to skip)")
+    add_eval_options(p_eval)
     p_eval.add_argument("--json", action="store_true", help="print one JSON object")
     p_eval.add_argument("--out", help="also write metrics.json here")
     p_bench = sub.add_parser("benchmark", help="per-dataset protocols vs published figures")
-    p_bench.add_argument("--dataset", choices=("all", "room", *PUBLISHED), default="all",
+    p_bench.add_argument("--dataset", choices=BENCHMARK_DATASETS, default="all",
                          help="a benchmark, all of them, or 'room': the room vocabulary's "
                          "leave-subjects-out folds (with --neighbour or --covariance alone only)")
     p_bench.add_argument("--data", help="gestures folder (default: the shared corpus)")
     p_bench.add_argument("--out", default="out/recognition-benchmark")
-    p_bench.add_argument("--members", type=int, default=1,
-                         help="networks of consecutive seeds averaged per fold")
-    p_bench.add_argument("--whole-sequences", action="store_true",
-                         help="train on whole sequences instead of 5-s crops")
-    p_bench.add_argument("--joints", choices=BENCHMARK_JOINTS, default="gesture15",
-                         help="joint set: the room's gesture15, or each dataset's own "
-                         "skeleton (native)")
-    p_bench.add_argument("--neighbour", choices=NEIGHBOUR_DISTANCES,
-                         help="the nearest-neighbour baseline (this distance) instead of "
-                         "the networks")
-    p_bench.add_argument("--covariance", choices=COVARIANCE_MODES,
-                         help="the covariance-descriptor classifier alone, fused with "
-                         "the networks at equal weights, or weighted by the training "
-                         "subjects (simenv.learning.covariance)")
-    p_bench.add_argument("--lie-group", action="store_true",
-                         help="with --covariance: the classifier also chooses among Lie-group "
-                         "descriptors (simenv.learning.lie_group)")
-    p_bench.add_argument("--mirror-test", action="store_true",
-                         help="average each network over the test clip and its mirror image")
+    add_benchmark_options(p_bench)
     p_bench.add_argument("--json", action="store_true")
     return parser
 
 
-def _train_command(args: argparse.Namespace) -> None:
+def train_command(args: argparse.Namespace) -> None:
+    """The ``train`` command on parsed options (its parser: :func:`_parser`).
+
+    Raises:
+        SimenvError: bad data or options.
+    """
     overrides = {k: v for k, v in (("epochs", args.epochs), ("seed", args.seed))
                  if v is not None}
     config = (RecognitionConfig.from_file(args.config, **overrides) if args.config
@@ -445,7 +472,12 @@ def _train_command(args: argparse.Namespace) -> None:
     print(f"outputs in {args.out}")
 
 
-def _eval_command(args: argparse.Namespace) -> None:
+def eval_command(args: argparse.Namespace) -> None:
+    """The ``eval`` command on parsed options (its parser: :func:`_parser`).
+
+    Raises:
+        SimenvError: bad data or options.
+    """
     result = run_eval(args.data or [str(_default_data())], checkpoint=args.checkpoint,
                       model_name=args.model,
                       predictor=None if args.predictor == "none" else args.predictor)
@@ -462,7 +494,12 @@ def _eval_command(args: argparse.Namespace) -> None:
                   f"{v['balanced_accuracy']:.3f}  (n={v['n']})")
 
 
-def _benchmark_command(args: argparse.Namespace) -> None:
+def benchmark_command(args: argparse.Namespace) -> None:
+    """The ``benchmark`` command on parsed options (its parser: :func:`_parser`).
+
+    Raises:
+        SimenvError: bad data or options.
+    """
     data = Path(args.data) if args.data else _default_data()
     out = Path(args.out)
     if args.dataset == "room":
@@ -511,8 +548,8 @@ def _benchmark_command(args: argparse.Namespace) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line (module docstring)."""
     args = _parser().parse_args(argv)
-    commands = {"train": _train_command, "eval": _eval_command,
-                "benchmark": _benchmark_command}
+    commands = {"train": train_command, "eval": eval_command,
+                "benchmark": benchmark_command}
     try:
         commands[args.command](args)
     except SimenvError as exc:
