@@ -173,6 +173,25 @@ def test_real_dance_within_ranges_and_a_bent_knee_is_not(shared_data: Path) -> N
     assert not b.passed and b.value >= 2 * THR, b.to_dict()
 
 
+def test_real_humanml3d_tennis_serve_within_ranges() -> None:
+    """The real HumanML3D clip 012314 (AMASS Eyes_Japan tennis serve): the upper
+    thorax turns at most 62 deg forward and 37 back against the pelvis from
+    SMPL's zero pose (AAOS thoraco-lumbar flexion 80, extension 25), the lumbar
+    part of it at SMPL's spine1, which is rigid on the pelvis. Before the fitted
+    body put its lumbar and thorax joints there
+    (:attr:`simenv.body.humanoid.BodyDimensions.lumbar_offset`), the thorax joint
+    alone took that bend plus SMPL's rest kink at spine1 (22 deg in the zero pose)
+    and the clip failed by 47.7 deg on thorax_flex."""
+    from simenv.io.loader import load
+
+    clip = load(Path(__file__).parent / "data" / "humanml3d" / "new_joints" / "012314.npy")
+    excess, fitted, _ = joint_limit_demand(clip)
+    trunk = [i for i, n in enumerate(fitted.humanoid.joint_names)
+             if n.startswith(("lumbar_", "thorax_", "chest_"))]
+    assert excess[:, trunk].max() <= THR
+    assert joint_limits(clip, fitted=fitted).passed
+
+
 def test_sustained_max_ignores_a_single_frame() -> None:
     tl = np.array([0.0, 12.0, 0.0, 5.0, 6.0, 7.0, 0.0])
     assert sustained_max(tl, 3) == 5.0  # the 12 lasts one frame

@@ -11,7 +11,9 @@ y left, z up; the rest pose is standing with the arms hanging)::
 Each body carries a site at its canonical keypoint (site name = keypoint name, see
 :data:`simenv.core.skeletons.CANONICAL_KEYPOINTS`), so keypoints are read from
 ``data.site_xpos``. A keypoint is the origin of the body it starts, except the
-rigid ones: the hips live on the pelvis, the neck on the chest.
+rigid ones: the hips live on the pelvis, the neck on the chest, and the spine on
+the pelvis for a source whose spine keypoint is rigid there (SMPL ``spine1``:
+the lumbar then turns at it, :attr:`BodyDimensions.lumbar_offset`).
 
 Joints are hinges (triplets where the anatomy has three degrees of freedom, so
 every degree of freedom gets its own box limit and its own position actuator).
@@ -296,7 +298,16 @@ class BodyDimensions:
 
     Attributes:
         left_hip_offset, right_hip_offset: hip joint centres in the pelvis frame.
-        lumbar: pelvis -> spine. thorax: spine -> chest. upper_chest: chest -> neck.
+        lumbar_offset: where the lumbar joint sits in the pelvis frame. Zero (the
+            default, CMU's layout): it turns at the pelvis keypoint and the spine
+            keypoint ends the lumbar. Non-zero: the source's spine keypoint is
+            rigid on the pelvis (SMPL ``spine1``: a joint's position is fixed in
+            its parent's frame, and spine1's parent is the pelvis) and the lumbar
+            turns *at* it, so the spine site sits on the pelvis there; the fit
+            then gives the lumbar zero length (see :attr:`spine_on_pelvis`).
+        lumbar: pelvis -> spine (lumbar joint -> thorax joint when
+            :attr:`spine_on_pelvis`). thorax: spine -> chest (thorax joint ->
+            chest). upper_chest: chest -> neck.
         neck: neck -> head keypoint (base of the skull).
         clavicle_pivot: height of the sterno-clavicular pivot above the chest
             keypoint, along the chest's z axis.
@@ -312,6 +323,7 @@ class BodyDimensions:
 
     left_hip_offset: tuple[float, float, float] = (0.0, 0.09, -0.09)
     right_hip_offset: tuple[float, float, float] = (0.0, -0.09, -0.09)
+    lumbar_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     lumbar: float = 0.12
     thorax: float = 0.12
     upper_chest: float = 0.21
@@ -384,10 +396,16 @@ class BodyDimensions:
         return float(leg)
 
     @property
+    def spine_on_pelvis(self) -> bool:
+        """Whether the spine keypoint is rigid on the pelvis at :attr:`lumbar_offset`
+        (the lumbar joint) rather than the end of the lumbar."""
+        return bool(np.any(np.asarray(self.lumbar_offset) != 0.0))
+
+    @property
     def height(self) -> float:
         """Standing height (sole to top of the head), metres."""
-        return float(self.hip_height + self.lumbar + self.thorax + self.upper_chest + self.neck
-                     + self.head_radius * 1.75)
+        return float(self.hip_height + self.lumbar_offset[2] + self.lumbar + self.thorax
+                     + self.upper_chest + self.neck + self.head_radius * 1.75)
 
     @property
     def scale(self) -> float:
@@ -451,6 +469,7 @@ class BodyDimensions:
                               ("clavicle", "shoulder"), ("upper_arm", "elbow"),
                               ("forearm", "wrist"), ("hand", "hand")):
                 ch[f"{side}_{seg}"] = getattr(base, f"{side}_{seg}") * s[f"{side}_{bone}"]
+        ch["lumbar_offset"] = _v(np.asarray(base.lumbar_offset) * s["spine"])
         ch["lumbar"] = base.lumbar * s["spine"]
         ch["thorax"] = base.thorax * s["chest"]
         ch["upper_chest"] = base.upper_chest * s["neck"]
@@ -514,8 +533,9 @@ def _arm_quat(side: str) -> list[float]:
 
 def _rest_keypoints(d: BodyDimensions) -> np.ndarray:
     kp: dict[str, np.ndarray] = {"pelvis": np.zeros(3)}
-    kp["spine"] = np.array([0, 0, d.lumbar])
-    kp["chest"] = kp["spine"] + [0, 0, d.thorax]
+    pivot = np.asarray(d.lumbar_offset, dtype=float)
+    kp["spine"] = pivot if d.spine_on_pelvis else pivot + [0, 0, d.lumbar]
+    kp["chest"] = pivot + [0, 0, d.lumbar + d.thorax]
     kp["neck"] = kp["chest"] + [0, 0, d.upper_chest]
     kp["head"] = kp["neck"] + [0, 0, d.neck]
     for s in _SIDES:
@@ -628,10 +648,17 @@ def _add_trunk(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str, pos: Sequenc
     for s in _SIDES:
         _site(pelvis, f"{prefix}{s}_hip", getattr(d, f"{s}_hip_offset"))
 
-    lumbar = _child(pelvis, prefix + "lumbar", (0, 0, 0))
+    pivot = np.asarray(d.lumbar_offset, dtype=float)
+    lumbar = _child(pelvis, prefix + "lumbar", pivot)
     _joints(lumbar, "lumbar", None, prefix, actuated)
-    _capsule(lumbar, (0, 0, 0.03 * g), (0, 0, d.lumbar), 0.09 * g, prefix + "lumbar")
-    _site(lumbar, prefix + "spine", (0, 0, d.lumbar))
+    if d.spine_on_pelvis:
+        # The lower back up to the lumbar joint is part of the rigid pelvis.
+        _capsule(pelvis, (0, 0, 0.03 * g), pivot, 0.09 * g, prefix + "lower_back")
+        _capsule(lumbar, (0, 0, 0), (0, 0, d.lumbar), 0.09 * g, prefix + "lumbar")
+        _site(pelvis, prefix + "spine", pivot)
+    else:
+        _capsule(lumbar, (0, 0, 0.03 * g), (0, 0, d.lumbar), 0.09 * g, prefix + "lumbar")
+        _site(lumbar, prefix + "spine", (0, 0, d.lumbar))
     thorax = _child(lumbar, prefix + "thorax", (0, 0, d.lumbar))
     _joints(thorax, "thorax", None, prefix, actuated)
     _capsule(thorax, (0, 0, 0), (0, 0, d.thorax), 0.1 * g, prefix + "thorax")
@@ -955,6 +982,36 @@ def build_scene(humanoids: Sequence[Humanoid], names: Sequence[str] | None = Non
 #: Keypoints without which the body frame cannot be measured.
 REQUIRED_FOR_FIT = ("pelvis", "left_hip", "right_hip")
 
+#: A pelvis keypoint closer than this to the hip line (median, metres) does not
+#: give the pelvis frame its z axis (:func:`pelvis_frames`).
+PELVIS_OFF_HIP_LINE = 0.02
+
+#: Most the spine keypoint may move in the pelvis frame (95th percentile of its
+#: distance from its median position there, metres) for the fit to take it as
+#: rigid on the pelvis (:attr:`BodyDimensions.spine_on_pelvis`). Measured: a
+#: joint fixed in the pelvis's frame moves <= 0.002 mm (HumanML3D 012314 and
+#: 000612: SMPL ``spine1``; the Rokoko/Mixamo, 27-joint BVH and Xsens MVN samples
+#: of tests/data/conventions), the end of a lumbar that turns at the pelvis
+#: keypoint >= 8.1 mm on every shared CMU clip (walks 8-13 mm, 12_01 the least)
+#: and 19.5 mm on the NTU Kinect v2 clip. Half the least moving one.
+RIGID_SPINE_SPREAD = 0.004
+
+
+def _hip_axis_and_up(pelvis: np.ndarray, lhip: np.ndarray, rhip: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3) unit right -> left hip axis and (T, 3) hip midpoint -> pelvis
+    keypoint orthogonal to it (metres)."""
+    y = lhip - rhip
+    y = y / np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9)
+    u = pelvis - (lhip + rhip) / 2
+    return y, u - np.sum(u * y, axis=-1, keepdims=True) * y
+
+
+def _pelvis_off_hip_line(u: np.ndarray) -> bool:
+    """Whether the pelvis keypoint (``u`` of :func:`_hip_axis_and_up`) is off the
+    hip line, so that it gives the pelvis frame its z axis."""
+    return bool(np.median(np.linalg.norm(u, axis=-1)) >= PELVIS_OFF_HIP_LINE)
+
 
 def pelvis_frames(pelvis: np.ndarray, lhip: np.ndarray, rhip: np.ndarray,
                   spine: np.ndarray | None = None) -> np.ndarray:
@@ -969,11 +1026,8 @@ def pelvis_frames(pelvis: np.ndarray, lhip: np.ndarray, rhip: np.ndarray,
     Returns:
         (T, 3, 3) rotation matrices (columns = axes in world coordinates).
     """
-    y = lhip - rhip
-    y = y / np.maximum(np.linalg.norm(y, axis=-1, keepdims=True), 1e-9)
-    u = pelvis - (lhip + rhip) / 2
-    u = u - np.sum(u * y, axis=-1, keepdims=True) * y
-    if np.median(np.linalg.norm(u, axis=-1)) < 0.02:
+    y, u = _hip_axis_and_up(pelvis, lhip, rhip)
+    if not _pelvis_off_hip_line(u):
         u = (spine - pelvis) if spine is not None else np.broadcast_to([0.0, 0, 1], y.shape)
         u = u - np.sum(u * y, axis=-1, keepdims=True) * y
     z = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-9)
@@ -1068,19 +1122,53 @@ def _median_distance(kp: Mapping[str, np.ndarray], a: str, b: str) -> float | No
     return None
 
 
-def _hip_offsets(kp: Mapping[str, np.ndarray]) -> dict[str, tuple[float, float, float]]:
+def _rigid_spine(kp: Mapping[str, np.ndarray], s_loc: np.ndarray) -> bool:
+    """Whether the spine keypoint, at ``s_loc`` (T, 3) in the pelvis frame, is
+    rigid on the pelvis (:data:`RIGID_SPINE_SPREAD`). Only testable when the
+    pelvis keypoint is off the hip line: on it the spine gives the frame its z
+    axis, so it is still in that frame whatever the lumbar does."""
+    if not _pelvis_off_hip_line(_hip_axis_and_up(kp["pelvis"], kp["left_hip"],
+                                                 kp["right_hip"])[1]):
+        return False
+    spread = np.linalg.norm(s_loc - np.median(s_loc, axis=0), axis=-1)
+    return bool(np.percentile(spread, 95) <= RIGID_SPINE_SPREAD)
+
+
+def _pelvis_offsets(kp: Mapping[str, np.ndarray]) -> dict[str, tuple[float, float, float]]:
     """``left_hip_offset`` / ``right_hip_offset``: median hip positions in the
-    pelvis frame, rotated about the hip axis so that the median spine
-    direction is +z (metres)."""
+    pelvis frame (metres), and ``lumbar_offset``.
+
+    A spine keypoint rigid on the pelvis (:func:`_rigid_spine`) is the lumbar
+    joint: ``lumbar_offset`` is its median position and the frame stays the
+    pelvis triangle's, so the trunk's zero is fixed to the pelvis rather than
+    to that joint's offset (SMPL's ``spine1`` sits 17-25 deg behind the
+    pelvis keypoint's line). Otherwise the frame is rotated about the hip axis
+    so that the median spine direction is +z, and ``lumbar_offset`` is zero."""
     R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
+    out: dict[str, tuple[float, float, float]] = {}
     tilt = 0.0
     if "spine" in kp:
         s_loc = np.einsum("tji,tj->ti", R, kp["spine"] - kp["pelvis"])
-        tilt = float(np.arctan2(np.median(s_loc[:, 0]), np.median(s_loc[:, 2])))
+        if _rigid_spine(kp, s_loc):
+            out["lumbar_offset"] = _v(np.median(s_loc, axis=0))
+        else:
+            tilt = float(np.arctan2(np.median(s_loc[:, 0]), np.median(s_loc[:, 2])))
     R = R @ _rot_y(tilt)
-    return {f"{s}_hip_offset": _v(np.median(np.einsum("tji,tj->ti", R,
-                                                       kp[f"{s}_hip"] - kp["pelvis"]), axis=0))
-            for s in _SIDES}
+    for s in _SIDES:
+        out[f"{s}_hip_offset"] = _v(np.median(np.einsum("tji,tj->ti", R,
+                                                         kp[f"{s}_hip"] - kp["pelvis"]), axis=0))
+    return out
+
+
+def _split_trunk(measured: dict[str, float]) -> None:
+    """A spine rigid on the pelvis: the source bends its lumbar and lower
+    thorax at that one keypoint, and nothing it measures tells how the bend
+    splits between them (two joints a distance apart would have to fold to
+    reach a chest at a constant distance). So the lumbar gets zero length: the
+    thorax joint sits at the lumbar joint, the thorax spans the measured
+    spine -> chest distance, and the bend is shared by both joints' ranges, as
+    on a skeleton whose lumbar turns at the pelvis keypoint."""
+    measured["lumbar"] = 0.0
 
 
 def _derive_chest(kp: dict[str, np.ndarray], measured: dict[str, float]) -> bool:
@@ -1167,9 +1255,13 @@ def _lengths_or_default(measured: Mapping[str, float], scale: float
 
 
 def _fit_notes(motion: Motion, num_frames: int, measured: Mapping[str, float],
-               fallback: Sequence[str], scale: float, derived_chest: bool) -> tuple[str, ...]:
+               fallback: Sequence[str], scale: float, derived_chest: bool,
+               spine_on_pelvis: bool) -> tuple[str, ...]:
     """The fit's provenance and every fallback, for :attr:`BodyDimensions.notes`."""
     notes = [f"fitted to {motion.name!r} ({num_frames} frames, median over frames)"]
+    if spine_on_pelvis:
+        notes.append("spine keypoint rigid on the pelvis: the lumbar and the thorax turn at it "
+                     "(zero lumbar length)")
     if fallback:
         notes.append(f"missing keypoints: {', '.join(fallback)} from the default adult scaled "
                      f"by {scale:.3f} (median measured/default bone ratio)")
@@ -1191,12 +1283,16 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     Lengths are medians over frames of keypoint distances; the hips' 3D
     offsets are medians in the pelvis frame (pelvis-hip-hip triangle, rotated
     about the hip axis so that the median spine direction is +z), so the rigid
-    pelvis fits exactly. The clavicle pivot is the point of the chest->neck
-    segment whose distance to the shoulders varies least. Without a chest
-    keypoint, the spine->neck distance is split into thorax and upper chest in
-    the default proportion. Other keypoints the motion lacks fall back to the
-    default adult scaled by the median ratio of the measured bones to the
-    default ones; each fallback is recorded in ``notes``.
+    pelvis fits exactly. A spine keypoint that does not move in the pelvis
+    frame is rigid on it: it becomes the lumbar joint
+    (:attr:`BodyDimensions.lumbar_offset`; the frame is then not rotated), with
+    the thorax joint at the same point (:func:`_split_trunk`). The clavicle
+    pivot is the point of the chest->neck segment whose distance to the
+    shoulders varies least. Without a chest keypoint, the spine->neck distance
+    is split into thorax and upper chest in the default proportion. Other
+    keypoints the motion lacks fall back to the default adult scaled by the
+    median ratio of the measured bones to the default ones; each fallback is
+    recorded in ``notes``.
     """
     canon = motion.to_canonical()
     src = motion.metadata.get("source")
@@ -1207,10 +1303,13 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
                             f"{missing}; the pelvis and both hips are required", source=src)
     P = canon.positions.astype(np.float64)
     kp = {k: P[:, i] for i, k in enumerate(names)}
-    ch: dict[str, object] = dict(_hip_offsets(kp))
+    ch: dict[str, object] = dict(_pelvis_offsets(kp))
     measured = {name: v for name, (a, b) in _BONE_KEYPOINTS.items()
                 if (v := _median_distance(kp, a, b)) is not None}
     derived_chest = _derive_chest(kp, measured)
+    spine_on_pelvis = "lumbar_offset" in ch
+    if spine_on_pelvis:
+        _split_trunk(measured)
     _measure_clavicles(kp, measured, derived_chest)
     scale = _body_scale(measured, ch)
     lengths, fallback = _lengths_or_default(measured, scale)
@@ -1218,7 +1317,8 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     toe_h, drop = _foot_heights(motion, kp, scale)
     ch["toe_height"], ch["ankle_height"] = toe_h, toe_h + drop
     ch["girth"] = float(np.clip(scale, 0.6, 1.4))
-    ch["notes"] = _fit_notes(motion, canon.num_frames, measured, fallback, scale, derived_chest)
+    ch["notes"] = _fit_notes(motion, canon.num_frames, measured, fallback, scale, derived_chest,
+                             spine_on_pelvis)
     try:
         return replace(DEFAULT, **ch)
     except RetargetError as exc:

@@ -71,6 +71,14 @@ def mat_to_quat(R: np.ndarray) -> np.ndarray:
     return q * np.where(q[..., :1] < 0, -1.0, 1.0)
 
 
+def half_rotation(R: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations -> the rotations about the same axes by half the
+    angle (the quaternion halfway from the identity: ``unit(q + 1)``, w >= 0)."""
+    q = mat_to_quat(R)
+    q[..., 0] += 1.0
+    return quat_to_mat(q)
+
+
 def swing(R: np.ndarray, v0: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Smallest rotation turning ``R @ v0`` onto the direction ``u``, applied to R.
 

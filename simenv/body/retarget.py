@@ -58,6 +58,7 @@ from simenv.body.ik import (
     PointFit,
     compose_hinges,
     euler_branches,
+    half_rotation,
     swing,
     two_vector,
     viterbi2,
@@ -390,12 +391,22 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                  "forearm": f"{pre}wrist", "hand": f"{pre}hand", "thigh": f"{pre}knee",
                  "shin": f"{pre}ankle", "foot": f"{pre}toe"}.get(part)
         R = Rp
+        shared = part == "lumbar" and prob.humanoid.dims.spine_on_pelvis
+        if shared:
+            # The spine site is on the pelvis and the thorax turns at the lumbar
+            # joint: the lumbar takes half the turn towards the chest, the thorax
+            # (next body, aimed at the chest) the rest.
+            child = "chest"
         if child is not None and has(child) and len(tree.body_hinges[b]):
             v0 = prob.site_offset[child]
+            if shared:
+                v0 = v0 + tree.body_offset[bid["thorax"]]
             u = targets[child] - x
             ok = np.linalg.norm(v0) > 0.01
             if ok and part in ("lumbar", "thorax", "chest"):
                 R = two_vector(v0, y, u, lateral)
+                if shared:
+                    R = Rp @ half_rotation(np.swapaxes(Rp, -1, -2) @ R)
             elif ok and part in ("upper_arm", "thigh"):
                 nxt = {"upper_arm": f"{pre}wrist", "thigh": f"{pre}ankle"}[part]
                 R = swing(Rp, v0, u)
