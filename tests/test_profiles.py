@@ -90,6 +90,19 @@ def test_cmu_clip_keeps_the_mocap_thresholds(shared_data: Path) -> None:
     assert rec["metrics"] == declared["metrics"]
 
 
+@pytest.mark.parametrize(("path", "kind"), [
+    ("conventions/xsens_mvn/emokine_mvn_segment_positions.csv", "mocap"),
+    ("humanml3d/new_joints/012314.npy", "body_model"),
+    ("humanml3d/new_joint_vecs/000612.npy", "body_model"),
+    ("conventions/rokoko/rokoko_video_mixamo_preset_jesse_dance.bvh", "mocap"),
+])
+def test_sources_of_other_labs_and_models(path: str, kind: str) -> None:
+    """Real files of other readers: an Xsens suit's segments are rigid like optical mocap,
+    HumanML3D joints and features are a body model's."""
+    clip = load(Path(__file__).parent / "data" / path)
+    assert detect_source(clip).kind == kind
+
+
 def test_declared_kinds() -> None:
     clip = load(NTU)
     assert detect_source(clip, "mocap").profile == "mocap"

@@ -66,7 +66,9 @@ SKELETON_KINDS: dict[str, str] = {
     "sbu15": "kinect_v1",
     "florence15": "kinect_v1",
     "kinect_v2_25": "kinect_v2",
+    "azure_kinect32": "kinect_v2",
     "nuitrack": "kinect_v2",
+    "xsens_mvn23": "mocap",  # an inertial suit's segments: rigid bones, as optical mocap
     "smpl22": "body_model",
     "kit21": "body_model",
 }
@@ -81,6 +83,7 @@ FORMAT_KINDS: dict[str, str] = {
     "ntu": "kinect_v2",
     "nuisi": "kinect_v2",
     "humanml3d": "body_model",
+    "humanml3d_features": "body_model",
 }
 
 #: The bundled profiles, relative to the assets folder.
