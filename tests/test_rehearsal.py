@@ -45,7 +45,7 @@ def test_labelled_rehearsal_writes_every_output(tmp_path: Path, short):
             "labels"} <= set(rows[0])
     (reaction,) = summary["reactions"]
     assert reaction["gesture"] == "smell" and reaction["object"] == "cigarette"
-    assert reaction["success"] is True
+    assert reaction["success"] is True and reaction["failure"] is None
     assert reaction["t_onset"] <= reaction["t_decision"] < reaction["t_object_changed"]
     assert rows[-1]["labels"]["cigarette"] == "out"
     assert summary["decision_latency_s"]["n"] == 1
@@ -198,11 +198,27 @@ def test_module_command(tmp_path: Path, capsys):
     code = main([WALK, "--out", str(tmp_path), "--scenario", "discomfort", "--gesture",
                  "smell:0.2:1.0", "--no-render"])
     assert code == 0
-    assert "1 reaction(s) started" in capsys.readouterr().out
-    (reaction,) = json.loads((tmp_path / "summary.json").read_text())["reactions"]
+    out = capsys.readouterr().out
+    assert "1 reaction(s) started" in out
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    (reaction,) = summary["reactions"]
     # Measured, not assumed: here the walking user reaches the desk and shoves the agent's
     # arm while it presses, and the cigarette stays lit.
     assert reaction["success"] is False and reaction["t_object_changed"] is None
+    # Why, for people, printed and in summary.json, from what the simulation measured: the
+    # object short of its threshold, the hand's closest approach, the user's pushes (no
+    # deeper than the agent's deepest contact with the user over the whole session).
+    why = reaction["failure"]
+    assert f"cigarette_out (decided at 0.20 s) failed: {why}" in out
+    assert why.startswith("the cigarette stayed lit")
+    assert reaction["object_level_start"] <= reaction["object_level_best"] < 0.5
+    assert reaction["t_decision"] <= reaction["t_hand_closest"] <= summary["duration_s"]
+    assert f"no closer than {reaction['hand_distance_min_m']:.3f} m" in why
+    contact = reaction["user_contact"]
+    assert reaction["t_decision"] <= contact["t_first"] <= contact["t_last"]
+    assert 0 < contact["max_depth_m"] <= summary["agent_physics"]["penetration_m"]["user"]["max"]
+    assert f"the user's body pushed into the agent from {contact['t_first']:.2f}" in why
+    assert "why it failed" in (tmp_path / "report.html").read_text()
     with pytest.raises(SimenvError, match="LABEL:ONSET_S:END_S"):
         main([WALK, "--out", str(tmp_path), "--gesture", "smell"])
 
@@ -220,6 +236,7 @@ def test_real_wave_is_greeted_back(tmp_path: Path, shared_data):
     (reaction,) = summary["reactions"]
     assert reaction["reaction"] == "greet" and reaction["object"] is None
     assert reaction["success"] is True and reaction["facing_deg_min"] < 30.0
+    assert reaction["hand_raised"] is True and reaction["failure"] is None
     assert reaction["t_decision"] < reaction["t_success"] < summary["duration_s"]
     assert reaction["t_object_changed"] is None
 

@@ -179,7 +179,8 @@ def _rehearsal(out_dir: Path, *, width: int, height: int) -> dict[str, Any]:
     room = export_room_glb("discomfort", out_dir / "room.glb")
     for r in summary["reactions"]:
         print(f"[rehearsal] {r['gesture']} -> {r['reaction']}: "
-              f"{'done' if r['success'] else 'not done'} (decided at {r['t_decision']:.2f} s, "
+              f"{'done' if r['success'] else 'not done: ' + str(r.get('failure'))} "
+              f"(decided at {r['t_decision']:.2f} s, "
               f"object changed at {r['t_object_changed']} s)")
     video = out_dir / "rehearsal.mp4"
     return {"session": REHEARSAL_SESSION, "gesture": list(REHEARSAL_GESTURE),

@@ -15,7 +15,7 @@ DESCRIPTION = (
     "Replay a recorded session (any single-person motion file, bundled asset or session "
     "recipe) in the virtual room: perception every second, the agent's reactions simulated; "
     "writes rehearsal.mp4, log.jsonl, summary.json and report.html to --out, and prints how "
-    "many reactions started and succeeded. With --agent "
+    "many reactions started and succeeded, and why any that failed did. With --agent "
     "interformer or reactive-gan, a reaction generator answers the session instead: the "
     "generated reaction is retargeted, tracked physically and scored (summary.json, "
     "reaction.npz, report/).")

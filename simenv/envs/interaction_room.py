@@ -76,7 +76,13 @@ Execution
     ``per_frame_n`` per env step, and ``outcome``: ``fell``, ``lowest_pelvis_m``,
     ``goal_error_m``, ``success``), the total ``assistance``, ``fell`` (True when a stage's
     body fell: the chain stops there) and ``failed_stage`` when a stage could not be
-    planned or its body fell.
+    planned or its body fell. A reaction that did not succeed says why in ``failure``
+    (:meth:`InteractionRoomEnv._failure`): what the object reached, how close the nearer
+    hand came to its handle (``hand_distance_min_m`` at ``t_hand_closest``), the facing and
+    the raised hand of a greeting, the stage that failed, the user's body pushing into the
+    agent (``user_contact``: ``t_first``, ``t_last``, ``max_depth_m``), or the episode
+    ending while it ran; the measurements are logged whether or not it succeeded
+    (``object_level_start`` / ``object_level_best``: fractions of the object's range).
 """
 
 from __future__ import annotations
@@ -98,7 +104,7 @@ from simenv.body.divergence import physics_problem, warning_counts
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
 from simenv.perception.loop import forecast, load_predictor
-from simenv.room.room import CHAIR_OFFSET
+from simenv.room.room import BOW_DIP_DEG, CHAIR_OFFSET, GREET_FACING_DEG, HANDS
 from simenv.room.scenario import REACTIONS, Scenario, load_scenario
 from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, user_track
 
@@ -305,6 +311,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._simulate(t)
         problem = physics_problem(m, d, counts)
         if problem is not None:
+            self._cut_short(f"the physics diverged at {t:.2f} s ({problem})", t)
             self._step = None
             return self._obs, 0.0, False, True, {"truncation_reason": f"physics: {problem}"}
         # What the agent sees: the user's keypoints as simulated (mocap bodies moved).
@@ -319,6 +326,8 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                      or self._step >= self.hard_max_steps)
         if truncated:
             info["truncation_reason"] = "end of the session"
+            self._cut_short(f"the episode ended {MAX_TAIL_S:.0f} s after the session with "
+                            "the reaction still running", self._step / PERCEPTION_FPS)
             self._step = None
         return self._obs, float(sum(terms.values())), False, truncated, info
 
@@ -426,6 +435,15 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         self._running = {"entry": entry, "t0": t, "t_start": t, "plan": plan,
                          "grasps": list(plan.grasps), "stages": stages,
                          "before": self.room.object_labels(self.data)}
+        obj = REACTIONS[reaction].object
+        if obj is not None:
+            o = self.room.objects[obj]
+            entry["object_level_start"] = entry["object_level_best"] = o.level(
+                float(self.data.qpos[o.qpos_adr]))
+            entry["hand_distance_min_m"] = entry["t_hand_closest"] = None
+        else:
+            entry["hand_raised"] = False
+        entry["user_contact"] = None
         if reaction == "bow_back":
             self._running["bow"] = self.room.bow_meter()
             entry["dip_max_deg"] = 0.0
@@ -503,6 +521,7 @@ class InteractionRoomEnv(gym.Env[dict, int]):
         if run is None:
             return 0.0
         entry = run["entry"]
+        self._measure(entry, t)
         if REACTIONS[entry["reaction"]].object is None:
             # A greeting succeeds when, at some step, the agent faces the user and a hand is
             # raised (Room.greeting); a bow when, facing the user, the head dipped and came
@@ -546,7 +565,90 @@ class InteractionRoomEnv(gym.Env[dict, int]):
             # outcome, at a chain cut short, is not a return).
             last = entry["stages"][-1].get("outcome") or {}
             entry["returned"] = bool("seat_contact" in last and last["success"])
+        entry["failure"] = None if entry["success"] else self._failure(entry, run)
         return SUCCESS if entry["success"] else 0.0
+
+    def _measure(self, entry: dict[str, Any], t: float) -> None:
+        """What a failed reaction's reason needs, measured at every step it runs (``t``,
+        s): its object's level closest to the target and the nearer hand's closest
+        approach to the object's handle (m), or whether a hand rose above its shoulder
+        (greetings), and the user's body pushing into the agent."""
+        d, reaction = self.data, REACTIONS[entry["reaction"]]
+        if reaction.object is not None:
+            o = self.room.objects[reaction.object]
+            level = o.level(float(d.qpos[o.qpos_adr]))
+            best = max if reaction.target == o.above else min
+            entry["object_level_best"] = best(entry["object_level_best"], level)
+            handle = d.site_xpos[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE,
+                                                   o.handle)]
+            names = self.room.agent.keypoint_names
+            hands = d.site_xpos[[self.room.agent_sites[names.index(h)] for h in HANDS]]
+            gap = float(np.linalg.norm(hands - handle, axis=1).min())
+            if entry["hand_distance_min_m"] is None or gap < entry["hand_distance_min_m"]:
+                entry["hand_distance_min_m"], entry["t_hand_closest"] = gap, t
+        else:
+            entry["hand_raised"] = entry["hand_raised"] or bool(
+                self.room.greeting(d)["hand_above_shoulder"])
+        depth = self.agent_penetration()["user"]
+        if depth > 0.0:
+            contact = entry["user_contact"] or {"t_first": t, "max_depth_m": 0.0}
+            contact["t_last"] = t
+            contact["max_depth_m"] = max(contact["max_depth_m"], depth)
+            entry["user_contact"] = contact
+
+    def _cut_short(self, why: str, t: float) -> None:
+        """The episode ends at ``t`` (s) for ``why`` with a reaction still running: its
+        ``success`` stays None (never judged) and ``failure`` says so."""
+        run = self._running
+        if run is not None:
+            run["entry"]["failure"] = self._failure(
+                run["entry"], run, f"{why}, {t - run['t_start']:.2f} s after it started")
+
+    def _failure(self, entry: dict[str, Any], run: dict[str, Any],
+                 cut: str | None = None) -> str:
+        """Why the reaction of ``entry`` did not succeed, for people: ``cut`` (the episode
+        ended while it ran), the stage that failed, what its object or greeting reached
+        against what success needs, the hand's closest approach and the user's pushes."""
+        reaction = REACTIONS[entry["reaction"]]
+        parts = [cut] if cut else []
+        if entry.get("failed_stage"):
+            parts.append(f"stage {entry['failed_stage']}")
+        for stage in entry.get("stages", []):
+            out = stage.get("outcome") or {}
+            if out and not out.get("success") and not out.get("fell"):
+                err = out.get("goal_error_m")
+                parts.append(f"stage {stage['stage']} did not succeed" + (
+                    "" if err is None else f" (ended {err:.2f} m from its goal)"))
+        if reaction.object is not None:
+            o = self.room.objects[reaction.object]
+            now = self.room.object_labels(self.data)[reaction.object]
+            side = "above" if reaction.target == o.above else "below"
+            parts.append(
+                f"the {reaction.object} stayed {now}: from {entry['object_level_start']:.0%} "
+                f"of its range it got to {entry['object_level_best']:.0%} at best "
+                f"({reaction.target} needs {side} {o.level(o.threshold):.0%})")
+            if entry["hand_distance_min_m"] is not None:
+                parts.append(f"the nearer hand came no closer than "
+                             f"{entry['hand_distance_min_m']:.3f} m to its handle (at "
+                             f"{entry['t_hand_closest']:.2f} s)")
+            if entry.get("grasped") is False:
+                parts.append("the grasp never closed (the hand was not at the handle)")
+        else:
+            facing = entry.get("facing_deg_min")
+            if facing is not None:
+                parts.append(f"the agent's chest faced the user at best {facing:.0f} deg "
+                             f"(within {GREET_FACING_DEG:.0f} needed)")
+            if "bow" in run:
+                parts.append(f"its head dipped {entry.get('dip_max_deg', 0.0):.0f} deg at "
+                             f"most ({BOW_DIP_DEG:.0f} needed, then back up)")
+            elif not entry["hand_raised"]:
+                parts.append("no hand rose above its shoulder")
+        contact = entry["user_contact"]
+        if contact is not None:
+            parts.append(f"the user's body pushed into the agent from {contact['t_first']:.2f} "
+                         f"to {contact['t_last']:.2f} s (up to "
+                         f"{1000 * contact['max_depth_m']:.0f} mm deep)")
+        return "; ".join(parts)
 
     # -- reward ----------------------------------------------------------------
 

@@ -27,7 +27,9 @@ with one of the agents below, and writes to ``out``:
   ``stages`` -- each with its ``assistance`` and, for the stages on the feet, its
   ``outcome`` (``fell``, ``lowest_pelvis_m``, ``goal_error_m``, ``success``) -- the total
   ``assistance``, ``fell`` and ``failed_stage`` (a stage whose body fell ends the chain)
-  for a chained reaction such as ``close_window``),
+  for a chained reaction such as ``close_window``; ``failure``: why a reaction that did not
+  succeed failed, with the measurements it cites -- see
+  :class:`~simenv.envs.interaction_room.InteractionRoomEnv`),
   ``decisions`` (every decision, with ``not_started``: why it was not carried out, and for
   the scripted agent the perception ``stage`` that took it: ``real`` or ``predicted``),
   ``decision_latency_s``
@@ -333,7 +335,9 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
                     "t_success": entry["t_success"]}
         # greeting / grasping / chained (stand, walk, act; measured help, falls) reactions
         for key in ("facing_deg_min", "dip_max_deg", "grasped", "stages", "assistance",
-                    "returned", "fell", "failed_stage"):
+                    "returned", "fell", "failed_stage", "failure", "object_level_start",
+                    "object_level_best", "hand_distance_min_m", "t_hand_closest",
+                    "hand_raised", "user_contact"):
             if key in entry:
                 reaction[key] = entry[key]
         reactions.append(reaction)
@@ -394,7 +398,7 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
     reactions = "".join(
         "<tr>" + "".join(_cell(r[c]) for c in (
             "gesture", "t_onset", "t_decision", "reaction", "object", "t_object_changed",
-            "t_success")) + _verdict(r["success"]) + "</tr>"
+            "t_success")) + _verdict(r["success"]) + _cell(r.get("failure")) + "</tr>"
         for r in summary["reactions"])
     title = f"simenv rehearsal: {summary['session']}"
     (out / "report.html").write_text(html_page(title, f"""
@@ -403,7 +407,7 @@ def _report(out: Path, summary: dict[str, Any]) -> None:
 <h2>Timeline</h2><img class="timeline" src="data:image/png;base64,{image}" alt="timeline">
 <h2>Reactions started</h2><table><tr><th>gesture</th><th>onset (s)</th>
 <th>decision (s)</th><th>reaction</th><th>object</th><th>object changed (s)</th>
-<th>success measured (s)</th><th>success</th></tr>{reactions}</table>
+<th>success measured (s)</th><th>success</th><th>why it failed</th></tr>{reactions}</table>
 <h2>Agent plausibility</h2><table><tr><th>metric</th><th>value</th><th>verdict</th>
 </tr>{_plausibility_rows(summary)}</table>
 """), encoding="utf-8")
@@ -571,13 +575,32 @@ def run_args(args: argparse.Namespace) -> int:
                        classifier=classifier, predictor=args.predictor,
                        render=not args.no_render, width=args.width,
                        height=args.height, data=args.data)
-    started = len(summary["reactions"])
-    done = sum(bool(r["success"]) for r in summary["reactions"])
-    print(f"{started} reaction(s) started, {done} succeeded; outputs in {args.out}")
+    print(outcome_lines(summary, args.out))
     return 0
 
 
-__all__ = ["AGENTS", "VIDEO_SIZE_RANGE", "add_arguments", "main", "rehearse", "run_args"]
+def outcome_lines(summary: dict[str, Any], out: str | os.PathLike[str]) -> str:
+    """The rehearsal's result for people: how many reactions started and succeeded, why
+    each one that did not succeed failed, and why decisions were not carried out."""
+    reactions = summary["reactions"]
+    done = sum(bool(r["success"]) for r in reactions)
+    lines = [f"{len(reactions)} reaction(s) started, {done} succeeded; outputs in {out}"]
+    for r in reactions:
+        if not r["success"]:
+            lines.append(f"  {r['reaction']} (decided at {r['t_decision']:.2f} s) "
+                         f"{'failed' if r['success'] is False else 'was not judged'}: "
+                         f"{r.get('failure') or 'no reason recorded'}")
+    skipped: dict[str, int] = {}
+    for d in summary["decisions"]:
+        if not d["started"]:
+            why = f"{d['reaction']}: {d['not_started']}"
+            skipped[why] = skipped.get(why, 0) + 1
+    lines += [f"  not carried out ({n}x) {why}" for why, n in skipped.items()]
+    return "\n".join(lines)
+
+
+__all__ = ["AGENTS", "VIDEO_SIZE_RANGE", "add_arguments", "main", "outcome_lines", "rehearse",
+           "run_args"]
 
 
 if __name__ == "__main__":
