@@ -1140,9 +1140,11 @@ def _pelvis_offsets(kp: Mapping[str, np.ndarray]) -> dict[str, tuple[float, floa
 
     A spine keypoint rigid on the pelvis (:func:`_rigid_spine`) is the lumbar
     joint: ``lumbar_offset`` is its median position and the frame stays the
-    pelvis triangle's, so the trunk's zero is fixed to the pelvis rather than
-    to that joint's offset (SMPL's ``spine1`` sits 17-25 deg behind the
-    pelvis keypoint's line). Otherwise the frame is rotated about the hip axis
+    pelvis triangle's, so the zero of the trunk and hip angles is fixed to the
+    pelvis rather than to that joint's offset (SMPL's ``spine1`` sits 17-25 deg
+    behind the pelvis keypoint's line; tilted by it, SMPL's zero pose read 21
+    deg of hip extension and 22 of thorax flexion; untilted, 4 and 4).
+    Otherwise the frame is rotated about the hip axis
     so that the median spine direction is +z, and ``lumbar_offset`` is zero."""
     R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
     out: dict[str, tuple[float, float, float]] = {}
