@@ -276,12 +276,14 @@ def whole_windows(clips: Sequence[GestureClip]) -> tuple[np.ndarray, np.ndarray]
 def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
                   tests: Sequence[tuple[np.ndarray, np.ndarray]], config: RecognitionConfig,
                   seed: int, members: int, skeleton: Skeleton, mirror_copies: bool,
-                  extra: dict[str, Any]) -> tuple[list[np.ndarray], list[float]]:
+                  extra: dict[str, Any], progress: bool = False
+                  ) -> tuple[list[np.ndarray], list[float]]:
     """One benchmark fold's networks: ``members`` of consecutive seeds trained on ``train``
     (plus its mirror images with ``mirror_copies``) on ``fold_labels``; returns, for each
     k = 1..members, the first k networks' logits averaged over the networks and over
     ``tests`` (views of the same test clips: (windows, valid) each), (N, classes) over
-    ``fold_labels``, and each network's training CPU s."""
+    ``fold_labels``, and each network's training CPU s; ``progress``: each network's
+    epoch bar."""
     if mirror_copies:
         train = list(train) + [mirror_clip(c, skeleton) for c in train]
     total: np.ndarray | float = 0.0
@@ -289,7 +291,7 @@ def _network_fold(train: Sequence[GestureClip], fold_labels: Sequence[str],
     for member in range(members):
         model, history = train_recogniser(
             train, fold_labels, lambda c: c.source_label, replace(config, seed=seed + member),
-            progress=False, extra=extra)
+            progress=progress, extra=extra)
         total = total + sum(logits_of(model, x, valid) for x, valid in tests)
         means.append(np.asarray(total) / ((member + 1) * len(tests)))
         cpu.append(history["train_cpu_s"])
@@ -562,7 +564,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                 tests.append(whole_windows([mirror_clip(c, skeleton) for c in test]))
             fold_logits, fold_cpu = _network_fold(
                 train, fold_labels, tests, train_config, config.seed, members, skeleton,
-                mirror_copies, extra)
+                mirror_copies, extra, progress)
             if covariance in ("fused", "weighted"):
                 weight = 0.5
                 if covariance == "weighted":

@@ -129,8 +129,10 @@ def default_data(shared: Path) -> list[Path]:
     return [cmu / "bvh", cmu / "asf_amc", *sorted((cmu / "two_person").glob("*"))]
 
 
-def collect_motions(paths: Iterable[str | Path]) -> tuple[list[Motion], list[str]]:
-    """Single-person motions in files/folders (both people of two-person trials).
+def collect_motions(paths: Iterable[str | Path], progress: bool = False
+                    ) -> tuple[list[Motion], list[str]]:
+    """Single-person motions in files/folders (both people of two-person trials); with
+    ``progress``, a bar over the paths.
 
     Returns:
         ``(motions, notes)``: clips on a skeleton with the 17 pred17 keypoints and a note
@@ -141,7 +143,12 @@ def collect_motions(paths: Iterable[str | Path]) -> tuple[list[Motion], list[str
     """
     motions: list[Motion] = []
     notes: list[str] = []
-    for path in paths:
+    paths = list(paths)
+    # Folders differ a lot in size: the bar counts them and the time, it estimates no end.
+    bar = tqdm(paths, desc="load clips", unit="path", leave=False, disable=not progress,
+               bar_format="{desc}: {n_fmt}/{total_fmt} paths [{elapsed}]{postfix}")
+    for path in bar:
+        bar.set_postfix_str(Path(path).name)
         loaded = load(Path(path))
         items = loaded if isinstance(loaded, list) else [loaded]
         for item in items:
@@ -339,6 +346,7 @@ def train(
         return data.take(idx)
 
     for it in bar:
+        _fit_total(bar, it, iterations, budget)
         info_c, info_g, loss_a = steps.step(sample)
         done = budget.exceeded()
         if it % 50 == 0 or it == iterations - 1 or done:
@@ -352,9 +360,26 @@ def train(
             bar.set_postfix(rec=f"{info_g['rec']:.3f}", W=f"{info_c.get('wasserstein', 0):.2f}")
         if done:
             break
-    bar.close()
+    _close(bar)
     best.restore()
     return log
+
+
+def _fit_total(bar: tqdm, done: int, iterations: int, budget: CpuBudget) -> None:
+    """Set ``bar``'s total to the iterations training will run: ``iterations``, or fewer
+    when the CPU budget will end it first at the CPU rate of the ``done`` iterations so far
+    (every 10), so that the bar's ETA is the end of training, not of iterations the budget
+    never reaches."""
+    spent = budget.seconds()
+    if budget.minutes is None or done == 0 or done % 10 or not spent > 0:
+        return
+    bar.total = min(iterations, max(done + 1, round(done * 60 * budget.minutes / spent)))
+
+
+def _close(bar: tqdm) -> None:
+    """Close a training bar at 100 %: training ended where it stopped."""
+    bar.total = bar.n
+    bar.close()
 
 
 class _WganSteps:
@@ -491,7 +516,9 @@ def train_regression(
     log: list[dict[str, float]] = []
     best = _Best(validation, (model.net,))
     budget = CpuBudget(minutes)
-    for it in tqdm(range(iterations), disable=not progress, desc="train", unit="it"):
+    bar = tqdm(range(iterations), disable=not progress, desc="train", unit="it")
+    for it in bar:
+        _fit_total(bar, it, iterations, budget)
         for group in opt.param_groups:
             group["lr"] = cosine_lr(lr, it, iterations)
         idx = torch.as_tensor(rng.choice(len(residual), bs, replace=p is not None, p=p))
@@ -510,6 +537,7 @@ def train_regression(
             log.append(entry)
         if done:
             break
+    _close(bar)
     best.restore()
     return log
 
@@ -710,7 +738,9 @@ def run(args: argparse.Namespace) -> dict:
     """
     torch.set_num_threads(args.threads)
     paths = args.data or default_data(Path(args.shared))
-    motions, notes = collect_motions(paths)
+    motions, notes = collect_motions(paths, progress=not args.quiet)
+    _stage(args, f"{len(motions)} clips loaded; cutting {args.past} -> {args.future} windows "
+           "and augmenting the training clips")
     windows = pdata.windows_from_motions(motions, args.past, args.future, stride=1)
     split = make_split(windows, args.test_fraction, args.seed)
     test_w = windows.subset(split.test)
@@ -724,6 +754,8 @@ def run(args: argparse.Namespace) -> dict:
     train_w = training_windows(motions, fit_clips, args, extra)
     budget = {"iterations": args.iterations, "minutes": args.minutes,
               "validation": val_w, "seed": args.seed, "progress": not args.quiet}
+    _stage(args, f"training on {len(train_w)} windows: {args.iterations} iterations or "
+           f"{args.minutes:g} CPU minutes, whichever ends first")
     if args.model == "regression":
         model, log, recipe, train_w = _train_regression_run(
             args, motions, base, folds, train_w, val_w, extra, budget)
@@ -748,6 +780,7 @@ def run(args: argparse.Namespace) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model.save(out / "model.npz")
+    _stage(args, f"evaluating on {len(test_w)} held-out windows and writing {out}")
     metrics = evaluate(model, test_w)
     metrics["recursive"] = evaluate_recursive(model, motions, split.test_clips)
     metrics["train_set"] = evaluate(model, train_w.subset(np.arange(0, len(train_w), 7)))[
@@ -829,6 +862,8 @@ def _train_gan_run(args: argparse.Namespace, train_w: pdata.PredictionWindows,
                              mirror_average=args.mirror_average,
                              restore_bones=args.restore_bones)
     torch.manual_seed(args.seed)  # fit_geometry builds the networks before train() seeds
+    _stage(args, "first the windows' SRVF geometry (Karcher means, tangent vectors); the "
+           "CPU budget starts after it")
     model = fit_geometry(train_w, config)
     log = train(model, train_w, n_critic=args.n_critic, lr=lr,
                 adv_weight=args.adv_weight, joint_amplitude=args.joint_amplitude,
@@ -1193,6 +1228,13 @@ def parse_args(argv: Sequence[str] | None = None,
         ap.set_defaults(**options)
         args = ap.parse_args(argv)
     return args
+
+
+def _stage(args: argparse.Namespace, text: str) -> None:
+    """Say on stderr what training does next (unless ``--quiet``): the steps between the
+    bars take seconds to minutes."""
+    if not args.quiet:
+        print(f"train predictor: {text}", file=sys.stderr, flush=True)
 
 
 def _data_options(ap: argparse.ArgumentParser) -> None:
