@@ -102,21 +102,23 @@ def _print_score(rec: dict[str, Any]) -> None:
     print(line)
 
 
-def score_config(args: argparse.Namespace) -> ScoreConfig | None:
+def score_config(args: argparse.Namespace, progress: bool = False) -> ScoreConfig | None:
     """The scorer's :class:`~simenv.plausibility.metric.ScoreConfig` of the options, or None
-    for the defaults.
+    for the defaults. ``progress``: the tracking shows its frames as it goes (one local job
+    with physics: several jobs' bars would interleave).
 
     Raises:
         SimenvError: ``--tracking-segments`` not a positive number of seconds, or
             ``--tracking-attempts`` below 1.
     """
-    if args.tracking_segments is None and args.tracking_attempts is None:
+    progress = progress and args.physics and args.jobs == 1 and args.backend == "local"
+    if args.tracking_segments is None and args.tracking_attempts is None and not progress:
         return None
     # The scorer's settings load MuJoCo: only when an option asks for them.
     from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
     from simenv.plausibility.metric import ScoreConfig
 
-    config = ScoreConfig()
+    config = ScoreConfig(progress=progress)
     if args.tracking_segments is not None:
         config = dataclasses.replace(config, body=dataclasses.replace(
             DEFAULT_BODY_THRESHOLDS, tracking_segment_s=args.tracking_segments))
@@ -145,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         report_dir = Path(args.report)
         report_dir.mkdir(parents=True, exist_ok=True)
+    progress = sys.stderr.isatty() or args.progress
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
-                   else str(report_dir), config=score_config(args),
+                   else str(report_dir), config=score_config(args, progress),
                    restore_collapsed_bones=args.restore_collapsed_bones,
                    joint_map=args.joint_map, source=args.source)
-    progress = sys.stderr.isatty() or args.progress
     if args.reference:
         reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,
                                         backend=args.backend, ray_address=args.ray_address,

@@ -73,6 +73,8 @@ class ScoreConfig:
             body with widened ranges).
         contact_pairs: key joint pairs (person A keypoint, person B keypoint)
             of the pairwise ``contact`` metric, canonical names.
+        progress: show a progress bar on stderr for the physics tracking (frames
+            tracked of the total, time left), the step that takes minutes.
     """
 
     thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -84,6 +86,7 @@ class ScoreConfig:
     mpc: MPCConfig = field(default_factory=lambda: MPCConfig(attempts=SCORER_ATTEMPTS))
     joint_limits: bool = True
     contact_pairs: tuple[tuple[str, str], ...] = DEFAULT_CONTACT_PAIRS
+    progress: bool = False
 
 
 DEFAULT_SCORE_CONFIG = ScoreConfig()

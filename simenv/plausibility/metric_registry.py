@@ -351,7 +351,7 @@ class Tracking(_OnBody):
         def run(assist: bool) -> MetricResult:
             return tracking(fitted, body, assist=assist, max_seconds=body.tracking_max_seconds,
                             controller="pd" if assist else config.tracking_controller,
-                            mpc=config.mpc)
+                            mpc=config.mpc, progress=config.progress)
 
         judged = run(config.tracking_assist)
         free = run(False) if config.tracking_assist else judged
