@@ -67,6 +67,22 @@ def interaction_windows(shared_data: Path):
     return idata.make_windows(idata.load_recordings(shared_data))
 
 
+@pytest.fixture
+def quick_physics(monkeypatch: pytest.MonkeyPatch) -> None:
+    """:func:`simenv.score` without a config tracks with a cheap planner for this test: 16
+    samples over 0.25 s, one seed (the shipped one: 128 samples over 0.45 s, up to 3 seeds).
+    For tests of what a command or pipeline runs and writes, not of its verdicts: tracking
+    still runs and every metric is reported. The shipped planner's verdicts are tested in
+    tests/test_plausibility_report.py, tests/test_plausibility_html_report.py and the
+    tracking tests."""
+    from simenv.control import MPCConfig
+    from simenv.plausibility import report
+    from simenv.plausibility.metric import ScoreConfig
+
+    monkeypatch.setattr(report, "DEFAULT_SCORE_CONFIG",
+                        ScoreConfig(mpc=MPCConfig(n_samples=16, horizon_s=0.25)))
+
+
 @pytest.fixture(scope="session")
 def walk_2s():
     """The bundled real CMU walk 02_01, first 2 s (240 frames at 120 fps)."""

@@ -151,6 +151,7 @@ def test_render_a_few_frames(tmp_path: Path, capsys):
         cap.release()
 
 
+@pytest.mark.usefixtures("quick_physics")  # what the demo writes, not its verdicts
 def test_demo_writes_videos_npz_and_summary(tmp_path: Path, capsys):
     status, stdout, _ = run(capsys, "demo", "--out", tmp_path / "demo", "--stride", 60)
     assert status == 0

@@ -53,6 +53,7 @@ def test_markdown_holds_the_computed_numbers(results, tmp_path):
     assert png.stat().st_size > 1000
 
 
+@pytest.mark.usefixtures("quick_physics")  # the summary's fields, not its verdicts
 def test_physics_summary_of_one_window(shared_data):
     windows = idata.make_windows(idata.load_recordings(shared_data))
     test = windows.subset(idata.split_by_recording(windows).test)

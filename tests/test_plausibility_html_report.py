@@ -162,6 +162,7 @@ def test_physics_off_lists_unavailable_metrics_with_reasons(walk, tmp_path):
     assert not (tmp_path / "video.mp4").exists()
 
 
+@pytest.mark.usefixtures("quick_physics")  # the page's rows and files, not its verdicts
 def test_two_people_pair_metrics_and_scene_video(tmp_path):
     pair = simenv.load(asset_path(HANDSHAKE_PAIR)).slice(0, 60)
     report = simenv.score(pair)

@@ -46,6 +46,7 @@ def test_start_is_the_nearest_real_training_pose(shared_data: Path) -> None:
     np.testing.assert_allclose(pose, train.reactor[7, 0], atol=1e-6)
 
 
+@pytest.mark.usefixtures("quick_physics")  # the chain runs and writes; any verdict
 def test_generated_reaction_is_tracked_and_scored(tmp_path: Path, shared_data: Path) -> None:
     s = rr.rehearse_reaction("cmu_02_01_walk.bvh", MirrorActor(), tmp_path, shared=shared_data,
                              seconds=1.2, report=False)
@@ -76,6 +77,7 @@ def test_bad_agents_and_durations_are_refused(tmp_path: Path, capsys) -> None:
     assert "not a reaction generator" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("quick_physics")  # the command runs and writes; any verdict
 @pytest.mark.parametrize("name", ["interformer", "reactive-gan"])
 def test_rehearse_command_dispatches_to_a_shipped_generator(
         name: str, tmp_path: Path, capsys, shared_data: Path) -> None:
