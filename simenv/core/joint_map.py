@@ -746,6 +746,15 @@ def apply_user_map(names: Sequence[str], user: Mapping[str, str],
     return JointMapping(ordered, {k: HOW_USER for k in ordered}, None, ())
 
 
+def user_joint_mapping(names: Sequence[str], joint_map: JointMapSource,
+                       source: str | None = None) -> JointMapping:
+    """The user's ``joint_map`` (:func:`read_joint_map`) checked against ``names``
+    (:func:`apply_user_map`; errors name the map file, else ``source``), noting the file."""
+    where = None if isinstance(joint_map, Mapping) else str(joint_map)
+    mapping = apply_user_map(names, read_joint_map(joint_map), source=where or source)
+    return replace(mapping, notes=(f"from {where}",)) if where else mapping
+
+
 _KEYPOINT_HELP: dict[str, str] = {
     "pelvis": "root of the trunk, between the hips",
     "spine": "lower back (lumbar)", "chest": "upper back, where the arms leave the spine",
@@ -802,14 +811,13 @@ def map_motion(motion: Motion, joint_map: JointMapSource | None = None) -> Motio
         SkeletonError: a bad user map (naming the file, the keypoint and the joints).
     """
     names = motion.skeleton.joint_names
+    recorded = motion.metadata.get("joint_map")
     if joint_map is not None:
-        where = None if isinstance(joint_map, Mapping) else str(joint_map)
-        mapping = apply_user_map(names, read_joint_map(joint_map), source=where)
-        if where is not None:
-            mapping = replace(mapping, notes=(f"from {where}",))
-        return remap_motion(motion, mapping)
-    if "joint_map" in motion.metadata or all(k in motion.skeleton.canonical
-                                             for k in REQUIRED_FOR_BODY):
+        if recorded and set(recorded["how"].values()) == {HOW_USER}:
+            return motion  # the reader applied it (BVH: End Sites can be mapped there)
+        return remap_motion(motion, user_joint_mapping(names, joint_map))
+    if recorded is not None or all(k in motion.skeleton.canonical
+                                   for k in REQUIRED_FOR_BODY):
         return motion
     mapping = infer_joint_map(names, motion.skeleton.parents, motion.positions)
     if len(mapping.canonical) <= len(motion.skeleton.canonical):
@@ -817,8 +825,8 @@ def map_motion(motion: Motion, joint_map: JointMapSource | None = None) -> Motio
     return remap_motion(motion, mapping)
 
 
-__all__ = ["CONVENTIONS", "HOW_NAME", "JOINT_MAP_HELP", "HOW_REST_POSE", "HOW_TOPOLOGY", "HOW_USER",
-           "REQUIRED_FOR_BODY", "JointMapSource", "JointMapping", "NamingConvention",
-           "NormalisedName",
-           "apply_user_map", "common_prefix", "infer_joint_map", "joint_map_template",
-           "map_motion", "normalise", "read_joint_map", "remap_motion"]
+__all__ = ["CONVENTIONS", "HOW_NAME", "HOW_REST_POSE", "HOW_TOPOLOGY", "HOW_USER",
+           "JOINT_MAP_HELP", "REQUIRED_FOR_BODY", "JointMapSource", "JointMapping",
+           "NamingConvention", "NormalisedName", "apply_user_map", "common_prefix",
+           "infer_joint_map", "joint_map_template", "map_motion", "normalise", "read_joint_map",
+           "remap_motion", "user_joint_mapping"]

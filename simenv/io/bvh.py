@@ -34,7 +34,6 @@ rates that were overridden, unusual sizes.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -45,9 +44,8 @@ from simenv.core.errors import FormatError
 from simenv.core.joint_map import (
     JointMapping,
     JointMapSource,
-    apply_user_map,
     infer_joint_map,
-    read_joint_map,
+    user_joint_mapping,
 )
 from simenv.core.motion import Motion
 from simenv.core.skeletons import (
@@ -441,9 +439,7 @@ def _joint_map(bvh: BvhFile, pos: np.ndarray, joint_map: JointMapSource | None, 
     :func:`~simenv.core.joint_map.infer_joint_map` on the names, the hierarchy and ``pos``
     (T, J, 3) metres, Z up."""
     if joint_map is not None:
-        user = read_joint_map(joint_map)
-        where = None if isinstance(joint_map, Mapping) else str(joint_map)
-        mapping = apply_user_map(bvh.joints, user, source=where or str(path))
+        mapping = user_joint_mapping(bvh.joints, joint_map, source=str(path))
         return dict(mapping.canonical), mapping
     if skeleton_variant(bvh.joints) != "bvh":  # a CMU conversion: its own tables
         return canonical_map(bvh.joints), None

@@ -57,7 +57,7 @@ import argparse
 import json
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -626,34 +626,37 @@ def add_eval_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/gesture-classifier-eval", help="output folder")
 
 
-def train_command(args: argparse.Namespace) -> int:
-    """Train with the options of :func:`add_train_arguments`; 2 on a user error."""
-    overrides = {k: v for k, v in (("data", args.data), ("epochs", args.epochs),
-                                   ("seed", args.seed), ("max_minutes", args.max_minutes))
-                 if v is not None}
+def _run_and_report(job: Callable[[], dict[str, Any]], out: str | Path) -> int:
+    """Run ``job`` (training or evaluation), print its test summary and where its outputs
+    are; 2 on a user error."""
     try:
-        config = (TrainConfig.from_file(args.config, **overrides) if args.config
-                  else TrainConfig(**overrides))
-        metrics = run_training(config, Path(args.out))
-    except SimenvError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    _print_summary(metrics["test"])
-    print(f"outputs in {args.out}")
-    return 0
-
-
-def eval_command(checkpoint: Path, data: Path, out: Path) -> int:
-    """Evaluate ``checkpoint`` on the test subjects of ``data``, write to ``out`` and print
-    the summary; 2 on a user error."""
-    try:
-        metrics = run_evaluation(checkpoint, data, out)
+        metrics = job()
     except SimenvError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     _print_summary(metrics["test"])
     print(f"outputs in {out}")
     return 0
+
+
+def train_command(args: argparse.Namespace) -> int:
+    """Train with the options of :func:`add_train_arguments`; 2 on a user error."""
+    overrides = {k: v for k, v in (("data", args.data), ("epochs", args.epochs),
+                                   ("seed", args.seed), ("max_minutes", args.max_minutes))
+                 if v is not None}
+
+    def job() -> dict[str, Any]:
+        config = (TrainConfig.from_file(args.config, **overrides) if args.config
+                  else TrainConfig(**overrides))
+        return run_training(config, Path(args.out))
+
+    return _run_and_report(job, args.out)
+
+
+def eval_command(checkpoint: Path, data: Path, out: Path) -> int:
+    """Evaluate ``checkpoint`` on the test subjects of ``data``, write to ``out`` and print
+    the summary; 2 on a user error."""
+    return _run_and_report(lambda: run_evaluation(checkpoint, data, out), out)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
