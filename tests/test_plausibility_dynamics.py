@@ -13,15 +13,14 @@ from simenv.body.dynamics import DEFAULT_DYNAMICS, finite_differences
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import retarget
 from simenv.core.errors import PhysicsError
-from simenv.plausibility.body import body_penetration
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.plausibility.dynamics import (
-    balance,
-    distance_outside,
     dynamics_settings,
     root_residual,
     root_residual_wrench,
 )
+from simenv.plausibility.metrics.balance import balance, distance_outside
+from simenv.plausibility.metrics.ground_penetration import body_penetration
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 

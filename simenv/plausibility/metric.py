@@ -2,22 +2,29 @@
 
 Every metric of the scorer (:func:`simenv.plausibility.report.score`) is one
 object of the :class:`Metric` protocol: its stable ``name`` in the report,
-the ``family`` (module) that holds its math, the input it ``needs``
+its ``family`` (the kind of computation), the input it ``needs``
 (:class:`Needs`), the ``basis`` its record names, its ``unit``, its
-``thresholds`` under a :class:`ScoreConfig`, and ``compute``. The metrics are
-listed once, in report order, in :mod:`simenv.plausibility.metric_registry`.
+``thresholds`` under a :class:`ScoreConfig`, and ``compute``. Each metric is one
+module of :mod:`simenv.plausibility.metrics` (its class, whose docstring gives
+the math, and the code of that math); the scorer runs the plain list of
+:mod:`simenv.plausibility.metric_registry`, in report order. The bases here
+hold what the metrics of one input share: :class:`KeypointMetric` (a
+compiled joint-level kernel on the canonical keypoints), :class:`BodyMetric`
+and :class:`PairMetric` (one limit of
+:class:`~simenv.plausibility.body_thresholds.BodyThresholds` on one body or a
+pair).
 
 ``compute`` reads shared inputs (:class:`PersonInputs`, :class:`PairInputs`)
 that hold each intermediate the metrics have in common and compute it on
-first use, once: the joint-level metrics' one compiled pass over the
-keypoints, the body's forward kinematics (geom, site and centre-of-mass poses
-of every frame), the tracking simulation, and for two people the
+first use, once: the body's forward kinematics (geom, site and centre-of-mass
+poses of every frame), the tracking simulation, and for two people the
 partner-explained inverse dynamics. The retargeting itself is done before,
 once per clip, by the caller that builds the inputs.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
@@ -27,15 +34,23 @@ from simenv.body.geometry import BodyPoses, body_poses
 from simenv.body.retarget import InteractionRetargetResult, RetargetResult
 from simenv.control.mpc import MPCConfig
 from simenv.core.motion import Interaction, Motion
-from simenv.plausibility import kinematic_metrics
-from simenv.plausibility.body import DEFAULT_CONTACT_PAIRS
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
+from simenv.plausibility.clips import ClipBatch, MetricSpec, score_clip
 from simenv.plausibility.pair_dynamics import pair_root_residual
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 
 #: Planner seeds the scorer's tracking may try per run or segment (``MPCConfig.attempts``).
 SCORER_ATTEMPTS = 3
+
+#: Key joint pairs (person A keypoint, person B keypoint) of an interaction:
+#: the handshake pair and the interaction-augmentation seed's A right hand -
+#: B spine, plus its mirror.
+DEFAULT_CONTACT_PAIRS: tuple[tuple[str, str], ...] = (
+    ("right_hand", "right_hand"),
+    ("right_hand", "spine"),
+    ("spine", "right_hand"),
+)
 
 
 @dataclass(frozen=True)
@@ -187,12 +202,6 @@ class PersonInputs(_Memo):
         return needs is Needs.MOTION or (needs is Needs.BODY and self.fitted is not None)
 
     @cached_property
-    def keypoint_metrics(self) -> dict[str, MetricResult]:
-        """Every joint-level metric of the motion, in one compiled pass over its
-        keypoints (:func:`simenv.plausibility.kinematic_metrics`)."""
-        return kinematic_metrics(self.motion, self.config.thresholds)
-
-    @cached_property
     def poses(self) -> BodyPoses:
         """Forward kinematics of every frame of the fitted body
         (:func:`simenv.body.geometry.body_poses`; the pair's, one of two)."""
@@ -211,8 +220,10 @@ class Metric(Protocol[Inputs]):
 
     Attributes:
         name: stable name in the report (part of the JSON contract).
-        family: the module of its math: ``kinematic``, ``contact``, ``body``,
-            ``dynamics`` or ``tracking``.
+        family: the kind of computation: ``kinematic`` (keypoint motion),
+            ``contact`` (keypoints against the floor), ``body`` (the fitted
+            body's geoms and joints), ``dynamics`` (inverse dynamics) or
+            ``tracking`` (forward simulation).
         needs: the input it reads (:class:`Needs`).
         basis: what its record says it ran on: ``keypoints``, ``geoms``,
             ``dynamics`` or ``simulation``.
@@ -241,3 +252,73 @@ def not_available(metric: Metric, frames: int, config: ScoreConfig,
     threshold, frame_threshold = metric.thresholds(config)
     return MetricResult.not_available(metric.name, frames, metric.unit, threshold, reason,
                                       frame_threshold=frame_threshold)
+
+
+# -- bases of the metrics of one input -----------------------------------------------------
+
+
+class KeypointMetric:
+    """A joint-level metric: one compiled kernel
+    (:mod:`simenv.plausibility.kernels`) on the motion's canonical keypoints.
+
+    Attributes:
+        spec: ``spec(batch, thresholds) -> MetricSpec``: the metric as
+            :func:`simenv.plausibility.clips.run` runs it on a batch of clips
+            (its kernel slot, arguments, details). Every metric with a ``spec``
+            joins the one compiled pass of
+            :func:`simenv.plausibility.keypoints.kinematic_metrics_batch`.
+        function: ``function(motion, thresholds) -> MetricResult``, the metric
+            on one motion.
+    """
+
+    name: str
+    family: str
+    unit: str
+    needs = Needs.MOTION
+    basis = "keypoints"
+    spec: Callable[[ClipBatch, Thresholds], MetricSpec]
+    function: Callable[[Motion, Thresholds], MetricResult]
+
+    def compute(self, inputs: PersonInputs) -> MetricResult:
+        # A clip scores the same alone or with the other kernels (clips.py).
+        return score_clip(inputs.motion, self.spec, inputs.config.thresholds)
+
+
+class BodyMetric:
+    """A metric of one retargeted body whose ``limit`` (a
+    :class:`~simenv.plausibility.body_thresholds.BodyThresholds` field) bounds
+    both its value and its timeline."""
+
+    name: str
+    family = "body"
+    needs = Needs.BODY
+    basis = "geoms"
+    unit = "mm"
+    limit: Callable[[BodyThresholds], float]
+
+    def thresholds(self, config: ScoreConfig) -> tuple[float, float]:
+        value = self.limit(config.body)
+        return value, value
+
+
+class PairMetric(BodyMetric):
+    """A metric of the two bodies of a pair with one ``limit``."""
+
+    needs = Needs.PAIR
+
+
+def fitted_body(inputs: PersonInputs) -> RetargetResult:
+    """The fitted body of inputs whose metric needs it (the scorer checks)."""
+    assert inputs.fitted is not None
+    return inputs.fitted
+
+
+def fitted_pair(inputs: PairInputs) -> InteractionRetargetResult:
+    """The fitted pair of inputs whose metric needs it (the scorer checks)."""
+    assert inputs.fitted is not None
+    return inputs.fitted
+
+
+def root_force_limits(config: ScoreConfig) -> tuple[float, float]:
+    """Mean and per-frame limits of a root residual force, body weights."""
+    return config.body.root_force_mean_max, config.body.root_force_frame_max
