@@ -1,8 +1,12 @@
 """Cost of one perception tick, the room's recogniser against the previous stack.
 
-A tick of :class:`simenv.perception.loop.PerceptionLoop` on real keypoints (the bundled CMU
-walk retargeted into the room, as the rehearsal gives them): the real stage alone, and the
-real + forecast stage (forced by a threshold of 1.1, so both stages always run). Stacks:
+A tick of the room's agent, :class:`simenv.perception.room_agent.RoomAgent` (perceive, then
+decide: what :meth:`~simenv.perception.room_agent.RoomAgent.act` runs at a tick), on real
+keypoints (the bundled CMU walk retargeted into the room, as the rehearsal gives them: the
+history its ticks read, ``RoomAgent.history_frames`` -- 75 frames for the room's three real
+windows --, its first frame held before the walk as when a session starts): the real stage
+alone, and the real + forecast stage (forced by a threshold of 1.1, so both stages always
+run). Stacks:
 
 * ``gesture-tcn-ensemble`` + ``predictor-gesture-25-50`` (the room's now: two TCNs run as
   one fused network),
@@ -42,6 +46,7 @@ import simenv.models  # noqa: E402
 from simenv.assets import WALK, asset_path  # noqa: E402
 from simenv.models.skeleton_tcn import SkeletonTCN  # noqa: E402
 from simenv.perception.loop import PerceptionLoop, TrainedClassifier, load_predictor  # noqa: E402
+from simenv.perception.room_agent import RoomAgent  # noqa: E402
 from simenv.room.scenario import load_scenario  # noqa: E402
 from simenv.room.session import Session, user_track  # noqa: E402
 
@@ -77,21 +82,24 @@ def tick_ms(stacks: dict[str, tuple[TrainedClassifier, str]], keypoints: np.ndar
     stacks take turns tick by tick, so a change in the machine's load falls on all alike."""
     behaviour = load_scenario("default").behaviour
     ahead = {name: load_predictor(predictor) for name, (_, predictor) in stacks.items()}
-    need = max(25, *(a.history_len for a in ahead.values()))
     out: dict[str, dict[str, float]] = {name: {} for name in stacks}
     for stage, threshold in (("real_stage", 0.0), ("both_stages", 1.1)):
-        loops = {name: PerceptionLoop(behaviour, clf, ahead[name], threshold=threshold,
-                                      use_forecast=True) for name, (clf, _) in stacks.items()}
-        wall: dict[str, list[float]] = {name: [] for name in loops}
-        cpu: dict[str, list[float]] = {name: [] for name in loops}
+        agents = {name: RoomAgent(PerceptionLoop(clf, ahead[name], threshold=threshold,
+                                                 use_forecast=True), behaviour, (None,))
+                  for name, (clf, _) in stacks.items()}
+        need = max(agent.history_frames for agent in agents.values())
+        # Before the walk its first pose is held, as when a session starts.
+        held = np.concatenate([np.repeat(keypoints[:1], need, axis=0), keypoints])
+        wall: dict[str, list[float]] = {name: [] for name in agents}
+        cpu: dict[str, list[float]] = {name: [] for name in agents}
         for k in range(ticks):
-            end = need + k % (len(keypoints) - need)
-            for name, loop in loops.items():
+            end = need + k % (len(held) - need)
+            for name, agent in agents.items():
                 start, start_cpu = time.perf_counter(), time.thread_time()
-                loop.perceive(end / 25.0, keypoints[end - need:end])
+                agent.decide(agent.perceive(held[end - need:end], end / 25.0))
                 wall[name].append(time.perf_counter() - start)
                 cpu[name].append(time.thread_time() - start_cpu)
-        for name in loops:
+        for name in agents:
             out[name][f"{stage}_ms"] = round(1000 * float(np.median(wall[name][5:])), 2)
             out[name][f"{stage}_cpu_ms"] = round(1000 * float(np.median(cpu[name][5:])), 2)
     return out

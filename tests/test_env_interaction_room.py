@@ -12,6 +12,7 @@ import simenv.envs  # noqa: F401  (registers the ids)
 import simenv.models
 from simenv.assets import WALK, asset_path
 from simenv.core.errors import SimenvError
+from simenv.data.gestures import GESTURE15_JOINTS
 from simenv.envs.interaction_room import (
     FALSE_ALARM,
     GRACE_S,
@@ -22,6 +23,7 @@ from simenv.envs.interaction_room import (
     TIMELINESS_S,
     InteractionRoomEnv,
 )
+from simenv.perception.loop import PerceptionLoop
 from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session
 
 #: The bundled walk with a "wave" label on 0.4-1.0 s (the reward only reads labels).
@@ -332,3 +334,32 @@ def test_a_walking_agent_that_falls_ends_its_chain_with_the_fall_reported():
     assert walk["assistance"]["max_n"] == pytest.approx(500.0)  # the shove, measured
     assert all(h == 0.0 for shoved, h in helps if not shoved)
     assert walk["duration_s"] > walk["assistance"]["steps"] * env.model.opt.timestep
+
+
+class _ReadsWave:
+    """Stub classifier: always reads "wave" with probability 0.95."""
+
+    labels = ("wave", "idle")
+    joint_names = GESTURE15_JOINTS
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        return np.array([0.95, 0.05])
+
+
+def test_room_agent_decides_in_the_environment(env: InteractionRoomEnv):
+    """The room's agent bound to the environment: its actions, the recording's length and
+    sensor (none for the CMU walk); playing it, its first tick (0.96 s) starts a greeting,
+    logged by the environment. A loop reading more history than observed is refused."""
+    agent = env.room_agent(PerceptionLoop(_ReadsWave()))
+    assert agent.reactions == env.reactions and agent.recorded_frames == env.n_frames
+    assert agent.observer is None and env.room_agent(PerceptionLoop(_ReadsWave()),
+                                                     replay=False).recorded_frames is None
+    obs, _ = env.reset(seed=0)
+    for _ in range(26):
+        obs, *_ = env.step(agent.act(obs))
+    (entry,) = env.log
+    assert (entry["reaction"], entry["t_decision"], entry["started"]) == ("greet", 0.96, True)
+    assert [t.step for t in agent.ticks] == [24]
+    with pytest.raises(SimenvError, match="history_frames=75") as err:
+        env.room_agent(PerceptionLoop(_ReadsWave(), context_frames=(50, 75)))
+    assert err.value.field == "history_frames"

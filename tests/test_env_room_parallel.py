@@ -9,7 +9,9 @@ from pettingzoo.test import parallel_api_test
 import simenv
 from simenv.assets import WALK, asset_path
 from simenv.core.errors import SimenvError
+from simenv.data.gestures import GESTURE15_JOINTS
 from simenv.envs.room_parallel import AGENTS, RoomParallelEnv, parallel_env
+from simenv.perception.loop import PerceptionLoop
 
 
 @pytest.fixture(scope="module")
@@ -66,3 +68,31 @@ def test_guards(short):
         env.step({"user": 0, "agent": 0})
     with pytest.raises(SimenvError, match="unknown agent"):
         env.observation_space("robot")
+
+
+class _ReadsWave:
+    """Stub classifier: always reads "wave" with probability 0.95."""
+
+    labels = ("wave", "idle")
+    joint_names = GESTURE15_JOINTS
+
+    def classify(self, window: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        return np.array([0.95, 0.05])
+
+
+@pytest.mark.parametrize("user", ["replay", "policy"])
+def test_room_agent_plays_the_agent_side(short, user: str):
+    """The room's agent acts for ``agent`` from its observation: at the first tick it
+    greets; a replayed user's recording bounds its ticks, a policy user's does not."""
+    env = RoomParallelEnv(user=user, session=short)
+    agent = env.room_agent(PerceptionLoop(_ReadsWave()))
+    assert agent.reactions == env.env.reactions
+    assert agent.recorded_frames == (env.env.n_frames if user == "replay" else None)
+    obs, _ = env.reset(seed=0)
+    still = env.env.track.qpos[0][env.env.room.user.hinge_qpos]  # the first pose held
+    for _ in range(25):
+        action = agent.act(obs["agent"])
+        obs, *_ = env.step({"agent": action,
+                            "user": 0 if user == "replay" else still.astype(np.float32)})
+    (entry,) = env.env.log
+    assert entry["reaction"] == "greet" and entry["t_decision"] == pytest.approx(0.96)

@@ -1,4 +1,4 @@
-"""Perception loop: template classifier, real / predicted stages, decisions, cooldown."""
+"""Perception loop: template classifier, real / predicted stages, the decision rule."""
 
 from __future__ import annotations
 
@@ -14,7 +14,10 @@ from simenv.perception.loop import (
     CanonicalPredictor,
     GestureModel,
     PerceptionLoop,
+    Stage,
     TemplateClassifier,
+    decide,
+    tick_due,
 )
 from simenv.room.scenario import load_scenario
 
@@ -66,17 +69,43 @@ def test_template_classifier_on_synthetic_motion(classifier: TemplateClassifier)
         TemplateClassifier(np.zeros((2, 5, 15, 3)), np.ones((2, 5), bool), ["wave"])
 
 
-def test_loop_decides_on_real_motion_once(classifier: TemplateClassifier):
-    loop = PerceptionLoop(load_scenario("default").behaviour, classifier)
+def test_decide_takes_the_real_stage_first_then_the_forecast():
+    """The room's one decision rule on probabilities whose outcome is known by hand; the
+    forecast stage is computed only when the real one is not confident."""
+    calls = []
+
+    def forecast_stage() -> np.ndarray:
+        calls.append(1)
+        return np.array([0.1, 0.7, 0.2])
+
+    real = decide(np.array([0.2, 0.1, 0.7]), forecast_stage, 0.6)
+    assert (real.stage, real.index) == (Stage.REAL, 2) and not calls
+    ahead = decide(np.array([0.5, 0.3, 0.2]), forecast_stage, 0.6)
+    assert (ahead.stage, ahead.index) == (Stage.FORECAST, 1) and len(calls) == 1
+    np.testing.assert_array_equal(ahead.probabilities, [0.1, 0.7, 0.2])
+    unsure = decide(np.array([0.5, 0.3, 0.2]), np.array([0.4, 0.4, 0.2]), 0.6)
+    assert (unsure.stage, unsure.index) == (Stage.NONE, None)
+    np.testing.assert_array_equal(unsure.probabilities, [0.4, 0.4, 0.2])  # the forecast's
+    blind = decide(np.array([0.5, 0.3, 0.2]), None, 0.6)
+    assert blind.stage is Stage.NONE and blind.probabilities.tolist() == [0.5, 0.3, 0.2]
+    assert decide(np.array([0.6, 0.4]), None, 0.6).stage is Stage.REAL  # reaching it decides
+    assert [s.value for s in Stage] == ["real", "predicted", None]  # as logs name them
+
+
+def test_ticks_fall_once_a_second_after_the_first():
+    assert [f for f in range(80) if tick_due(f)] == [24, 49, 74]
+    assert [f for f in range(80) if tick_due(f, first=50)] == [49, 74]
+
+
+def test_loop_decides_on_real_motion(classifier: TemplateClassifier):
+    loop = PerceptionLoop(classifier)
     assert not loop.due(0) and loop.due(24) and not loop.due(25) and loop.due(49)
+    assert loop.history_frames == 25
     first = loop.perceive(1.0, _waving(25))
-    assert (first.stage, first.label, first.reaction) == ("real", "wave", "greet")
-    again = loop.perceive(2.0, _waving(25))
-    assert again.label == "wave" and again.reaction is None  # cooldown
-    later = loop.perceive(1.0 + loop.cooldown_s + 0.1, _waving(25))
-    assert later.reaction == "greet"
+    assert (first.stage, first.label) == (Stage.REAL, "wave")
+    assert first.probabilities["wave"] > 0.9 and first.predicted_motion_m == 0.0
     idle = loop.perceive(9.0, _standing(25))
-    assert idle.label == "walk" and idle.reaction is None  # walk -> keep working
+    assert (idle.stage, idle.label) == (Stage.REAL, "walk")
     with pytest.raises(SimenvError, match="history"):
         loop.perceive(0.0, _standing(10))
 
@@ -92,13 +121,19 @@ class _LengthClassifier:
 
 
 def test_loop_anticipates_with_the_prediction():
-    behaviour = load_scenario("default").behaviour
-    loop = PerceptionLoop(behaviour, _LengthClassifier(), ConstantVelocity(50))
+    loop = PerceptionLoop(_LengthClassifier(), ConstantVelocity(50))
     out = loop.perceive(1.0, _waving(25))
-    assert (out.stage, out.reaction) == ("predicted", "greet")
+    assert (out.stage, out.label) == (Stage.FORECAST, "wave")
     assert out.predicted_motion_m > 0.0
-    blind = PerceptionLoop(behaviour, _LengthClassifier()).perceive(1.0, _waving(25))
-    assert blind.stage is None and blind.reaction is None
+    blind = PerceptionLoop(_LengthClassifier()).perceive(1.0, _waving(25))
+    assert blind.stage is Stage.NONE and blind.label is None
+    # A tick reads its longest window, and the predictor's history when it forecasts.
+    assert loop.history_frames == 25 and PerceptionLoop(
+        _LengthClassifier(), ConstantVelocity(50), context_frames=(50, 75)).history_frames == 75
+    assert PerceptionLoop(_LengthClassifier(), ConstantVelocity(50),
+                          real_frames=1).history_frames == ConstantVelocity(50).history_len == 2
+    assert PerceptionLoop(_LengthClassifier(), ConstantVelocity(50), real_frames=1,
+                          use_forecast=False).history_frames == 1
 
 
 def test_the_loop_tells_an_observer_aware_predictor_where_the_agent_stands():
@@ -113,15 +148,14 @@ def test_the_loop_tells_an_observer_aware_predictor_where_the_agent_stands():
             p.add_(0.05 * torch.randn(p.shape, generator=gen))
     predictor = CanonicalPredictor(model, joints=GESTURE15_JOINTS, root_relative=False)
     assert predictor.uses_observer and not CanonicalPredictor(ZeroVelocity(3)).uses_observer
-    loop = PerceptionLoop(load_scenario("default").behaviour, _LengthClassifier(), predictor)
+    loop = PerceptionLoop(_LengthClassifier(), predictor)
     h = _waving(30)
     near, far, unknown = (loop.perceive(1.2, h, observer=o).predicted_motion_m
                           for o in (np.array([1.0, 0.0, 0.0]), np.array([5.0, 3.0, 0.0]), None))
     assert len({near, far, unknown}) == 3
     # A predictor that does not use an observer is called as before.
-    blind = PerceptionLoop(load_scenario("default").behaviour, _LengthClassifier(),
-                           ConstantVelocity(50))
-    assert blind.perceive(1.0, h, observer=np.zeros(3)).stage == "predicted"
+    blind = PerceptionLoop(_LengthClassifier(), ConstantVelocity(50))
+    assert blind.perceive(1.0, h, observer=np.zeros(3)).stage is Stage.FORECAST
 
 
 def test_templates_from_real_clips_cross_subject(shared_data):
@@ -164,9 +198,9 @@ def test_canonical_predictor_adapts_a_joint_subset():
                     reason="shipped predictor checkpoint absent")
 def test_loop_with_the_shipped_predictor():
     predictor = CanonicalPredictor(simenv.models.load("predictor-25-25"))
-    loop = PerceptionLoop(load_scenario("default").behaviour, _LengthClassifier(), predictor)
+    loop = PerceptionLoop(_LengthClassifier(), predictor)
     out = loop.perceive(1.2, _waving(30))
-    assert out.stage == "predicted" and out.reaction == "greet"
+    assert (out.stage, out.label) == (Stage.FORECAST, "wave")
     assert np.isfinite(out.predicted_motion_m)
 
 
@@ -291,7 +325,7 @@ def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
     classifier = default_classifier(vocab, data=tmp_path)  # no corpus needed
     assert isinstance(classifier, TrainedClassifier)
     assert classifier.name == "gesture-tcn-ensemble"
-    loop = PerceptionLoop(load_scenario("default").behaviour, classifier, predictor)
+    loop = PerceptionLoop(classifier, predictor)
     # the threshold, windows and forecast use its training chose on held-out subjects
     assert loop.threshold == classifier.model.metadata["loop_threshold"]
     assert loop.use_forecast == classifier.model.metadata["loop_uses_forecast"]
@@ -300,10 +334,9 @@ def test_shipped_models_are_the_defaults(monkeypatch, tmp_path):
     assert loop.window_rule == classifier.model.metadata.get("loop_window_rule", "max")
     # A window rule the classifier was not measured with can be asked for; a made-up one not.
     other = "max" if loop.window_rule == "mean" else "mean"
-    assert PerceptionLoop(load_scenario("default").behaviour, classifier,
-                          window_rule=other).window_rule == other
+    assert PerceptionLoop(classifier, window_rule=other).window_rule == other
     with pytest.raises(SimenvError, match="window rule 'median'"):
-        PerceptionLoop(load_scenario("default").behaviour, classifier, window_rule="median")
+        PerceptionLoop(classifier, window_rule="median")
     # Nothing shipped and no corpus: a clear error naming where to point.
     monkeypatch.setattr(simenv.models, "available", lambda: [])
     assert isinstance(load_predictor(), ConstantVelocity)
@@ -336,8 +369,7 @@ def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
     assert {c.label for c in s02} == {"wave", "idle"}
     classifier = TrainedClassifier.shipped()
     readings, _ = loop_readings(s02, classifier, load_predictor())
-    behaviour = load_scenario("default").behaviour
-    loop = PerceptionLoop(behaviour, classifier, load_predictor())
+    loop = PerceptionLoop(classifier, load_predictor())
     for r in readings:
         top_real = classifier.labels[int(np.argmax(r.p_real))]
         top_pred = classifier.labels[int(np.argmax(r.p_pred))]
@@ -348,7 +380,7 @@ def test_loop_on_a_real_wave_with_the_shipped_models(shared_data):
 
     kp = user_track(Session(wave.source)).keypoints.astype(np.float32)
     tick = loop.perceive(1.04, kp[:26])
-    assert (tick.stage, tick.label, tick.reaction) == ("real", "wave", "greet")
+    assert (tick.stage, tick.label) == (Stage.REAL, "wave")
 
 
 # -- the loop measured on clips ------------------------------------------------------------

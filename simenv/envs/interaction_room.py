@@ -103,7 +103,8 @@ from simenv.assets import WALK
 from simenv.body.divergence import physics_problem, warning_counts
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
-from simenv.perception.loop import forecast, load_predictor
+from simenv.perception.loop import PerceptionLoop, forecast, load_predictor
+from simenv.perception.room_agent import RoomAgent
 from simenv.room.room import BOW_DIP_DEG, CHAIR_OFFSET, GREET_FACING_DEG, HANDS
 from simenv.room.scenario import REACTIONS, Scenario, load_scenario
 from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session, user_track
@@ -717,6 +718,28 @@ class InteractionRoomEnv(gym.Env[dict, int]):
                 "user_future": self._future.copy(),
                 "agent": agent.astype(np.float32),
                 "objects": self.object_levels()}
+
+    def room_agent(self, loop: PerceptionLoop, *, replay: bool = True) -> RoomAgent:
+        """The room's agent deciding in this environment
+        (:class:`~simenv.perception.room_agent.RoomAgent`): ``loop`` perceives the user,
+        the scenario's behaviour picks the reaction, and the action indexes
+        :attr:`reactions`. ``replay``: the user replays the session, so the forecaster is
+        told where the recording's sensor stands (:attr:`simenv.room.session.UserTrack.
+        observer`) and the agent perceives while the recording plays; False (a user driven
+        otherwise, e.g. a policy): observer unknown, perceiving to the end.
+
+        Raises:
+            SimenvError: the observation's history is shorter than ``loop`` reads.
+        """
+        if self.history_frames < loop.history_frames:
+            raise SimenvError(f"the agent's perception reads {loop.history_frames} frames of "
+                              f"user history; this environment observes {self.history_frames}"
+                              f" (build it with history_frames={loop.history_frames})",
+                              field="history_frames")
+        return RoomAgent(loop, self.scenario.behaviour, self.reactions,
+                         observer=self.track.observer if replay else None,
+                         recorded_frames=self.n_frames if replay else None,
+                         fps=PERCEPTION_FPS)
 
     def user_keypoints(self) -> np.ndarray:
         """(max(H, predictor history), K, 3) float32 the user's latest canonical keypoints

@@ -49,7 +49,8 @@ with one of the agents below, and writes to ``out``:
   agent's plausibility table, in the style of the plausibility reports
   (:func:`simenv.plausibility.html_report.html_page`).
 
-Agents: ``"scripted"`` decides with a :class:`~simenv.perception.loop.PerceptionLoop` (predict,
+Agents: ``"scripted"`` is the room's agent, :class:`~simenv.perception.room_agent.RoomAgent`
+(perceive -> decide -> act) with a :class:`~simenv.perception.loop.PerceptionLoop` (predict,
 classify, decide every second; by default the shipped ``gesture-tcn-ensemble`` and
 ``predictor-gesture-25-50``, falling back to templates from the gesture corpus and constant
 velocity, :func:`simenv.perception.loop.default_classifier` /
@@ -88,14 +89,15 @@ from simenv.envs.interaction_room import OBJECTS, PENETRATION_TOLERANCE_M, Inter
 from simenv.perception.loop import (
     FALLBACK_PREDICTOR,
     GestureModel,
-    Perception,
     PerceptionLoop,
     TemplateClassifier,
     TrainedClassifier,
     default_classifier,
     load_predictor,
+    tick_due,
     vocabulary_map,
 )
+from simenv.perception.room_agent import RoomAgent, Tick
 from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.html_report import html_page
 from simenv.room.scenario import REACTIONS, Scenario, load_scenario
@@ -146,36 +148,39 @@ def rehearse(session: Session | str | os.PathLike[str] | Motion, out: str | os.P
     _check_options(agent, width, height)
     out = Path(out)
     clock = [time.perf_counter()]
-    ahead = load_predictor(predictor) if agent == "scripted" else None
-    env = InteractionRoomEnv(session, scenario=scenario, predictor=FALLBACK_PREDICTOR,
-                             # 3 s: the longest real window a recogniser's loop classifies
-                             history_frames=max(75, 0 if ahead is None else ahead.history_len),
-                             render_mode="rgb_array" if render else None,
-                             width=width, height=height, data=data)
+    scenario = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     loop = None
     if agent == "scripted":
         if classifier is None:
-            classifier = default_classifier(env.scenario.behaviour.vocabulary, data)
-        loop = PerceptionLoop(env.scenario.behaviour, classifier, ahead)
+            classifier = default_classifier(scenario.behaviour.vocabulary, data)
+        loop = PerceptionLoop(classifier, load_predictor(predictor))
+    # The user's history observed as far back as the scripted agent's ticks read it.
+    history = {} if loop is None else {"history_frames": loop.history_frames}
+    env = InteractionRoomEnv(session, scenario=scenario, predictor=FALLBACK_PREDICTOR,
+                             render_mode="rgb_array" if render else None,
+                             width=width, height=height, data=data, **history)
+    room_agent = None if loop is None else env.room_agent(loop)
     out.mkdir(parents=True, exist_ok=True)
-    episode = _Episode(env, agent, loop, np.random.default_rng(seed))
-    env.reset(seed=seed)
+    episode = _Episode(env, agent, room_agent, np.random.default_rng(seed))
+    observation, _ = env.reset(seed=seed)
     clock.append(time.perf_counter())
-    video = episode.play(out, render)
+    video = episode.play(out, render, observation)
     clock.append(time.perf_counter())
     env.close()
-    summary = _summary(env, np.array(episode.agent_kp), episode.perceptions)
+    ticks = [] if room_agent is None else room_agent.ticks
+    summary = _summary(env, np.array(episode.agent_kp), ticks)
     if video is not None:
         summary["video"] = {"file": video.mp4.path.name, "codec": video.mp4.codec,
                             "webm": None if video.webm is None else video.webm.path.name,
                             "width": width, "height": height, "frames": video.mp4.count}
-    if loop is not None:
+    if room_agent is not None:
+        ahead = loop.predictor
         summary["perception"] = {
             "classifier": getattr(classifier, "name", type(classifier).__name__),
             "predictor": getattr(ahead, "name", type(ahead).__name__),
             "real_frames": loop.real_frames, "context_frames": list(loop.context_frames),
             "window_rule": loop.window_rule, "period": loop.period,
-            "threshold": loop.threshold, "cooldown_s": loop.cooldown_s}
+            "threshold": loop.threshold, "cooldown_s": room_agent.cooldown_s}
     summary["agent_physics"] = _physics(np.array(episode.depths), episode.assistance)
     _report(out, summary)
     clock.append(time.perf_counter())
@@ -207,42 +212,37 @@ class _Episode:
 
     env: InteractionRoomEnv
     agent: str
-    loop: PerceptionLoop | None
+    #: The scripted agent (None for the oracle and the random agent).
+    room_agent: RoomAgent | None
     rng: np.random.Generator
-    #: The last perception tick, and the last decision with its time, s.
-    last: Perception | None = None
+    #: The last decision with its time, s.
     decided: tuple[str, float] | None = None
     #: Labelled gestures the oracle answered (indexes into the session's gestures).
     answered: set[int] = field(default_factory=set)
-    #: Per step: the agent's keypoints (K, 3), m, and its penetration depths (5,), m; every
-    #: perception tick; the largest assistance force on the agent, N.
+    #: Per step: the agent's keypoints (K, 3), m, and its penetration depths (5,), m; the
+    #: largest assistance force on the agent, N.
     agent_kp: list[np.ndarray] = field(default_factory=list)
     depths: list[list[float]] = field(default_factory=list)
-    perceptions: list[Perception] = field(default_factory=list)
     assistance: float = 0.0
 
-    def decide(self, step: int) -> int:
-        """The action index at ``step`` (0: none): the scripted agent's perception at its
-        ticks (while the 1-s window holds recorded frames: the pose held after the
-        recording is not the user's motion), the oracle's answer to a labelled gesture, or
-        the random agent's draw at a tick."""
-        env, t = self.env, step / PERCEPTION_FPS
-        tick = (step + 1) % 25 == 0 and step + 1 >= 25
-        if self.loop is not None and tick and step - self.loop.real_frames < env.n_frames - 1:
-            self.last = self.loop.perceive(t, env.user_keypoints(), env.track.observer)
-            self.perceptions.append(self.last)
-            if self.last.reaction in env.reactions:
-                return env.reactions.index(self.last.reaction)
-        elif self.agent == "labels":
-            return _oracle(env, t, self.answered)
-        elif self.agent == "random" and tick:
-            return int(self.rng.integers(0, env.action_space.n))
+    def decide(self, step: int, observation: dict[str, np.ndarray]) -> int:
+        """The action index at ``step`` (0: none) given the environment's ``observation``:
+        the scripted agent's (:meth:`RoomAgent.act`), the oracle's answer to a labelled
+        gesture, or the random agent's draw at a perception tick."""
+        if self.room_agent is not None:
+            return self.room_agent.act(observation)
+        if self.agent == "labels":
+            return _oracle(self.env, step / PERCEPTION_FPS, self.answered)
+        if self.agent == "random" and tick_due(step):
+            return int(self.rng.integers(0, self.env.action_space.n))
         return 0
 
     def record(self, t: float, action: int, info: dict[str, Any]) -> dict[str, Any]:
         """Measure the step just taken at time ``t`` (s) and return its ``log.jsonl`` line
         (module docstring)."""
-        env, last = self.env, self.last
+        env = self.env
+        last = None if self.room_agent is None or self.room_agent.last is None \
+            else self.room_agent.last.perception
         self.agent_kp.append(env.room.agent_keypoints(env.data))
         self.depths.append(list(env.agent_penetration().values()))
         help_n = env.agent_assistance_n()
@@ -251,7 +251,7 @@ class _Episode:
         return {
             "t": round(t, 4), "gesture": info.get("gesture"),
             "probabilities": None if last is None else last.probabilities,
-            "stage": None if last is None else last.stage,
+            "stage": None if last is None else last.stage.value,
             "predicted_motion_m": None if last is None else last.predicted_motion_m,
             "decision": env.reactions[action], "executing": info.get("executing"),
             "objects": env.room.object_states(env.data),
@@ -260,10 +260,11 @@ class _Episode:
             "assistance_n": help_n, "assistance_bw": help_n / weight,
         }
 
-    def play(self, out: Path, render: bool) -> WebVideo | None:
-        """Run the (reset) environment to its end, writing ``log.jsonl`` and with
-        ``render`` the captioned video in ``out``; the video writer
-        (:class:`simenv.body.render.WebVideo`, closed) or None."""
+    def play(self, out: Path, render: bool, observation: dict[str, np.ndarray]
+             ) -> WebVideo | None:
+        """Run the environment, just reset to ``observation``, and the agent to the
+        episode's end, writing ``log.jsonl`` and with ``render`` the captioned video in
+        ``out``; the video writer (:class:`simenv.body.render.WebVideo`, closed) or None."""
         env, video = self.env, None
         if render:
             # The video writer loads OpenCV: only a rendered rehearsal needs it.
@@ -275,8 +276,8 @@ class _Episode:
         with (out / "log.jsonl").open("w", encoding="utf-8") as log, video or nullcontext():
             while not done:
                 t = step / PERCEPTION_FPS
-                action = self.decide(step)
-                _, _, _, done, info = env.step(action)
+                action = self.decide(step, observation)
+                observation, _, _, done, info = env.step(action)
                 if action:
                     self.decided = (env.reactions[action], t)
                 step += 1
@@ -317,7 +318,7 @@ def _oracle(env: InteractionRoomEnv, t: float, answered: set[int]) -> int:
 
 
 def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
-             perceptions: list[Perception]) -> dict[str, Any]:
+             ticks: list[Tick]) -> dict[str, Any]:
     reactions, latencies = [], []
     for entry in env.log:
         if not entry["started"]:
@@ -345,9 +346,9 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
     motion = Motion(agent_kp.astype(np.float32), PERCEPTION_FPS, canonical_skeleton(),
                     name="agent")
     metrics = kinematic_metrics(motion) if len(agent_kp) >= 3 else {}
-    compute = np.array([p.compute_s for p in perceptions])
+    compute = np.array([tick.perception.compute_s for tick in ticks])
     # The tick whose reaction became the decision (steps are 1/25 s: match to the step).
-    stage = {round(p.t_s * PERCEPTION_FPS): p.stage for p in perceptions if p.reaction}
+    stage = {tick.step: tick.perception.stage.value for tick in ticks if tick.reaction}
     return {
         "session": env.session.motion.name, "scenario": env.scenario.name,
         "duration_s": len(agent_kp) / PERCEPTION_FPS,
@@ -357,7 +358,7 @@ def _summary(env: InteractionRoomEnv, agent_kp: np.ndarray,
         "decisions": [{"t_decision": e["t_decision"], "reaction": e["reaction"],
                        "started": e["started"], "not_started": e["not_started"],
                        **({"stage": stage.get(round(e["t_decision"] * PERCEPTION_FPS))}
-                          if perceptions else {})}
+                          if ticks else {})}
                       for e in env.log],
         "decision_latency_s": {"n": int(lat.size),
                                **({"mean": float(lat.mean()), "median": float(np.median(lat)),

@@ -1,11 +1,13 @@
 """PettingZoo ``ParallelEnv`` of the room: agents ``user`` and ``agent``.
 
 The ``agent`` is exactly :class:`~simenv.envs.interaction_room.InteractionRoomEnv`'s decision
-maker (same observation, action and reward). The ``user`` either replays the session
-(``user="replay"``: its action space is ``Discrete(1)``, the only action is "go on") or is a
-policy (``user="policy"``: a ``Box`` of the user avatar's hinge angles, radians within
-their joint ranges, applied kinematically each step with the pelvis held where the scenario
-places the user).
+maker (same observation, action and reward); :meth:`RoomParallelEnv.room_agent` gives the
+room's own agent (:class:`~simenv.perception.room_agent.RoomAgent`: perceive -> decide ->
+act) to play it, ``actions["agent"] = agent.act(observations["agent"])``. The ``user``
+either replays the session (``user="replay"``: its action space is ``Discrete(1)``, the
+only action is "go on") or is a policy (``user="policy"``: a ``Box`` of the user avatar's
+hinge angles, radians within their joint ranges, applied kinematically each step with the
+pelvis held where the scenario places the user).
 
 The user observes ``self`` (K, 3), its own keypoints, ``agent`` (K, 3), the agent's
 keypoints, and ``objects`` (5,), the object levels, all float32 in the room frame. Its
@@ -24,6 +26,8 @@ from pettingzoo import ParallelEnv
 
 from simenv.core.errors import SimenvError
 from simenv.envs.interaction_room import OBJECTS, InteractionRoomEnv
+from simenv.perception.loop import PerceptionLoop
+from simenv.perception.room_agent import RoomAgent
 
 AGENTS = ("user", "agent")
 
@@ -111,6 +115,13 @@ class RoomParallelEnv(ParallelEnv):
         if terminated or truncated:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
+
+    def room_agent(self, loop: PerceptionLoop) -> RoomAgent:
+        """The room's agent for the ``agent`` side, perceiving with ``loop``
+        (:meth:`~simenv.envs.interaction_room.InteractionRoomEnv.room_agent`; a replayed
+        user's recording sensor as the forecaster's observer, a policy user's unknown).
+        Reset it with the environment; one ``act`` per step."""
+        return self.env.room_agent(loop, replay=self.user_mode == "replay")
 
     def render(self) -> np.ndarray | None:
         return self.env.render()

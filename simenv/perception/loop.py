@@ -6,14 +6,19 @@ takes the user's last frames of canonical keypoints and
 1. **classifies the real frames alone** -- the last second, and the longer windows of real
    motion ending now when the classifier was trained to read them (``context_frames``),
    their probabilities combined by the ``window_rule`` (:func:`real_stage`: the most
-   confident window, or the windows' mean); when the top label's probability reaches
-   ``threshold`` the decision is taken on real motion (stage ``"real"``);
-2. otherwise **predicts ahead** (:attr:`predictor`, e.g. the constant-velocity baseline or
-   the PredictiveMA-WGAN) and classifies real + predicted frames; a confident label there is
-   a decision anticipated from prediction (stage ``"predicted"``);
-3. **decides** the scenario's reaction to the label
-   (:meth:`simenv.room.scenario.Behaviour.reaction_for`), with a refractory period
-   (``cooldown_s``) per label so one gesture triggers once.
+   confident window, or the windows' mean);
+2. **predicts ahead** (:attr:`predictor`, e.g. the constant-velocity baseline or the
+   PredictiveMA-WGAN) and classifies real + predicted frames -- only when the real stage
+   is not confident, as step 3 needs it;
+3. **decides** by :func:`decide`, the room's one decision rule: the real stage's top label
+   when its probability reaches ``threshold`` (:attr:`Stage.REAL`), else the real +
+   predicted stage's when it does (a decision anticipated from prediction,
+   :attr:`Stage.FORECAST`), else nothing (:attr:`Stage.NONE`). The same function decides
+   on recorded readings (:func:`loop_decisions`, :mod:`simenv.perception.protocol`).
+
+What the room does with the decided label -- the scenario's reaction, a refractory period
+per label, the action the environment executes -- is the agent's
+(:class:`simenv.perception.room_agent.RoomAgent`: perceive -> decide -> act).
 
 Each stage is an interface: any object with ``predict(history) -> future``, ``history_len``
 and ``future_len`` on the 21 canonical keypoints predicts (the baselines of
@@ -43,8 +48,9 @@ import json
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -67,7 +73,6 @@ from simenv.data.gestures import (
     split_cross_subject,
 )
 from simenv.data.prediction_data import PRED17_JOINTS
-from simenv.room.scenario import Behaviour
 
 
 @runtime_checkable
@@ -466,6 +471,68 @@ def real_stage(p: np.ndarray, rule: str = "max") -> np.ndarray:
     return np.take_along_axis(p, best, axis=-2)[..., 0, :]
 
 
+class Stage(Enum):
+    """Which stage of a perception tick took its decision; the value is how logs, summaries
+    and tables name it (``None``: no decision)."""
+
+    REAL = "real"
+    FORECAST = "predicted"
+    NONE = None
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """What :func:`decide` concluded on one tick.
+
+    Attributes:
+        stage: the stage that decided (:attr:`Stage.NONE`: no label was confident).
+        index: the decided class, an index into the classifier's labels (None: no decision).
+        probabilities: (C,) the deciding stage's probabilities; undecided, the real +
+            predicted stage's when it was read, else the real stage's.
+    """
+
+    stage: Stage
+    index: int | None
+    probabilities: np.ndarray
+
+
+def decide(p_real: np.ndarray,
+           p_forecast: np.ndarray | Callable[[], np.ndarray] | None,
+           threshold: float) -> Decision:
+    """The room's decision rule on one tick: the real stage first, then the forecast.
+
+    The top class of the real stage decides when its probability reaches ``threshold``;
+    otherwise the top class of the real + predicted stage does when its probability
+    reaches it; otherwise nothing is decided.
+
+    Args:
+        p_real: (C,) probabilities of the real stage (its windows combined,
+            :func:`real_stage`).
+        p_forecast: (C,) probabilities of the real + predicted stage; a function returning
+            them, called only when the real stage is not confident (a live tick forecasts
+            only then); or None (no forecast stage).
+        threshold: probability at which a class is decided.
+    """
+    p_real = np.asarray(p_real)
+    if p_real.max() >= threshold:
+        return Decision(Stage.REAL, int(p_real.argmax()), p_real)
+    if callable(p_forecast):
+        p_forecast = p_forecast()
+    if p_forecast is None:
+        return Decision(Stage.NONE, None, p_real)
+    p = np.asarray(p_forecast)
+    if p.max() >= threshold:
+        return Decision(Stage.FORECAST, int(p.argmax()), p)
+    return Decision(Stage.NONE, None, p)
+
+
+def tick_due(frame: int, first: int = 25, period: int = 25) -> bool:
+    """Whether frame index ``frame`` (0-based) ends a perception period: every ``period``
+    frames once ``first`` frames have been seen (25 and 25: a tick a second at 25 fps,
+    the first when the first second is complete)."""
+    return frame + 1 >= first and (frame + 1) % period == 0
+
+
 def load_predictor(spec: Any = None) -> Any:
     """A predictor on the 21 canonical keypoints.
 
@@ -525,31 +592,28 @@ class Perception:
     Attributes:
         t_s: time of the last observed frame, s.
         probabilities: label -> probability of the stage that decided (or of the
-            real + predicted stage when nothing was decided).
-        stage: ``"real"``, ``"predicted"`` or None (no confident label).
-        label, reaction: the decided gesture and reaction (None: no decision, or the
-            reaction is ``keep`` or in its cooldown).
+            real + predicted stage when nothing was decided and it was read).
+        stage: the stage that decided (:func:`decide`).
+        label: the decided gesture (None: no decision).
         predicted_motion_m: mean displacement of the predicted frames' joints from the last
-            observed pose, m (a summary of the prediction).
+            observed pose, m (a summary of the prediction; 0 when none was made).
         compute_s: wall time of the tick, s.
     """
 
     t_s: float
     probabilities: dict[str, float]
-    stage: str | None
+    stage: Stage
     label: str | None
-    reaction: str | None
     predicted_motion_m: float
     compute_s: float = field(compare=False)
 
 
 class PerceptionLoop:
-    """Predict -> classify -> decide every ``period`` frames (see the module docstring).
+    """Classify real motion, predict, classify real + predicted motion, and decide, every
+    ``period`` frames (see the module docstring).
 
     Args:
-        behaviour: the scenario's gesture -> reaction map.
-        classifier: a :class:`GestureModel`; its labels outside the scenario vocabulary
-            never trigger.
+        classifier: a :class:`GestureModel`.
         predictor: forecaster on canonical-keypoint windows (None: real frames only).
         real_frames: frames of real motion classified (25 = 1 s).
         context_frames: longer windows of real motion also classified at each tick, frames
@@ -562,16 +626,13 @@ class PerceptionLoop:
         period: frames between ticks.
         threshold: probability at which a label is decided (None: the classifier's
             ``threshold`` attribute if it has one, else 0.6).
-        cooldown_s: a decided label does not trigger again within this time, s.
-        fps: frame rate of the keypoints, Hz.
         use_forecast: run the real + predicted stage (None: the classifier's
             ``uses_forecast`` attribute if it has one -- a trained recogniser records
             whether its loop greeted better with it on held-out subjects --, else True).
     """
 
-    def __init__(self, behaviour: Behaviour, classifier: GestureModel, predictor: Any = None,
-                 *, real_frames: int = 25, period: int = 25, threshold: float | None = None,
-                 cooldown_s: float = 3.0, fps: float = 25.0,
+    def __init__(self, classifier: GestureModel, predictor: Any = None, *,
+                 real_frames: int = 25, period: int = 25, threshold: float | None = None,
                  use_forecast: bool | None = None,
                  context_frames: Sequence[int] | None = None,
                  window_rule: str | None = None) -> None:
@@ -579,11 +640,11 @@ class PerceptionLoop:
         if missing:
             raise SimenvError(f"classifier joints {missing} are not canonical keypoints",
                               field="classifier")
-        self.behaviour, self.classifier, self.predictor = behaviour, classifier, predictor
+        self.classifier, self.predictor = classifier, predictor
         self.real_frames, self.period = int(real_frames), int(period)
         if threshold is None:
             threshold = getattr(classifier, "threshold", 0.6)
-        self.threshold, self.cooldown_s, self.fps = float(threshold), float(cooldown_s), fps
+        self.threshold = float(threshold)
         if use_forecast is None:
             use_forecast = bool(getattr(classifier, "uses_forecast", True))
         self.use_forecast = use_forecast
@@ -595,15 +656,23 @@ class PerceptionLoop:
             window_rule = str(getattr(classifier, "loop_window_rule", "max"))
         self.window_rule = check_window_rule(window_rule)
         self._joints = [CANONICAL_KEYPOINTS.index(j) for j in classifier.joint_names]
-        self._last: dict[str, float] = {}
 
-    def reset(self) -> None:
-        """Forget the cooldowns (a new session)."""
-        self._last.clear()
+    @property
+    def forecasts(self) -> bool:
+        """Whether a tick may run the real + predicted stage (a predictor, and its use)."""
+        return self.predictor is not None and self.use_forecast
+
+    @property
+    def history_frames(self) -> int:
+        """Frames of history a tick reads: its longest real window, and the predictor's
+        history when it forecasts."""
+        need = max((self.real_frames, *self.context_frames))
+        return max(need, int(self.predictor.history_len)) if self.forecasts else need
 
     def due(self, frame: int) -> bool:
-        """Whether frame index ``frame`` (0-based) ends a perception period."""
-        return frame + 1 >= self.real_frames and (frame + 1) % self.period == 0
+        """Whether frame index ``frame`` (0-based) ends a perception period
+        (:func:`tick_due` with :attr:`real_frames` and :attr:`period`)."""
+        return tick_due(frame, self.real_frames, self.period)
 
     def perceive(self, t_s: float, history: np.ndarray,
                  observer: np.ndarray | None = None) -> Perception:
@@ -621,25 +690,19 @@ class PerceptionLoop:
         windows = [real] + [h[-w:][:, self._joints] for w in self.context_frames]
         p_real = real_stage(np.stack([self.classifier.classify(x, np.ones(len(x), bool))
                                       for x in windows]), self.window_rule)
-        stage, probs, motion = None, p_real, 0.0
-        if p_real.max() >= self.threshold:
-            stage = "real"
-        elif self.predictor is not None and self.use_forecast:
+        motion = 0.0  # the forecast's displacement, set if decide() asks for the stage
+
+        def real_and_predicted() -> np.ndarray:
+            nonlocal motion
             future = forecast(self.predictor, h, observer)
             motion = float(np.linalg.norm(future - h[-1][None], axis=-1).mean())
             both = np.concatenate([real, future[:, self._joints]])
-            probs = self.classifier.classify(both, np.ones(len(both), bool))
-            stage = "predicted" if probs.max() >= self.threshold else None
-        label = self.classifier.labels[int(np.argmax(probs))] if stage else None
-        reaction = None
-        if label is not None and label in self.behaviour.vocabulary:
-            cooling = t_s - self._last.get(label, -np.inf) < self.cooldown_s
-            r = self.behaviour.reaction_for(label).name
-            if not cooling and r != "keep":
-                reaction = r
-                self._last[label] = t_s
-        return Perception(t_s, dict(zip(self.classifier.labels, map(float, probs),
-                                        strict=True)), stage, label, reaction, motion,
+            return self.classifier.classify(both, np.ones(len(both), bool))
+
+        d = decide(p_real, real_and_predicted if self.forecasts else None, self.threshold)
+        label = None if d.index is None else self.classifier.labels[d.index]
+        return Perception(t_s, dict(zip(self.classifier.labels, map(float, d.probabilities),
+                                        strict=True)), d.stage, label, motion,
                           time.perf_counter() - start)
 
 
@@ -708,31 +771,26 @@ def loop_readings(clips: Sequence[GestureClip], classifier: GestureModel, predic
 
 def loop_decisions(readings: Sequence[LoopReading], labels: Sequence[str], threshold: float,
                    greet: str = "wave") -> dict[str, Any]:
-    """What :class:`PerceptionLoop` decides on each reading at ``threshold`` (real stage
-    first, then real + predicted), summed up: clips decided, decided label right, greet
+    """What :class:`PerceptionLoop` decides on each reading at ``threshold`` (:func:`decide`:
+    real stage first, then real + predicted), summed up: clips decided, decided label right, greet
     (label ``greet`` decided) on ``greet`` clips / on the others / on ``idle`` clips, as
     ``[k, n]``, and decisions per stage."""
     decided = right = 0
     greets = {"greet_clips": [0, 0], "other_clips": [0, 0], "idle_clips": [0, 0]}
-    stages = {"real": 0, "predicted": 0}
+    stages = {Stage.REAL.value: 0, Stage.FORECAST.value: 0}
     for r in readings:
-        if r.p_real.max() >= threshold:
-            stage, p = "real", r.p_real
-        elif r.p_pred.max() >= threshold:
-            stage, p = "predicted", r.p_pred
-        else:
-            stage, p = None, None
-        label = labels[int(np.argmax(p))] if p is not None else None
+        d = decide(r.p_real, r.p_pred, threshold)
+        label = None if d.index is None else labels[d.index]
         groups = ["greet_clips" if r.label == greet else "other_clips"]
         if r.label == "idle":
             groups.append("idle_clips")
         for g in groups:
             greets[g][1] += 1
             greets[g][0] += int(label == greet)
-        if stage is not None:
+        if d.stage is not Stage.NONE:
             decided += 1
             right += int(label == r.label)
-            stages[stage] += 1
+            stages[d.stage.value] += 1
     n = max(len(readings), 1)
     return {"threshold": threshold, "clips": len(readings), "decided": round(decided / n, 4),
             "decided_right": round(right / max(decided, 1), 4), **greets, "stages": stages}
@@ -804,10 +862,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 __all__ = ["DEFAULT_CLASSIFIER", "DEFAULT_PREDICTOR", "FALLBACK_PREDICTOR", "WINDOW_RULES",
-           "CanonicalPredictor", "GestureModel", "LoopReading", "Perception", "PerceptionLoop",
-           "TemplateClassifier", "TrainedClassifier", "check_window_rule", "choose_threshold",
-           "default_classifier", "forecast", "loop_decisions", "load_predictor",
-           "loop_readings", "real_stage", "vocabulary_map"]
+           "CanonicalPredictor", "Decision", "GestureModel", "LoopReading", "Perception",
+           "PerceptionLoop", "Stage", "TemplateClassifier", "TrainedClassifier",
+           "check_window_rule", "choose_threshold", "decide", "default_classifier", "forecast",
+           "loop_decisions", "load_predictor", "loop_readings", "real_stage", "tick_due",
+           "vocabulary_map"]
 
 
 if __name__ == "__main__":

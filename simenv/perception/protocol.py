@@ -15,9 +15,10 @@ motion -- the thesis's 1 s, and optionally longer windows ending at the tick
 (``real_windows``) --, and on the last second continued by the forecaster's 2 s. Ticks
 continue until the tick whose second holds the clip's last frame.
 
-Decisions (:func:`loop_outcomes`), the loop's rule: a tick decides when the top class of
-the real stage reaches the threshold, else when that of the real + predicted stage does;
-the real stage's probabilities are its windows' combined by the window rule
+Decisions (:func:`loop_outcomes`), the loop's rule (:func:`simenv.perception.loop.decide`,
+the one the room's agent decides by): a tick decides when the top class of the real stage
+reaches the threshold, else when that of the real + predicted stage does; the real stage's
+probabilities are its windows' combined by the window rule
 (:func:`simenv.perception.loop.real_stage`: the most confident window, ``max``, or the
 windows' mean, ``mean``);
 a clip is *greeted* when any of its ticks decides ``wave``. Reported: waves greeted,
@@ -42,7 +43,7 @@ from simenv.core.errors import SimenvError
 from simenv.core.skeletons import CANONICAL_KEYPOINTS
 from simenv.data.gestures import GESTURE15_JOINTS, GestureClip, normalise_windows
 from simenv.learning.recognition import SHORT_FRAMES, Forecaster, logits_of
-from simenv.perception.loop import real_stage
+from simenv.perception.loop import Stage, decide, real_stage
 
 #: Frames between perception ticks (1 s at 25 fps, the thesis's rate).
 TICK_FRAMES = 25
@@ -195,10 +196,9 @@ def _outcomes(readings: Sequence[StreamReading],
     for r, (p_real, p_pred) in zip(readings, probabilities, strict=True):
         decided = []
         for t in range(len(r.ticks_s)):
-            if p_real[t].max() >= threshold:
-                decided.append((int(p_real[t].argmax()), "real", r.ticks_s[t]))
-            elif p_pred is not None and p_pred[t].max() >= threshold:
-                decided.append((int(p_pred[t].argmax()), "predicted", r.ticks_s[t]))
+            d = decide(p_real[t], None if p_pred is None else p_pred[t], threshold)
+            if d.stage is not Stage.NONE:
+                decided.append((d.index, d.stage.value, r.ticks_s[t]))
         greets = [(float(t), stage) for c, stage, t in decided if c == k]
         group = "greet_clips" if r.label == greet else \
             "idle_clips" if r.label == "idle" else "other_clips"
@@ -214,7 +214,7 @@ def _summary(outcomes: Sequence[_Outcome]) -> dict[str, Any]:
                   sum(o.group == g for o in outcomes)] for g in _GROUPS}
     waves = [o for o in outcomes if o.group == "greet_clips" and o.greet is not None]
     delays = [o.greet[0] for o in waves]
-    stages = {"real": 0, "predicted": 0}
+    stages = {Stage.REAL.value: 0, Stage.FORECAST.value: 0}
     for o in waves:
         stages[o.greet[1]] += 1
     decided = [o.first_right for o in outcomes if o.first_right is not None]
