@@ -21,8 +21,10 @@ on the other folds' held-out ``real_3s`` + ``real_1s`` logits and its threshold 
 the other folds' loop readings (:func:`simenv.perception.protocol.cross_fitted_outcomes`,
 last 1 / 2 / 3 s real, no forecast stage), the windows' probabilities combined by
 ``--window-rule`` (:func:`simenv.perception.loop.real_stage`: ``max``, the most confident
-window, or ``mean``). Prints waves / other / idle greeted and the decision time; ``--json``
-appends the row to ``OUT/scores.jsonl``.
+window, or ``mean``), each tick decided by :func:`simenv.perception.loop.decide` (the rule
+the room's agent, :class:`simenv.perception.room_agent.RoomAgent`, decides by). Prints
+waves / other / idle greeted and the decision time; ``--json`` appends the row to
+``OUT/scores.jsonl``.
 
 ``ship MEMBER [MEMBER ...] [--name N] [--ship-dir DIR]``: the ensemble as the room ships
 it: each member variant trained once more on every subject (its ``config.json``, the shipped

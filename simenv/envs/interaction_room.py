@@ -24,6 +24,8 @@ Observation (``Dict``, float32)
 Action (``Discrete(1 + R)``)
     0 = no-op (keep doing what the agent does), ``1..R`` = the scenario's reactions other
     than ``keep``, in the order of :data:`simenv.room.scenario.REACTIONS` (:attr:`reactions`).
+    The room's own agent chooses them from the observation: :meth:`InteractionRoomEnv.room_agent`
+    (:class:`~simenv.perception.room_agent.RoomAgent`, ``action = agent.act(observation)``).
 
 Reward (per step, documented constants below)
     * a decision during a labelled gesture (from its onset to :data:`GRACE_S` after its end)
