@@ -48,6 +48,7 @@ READERS: tuple[str, ...] = (
     "msr_action3d",
     "utkinect",
     "florence3d",
+    "utd_mhad",
     "nuisi",
     "ntu",
     # Before h36m: all four claim .npy, and an unrecognised .npy gets humanml3d's
@@ -57,6 +58,8 @@ READERS: tuple[str, ...] = (
     "humanml3d_features",
     "intergen",
     "h36m",
+    # Before joint_csv, which claims .csv: an MSRC-12 recording has no header row.
+    "msrc12",
     "joint_csv",
 )
 
