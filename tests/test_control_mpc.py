@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from simenv.control import MPCConfig, TrackingMPC, TrackingReference
+from simenv.control import FAST, MPCConfig, TrackingMPC, TrackingReference
 from simenv.control.model import root_dofs
 from simenv.core.errors import PhysicsError
 from simenv.plausibility.tracking import track, tracking
@@ -169,3 +169,36 @@ def test_bad_mpc_settings_raise_naming_the_field(field) -> None:
     with pytest.raises(PhysicsError) as err:
         MPCConfig(**{field: -1 if field in ("temperature", "retries") else 0})
     assert err.value.field == field
+
+
+def test_the_planner_counts_its_rolled_out_steps(walk_2s_retargeted) -> None:
+    """``rollout_steps`` is the planner's cost in simulator steps: N samples x H planning
+    steps per replan, summed by the tracker over every run (zero for the PD servos)."""
+    ref = TrackingReference.from_retarget(walk_2s_retargeted, max_seconds=0.1)
+    with TrackingMPC(walk_2s_retargeted.humanoid, ref, QUICK) as mpc:
+        data = mujoco.MjData(mpc.model)
+        mpc.reset(data)
+        for s in range(ref.n_steps):
+            data.ctrl[:] = mpc.control(data, s)
+            mujoco.mj_step(mpc.model, data)
+        assert mpc.rollout_steps == mpc.replans * QUICK.n_samples * mpc.horizon > 0
+        per_run = mpc.rollout_steps
+    tr = track(walk_2s_retargeted, controller="mpc", mpc=replace(QUICK, attempts=2),
+               max_seconds=0.1)
+    assert tr.runs == 1 and tr.rollout_steps == per_run
+    assert track(walk_2s_retargeted, max_seconds=0.1).rollout_steps == 0
+
+
+def test_the_fast_planner_rolls_out_a_quarter_of_the_default_ones_steps(
+        walk_2s_retargeted) -> None:
+    """Issue 35: :data:`FAST`'s budget per simulated step against the default's (128 samples
+    over 0.45 s at a 4 ms planning step), from the horizons the planners build."""
+    ref = TrackingReference.from_retarget(walk_2s_retargeted, max_seconds=0.1,
+                                          feedforward=False)
+    budgets = []
+    for cfg in (MPCConfig(), FAST):
+        with TrackingMPC(walk_2s_retargeted.humanoid, ref, replace(cfg, nthread=1)) as mpc:
+            budgets.append(cfg.n_samples * mpc.horizon / cfg.replan_steps)
+    assert budgets[0] == pytest.approx(128 * 112 / 10)
+    assert budgets[1] == pytest.approx(budgets[0] / 4, rel=0.01)
+    assert FAST.antithetic and not MPCConfig().antithetic

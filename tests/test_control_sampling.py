@@ -76,3 +76,21 @@ def test_bad_settings_raise_physics_errors_naming_the_field(make, field) -> None
     with pytest.raises(PhysicsError) as err:
         make()
     assert err.value.field == field
+
+
+def test_antithetic_samples_come_in_mirrored_pairs_and_cancel_in_the_average() -> None:
+    nominal = np.full((4, 3), 0.1)
+    s = Sampler(9, sigma=0.2, limit=5.0, seed=0, constant_fraction=0.5, antithetic=True)
+    out = s.sample(nominal)
+    eps = out[1:] - nominal
+    np.testing.assert_allclose(eps[:4], -eps[4:])  # 8 noisy samples: 4 pairs
+    # round(4 * 4 / 8) = 2 constant offsets in each half, mirrored with their pair.
+    np.testing.assert_array_equal(eps[:2], np.repeat(eps[:2, :1], 4, axis=1))
+    assert (np.abs(np.diff(eps[2:4], axis=1)) > 0).all()
+    # Costs alike on both sides of the nominal: the MPPI average stays on it.
+    costs = np.concatenate([[0.5], np.tile([1.0, 2.0, 1.5, 3.0], 2)])
+    mppi = Sampler(9, sigma=0.2, limit=5.0, temperature=0.1, antithetic=True)
+    np.testing.assert_allclose(mppi.update(out, costs), nominal, atol=1e-12)
+    # An odd number of noisy samples leaves the last one without its mirror.
+    odd = Sampler(10, sigma=0.2, limit=5.0, seed=0, antithetic=True).sample(nominal)
+    np.testing.assert_allclose(odd[1:5] - nominal, nominal - odd[6:10])

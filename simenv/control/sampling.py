@@ -82,11 +82,13 @@ class Sampler:
         constant_fraction: share of the noisy samples whose offset is the same
             on every knot.
         seed: seed of the noise generator (numpy PCG64).
+        antithetic: draw the noise in mirrored pairs ``+eps``, ``-eps`` (module
+            docstring).
     """
 
     def __init__(self, n_samples: int, sigma: np.ndarray | float, limit: np.ndarray | float,
                  temperature: float = 0.0, seed: int = 0,
-                 constant_fraction: float = 0.0) -> None:
+                 constant_fraction: float = 0.0, antithetic: bool = False) -> None:
         if n_samples < 2:
             raise PhysicsError(f"n_samples must be >= 2; got {n_samples}", field="n_samples")
         if temperature < 0:
@@ -101,11 +103,20 @@ class Sampler:
         self.limit = np.asarray(limit, dtype=np.float64)
         self.temperature = float(temperature)
         self.rng = np.random.default_rng(seed)
+        self.antithetic = bool(antithetic)
 
     def sample(self, nominal: np.ndarray) -> np.ndarray:
         """(n, nu) nominal -> (N, n, nu) samples, sample 0 the nominal."""
-        eps = self.rng.standard_normal((self.n_samples - 1,) + nominal.shape)
-        eps[:self.n_constant] = eps[:self.n_constant, :1]
+        n_noisy = self.n_samples - 1
+        if self.antithetic:
+            half = (n_noisy + 1) // 2
+            eps = self.rng.standard_normal((half,) + nominal.shape)
+            k = int(round(self.n_constant * half / max(n_noisy, 1)))
+            eps[:k] = eps[:k, :1]
+            eps = np.concatenate([eps, -eps])[:n_noisy]
+        else:
+            eps = self.rng.standard_normal((n_noisy,) + nominal.shape)
+            eps[:self.n_constant] = eps[:self.n_constant, :1]
         out = np.empty((self.n_samples,) + nominal.shape)
         out[0] = nominal
         out[1:] = np.clip(nominal + self.sigma * eps, -self.limit, self.limit)

@@ -112,6 +112,8 @@ class TrackingResult:
         runs: simulations made: every attempt (MPC ``attempts``) of the clip or of each
             segment, and each segment simulated again without its run-up; ``steps`` and
             ``wall_s`` count them all.
+        rollout_steps: planning-model steps the MPC rolled out over all of them (0 for
+            the PD servos): its cost in simulator steps, whatever the machine's load.
     """
 
     success: bool
@@ -135,6 +137,7 @@ class TrackingResult:
     segments: int = 1
     segments_failed: int = 0
     runs: int = 1
+    rollout_steps: int = 0
 
 
 def assisted_model(h: Humanoid, thresholds: BodyThresholds) -> mujoco.MjModel:
@@ -396,18 +399,19 @@ def _keep_best(runs: Iterable[tuple[TrackingResult, int, int]]
                ) -> tuple[TrackingResult, int]:
     """Of ``(run, start frame, judged frames tracked)`` simulated one after another (lazily:
     none after the first success), the first run that tracked, else the one that tracked
-    the most judged frames, with its start; ``steps``, ``wall_s`` and ``runs`` are the
-    totals of every run simulated."""
+    the most judged frames, with its start; ``steps``, ``wall_s``, ``runs`` and
+    ``rollout_steps`` are the totals of every run simulated."""
     best: tuple[TrackingResult, int, int] | None = None
-    steps, wall, n = 0, 0.0, 0
+    steps, wall, n, rolled = 0, 0.0, 0, 0
     for r, start, judged in runs:
         steps, wall, n = steps + r.steps, wall + r.wall_s, n + r.runs
+        rolled += r.rollout_steps
         if best is None or r.success or judged > best[2]:
             best = (r, start, judged)
         if r.success:
             break
     assert best is not None, "a run has at least one attempt"
-    return replace(best[0], steps=steps, wall_s=wall, runs=n), best[1]
+    return replace(best[0], steps=steps, wall_s=wall, runs=n, rollout_steps=rolled), best[1]
 
 
 def segment_frames(n_frames: int, fps: float, segment_s: float,
@@ -443,7 +447,7 @@ def _track_segments(result: RetargetResult, ref: TrackingReference,
     kp = np.full((T, len(h.site_ids), 3), np.nan)
     fails: list[float] = []
     errors: list[str] = []
-    steps, wall, work, retries = 0, 0.0, 0.0, 0
+    steps, wall, work, retries, rolled = 0, 0.0, 0.0, 0, 0
     accel: list[tuple[float, int]] = []
     segments = segment_frames(n_frames, fps, thresholds.tracking_segment_s,
                               thresholds.tracking_lead_s)
@@ -470,6 +474,7 @@ def _track_segments(result: RetargetResult, ref: TrackingReference,
             if r.error:
                 errors.append(r.error)
         steps, wall, retries = steps + r.steps, wall + r.wall_s, retries + r.retries
+        rolled += r.rollout_steps
     simulated = (n_frames - 1) / fps
     return TrackingResult(
         success=not fails,
@@ -494,6 +499,7 @@ def _track_segments(result: RetargetResult, ref: TrackingReference,
         segments=len(segments),
         segments_failed=len(fails),
         runs=runs,
+        rollout_steps=rolled,
     )
 
 
@@ -533,6 +539,7 @@ def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
         bar.close()
         if planner is not None:
             planner.close()
+    rolled = planner.rollout_steps if planner is not None else 0
     wall = time.perf_counter() - wall
     failed_at = run.failed_at
     tracked = n_frames if failed_at is None else failed_at + (0 if run.error else 1)
@@ -559,6 +566,7 @@ def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
         retries=run.retries,
         work_curve=run.work_at,
         segments_failed=int(not ok),
+        rollout_steps=rolled,
     )
 
 
