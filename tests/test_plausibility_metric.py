@@ -121,6 +121,20 @@ def test_the_scorer_runs_exactly_the_registry(walk_2s, monkeypatch):
     assert calls == Counter({id(m): 1 for m in chosen})
 
 
+def test_joint_level_metrics_score_the_same_alone_as_in_the_scorers_one_pass(walk_2s):
+    # The scorer hands a person the registry's joint-level metrics to run in one compiled
+    # pass; a metric asked alone (benchmarks build inputs without them) gives the same.
+    motion = walk_2s.slice(0, 90)
+    together = metric_module.PersonInputs(motion, None, "physics=False", QUICK,
+                                          keypoint_metrics=KEYPOINT_REGISTRY)
+    alone = metric_module.PersonInputs(motion, None, "physics=False", QUICK)
+    for m in KEYPOINT_REGISTRY:
+        a, b = m.compute(together), m.compute(alone)
+        assert a is together.keypoint_results[m.name]
+        assert a.to_dict() == b.to_dict() and repr(a.value) == repr(b.value), m.name
+        np.testing.assert_array_equal(a.timeline, b.timeline)
+
+
 class _Reach:
     """Test metric: the highest keypoint above the floor.
 

@@ -47,6 +47,8 @@ BATCH_FRAMES = 8192
 #: Violation runs per clip that :func:`score` makes room for (more cost a
 #: second kernel call).
 _RUNS_PER_CLIP = 16
+#: The thresholds a metric's spec reads (:class:`~simenv.plausibility.thresholds.Thresholds`).
+Settings = TypeVar("Settings")
 
 
 @lru_cache(maxsize=256)
@@ -393,6 +395,27 @@ class Scores:
         return out
 
 
+#: Plans by spec builders and batch shape (a plan depends on nothing else).
+_PLANS: dict[tuple, Plan] = {}
+
+
+def cached_plan(batch: ClipBatch, thresholds: Settings,
+                specs: tuple[Callable[[ClipBatch, Settings], MetricSpec], ...]) -> Plan:
+    """The plan of the metrics ``spec(batch, thresholds)`` of ``specs`` for batches of
+    this layout, rate, length and thresholds, prepared once (the specs' lookups cost as
+    much as the kernels on a short clip)."""
+    # The source skeleton too: bone_length measures its bones, and skeletons
+    # with other bones share a canonical layout.
+    key = (specs, batch.skeleton, batch.motions[0].skeleton, batch.fps, batch.num_frames,
+           thresholds)
+    plan = _PLANS.get(key)
+    if plan is None:
+        if len(_PLANS) >= 256:
+            _PLANS.clear()
+        plan = _PLANS[key] = Plan([spec(batch, thresholds) for spec in specs])
+    return plan
+
+
 def run(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> Scores:
     """Every metric of ``specs`` on every clip of ``batch``, in one compiled
     call; the results are built on demand from the returned
@@ -431,9 +454,6 @@ def score(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> list[list[Met
     """
     scores = run(batch, specs)
     return [scores.metric(i) for i in range(len(scores.plan.specs))]
-
-
-Settings = TypeVar("Settings")
 
 
 def score_clip(motion: Motion, spec: Callable[[ClipBatch, Settings], MetricSpec],

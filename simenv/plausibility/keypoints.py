@@ -19,7 +19,7 @@ import numpy as np
 
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
-from simenv.plausibility.clips import ClipBatch, Plan, Scores, batches, run
+from simenv.plausibility.clips import Scores, batches, cached_plan, run
 from simenv.plausibility.metric_registry import KEYPOINT_REGISTRY
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
@@ -29,23 +29,8 @@ from simenv.plausibility.timeline import MetricResult
 KINEMATIC_METRICS: dict[str, Callable[[Motion, Thresholds], MetricResult]] = {
     m.name: m.function for m in KEYPOINT_REGISTRY}
 
-#: Plans of the joint-level metrics by batch shape (a plan depends on nothing else).
-_PLANS: dict[tuple, Plan] = {}
-
-
-def _plan(batch: ClipBatch, thresholds: Thresholds) -> Plan:
-    """The joint-level metrics' plan for batches of this layout, rate, length and
-    thresholds, prepared once (the specs' lookups cost as much as the
-    kernels on a short clip)."""
-    # The source skeleton too: bone_length measures its bones, and skeletons
-    # with other bones share a canonical layout.
-    key = (batch.skeleton, batch.motions[0].skeleton, batch.fps, batch.num_frames, thresholds)
-    plan = _PLANS.get(key)
-    if plan is None:
-        if len(_PLANS) >= 256:
-            _PLANS.clear()
-        plan = _PLANS[key] = Plan([m.spec(batch, thresholds) for m in KEYPOINT_REGISTRY])
-    return plan
+#: The kernel specs of the joint-level metrics, in report order.
+_SPECS = tuple(m.spec for m in KEYPOINT_REGISTRY)
 
 
 def kinematic_metrics(
@@ -139,7 +124,7 @@ def kinematic_metrics_batch(
     out = KinematicResults(len(motions))
     where = out._where
     for members, batch in batches(motions):
-        scores = run(batch, _plan(batch, thresholds))
+        scores = run(batch, cached_plan(batch, thresholds, _SPECS))
         out._batches.append((scores, members))
         for k, i in enumerate(members):
             where[i] = (scores, k)

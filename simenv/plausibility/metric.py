@@ -16,7 +16,8 @@ pair).
 
 ``compute`` reads shared inputs (:class:`PersonInputs`, :class:`PairInputs`)
 that hold each intermediate the metrics have in common and compute it on
-first use, once: the body's forward kinematics (geom, site and centre-of-mass
+first use, once: the joint-level metrics' one compiled pass over the
+keypoints, the body's forward kinematics (geom, site and centre-of-mass
 poses of every frame), the tracking simulation, and for two people the
 partner-explained inverse dynamics. The retargeting itself is done before,
 once per clip, by the caller that builds the inputs.
@@ -24,7 +25,7 @@ once per clip, by the caller that builds the inputs.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
@@ -35,7 +36,7 @@ from simenv.body.retarget import InteractionRetargetResult, RetargetResult
 from simenv.control.mpc import MPCConfig
 from simenv.core.motion import Interaction, Motion
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
-from simenv.plausibility.clips import ClipBatch, MetricSpec, score_clip
+from simenv.plausibility.clips import ClipBatch, MetricSpec, cached_plan, run, score_clip
 from simenv.plausibility.pair_dynamics import pair_root_residual
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
@@ -185,13 +186,28 @@ class PersonInputs(_Memo):
         config: the scorer's settings.
         pair: the pair's inputs when the person is one of two, else None.
         person: index of the person in the clip (0, or 0/1 for two).
+        keypoint_metrics: the joint-level metrics computed together in one compiled
+            pass when the first of them is asked for (the scorer's: the registry's);
+            any other :class:`KeypointMetric` runs alone, with the same result.
     """
 
     def __init__(self, motion: Motion, fitted: RetargetResult | None, missing: str | None,
-                 config: ScoreConfig, pair: PairInputs | None = None, person: int = 0) -> None:
+                 config: ScoreConfig, pair: PairInputs | None = None, person: int = 0,
+                 keypoint_metrics: Sequence[KeypointMetric] = ()) -> None:
         super().__init__()
         self.motion, self.fitted, self.missing, self.config = motion, fitted, missing, config
         self.pair, self.person = pair, person
+        self.keypoint_metrics = tuple(keypoint_metrics)
+
+    @cached_property
+    def keypoint_results(self) -> dict[str, MetricResult]:
+        """The results of ``keypoint_metrics`` on the motion, by name, from one compiled
+        pass over its keypoints (:func:`simenv.plausibility.clips.run`)."""
+        batch = ClipBatch([self.motion])
+        plan = cached_plan(batch, self.config.thresholds,
+                           tuple(m.spec for m in self.keypoint_metrics))
+        return dict(zip((m.name for m in self.keypoint_metrics), run(batch, plan).clip(0),
+                        strict=True))
 
     @property
     def frames(self) -> int:
@@ -281,6 +297,8 @@ class KeypointMetric:
 
     def compute(self, inputs: PersonInputs) -> MetricResult:
         # A clip scores the same alone or with the other kernels (clips.py).
+        if self in inputs.keypoint_metrics:
+            return inputs.keypoint_results[self.name]
         return score_clip(inputs.motion, self.spec, inputs.config.thresholds)
 
 

@@ -86,6 +86,7 @@ from simenv.plausibility.metric import (
     not_available,
 )
 from simenv.plausibility.metric_registry import (
+    KEYPOINT_REGISTRY,
     PAIR_REGISTRY,
     PERSON_REGISTRY,
     alternatives,
@@ -371,12 +372,14 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
         scene = fitted if isinstance(fitted, InteractionRetargetResult) else None
         pair = PairInputs(clip, scene, missing, config)
         bodies = scene.people if scene is not None else (None, None)
-        people = [_score_person(PersonInputs(m, r, missing, config, pair=pair, person=i))
+        people = [_score_person(PersonInputs(m, r, missing, config, pair=pair, person=i,
+                                             keypoint_metrics=KEYPOINT_REGISTRY))
                   for i, (m, r) in enumerate(zip(clip.people, bodies, strict=True))]
         interaction, pair_basis = _measure(PAIR_REGISTRY, pair)
     else:
         body = fitted if isinstance(fitted, RetargetResult) else None
-        people = [_score_person(PersonInputs(clip, body, missing, config))]
+        people = [_score_person(PersonInputs(clip, body, missing, config,
+                                             keypoint_metrics=KEYPOINT_REGISTRY))]
         interaction, pair_basis = None, {}
     return PlausibilityReport(source=source, people=people, interaction=interaction,
                               physics=physics, seconds=time.perf_counter() - t0,
