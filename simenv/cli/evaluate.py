@@ -7,7 +7,7 @@ import argparse
 from collections.abc import Callable
 from pathlib import Path
 
-from simenv.cli.common import add_model_command, command_parser
+from simenv.cli.common import add_model_command, command_parser, positive_int
 
 #: Description of ``simenv eval`` (its help is the text up to the first parenthesis).
 DESCRIPTION = (
@@ -16,7 +16,9 @@ DESCRIPTION = (
     "gesture-classifier: the thesis's transformer) "
     "on its held-out split, or on --data PATH... (--json prints one object); writes "
     "metrics.json and plots (--out DIR). `eval classifier --benchmark [DATASET]` runs "
-    "the MSR Action3D / UTKinect / Florence 3D protocols against published figures. "
+    "the MSR Action3D / UTKinect / Florence 3D protocols against published figures; "
+    "`eval classifier --protocol cross-dataset` trains on all datasets but one and tests "
+    "on the one left out. "
     "`eval interaction` scores the two-person reaction baselines on the held-out "
     "recordings with the papers' metrics and physics (docs/interaction.md).")
 
@@ -32,9 +34,11 @@ KIND_DESCRIPTIONS = {
                  "per-frame MPJPE at 80-1000 ms on its own held-out CMU clips or on --data; "
                  "writes metrics.json and error_curve.png.",
     "classifier": "Evaluate a shipped gesture recogniser on labelled recordings (3 s real, "
-                  "1 s real, 1 s real + 2 s predicted), or, with --benchmark, run a dataset's "
+                  "1 s real, 1 s real + 2 s predicted; per-class accuracy, confusion "
+                  "matrices as JSON and PNG), or, with --benchmark, run a dataset's "
                   "own protocol (MSR Action3D, UTKinect, Florence 3D) against published "
-                  "figures.",
+                  "figures, or, with --protocol cross-dataset, train on all datasets but "
+                  "one and test on the one left out, each in turn.",
     "interaction": "Score the two-person reaction models and baselines on the held-out "
                    "recordings (or --data) with the papers' metrics and physics; writes "
                    "interaction.md/.json/.png (docs/interaction.md).",
@@ -46,6 +50,11 @@ BENCHMARK_ONLY = {"--members": "members", "--whole-sequences": "whole_sequences"
                   "--joints": "joints", "--neighbour": "neighbour",
                   "--covariance": "covariance", "--lie-group": "lie_group",
                   "--mirror-test": "mirror_test"}
+#: ``eval classifier``'s options that only --protocol uses: option -> its dest.
+PROTOCOL_ONLY = {"--msrc12": "msrc12", "--config": "config", "--folds": "folds",
+                 "--jobs": "jobs"}
+#: Protocols of ``eval classifier --protocol``.
+PROTOCOLS: tuple[str, ...] = ("cross-dataset",)
 
 
 def classifier_parser(prog: str) -> argparse.ArgumentParser:
@@ -66,8 +75,9 @@ def classifier_parser(prog: str) -> argparse.ArgumentParser:
     tr.add_eval_options(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--out", help=(
-        "output folder (default: none for a recogniser, out/gesture-classifier-eval for "
-        "the transformer, out/recognition-benchmark with --benchmark)"))
+        "output folder (default: out/classifier-eval for a recogniser: confusion.json and "
+        "confusion.png; out/gesture-classifier-eval for the transformer, "
+        "out/recognition-benchmark with --benchmark, out/cross-dataset with --protocol)"))
     bench = parser.add_argument_group(
         "benchmarks", "a dataset's own protocol against published figures "
         "(docs/recognition.md)")
@@ -77,6 +87,21 @@ def classifier_parser(prog: str) -> argparse.ArgumentParser:
         "room: the room vocabulary's leave-subjects-out folds (with --neighbour or "
         "--covariance alone only)"))
     tr.add_benchmark_options(bench)
+    proto = parser.add_argument_group(
+        "protocols", "train networks on the corpus (--data: one gestures folder, default "
+        "the shared corpus) and test them on data they never saw (docs/recognition.md)")
+    proto.add_argument("--protocol", choices=PROTOCOLS, help=(
+        "cross-dataset: per dataset, one network trained on the others, tested on its clips "
+        "of the labels the others have (3 s and 1 s real), beside the leave-subjects-out "
+        "figure of the same clips"))
+    proto.add_argument("--msrc12", metavar="DIR", help=(
+        "also the MSRC-12 recordings in DIR (.csv + .tagstream; person p06 left out)"))
+    proto.add_argument("--config", metavar="FILE", help=(
+        "TOML or JSON file of RecognitionConfig options for the protocol's networks"))
+    proto.add_argument("--folds", type=positive_int, help=(
+        "folds of the leave-subjects-out figures (default 5)"))
+    proto.add_argument("--jobs", type=positive_int, help=(
+        "networks trained at once, one process of one thread each (default 1)"))
     return parser
 
 
@@ -86,6 +111,17 @@ def _eval_classifier(parser: argparse.ArgumentParser, options: list[str]) -> int
     from simenv.perception.loop import DEFAULT_CLASSIFIER
 
     args = parser.parse_args(options)
+    if args.protocol is None:
+        given = [o for o, dest in PROTOCOL_ONLY.items() if getattr(args, dest) is not None]
+        if given:
+            parser.error(f"{', '.join(given)}: only with --protocol")
+    else:
+        if args.name is not None or args.checkpoint is not None or args.benchmark is not None:
+            parser.error("--protocol trains its own networks: no NAME, --checkpoint or "
+                         "--benchmark")
+        if args.data is not None and len(args.data) > 1:
+            parser.error("--data: one gestures folder here")
+        return _cross_dataset(args)
     if args.benchmark is None:
         given = [o for o, dest in BENCHMARK_ONLY.items()
                  if getattr(args, dest) != parser.get_default(dest)]
@@ -110,8 +146,80 @@ def _eval_classifier(parser: argparse.ArgumentParser, options: list[str]) -> int
         checkpoint = Path(args.checkpoint) if args.checkpoint else checkpoint_path(args.name)
         return tc.eval_command(checkpoint, Path(args.data[0]) if args.data else tc.DEFAULT_DATA,
                                Path(args.out or "out/gesture-classifier-eval"))
-    return _ran(tr.eval_command, argparse.Namespace(**{
-        **vars(args), "model": args.name or DEFAULT_CLASSIFIER}))
+    return _eval_recogniser(args, args.name or DEFAULT_CLASSIFIER)
+
+
+def _eval_recogniser(args: argparse.Namespace, model: str) -> int:
+    """A recogniser on labelled recordings: the conditions' accuracies (one JSON object
+    with --json), per-class accuracy, and the confusion matrices written to --out."""
+    import json
+
+    from simenv.core.config import shared_data_root
+    from simenv.learning.recognition_report import (
+        evaluate_recogniser,
+        per_class_table,
+        write_confusions,
+    )
+
+    result = evaluate_recogniser(
+        args.data or [str(shared_data_root(None) / "gestures")], model_name=model,
+        checkpoint=args.checkpoint,
+        predictor=None if args.predictor == "none" else args.predictor)
+    out = Path(args.out or "out/classifier-eval")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "metrics.json").write_text(json.dumps(result, indent=1))
+    paths = write_confusions(result["conditions"], result["labels"], out)
+    if args.json:
+        print(json.dumps({"clips": result["clips"], "conditions": {
+            k: {"accuracy": v["accuracy"], "balanced_accuracy": v["balanced_accuracy"]}
+            for k, v in result["conditions"].items()}}))
+        return 0
+    for name, v in result["conditions"].items():
+        print(f"{name:>16}: accuracy {v['accuracy']:.3f}  balanced "
+              f"{v['balanced_accuracy']:.3f}  (n={v['n']})")
+    print("\nper class (recall: the fraction of its clips given its label)")
+    print(per_class_table(result["conditions"], result["labels"]))
+    print(f"confusion matrices: {paths[0]}, {paths[1]}")
+    return 0
+
+
+def _cross_dataset(args: argparse.Namespace) -> int:
+    """``--protocol cross-dataset``: run it, print its table and each left-out dataset's
+    per-class accuracy, write ``cross_dataset.json`` and a confusion matrix per left-out
+    dataset (``confusion_<dataset>.json/.png``, the cross-dataset figures) to --out."""
+    import json
+
+    import torch
+
+    from simenv.core.config import shared_data_root
+    from simenv.learning.cross_dataset import load_corpus, run_cross_dataset, summary_table
+    from simenv.learning.recognition import RecognitionConfig
+    from simenv.learning.recognition_report import per_class_table, write_confusions
+
+    torch.set_num_threads(1)  # the networks' CPU budgets are one thread's
+    config = (RecognitionConfig.from_file(args.config) if args.config
+              else RecognitionConfig())
+    data = Path(args.data[0]) if args.data else shared_data_root(None) / "gestures"
+    clips = load_corpus(data, msrc12_folder=args.msrc12)
+    result = run_cross_dataset(clips, config, **({"folds": args.folds} if args.folds else {}),
+                               jobs=args.jobs or 1)
+    out = Path(args.out or "out/cross-dataset")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "cross_dataset.json").write_text(json.dumps(result, indent=1))
+    if args.json:
+        print(json.dumps({name: {cond: {k: c[k]["accuracy"] for k in ("cross_dataset",
+                                                                         "within_dataset")}
+                                 for cond, c in d["conditions"].items()}
+                          for name, d in result["datasets"].items()}))
+        return 0
+    print(summary_table(result))
+    for name, d in result["datasets"].items():
+        cross = {cond: c["cross_dataset"] for cond, c in d["conditions"].items()}
+        print(f"\n{name} left out, per class (cross-dataset recall)")
+        print(per_class_table(cross, result["labels"]))
+        write_confusions(cross, result["labels"], out, f"confusion_{name}")
+    print(f"\noutputs in {out}")
+    return 0
 
 
 def _ran(command: Callable[[argparse.Namespace], None], args: argparse.Namespace) -> int:

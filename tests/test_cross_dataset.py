@@ -1,0 +1,101 @@
+"""The cross-dataset protocol on a small real subset of the shared corpus (one-epoch networks:
+the test checks what the protocol computes and writes, not how well it recognises), and the
+MSRC-12 clips, cut from a real UTKinect session written in the MSRC-12 layout (MSRC-12's own
+files are not redistributable here: tests/data/msrc12/SOURCES.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from simenv.cli import main as cli
+from simenv.data.gestures import GESTURE_FPS, LoadReport
+from simenv.io import msrc12, utkinect
+from simenv.learning.cross_dataset import MSRC12_AFTER_S, MSRC12_BEFORE_S, msrc12_clips
+
+
+def _msrc12_file(folder: Path, stem: str, session: Path, gesture: int) -> list[float]:
+    """A UTKinect session as an MSRC-12 recording (rows -> microseconds at 60 frame-number
+    units/s, w = 1), tagged with ``gesture`` at the middle of each labelled segment; returns
+    the tags' times from the first row, s."""
+    raw = np.loadtxt(session)
+    _, first = np.unique(raw[:, 0], return_index=True)
+    frames, xyz = raw[first, 0], raw[first, 1:].reshape(-1, 20, 3)
+    t_s = (frames - frames[0]) / utkinect.FRAME_CLOCK_HZ
+    rows = np.concatenate([xyz, np.ones((len(xyz), 20, 1))], axis=2).reshape(len(xyz), 80)
+    np.savetxt(folder / f"{stem}.csv", np.concatenate([(t_s * 1e6 + 5e7)[:, None], rows], 1),
+               fmt=["%d"] + ["%.6g"] * 80)
+    segments = utkinect.read(session, timing="rows").metadata["segments"]
+    tags = [float(t_s[np.argmin(np.abs(frames - (s["start_frame"] + s["end_frame"]) / 2))])
+            for s in segments]
+    ticks = [round(((5e7 + s * 1e6) * msrc12.TICKS_PER_MS - msrc12.TICKS_PER_MS / 2) / 1000)
+             for s in tags]
+    (folder / f"{stem}.tagstream").write_text("XQPCTick;Tag\n" + "".join(
+        f"{t};G{gesture}  {msrc12.MSRC12_GESTURES[gesture - 1]}\n" for t in ticks))
+    return tags
+
+
+def test_msrc12_clips_around_tags_without_p06(gesture_root: Path, tmp_path: Path) -> None:
+    session = gesture_root / "utkinect" / "joints" / "joints_s02_e01.txt"
+    tags = _msrc12_file(tmp_path, "P1_1_7_p17", session, 7)
+    _msrc12_file(tmp_path, "P1_1_8_p17", session, 8)
+    _msrc12_file(tmp_path, "P1_1_7_p06", session, 7)  # reserved: never read
+    (tmp_path / "P1_1_9_p18.csv").write_text((tmp_path / "P1_1_8_p17.csv").read_text())
+    report = LoadReport()
+    clips = msrc12_clips(tmp_path, per_file=3, report=report)
+    assert report.skipped == ["P1_1_9_p18.csv: no .tagstream beside it"]
+    assert {c.subject for c in clips} == {17} and {c.dataset for c in clips} == {"msrc12"}
+    assert [c.label for c in clips] == ["bow"] * 3 + ["other"] * 3
+    assert [c.source_label for c in clips] == ["bow"] * 3 + ["throw"] * 3
+    longest = (MSRC12_BEFORE_S + MSRC12_AFTER_S) * GESTURE_FPS + 1
+    for c in clips:
+        k = int(c.name.rsplit("_tag", 1)[1])
+        assert c.name.startswith("P1_1_") and 0 < k < len(tags) - 1  # spread, not the ends
+        # The clip spans its tag: the source slice's first frame is at most 2 s before it.
+        assert c.source is not None and c.num_frames <= longest
+        assert c.positions.shape[1:] == (15, 3)
+
+
+def test_cross_dataset_command(gesture_root: Path, tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:
+    data = tmp_path / "gestures"
+    (data / "msr_action3d").mkdir(parents=True)
+    (data / "utkinect" / "joints").mkdir(parents=True)
+    for s in range(1, 5):
+        for a in (1, 5, 10, 13):  # wave, forward punch (other), clap, bend
+            name = f"a{a:02d}_s{s:02d}_e01_skeleton3D.txt"
+            (data / "msr_action3d" / name).symlink_to(gesture_root / "msr_action3d" / name)
+        name = f"joints_s{s:02d}_e01.txt"
+        (data / "utkinect" / "joints" / name).symlink_to(
+            gesture_root / "utkinect" / "joints" / name)
+    (data / "utkinect" / "joints" / "actionLabel.txt").symlink_to(
+        gesture_root / "utkinect" / "joints" / "actionLabel.txt")
+    config = tmp_path / "config.json"
+    config.write_text('{"epochs": 1, "width": 16}')
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "classifier", "--msrc12", str(tmp_path)])
+    assert "--msrc12: only with --protocol" in capsys.readouterr().err
+    out = tmp_path / "out"
+    assert cli.main(["eval", "classifier", "--protocol", "cross-dataset", "--data", str(data),
+                     "--config", str(config), "--folds", "2", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    result = json.loads((out / "cross_dataset.json").read_text())
+    assert set(result["datasets"]) == {"msr_action3d", "utkinect"}
+    utk = result["datasets"]["utkinect"]
+    # MSR Action3D has no walking, sitting down or standing up: not asked of its network.
+    assert set(utk["excluded"]) == {"walk", "sit_down", "stand_up"}
+    assert utk["shared_clips"] == utk["test_clips"] - sum(utk["excluded"].values())
+    for name, d in result["datasets"].items():
+        for cond in ("real_3s", "real_1s"):
+            c = d["conditions"][cond]
+            assert c["cross_dataset"]["n"] == c["within_dataset"]["n"] == d["shared_clips"]
+            confusion = np.array(c["cross_dataset"]["confusion"])
+            assert confusion.sum() == d["shared_clips"]
+            assert f"| {name} |" in text
+        saved = json.loads((out / f"confusion_{name}.json").read_text())
+        assert saved["labels"] == result["labels"] and saved["rows"] == "true label"
+        assert (out / f"confusion_{name}.png").stat().st_size > 0
+    assert "utkinect left out, per class" in text and "most confused with" in text
