@@ -24,7 +24,11 @@ the planner seeds a run may try (``attempts``; recorded as ``attempts``, lines w
 ran with 1; the further ones plan over ``MPCConfig.retry_horizon_s``, recorded as
 ``retry_horizon_s``, lines without it over 0.45 s) and ``--temperature T`` the MPPI
 temperature (``temperature``; recorded as ``temperature``, lines without it ran with 0:
-predictive sampling); a *setting* is the sextuple (the retry horizon 0 for one attempt).
+predictive sampling) and ``--planner fast`` starts from :data:`simenv.control.FAST` instead
+of the default (its planning step and antithetic noise recorded as ``timestep_factor`` and
+``antithetic``, lines without them ran with 2 and false; ``rollout_per_step`` is the
+planner's rolled-out steps per simulated step); a *setting* is the eight of them (the
+retry horizon 0 for one attempt).
 ``docs`` tabulates each setting apart and puts the settings side by side clip by clip.
 
 Results go to a JSONL file one line per run as each finishes (a rerun skips
@@ -60,13 +64,14 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 from doc_sections import replace_section  # noqa: E402
 
 from simenv.body.retarget import retarget  # noqa: E402
-from simenv.control import CostWeights, MPCConfig  # noqa: E402
+from simenv.control import FAST, CostWeights, MPCConfig  # noqa: E402
 from simenv.core.config import shared_data_root  # noqa: E402
 from simenv.core.motion import Motion  # noqa: E402
 from simenv.io.loader import load  # noqa: E402
@@ -137,37 +142,45 @@ def _record(tr: TrackingResult, fps: float) -> dict[str, float | bool | str | No
             "window_max_mm": _window_max(tr.body_error, fps) * 1000.0,
             "work_j": tr.work_j, "work_j_per_kg": tr.work_j_per_kg, "wall_s": tr.wall_s,
             "retries_used": tr.retries, "runs": tr.runs,
+            "rollout_per_step": tr.rollout_steps / max(tr.steps, 1),
             "realtime_ratio": tr.wall_s / max(tr.steps * 0.002, 1e-9), "error": tr.error}
 
 
 #: An MPC setting of a run: (samples per replan, trunk cost weight per rad^2, retries,
-#: attempts, MPPI temperature, horizon of the further attempts in s (0: one attempt)).
-Setting = tuple[int, float, int, int, float, float]
+#: attempts, MPPI temperature, horizon of the further attempts in s (0: one attempt),
+#: planning step as a multiple of the physics step, antithetic noise).
+Setting = tuple[int, float, int, int, float, float, int, bool]
 
 
 def setting_of_config(cfg: MPCConfig) -> Setting:
     """The setting an :class:`MPCConfig` runs with."""
     retry = cfg.attempt(1).horizon_s if cfg.attempts > 1 else 0.0
-    return (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature, retry)
+    return (cfg.n_samples, cfg.weights.trunk, cfg.retries, cfg.attempts, cfg.temperature, retry,
+            cfg.timestep_factor, cfg.antithetic)
 
 
 def setting_of(record: dict) -> Setting:
     """The MPC setting of a run (lines written before a setting was recorded
     ran with 32 samples, no trunk term, no retries, one attempt and predictive sampling;
-    before the retry horizon was, further attempts planned over the 0.45 s of the first)."""
+    before the retry horizon was, further attempts planned over the 0.45 s of the first;
+    before issue 35, every run planned with a 4 ms step and independent noise)."""
     attempts = int(record.get("attempts", 1))
     return (int(record.get("samples", 32)), float(record.get("trunk_weight", 0.0)),
             int(record.get("retries", 0)), attempts, float(record.get("temperature", 0.0)),
-            float(record.get("retry_horizon_s", 0.45)) if attempts > 1 else 0.0)
+            float(record.get("retry_horizon_s", 0.45)) if attempts > 1 else 0.0,
+            int(record.get("timestep_factor", 2)), bool(record.get("antithetic", False)))
 
 
 def setting_label(setting: Setting) -> str:
     """``"64 samples"``, with ``", trunk weight W"`` when the trunk term is on and
     ``", R retries"`` when rewinds are allowed and ``", A seeds (the further ones over H
     s)"`` with more than one attempt and ``", MPPI temperature T"`` unless it keeps the best
-    sample."""
-    n, w, r, a, t, h = setting
-    return f"{n} samples" + (f", trunk weight {w:g}" if w else "") + (
+    sample, and ``", antithetic"`` and ``", F ms planning step"`` where they are not the
+    previous planner's (independent noise, 4 ms)."""
+    n, w, r, a, t, h, f, anti = setting
+    return f"{n} samples" + (", antithetic" if anti else "") + (
+        f", {2 * f} ms planning step" if f != 2 else "") + (
+        f", trunk weight {w:g}" if w else "") + (
         f", {r} retries" if r else "") + (
         f", {a} seeds (the further ones over {h:g} s)" if a > 1 else "") + (
         f", MPPI temperature {t:g}" if t else ", predictive sampling")
@@ -185,10 +198,11 @@ def run(args: argparse.Namespace) -> None:
     out: Path = args.out
     out.parent.mkdir(parents=True, exist_ok=True)
     desc = descriptions(args.data)
-    cfg = MPCConfig(nthread=args.threads, seed=args.seed,
-                    weights=CostWeights(trunk=args.trunk_weight), retries=args.retries,
-                    attempts=args.attempts, temperature=args.temperature,
-                    **({} if args.samples is None else {"n_samples": args.samples}))
+    base = FAST if args.planner == "fast" else MPCConfig()
+    cfg = replace(base, nthread=args.threads, seed=args.seed,
+                  weights=CostWeights(trunk=args.trunk_weight), retries=args.retries,
+                  attempts=args.attempts, temperature=args.temperature,
+                  **({} if args.samples is None else {"n_samples": args.samples}))
     setting = setting_of_config(cfg)
     paths = clips(args.data)
     if args.clips:
@@ -221,7 +235,8 @@ def run(args: argparse.Namespace) -> None:
             "mpc": _record(mpc, motion.fps), "samples": cfg.n_samples,
             "trunk_weight": cfg.weights.trunk, "retries": cfg.retries,
             "attempts": cfg.attempts, "temperature": cfg.temperature,
-            "retry_horizon_s": setting[5],
+            "retry_horizon_s": setting[5], "timestep_factor": cfg.timestep_factor,
+            "antithetic": cfg.antithetic,
             "threads": args.threads, "seed": args.seed,
             "load_average": os.getloadavg()[0],
         }
@@ -390,6 +405,9 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=4.0, help="simulated seconds per clip")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--planner", choices=("default", "fast"), default="default",
+                    help="run: the MPC's settings to start from: MPCConfig() or "
+                         "simenv.control.FAST (issue 35)")
     ap.add_argument("--samples", type=int, default=None,
                     help="run: MPC rollouts per replan (default MPCConfig's)")
     ap.add_argument("--trunk-weight", type=float, default=CostWeights().trunk,
