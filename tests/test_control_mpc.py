@@ -202,3 +202,15 @@ def test_the_fast_planner_rolls_out_a_quarter_of_the_default_ones_steps(
     assert budgets[0] == pytest.approx(128 * 112 / 10)
     assert budgets[1] == pytest.approx(budgets[0] / 4, rel=0.01)
     assert FAST.antithetic and not MPCConfig().antithetic
+
+
+def test_antithetic_coarse_planning_is_seeded_and_thread_independent(walk_2s_retargeted) -> None:
+    """FAST's sampling (mirrored pairs) and 8 ms planning step keep the contract: the same
+    seed gives the same motion on 1 or 2 rollout threads, another seed another motion."""
+    cheap = replace(QUICK, antithetic=FAST.antithetic, timestep_factor=FAST.timestep_factor)
+    runs = [track(walk_2s_retargeted, controller="mpc", max_seconds=0.15,
+                  mpc=replace(cheap, nthread=n, seed=seed))
+            for n, seed in ((1, 0), (2, 0), (1, 1))]
+    np.testing.assert_array_equal(runs[0].sim_keypoints, runs[1].sim_keypoints)
+    assert not np.array_equal(runs[0].sim_keypoints[-1], runs[2].sim_keypoints[-1])
+    assert runs[0].success and runs[0].rollout_steps == runs[1].rollout_steps
