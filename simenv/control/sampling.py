@@ -28,6 +28,13 @@ The next nominal is
 * the weighted mean ``sum_i w_i theta_i`` with ``w_i ~ exp(-(c_i - c_min) /
   (lambda (c_mean - c_min)))`` (MPPI with the temperature ``lambda``
   normalised by the spread of the costs, so it is unitless).
+
+With ``antithetic`` the noise comes in mirrored pairs, ``eps_i`` and ``-eps_i`` (the
+constant ones with their mirror): where the cost is locally flat the two weigh alike and
+their contributions to the MPPI average cancel, so the update moves only along directions
+where one side is cheaper -- a less noisy step for as many rollouts (on the walks 02_01 and
+12_01 with 64 samples and an 8 ms planning step: 84 -> 45 and 71 -> 38 mm body error;
+docs/tracking_speed.md).
 """
 
 from __future__ import annotations
