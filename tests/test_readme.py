@@ -1,0 +1,269 @@
+"""README.md is a contract: every command and Python snippet in it runs as written.
+
+The fenced ``bash`` and ``python`` blocks are read from the README and run in README order, as a
+new user would after set-up: in a fresh copy of the repository's tracked files (a temporary
+folder, with ``../shared/data`` next to it: the README's commands read ``assets/``,
+``tests/data/`` and ``../shared/data`` from the repository root), with ``.venv/bin`` first on
+the ``PATH``. Each command must exit with status 0; where the README shows its output (a JSON
+object in the comment lines under it, ``...`` standing for any value), the output has those
+keys and values. A ``bash`` command whose comment says ``not run by tests/test_readme.py:``
+gives its reason there, visibly, and is skipped; a comment line of a block saying it skips every
+command of that block. The ``text`` block of the command line's
+synopsis is checked against each command's ``--help``: every option it names exists.
+
+Commands that need earlier outputs find them because the README shows those steps first in
+the same block: running one command alone runs the earlier commands of its block first.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+README = REPO / "README.md"
+#: The bin folder of the environment set-up made (``make`` creates ``.venv``).
+VENV_BIN = Path(sys.executable).parent
+#: What a command's comment says when the README does not let the test run it.
+NOT_RUN = "not run by tests/test_readme.py:"
+#: Commands that take more than a few seconds of CPU even in their README form (pytest marker
+#: ``readme_long``; they run in CI, ``-m "not readme_long"`` leaves them out locally): these,
+#: and ``simenv score`` with physics on.
+LONG = ("simenv train ", "simenv eval ", "simenv rehearse ", "simenv render ",
+        "python benchmarks/", "python -m simenv.learning")
+#: Seconds a README command may take before it counts as hung.
+TIMEOUT_S = 600
+
+
+@dataclass(frozen=True)
+class Snippet:
+    """One runnable unit of the README: a bash command or a whole Python block."""
+
+    language: str            # "bash" or "python"
+    code: str                # the command (continuation lines joined) or the block's source
+    line: int                # README line where it starts (1-based)
+    block: int               # index of its fenced block in the README
+    section: str             # the heading it is under
+    expected: str | None = None  # README-shown output (JSON with ... for any value)
+    not_run: str | None = None   # the README's reason for not running it
+
+    @property
+    def id(self) -> str:
+        """A short test id: README line and the command's start."""
+        head = self.code.strip().splitlines()[0] if self.code.strip() else ""
+        return f"L{self.line}:{head[:60]}"
+
+
+def _blocks(text: str) -> list[tuple[str, int, str, list[str]]]:
+    """The README's fenced blocks: (language, first code line, section heading, lines)."""
+    blocks, section, fence = [], "", None
+    for number, line in enumerate(text.splitlines(), start=1):
+        if fence is None:
+            if line.startswith("#"):
+                section = line.lstrip("#").strip()
+            elif line.startswith("```"):
+                fence = (line[3:].strip().split(" ")[0], number + 1, section, [])
+        elif line.startswith("```"):
+            blocks.append(fence)
+            fence = None
+        else:
+            fence[3].append(line)
+    return blocks
+
+
+def _bash_commands(lines: list[str], first: int
+                   ) -> list[tuple[str, int, str | None, str | None]]:
+    """(command, line, shown output, reason not run) of a bash block: a line ending in ``\\``
+    continues on the next; comment lines under a command that hold a JSON object are its shown
+    output; a comment saying :data:`NOT_RUN` gives the reason for its command (or, on a line
+    of its own, for the whole block)."""
+    commands: list[tuple[str, int, str | None]] = []
+    block_reason = None
+    i = 0
+    while i < len(lines):
+        line, start = lines[i], first + i
+        if not line.strip():
+            i += 1
+            continue
+        if line.lstrip().startswith("#"):
+            body = line.lstrip()[1:].strip()
+            if NOT_RUN in body:
+                block_reason = _reason(" ".join(lines[i:]))
+            if body.startswith("{") and commands:
+                shown = [body]
+                while shown[-1].count("}") < 1 and i + 1 < len(lines):
+                    i += 1
+                    shown.append(lines[i].lstrip()[1:].strip())
+                code, at, _ = commands[-1]
+                commands[-1] = (code, at, " ".join(shown))
+            i += 1
+            continue
+        parts = [line]
+        while parts[-1].rstrip().endswith("\\") and i + 1 < len(lines):
+            i += 1
+            parts.append(lines[i])
+        commands.append(("\n".join(parts), start, None))
+        i += 1
+    return [(code, at, shown, block_reason or (_reason(code) if NOT_RUN in code else None))
+            for code, at, shown in commands]
+
+
+def _reason(text: str) -> str:
+    """The reason after :data:`NOT_RUN` in a README comment, comment marks removed."""
+    after = text.split(NOT_RUN, 1)[1]
+    return re.sub(r"\s*#\s*", " ", after).strip(" )")
+
+
+def readme_snippets(text: str | None = None) -> list[Snippet]:
+    """Every bash command and Python block of the README, in README order."""
+    text = README.read_text() if text is None else text
+    snippets = []
+    for index, (language, first, section, lines) in enumerate(_blocks(text)):
+        if language == "bash":
+            snippets += [Snippet("bash", code, line, index, section, shown, reason)
+                         for code, line, shown, reason in _bash_commands(lines, first)]
+        elif language == "python":
+            snippets.append(Snippet("python", "\n".join(lines), first, index, section))
+    return snippets
+
+
+def synopsis_lines(text: str | None = None) -> list[tuple[int, str]]:
+    """(README line, line) of the command line's synopsis (the ``text`` blocks naming
+    ``simenv`` commands)."""
+    text = README.read_text() if text is None else text
+    return [(first + k, line) for language, first, _, lines in _blocks(text)
+            if language == "text" for k, line in enumerate(lines)
+            if line.startswith("simenv ")]
+
+
+SNIPPETS = readme_snippets()
+
+
+def _expected(shown: str) -> dict:
+    """The README's shown JSON, ``...`` (any value) as None."""
+    return json.loads(re.sub(r":\s*\.\.\.", ": null", shown))
+
+
+@pytest.fixture(scope="module")
+def clone(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
+    """A fresh copy of the repository as a clone has it: its tracked files (as in the working
+    tree), ``../shared/data`` beside it; what the commands write stays out of the repo."""
+    root = tmp_path_factory.mktemp("readme")
+    (root / "shared").mkdir()
+    (root / "shared" / "data").symlink_to(shared_data)
+    clone = root / "simenv"
+    clone.mkdir()
+    tracked = subprocess.run(["git", "ls-files", "-z"], cwd=REPO, capture_output=True,
+                             text=True, check=True).stdout.split("\0")
+    for name in tracked:
+        if (REPO / name).is_file():  # not a tracked file deleted in the working tree
+            (clone / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(REPO / name, clone / name)
+    return clone
+
+
+@pytest.fixture(scope="module")
+def ran() -> set[int]:
+    """README lines of the snippets already run in this module's clone."""
+    return set()
+
+
+def _environment() -> dict[str, str]:
+    """The user's shell after set-up: ``.venv/bin`` first on the PATH, the corpus found
+    where the README says (``../shared/data``), no test-run settings of simenv's."""
+    env = {k: v for k, v in os.environ.items() if k != "SIMENV_SHARED_DATA"
+           and not k.startswith("PYTEST")}
+    env["PATH"] = f"{VENV_BIN}{os.pathsep}{env.get('PATH', '')}"
+    # In a clone, `python` run from its root imports the simenv that set-up installed there;
+    # in this copy, the installed one (the working tree) too, not the copy's files.
+    env["PYTHONSAFEPATH"] = "1"
+    return env
+
+
+def _run(snippet: Snippet, cwd: Path) -> subprocess.CompletedProcess:
+    """Run one snippet as written in ``cwd``; fails the test on a non-zero exit."""
+    if snippet.language == "python":
+        argv = [str(VENV_BIN / "python"), "-c", snippet.code]
+    else:
+        argv = [shutil.which("bash") or "/bin/bash", "-c", snippet.code]
+    done = subprocess.run(argv, cwd=cwd, env=_environment(), capture_output=True, text=True,
+                          timeout=TIMEOUT_S)
+    assert done.returncode == 0, (
+        f"README line {snippet.line} exited with {done.returncode}:\n{snippet.code}\n"
+        f"--- stdout\n{done.stdout[-3000:]}\n--- stderr\n{done.stderr[-3000:]}")
+    return done
+
+
+def _params() -> list:
+    marks = []
+    for s in SNIPPETS:
+        long = s.language == "bash" and (s.code.startswith(LONG) or (
+            s.code.startswith("simenv score ") and "--no-physics" not in s.code))
+        marks.append(pytest.param(s, id=s.id,
+                                  marks=[pytest.mark.readme_long] if long else []))
+    return marks
+
+
+@pytest.mark.parametrize("snippet", _params())
+def test_readme_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
+    """The snippet exits with 0 (after the earlier commands of its block) and prints what the
+    README shows of its output."""
+    if snippet.not_run:
+        pytest.skip(f"README: {snippet.not_run}")
+    for earlier in SNIPPETS:
+        if earlier.block == snippet.block and earlier.line < snippet.line \
+                and earlier.line not in ran and not earlier.not_run:
+            _run(earlier, clone)
+            ran.add(earlier.line)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = _run(snippet, clone)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    ran.add(snippet.line)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    print(f"README line {snippet.line}: {cpu:.1f} s of CPU")
+    if snippet.expected is not None:
+        shown = _expected(snippet.expected)
+        printed = [json.loads(line) for line in done.stdout.splitlines()
+                   if line.startswith("{")]
+        assert printed, f"README line {snippet.line} shows a JSON object; none printed"
+        for key, value in shown.items():
+            assert key in printed[-1], f"README line {snippet.line}: no {key!r} printed"
+            if value is not None:
+                assert printed[-1][key] == value, (
+                    f"README line {snippet.line}: {key} {printed[-1][key]!r}, README "
+                    f"shows {value!r}")
+
+
+def test_readme_has_snippets() -> None:
+    """The extraction finds the README's commands (a changed fence would hide them)."""
+    assert sum(s.language == "bash" for s in SNIPPETS) >= 20
+    assert sum(s.language == "python" for s in SNIPPETS) >= 3
+    assert synopsis_lines()
+
+
+@pytest.mark.parametrize("number,line", synopsis_lines(), ids=lambda v: str(v)[:40])
+def test_readme_synopsis_options(number: int, line: str) -> None:
+    """Every option the synopsis shows for a command is in that command's ``--help``."""
+    from simenv.cli.main import build_parser
+
+    words = line.split("#")[0].split()
+    command = words[1]
+    commands = build_parser()._subparsers._group_actions[0].choices  # noqa: SLF001
+    if command == "COMMAND":
+        return
+    assert command in commands, f"README line {number}: no command simenv {command}"
+    sub = commands[command]
+    known = {o for action in sub._actions for o in action.option_strings}  # noqa: SLF001
+    shown = {w.strip("[]|") for w in words[2:]} | {
+        part for w in words[2:] for part in re.findall(r"--[a-z-]+", w)}
+    missing = sorted(o for o in shown if o.startswith("--") and o not in known)
+    assert not missing, f"README line {number}: simenv {command} has no {missing}"
