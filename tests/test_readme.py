@@ -6,9 +6,10 @@ folder, with ``../shared/data`` next to it: the README's commands read ``assets/
 ``tests/data/`` and ``../shared/data`` from the repository root), with ``.venv/bin`` first on
 the ``PATH``. Each command must exit with status 0; where the README shows its output (a JSON
 object in the comment lines under it, ``...`` standing for any value), the output has those
-keys and values. A ``bash`` command whose comment says ``not run by tests/test_readme.py:``
-gives its reason there, visibly, and is skipped; a comment line of a block saying it skips every
-command of that block. The ``text`` block of the command line's
+keys and values, and where a comment under it says it prints `` `TEXT` ``, it prints TEXT. A
+``bash`` command whose comment says ``not run by tests/test_readme.py:`` gives its reason
+there, visibly, and is skipped; so is a command with such a comment line under it, and every
+command of a block that opens with one. The ``text`` block of the command line's
 synopsis is checked against each command's ``--help``: every option it names exists.
 
 Commands that need earlier outputs find them because the README shows those steps first in
@@ -55,6 +56,7 @@ class Snippet:
     section: str             # the heading it is under
     expected: str | None = None  # README-shown output (JSON with ... for any value)
     not_run: str | None = None   # the README's reason for not running it
+    prints: tuple[str, ...] = ()  # text the README says it prints
 
     @property
     def id(self) -> str:
@@ -81,13 +83,14 @@ def _blocks(text: str) -> list[tuple[str, int, str, list[str]]]:
 
 
 def _bash_commands(lines: list[str], first: int
-                   ) -> list[tuple[str, int, str | None, str | None]]:
-    """(command, line, shown output, reason not run) of a bash block: a line ending in ``\\``
-    continues on the next; comment lines under a command that hold a JSON object are its shown
-    output; a comment saying :data:`NOT_RUN` gives the reason for its command (or, on a line
-    of its own, for the whole block)."""
+                   ) -> list[tuple[str, int, str | None, str | None, tuple[str, ...]]]:
+    """(command, line, shown output, reason not run, printed texts) of a bash block: a line
+    ending in ``\\`` continues on the next; comment lines under a command that hold a JSON
+    object are its shown output, ``prints `TEXT` `` in them a text it prints; a comment
+    saying :data:`NOT_RUN` gives the reason for its command, on a line of its own for the
+    command above it, or, opening the block, for every command of the block."""
     commands: list[tuple[str, int, str | None]] = []
-    block_reason = None
+    block_reason, reasons, prints = None, {}, {}
     i = 0
     while i < len(lines):
         line, start = lines[i], first + i
@@ -96,8 +99,15 @@ def _bash_commands(lines: list[str], first: int
             continue
         if line.lstrip().startswith("#"):
             body = line.lstrip()[1:].strip()
+            if commands:
+                prints.setdefault(commands[-1][1], []).extend(
+                    re.findall(r"prints `([^`]+)`", body))
             if NOT_RUN in body:
-                block_reason = _reason(" ".join(lines[i:]))
+                reason = _reason(_comment(lines, i))
+                if commands:
+                    reasons[commands[-1][1]] = reason
+                else:
+                    block_reason = reason
             if body.startswith("{") and commands:
                 shown = [body]
                 while shown[-1].count("}") < 1 and i + 1 < len(lines):
@@ -113,14 +123,25 @@ def _bash_commands(lines: list[str], first: int
             parts.append(lines[i])
         commands.append(("\n".join(parts), start, None))
         i += 1
-    return [(code, at, shown, block_reason or (_reason(code) if NOT_RUN in code else None))
+    return [(code, at, shown, block_reason or reasons.get(at)
+             or (_reason(code) if NOT_RUN in code else None), tuple(prints.get(at, ())))
             for code, at, shown in commands]
+
+
+def _comment(lines: list[str], i: int) -> str:
+    """The comment starting at ``lines[i]`` and the comment lines right after it."""
+    end = i + 1
+    while end < len(lines) and lines[end].lstrip().startswith("#"):
+        end += 1
+    return " ".join(lines[i:end])
 
 
 def _reason(text: str) -> str:
     """The reason after :data:`NOT_RUN` in a README comment, comment marks removed."""
-    after = text.split(NOT_RUN, 1)[1]
-    return re.sub(r"\s*#\s*", " ", after).strip(" )")
+    after = re.sub(r"\s*#\s*", " ", text.split(NOT_RUN, 1)[1]).strip()
+    if after.endswith(")") and after.count(")") > after.count("("):
+        after = after[:-1]  # the bracket that opened before the marker
+    return after
 
 
 def readme_snippets(text: str | None = None) -> list[Snippet]:
@@ -129,8 +150,8 @@ def readme_snippets(text: str | None = None) -> list[Snippet]:
     snippets = []
     for index, (language, first, section, lines) in enumerate(_blocks(text)):
         if language == "bash":
-            snippets += [Snippet("bash", code, line, index, section, shown, reason)
-                         for code, line, shown, reason in _bash_commands(lines, first)]
+            snippets += [Snippet("bash", code, line, index, section, *rest)
+                         for code, line, *rest in _bash_commands(lines, first)]
         elif language == "python":
             snippets.append(Snippet("python", "\n".join(lines), first, index, section))
     return snippets
@@ -230,6 +251,9 @@ def test_readme_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
     ran.add(snippet.line)
     cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     print(f"README line {snippet.line}: {cpu:.1f} s of CPU")
+    for text in snippet.prints:
+        assert text in done.stdout, (
+            f"README line {snippet.line} says it prints {text!r}; it printed:\n{done.stdout}")
     if snippet.expected is not None:
         shown = _expected(snippet.expected)
         printed = [json.loads(line) for line in done.stdout.splitlines()
@@ -241,6 +265,26 @@ def test_readme_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
                 assert printed[-1][key] == value, (
                     f"README line {snippet.line}: {key} {printed[-1][key]!r}, README "
                     f"shows {value!r}")
+
+
+def test_readme_extraction() -> None:
+    """Continuation lines, shown output and the three places of a not-run reason."""
+    text = "\n".join([
+        "# Title", "```bash", "# (not run by tests/test_readme.py: root needed)", "make a",
+        "```", "## Use", "```bash", "cmd --x \\", "    --y   # note", '# {"k": 1, "v": ...}',
+        "cmd two  # not run by tests/test_readme.py: a browser", "cmd three",
+        "# prints `3 done` (and more)",
+        "# not run by tests/test_readme.py: a", "# cluster", "cmd four", "```",
+        "```python", "import simenv", "```", "```text", "simenv info FILE", "```"])
+    snippets = readme_snippets(text)
+    assert [(s.language, s.line, s.section, s.not_run) for s in snippets] == [
+        ("bash", 4, "Title", "root needed"), ("bash", 8, "Use", None),
+        ("bash", 11, "Use", "a browser"), ("bash", 12, "Use", "a cluster"),
+        ("bash", 16, "Use", None), ("python", 19, "Use", None)]
+    assert snippets[3].prints == ("3 done",)
+    assert snippets[1].code == "cmd --x \\\n    --y   # note"
+    assert _expected(snippets[1].expected) == {"k": 1, "v": None}
+    assert synopsis_lines(text) == [(22, "simenv info FILE")]
 
 
 def test_readme_has_snippets() -> None:
