@@ -1,0 +1,504 @@
+"""Walking at a person's pace by replaying real walking motion capture, tracked once
+offline by the unassisted planner, with time-varying feedback.
+
+The library (``assets/walk-primitives/mocap_walk.npz``, built by
+``benchmarks/build_mocap_walk.py`` from the bundled CMU 02_01 walk) holds walking
+*primitives* cut from one tracking run of the sampling MPC
+(:class:`simenv.control.TrackingMPC`, nothing acting on the root) on the room agent's own
+body: a start from standing, straight gait cycles, a cycle bending left or right
+(:data:`TURN_DEG` each), and a stop to standing; each as the planner's servo targets
+``u*`` and the states ``x*`` the body went through, every :attr:`Library.stride` physics
+steps, and time-varying LQR gains ``K`` (on ``mjd_transitionFD`` linearisations about
+``x*``, for the legs' and the lumbar spine's servos) stored as a low-rank time basis.
+
+At run time nothing is planned. The standing body is first brought onto the start's first
+pose (:data:`READY_S`: the start's first servo targets, arms hanging, balanced by the
+stepping gait's centre-of-mass feedback). A primitive is placed on the floor where the body
+is when it starts (turned about the vertical and shifted so that its legs' and pelvis's
+keypoints, :data:`ANCHOR_KEYPOINTS`, lie nearest the measured ones, :func:`fit_frame`: a
+flat floor's physics does not change under either), and every physics step the servo
+targets are ::
+
+    u = u*(t) - K(t) dx,   dx = (mj_differentiatePos(x*_q, x_q), x_v - x*_v)
+
+(``x*`` interpolated between its stored steps). The feedback absorbs what differs from the
+offline run: the seams between primitives (one cycle's end state is not exactly the next
+one's start), the room's model and the body's drift. Primitives join at the gait phases
+they were cut at (:attr:`Primitive.phase_in` / :attr:`Primitive.phase_out`, the left or
+the right foot at mid-swing); every primitive also exists mirrored left to right
+(:func:`mirror`), so the right bend is the tracked left one reflected and a walk can start
+and stop on either foot (half-cycle lengths). :func:`compose` picks the sequence whose
+predicted end (:class:`Anchors`) is nearest the goal, and at every seam
+:class:`MocapWalkPlan` re-picks the bend of the next cycle from where the body really is.
+
+Replayed in the room from the tracked run's own first state, the stored targets alone
+reproduce the tracked run to the millimetre for 5 s (the room's agent is the same model;
+measured): the feedback is for everything else.
+
+Nothing but the agent's servos and its contacts acts on it: the plan's feedback is a
+:class:`~simenv.agents.walk.GaitMeter`, which measures the external help (0 N) and the
+pelvis's height every physics step.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from simenv.agents.gait import quat_yaw, stand_balance
+from simenv.agents.walk import GaitMeter, check_standing
+from simenv.assets import asset_path
+from simenv.body.humanoid import Humanoid
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
+
+#: The library's file, in the package's assets.
+LIBRARY = "walk-primitives/mocap_walk.npz"
+#: Heading change of one bend cycle, deg (as the library was built).
+TURN_DEG = 15.0
+#: Largest number of gait cycles between the start and the stop that :func:`compose`
+#: considers.
+MAX_CYCLES = 6
+#: :func:`compose`'s price of a second of walking, in metres of distance from the goal.
+SECOND_M = 0.02
+#: Standing still after the stop, balanced by the stop's last feedback, s.
+SETTLE_S = 0.5
+#: Before the start: the standing body brought onto the start's first pose (its arms
+#: hanging, its servo targets those the planner started from), balanced by the stepping
+#: gait's centre-of-mass feedback, s.
+READY_S = 1.0
+#: Body dimensions may differ from the library's by this much (m) and still replay.
+DIMS_TOL_M = 1e-3
+
+
+def _yaw_quat(yaw: float) -> np.ndarray:
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def _rot(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+@dataclass(frozen=True)
+class Primitive:
+    """One walking primitive (module docstring).
+
+    Attributes:
+        name: its name in the library. qpos: (N, nq) the tracked agent's states every
+            ``stride`` physics steps (the last one is where the next primitive starts),
+            m / rad, in the offline run's frame; qvel: (N, nv) m/s, rad/s; ctrl: (N, nu)
+            the servo targets, rad. coef: (N, r) the gains' coefficients on the library's
+            basis. phase_in, phase_out: the foot at mid-swing at its start and end
+            (``"left"``, ``"right"``, or ``"stand"``). advance: (3,) where its last pelvis
+            pose is relative to its first, in the first's heading frame (forward m, left
+            m, turn rad). mirrored: the tracked primitive reflected left to right
+            (:func:`mirror`; its gains are on the library's mirrored basis).
+    """
+
+    name: str
+    qpos: np.ndarray
+    qvel: np.ndarray
+    ctrl: np.ndarray
+    coef: np.ndarray
+    phase_in: str
+    phase_out: str
+    advance: np.ndarray
+    mirrored: bool = False
+
+    @property
+    def knots(self) -> int:
+        """Stored steps spanned (its duration is ``knots * stride`` physics steps)."""
+        return len(self.qpos) - 1
+
+
+@dataclass(frozen=True)
+class Library:
+    """The primitives and what they share.
+
+    Attributes:
+        primitives: name -> :class:`Primitive`. basis: (r, m, 2 nv) the gains' basis
+            (``K = coef @ basis``). feedback_ctrl: (m,) the actuators the gains drive (the
+            legs and the lumbar spine; the others follow ``u*``). stride: physics steps
+            between stored steps. dt: the physics step, s. dims: (D,) the body's
+            dimensions the library was built for, m. meta: how it was built (JSON).
+    """
+
+    primitives: dict[str, Primitive]
+    basis: np.ndarray
+    basis_mirrored: np.ndarray
+    feedback_ctrl: np.ndarray
+    stride: int
+    dt: float
+    dims: np.ndarray
+    meta: dict
+
+    def gain(self, p: Primitive, k: int) -> np.ndarray:
+        """(m, 2 nv) the feedback gain of ``p``'s stored step ``k``."""
+        basis = self.basis_mirrored if p.mirrored else self.basis
+        return np.tensordot(p.coef[min(k, len(p.coef) - 1)], basis, axes=1)
+
+    def seconds(self, name: str) -> float:
+        """Duration of primitive ``name``, s."""
+        return self.primitives[name].knots * self.stride * self.dt
+
+
+def _swap(name: str) -> str:
+    return name.replace("left_", "@").replace("right_", "left_").replace("@", "right_")
+
+
+#: Hinges on the body's midline whose angle changes sign in a left-right reflection (the
+#: others are either sagittal or have a mirrored twin on the other side, measured on the
+#: fitted humanoid: every geom lands on its twin's reflection).
+_MIDLINE_ODD = ("lumbar_lat", "lumbar_rot", "thorax_lat", "thorax_rot", "chest_lat",
+                "chest_rot", "neck_lat", "neck_rot")
+
+
+def _reflection(names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Index and sign of each hinge's image under the left-right reflection."""
+    idx = np.array([names.index(_swap(n)) for n in names])
+    sign = np.array([-1.0 if n in _MIDLINE_ODD else 1.0 for n in names])
+    return idx, sign
+
+
+def mirror(qpos: np.ndarray, qvel: np.ndarray, ctrl: np.ndarray, hinges: list[str]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A trajectory reflected left to right in its frame (y -> -y): the free root's
+    position and orientation (quaternion (w, x, y, z) -> (w, -x, y, -z)), its velocities
+    (linear in the world, angular in the pelvis's frame), every hinge's angle, velocity
+    and servo target exchanged with its twin's, midline lateral bends and twists negated.
+    Shapes (N, 7 + n), (N, 6 + n), (N, n) in and out (the actuators in hinge order)."""
+    idx, sign = _reflection(hinges)
+    q, v = qpos.copy(), qvel.copy()
+    q[:, 1] *= -1
+    q[:, 4] *= -1
+    q[:, 6] *= -1
+    q[:, 7:] = qpos[:, 7:][:, idx] * sign
+    v[:, [1, 3, 5]] *= -1
+    v[:, 6:] = qvel[:, 6:][:, idx] * sign
+    return q, v, ctrl[:, idx] * sign
+
+
+def _mirror_gains(basis: np.ndarray, fb: np.ndarray, hinges: list[str]) -> np.ndarray:
+    """(r, m, 2 nv) gains ``K' = M_u K M_x^T`` of the reflected system (``M`` the signed
+    permutations of :func:`mirror` on the targets ``fb`` and on the state)."""
+    idx, sign = _reflection(hinges)
+    n = len(hinges)
+    root_sign = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+    half_idx = np.concatenate([np.arange(6), 6 + idx])
+    half_sign = np.concatenate([root_sign, sign])
+    nv = 6 + n
+    x_idx = np.concatenate([half_idx, nv + half_idx])
+    x_sign = np.concatenate([half_sign, half_sign])
+    fb_list = list(fb)
+    rows = np.array([fb_list.index(idx[a]) for a in fb])
+    return basis[:, rows][:, :, x_idx] * sign[fb][None, :, None] * x_sign[None, None, :]
+
+
+def body_signature(h: Humanoid) -> np.ndarray:
+    """(D,) the body's dimensions (lengths and offsets, m) in a fixed order: a library
+    replays on the body it was built for."""
+    out: list[float] = []
+    for v in h.dims.to_dict().values():
+        if isinstance(v, float):
+            out.append(v)
+        elif isinstance(v, list) and all(isinstance(x, float) for x in v):
+            out.extend(v)
+    return np.array(out, float)
+
+
+@lru_cache(maxsize=4)
+def load_library(path: str | None = None) -> Library:
+    """The walking primitives (module docstring) from ``path`` (default: the bundled
+    :data:`LIBRARY`).
+
+    Raises:
+        SimenvError: the file is missing or lacks a primitive's arrays.
+    """
+    file = Path(path) if path is not None else Path(asset_path(LIBRARY))
+    if not file.is_file():
+        raise SimenvError(f"{file}: no walking primitives (build them with "
+                          "benchmarks/build_mocap_walk.py)", field="library")
+    other = {"left": "right", "right": "left", "stand": "stand"}
+    with np.load(file, allow_pickle=False) as z:
+        meta = json.loads(str(z["meta"]))
+        hinges = list(meta["joint_names"])
+        prims = {}
+        for name, info in meta["primitives"].items():
+            try:
+                arrays = [z[f"{name}_{k}"].astype(float) for k in ("qpos", "qvel", "ctrl",
+                                                                   "coef")]
+            except KeyError as exc:
+                raise SimenvError(f"{file}: primitive {name!r} lacks {exc.args[0]}",
+                                  field=name) from None
+            adv = np.array(info["advance"], float)
+            prims[name] = Primitive(name, *arrays, info["phase_in"], info["phase_out"], adv)
+            mq, mv, mu = mirror(*arrays[:3], hinges)
+            prims[f"{name}_mirrored"] = Primitive(
+                f"{name}_mirrored", mq, mv, mu, arrays[3], other[info["phase_in"]],
+                other[info["phase_out"]], adv * [1.0, -1.0, -1.0], mirrored=True)
+        basis = z["gain_basis"].astype(float)
+        fb = z["feedback_ctrl"]
+        return Library(prims, basis, _mirror_gains(basis, fb, hinges), fb, int(z["stride"]),
+                       float(z["dt"]), z["dims"].astype(float), meta)
+
+
+def _check_body(room: Room, lib: Library) -> None:
+    dims = body_signature(room.agent)
+    if dims.shape != lib.dims.shape or np.abs(dims - lib.dims).max() > DIMS_TOL_M:
+        raise SimenvError("the walking primitives were built for another body (rebuild them "
+                          "with benchmarks/build_mocap_walk.py for this agent)", field="agent")
+
+
+#: The keypoints a primitive is placed on the body by (the legs and the pelvis: the arms
+#: swing, and the pelvis alone twists up to 25 deg either way in the tracked walk).
+ANCHOR_KEYPOINTS = ("pelvis", "left_hip", "right_hip", "left_knee", "right_knee",
+                    "left_ankle", "right_ankle", "left_toe", "right_toe")
+
+Frame = tuple[float, np.ndarray]
+"""A placement on the floor: turn about the vertical (rad) and shift (2,) m, ``x -> R x + t``."""
+
+
+def fit_frame(src: np.ndarray, dst: np.ndarray) -> Frame:
+    """The placement taking the points ``src`` (K, 2) nearest ``dst`` (K, 2) (least squares,
+    2D Procrustes without scaling)."""
+    ps, pd = src.mean(axis=0), dst.mean(axis=0)
+    h = (src - ps).T @ (dst - pd)
+    psi = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
+    return psi, pd - _rot(psi) @ ps
+
+
+def _then(a: Frame, b: Frame) -> Frame:
+    """``a`` after ``b``: x -> a(b(x))."""
+    return a[0] + b[0], _rot(a[0]) @ b[1] + a[1]
+
+
+class Anchors:
+    """Where each primitive of ``lib`` has ``h``'s :data:`ANCHOR_KEYPOINTS` on the floor at
+    its first and last stored step ((K, 2), m), and the placements joining them: ``join[a,
+    b]`` takes ``b``'s coordinates into ``a``'s with ``b``'s first pose on ``a``'s last."""
+
+    def __init__(self, lib: Library, h: Humanoid) -> None:
+        names = list(h.keypoint_names)
+        idx = [names.index(k) for k in ANCHOR_KEYPOINTS]
+        self.lib = lib
+        self.first = {n: h.keypoints(p.qpos[0])[idx, :2] for n, p in lib.primitives.items()}
+        self.last = {n: h.keypoints(p.qpos[-1])[idx, :2] for n, p in lib.primitives.items()}
+        self.end = {n: p.qpos[-1, :2].copy() for n, p in lib.primitives.items()}
+        self.join: dict[tuple[str, str], Frame] = {}
+        for a, pa in lib.primitives.items():
+            for b, pb in lib.primitives.items():
+                if pa.phase_out == pb.phase_in != "stand":
+                    self.join[a, b] = fit_frame(self.first[b], self.last[a])
+        self.sites = idx
+
+    def predicted_end(self, names: list[str], frame: Frame) -> np.ndarray:
+        """(2,) where the pelvis ends after the primitives ``names``, the first placed by
+        ``frame``, m."""
+        f = frame
+        for a, b in zip(names, names[1:], strict=False):
+            f = _then(f, self.join[a, b])
+        return _rot(f[0]) @ self.end[names[-1]] + f[1]
+
+
+def _sequences(lib: Library, max_cycles: int) -> list[list[str]]:
+    """Every phase-consistent sequence start .. stop with at most ``max_cycles`` primitives
+    between them."""
+    prims = lib.primitives
+    by_phase: dict[str, list[str]] = {}
+    for n, p in prims.items():
+        if p.phase_in != "stand" and p.phase_out != "stand":
+            by_phase.setdefault(p.phase_in, []).append(n)
+    stops = {ph: [n for n, p in prims.items() if p.phase_out == "stand" and p.phase_in == ph]
+             for ph in ("left", "right")}
+    out: list[list[str]] = []
+
+    def extend(seq: list[str], depth: int) -> None:
+        phase = prims[seq[-1]].phase_out
+        out.extend([*seq, e] for e in stops[phase])
+        if depth < max_cycles:
+            for n in by_phase.get(phase, []):
+                extend([*seq, n], depth + 1)
+
+    for n, p in prims.items():
+        if p.phase_in == "stand":
+            extend([n], 0)
+    return out
+
+
+def compose(anchors: Anchors, keypoints: np.ndarray, goal: np.ndarray,
+            max_cycles: int = MAX_CYCLES) -> tuple[list[str], float]:
+    """The primitive sequence (start, cycles, stop) from the standing body whose
+    :data:`ANCHOR_KEYPOINTS` are at ``keypoints`` (K, 2) whose predicted end
+    (:meth:`Anchors.predicted_end`) is nearest ``goal`` (2,) (plus :data:`SECOND_M` per
+    second of walking), and that end's distance from the goal, m."""
+    lib = anchors.lib
+    best, cost, err = None, np.inf, np.inf
+    frames = {n: fit_frame(anchors.first[n], keypoints) for n, p in lib.primitives.items()
+              if p.phase_in == "stand"}
+    for seq in _sequences(lib, max_cycles):
+        end = anchors.predicted_end(seq, frames[seq[0]])
+        e = float(np.linalg.norm(end - goal))
+        c = e + SECOND_M * sum(lib.seconds(n) for n in seq)
+        if c < cost:
+            best, cost, err = seq, c, e
+    assert best is not None
+    return best, err
+
+
+class MocapWalkPlan:
+    """The primitives ``names`` played on the agent (module docstring), with the
+    interface of a :class:`~simenv.agents.reach.PDPlan` (``duration``, ``grasps``,
+    ``feedback``, :meth:`control`).
+
+    At each seam the next primitive is placed where the body is (its first pelvis pose on
+    the measured pelvis); when ``goal`` is given, a cycle whose phases allow it is
+    re-picked among the cycles of the same duration (straight, bend left, bend right) as
+    the one whose sequence then ends nearest the goal.
+    """
+
+    def __init__(self, room: Room, data: mujoco.MjData, names: list[str],
+                 goal: np.ndarray | None = None, lib: Library | None = None) -> None:
+        self.room = room
+        self.lib = lib = lib or load_library()
+        _check_body(room, lib)
+        self.names = list(names)
+        self.goal = None if goal is None else np.asarray(goal, float)[:2]
+        self.grasps: tuple = ()
+        st = lib.stride
+        ready = int(round(READY_S / lib.dt))
+        self._starts = ready + np.concatenate([[0], np.cumsum([lib.primitives[n].knots * st
+                                                               for n in self.names])])
+        self.duration = float(self._starts[-1] * lib.dt) + SETTLE_S
+        self._ready = stand_balance(room, data, READY_S)
+        self._ready_ctrl = lib.primitives[self.names[0]].ctrl[0]
+        self._model = room.agent.model
+        self.anchors = anchors_of(lib, room.agent)
+        self._cur = -1
+        self._anchor = (0.0, np.zeros(2))
+        self._dq = np.zeros(room.agent.nv)
+        self._fb = np.asarray(lib.feedback_ctrl, int)
+        self._gain_k = -1
+        self._gain = np.zeros((len(self._fb), 2 * room.agent.nv))
+        #: Measured at every seam: (time s, primitive, pelvis x, y, heading rad).
+        self.seams: list[tuple[float, str, float, float, float]] = []
+        self.feedback = GaitMeter(room, _Passthrough(), self.goal)  # type: ignore[arg-type]
+
+    def _begin(self, i: int, t: float, data: mujoco.MjData) -> None:
+        """Place primitive ``i`` on the measured body (re-picking its bend)."""
+        anc = self.anchors
+        kp = data.site_xpos[self.room.agent_sites[anc.sites], :2]
+        if self.goal is not None and 0 < i < len(self.names) - 1:
+            self._repick(i, kp)
+        name = self.names[i]
+        self._anchor = fit_frame(anc.first[name], kp)
+        self._cur = i
+        self._gain_k = -1
+        q = data.qpos[self.room.agent_qpos]
+        self.seams.append((t, name, float(q[0]), float(q[1]), quat_yaw(q[3:7])))
+
+    def _repick(self, i: int, kp: np.ndarray) -> None:
+        prims = self.lib.primitives
+        cur = prims[self.names[i]]
+        options = [n for n, p in prims.items() if p.phase_in == cur.phase_in
+                   and p.phase_out == cur.phase_out and p.knots == cur.knots]
+        best, cost = self.names[i], np.inf
+        for n in options:
+            end = self.anchors.predicted_end([n, *self.names[i + 1:]],
+                                             fit_frame(self.anchors.first[n], kp))
+            c = float(np.linalg.norm(end - self.goal))
+            if c < cost - 1e-9:
+                best, cost = n, c
+        self.names[i] = best
+
+    def _reference(self, p: Primitive, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                        int]:
+        """The reference state (world frame) and targets at step ``s`` of ``p``, and the
+        stored step whose gain applies."""
+        st = self.lib.stride
+        k, r = divmod(min(s, p.knots * st), st)
+        k1 = min(k + 1, p.knots)
+        w = r / st
+        q = (1 - w) * p.qpos[k] + w * p.qpos[k1]
+        q[3:7] /= np.linalg.norm(q[3:7])
+        v = (1 - w) * p.qvel[k] + w * p.qvel[k1]
+        u = (1 - w) * p.ctrl[k] + w * p.ctrl[k1]
+        psi, off = self._anchor
+        q[:2] = _rot(psi) @ q[:2] + off
+        tmp = np.zeros(4)
+        mujoco.mju_mulQuat(tmp, _yaw_quat(psi), q[3:7])
+        q[3:7] = tmp
+        v[:2] = _rot(psi) @ v[:2]
+        return q, v, u, k
+
+    def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """(nu,) the agent's servo targets ``t`` s into the plan (module docstring)."""
+        room, lib = self.room, self.lib
+        q = data.qpos[room.agent_qpos]
+        step = int(round(t / lib.dt))
+        if step < self._starts[0]:
+            return self.feedback(t, data, self._ready(t, data, self._ready_ctrl))
+        i = min(int(np.searchsorted(self._starts, step, side="right")) - 1, len(self.names) - 1)
+        if i != self._cur:
+            self._begin(i, t, data)
+        p = lib.primitives[self.names[i]]
+        qr, vr, u, k = self._reference(p, step - int(self._starts[i]))
+        if k != self._gain_k:
+            self._gain, self._gain_k = lib.gain(p, k), k
+        mujoco.mj_differentiatePos(self._model, self._dq, 1.0, qr, q)
+        dx = np.concatenate([self._dq, data.qvel[room.agent_qvel] - vr])
+        u = u.copy()
+        u[self._fb] -= self._gain @ dx
+        return self.feedback(t, data, u)
+
+
+class _Passthrough:
+    """The inner feedback of the plan's :class:`~simenv.agents.walk.GaitMeter`: the
+    targets are already final."""
+
+    def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
+        return targets
+
+
+def plan_mocap_walk(room: Room, data: mujoco.MjData, goal: np.ndarray,
+                    lib: Library | None = None, max_cycles: int = MAX_CYCLES
+                    ) -> MocapWalkPlan:
+    """Plan for walking the standing agent towards ``goal`` (x, y, m) with the primitives
+    (module docstring): the sequence :func:`compose` picks from where the pelvis is and
+    where it heads. It starts straight ahead, so face the goal first (a turn on the
+    spot, :func:`simenv.agents.walk.turn_steps`) unless the bends should bring it round;
+    the pelvis ends within about half a step of the goal (``feedback.outcome``), the rest
+    is a step for the stepping gait.
+
+    Raises:
+        SimenvError: the agent is not standing, or the library was built for another
+            body.
+    """
+    check_standing(room, data, "walk")
+    lib = lib or load_library()
+    _check_body(room, lib)
+    anc = anchors_of(lib, room.agent)
+    kp = data.site_xpos[room.agent_sites[anc.sites], :2]
+    names, _ = compose(anc, kp, np.asarray(goal, float)[:2], max_cycles)
+    return MocapWalkPlan(room, data, names, goal, lib)
+
+
+_ANCHORS: dict[tuple[int, int], Anchors] = {}
+
+
+def anchors_of(lib: Library, h: Humanoid) -> Anchors:
+    """The :class:`Anchors` of ``lib`` on ``h`` (one per pair)."""
+    key = (id(lib), id(h))
+    if key not in _ANCHORS:
+        _ANCHORS[key] = Anchors(lib, h)
+    return _ANCHORS[key]
+
+
+__all__ = ["ANCHOR_KEYPOINTS", "LIBRARY", "Anchors", "Library", "MocapWalkPlan", "Primitive",
+           "anchors_of", "body_signature", "compose", "fit_frame", "load_library", "mirror",
+           "plan_mocap_walk"]

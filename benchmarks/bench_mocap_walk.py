@@ -1,0 +1,103 @@
+"""Measure the room agent's walk from motion-capture primitives
+(:mod:`simenv.agents.mocap_walk`) side by side with the stepping gait
+(:mod:`simenv.agents.walk`) on the same walks, on one core.
+
+Walks (``discomfort`` room, the agent standing in its rest pose, balanced 1 s, no
+rendering; nothing but its servos and contacts acts on it):
+
+* ``straight 4 m``: from (-2.0, -1.5) facing east to (2.0, -1.5), along the south wall;
+* ``bend``: from (-2.0, -1.5) facing east to (2.0, -0.7) (the primitives bend on the way,
+  the stepping gait turns on the spot);
+* ``to the window``: from (0.0, 0.0) facing north-west to the spot in front of the
+  window's handle, (-1.12, 1.59).
+
+Per walk and gait: simulated seconds, wall seconds (1 thread) and their ratio, the mean
+speed (distance covered on the floor by the pelvis / simulated s), whether it fell, the
+lowest pelvis height, the pelvis's distance from the goal at the end, the largest external
+help on any physics step (N) and, for the primitives, the sequence played.
+
+Usage::
+
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_mocap_walk.py \\
+        [--out out/bench_mocap_walk] [--skip-stepping]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from simenv.agents.gait import standing_agent
+from simenv.agents.mocap_walk import plan_mocap_walk
+from simenv.agents.walk import plan_walk
+from simenv.room.room import Room
+
+#: name -> (start (x, y), heading rad, goal (x, y)).
+WALKS: dict[str, tuple[tuple[float, float], float, tuple[float, float]]] = {
+    "straight 4 m": ((-2.0, -1.5), 0.0, (2.0, -1.5)),
+    "bend": ((-2.0, -1.5), 0.0, (2.0, -0.7)),
+    "to the window": ((0.0, 0.0), 3 * np.pi / 4, (-1.12, 1.59)),
+}
+
+
+def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, float]
+         ) -> dict[str, Any]:
+    room = Room("discomfort")
+    data = standing_agent(room, np.array(start), yaw)
+    goal_a = np.array(goal)
+    if gait == "mocap":
+        plan = plan_mocap_walk(room, data, goal_a)
+        extra = {"sequence": plan.names}
+    else:
+        heading = float(np.arctan2(*(goal_a - start)[::-1]))
+        plan = plan_walk(room, data, goal_a, heading)
+        extra = {"steps": len(plan.steps)}
+    path = []
+    dt = room.model.opt.timestep
+    t0 = time.perf_counter()
+    for i in range(int(round(plan.duration / dt))):
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+        if i % 50 == 0:
+            path.append(data.qpos[room.agent_qpos][:2].copy())
+    wall = time.perf_counter() - t0
+    path_a = np.array(path)
+    dist = float(np.linalg.norm(np.diff(path_a, axis=0), axis=1).sum())
+    out = plan.feedback.outcome(data)
+    help_ = plan.feedback.summary()
+    if gait == "mocap":
+        extra["seams"] = [[round(float(x), 3) if isinstance(x, float) else x for x in s]
+                          for s in plan.seams]
+    return {"gait": gait, "simulated_s": plan.duration, "wall_s": wall,
+            "cost_x_real_time": wall / plan.duration, "distance_m": dist,
+            "speed_mps": dist / plan.duration, **out, "help_max_n": help_["max_n"], **extra}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("out/bench_mocap_walk"))
+    parser.add_argument("--skip-stepping", action="store_true",
+                        help="only the primitives (the stepping gait takes minutes a walk)")
+    parser.add_argument("--walks", nargs="*", default=list(WALKS))
+    args = parser.parse_args()
+    args.out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for name in args.walks:
+        start, yaw, goal = WALKS[name]
+        for gait in ("mocap",) if args.skip_stepping else ("mocap", "stepping"):
+            row = {"walk": name, **_run(gait, start, yaw, goal)}
+            rows.append(row)
+            print(json.dumps(row, default=str), flush=True)
+            (args.out / "bench_mocap_walk.json").write_text(json.dumps(rows, indent=1,
+                                                                        default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
