@@ -157,12 +157,12 @@ class MPCConfig:
         return replace(self, seed=self.seed + i, horizon_s=horizon)
 
 
-
 #: A planner a quarter of the default's cost (issue 35): 64 samples instead of 128, drawn
 #: in mirrored pairs (``antithetic``), rolled out with an 8 ms planning step instead of 4 ms
 #: (``timestep_factor=4``), i.e. 358 rolled-out steps per simulated step against 1434.
 #: Not the default: on the clips measured it tracks less closely (docs/tracking_speed.md).
 FAST = MPCConfig(n_samples=64, timestep_factor=4, antithetic=True)
+
 
 class TrackingMPC:
     """The sampling-based (MPPI) tracking controller (module docstring).

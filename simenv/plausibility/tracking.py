@@ -539,8 +539,8 @@ def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
         bar.close()
         if planner is not None:
             planner.close()
-    rolled = planner.rollout_steps if planner is not None else 0
     wall = time.perf_counter() - wall
+    rolled = planner.rollout_steps if planner is not None else 0
     failed_at = run.failed_at
     tracked = n_frames if failed_at is None else failed_at + (0 if run.error else 1)
     ok = failed_at is None
