@@ -9,7 +9,8 @@ object in the comment lines under it, ``...`` standing for any value), the outpu
 keys and values, and where a comment under it says it prints `` `TEXT` ``, it prints TEXT. A
 ``bash`` command whose comment says ``not run by tests/test_readme.py:`` gives its reason
 there, visibly, and is skipped; so is a command with such a comment line under it, and every
-command of a block that opens with one. The ``text`` block of the command line's
+command of a block that opens with one; what it names must still exist (its input files,
+scripts, modules and ``simenv`` command). The ``text`` block of the command line's
 synopsis is checked against each command's ``--help``: every option it names exists.
 
 Commands that need earlier outputs find them because the README shows those steps first in
@@ -18,10 +19,12 @@ the same block: running one command alone runs the earlier commands of its block
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
 import resource
+import shlex
 import shutil
 import subprocess
 import sys
@@ -285,6 +288,31 @@ def test_readme_extraction() -> None:
     assert snippets[1].code == "cmd --x \\\n    --y   # note"
     assert _expected(snippets[1].expected) == {"k": 1, "v": None}
     assert synopsis_lines(text) == [(22, "simenv info FILE")]
+
+
+@pytest.mark.parametrize("snippet", [s for s in SNIPPETS if s.not_run], ids=lambda s: s.id)
+def test_readme_not_run_commands_name_real_things(snippet: Snippet, shared_data: Path) -> None:
+    """A command the test does not run still names what exists: its input files (under
+    ``assets/``, ``tests/``, ``benchmarks/``, ``../shared/data``), the script or module it runs,
+    and for ``simenv`` the command and KIND (the parser that runs it takes them)."""
+    from simenv.cli.main import build_parser
+
+    words = shlex.split(snippet.code.replace("\\\n", " "), comments=True)
+    while words and re.fullmatch(r"[A-Z_]+=\S*", words[0]):
+        words = words[1:]  # VAR=value prefixes
+    for word in words:
+        if word.startswith("../shared/data/"):
+            path = shared_data / word.removeprefix("../shared/data/")
+        elif word.split("/")[0] in ("assets", "tests", "benchmarks"):
+            path = REPO / word
+        else:
+            continue
+        assert list(path.parent.glob(path.name)), f"README line {snippet.line}: no {word}"
+    if words[:2] == ["python", "-m"]:
+        assert importlib.util.find_spec(words[2]), f"README line {snippet.line}: no {words[2]}"
+    elif words[0] == "simenv":
+        known, _ = build_parser().parse_known_args(words[1:3])
+        assert known.command == words[1]
 
 
 def test_readme_has_snippets() -> None:
