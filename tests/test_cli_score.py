@@ -21,3 +21,21 @@ def test_score_with_physics_shows_tracking_progress(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     assert len(run.stdout.strip().splitlines()) == 1
     assert re.search(r"track cmu_02_01_walk \(mpc\):.*/35 \[.*frame/s", run.stderr)
+
+
+def test_score_out_says_what_it_scored_and_skipped(tmp_path: Path, capsys) -> None:
+    """With --out, a run ends with one line counting the files scored, skipped (already in
+    the results: a rerun resumes) and failed; with --json it goes to stderr."""
+    from simenv.cli.main import main
+
+    out = tmp_path / "results.jsonl"
+    walk = str(asset_path(WALK))
+    assert main(["score", walk, "--no-physics", "--out", str(out)]) == 0
+    first = capsys.readouterr().out.strip().splitlines()
+    assert first[-1] == f"results in {out}: 1 file(s) scored, 0 skipped (already there), 0 failed"
+    assert main(["score", walk, "--no-physics", "--out", str(out), "--json"]) == 0
+    rerun = capsys.readouterr()
+    assert rerun.out == ""
+    assert rerun.err.strip().splitlines()[-1] == (
+        f"results in {out}: 0 file(s) scored, 1 skipped (already there), 0 failed")
+    assert len(out.read_text().splitlines()) == 1

@@ -135,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
     from simenv.plausibility.batch import (
         ScoreJob,
         calibrate_reference,
+        done_files,
         find_targets,
         index_entries,
         score_batch,
@@ -165,6 +166,9 @@ def run(args: argparse.Namespace) -> int:
             else:
                 _print_score(rec)
 
+    # Files already in --out are skipped by score_batch (a rerun resumes): counted here.
+    done = done_files(args.out) if args.out else set()
+    skipped = sum(str(t) in done for t in targets)
     records = score_batch(targets, job, jobs=args.jobs, backend=args.backend,
                           ray_address=args.ray_address, out=args.out,
                           progress=progress, on_result=show)
@@ -176,8 +180,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {index}")
     if job.reference is not None:
         _reference_summary(args, job.reference, records, report_dir)
-    if args.out and not args.json:
-        print(f"results in {args.out}")
+    if args.out:
+        failed = len({r.get("file") for r in records if "error" in r})
+        print(f"results in {args.out}: {len(targets) - skipped - failed} file(s) scored, "
+              f"{skipped} skipped (already there), {failed} failed",
+              file=sys.stderr if args.json else sys.stdout)
     # Every file was attempted and recorded; the status still says some input was bad.
     return EXIT_USER_ERROR if any("error" in r for r in records) else 0
 
