@@ -297,8 +297,7 @@ class Plan:
             # cast to float32.
             self.in_float32[s.slot] = (not isinstance(ft, np.generic)
                                        or bool(np.result_type(np.float32, ft) == np.float32))
-        self.args = (args[kernels.BONE], args[kernels.FOOT], args[kernels.FLOAT],
-                     args[kernels.JITTER], args[kernels.VELOCITY])
+        self.args = tuple(args[slot] for slot in range(kernels.N_METRICS))
 
 
 #: Whether results may be built from their field dicts (as ``copy`` and
@@ -432,7 +431,7 @@ def run(batch: ClipBatch, specs: Sequence[MetricSpec] | Plan) -> Scores:
         return Scores(batch, plan, tl, value, details, available, runs, offsets)
     span = np.empty(b_count)
     while True:
-        count = kernels.score(batch.positions, batch.idx, plan.enabled, *plan.args,
+        count = kernels.score(batch.positions, batch.idx, plan.enabled, plan.args,
                               plan.frame_thresholds, plan.in_float32, tl, value, details,
                               available, span, runs, offsets)
         if count <= len(runs):

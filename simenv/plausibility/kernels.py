@@ -28,6 +28,14 @@ numpy code, with one exception: the ballistic fit of :func:`floating` is the
 closed-form least-squares line instead of LAPACK's SVD solver, which moves
 the residual by at most a few 1e-13 relative (measured on the golden cases).
 
+All compiled code of the joint-level metrics lives in this one file, a
+metric's kernel included (its spec, in the metric's module of
+:mod:`simenv.plausibility.metrics`, names its slot): numba's cache compares
+only the source file of the function it caches, so a kernel edited in
+another file would leave the cached :func:`score` running the old one. A
+new kernel takes a slot number (and the count ``N_METRICS``), its
+placeholder arguments in :data:`IDLE_ARGS` and one branch in :func:`score`.
+
 Compilation: ``cache=True`` stores the machine code next to this module
 (``__pycache__``), so only the first call on a machine compiles: about 50 s
 of one core for each of the two forms of :func:`score`'s clips (one array,
@@ -445,11 +453,10 @@ def _violations(timeline: np.ndarray, threshold: float, in_float32: bool, out: n
 
 
 @njit(cache=True)
-def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tuple,
-          foot: tuple, flt: tuple, jit: tuple, vel: tuple, frame_thresholds: np.ndarray,
-          in_float32: np.ndarray, tl: np.ndarray, value: np.ndarray, details: np.ndarray,
-          available: np.ndarray, span: np.ndarray, runs: np.ndarray, offsets: np.ndarray
-          ) -> int:
+def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, args: tuple,
+          frame_thresholds: np.ndarray, in_float32: np.ndarray, tl: np.ndarray,
+          value: np.ndarray, details: np.ndarray, available: np.ndarray, span: np.ndarray,
+          runs: np.ndarray, offsets: np.ndarray) -> int:
     """Every enabled joint-level metric of every clip, in one pass per clip.
 
     Each clip's canonical keypoints are gathered once into float32
@@ -465,10 +472,10 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
             metres: a (B, T, S, 3) array or a typed list of (T, S, 3) arrays.
         idx: (J,) int64 source joint of each canonical keypoint.
         enabled: (6,) bool per metric slot (:data:`BONE` ... :data:`VELOCITY`).
-        bone, foot, flt, jit, vel: arguments of :func:`bone_length` (after
-            its clip), :func:`foot_skate`, :func:`floating`, :func:`jitter`
-            and :func:`velocity` (after their planes); unused when disabled,
-            but always of the same types.
+        args: per slot, the arguments of its kernel after its inputs
+            (:func:`bone_length` after its clip, the others after their planes
+            or heights; ``()`` for :func:`ground_penetration`); unused when
+            disabled, but always of the types of :data:`IDLE_ARGS`.
         frame_thresholds: (6,) per-frame limit of each metric's timeline;
             in_float32: (6,) bool, compare in float32 (see
             :func:`_violations`).
@@ -496,17 +503,18 @@ def score(positions: np.ndarray, idx: np.ndarray, enabled: np.ndarray, bone: tup
             if enabled[m]:
                 det = details[m, b]
                 if m == BONE:
-                    value[m, b], available[b] = bone_length(positions[b], *bone, line, det)
+                    value[m, b], available[b] = bone_length(positions[b], *args[BONE], line,
+                                                            det)
                 elif m == FOOT:
-                    value[m, b] = foot_skate(p, zmin, *foot, line, det)
+                    value[m, b] = foot_skate(p, zmin, *args[FOOT], line, det)
                 elif m == GROUND:
                     value[m, b] = ground_penetration(zmin, line, det)
                 elif m == FLOAT:
-                    value[m, b] = floating(p, zmin, *flt, line, det)
+                    value[m, b] = floating(p, zmin, *args[FLOAT], line, det)
                 elif m == JITTER:
-                    value[m, b] = jitter(p, *jit, line, det)
+                    value[m, b] = jitter(p, *args[JITTER], line, det)
                 else:
-                    value[m, b] = velocity(p, *vel, line, det)
+                    value[m, b] = velocity(p, *args[VELOCITY], line, det)
                 count = _violations(line, frame_thresholds[m], in_float32[m], tl[m, b], runs,
                                     count)
             offsets[b * N_METRICS + m + 1] = count
@@ -1200,12 +1208,13 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
     return tl.max()
 
 
-#: Arguments of a disabled metric slot for :func:`score`: never read, but of
-#: the types of the real ones, so that one compiled version serves every mix.
+#: Arguments of a disabled metric slot for :func:`score`, one entry per slot: never
+#: read, but of the types of the real ones, so that one compiled version serves every mix.
 IDLE_ARGS: dict[int, tuple] = {
     BONE: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), 0.0, 0.0),
     FOOT: (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.bool_), 0.0, 0.0, 0.0,
            0, 0, 0.0, 0.0),
+    GROUND: (),
     FLOAT: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0.0, 0.0, 0.0, 0.0, 0.0),
     JITTER: (False, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32), 0.0, 0.0, 0,
              0.0, 0.0, 0.0, 0.0, 0.0, np.zeros((0, 2), dtype=np.int64)),
