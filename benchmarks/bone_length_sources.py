@@ -48,7 +48,7 @@ from simenv.plausibility import bone_length
 from simenv.plausibility.batch import find_targets
 from simenv.plausibility.clips import norm3
 from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES, STRETCH_BONES, bone_stretch
-from simenv.plausibility.kinematic import bone_deviations
+from simenv.plausibility.metrics.bone_length import bone_deviations
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, SOURCE_THRESHOLDS, Thresholds
 
 REPO = Path(__file__).resolve().parents[1]

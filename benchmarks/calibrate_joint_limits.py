@@ -34,8 +34,8 @@ from doc_sections import replace_section
 
 from simenv.body.humanoid import JOINTS, RANGE_SOURCES, ROM_REFERENCES, ROM_SPREAD_DEG
 from simenv.io import bvh
-from simenv.plausibility.body import joint_limit_demand
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+from simenv.plausibility.metrics.joint_limits import joint_limit_demand
 
 BEGIN, END = "<!-- joint-ranges:begin -->", "<!-- joint-ranges:end -->"
 

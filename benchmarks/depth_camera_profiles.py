@@ -75,7 +75,7 @@ from simenv.io.loader import load
 from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, SOURCE_BODY_THRESHOLDS
 from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES, STRETCH_BONES
-from simenv.plausibility.kinematic import bone_deviations, measured_bones
+from simenv.plausibility.metrics.bone_length import bone_deviations, measured_bones
 from simenv.plausibility.profiles import PROFILE_FILE, Profile, detect_source
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 

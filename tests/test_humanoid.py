@@ -271,7 +271,8 @@ def test_fit_with_missing_keypoints_falls_back_and_says_so(shared_data) -> None:
 def test_fit_without_a_chest_keypoint_keeps_the_trunk_length(shared_data) -> None:
     from simenv.body.retarget import retarget
     from simenv.data import interaction_data as idata
-    from simenv.plausibility import body
+    from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+    from simenv.plausibility.metrics.joint_limits import joint_limits
 
     walk = idata.to_layout(bvh.read(shared_data / "cmu/bvh/02_01.bvh")).slice(0, 240)
     assert "chest" not in walk.skeleton.joint_names
@@ -287,7 +288,7 @@ def test_fit_without_a_chest_keypoint_keeps_the_trunk_length(shared_data) -> Non
     # deg past them in the relaxed fit) with a 20 mm mean residual.
     fit = retarget(walk, fit_humanoid(walk))
     assert float(fit.residuals.mean()) < 0.003
-    assert body.joint_limits(walk).value <= body.DEFAULT_BODY_THRESHOLDS.joint_limit_max_deg
+    assert joint_limits(walk).value <= DEFAULT_BODY_THRESHOLDS.joint_limit_max_deg
 
 
 def test_fit_takes_a_spine_rigid_on_the_pelvis_as_the_lumbar_joint(shared_data) -> None:

@@ -14,17 +14,12 @@ from simenv.body.geometry import body_poses, check_qpos
 from simenv.body.retarget import retarget
 from simenv.core.errors import MotionError, PhysicsError
 from simenv.core.motion import Interaction
-from simenv.plausibility.body import (
-    body_floating,
-    body_penetration,
-    contact,
-    inter_penetration,
-    joint_limit_excess,
-    joint_limits,
-    pair_distances,
-    self_contact_pairs,
-    self_penetration,
-)
+from simenv.plausibility.metrics.contact import contact, pair_distances
+from simenv.plausibility.metrics.floating import body_floating
+from simenv.plausibility.metrics.ground_penetration import body_penetration
+from simenv.plausibility.metrics.inter_penetration import inter_penetration
+from simenv.plausibility.metrics.joint_limits import joint_limit_excess, joint_limits
+from simenv.plausibility.metrics.self_penetration import self_contact_pairs, self_penetration
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
 

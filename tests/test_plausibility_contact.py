@@ -11,7 +11,7 @@ from simenv.body.foot_contact import foot_contacts, foot_keypoints
 from simenv.core.motion import Motion
 from simenv.io import bvh
 from simenv.plausibility import floating, foot_skate, ground_penetration
-from simenv.plausibility.contact import ballistic_residual
+from simenv.plausibility.metrics.floating import ballistic_residual
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
 
 

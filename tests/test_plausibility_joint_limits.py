@@ -19,7 +19,8 @@ from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import retarget
 from simenv.core.motion import Motion
 from simenv.io import asf_amc, bvh
-from simenv.plausibility.body import (
+from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
+from simenv.plausibility.metrics.joint_limits import (
     hinge_keypoints,
     joint_limit_clamp_cost,
     joint_limit_demand,
@@ -30,7 +31,6 @@ from simenv.plausibility.body import (
     relaxed_humanoid,
     sustained_max,
 )
-from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 
 THR = DEFAULT_BODY_THRESHOLDS.joint_limit_max_deg
 

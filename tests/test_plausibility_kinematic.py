@@ -24,12 +24,9 @@ from simenv.plausibility import (
     velocity,
 )
 from simenv.plausibility.clips import norm3
-from simenv.plausibility.kinematic import (
-    bone_deviations,
-    bone_names,
-    speed_limits,
-    windowed_normalized_jerk,
-)
+from simenv.plausibility.metrics.bone_length import bone_deviations, bone_names
+from simenv.plausibility.metrics.jitter import windowed_normalized_jerk
+from simenv.plausibility.metrics.velocity import speed_limits
 
 HUMANML3D = Path(__file__).parent / "data" / "humanml3d" / "new_joints" / "012314.npy"
 

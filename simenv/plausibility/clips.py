@@ -459,7 +459,7 @@ def score_clip(motion: Motion, spec: Callable[[ClipBatch, Settings], MetricSpec]
                thresholds: Settings) -> MetricResult:
     """One joint-level metric of one motion: ``spec(batch, thresholds)`` of the
     motion's one-clip batch, run by :func:`score` (the per-metric functions of
-    :mod:`simenv.plausibility.kinematic` and :mod:`simenv.plausibility.contact`)."""
+    :mod:`simenv.plausibility.metrics`)."""
     batch = ClipBatch([motion])
     return score(batch, [spec(batch, thresholds)])[0][0]
 

@@ -57,7 +57,7 @@ RAMP_S = 0.2
 HOVER_MIN_S = 1.0
 
 #: Shortest source bone :func:`bone_stretch` stretches (metres): the bones
-#: :func:`~simenv.plausibility.kinematic.bone_length` skips are shorter.
+#: :func:`~simenv.plausibility.metrics.bone_length.bone_length` skips are shorter.
 BONE_MIN_LENGTH_M = DEFAULT_THRESHOLDS.bone_min_length_m
 
 #: Limb bones :func:`bone_stretch` chooses from, by the canonical keypoint at
@@ -208,7 +208,7 @@ def bone_stretch(motion: Motion, strength: float, *, seed: int = 0,
     at the child end) the one above it is taken. It grows by ``strength`` of
     its length, ``L' = (1 + strength) L``, by translating its child joint and
     everything below it along the bone, so it is one of the bones
-    :func:`~simenv.plausibility.kinematic.bone_length` measures and every
+    :func:`~simenv.plausibility.metrics.bone_length.bone_length` measures and every
     other bone keeps its length. The stretch ramps in and out
     (:data:`RAMP_S`) over a seeded segment covering 25-40 % of the clip, so
     that the stretch itself is smooth (no teleport).

@@ -15,7 +15,7 @@ allocates them and turns them into results.
 
 Numerics: every kernel does the same IEEE operations, in the same order, as
 the numpy formulas in the metric docstrings of
-:mod:`simenv.plausibility.kinematic` and :mod:`simenv.plausibility.contact`
+:mod:`simenv.plausibility.metrics`
 (numba adds no fast-math or FMA contraction unless asked, and none is
 asked): norms are ``sqrt((x*x + y*y) + z*z)``; differences of differences
 are taken as ``np.diff`` does; medians and percentiles interpolate exactly
@@ -529,7 +529,7 @@ def bone_length(clip: np.ndarray, parent: np.ndarray, child: np.ndarray, tol: np
                 min_length: float, q: float, tl: np.ndarray, details: np.ndarray
                 ) -> tuple[float, bool]:
     """Bone-length consistency of one clip on its source skeleton's bones (see
-    :func:`simenv.plausibility.kinematic.bone_length`).
+    :func:`simenv.plausibility.metrics.bone_length.bone_length`).
 
     Reads the clip's own joints, not the canonical planes: a source bone may
     join joints that are no canonical keypoint (SMPL's collars, CMU's
@@ -781,8 +781,8 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
            fa3: float, network: np.ndarray, timeline: np.ndarray, details: np.ndarray
            ) -> float:
     """Windowed normalized jerk of one clip (see
-    :func:`simenv.plausibility.kinematic.jitter` and
-    :func:`~simenv.plausibility.kinematic.windowed_normalized_jerk`).
+    :func:`simenv.plausibility.metrics.jitter.jitter` and
+    :func:`~simenv.plausibility.metrics.jitter.windowed_normalized_jerk`).
 
     Args:
         p: (3, J, T) planes at ``fps``.
@@ -851,7 +851,7 @@ def jitter(p: np.ndarray, resample: bool, src: np.ndarray, weight: np.ndarray, f
 def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float,
              tl: np.ndarray, details: np.ndarray) -> float:
     """Speeds against their limits and teleports of one clip (see
-    :func:`simenv.plausibility.kinematic.velocity`); T >= 2.
+    :func:`simenv.plausibility.metrics.velocity.velocity`); T >= 2.
 
     Args:
         p: (3, J, T) planes. limits: (J,) m/s. jump_limit: metres.
@@ -921,7 +921,7 @@ def velocity(p: np.ndarray, limits: np.ndarray, fps: float, jump_limit: float,
 @njit(cache=True)
 def ground_penetration(zmin: np.ndarray, depth: np.ndarray, details: np.ndarray) -> float:
     """Depth below the floor of one clip (see
-    :func:`simenv.plausibility.contact.ground_penetration`).
+    :func:`simenv.plausibility.metrics.ground_penetration.ground_penetration`).
 
     Args:
         zmin: (T,) height of the lowest keypoint, metres.
@@ -1037,7 +1037,7 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
                min_run: int, window: int, contact_speed: float, to_mm: float,
                tl: np.ndarray, details: np.ndarray) -> float:
     """Foot skating of one clip (see
-    :func:`simenv.plausibility.contact.foot_skate`); T >= 2.
+    :func:`simenv.plausibility.metrics.foot_skate.foot_skate`); T >= 2.
 
     Args:
         p: (3, J, T) planes. zmin: (T,) lowest keypoint height.
@@ -1159,7 +1159,7 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
              hand_reach: float, float_height: float, fps: float, gravity: float,
              tolerance: float, tl: np.ndarray, details: np.ndarray) -> float:
     """Floating (airborne, not ballistic) of one clip (see
-    :func:`simenv.plausibility.contact.floating`); T >= 3.
+    :func:`simenv.plausibility.metrics.floating.floating`); T >= 3.
 
     Args:
         p: (3, J, T) planes. zmin: (T,) lowest keypoint height.
