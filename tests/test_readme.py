@@ -10,7 +10,8 @@ keys and values, and where a comment under it says it prints `` `TEXT` ``, it pr
 ``bash`` command whose comment says ``not run by tests/test_readme.py:`` gives its reason
 there, visibly, and is skipped; so is a command with such a comment line under it, and every
 command of a block that opens with one; what it names must still exist (its input files,
-scripts, modules and ``simenv`` command). The ``text`` block of the command line's
+scripts, modules and ``simenv`` command) and, where the parser that runs it can be built
+without running it, its options parse. The ``text`` block of the command line's
 synopsis is checked against each command's ``--help``: every option it names exists.
 
 Commands that need earlier outputs find them because the README shows those steps first in
@@ -290,11 +291,39 @@ def test_readme_extraction() -> None:
     assert synopsis_lines(text) == [(22, "simenv info FILE")]
 
 
+def _parser_of(words: list[str]):
+    """The parser that ``simenv WORDS...`` runs with, and the options it parses, when it can be
+    built without running the command (None for the training and evaluation scripts that
+    build theirs when they run)."""
+    from simenv.cli.common import command_parser
+    from simenv.cli.evaluate import classifier_parser
+    from simenv.cli.main import build_parser
+    from simenv.cli.rehearse import rehearsal_parser
+
+    command, kind = words[1], words[2] if len(words) > 2 else None
+    if command == "rehearse":
+        return rehearsal_parser()[0], words[2:]
+    if command == "eval" and kind in ("classifier", "recogniser"):
+        return classifier_parser(f"simenv eval {kind}"), words[3:]
+    if command == "train" and kind in ("classifier", "recogniser"):
+        from simenv.learning import train_classifier
+        from simenv.perception import train_recogniser
+
+        parser = command_parser(f"simenv train {kind}", None)
+        (train_classifier if kind == "classifier" else train_recogniser).add_train_arguments(
+            parser)
+        return parser, words[3:]
+    if command in ("train", "eval"):
+        return None, []
+    return build_parser(), words[1:]
+
+
 @pytest.mark.parametrize("snippet", [s for s in SNIPPETS if s.not_run], ids=lambda s: s.id)
 def test_readme_not_run_commands_name_real_things(snippet: Snippet, shared_data: Path) -> None:
     """A command the test does not run still names what exists: its input files (under
     ``assets/``, ``tests/``, ``benchmarks/``, ``../shared/data``), the script or module it runs,
-    and for ``simenv`` the command and KIND (the parser that runs it takes them)."""
+    and for ``simenv`` the command and KIND; its options parse where the parser that runs it
+    can be built without running it."""
     from simenv.cli.main import build_parser
 
     words = shlex.split(snippet.code.replace("\\\n", " "), comments=True)
@@ -313,6 +342,12 @@ def test_readme_not_run_commands_name_real_things(snippet: Snippet, shared_data:
     elif words[0] == "simenv":
         known, _ = build_parser().parse_known_args(words[1:3])
         assert known.command == words[1]
+        parser, options = _parser_of(words)
+        if parser is not None:
+            try:
+                parser.parse_args(options)
+            except SystemExit:
+                pytest.fail(f"README line {snippet.line}: {parser.prog} rejects {options}")
 
 
 def test_readme_has_snippets() -> None:
