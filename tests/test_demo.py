@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import shutil
+from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
@@ -19,7 +20,14 @@ from simenv.assets import WALK, asset_path
 from simenv.body.render import render_result
 from simenv.body.retarget import retarget
 from simenv.cli.common import save_npz, summary
-from simenv.cli.demo_job import export_glb, write_poster
+from simenv.cli.demo_job import (
+    demo_score_config,
+    export_glb,
+    planner_record,
+    planning_cost,
+    stage,
+    write_poster,
+)
 from simenv.cli.demo_page import (
     check_links,
     check_page,
@@ -30,10 +38,12 @@ from simenv.cli.demo_page import (
     write_page,
 )
 from simenv.cli.main import main
+from simenv.control import FAST, MPCConfig
 from simenv.core.errors import SimenvError
 from simenv.envs.rehearsal import rehearse
 from simenv.io.loader import load
 from simenv.plausibility.html_report import report_score, write_index, write_report
+from simenv.plausibility.metric import DEFAULT_SCORE_CONFIG, ScoreConfig
 from simenv.plausibility.report import score
 from simenv.room.session import GestureEvent, Session
 
@@ -74,13 +84,15 @@ def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         gesture = ("smell", 0.2, 0.5)
         folder = out / "rehearsal"
         reh = rehearse(Session(clip, (GestureEvent(*gesture),)), folder,
-                       scenario="discomfort", agent="labels", width=160, height=120)
+                       scenario="discomfort", agent="labels", width=320, height=240)
         rehearsal = {"session": WALK, "gesture": list(gesture), "reactions": reh["reactions"],
                      "folder": str(folder), "report": str(folder / "report.html"),
                      "video": str(folder / "rehearsal.mp4"),
                      "poster": write_poster(folder / "rehearsal.mp4"), "glb": None}
         write_page(out, {"clips": {"walk": entry}, "rehearsal": rehearsal,
-                         "total_seconds": 1.0, "data_acknowledgement": "mocap.cs.cmu.edu"})
+                         "scoring": planner_record(demo_score_config()),
+                         "total_seconds": 1.0, "cpu_seconds": 1.5,
+                         "data_acknowledgement": "mocap.cs.cmu.edu"})
     finally:
         os.chdir(cwd)
     moved = root / "moved" / "elsewhere"
@@ -133,6 +145,40 @@ def test_page_links_are_relative_and_survive_a_move(demo_dir: Path):
     text = page.read_text()
     assert "<video" in text and "type='video/webm'" in text
     assert text.index("walk.webm") < text.index("walk.mp4'")  # browsers play VP8, not mp4v
+
+
+def test_page_states_the_planner_of_its_verdicts(demo_dir: Path):
+    text = (demo_dir / "index.html").read_text()
+    demo, shipped = demo_score_config().mpc, DEFAULT_SCORE_CONFIG.mpc
+    assert (f"{demo.n_samples} samples per replan" in text
+            and f"simenv score plans with {shipped.n_samples} samples" in text)
+    assert "ran in 1 s (2 s of CPU)" in text
+
+
+def test_demo_scores_as_simenv_score_with_the_fast_planner():
+    config, shipped = demo_score_config(), DEFAULT_SCORE_CONFIG
+    # FAST's search, the scorer's seeds and retries; every threshold is the scorer's.
+    assert config.mpc == replace(FAST, seed=shipped.mpc.seed, attempts=shipped.mpc.attempts,
+                                 retry_horizon_s=shipped.mpc.retry_horizon_s,
+                                 nthread=shipped.mpc.nthread)
+    assert planning_cost(config.mpc) < planning_cost(shipped.mpc)
+    assert replace(config, mpc=shipped.mpc, tracking_assisted_detail=True) == shipped
+    assert not config.tracking_assisted_detail
+    # A cheaper base (the suite's quick planner) is kept as it is.
+    quick = ScoreConfig(mpc=MPCConfig(n_samples=16, horizon_s=0.25))
+    assert demo_score_config(quick).mpc == quick.mpc
+    record = planner_record(config)
+    mpc = shipped.mpc
+    assert record["n_samples"] == config.mpc.n_samples and record["attempts"] == mpc.attempts
+    assert (f"up to {mpc.attempts} seeds (the further ones over {mpc.retry_horizon_s:g} s)"
+            in record["text"])
+
+
+def test_stage_records_wall_and_cpu_seconds():
+    stages: dict[str, dict[str, float]] = {}
+    with stage(stages, "busy"):
+        sum(i * i for i in range(1_000_000))
+    assert set(stages["busy"]) == {"wall_s", "cpu_s"} and stages["busy"]["cpu_s"] > 0
 
 
 def test_check_links_catches_absolute_and_missing_links(tmp_path: Path):

@@ -23,23 +23,37 @@ from __future__ import annotations
 
 import json
 import math
+import resource
 import time
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+from dataclasses import replace
+from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.body.render import render_result
 from simenv.cli.common import describe, retarget_clip, save_npz, summary
 from simenv.cli.demo_page import write_page
+from simenv.control import FAST, MPCConfig
 from simenv.core.errors import SimenvError
-from simenv.envs.reaction_rehearsal import rehearse_reaction
+from simenv.core.motion import Interaction
+from simenv.data import interaction_data as idata
+from simenv.envs.reaction_rehearsal import generate_reaction, user_motion
 from simenv.envs.rehearsal import rehearse
 from simenv.io.loader import load
+from simenv.learning.eval_interaction import SHARED
 from simenv.models import available
+from simenv.models import load as load_model
+from simenv.plausibility import report as report_module
 from simenv.plausibility.html_report import IndexEntry, report_score, write_index, write_report
-from simenv.plausibility.report import score
+from simenv.plausibility.metric import ScoreConfig
+from simenv.plausibility.report import PlausibilityReport, score
 from simenv.room.export import export_result, export_room
 from simenv.room.session import GestureEvent, Session
 
@@ -66,8 +80,68 @@ REACTION_FILE = "18_01.bvh"
 REACTION_SECONDS = 4.0
 
 
+def demo_score_config(base: ScoreConfig | None = None) -> ScoreConfig:
+    """The demo's scoring: ``base`` (default: ``simenv score``'s,
+    :data:`simenv.plausibility.report.DEFAULT_SCORE_CONFIG`, read at the call) planning with
+    :data:`simenv.control.FAST` (fewer rolled-out steps than the default planner, less close
+    tracking: docs/tracking_speed.md) with ``base``'s seeds, attempts and retry horizon, or
+    with ``base``'s own planner where that is the cheaper, and without the assisted PD run
+    ``simenv score`` reports beside the verdict as a detail. A smaller search can only fail
+    to find a way a larger one finds: a clip it tracks is one the body can perform on its
+    own; a failure it reports may be the search's."""
+    base = base or report_module.DEFAULT_SCORE_CONFIG
+    own = base.mpc
+    fast = replace(FAST, seed=own.seed, attempts=own.attempts,
+                   retry_horizon_s=own.retry_horizon_s, nthread=own.nthread)
+    mpc = min((fast, own), key=planning_cost)
+    return replace(base, mpc=mpc, tracking_assisted_detail=False)
+
+
+def planning_cost(mpc: MPCConfig) -> float:
+    """Planning-model steps a planner rolls out per physics step, first attempt (samples x
+    horizon steps per replan / physics steps between replans)."""
+    return mpc.n_samples * mpc.horizon_s / mpc.timestep_factor / mpc.replan_steps
+
+
+#: Wall and CPU seconds of each stage of a run, by stage name.
+Stages = dict[str, dict[str, float]]
+
+
+@contextmanager
+def stage(stages: Stages, name: str) -> Iterator[None]:
+    """Record the block's wall time and CPU time (this process, every thread), seconds, as
+    ``stages[name] = {"wall_s", "cpu_s"}``."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    try:
+        yield
+    finally:
+        stages[name] = {"wall_s": round(time.perf_counter() - wall, 2),
+                        "cpu_s": round(time.process_time() - cpu, 2)}
+
+
+def planner_record(config: ScoreConfig) -> dict[str, Any]:
+    """What the demo's physics verdicts were computed with: the planner's settings, whether
+    the assisted PD run was reported, and the same in words (``text``) for the page."""
+    mpc = config.mpc
+    retry = mpc.horizon_s if mpc.retry_horizon_s is None else mpc.retry_horizon_s
+    seeds = (f"up to {mpc.attempts} seeds (the further ones over {retry:g} s)"
+             if mpc.attempts > 1 else "one seed")
+    shipped = report_module.DEFAULT_SCORE_CONFIG.mpc
+    text = (f"unassisted MPC with {mpc.n_samples} samples per replan"
+            f"{' in mirrored pairs' if mpc.antithetic else ''} over {mpc.horizon_s:g} s, "
+            f"planning step {mpc.timestep_factor} physics steps, {seeds}; simenv score plans "
+            f"with {shipped.n_samples} samples, planning step {shipped.timestep_factor} "
+            f"physics steps ({planning_cost(shipped) / planning_cost(mpc):.0f}x the "
+            "rolled-out steps)")
+    return {"n_samples": mpc.n_samples, "antithetic": mpc.antithetic,
+            "timestep_factor": mpc.timestep_factor, "horizon_s": mpc.horizon_s,
+            "attempts": mpc.attempts, "retry_horizon_s": retry, "seed": mpc.seed,
+            "assisted_detail": config.tracking_assisted_detail, "text": text}
+
+
 def run_demo(
-    out_dir: str | Path, *, stride: int | None = None, width: int = 320, height: int = 240
+    out_dir: str | Path, *, stride: int | None = None, width: int = 320, height: int = 240,
+    config: ScoreConfig | None = None,
 ) -> dict[str, Any]:
     """Run the demo, write its files into ``out_dir`` and print where they are.
 
@@ -76,32 +150,54 @@ def run_demo(
         stride: render every ``stride``-th frame; default chosen per clip so that at most
             :data:`RENDER_BUDGET` frames are rendered.
         width, height: video size in pixels.
+        config: the scoring of the clips and of the reaction (default
+            :func:`demo_score_config`).
 
     Returns:
-        The summary written to ``out_dir/summary.json``.
+        The summary written to ``out_dir/summary.json``; ``stages`` holds each stage's wall
+        and CPU seconds, ``scoring`` the planner of the verdicts (:func:`planner_record`).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+    config = config or demo_score_config()
+    started, cpu = time.perf_counter(), _cpu_seconds()
+    stages: Stages = {}
     clips: dict[str, Any] = {}
-    index_rows: list[IndexEntry] = []
-    for name, asset in DEMO_CLIPS:
-        clips[name], row = _demo_clip(name, asset, out_dir, stride=stride, width=width,
-                                      height=height)
-        index_rows.append(row)
-    rehearsal = _rehearsal(out_dir / "rehearsal", width=width, height=height)
-    reaction = _reaction(out_dir / "reaction")
+    print(f"[physics] scoring in a second process ({planner_record(config)['text']})",
+          flush=True)
+    # The physics (MPC tracking) runs beside the rendering, which keeps one core busy.
+    # "spawn": a fresh interpreter, not a fork of one holding an OpenGL context and threads.
+    with ProcessPoolExecutor(max_workers=1, mp_context=get_context("spawn")) as physics:
+        scoring = {name: physics.submit(score_clip, name, asset, out_dir, config)
+                   for name, asset in DEMO_CLIPS}
+        answer = physics.submit(react, out_dir / "reaction", config)
+        for name, asset in DEMO_CLIPS:
+            clips[name] = _demo_clip(name, asset, out_dir, stages, stride=stride,
+                                     width=width, height=height)
+        with stage(stages, "rehearsal"):
+            rehearsal = _rehearsal(out_dir / "rehearsal", width=width, height=height)
+        index_rows: list[IndexEntry] = []
+        for name, job in scoring.items():
+            clips[name]["plausibility"], row, stages[f"{name}: score"] = job.result()
+            index_rows.append(row)
+        reaction, stages["reaction"] = answer.result()
     report = {
         "clips": clips,
         "rehearsal": rehearsal,
         "reaction": reaction,
+        "scoring": planner_record(config),
+        "stages": stages,
         "total_seconds": round(time.perf_counter() - started, 3),
+        "cpu_seconds": round(_cpu_seconds() - cpu, 3),
         "data_acknowledgement": CMU_ACKNOWLEDGEMENT,
     }
     summary_path = out_dir / "summary.json"
     summary_path.write_text(json.dumps(report, indent=2) + "\n")
     index = write_index(index_rows, out_dir / "report")
     page = write_page(out_dir, report)
+    print("[time] " + "; ".join(f"{k} {v['wall_s']:.1f} s ({v['cpu_s']:.1f} s CPU)"
+                                for k, v in stages.items()))
+    print(f"[time] total {report['total_seconds']:.0f} s ({report['cpu_seconds']:.0f} s CPU)")
     print(f"wrote {summary_path}")
     print(f"wrote {index}")
     for name in ("rehearsal.mp4", "report.html", "summary.json", "log.jsonl"):
@@ -117,54 +213,71 @@ def run_demo(
     return report
 
 
-def _demo_clip(name: str, asset: str, out_dir: Path, *, stride: int | None, width: int,
-               height: int) -> tuple[dict[str, Any], IndexEntry]:
-    """One bundled clip: retargeted (NPZ, GLB), rendered (MP4, WebM, poster) and scored
-    (report). Returns its summary entry and its row of the reports' index."""
-    source = asset_path(asset)
+def _cpu_seconds() -> float:
+    """CPU seconds of this process (every thread) and of its children that have ended."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), \
+        resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def _demo_clip(name: str, asset: str, out_dir: Path, stages: Stages, *, stride: int | None,
+               width: int, height: int) -> dict[str, Any]:
+    """One bundled clip retargeted (NPZ, GLB) and rendered (MP4, WebM, poster); returns its
+    summary entry (:func:`score_clip` adds its ``plausibility``)."""
     print(f"[{name}] loading bundled {asset}")
-    clip = load(source)
-    info = describe(clip)
-    print(f"[{name}] retargeting {info['frames']} frames ({info['people']} people)")
-    result = retarget_clip(clip)
-    entry = summary(result)
-    npz = save_npz(result, out_dir / f"{name}.npz")
-    glb = export_glb(result, out_dir / f"{name}.glb")
+    with stage(stages, f"{name}: retarget"):
+        clip = load(asset_path(asset))
+        info = describe(clip)
+        print(f"[{name}] retargeting {info['frames']} frames ({info['people']} people)")
+        result = retarget_clip(clip)
+        entry = summary(result)
+        npz = save_npz(result, out_dir / f"{name}.npz")
+        glb = export_glb(result, out_dir / f"{name}.glb")
     clip_stride = stride or max(1, math.ceil(entry["frames"] / RENDER_BUDGET))
-    render_start = time.perf_counter()
-    video = render_result(result, out_dir / f"{name}.mp4", stride=clip_stride,
-                          width=width, height=height, progress=True, web=True)
+    with stage(stages, f"{name}: render"):
+        video = render_result(result, out_dir / f"{name}.mp4", stride=clip_stride,
+                              width=width, height=height, progress=True, web=True)
+        poster = write_poster(video)
     entry.update(
         asset=asset,
         info=info,
         npz=str(npz),
         glb=None if glb is None else str(glb),
         video=str(video),
-        poster=write_poster(video),
+        poster=poster,
         render_stride=clip_stride,
         rendered_frames=len(range(0, entry["frames"], clip_stride)),
         video_fps=entry["fps"] / clip_stride,
-        render_seconds=round(time.perf_counter() - render_start, 3),
+        render_seconds=stages[f"{name}: render"]["wall_s"],
     )
-    print(f"[{name}] scoring physical plausibility")
-    scored = score(clip)
-    page = write_report(scored, out_dir / "report" / name, video=False)
-    row = (str(source), page, report_score(scored), scored.verdict)
-    entry["plausibility"] = {
+    print(
+        f"[{name}] residual mean {entry['mean_residual_m'] * 100:.2f} cm, p95 "
+        f"{entry['p95_residual_m'] * 100:.2f} cm; retarget {entry['seconds']:.2f} s, "
+        f"render {entry['render_seconds']:.1f} s ({entry['rendered_frames']} frames, "
+        f"every {clip_stride})", flush=True)
+    return entry
+
+
+def score_clip(name: str, asset: str, out_dir: Path, config: ScoreConfig
+               ) -> tuple[dict[str, Any], IndexEntry, dict[str, float]]:
+    """Score the bundled ``asset``'s physical plausibility with ``config`` into
+    ``out_dir/report/<name>/``. Returns the clip's ``plausibility`` summary entry, its row of
+    the reports' index and the stage's wall and CPU seconds."""
+    stages: Stages = {}
+    source = asset_path(asset)
+    with stage(stages, name):
+        scored = score(load(source), config=config)
+        page = write_report(scored, out_dir / "report" / name, video=False)
+    entry = {
         "verdict": scored.verdict,
         "report": str(page),
         "people": [{"name": p.name, "verdict": p.verdict, "score": round(p.score, 1),
                     "failed": p.failed} for p in scored.people],
     }
     print(f"[{name}] plausibility: {scored.verdict} (" + ", ".join(
-        f"{p.name} {p.score:.0f}" for p in scored.people) + ")")
-    print(
-        f"[{name}] residual mean {entry['mean_residual_m'] * 100:.2f} cm, p95 "
-        f"{entry['p95_residual_m'] * 100:.2f} cm; retarget {entry['seconds']:.2f} s, "
-        f"render {entry['render_seconds']:.1f} s ({entry['rendered_frames']} frames, "
-        f"every {clip_stride})"
-    )
-    return entry, row
+        f"{p.name} {p.score:.0f}" for p in scored.people)
+        + f"); scored in {stages[name]['wall_s']:.1f} s", flush=True)
+    return entry, (str(source), page, report_score(scored), scored.verdict), stages[name]
 
 
 def _rehearsal(out_dir: Path, *, width: int, height: int) -> dict[str, Any]:
@@ -191,24 +304,86 @@ def _rehearsal(out_dir: Path, *, width: int, height: int) -> dict[str, Any]:
             "glb": None if room is None else str(room)}
 
 
-def _reaction(out_dir: Path) -> dict[str, Any]:
-    """:data:`REACTION_MODEL` answers :data:`REACTION_FILE` of the handshake pair
-    (tracked and scored)."""
+def reaction_clip(seconds: float = REACTION_SECONDS) -> tuple[Interaction, dict[str, Any]]:
+    """Person A of the handshake pair (:data:`REACTION_FILE`, first ``seconds``) and
+    :data:`REACTION_MODEL`'s answer, as ``simenv rehearse --agent`` generates it
+    (:func:`simenv.envs.reaction_rehearsal.generate_reaction`: 18 keypoints at 25 fps, the
+    agent starting where the nearest training window's partner stood; without the shared
+    corpus, the mirrored user). Returns the pair and where the agent started."""
+    user = user_motion(asset_path(HANDSHAKE_PAIR) / REACTION_FILE)
+    user = user.slice(0, max(2, int(round(seconds * user.fps))))
+    windows = None
+    if SHARED.is_dir():
+        every = idata.make_windows(idata.load_recordings(SHARED))
+        windows = every.subset(idata.split_by_recording(every).train)
+    return generate_reaction(user, load_model(REACTION_MODEL), windows)
+
+
+def react(out_dir: Path, config: ScoreConfig) -> tuple[dict[str, Any], dict[str, float]]:
+    """:func:`_reaction`, and its wall and CPU seconds."""
+    stages: Stages = {}
+    with stage(stages, "reaction"):
+        answer = _reaction(out_dir, config)
+    return answer, stages["reaction"]
+
+
+def _reaction(out_dir: Path, config: ScoreConfig) -> dict[str, Any]:
+    """:data:`REACTION_MODEL` answers :data:`REACTION_FILE` of the handshake pair, tracked
+    and scored with ``config``; writes ``reaction.npz``, ``report/report.html`` and
+    ``summary.json`` as ``simenv rehearse --agent`` does. Returns the demo's record."""
     if REACTION_MODEL not in available():
-        print(f"[reaction] {REACTION_MODEL} is not shipped in assets/models; skipped")
+        print(f"[reaction] {REACTION_MODEL} is not shipped in assets/models; skipped",
+              flush=True)
         return {"skipped": f"{REACTION_MODEL} not shipped"}
     session = f"{HANDSHAKE_PAIR}/{REACTION_FILE}"
     print(f"[reaction] {REACTION_MODEL} answers {session} (first "
-          f"{REACTION_SECONDS:g} s): generate, retarget, track, score")
-    s = rehearse_reaction(asset_path(HANDSHAKE_PAIR) / REACTION_FILE, REACTION_MODEL, out_dir,
-                          seconds=REACTION_SECONDS, video=False)
+          f"{REACTION_SECONDS:g} s): generate, retarget, track, score", flush=True)
+    t0 = time.perf_counter()
+    inter, start = reaction_clip()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out_dir / "reaction.npz", user=inter.actor.positions,
+                        agent=inter.reactor.positions, fps=np.float64(inter.actor.fps),
+                        joints=np.array(idata.INTER18_JOINTS))
+    scored = score(inter, physics=True, config=config)
+    report = str(write_report(scored, out_dir / "report", video=False))
+    s = _reaction_summary(scored, session, inter, start, report, config)
+    s["seconds"] = time.perf_counter() - t0
+    (out_dir / "summary.json").write_text(json.dumps(s, indent=1) + "\n")
     agent = s["agent"]
     print(f"[reaction] agent {agent['verdict']} (score {agent['score']:.0f}; failed: "
-          f"{', '.join(agent['failed']) or 'none'}); interaction {s['interaction']['verdict']}")
+          f"{', '.join(agent['failed']) or 'none'}); interaction {s['interaction']['verdict']}",
+          flush=True)
     return {"model": s["model"], "session": session, "frames": s["frames"],
             "agent": {k: agent[k] for k in ("verdict", "score", "failed")},
-            "interaction": s["interaction"]["verdict"], "start": s["start"],
-            "report": s.get("report"), "folder": str(out_dir)}
+            "interaction": s["interaction"]["verdict"], "start": start,
+            "report": report, "folder": str(out_dir)}
+
+
+def _reaction_summary(scored: PlausibilityReport, session: str, inter: Interaction,
+                      start: dict[str, Any], report: str, config: ScoreConfig
+                      ) -> dict[str, Any]:
+    """``reaction/summary.json`` in the layout of ``simenv rehearse --agent``'s, plus the
+    planner of its verdicts (``scoring``)."""
+    agent, user = scored.people[1], scored.people[0]
+    return {
+        "session": session, "model": REACTION_MODEL, "frames": inter.actor.num_frames,
+        "fps": inter.actor.fps, "start": start,
+        "agent": {"verdict": agent.verdict, "score": agent.score, "failed": agent.failed,
+                  "metrics": {k: {"value": _plain(m.value), "threshold": _plain(m.threshold),
+                                  "passed": m.passed, "unit": m.unit}
+                              for k, m in agent.metrics.items()}},
+        "user": {"verdict": user.verdict, "score": user.score},
+        "interaction": {"verdict": scored.verdict, **{
+            k: {"value": _plain(m.value), "passed": m.passed}
+            for k, m in (scored.interaction or {}).items()}},
+        "scoring": planner_record(config),
+        "report": report,
+    }
+
+
+def _plain(x: Any) -> Any:
+    """A JSON-ready number: NumPy scalars as Python ones."""
+    return x.item() if isinstance(x, np.generic) else x
 
 
 def export_glb(result: Any, path: Path) -> Path | None:

@@ -151,6 +151,12 @@ def _reaction_section(out: Path, answer: dict[str, Any]) -> str:
             f"{_link(out, answer.get('report'), 'reaction report')}</p>")
 
 
+def _cpu(report: dict[str, Any]) -> str:
+    """`` (N s of CPU)`` of a run that recorded it, else nothing."""
+    cpu = report.get("cpu_seconds")
+    return "" if cpu is None else f" ({cpu:.0f} s of CPU)"
+
+
 def write_page(out_dir: str | os.PathLike[str], report: dict[str, Any]) -> Path:
     """Write ``out_dir/index.html``: the demo's videos and links to everything it wrote.
 
@@ -172,6 +178,11 @@ def write_page(out_dir: str | os.PathLike[str], report: dict[str, Any]) -> Path:
              "glTF viewer (Blender, Windows 3D Viewer, online glTF viewers).</p>"]
     clips = report.get("clips", {})
     parts += _clip_table(out, clips)
+    scoring = report.get("scoring")
+    if scoring:
+        parts.append(f"<p>Physics verdicts (clips and generated reaction): {_e(scoring['text'])}"
+                     ". A clip this planner tracks is one the body can perform on its own "
+                     "muscles; a tracking failure may be its smaller search's.</p>")
     parts += [_clip_section(out, name, clip) for name, clip in clips.items()]
     reh = report.get("rehearsal")
     if reh:
@@ -180,7 +191,8 @@ def write_page(out_dir: str | os.PathLike[str], report: dict[str, Any]) -> Path:
     if answer and "skipped" not in answer:
         parts.append(_reaction_section(out, answer))
     parts.append(f"<p class='small'>{_link(out, Path(out) / 'summary.json', 'summary.json')} "
-                 f"&middot; ran in {report.get('total_seconds', 0):.0f} s &middot; "
+                 f"&middot; ran in {report.get('total_seconds', 0):.0f} s{_cpu(report)} "
+                 "&middot; "
                  f"{_e(report.get('data_acknowledgement', ''))}</p>")
     page = out / PAGE
     page.write_text(html_page("simenv demo", "\n".join(parts)), encoding="utf-8")
