@@ -1011,9 +1011,9 @@ def _foot_track(p: np.ndarray, foot: int, floor: float, height: float, fps: floa
 
 
 @njit(cache=True)
-def _unsupported_slides(rel: np.ndarray, v_h: np.ndarray, raw_sliding: np.ndarray,
-                        skate_speed: float, margin: float, min_run: int,
-                        sliding: np.ndarray) -> None:
+def _unsupported_slides(rel: np.ndarray, low: np.ndarray, v_h: np.ndarray,
+                        raw_sliding: np.ndarray, skate_speed: float, margin: float,
+                        stance_speed: float, min_run: int, sliding: np.ndarray) -> None:
     """sliding (F, T - 1) <- the slides of ``raw_sliding`` whose foot carries
     weight (not while the other foot, slower than ``skate_speed``, stands
     more than ``margin`` lower at both frames), kept where they last
@@ -1026,6 +1026,9 @@ def _unsupported_slides(rel: np.ndarray, v_h: np.ndarray, raw_sliding: np.ndarra
             supported = (f_count == 2 and v_h[o, t] <= skate_speed
                          and rel[o, t + 1] + margin < rel[f, t + 1]
                          and rel[o, t] + margin < rel[f, t])
+            # Or stands still on the floor: a foot sliding beside it is dragged, unloaded.
+            supported = supported or (f_count == 2 and v_h[o, t] < stance_speed
+                                      and low[o, t] and low[o, t + 1])
             sliding[f, t] = raw_sliding[f, t] and not supported
         if min_run > 1:
             _keep_long_runs(sliding[f], min_run)
@@ -1034,7 +1037,8 @@ def _unsupported_slides(rel: np.ndarray, v_h: np.ndarray, raw_sliding: np.ndarra
 @njit(cache=True)
 def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.ndarray,
                ankle: np.ndarray, fps: float, skate_speed: float, margin: float,
-               min_run: int, window: int, contact_speed: float, to_mm: float,
+               stance_speed: float, min_run: int, window: int, contact_speed: float,
+               to_mm: float,
                tl: np.ndarray, details: np.ndarray) -> float:
     """Foot skating of one clip (see
     :func:`simenv.plausibility.metrics.foot_skate.foot_skate`); T >= 2.
@@ -1072,7 +1076,8 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
         _foot_track(p, feet[f], ankle_floor if ankle[f] else floor, heights[f], fps,
                     skate_speed, contact_speed, rel[f], low[f], v_h[f], planted[f],
                     raw_sliding[f])
-    _unsupported_slides(rel, v_h, raw_sliding, skate_speed, margin, min_run, sliding)
+    _unsupported_slides(rel, low, v_h, raw_sliding, skate_speed, margin, stance_speed,
+                        min_run, sliding)
     skating_pairs = 0
     gmd_pairs = 0
     for t in range(pairs):
@@ -1213,7 +1218,7 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
 IDLE_ARGS: dict[int, tuple] = {
     BONE: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), 0.0, 0.0),
     FOOT: (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.bool_), 0.0, 0.0, 0.0,
-           0, 0, 0.0, 0.0),
+           0.0, 0, 0, 0.0, 0.0),
     GROUND: (),
     FLOAT: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0.0, 0.0, 0.0, 0.0, 0.0),
     JITTER: (False, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32), 0.0, 0.0, 0,

@@ -38,8 +38,9 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     0.25 s moving average) counts as skating; a planted foot that really
     slides does so for a good part of its stance. A low foot sliding while
     the other foot is planted and lower (by more than
-    ``skate_support_margin_m``) is unloaded -- the weight is on the other
-    foot -- and does not count either.
+    ``skate_support_margin_m``), or low and standing still (horizontal speed
+    below ``skate_stance_speed_mps``), is unloaded -- the weight is on the
+    other foot -- and does not count either.
 
     Timeline: ``max_f v_f(t)`` over skating feet (0 when none) in **mm per
     frame at 20 fps** (``speed * 1000 / skate_reference_fps``, PhysDiff's
@@ -79,6 +80,7 @@ def foot_skate_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLD
         args = (np.array(batch.indices(feet), dtype=np.int64), heights.astype(np.float64),
                 ankles, float(fps), float(thresholds.skate_speed_mps),
                 float(thresholds.skate_support_margin_m),
+                float(thresholds.skate_stance_speed_mps),
                 max(1, round(thresholds.skate_min_duration_s * fps)),
                 max(1, round(thresholds.skate_window_s * fps)),
                 float(thresholds.contact_speed_mps), 1000.0 / ref)
