@@ -202,12 +202,14 @@ def ran() -> set[int]:
     return set()
 
 
-def _environment() -> dict[str, str]:
-    """The user's shell after set-up: ``.venv/bin`` first on the PATH, the corpus found
-    where the README says (``../shared/data``), no test-run settings of simenv's."""
-    env = {k: v for k, v in os.environ.items() if k != "SIMENV_SHARED_DATA"
-           and not k.startswith("PYTEST")}
+def _environment(cwd: Path) -> dict[str, str]:
+    """The user's shell after set-up in the clone ``cwd``: ``.venv/bin`` first on the PATH,
+    the corpus where the README says (``../shared/data``), no settings of the test run."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST")}
     env["PATH"] = f"{VENV_BIN}{os.pathsep}{env.get('PATH', '')}"
+    # A clone's simenv finds the corpus next to its own root by default; the simenv these
+    # commands import is the installed one, so the copy's ../shared/data is named.
+    env["SIMENV_SHARED_DATA"] = str(cwd.parent / "shared" / "data")
     # In a clone, `python` run from its root imports the simenv that set-up installed there;
     # in this copy, the installed one (the working tree) too, not the copy's files.
     env["PYTHONSAFEPATH"] = "1"
@@ -220,7 +222,7 @@ def _run(snippet: Snippet, cwd: Path) -> subprocess.CompletedProcess:
         argv = [str(VENV_BIN / "python"), "-c", snippet.code]
     else:
         argv = [shutil.which("bash") or "/bin/bash", "-c", snippet.code]
-    done = subprocess.run(argv, cwd=cwd, env=_environment(), capture_output=True, text=True,
+    done = subprocess.run(argv, cwd=cwd, env=_environment(cwd), capture_output=True, text=True,
                           timeout=TIMEOUT_S)
     assert done.returncode == 0, (
         f"README line {snippet.line} exited with {done.returncode}:\n{snippet.code}\n"
