@@ -1,7 +1,7 @@
 """Walking at a person's pace by replaying real walking motion capture, tracked once
 offline by the unassisted planner, with time-varying feedback.
 
-The library (``assets/walk-primitives/mocap_walk.npz``, built by
+The library (``assets/walk-primitives/mocap_walk.json``, built by
 ``benchmarks/build_mocap_walk.py`` from the bundled CMU 02_01 walk) holds walking
 *primitives* cut from one tracking run of the sampling MPC
 (:class:`simenv.control.TrackingMPC`, nothing acting on the root) on the room agent's own
@@ -11,13 +11,14 @@ body: a start from standing, straight gait cycles, a cycle bending left or right
 steps, and time-varying LQR gains ``K`` (on ``mjd_transitionFD`` linearisations about
 ``x*``, for the legs' and the lumbar spine's servos) stored as a low-rank time basis.
 
-At run time nothing is planned. The standing body is first brought onto the start's first
-pose (:data:`READY_S`: the start's first servo targets, arms hanging, balanced by the
-stepping gait's centre-of-mass feedback). A primitive is placed on the floor where the body
-is when it starts (turned about the vertical and shifted so that its legs' and pelvis's
-keypoints, :data:`ANCHOR_KEYPOINTS`, lie nearest the measured ones, :func:`fit_frame`: a
-flat floor's physics does not change under either), and every physics step the servo
-targets are ::
+At run time nothing is planned. The tracking run started from the standing body the room
+gives (:func:`simenv.agents.gait.standing_agent`: the rest pose balanced 1 s), so the start
+fits the room's standing agent (bringing it first onto the start's first targets with the
+stepping gait's balance instead made it fall, measured). A primitive is placed on the
+floor where the body is when it starts (turned about the vertical and shifted so that its
+legs' and pelvis's keypoints, :data:`ANCHOR_KEYPOINTS`, lie nearest the measured ones,
+:func:`fit_frame`: a flat floor's physics does not change under either), and every physics
+step the servo targets are ::
 
     u = u*(t) - K(t) dx,   dx = (mj_differentiatePos(x*_q, x_q), x_v - x*_v)
 
@@ -42,7 +43,9 @@ pelvis's height every physics step.
 
 from __future__ import annotations
 
+import base64
 import json
+import zlib
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -50,28 +53,29 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from simenv.agents.gait import quat_yaw, stand_balance
+from simenv.agents.gait import quat_yaw
 from simenv.agents.walk import GaitMeter, check_standing
-from simenv.assets import asset_path
+from simenv.assets import assets_root
 from simenv.body.humanoid import Humanoid
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
 
-#: The library's file, in the package's assets.
-LIBRARY = "walk-primitives/mocap_walk.npz"
+#: The library's file, in the package's assets (JSON: arrays as base64 of their zlib-packed
+#: little-endian bytes; a folder holding an ``.npz`` would be listed as a motion asset).
+LIBRARY = ("walk-primitives", "mocap_walk.json")
 #: Heading change of one bend cycle, deg (as the library was built).
 TURN_DEG = 15.0
 #: Largest number of gait cycles between the start and the stop that :func:`compose`
 #: considers.
-MAX_CYCLES = 6
+MAX_CYCLES = 4
 #: :func:`compose`'s price of a second of walking, in metres of distance from the goal.
 SECOND_M = 0.02
 #: Standing still after the stop, balanced by the stop's last feedback, s.
 SETTLE_S = 0.5
-#: Before the start: the standing body brought onto the start's first pose (its arms
-#: hanging, its servo targets those the planner started from), balanced by the stepping
-#: gait's centre-of-mass feedback, s.
-READY_S = 1.0
+#: The feedback's largest change of a servo target, rad.
+FEEDBACK_CLIP_RAD = 0.3
+#: Hinges (name parts) whose error the feedback ignores (besides the neck's).
+UNFED = ("clavicle", "upper_arm", "forearm", "hand")
 #: Body dimensions may differ from the library's by this much (m) and still replay.
 DIMS_TOL_M = 1e-3
 
@@ -212,40 +216,59 @@ def body_signature(h: Humanoid) -> np.ndarray:
     return np.array(out, float)
 
 
+def pack_array(a: np.ndarray) -> dict:
+    """``a`` as JSON: dtype, shape and base64 of its zlib-packed little-endian bytes."""
+    a = np.ascontiguousarray(a)
+    dt = a.dtype.newbyteorder("<")
+    return {"dtype": dt.str, "shape": list(a.shape),
+            "data": base64.b64encode(zlib.compress(a.astype(dt).tobytes(), 9)).decode()}
+
+
+def unpack_array(d: dict) -> np.ndarray:
+    """The array :func:`pack_array` wrote."""
+    raw = zlib.decompress(base64.b64decode(d["data"]))
+    return np.frombuffer(raw, dtype=np.dtype(d["dtype"])).reshape(d["shape"])
+
+
 @lru_cache(maxsize=4)
 def load_library(path: str | None = None) -> Library:
     """The walking primitives (module docstring) from ``path`` (default: the bundled
     :data:`LIBRARY`).
 
     Raises:
-        SimenvError: the file is missing or lacks a primitive's arrays.
+        SimenvError: the file is missing, not the library's JSON, or lacks an array.
     """
-    file = Path(path) if path is not None else Path(asset_path(LIBRARY))
+    file = Path(path) if path is not None else assets_root().joinpath(*LIBRARY)
     if not file.is_file():
         raise SimenvError(f"{file}: no walking primitives (build them with "
                           "benchmarks/build_mocap_walk.py)", field="library")
+    try:
+        doc = json.loads(file.read_text())
+        meta, arrays = doc["meta"], doc["arrays"]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise SimenvError(f"{file}: not a walking-primitive library ({exc})",
+                          field="library") from None
+
+    def get(key: str) -> np.ndarray:
+        if key not in arrays:
+            raise SimenvError(f"{file}: the library lacks {key!r}", field=key)
+        return unpack_array(arrays[key]).astype(float)
+
     other = {"left": "right", "right": "left", "stand": "stand"}
-    with np.load(file, allow_pickle=False) as z:
-        meta = json.loads(str(z["meta"]))
-        hinges = list(meta["joint_names"])
-        prims = {}
-        for name, info in meta["primitives"].items():
-            try:
-                arrays = [z[f"{name}_{k}"].astype(float) for k in ("qpos", "qvel", "ctrl",
-                                                                   "coef")]
-            except KeyError as exc:
-                raise SimenvError(f"{file}: primitive {name!r} lacks {exc.args[0]}",
-                                  field=name) from None
-            adv = np.array(info["advance"], float)
-            prims[name] = Primitive(name, *arrays, info["phase_in"], info["phase_out"], adv)
-            mq, mv, mu = mirror(*arrays[:3], hinges)
-            prims[f"{name}_mirrored"] = Primitive(
-                f"{name}_mirrored", mq, mv, mu, arrays[3], other[info["phase_in"]],
-                other[info["phase_out"]], adv * [1.0, -1.0, -1.0], mirrored=True)
-        basis = z["gain_basis"].astype(float)
-        fb = z["feedback_ctrl"]
-        return Library(prims, basis, _mirror_gains(basis, fb, hinges), fb, int(z["stride"]),
-                       float(z["dt"]), z["dims"].astype(float), meta)
+    hinges = list(meta["joint_names"])
+    prims = {}
+    for name, info in meta["primitives"].items():
+        parts = [get(f"{name}_{k}") for k in ("qpos", "qvel", "ctrl", "coef")]
+        adv = np.array(info["advance"], float)
+        prims[name] = Primitive(name, *parts, info["phase_in"], info["phase_out"], adv)
+        mq, mv, mu = mirror(*parts[:3], hinges)
+        prims[f"{name}_mirrored"] = Primitive(
+            f"{name}_mirrored", mq, mv, mu, parts[3], other[info["phase_in"]],
+            other[info["phase_out"]], adv * [1.0, -1.0, -1.0], mirrored=True)
+    basis = get("gain_basis")
+    fb = get("feedback_ctrl").astype(int)
+    return Library(prims, basis, _mirror_gains(basis, fb, hinges), fb, int(meta["stride"]),
+                   float(meta["dt"]), get("dims"), meta)
 
 
 def _check_body(room: Room, lib: Library) -> None:
@@ -371,18 +394,27 @@ class MocapWalkPlan:
         self.goal = None if goal is None else np.asarray(goal, float)[:2]
         self.grasps: tuple = ()
         st = lib.stride
-        ready = int(round(READY_S / lib.dt))
-        self._starts = ready + np.concatenate([[0], np.cumsum([lib.primitives[n].knots * st
-                                                               for n in self.names])])
+        self._starts = np.concatenate([[0], np.cumsum([lib.primitives[n].knots * st
+                                                       for n in self.names])])
         self.duration = float(self._starts[-1] * lib.dt) + SETTLE_S
-        self._ready = stand_balance(room, data, READY_S)
-        self._ready_ctrl = lib.primitives[self.names[0]].ctrl[0]
         self._model = room.agent.model
+        self._shadow = mujoco.MjData(self._model)
+        self._shadow_at: tuple[str, int] = ("", -1)
+        self._shadow_u = np.zeros(self._model.nu)
         self.anchors = anchors_of(lib, room.agent)
         self._cur = -1
         self._anchor = (0.0, np.zeros(2))
         self._dq = np.zeros(room.agent.nv)
         self._fb = np.asarray(lib.feedback_ctrl, int)
+        # The arms, hands and neck follow their targets; their error is not fed back (the
+        # standing arms start 0.5 rad from the start's hanging pose, and the legs' gains
+        # on it twisted the body over, measured).
+        h = room.agent
+        free = [h.model.jnt_dofadr[h.model.joint(n).id] for n in h.joint_names
+                if n.split("_")[0] == "neck" or any(k in n for k in UNFED)]
+        self._mask = np.ones(2 * h.nv)
+        self._mask[free] = 0.0
+        self._mask[np.asarray(free) + h.nv] = 0.0
         self._gain_k = -1
         self._gain = np.zeros((len(self._fb), 2 * room.agent.nv))
         #: Measured at every seam: (time s, primitive, pelvis x, y, heading rad).
@@ -419,15 +451,29 @@ class MocapWalkPlan:
     def _reference(self, p: Primitive, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                         int]:
         """The reference state (world frame) and targets at step ``s`` of ``p``, and the
-        stored step whose gain applies."""
+        stored step whose gain applies. The state is the shadow's: the agent's own model
+        put on the stored state at every stored step and stepped between them with the
+        targets interpolated, so that the reference is a state the body can be in (its
+        feet on the floor); straight interpolation of the stored states is not, and the
+        gains' stiff directions (a foot pressed into the floor) turned its error into
+        servo targets of 100+ rad, measured."""
         st = self.lib.stride
-        k, r = divmod(min(s, p.knots * st), st)
+        s = min(s, p.knots * st)
+        k, r = divmod(s, st)
         k1 = min(k + 1, p.knots)
         w = r / st
-        q = (1 - w) * p.qpos[k] + w * p.qpos[k1]
-        q[3:7] /= np.linalg.norm(q[3:7])
-        v = (1 - w) * p.qvel[k] + w * p.qvel[k1]
         u = (1 - w) * p.ctrl[k] + w * p.ctrl[k1]
+        sh = self._shadow
+        if r == 0 or self._shadow_at != (p.name, s - 1):
+            sh.qpos[:], sh.qvel[:] = p.qpos[k], p.qvel[k]
+            for j in range(r):  # steps from the stored state (when called out of order)
+                sh.ctrl[:] = (1 - j / st) * p.ctrl[k] + j / st * p.ctrl[k1]
+                mujoco.mj_step(self._model, sh)
+        else:
+            sh.ctrl[:] = self._shadow_u
+            mujoco.mj_step(self._model, sh)
+        self._shadow_at, self._shadow_u = (p.name, s), u
+        q, v = sh.qpos.copy(), sh.qvel.copy()
         psi, off = self._anchor
         q[:2] = _rot(psi) @ q[:2] + off
         tmp = np.zeros(4)
@@ -441,8 +487,6 @@ class MocapWalkPlan:
         room, lib = self.room, self.lib
         q = data.qpos[room.agent_qpos]
         step = int(round(t / lib.dt))
-        if step < self._starts[0]:
-            return self.feedback(t, data, self._ready(t, data, self._ready_ctrl))
         i = min(int(np.searchsorted(self._starts, step, side="right")) - 1, len(self.names) - 1)
         if i != self._cur:
             self._begin(i, t, data)
@@ -451,9 +495,9 @@ class MocapWalkPlan:
         if k != self._gain_k:
             self._gain, self._gain_k = lib.gain(p, k), k
         mujoco.mj_differentiatePos(self._model, self._dq, 1.0, qr, q)
-        dx = np.concatenate([self._dq, data.qvel[room.agent_qvel] - vr])
+        dx = np.concatenate([self._dq, data.qvel[room.agent_qvel] - vr]) * self._mask
         u = u.copy()
-        u[self._fb] -= self._gain @ dx
+        u[self._fb] -= np.clip(self._gain @ dx, -FEEDBACK_CLIP_RAD, FEEDBACK_CLIP_RAD)
         return self.feedback(t, data, u)
 
 

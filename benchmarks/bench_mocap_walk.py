@@ -5,11 +5,12 @@
 Walks (``discomfort`` room, the agent standing in its rest pose, balanced 1 s, no
 rendering; nothing but its servos and contacts acts on it):
 
-* ``straight 4 m``: from (-2.0, -1.5) facing east to (2.0, -1.5), along the south wall;
-* ``bend``: from (-2.0, -1.5) facing east to (2.0, -0.7) (the primitives bend on the way,
+* ``straight``: from (-0.3, -1.4) facing east to (2.0, -1.4), along the south wall, east of
+  the user (standing closer to the wall, the rest pose's hand touches it);
+* ``bend``: from (-0.3, -1.4) facing east to (2.0, -0.9) (the primitives bend on the way,
   the stepping gait turns on the spot);
-* ``to the window``: from (0.0, 0.0) facing north-west to the spot in front of the
-  window's handle, (-1.12, 1.59).
+* ``to the window``: from (-0.2, 0.6), beside the desk, facing the spot in front of the
+  window's handle, (-1.12, 1.59), 1.35 m away.
 
 Per walk and gait: simulated seconds, wall seconds (1 thread) and their ratio, the mean
 speed (distance covered on the floor by the pelvis / simulated s), whether it fell, the
@@ -40,9 +41,9 @@ from simenv.room.room import Room
 
 #: name -> (start (x, y), heading rad, goal (x, y)).
 WALKS: dict[str, tuple[tuple[float, float], float, tuple[float, float]]] = {
-    "straight 4 m": ((-2.0, -1.5), 0.0, (2.0, -1.5)),
-    "bend": ((-2.0, -1.5), 0.0, (2.0, -0.7)),
-    "to the window": ((0.0, 0.0), 3 * np.pi / 4, (-1.12, 1.59)),
+    "straight": ((-0.3, -1.4), 0.0, (2.0, -1.4)),
+    "bend": ((-0.3, -1.4), 0.0, (2.0, -0.9)),
+    "to the window": ((-0.2, 0.6), float(np.arctan2(0.99, -0.92)), (-1.12, 1.59)),
 }
 
 

@@ -1,5 +1,5 @@
 """Build the room agent's walking primitives from real motion capture
-(``assets/walk-primitives/mocap_walk.npz``, read by :mod:`simenv.agents.mocap_walk`).
+(``assets/walk-primitives/mocap_walk.json``, read by :mod:`simenv.agents.mocap_walk`).
 
 What it does, deterministically (seeded planner, one fixed clip):
 
@@ -28,7 +28,7 @@ What it does, deterministically (seeded planner, one fixed clip):
 
 Usage::
 
-    python benchmarks/build_mocap_walk.py [--out assets/walk-primitives/mocap_walk.npz]
+    python benchmarks/build_mocap_walk.py [--out assets/walk-primitives/mocap_walk.json]
         [--seed 0] [--tracked /tmp/mw_tracked.npz]
 """
 
@@ -57,11 +57,13 @@ from simenv.room.room import Room
 #: Heading change of one bend cycle, deg.
 TURN_DEG = 15.0
 #: Reference phases, s: standing still, blend into the clip's pose, speed-up from rest,
-#: slow-down to rest, blend to standing, standing still at the end.
+#: slow-down to rest, standing still at the end (in the clip's double support, feet in
+#: stride: blending from a mid-swing pose to feet side by side fell in the tracker, seed 0,
+#: and in the replay, measured).
 HOLD_S, BLEND_S, ACCEL_S = 0.3, 1.0, 0.8
-DECEL_S, UNBLEND_S, END_S = 0.8, 1.0, 0.8
+DECEL_S, END_S = 0.7, 1.2
 #: The cycles between the start and the stop: 0 straight, +1 left bend, -1 right bend.
-CYCLES = (0, 0, 1, 0, -1, 0)
+CYCLES = (0, 0, 1, 0)
 #: Gaussian smoothing of the looped cycle's hinges, frames (standard deviation).
 SMOOTH_FRAMES = 4
 #: The tracker's failure distance (mean keypoint error), m.
@@ -201,6 +203,15 @@ def _bend(xs: np.ndarray, turns: list[tuple[float, float, float]]
         np.interp(xs, grid, kappa)
 
 
+def double_support(h: Humanoid, cyc: np.ndarray) -> int:
+    """Frame of the looped cycle (after its left mid-swing, before the right one) where
+    both ankles are lowest: the left foot down ahead of the right."""
+    names = list(h.keypoint_names)
+    kp = h.keypoints(cyc[: len(cyc) // 2])
+    z = kp[:, names.index("left_ankle"), 2] + kp[:, names.index("right_ankle"), 2]
+    return int(np.argmin(z))
+
+
 def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float
                         ) -> tuple[np.ndarray, dict]:
     """The reference (T, nq) at ``fps`` (module docstring, 3) and the times (s) of the
@@ -239,7 +250,8 @@ def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: floa
         taus.append(tau)
     n_full = len(CYCLES) + 1
     decel_frames = fps * DECEL_S / 2
-    end_tau = n_full * P
+    # The walk ends at rest in the double support after the right foot's last swing.
+    end_tau = (n_full + 0.5) * P + double_support(h, cyc)
     while tau + 1 < end_tau - decel_frames:
         tau += 1
         frames.append(clip(tau))
@@ -249,12 +261,8 @@ def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: floa
         frames.append(clip(tau))
         taus.append(tau)
     last = clip(tau)
-    end_stand = _place_standing(h, stand, last)
-    for t in np.arange(0, UNBLEND_S, dt):
-        frames.append(_blend(last, end_stand, min_jerk(t / UNBLEND_S)))
-        taus.append(tau)
     for _ in np.arange(0, END_S, dt):
-        frames.append(end_stand)
+        frames.append(last)
         taus.append(tau)
     q = np.array(frames)
     taus_a = np.array(taus)
@@ -284,6 +292,16 @@ def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: floa
     return q, times
 
 
+def settled_start(h: Humanoid, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The agent's state (qpos, qvel) standing where ``q0`` puts its pelvis, facing its
+    heading, as :func:`simenv.agents.gait.standing_agent` leaves it in the room."""
+    from simenv.agents.gait import standing_agent
+
+    room = Room("discomfort")
+    data = standing_agent(room, q0[:2], quat_yaw(q0[3:7]))
+    return data.qpos[room.agent_qpos].copy(), data.qvel[room.agent_qvel].copy()
+
+
 def track_reference(h: Humanoid, base: RetargetResult, q: np.ndarray, fps: float,
                     seed: int, log: Path | None = None) -> dict[str, np.ndarray]:
     """Track ``q`` with the MPC (module docstring, 4); per physics step ``qpos``, ``qvel``,
@@ -303,6 +321,10 @@ def track_reference(h: Humanoid, base: RetargetResult, q: np.ndarray, fps: float
         model = mpc.model
         data = mujoco.MjData(model)
         mpc.reset(data)
+        # From the standing body the room gives (the rest pose balanced 1 s), not from the
+        # reference's first pose: replayed from the latter, the walk fell from the former.
+        data.qpos[:], data.qvel[:] = settled_start(h, q[0])
+        mujoco.mj_forward(model, data)
         for s in range(ref.n_steps):
             u = mpc.control(data, s)
             qs.append(data.qpos.copy())
@@ -373,7 +395,8 @@ def lqr_gains(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, ctrl: n
 #: The primitives cut from the tracked run: name -> (start, end) in cycles of the looped
 #: clip (``None``: the run's first or last step), the phases they join at (the foot at
 #: mid-swing: whole cycles start at a left one). ``CYCLES``: [1, 2) and [2, 3) straight,
-#: [3, 4) the left bend, the slow-down ends at 7; the right bend is the left one mirrored
+#: [3, 4) the left bend, [4, 5) straight, the slow-down ends in the double support after
+#: 5.5; the right bend is the left one mirrored
 #: (:mod:`simenv.agents.mocap_walk`), as are the primitives joining at the other foot.
 CUTS: dict[str, tuple[float | None, float | None, str, str]] = {
     "start": (None, 1.0, "stand", "left"),
@@ -382,8 +405,7 @@ CUTS: dict[str, tuple[float | None, float | None, str, str]] = {
     "half_a": (2.0, 2.5, "left", "right"),
     "half_b": (1.5, 2.0, "right", "left"),
     "left": (3.0, 4.0, "left", "left"),
-    "stop": (6.0, None, "left", "stand"),
-    "stop_short": (6.5, None, "right", "stand"),
+    "stop": (5.0, None, "left", "stand"),
 }
 #: Physics steps between stored steps (and per feedback gain).
 STRIDE = 5
@@ -393,24 +415,29 @@ STRIDE = 5
 #: of the gains' squared norm, the stiff contact directions' gains dominating it) the
 #: feedback was worse than none. Open loop 1.3 m (fallen); Q 100 / 500 / 1: 0.25 m, and
 #: 0.42 m pushed 0.4 m/s (Q 10 / 50 / 0.1: 1.6 m, fallen).
-GAIN_RANK = 120
+GAIN_RANK = 80
 #: The servos the feedback drives (the planner's sampled parts).
 FEEDBACK_PARTS = ("lumbar", "thigh", "shin", "foot", "toes")
 
 
-def _advance(q0: np.ndarray, q1: np.ndarray) -> list[float]:
-    yaw0 = quat_yaw(q0[3:7])
-    c, s_ = np.cos(yaw0), np.sin(yaw0)
+def _advance(h: Humanoid, q0: np.ndarray, q1: np.ndarray) -> list[float]:
+    """Where pose ``q1``'s pelvis is from ``q0``'s on the floor (m; every primitive starts
+    where the tracked path heads along +x) and the turn between them (rad: the placement
+    of the legs' keypoints, :func:`simenv.agents.mocap_walk.fit_frame`)."""
+    from simenv.agents.mocap_walk import ANCHOR_KEYPOINTS, fit_frame
+
+    idx = [list(h.keypoint_names).index(k) for k in ANCHOR_KEYPOINTS]
+    turn, _ = fit_frame(h.keypoints(q0)[idx, :2], h.keypoints(q1)[idx, :2])
     d = q1[:2] - q0[:2]
-    return [float(c * d[0] + s_ * d[1]), float(-s_ * d[0] + c * d[1]),
-            float((quat_yaw(q1[3:7]) - yaw0 + np.pi) % (2 * np.pi) - np.pi)]
+    return [float(d[0]), float(d[1]), float(turn)]
 
 
 def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps: float,
                   out: Path, provenance: dict) -> dict:
     """Cut the tracked ``run`` into :data:`CUTS`, give them LQR gains and write the
-    library to ``out`` (``np.savez_compressed``); returns its metadata."""
-    from simenv.agents.mocap_walk import body_signature
+    library to ``out`` (:data:`simenv.agents.mocap_walk.LIBRARY`'s JSON); returns its
+    metadata."""
+    from simenv.agents.mocap_walk import body_signature, pack_array
 
     dt = float(run["dt"])
     n = len(run["qpos"])
@@ -444,8 +471,8 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
     r = min(GAIN_RANK, len(sv))
     basis = vt[:r]
     arrays: dict[str, np.ndarray] = {}
-    meta: dict = {"primitives": {}, **provenance, "rank": r, "stride": STRIDE, "joint_names": list(h.joint_names),
-                  "actuator_names": names}
+    meta: dict = {"primitives": {}, **provenance, "rank": r, "stride": STRIDE,
+                  "joint_names": list(h.joint_names), "actuator_names": names}
     for name, (a, b) in spans.items():
         k = np.arange(a, b + 1, STRIDE)
         gk = np.array([gain_at[i] for i in k]).reshape(len(k), -1)
@@ -456,14 +483,15 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
         meta["primitives"][name] = {
             "phase_in": CUTS[name][2], "phase_out": CUTS[name][3],
             "steps": [int(a), int(b)], "seconds": (b - a) * dt,
-            "advance": _advance(run["qpos"][a], run["qpos"][b])}
+            "advance": _advance(h, run["qpos"][a], run["qpos"][b])}
     err = np.linalg.norm(flat @ basis.T @ basis - flat) / np.linalg.norm(flat)
     meta["gain_relative_error"] = float(err)
     out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out, meta=np.array(json.dumps(meta)),
-                        gain_basis=basis.reshape(r, len(fb), -1).astype(np.float16),
-                        feedback_ctrl=fb, stride=np.array(STRIDE), dt=np.array(dt),
-                        dims=body_signature(h), **arrays)
+    meta["dt"] = dt
+    arrays.update(gain_basis=basis.reshape(r, len(fb), -1).astype(np.float16),
+                  feedback_ctrl=fb, dims=body_signature(h))
+    out.write_text(json.dumps({"meta": meta, "arrays": {k: pack_array(v)
+                                                        for k, v in arrays.items()}}))
     return meta
 
 
@@ -475,7 +503,7 @@ def planning_model_of(h: Humanoid) -> tuple[mujoco.MjModel, object]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("assets/walk-primitives/mocap_walk.npz"))
+    parser.add_argument("--out", type=Path, default=Path("assets/walk-primitives/mocap_walk.json"))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--tries", type=int, default=3)
     parser.add_argument("--tracked", type=Path, default=Path("/tmp/mw_tracked.npz"),
