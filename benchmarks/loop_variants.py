@@ -348,8 +348,31 @@ def main() -> None:
                    help="the real-window rule the threshold is chosen with and the "
                    "checkpoint records")
     args = parser.parse_args()
+    if args.command in ("score", "ship"):
+        missing = _missing_members(Path(args.out), args.members)
+        if missing:
+            parser.exit(2, f"loop_variants {args.command}: error: {missing}\n")
     {"train": cmd_train, "import": cmd_import, "score": cmd_score,
      "ship": cmd_ship}[args.command](args)
+
+
+def _missing_members(out: Path, members: list[str]) -> str:
+    """What the members ``score`` and ``ship`` read and ``train`` writes is missing
+    (their ``config.json`` and every fold's readings), as a message naming the
+    command that makes it; "" when nothing is."""
+    lines = []
+    for name in members:
+        folder = out / name
+        need = [folder / "config.json"] + [folder / f"fold{k}_readings.npz"
+                                           for k in range(SUBJECT_FOLDS)]
+        absent = [p for p in need if not p.is_file()]
+        if absent:
+            tag, _, seed = name.rpartition("_s")
+            lines.append(f"member {name!r}: {len(absent)} of {len(need)} files missing "
+                         f"(first {absent[0]}); make it with python benchmarks/loop_variants.py "
+                         f"--out {out} train --tag {tag or name} --seed {seed or 0} "
+                         "[--set KEY=VALUE ...] [--forecasters DIR]")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -85,6 +85,16 @@ def test_bad_input_exits_2_without_traceback(tmp_path: Path, capsys):
     assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
 
+def test_a_closed_pipe_ends_quietly(tmp_path: Path):
+    """`simenv info FILE | head`: the reader closes before simenv writes."""
+    proc = subprocess.Popen([sys.executable, "-m", "simenv", "info", str(asset_path(WALK))],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait() == cli.EXIT_BROKEN_PIPE
+    assert err == ""
+
+
 def test_unexpected_errors_keep_their_traceback(monkeypatch):
     def broken(path):
         raise RuntimeError("a bug, not bad input")

@@ -11,12 +11,16 @@ else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
 from simenv.cli import demo, evaluate, export, info, rehearse, render, retarget, score, train
 from simenv.cli.common import EXIT_USER_ERROR, HelpFormatter
 from simenv.core.errors import SimenvError
+
+#: Exit status when stdout's reader closed the pipe (128 + SIGPIPE, as a shell reports it).
+EXIT_BROKEN_PIPE = 141
 
 #: The commands in the order ``simenv --help`` lists them.
 COMMANDS = (info, retarget, render, score, export, demo, train, evaluate, rehearse)
@@ -50,6 +54,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.command_parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return args.func(args)
+    except BrokenPipeError:
+        # The reader went away (`simenv info ... | head`): stop quietly, as Unix tools do,
+        # and keep the interpreter's final flush from raising again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except SimenvError as err:
         print(f"simenv {args.command}: error: {err}", file=sys.stderr)
         return EXIT_USER_ERROR

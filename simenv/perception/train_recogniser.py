@@ -126,8 +126,9 @@ def fold_forecasters(folder: Path | None, folds: int) -> list[Forecaster] | None
     for k in range(folds):
         path = Path(folder) / f"fold{k}" / "model.npz"
         if not path.is_file():
-            raise SimenvError(f"no forecaster for fold {k} (train it with python -m "
-                              f"simenv.learning.train_gesture_predictor --fold {k})", source=path)
+            raise SimenvError(f"no forecaster for fold {k} (train the five folds' with python -m "
+                              "simenv.learning.train_gesture_predictor --evaluate, or this one "
+                              f"with --fold {k})", source=path)
         out.append(GesturePredictor.load(path).predict_batch)
     return out
 
