@@ -91,6 +91,11 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
         f"{RecognitionConfig.epochs}), no forecast windows. The only forecaster available "
         "was trained on "
         "every dataset, so the 1 s + 2 s forecast condition is not measured here.",
+        *(["", "MSRC-12 (`msrc12`) is read from a copy outside the repository (its files state "
+            "no licence that allows redistribution; tests/data/msrc12/SOURCES.md says where "
+            "they are). It contributes one clip per recording, cut around the middle gesture "
+            "tag. Person p06 is never read. Its bow is `bow`; its other eleven gestures are "
+            "`other`."] if "msrc12" in result["datasets"] else []),
         "",
         summary_table(result),
         "",
