@@ -86,7 +86,8 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
         "one: the same clips under leave-subjects-out over the whole corpus "
         f"({result['within_dataset_folds']} folds). There the subjects are unseen but "
         "their dataset is not. Windows are centre-cropped as in the room protocol. "
-        f"Corpus: {result['clips']} clips. Every network was trained with the same options: "
+        + (f"Run: `{result['command']}`. " if "command" in result else "")
+        + f"Corpus: {result['clips']} clips. Every network was trained with the same options: "
         f"{cfg['epochs']} epochs (the shipped recogniser's default: "
         f"{RecognitionConfig.epochs}), no forecast windows. The only forecaster available "
         "was trained on "

@@ -121,7 +121,7 @@ def _eval_classifier(parser: argparse.ArgumentParser, options: list[str]) -> int
                          "--benchmark")
         if args.data is not None and len(args.data) > 1:
             parser.error("--data: one gestures folder here")
-        return _cross_dataset(args)
+        return _cross_dataset(args, options)
     if args.benchmark is None:
         given = [o for o, dest in BENCHMARK_ONLY.items()
                  if getattr(args, dest) != parser.get_default(dest)]
@@ -183,7 +183,7 @@ def _eval_recogniser(args: argparse.Namespace, model: str) -> int:
     return 0
 
 
-def _cross_dataset(args: argparse.Namespace) -> int:
+def _cross_dataset(args: argparse.Namespace, options: list[str]) -> int:
     """``--protocol cross-dataset``: run it, print its table and each left-out dataset's
     per-class accuracy, write ``cross_dataset.json`` and a confusion matrix per left-out
     dataset (``confusion_<dataset>.json/.png``, the cross-dataset figures) to --out."""
@@ -203,6 +203,7 @@ def _cross_dataset(args: argparse.Namespace) -> int:
     clips = load_corpus(data, msrc12_folder=args.msrc12)
     result = run_cross_dataset(clips, config, **({"folds": args.folds} if args.folds else {}),
                                jobs=args.jobs or 1)
+    result["command"] = "simenv eval classifier " + " ".join(options)
     out = Path(args.out or "out/cross-dataset")
     out.mkdir(parents=True, exist_ok=True)
     (out / "cross_dataset.json").write_text(json.dumps(result, indent=1))
