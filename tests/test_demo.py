@@ -206,13 +206,15 @@ def test_score_report_index_links_resolve_from_a_relative_folder(tmp_path: Path,
 @needs_chromium
 def test_screenshot_shows_the_page_and_its_video(demo_dir: Path):
     result = check_page(demo_dir / "index.html")
-    # Chromium decodes the WebM's first frame (3 frames at 120 / 20 fps).
-    (video,) = result["videos"]
+    # Chromium decodes each WebM's first frame (the walk's: 3 frames at 120 / 20 fps).
+    video, room = result["videos"]
     assert video["src"] == "walk.webm" and (video["width"], video["height"]) == (320, 240)
     assert video["duration"] == pytest.approx(0.5, abs=0.01)
+    assert room["src"] == "rehearsal.webm" and (room["width"], room["height"]) == (320, 240)
     assert result["content_fraction"] > 0.02
-    (poster,) = result["posters"]
+    poster, room_poster = result["posters"]
     assert poster["match"] > 0.9 and Path(poster["file"]).name == "walk.png"
+    assert room_poster["match"] > 0.9 and Path(room_poster["file"]).name == "rehearsal.png"
     shot = cv2.imread(result["screenshot"])
     x, y = poster["at"]
     region = shot[y:y + 240, x:x + 320]
