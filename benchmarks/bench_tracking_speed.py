@@ -45,7 +45,7 @@ from pathlib import Path  # noqa: E402
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
-from eval_tracking import ACROBATICS, CORRUPT_CLIPS, CORRUPT_RUNS, _clip_motion, clips  # noqa: E402
+from eval_tracking import ACROBATICS, CORRUPT_CLIPS, CORRUPT_RUNS, clip_motion, clips  # noqa: E402
 
 from simenv.body.retarget import RetargetResult, retarget  # noqa: E402
 from simenv.control import FAST, MPCConfig, TrackingReference  # noqa: E402
@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> None:
     for i, (path, corruption, strength) in enumerate(jobs):
         if (path.name, corruption, strength) in done:
             continue
-        motion = _clip_motion(path, args.seconds)
+        motion = clip_motion(path, args.seconds)
         if corruption != "none":
             motion = CORRUPTIONS[corruption].fn(motion, strength, seed=0)
         fitted = retarget(motion)

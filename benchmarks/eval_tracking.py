@@ -119,7 +119,8 @@ def descriptions(data: Path) -> dict[str, str]:
     return out
 
 
-def _clip_motion(path: Path, seconds: float) -> Motion:
+def clip_motion(path: Path, seconds: float) -> Motion:
+    """The clip's first ``seconds`` (its first person when it holds several)."""
     m = load(path)
     m = m[0] if isinstance(m, list) else m
     return m.slice(0, min(m.num_frames, int(round(seconds * m.fps)) + 1))
@@ -222,7 +223,7 @@ def run(args: argparse.Namespace) -> None:
         if (path.name, corruption, strength, setting) in _done(out):
             continue
         t0 = time.perf_counter()
-        motion = _clip_motion(path, args.seconds)
+        motion = clip_motion(path, args.seconds)
         if corruption != "none":
             motion = CORRUPTIONS[corruption].fn(motion, strength, seed=args.seed)
         fitted = retarget(motion)
@@ -263,7 +264,7 @@ def corrupted_span(data: Path, record: dict) -> tuple[float, float]:
     """(first, last) corrupted second of a corrupted run's copy, re-made from its seed."""
     name = record["clip"]
     path = next(p for p in clips(data) if p.name == name)
-    motion = _clip_motion(path, record["seconds"])
+    motion = clip_motion(path, record["seconds"])
     bad = CORRUPTIONS[record["corruption"]].fn(motion, record["strength"], seed=record["seed"])
     runs = bad.metadata["corruptions"][-1]["frames"]
     return runs[0][0] / motion.fps, runs[-1][1] / motion.fps
