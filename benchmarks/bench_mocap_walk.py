@@ -13,14 +13,16 @@ rendering; nothing but its servos and contacts acts on it):
   window's handle, (-1.12, 1.59), 1.35 m away.
 
 Per walk and gait: simulated seconds, wall seconds (1 thread) and their ratio, the mean
-speed (distance covered on the floor by the pelvis / simulated s), whether it fell, the
+speeds, whether it fell, the
 lowest pelvis height, the pelvis's distance from the goal at the end, the largest external
-help on any physics step (N) and, for the primitives, the sequence played.
+help on any physics step (N) and, for the primitives, the sequence played. Speeds: the
+pelvis's path length on the floor (it sways) and its net displacement, each over the
+simulated time.
 
 Usage::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_mocap_walk.py \\
-        [--out out/bench_mocap_walk] [--skip-stepping]
+        [--out out/bench_mocap_walk] [--gaits mocap stepping] [--walks NAME ...]
 """
 
 from __future__ import annotations
@@ -68,8 +70,9 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
         if i % 50 == 0:
             path.append(data.qpos[room.agent_qpos][:2].copy())
     wall = time.perf_counter() - t0
-    path_a = np.array(path)
+    path_a = np.array([*path, data.qpos[room.agent_qpos][:2].copy()])
     dist = float(np.linalg.norm(np.diff(path_a, axis=0), axis=1).sum())
+    net = float(np.linalg.norm(path_a[-1] - path_a[0]))
     out = plan.feedback.outcome(data)
     help_ = plan.feedback.summary()
     if gait == "mocap":
@@ -77,26 +80,28 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
                           for s in plan.seams]
     return {"gait": gait, "simulated_s": plan.duration, "wall_s": wall,
             "cost_x_real_time": wall / plan.duration, "distance_m": dist,
-            "speed_mps": dist / plan.duration, **out, "help_max_n": help_["max_n"], **extra}
+            "path_speed_mps": dist / plan.duration, "net_m": net,
+            "net_speed_mps": net / plan.duration, **out, "help_max_n": help_["max_n"], **extra}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("out/bench_mocap_walk"))
-    parser.add_argument("--skip-stepping", action="store_true",
-                        help="only the primitives (the stepping gait takes minutes a walk)")
+    parser.add_argument("--gaits", nargs="*", default=["mocap", "stepping"],
+                        choices=["mocap", "stepping"],
+                        help="which gaits (the stepping gait takes minutes a walk)")
     parser.add_argument("--walks", nargs="*", default=list(WALKS))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     for name in args.walks:
         start, yaw, goal = WALKS[name]
-        for gait in ("mocap",) if args.skip_stepping else ("mocap", "stepping"):
+        for gait in args.gaits:
             row = {"walk": name, **_run(gait, start, yaw, goal)}
             rows.append(row)
             print(json.dumps(row, default=str), flush=True)
-            (args.out / "bench_mocap_walk.json").write_text(json.dumps(rows, indent=1,
-                                                                        default=str))
+            (args.out / f"bench_mocap_walk_{'_'.join(args.gaits)}.json").write_text(
+                json.dumps(rows, indent=1, default=str))
     return 0
 
 

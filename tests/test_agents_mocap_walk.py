@@ -1,0 +1,121 @@
+"""The room agent walks at a person's pace (simenv.agents.mocap_walk): primitives of the
+real CMU 02_01 walk, tracked offline by the unassisted planner on the agent's body,
+replayed with time-varying feedback; nothing but the agent's servos and its contacts acts
+on it. The long walks are measured in benchmarks/bench_mocap_walk.py."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+import simenv
+from simenv.agents.gait import standing_agent
+from simenv.agents.mocap_walk import (
+    ANCHOR_KEYPOINTS,
+    MocapWalkPlan,
+    _swap,
+    anchors_of,
+    compose,
+    fit_frame,
+    load_library,
+    mirror,
+    plan_mocap_walk,
+)
+from simenv.assets import WALK, asset_path
+from simenv.body.humanoid import BodyDimensions
+from simenv.body.retarget import retarget_motion
+from simenv.core.errors import SimenvError
+from simenv.room.room import Room
+
+#: Along the south wall of the discomfort room, east of the user, clear of the furniture
+#: (standing closer to the wall, the rest pose's hand touches it).
+START = np.array([-0.3, -1.4])
+EAST = 0.0
+
+
+@pytest.fixture(scope="module")
+def lib():
+    return load_library()
+
+
+def test_library_walks_at_a_persons_pace_and_joins_at_its_phases(lib):
+    prims = lib.primitives
+    for name, p in prims.items():
+        assert len(p.qpos) == len(p.qvel) == len(p.ctrl) == len(p.coef), name
+        assert np.isfinite(p.qpos).all() and np.isfinite(p.coef).all(), name
+        assert {p.phase_in, p.phase_out} <= {"left", "right", "stand"}, name
+    # Every tracked primitive has its mirror image, joining at the other foot.
+    for name in [n for n in prims if not n.endswith("_mirrored")]:
+        m = prims[f"{name}_mirrored"]
+        assert m.mirrored and m.advance[1] == -prims[name].advance[1]
+    # A gait cycle covers at least 0.8 m/s.
+    cycle = prims["straight"]
+    assert cycle.advance[0] / lib.seconds("straight") >= 0.8
+    # The bends turn the heading, each its way.
+    assert prims["left"].advance[2] > 0 > prims["left_mirrored"].advance[2]
+
+
+def test_mirror_reflects_the_body_onto_its_twin(room):
+    h = room.agent
+    q = retarget_motion(simenv.load(asset_path(WALK)).slice(0, 13), h).qpos
+    mq, _, _ = mirror(q, np.zeros((len(q), h.nv)), q[:, 7:], list(h.joint_names))
+    m, d = h.model, mujoco.MjData(h.model)
+    names = [m.geom(i).name for i in range(m.ngeom)]
+    twin = [names.index(_swap(g)) for g in names]
+    for t in range(len(q)):
+        d.qpos[:] = q[t]
+        mujoco.mj_kinematics(m, d)
+        reflected = d.geom_xpos * [1.0, -1.0, 1.0]
+        d.qpos[:] = mq[t]
+        mujoco.mj_kinematics(m, d)
+        np.testing.assert_allclose(d.geom_xpos[twin], reflected, atol=1e-9)
+
+
+def test_compose_ends_within_half_a_step_of_the_goal(lib, room):
+    anc = anchors_of(lib, room.agent)
+    names = list(room.agent.keypoint_names)
+    standing = room.agent.keypoints(room.agent.default_qpos())
+    kp = standing[[names.index(k) for k in ANCHOR_KEYPOINTS], :2]
+    step = lib.primitives["straight"].advance[0] / 2
+    for goal in ([3.0, 0.0], [2.2, 0.6], [4.0, -0.8]):
+        seq, err = compose(anc, kp, np.array(goal))
+        assert lib.primitives[seq[0]].phase_in == "stand"
+        assert lib.primitives[seq[-1]].phase_out == "stand"
+        for a, b in zip(seq, seq[1:], strict=False):
+            assert lib.primitives[a].phase_out == lib.primitives[b].phase_in
+        end = anc.predicted_end(seq, fit_frame(anc.first[seq[0]], kp))
+        assert np.linalg.norm(end - goal) == pytest.approx(err)
+        assert err <= step / 2 + 0.1, (goal, seq, err)
+
+
+def test_walks_two_metres_and_stops_unassisted_at_pace():
+    room = Room("discomfort")
+    data = standing_agent(room, START, EAST)
+    plan = MocapWalkPlan(room, data, ["start_short", "straight_mirrored", "stop_mirrored"])
+    dt = room.model.opt.timestep
+    for i in range(int(round(plan.duration / dt))):
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+    out = plan.feedback.outcome(data)
+    assert not out["fell"], out
+    a = plan.feedback.summary()
+    assert a["steps"] == int(round(plan.duration / dt))
+    assert a["max_n"] == 0.0 and a["max_torque_nm"] == 0.0
+    assert not data.xfrc_applied.any() and not data.qfrc_applied.any()
+    moved = data.qpos[room.agent_qpos][:2] - START
+    assert moved[0] > 2.0 and abs(moved[1]) < 0.4, moved
+    assert moved[0] / plan.duration > 0.3  # standing start and stop included
+
+
+def test_refuses_a_body_it_was_not_built_for_and_a_fallen_agent():
+    tall = Room("discomfort", agent=BodyDimensions.from_scale({"left_knee": 1.1,
+                                                               "right_knee": 1.1}))
+    data = standing_agent(tall, START, EAST)
+    with pytest.raises(SimenvError, match="another body"):
+        plan_mocap_walk(tall, data, START + [2.0, 0.0])
+    room = Room("discomfort")
+    data = room.make_data()
+    room.reset(data)  # seated
+    with pytest.raises(SimenvError, match="not standing"):
+        plan_mocap_walk(room, data, START)
