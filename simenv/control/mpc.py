@@ -160,7 +160,8 @@ class MPCConfig:
 #: A planner a quarter of the default's cost (issue 35): 64 samples instead of 128, drawn
 #: in mirrored pairs (``antithetic``), rolled out with an 8 ms planning step instead of 4 ms
 #: (``timestep_factor=4``), i.e. 358 rolled-out steps per simulated step against 1434.
-#: 3.2-3.9x faster than the default side by side. Not the default: on the 20 clean CMU clips
+#: 3.2-3.9x faster than the default side by side (walk 02_01 on 2 threads, load 2.5: 3.9x
+#: real time against 14.6x). Not the default: on the 20 clean CMU clips
 #: (first 4 s, 3 attempts) it tracks 20 of 20 but at 56.8 mm mean body error against the
 #: default's 44.7 mm (runs and leaps up to twice as far), and it follows the walk's 50 cm float
 #: that the default fails (docs/tracking_speed.md).
