@@ -21,7 +21,7 @@ levels each video on its own.
 
 Corrupt MAT files can crash scipy's parser (a segmentation fault, found by
 fuzzing), so every MAT file is first parsed in a child process
-(:func:`_mat_parses`, cached per file state); a failure there is a
+(:func:`simenv.io._matfile.mat_parse_error`, cached per file state); a failure there is a
 :class:`FormatError`.
 
 ``read`` returns one :class:`Motion` per video (215), each with ``label``,
@@ -31,9 +31,6 @@ appearance of that subject/class pair) in its metadata.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-from functools import lru_cache
 from pathlib import Path
 from typing import Any, Literal
 
@@ -42,46 +39,16 @@ import numpy as np
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import florence_skeleton
+from simenv.io._matfile import MAT_MAGIC, mat_parse_error
 from simenv.io.camera_frame import FloorEstimate, estimate_floor
 
 #: Extensions this reader claims when no sniffer accepts a file.
 EXTENSIONS = (".mat",)
 FLORENCE_FPS = 20.0
-_MAT_MAGIC = b"MATLAB 5.0 MAT-file"
-
-
-#: Upper bound for the crash-isolation pre-check of a MAT file, seconds.
-MAT_CHECK_TIMEOUT_S = 120.0
-_MAT_CHECK = (
-    "import sys, scipy.io\n"
-    "scipy.io.whosmat(sys.argv[1])\n"
-    "scipy.io.loadmat(sys.argv[1], squeeze_me=True, struct_as_record=False)\n"
-)
-
-
-@lru_cache(maxsize=32)
-def _mat_parses(path: str, mtime_ns: int, size: int) -> str | None:
-    """Parse the MAT file in a child process first: scipy's MAT reader can
-    crash the interpreter (segmentation fault) on corrupt files, which must
-    become a :class:`FormatError`, not a dead process. Returns None when the
-    child parsed it, else the reason."""
-    del mtime_ns, size  # cache key only
-    try:
-        run = subprocess.run([sys.executable, "-c", _MAT_CHECK, path], capture_output=True,
-                             timeout=MAT_CHECK_TIMEOUT_S, check=False)
-    except subprocess.TimeoutExpired:
-        return f"parsing took longer than {MAT_CHECK_TIMEOUT_S:g} s"
-    if run.returncode == 0:
-        return None
-    if run.returncode < 0:
-        return f"the MAT parser crashed (signal {-run.returncode})"
-    lines = run.stderr.decode(errors="replace").strip().splitlines()
-    return lines[-1] if lines else f"exit status {run.returncode}"
 
 
 def _check_mat(path: Path) -> None:
-    st = path.stat()
-    reason = _mat_parses(str(path.resolve()), st.st_mtime_ns, st.st_size)
+    reason = mat_parse_error(path)
     if reason is not None:
         raise FormatError(f"cannot read MATLAB file ({reason}); expected a MAT-file with "
                           "'skeletal_data'", source=path)
@@ -107,7 +74,7 @@ def _loadmat(path: Path, **kwargs: Any) -> dict[str, Any]:
 
 def sniff(path: Path, head: bytes) -> bool:
     """A MATLAB 5 ``.mat`` holding a ``skeletal_data`` variable."""
-    if path.suffix.lower() != ".mat" or not head.startswith(_MAT_MAGIC):
+    if path.suffix.lower() != ".mat" or not head.startswith(MAT_MAGIC):
         return False
     from scipy.io import whosmat  # lazy, as in _loadmat
 

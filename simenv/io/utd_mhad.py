@@ -37,15 +37,14 @@ import numpy as np
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Motion, interpolate_gaps
 from simenv.core.skeletons import kinect_v1_skeleton
+from simenv.io._matfile import MAT_MAGIC, mat_parse_error
 from simenv.io.camera_frame import world_motion
-from simenv.io.florence3d import _mat_parses
 
 #: Frame rate of UTD-MHAD's Kinect v1 skeletons, frames/s.
 UTD_FPS = 30.0
 JOINTS = 20
 #: The variable holding the skeleton.
 VARIABLE = "d_skel"
-_MAT_MAGIC = b"MATLAB 5.0 MAT-file"
 
 #: UTD-MHAD's joint order (0-based index = row of ``d_skel``), Kinect SDK names.
 UTD_JOINTS: tuple[str, ...] = (
@@ -85,10 +84,9 @@ def _loadmat(path: Path) -> dict[str, Any]:
     from scipy.io import loadmat  # scipy.io (0.3 s) only for MAT-files
 
     try:
-        st = path.stat()
+        reason = mat_parse_error(path)
     except OSError as exc:
         raise FormatError(f"cannot read file: {exc.strerror or exc}", source=path) from None
-    reason = _mat_parses(str(path.resolve()), st.st_mtime_ns, st.st_size)
     if reason is None:
         try:
             return loadmat(str(path))
@@ -100,13 +98,12 @@ def _loadmat(path: Path) -> dict[str, Any]:
 
 def sniff(path: Path, head: bytes) -> bool:
     """A MATLAB 5 ``.mat`` holding a ``d_skel`` variable."""
-    if path.suffix.lower() != ".mat" or not head.startswith(_MAT_MAGIC):
+    if path.suffix.lower() != ".mat" or not head.startswith(MAT_MAGIC):
         return False
     from scipy.io import whosmat  # lazy, as in _loadmat
 
     try:
-        st = path.stat()
-        if _mat_parses(str(path.resolve()), st.st_mtime_ns, st.st_size) is not None:
+        if mat_parse_error(path) is not None:
             return False
         return any(name == VARIABLE for name, _, _ in whosmat(str(path)))
     except Exception:
