@@ -39,3 +39,22 @@ def test_score_out_says_what_it_scored_and_skipped(tmp_path: Path, capsys) -> No
     assert rerun.err.strip().splitlines()[-1] == (
         f"results in {out}: 0 file(s) scored, 1 skipped (already there), 0 failed")
     assert len(out.read_text().splitlines()) == 1
+
+
+def test_planner_fast_searches_less_with_the_scorers_seeds_and_attempts() -> None:
+    from simenv.cli.main import build_parser
+    from simenv.cli.score import score_config
+    from simenv.control import FAST
+    from simenv.plausibility.metric import ScoreConfig
+
+    parse = build_parser().parse_args
+    assert score_config(parse(["score", "x.bvh"])) is None
+    default = ScoreConfig().mpc
+    fast = score_config(parse(["score", "x.bvh", "--planner", "fast"])).mpc
+    assert (fast.n_samples, fast.timestep_factor, fast.antithetic) == (
+        FAST.n_samples, FAST.timestep_factor, FAST.antithetic)
+    assert (fast.seed, fast.attempts, fast.retry_horizon_s) == (
+        default.seed, default.attempts, default.retry_horizon_s)
+    assert fast.n_samples * default.timestep_factor < default.n_samples * fast.timestep_factor
+    one = score_config(parse(["score", "x.bvh", "--planner", "fast", "--tracking-attempts", "1"]))
+    assert one.mpc.attempts == 1 and one.mpc.n_samples == FAST.n_samples

@@ -40,7 +40,7 @@ from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.body.render import render_result
 from simenv.cli.common import describe, retarget_clip, save_npz, summary
 from simenv.cli.demo_page import write_page
-from simenv.control import FAST, MPCConfig
+from simenv.control import MPCConfig, fast_planner
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction
 from simenv.data import interaction_data as idata
@@ -94,9 +94,7 @@ def demo_score_config(base: ScoreConfig | None = None) -> ScoreConfig:
     own; a failure it reports may be the search's."""
     base = base or report_module.DEFAULT_SCORE_CONFIG
     own = base.mpc
-    fast = replace(FAST, seed=own.seed, attempts=own.attempts,
-                   retry_horizon_s=own.retry_horizon_s, nthread=own.nthread)
-    mpc = min((fast, own), key=planning_cost)
+    mpc = min((fast_planner(own), own), key=planning_cost)
     return replace(base, mpc=mpc, tracking_assisted_detail=False)
 
 

@@ -168,6 +168,13 @@ class MPCConfig:
 FAST = MPCConfig(n_samples=64, timestep_factor=4, antithetic=True)
 
 
+def fast_planner(like: MPCConfig) -> MPCConfig:
+    """:data:`FAST`'s search (samples, planning step, mirrored noise) with ``like``'s seed,
+    attempts, retry horizon and threads: the same run, searched a quarter as hard."""
+    return replace(FAST, seed=like.seed, attempts=like.attempts,
+                   retry_horizon_s=like.retry_horizon_s, nthread=like.nthread)
+
+
 class TrackingMPC:
     """The sampling-based (MPPI) tracking controller (module docstring).
 
