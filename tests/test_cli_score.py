@@ -28,7 +28,7 @@ def test_score_out_says_what_it_scored_and_skipped(tmp_path: Path, capsys) -> No
     the results: a rerun resumes) and failed; with --json it goes to stderr."""
     from simenv.cli.main import main
 
-    out = tmp_path / "results.jsonl"
+    out = tmp_path / "new" / "results.jsonl"  # a folder that does not exist yet
     walk = str(asset_path(WALK))
     assert main(["score", walk, "--no-physics", "--out", str(out)]) == 0
     first = capsys.readouterr().out.strip().splitlines()

@@ -291,6 +291,8 @@ def score_batch(
     collected: list[dict[str, Any]] = []
     frames = 0
     bar = tqdm(total=len(paths), disable=not progress, desc="score", unit="file")
+    if out is not None:
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
     fh = None if out is None else Path(out).open("a", encoding="utf-8")
     try:
         for target, records in results:
