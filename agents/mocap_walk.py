@@ -112,7 +112,9 @@ class Primitive:
             (``"left"``, ``"right"``, or ``"stand"``). advance: (3,) where its last pelvis
             pose is relative to its first, in the first's heading frame (forward m, left
             m, turn rad). mirrored: the tracked primitive reflected left to right
-            (:func:`mirror`; its gains are on the library's mirrored basis).
+            (:func:`mirror`; its gains are on the library's mirrored basis). after: for a
+            stop, the primitive it was tracked after (it starts on that one's last state
+            and is played after it only), else None.
     """
 
     name: str
@@ -124,6 +126,7 @@ class Primitive:
     phase_out: str
     advance: np.ndarray
     mirrored: bool = False
+    after: str | None = None
 
     @property
     def knots(self) -> int:
@@ -270,11 +273,14 @@ def load_library(path: str | None = None) -> Library:
     for name, info in meta["primitives"].items():
         parts = [get(f"{name}_{k}") for k in ("qpos", "qvel", "ctrl", "coef")]
         adv = np.array(info["advance"], float)
-        prims[name] = Primitive(name, *parts, info["phase_in"], info["phase_out"], adv)
+        after = info.get("after")
+        prims[name] = Primitive(name, *parts, info["phase_in"], info["phase_out"], adv,
+                                after=after)
         mq, mv, mu = mirror(*parts[:3], hinges)
         prims[f"{name}_mirrored"] = Primitive(
             f"{name}_mirrored", mq, mv, mu, parts[3], other[info["phase_in"]],
-            other[info["phase_out"]], adv * [1.0, -1.0, -1.0], mirrored=True)
+            other[info["phase_out"]], adv * [1.0, -1.0, -1.0], mirrored=True,
+            after=None if after is None else f"{after}_mirrored")
     basis = get("gain_basis")
     fb = get("feedback_ctrl").astype(int)
     return Library(prims, basis, _mirror_gains(basis, fb, hinges), fb, int(meta["stride"]),
@@ -353,7 +359,7 @@ def _sequences(lib: Library, max_cycles: int) -> list[list[str]]:
 
     def extend(seq: list[str], depth: int) -> None:
         phase = prims[seq[-1]].phase_out
-        out.extend([*seq, e] for e in stops[phase])
+        out.extend([*seq, e] for e in stops[phase] if prims[e].after in (None, seq[-1]))
         if depth < max_cycles:
             for n in by_phase.get(phase, []):
                 extend([*seq, n], depth + 1)
@@ -382,6 +388,11 @@ def compose(anchors: Anchors, keypoints: np.ndarray, goal: np.ndarray,
             best, cost, err = seq, c, e
     assert best is not None
     return best, err
+
+
+def _stop_after(lib: Library, name: str) -> str | None:
+    """The stop tracked after primitive ``name``, if any."""
+    return next((n for n, p in lib.primitives.items() if p.after == name), None)
 
 
 class MocapWalkPlan:
@@ -449,14 +460,21 @@ class MocapWalkPlan:
         cur = prims[self.names[i]]
         options = [n for n, p in prims.items() if p.phase_in == cur.phase_in
                    and p.phase_out == cur.phase_out and p.knots == cur.knots]
-        best, cost = self.names[i], np.inf
+        rest = self.names[i + 1:]
+        best, cost = (self.names[i], rest), np.inf
         for n in options:
-            end = self.anchors.predicted_end([n, *self.names[i + 1:]],
-                                             fit_frame(self.anchors.first[n], kp))
+            tail = rest
+            if prims[rest[0]].after is not None:  # the stop tracked after ``n``
+                stop = _stop_after(self.lib, n)
+                if stop is None:
+                    continue
+                tail = [stop, *rest[1:]]
+            end = self.anchors.predicted_end([n, *tail], fit_frame(self.anchors.first[n], kp))
             c = float(np.linalg.norm(end - self.goal))
             if c < cost - 1e-9:
-                best, cost = n, c
-        self.names[i] = best
+                best, cost = (n, tail), c
+        self.names[i] = best[0]
+        self.names[i + 1:] = best[1]
 
     def _reference(self, p: Primitive, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                         int]:

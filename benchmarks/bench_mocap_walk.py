@@ -15,7 +15,8 @@ rendering; nothing but its servos and contacts acts on it):
 Per walk and gait: simulated seconds, wall seconds (1 thread) and their ratio, the mean
 speeds, whether it fell, the
 lowest pelvis height, the pelvis's distance from the goal at the end, the largest external
-help on any physics step (N) and, for the primitives, the sequence played. Speeds: the
+help on any physics step (N), when it fell and, for the primitives, the sequence
+planned and played (and the piece it fell in). Speeds: the
 pelvis's path length on the floor (it sways) and its net displacement, each over the
 simulated time.
 
@@ -49,6 +50,10 @@ WALKS: dict[str, tuple[tuple[float, float], float, tuple[float, float]]] = {
 }
 
 
+#: Pelvis height below which the body has fallen (when it first did), m.
+FALLEN_M = 0.6
+
+
 def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, float]
          ) -> dict[str, Any]:
     room = Room("discomfort")
@@ -56,19 +61,22 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
     goal_a = np.array(goal)
     if gait == "mocap":
         plan = plan_mocap_walk(room, data, goal_a)
-        extra = {"sequence": plan.names}
+        extra = {"planned": list(plan.names)}
     else:
         heading = float(np.arctan2(*(goal_a - start)[::-1]))
         plan = plan_walk(room, data, goal_a, heading)
         extra = {"steps": len(plan.steps)}
     path = []
     dt = room.model.opt.timestep
+    fell_at = None
     t0 = time.perf_counter()
     for i in range(int(round(plan.duration / dt))):
         data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
         mujoco.mj_step(room.model, data)
         if i % 50 == 0:
             path.append(data.qpos[room.agent_qpos][:2].copy())
+            if fell_at is None and data.qpos[room.agent_qpos][2] < FALLEN_M:
+                fell_at = i * dt
     wall = time.perf_counter() - t0
     path_a = np.array([*path, data.qpos[room.agent_qpos][:2].copy()])
     dist = float(np.linalg.norm(np.diff(path_a, axis=0), axis=1).sum())
@@ -78,10 +86,14 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
     if gait == "mocap":
         extra["seams"] = [[round(float(x), 3) if isinstance(x, float) else x for x in s]
                           for s in plan.seams]
+        extra["played"] = plan.names  # the bends re-picked at the seams
+        if fell_at is not None:
+            extra["fell_in"] = [s[1] for s in plan.seams if s[0] <= fell_at][-1]
     return {"gait": gait, "simulated_s": plan.duration, "wall_s": wall,
             "cost_x_real_time": wall / plan.duration, "distance_m": dist,
             "path_speed_mps": dist / plan.duration, "net_m": net,
-            "net_speed_mps": net / plan.duration, **out, "help_max_n": help_["max_n"], **extra}
+            "net_speed_mps": net / plan.duration, **out, "fell_at_s": fell_at,
+            "help_max_n": help_["max_n"], **extra}
 
 
 def main() -> int:

@@ -49,7 +49,7 @@ from simenv.agents.reach import hinge_adr, min_jerk
 from simenv.assets import WALK, asset_path
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult, retarget_motion
-from simenv.control import MPCConfig, TrackingMPC, TrackingReference
+from simenv.control import MPCConfig, TrackingMPC, TrackingReference, fast_planner
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.plausibility.dynamics import dynamics_settings
 from simenv.room.room import Room
@@ -212,8 +212,8 @@ def double_support(h: Humanoid, cyc: np.ndarray) -> int:
     return int(np.argmin(z))
 
 
-def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float
-                        ) -> tuple[np.ndarray, dict]:
+def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
+                        cycles: tuple[int, ...] = CYCLES) -> tuple[np.ndarray, dict]:
     """The reference (T, nq) at ``fps`` (module docstring, 3) and the times (s) of the
     cycle boundaries (``cycle_k`` for the start of ``CYCLES[k]``, ``end``), and ``taus``:
     (T,) each frame's place in the looped clip, in cycles (0 at the first left
@@ -248,7 +248,7 @@ def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: floa
         tau += fps * dt * min_jerk(t / ACCEL_S)
         frames.append(clip(tau))
         taus.append(tau)
-    n_full = len(CYCLES) + 1
+    n_full = len(cycles) + 1
     decel_frames = fps * DECEL_S / 2
     # The walk ends at rest in the double support after the right foot's last swing.
     end_tau = (n_full + 0.5) * P + double_support(h, cyc)
@@ -276,7 +276,7 @@ def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: floa
     xs = q[:, 0].copy()
     order = np.argsort(xs, kind="stable")
     turns = []
-    for k, sign in enumerate(CYCLES):
+    for k, sign in enumerate(cycles):
         if sign:
             s0 = float(cyc[0, 0] + (k + 1) * adv[0])
             turns.append((s0, float(adv[0]), sign * np.deg2rad(TURN_DEG)))
@@ -303,17 +303,21 @@ def settled_start(h: Humanoid, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def track_reference(h: Humanoid, base: RetargetResult, q: np.ndarray, fps: float,
-                    seed: int, log: Path | None = None) -> dict[str, np.ndarray]:
+                    seed: int, log: Path | None = None, fast: bool = False,
+                    state: tuple[np.ndarray, np.ndarray] | None = None
+                    ) -> dict[str, np.ndarray]:
     """Track ``q`` with the MPC (module docstring, 4); per physics step ``qpos``, ``qvel``,
     ``ctrl`` (the targets applied at that step), ``err`` (mean keypoint error at the
-    frames, m) and ``ok`` (whether it stayed within :data:`FAIL_M`)."""
+    frames, m) and ``ok`` (whether it stayed within :data:`FAIL_M`). From ``state``
+    (qpos (nq,), qvel (nv,)) when given, else from the room's standing body; ``fast``:
+    :func:`simenv.control.fast_planner`'s search."""
     T = len(q)
     K = len(h.keypoint_names)
     result = replace(base, qpos=q, fps=fps, residuals=np.zeros((T, K), np.float32),
                      targets=np.zeros((T, K, 3), np.float32), name="mocap_walk_reference")
     ref = TrackingReference.from_retarget(result, h.model,
                                           dynamics_settings(DEFAULT_BODY_THRESHOLDS), 60.0)
-    cfg = MPCConfig(seed=seed)
+    cfg = fast_planner(MPCConfig(seed=seed)) if fast else MPCConfig(seed=seed)
     qs, vs, us, errs = [], [], [], []
     ok = True
     t0 = time.perf_counter()
@@ -323,7 +327,7 @@ def track_reference(h: Humanoid, base: RetargetResult, q: np.ndarray, fps: float
         mpc.reset(data)
         # From the standing body the room gives (the rest pose balanced 1 s), not from the
         # reference's first pose: replayed from the latter, the walk fell from the former.
-        data.qpos[:], data.qvel[:] = settled_start(h, q[0])
+        data.qpos[:], data.qvel[:] = settled_start(h, q[0]) if state is None else state
         mujoco.mj_forward(model, data)
         for s in range(ref.n_steps):
             u = mpc.control(data, s)
@@ -405,10 +409,53 @@ CUTS: dict[str, tuple[float | None, float | None, str, str]] = {
     "half_a": (2.0, 2.5, "left", "right"),
     "half_b": (1.5, 2.0, "right", "left"),
     "left": (3.0, 4.0, "left", "left"),
-    "stop": (5.0, None, "left", "stand"),
 }
+#: The stops: one tracking run after each walking primitive (name -> the stop that
+#: follows it), from the primitive's last tracked state, of the reference's tail from the
+#: same gait phase (cycle 5.0 after a left mid-swing, 4.5 after a right one) to the end
+#: (the slow-down and standing). Cut from the main run after one kind of piece only, the
+#: stop fell after every other kind (and, entered at a seam, after that kind too): 8 of 8
+#: composed walks on open floor fell in the stop (measured).
+STOP_AFTER = ("start", "start_short", "straight", "half_a", "half_b", "left")
 #: Physics steps between stored steps (and per feedback gain).
 STRIDE = 5
+
+
+def stop_reference(h: Humanoid, q: np.ndarray, taus: np.ndarray, phase: str,
+                   at: np.ndarray) -> np.ndarray:
+    """(T, nq) the tail of the reference ``q`` (its frames' places ``taus`` in cycles)
+    from the last gait phase ``phase`` before the slow-down, placed on the floor (turned
+    about the vertical and shifted, :func:`simenv.agents.mocap_walk.fit_frame` on the
+    legs' keypoints) onto the pose ``at`` (nq,)."""
+    from simenv.agents.mocap_walk import ANCHOR_KEYPOINTS, fit_frame
+
+    i0 = int(np.searchsorted(taus, 5.0 if phase == "left" else 4.5))
+    tail = q[i0:].copy()
+    idx = [list(h.keypoint_names).index(k) for k in ANCHOR_KEYPOINTS]
+    psi, off = fit_frame(h.keypoints(tail[0])[idx, :2], h.keypoints(at)[idx, :2])
+    c, sn = np.cos(psi), np.sin(psi)
+    tail[:, :2] = tail[:, :2] @ np.array([[c, sn], [-sn, c]]) + off
+    for i in range(len(tail)):
+        tail[i, 3:7] = _qmul(_quat_z(psi), tail[i, 3:7])
+    return tail
+
+
+def track_stop(h: Humanoid, base: RetargetResult, q: np.ndarray, taus: np.ndarray,
+               fps: float, run: dict[str, np.ndarray], after: str, seed: int, tries: int,
+               log: Path | None) -> dict[str, np.ndarray]:
+    """The tracked stop following primitive ``after`` of the main ``run`` (:data:`STOP_AFTER`):
+    from its last tracked state, the reference's tail (:func:`stop_reference`); retried
+    with the next seed while the tracker fails."""
+    dt = float(run["dt"])
+    step = int(round(int(np.searchsorted(taus, CUTS[after][1])) / fps / dt / STRIDE)) * STRIDE
+    state = (run["qpos"][step].copy(), run["qvel"][step].copy())
+    tail = stop_reference(h, q, taus, CUTS[after][3], state[0])
+    for s in range(seed, seed + tries):
+        out = track_reference(h, base, tail, fps, s, log, state=state)
+        out["seed"] = np.array(s)
+        if bool(out["ok"]):
+            break
+    return out
 #: Rank of the gains' basis over time. Measured on the start's first 2 s in the tracked
 #: model, pushed sideways 0.2 m/s: the pelvis 0.27 m off the tracked run after 2 s with
 #: the full gains (Q 10 / 50 / 0.1), 0.28 m at rank 100, 0.35 at rank 40; at rank 5 (99.9 %
@@ -433,9 +480,11 @@ def _advance(h: Humanoid, q0: np.ndarray, q1: np.ndarray) -> list[float]:
 
 
 def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps: float,
-                  out: Path, provenance: dict) -> dict:
-    """Cut the tracked ``run`` into :data:`CUTS`, give them LQR gains and write the
-    library to ``out`` (:data:`simenv.agents.mocap_walk.LIBRARY`'s JSON); returns its
+                  out: Path, provenance: dict, stops: dict[str, dict[str, np.ndarray]]
+                  ) -> dict:
+    """Cut the tracked ``run`` into :data:`CUTS`, add the tracked ``stops`` (name of the
+    primitive each follows -> its run, :func:`track_stop`), give them LQR gains and write
+    the library to ``out`` (:data:`simenv.agents.mocap_walk.LIBRARY`'s JSON); returns its
     metadata."""
     from simenv.agents.mocap_walk import body_signature, pack_array
 
@@ -465,8 +514,11 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
                       fb, STRIDE)
         for k in range(len(g)):
             gain_at[a + k * STRIDE] = g[k]
+    stop_gains = {a: lqr_gains(model, sr["qpos"], sr["qvel"], sr["ctrl"], fb, STRIDE)
+                  for a, sr in stops.items()}
     used = sorted(gain_at)
-    flat = np.array([gain_at[k] for k in used]).reshape(len(used), -1)
+    flat = np.concatenate([np.array([gain_at[k] for k in used]).reshape(len(used), -1),
+                           *[g.reshape(len(g), -1) for g in stop_gains.values()]])
     _, sv, vt = np.linalg.svd(flat, full_matrices=False)
     r = min(GAIN_RANK, len(sv))
     basis = vt[:r]
@@ -484,6 +536,22 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
             "phase_in": CUTS[name][2], "phase_out": CUTS[name][3],
             "steps": [int(a), int(b)], "seconds": (b - a) * dt,
             "advance": _advance(h, run["qpos"][a], run["qpos"][b])}
+    for after, srun in stops.items():
+        name = f"stop_after_{after}"
+        b = len(srun["qpos"]) - 1
+        k = np.arange(0, b - b % STRIDE + 1, STRIDE)
+        gk = stop_gains[after][: len(k)].reshape(len(k), -1)
+        arrays[f"{name}_qpos"] = srun["qpos"][k].astype(np.float32)
+        arrays[f"{name}_qvel"] = srun["qvel"][k].astype(np.float32)
+        arrays[f"{name}_ctrl"] = srun["ctrl"][k].astype(np.float32)
+        arrays[f"{name}_coef"] = (gk @ basis.T).astype(np.float32)
+        meta["primitives"][name] = {
+            "phase_in": CUTS[after][3], "phase_out": "stand", "after": after,
+            "seed": int(srun["seed"]), "seconds": float(k[-1] * dt),
+            "tracked_mean_err_m": float(srun["err"].mean()),
+            "tracked_max_err_m": float(srun["err"].max()),
+            "tracking_wall_s": float(srun["wall_s"]),
+            "advance": _advance(h, srun["qpos"][0], srun["qpos"][k[-1]])}
     err = np.linalg.norm(flat @ basis.T @ basis - flat) / np.linalg.norm(flat)
     meta["gain_relative_error"] = float(err)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -543,13 +611,28 @@ def main() -> int:
                   "mocap.cs.cmu.edu (NSF EIA-0196217)",
         "generator": "benchmarks/build_mocap_walk.py", "seed": int(run["seed"]),
         "planner": "simenv.control.TrackingMPC, MPCConfig defaults but seed",
-        "turn_deg": TURN_DEG, "cycles": list(CYCLES),
+        "turn_deg": TURN_DEG, "cycles": list(CYCLES), "stop_after": list(STOP_AFTER),
         "tracked_mean_err_m": float(run["err"].mean()),
         "tracked_max_err_m": float(run["err"].max()),
         "tracking_wall_s": float(run["wall_s"]),
         "lqr": {"q_pos": Q_POS, "q_root": Q_ROOT, "q_vel": Q_VEL, "r_ctrl": R_CTRL}}
+    taus = np.asarray(times["taus"])
+    stops = {}
+    for after in STOP_AFTER:  # each tracked run is cached beside the main one
+        path = args.tracked.with_name(f"{args.tracked.stem}_stop_{after}.npz")
+        if not path.exists():
+            np.savez(path, **track_stop(h, base, q, taus, fps, run, after, args.seed,
+                                        args.tries, args.log))
+        stops[after] = dict(np.load(path))
+        with args.log.open("a") as f:
+            f.write(f"stop after {after}: ok={bool(stops[after]['ok'])} seed "
+                    f"{int(stops[after]['seed'])} mean err {stops[after]['err'].mean():.3f} "
+                    f"max {stops[after]['err'].max():.3f}\n")
+        if not bool(stops[after]["ok"]):
+            print(f"the tracker failed the stop after {after} on every seed: no library")
+            return 1
     t0 = time.perf_counter()
-    meta = build_library(h, run, np.asarray(times["taus"]), fps, args.out, provenance)
+    meta = build_library(h, run, taus, fps, args.out, provenance, stops)
     with args.log.open("a") as f:
         f.write(f"library {args.out}: rank {meta['rank']}, gain error "
                 f"{meta['gain_relative_error']:.4f}, {time.perf_counter() - t0:.0f} s, "
