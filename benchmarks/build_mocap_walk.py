@@ -21,10 +21,12 @@ What it does, deterministically (seeded planner, one fixed clip):
    of every physics step; a run whose body error passes 0.5 m (the tracker's failure
    distance) is retried with the next seed;
 5. cuts the tracked run at the cycle boundaries into the primitives ``start`` (standing
-   to the end of the first full cycle), ``straight``, ``left``, ``right`` (one cycle each)
-   and ``stop`` (the last cycle to standing), and gives each time-varying feedback gains:
-   discrete LQR (:func:`lqr_gains`) on ``mujoco.mjd_transitionFD`` linearisations about
-   the tracked states, periodic for the cycles.
+   to the end of the first full cycle), ``start_short``, ``straight``, ``half_a``,
+   ``half_b`` and ``left`` (:data:`CUTS`);
+6. tracks one stop after each of them (:data:`STOP_AFTER`, :func:`track_stop`: from its
+   last tracked state, the same planner and seed), and gives every primitive
+   time-varying feedback gains: discrete LQR (:func:`lqr_gains`) on
+   ``mujoco.mjd_transitionFD`` linearisations about the tracked states.
 
 Usage::
 
