@@ -39,16 +39,15 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
+from bench_tracking import raw_step_ratio  # noqa: E402
 from eval_tracking import ACROBATICS, CORRUPT_CLIPS, CORRUPT_RUNS, clip_motion, clips  # noqa: E402
 
-from simenv.body.retarget import RetargetResult, retarget  # noqa: E402
-from simenv.control import FAST, MPCConfig, TrackingReference  # noqa: E402
+from simenv.body.retarget import retarget  # noqa: E402
+from simenv.control import FAST, MPCConfig  # noqa: E402
 from simenv.core.config import shared_data_root  # noqa: E402
 from simenv.plausibility.corrupt import CORRUPTIONS  # noqa: E402
 from simenv.plausibility.tracking import TrackingResult, track  # noqa: E402
@@ -57,24 +56,6 @@ from simenv.plausibility.tracking import TrackingResult, track  # noqa: E402
 PREVIOUS = replace(MPCConfig(), n_samples=128, timestep_factor=2, antithetic=False)
 #: The planners ``--new`` names: the shipped default and the quarter-cost preset.
 NEW = {"default": MPCConfig(), "fast": FAST}
-
-
-def raw_ratio(result: RetargetResult, seconds: float) -> float:
-    """Wall time per simulated second of a bare ``mj_step`` loop on the humanoid (no
-    sensors, servo targets on the reference), best of 3."""
-    ref = TrackingReference.from_retarget(result, max_seconds=seconds, feedforward=False)
-    model = result.humanoid.model
-    data = mujoco.MjData(model)
-    best = np.inf
-    for _ in range(3):
-        data.qpos[:], data.qvel[:] = ref.qpos0, ref.qvel0
-        mujoco.mj_forward(model, data)
-        t = time.perf_counter()
-        for s in range(ref.n_steps):
-            data.ctrl[:] = ref.ctrl[s]
-            mujoco.mj_step(model, data)
-        best = min(best, (time.perf_counter() - t) / (ref.n_steps * ref.dt))
-    return float(best)
 
 
 def _record(tr: TrackingResult, dt: float) -> dict[str, float | bool]:
@@ -111,7 +92,7 @@ def run(args: argparse.Namespace) -> None:
                                   "strength": strength, "seconds": args.seconds,
                                   "threads": args.threads, "attempts": args.attempts,
                                   "load_before": os.getloadavg()[0],
-                                  "raw_x_real_time": raw_ratio(fitted, args.seconds)}
+                                  "raw_x_real_time": raw_step_ratio(fitted, args.seconds, 3)}
         order = ("previous", "new") if i % 2 == 0 else ("new", "previous")
         for name in order:
             rec[name] = _record(track(fitted, controller="mpc", mpc=planners[name],

@@ -46,14 +46,6 @@ JOINTS = 20
 #: The variable holding the skeleton.
 VARIABLE = "d_skel"
 
-#: UTD-MHAD's joint order (0-based index = row of ``d_skel``), Kinect SDK names.
-UTD_JOINTS: tuple[str, ...] = (
-    "head", "shoulder_center", "spine", "hip_center",
-    "shoulder_left", "elbow_left", "wrist_left", "hand_left",
-    "shoulder_right", "elbow_right", "wrist_right", "hand_right",
-    "hip_left", "knee_left", "ankle_left", "foot_left",
-    "hip_right", "knee_right", "ankle_right", "foot_right",
-)
 #: For each Kinect SDK v1 joint (hip centre, spine, shoulder centre, head, then the
 #: limbs), its row in ``d_skel``: the first four are reversed, the limbs keep their order.
 UTD_TO_SDK: tuple[int, ...] = (3, 2, 1, 0, *range(4, JOINTS))
