@@ -38,6 +38,7 @@ import numpy as np
 from simenv.core.errors import MotionError, SimenvError, UnknownFormatError
 from simenv.core.joint_map import JointMapSource, map_motion
 from simenv.core.motion import Interaction, Motion
+from simenv.io.floor import put_on_floor
 
 #: Reader modules of :mod:`simenv.io`, in detection priority order.
 READERS: tuple[str, ...] = (
@@ -178,7 +179,10 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
             maps every person's joints onto the canonical keypoints instead of
             the reader's map. Without it, a skeleton the reader does not know
             is mapped by :func:`simenv.core.joint_map.map_motion` (names,
-            hierarchy, pose), recorded in ``metadata["joint_map"]``.
+            hierarchy, pose), recorded in ``metadata["joint_map"]``. A
+            motion-capture file whose floor is at the feet's joint centres is
+            then raised onto a floor under the soles
+            (:func:`simenv.io.floor.put_on_floor`, noted in ``metadata["repairs"]``).
 
     Returns:
         Motion, Interaction, or a list of them (files/folders with many
@@ -192,13 +196,14 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
 
 
 def _mapped(loaded: Loaded, joint_map: JointMapSource | None) -> Loaded:
-    """Every person of ``loaded`` through :func:`map_motion`."""
+    """Every person of ``loaded`` through :func:`map_motion`, then each clip on its floor
+    (:func:`~simenv.io.floor.put_on_floor`: it needs the mapped toe keypoints)."""
     if isinstance(loaded, list):
         return [_mapped(x, joint_map) for x in loaded]  # type: ignore[misc]
     if isinstance(loaded, Interaction):
-        return replace(loaded, actor=map_motion(loaded.actor, joint_map),
-                       reactor=map_motion(loaded.reactor, joint_map))
-    return map_motion(loaded, joint_map)
+        return put_on_floor(replace(loaded, actor=map_motion(loaded.actor, joint_map),
+                                    reactor=map_motion(loaded.reactor, joint_map)))
+    return put_on_floor(map_motion(loaded, joint_map))
 
 
 def _load(path: str | Path | Sequence[str | Path], kwargs: dict[str, Any]) -> Loaded:

@@ -1,0 +1,111 @@
+"""A file whose floor is at the feet's joint centres, not under their soles: put it on the floor.
+
+simenv takes a motion-capture file's own ground plane as the floor (z = 0 after reading):
+a calibrated capture volume has its floor there, and the body fit
+(:func:`simenv.body.humanoid.fit_dimensions`) hangs each sole below the toe (ball) keypoint
+from it. Some processed data sets instead put the *lowest joint centre* at zero: Holden et
+al.'s preprocessing of the data retargeted to the CMU skeleton (the Xia et al. style set of
+deep-motion-editing), and HumanML3D's ``motion_representation`` ("put on floor": the
+minimum joint height subtracted). On such a file the planted balls stand at or below z = 0;
+a ball (metatarsophalangeal) joint centre of a loaded foot is at least about 15 mm above its
+sole (0.6x the 25-mm anthropometric toe height, the lowest toe height the body fit accepts),
+so the file's zero cannot be the floor the person stood on, and every ground metric would
+then measure the file's convention instead of the motion.
+
+The rule (:func:`floor_offset`): on every frame the lower toe keypoint, when it is slow
+(:func:`planted_toe_heights`: the supporting ball, found without reference to any height, so
+independent of where the file's zero is), gives a ball height; when even
+their 90th percentile is below :data:`MIN_BALL_HEIGHT_M` -- nearly the whole stance below the
+lowest possible ball -- the floor is at the joint centres, and the clip is raised so that
+the planted balls' median stands at :data:`BALL_HEIGHT_M`. One stance sinking (a capture
+glitch, a corrupted segment) leaves the other stances' balls above the bound and is not
+touched; a clip without toe keypoints or planted frames is not touched. The raise is noted
+in ``metadata["repairs"]``.
+
+Applied by :func:`simenv.load` to the formats in :data:`FILE_FLOOR_FORMATS` (the file's
+coordinate frame is the world frame); depth-camera readers estimate their floor themselves
+(:mod:`simenv.io.camera_frame`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from simenv.core.errors import MotionError
+from simenv.core.motion import Interaction, Motion
+
+#: Lowest height of a planted ball (toe keypoint) above the sole, metres: 0.6x the
+#: anthropometric 25 mm, the bound of the body fit's toe height.
+MIN_BALL_HEIGHT_M = 0.015
+#: Height of a planted ball above the sole, metres (the anthropometric value the body fit
+#: starts from, ``BodyDimensions.toe_height``).
+BALL_HEIGHT_M = 0.025
+#: Fewest supporting-ball samples (frames) to judge the floor on.
+MIN_PLANTED = 10
+#: ``metadata["format"]`` values whose floor is the file's own ground plane.
+FILE_FLOOR_FORMATS = frozenset({"bvh", "asf_amc", "joint_csv"})
+
+
+def planted_toe_heights(motion: Motion, speed_mps: float = 0.949) -> np.ndarray:
+    """Heights (metres, z of the file) of the supporting ball: on each frame the lowest toe
+    keypoint, where its 3-D speed to the next frame is below ``speed_mps`` (the contact
+    detector's, :func:`simenv.body.foot_contact.foot_contacts`). Unlike the contact
+    detector's height test, this does not depend on the clip's lowest level, so one stance
+    sunk through the floor does not hide the others. Empty when the skeleton maps no toe or
+    the clip has one frame."""
+    try:
+        canon = motion.to_canonical()
+    except MotionError:
+        return np.zeros(0)
+    toes = [f"{s}_toe" for s in ("left", "right") if f"{s}_toe" in canon.skeleton.joint_names]
+    if not toes or canon.num_frames < 2:
+        return np.zeros(0)
+    pos = np.stack([canon.joint(t) for t in toes], axis=1).astype(np.float64)  # (T, F, 3)
+    speed = np.linalg.norm(np.diff(pos, axis=0), axis=-1) * canon.fps
+    speed = np.concatenate([speed, speed[-1:]])
+    lowest = pos[..., 2].argmin(axis=1)
+    rows = np.arange(canon.num_frames)
+    slow = speed[rows, lowest] < speed_mps
+    return pos[rows, lowest, 2][slow]
+
+
+def floor_offset(people: list[Motion]) -> float:
+    """How far (metres) to raise ``people`` (one shared floor) so that their supporting balls
+    (:func:`planted_toe_heights`) stand on a floor under their soles; 0 when the file's
+    floor already is (see the module docstring)."""
+    toes = np.concatenate([planted_toe_heights(m) for m in people])
+    if toes.size < MIN_PLANTED or np.percentile(toes, 90) >= MIN_BALL_HEIGHT_M:
+        return 0.0
+    return float(BALL_HEIGHT_M - np.median(toes))
+
+
+def _raised(m: Motion, dz: float, note: str) -> Motion:
+    pos = m.positions.copy()
+    pos[..., 2] += dz
+    meta = dict(m.metadata)
+    meta["repairs"] = [*meta.get("repairs", []), note]
+    return replace(m, positions=pos, metadata=meta)
+
+
+def put_on_floor(loaded: Motion | Interaction) -> Motion | Interaction:
+    """``loaded`` raised by :func:`floor_offset` when its file's floor is at the feet's joint
+    centres (noted in ``metadata["repairs"]``); unchanged otherwise, and for formats not in
+    :data:`FILE_FLOOR_FORMATS`."""
+    people = list(loaded.people) if isinstance(loaded, Interaction) else [loaded]
+    if str(people[0].metadata.get("format", "")).lower() not in FILE_FLOOR_FORMATS:
+        return loaded
+    dz = floor_offset(people)
+    if dz <= 0.0:
+        return loaded
+    toes = np.concatenate([planted_toe_heights(m) for m in people])
+    note = (f"floor at the feet's joint centres: planted toe keypoints at a median "
+            f"{1000 * np.median(toes):.0f} mm (90th percentile "
+            f"{1000 * np.percentile(toes, 90):.0f} mm, below the {1000 * MIN_BALL_HEIGHT_M:.0f}"
+            f" mm a ball stands over its sole); raised by {1000 * dz:.0f} mm so they stand at "
+            f"{1000 * BALL_HEIGHT_M:.0f} mm (simenv.io.floor)")
+    if isinstance(loaded, Interaction):
+        return replace(loaded, actor=_raised(loaded.actor, dz, note),
+                       reactor=_raised(loaded.reactor, dz, note))
+    return _raised(loaded, dz, note)
