@@ -48,7 +48,7 @@ Checks (:func:`evaluate`), physics off (the joint-level verdict)
       the corruption targets;
     * CMU clips are detected as motion capture and keep the defaults.
 
-Sensor checks (:func:`simenv.plausibility.profiles.sensor_failures`), measured, not shipped
+Sensor checks (:mod:`depth_camera_sensor_checks`), measured, not shipped
     ``limb_persistence`` (joins ``bone_length``) and ``body_jump`` (joins ``velocity``), each
     limited at the P99 of the calibration people; ``limb_persistence``'s running-median
     window is the one of :data:`WINDOWS` that catches most ``bone_stretch`` copies of the
@@ -76,6 +76,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from depth_camera_sensor_checks import SENSOR_FIELDS, sensor_failures, sensor_limits, sensor_values
 from doc_sections import replace_section
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
@@ -87,15 +88,7 @@ from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, SOURCE_BODY_THRESHOLDS
 from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES, STRETCH_BONES
 from simenv.plausibility.metrics.bone_length import bone_deviations, measured_bones
-from simenv.plausibility.profiles import (
-    PROFILE_FILE,
-    SENSOR_CHECKS,
-    SENSOR_FIELDS,
-    Profile,
-    detect_source,
-    sensor_failures,
-    sensor_values,
-)
+from simenv.plausibility.profiles import PROFILE_FILE, Profile, detect_source
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 
 REPO = Path(__file__).resolve().parents[1]
@@ -218,16 +211,6 @@ def read_people() -> dict[str, list[Person]]:
     return out
 
 
-def _sensor_limits(people: Sequence[Person], window: int, percentile: float
-                   ) -> dict[str, float]:
-    """Each sensor check's limit: ``percentile`` of the people's values at ``window``."""
-    out = {"limb_window_frames": float(window)}
-    for check, (limit, _) in SENSOR_CHECKS.items():
-        v = np.array([p.sensor[window][check] for p in people])
-        out[limit] = round(float(np.percentile(v, percentile)), 4)
-    return out
-
-
 def choose_window(name: str, people: Sequence[Person], percentile: float = PERCENTILE
                   ) -> tuple[int, dict[str, Any]]:
     """The ``limb_persistence`` window of :data:`WINDOWS` whose limit (``percentile`` of the
@@ -248,7 +231,7 @@ def choose_window(name: str, people: Sequence[Person], percentile: float = PERCE
                                   for w in WINDOWS})
     scores: dict[str, Any] = {}
     for w in WINDOWS:
-        lim = _sensor_limits(people, w, percentile)["limb_persistence_max"]
+        lim = sensor_limits([p.sensor for p in people], w, percentile)["limb_persistence_max"]
         scores[str(w)] = {lv: float(np.mean([v[w] > lim for v in vals])) if vals else 0.0
                           for lv, vals in copies.items()}
     best = max(WINDOWS, key=lambda w: (sum(scores[str(w)].values()), -w))
@@ -293,7 +276,7 @@ def fit_profile(name: str, people: Sequence[Person], sources: Sequence[str],
     for p in people:
         counts[p.source] = counts.get(p.source, 0) + 1
     window, window_scores = choose_window(name, people, percentile)
-    sensor = _sensor_limits(people, window, percentile)
+    sensor = sensor_limits([p.sensor for p in people], window, percentile)
     return {
         "thresholds": thresholds,
         "body": body,
@@ -322,12 +305,15 @@ def fit_profile(name: str, people: Sequence[Person], sources: Sequence[str],
     }
 
 
-def _profile(name: str, raw: dict[str, Any], checks: bool = False) -> Profile:
-    """The profile of a fitted or shipped ``raw`` as shipped (thresholds only), or with
-    ``checks`` its measured sensor checks (``provenance["sensor_measured"]``) on."""
-    sensor = raw["provenance"].get("sensor_measured", {}) if checks else raw.get("sensor", {})
-    return Profile(name, dict(raw["thresholds"]), dict(raw["body"]), dict(sensor),
-                   dict(raw["provenance"]))
+def _profile(name: str, raw: dict[str, Any]) -> Profile:
+    """The profile of a fitted or shipped ``raw`` (its measured sensor limits stay in
+    ``provenance["sensor_measured"]``)."""
+    return Profile(name, dict(raw["thresholds"]), dict(raw["body"]), dict(raw["provenance"]))
+
+
+def _measured(profile: Profile) -> dict[str, float]:
+    """The sensor-check limits measured with ``profile`` (empty: none)."""
+    return dict(profile.provenance.get("sensor_measured", {}))
 
 
 def _thresholds(profile: Profile | None) -> Thresholds:
@@ -335,12 +321,14 @@ def _thresholds(profile: Profile | None) -> Thresholds:
                                                               **profile.thresholds)
 
 
-def failed(m: Motion, profile: Profile | None) -> list[str]:
+def failed(m: Motion, profile: Profile | None, sensor: dict[str, float] | None = None
+           ) -> list[str]:
     """Joint-level metrics ``m`` fails under ``profile`` (None: the mocap defaults): by
-    their thresholds or by the profile's sensor check that joins them."""
+    their thresholds or by the sensor check (limits ``sensor``; None: none) that joins
+    them."""
     out = [n for n, r in kinematic_metrics(m, _thresholds(profile)).items()
            if r.passed is False]
-    return out + [n for n in sensor_failures(m, profile) if n not in out]
+    return out + [n for n in sensor_failures(m, sensor) if n not in out]
 
 
 def _pct(k: int, n: int) -> str:
@@ -348,16 +336,17 @@ def _pct(k: int, n: int) -> str:
 
 
 def judge_sources(people: dict[str, list[Person]], names: Sequence[str],
-                  profile: Profile) -> dict[str, dict[str, Any]]:
-    """Per source: people inside with the defaults and with ``profile``, and the metrics
-    that put the others outside."""
+                  profile: Profile, sensor: dict[str, float] | None = None
+                  ) -> dict[str, dict[str, Any]]:
+    """Per source: people inside with the defaults and with ``profile`` (and the sensor
+    limits ``sensor``), and the metrics that put the others outside."""
     out = {}
     for s in names:
         before = after = 0
         outside: dict[str, int] = {}
         for p in people[s]:
             before += not failed(p.motion, None)
-            f = failed(p.motion, profile)
+            f = failed(p.motion, profile, sensor)
             after += not f
             for n in f:
                 outside[n] = outside.get(n, 0) + 1
@@ -366,11 +355,12 @@ def judge_sources(people: dict[str, list[Person]], names: Sequence[str],
     return out
 
 
-def corruptions(people: Sequence[Person], profile: Profile) -> dict[str, dict[str, Any]]:
-    """Per corruption and level: copies of the inside people outside the profile, and
-    caught by the targeted metric."""
+def corruptions(people: Sequence[Person], profile: Profile,
+                sensor: dict[str, float] | None = None) -> dict[str, dict[str, Any]]:
+    """Per corruption and level: copies of the inside people outside the profile (and the
+    sensor limits ``sensor``), and caught by the targeted metric."""
     inside = [p for p in people
-              if not failed(p.motion, profile) and p.motion.num_frames >= MIN_FRAMES]
+              if not failed(p.motion, profile, sensor) and p.motion.num_frames >= MIN_FRAMES]
     out: dict[str, dict[str, Any]] = {}
     for name, c in CORRUPTIONS.items():
         for level, strength in (("moderate", c.moderate),
@@ -382,7 +372,7 @@ def corruptions(people: Sequence[Person], profile: Profile) -> dict[str, dict[st
                 except SimenvError:
                     continue
                 made += 1
-                f = failed(bad, profile)
+                f = failed(bad, profile, sensor)
                 outside += bool(f)
                 caught += any(t in f for t in c.targets)
             out[f"{name}/{level}"] = {"strength": strength, "copies": made, "outside": outside,
@@ -456,21 +446,24 @@ def cmu_profiles() -> dict[str, int]:
 
 def evaluate(people: dict[str, list[Person]], profiles: dict[str, Profile],
              reverse: Profile) -> dict[str, Any]:
-    """Every number of the report (module docstring)."""
+    """Every number of the report (module docstring): each profile judged with its measured
+    sensor limits (``provenance["sensor_measured"]``) and, on the held-out sources, also by
+    its thresholds alone (``"thresholds_only"``)."""
     out: dict[str, Any] = {"sources": {}, "corruptions": {}, "reverse": {},
                            "thresholds_only": {"sources": {}, "corruptions": {}}}
     for fam, profile in profiles.items():
         names = [s.name for s in SOURCES if s.family == fam]
-        out["sources"].update(judge_sources(people, names, profile))
-        bare = replace(profile, sensor={})
+        sensor = _measured(profile)
+        out["sources"].update(judge_sources(people, names, profile, sensor))
         held = [s.name for s in SOURCES if s.family == fam and s.role == "held_out"]
-        out["thresholds_only"]["sources"].update(judge_sources(people, held, bare))
+        out["thresholds_only"]["sources"].update(judge_sources(people, held, profile))
         for s in held:
-            out["corruptions"][s] = corruptions(people[s], profile)
-            out["thresholds_only"]["corruptions"][s] = corruptions(people[s], bare)
-    out["reverse"]["sources"] = judge_sources(people, REVERSE["held_out"], reverse)
+            out["corruptions"][s] = corruptions(people[s], profile, sensor)
+            out["thresholds_only"]["corruptions"][s] = corruptions(people[s], profile)
+    rev_sensor = _measured(reverse)
+    out["reverse"]["sources"] = judge_sources(people, REVERSE["held_out"], reverse, rev_sensor)
     out["reverse"]["corruptions"] = {
-        s: corruptions(people[s], reverse) for s in REVERSE["held_out"]}
+        s: corruptions(people[s], reverse, rev_sensor) for s in REVERSE["held_out"]}
     out["cmu_profiles"] = cmu_profiles()
     out["filter_study"] = filter_study(people)
     out["limb_noise"] = {}
@@ -630,7 +623,7 @@ def markdown(profiles: dict[str, dict[str, Any]], res: dict[str, Any], seconds: 
         "calibration corpora over from `SOURCE_BODY_THRESHOLDS` (larger per field); "
         "`kinect_v2` borrows them: they are not measured on Kinect v2 clips.",
         "",
-        "**Sensor checks** (`simenv.plausibility.profiles.sensor_failures`). The thresholds "
+        "**Sensor checks** (`benchmarks/depth_camera_sensor_checks.py`). The thresholds "
         "sit on each family's worst real clips, so a moderate defect hides under them. Two "
         "checks measure what the sensor's noise is not, each against its family's own limit "
         f"(P{PERCENTILE:g} of the calibration people) and joined to the verdict of the metric "
@@ -760,8 +753,8 @@ def main() -> None:
         if shipped != raw:
             print("note: the shipped profiles differ from a fresh fit")
         raw = shipped
-    profiles = {k: _profile(k, v, checks=True) for k, v in raw.items()}
-    res = evaluate(people, profiles, _profile("kinect_v1_reverse", rev, checks=True))
+    profiles = {k: _profile(k, v) for k, v in raw.items()}
+    res = evaluate(people, profiles, _profile("kinect_v1_reverse", rev))
     res["sweep"] = sweep(people)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "summary.json").write_text(json.dumps(res, indent=1))

@@ -12,20 +12,16 @@ import pytest
 
 from simenv.cli import score as score_cli
 from simenv.core.errors import SimenvError
-from simenv.core.motion import Motion
 from simenv.io.loader import load
 from simenv.plausibility.corrupt import CORRUPTIONS
-from simenv.plausibility.keypoints import kinematic_metrics
 from simenv.plausibility.metric import ScoreConfig
 from simenv.plausibility.profiles import (
     DECLARABLE_SOURCES,
-    Profile,
     apply_profile,
     detect_source,
     load_profiles,
     profile_for,
     profile_path,
-    sensor_failures,
 )
 from simenv.plausibility.report import score
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS
@@ -154,51 +150,3 @@ def test_html_report_says_which_profile_judged(tmp_path: Path) -> None:
 
     page = write_report(score(load(NTU), physics=False), tmp_path / "ntu").read_text()
     assert "judged by" in page and "kinect_v2 depth-camera profile" in page
-
-
-def _measured(family: str) -> Profile:
-    """The bundled family profile with its measured (not shipped) sensor checks on."""
-    p = load_profiles()[family]
-    return replace(p, sensor=p.provenance["sensor_measured"])
-
-
-def _misses(motion: Motion, profile: Profile) -> list[str]:
-    thresholds = replace(DEFAULT_THRESHOLDS, **profile.thresholds)
-    return [n for n, r in kinematic_metrics(motion, thresholds).items() if r.passed is False]
-
-
-def test_shipped_profiles_run_no_sensor_check(shared_data: Path) -> None:
-    for p in load_profiles().values():
-        assert p.sensor == {}
-        assert set(p.provenance["sensor_measured"]) == {
-            "limb_window_frames", "limb_persistence_max", "body_jump_max_m"}
-        assert sensor_failures(load(shared_data / MSR), p) == {}
-    # Motion capture has no profile, hence no sensor check.
-    assert sensor_failures(load(shared_data / "cmu/bvh/02_01.bvh"), None) == {}
-
-
-def test_sensor_checks_see_defects_under_the_kinect_v1_thresholds(shared_data: Path) -> None:
-    # MSR Action3D subject 1: a calibration person of kinect_v1.
-    clip = load(shared_data / MSR)
-    profile = _measured("kinect_v1")
-    assert _misses(clip, profile) == [] and sensor_failures(clip, profile) == {}
-    for name, metric, check in (("bone_stretch", "bone_length", "limb_persistence"),
-                                ("teleport", "velocity", "body_jump")):
-        c = CORRUPTIONS[name]
-        bad = c.fn(clip, 3 * c.moderate, seed=0)
-        assert metric not in _misses(bad, profile)  # the thresholds let it through
-        failures = sensor_failures(bad, profile)
-        assert failures[metric]["check"] == check
-        assert failures[metric]["value"] > failures[metric]["limit"]
-
-
-def test_sensor_checks_catch_moderate_defects_of_a_real_nuitrack_clip(shared_data: Path
-                                                                      ) -> None:
-    # The first 5-s window of a NuiSI recording: a calibration window of kinect_v2.
-    clip = load(shared_data / "other/nuisi/Rocket_p1.txt")
-    window = clip.slice(0, round(5 * clip.fps))
-    profile = _measured("kinect_v2")
-    assert _misses(window, profile) == [] and sensor_failures(window, profile) == {}
-    for name, metric in (("bone_stretch", "bone_length"), ("teleport", "velocity")):
-        c = CORRUPTIONS[name]
-        assert metric in sensor_failures(c.fn(window, c.moderate, seed=0), profile)

@@ -30,22 +30,6 @@ Profiles (:func:`profile_for`, :func:`apply_profile`)
     threshold fields. :func:`apply_profile` sets a profile field only where the given
     configuration still holds that field's default, so thresholds a user set explicitly
     stay theirs.
-
-Sensor checks (:func:`sensor_values`, :func:`sensor_failures`)
-    A family profile's thresholds sit on its sensor's worst real clips, so a moderate
-    defect hides under them. Two checks judge what the sensor's noise is not, each against
-    the family's own calibrated limit (``sensor`` of the profile) and reported under the
-    metric that owns the defect: ``limb_persistence``
-    (:func:`~simenv.plausibility.metrics.bone_length.limb_persistence`: a limb bone's
-    persistent length change over the clip's own frame-to-frame noise) for
-    ``bone_length``, and ``body_jump``
-    (:func:`~simenv.plausibility.metrics.velocity.body_jump`: the whole body leaving its
-    path in one frame, where joint-independent noise averages out) for ``velocity``.
-    Motion capture and body models have none: their verdict is unchanged. A profile runs
-    them only if it holds a ``sensor`` section; the bundled ones do not: judged once on
-    sources the calibration never saw, the checks put more real clips outside than they
-    caught defects (docs/plausibility.md), so their measured limits stay in each profile's
-    ``provenance["sensor_measured"]``.
 """
 
 from __future__ import annotations
@@ -102,16 +86,6 @@ FORMAT_KINDS: dict[str, str] = {
     "humanml3d_features": "body_model",
 }
 
-#: Sensor-check settings a profile may hold: the limits (``*_max``: a check fails above)
-#: and the running-median window (frames) of ``limb_persistence``.
-SENSOR_FIELDS: tuple[str, ...] = ("limb_window_frames", "limb_persistence_max",
-                                  "body_jump_max_m")
-#: Sensor check -> (its limit field, the metric whose verdict it joins).
-SENSOR_CHECKS: dict[str, tuple[str, str]] = {
-    "limb_persistence": ("limb_persistence_max", "bone_length"),
-    "body_jump": ("body_jump_max_m", "velocity"),
-}
-
 #: The bundled profiles, relative to the assets folder.
 PROFILE_FILE = ("profiles", "depth_camera.json")
 
@@ -145,14 +119,12 @@ class Profile:
         name: the family (``kinect_v1``, ``kinect_v2``).
         thresholds: :class:`Thresholds` field -> value (only the fields it changes).
         body: :class:`BodyThresholds` field -> value (only the fields it changes).
-        sensor: the sensor checks' settings (:data:`SENSOR_FIELDS`; empty: none).
         provenance: how the values were computed (calibration sources, percentile, clips).
     """
 
     name: str
     thresholds: dict[str, float]
     body: dict[str, float]
-    sensor: dict[str, float]
     provenance: dict[str, Any]
 
 
@@ -201,17 +173,14 @@ def profile_path() -> Path:
     return assets_root().joinpath(*PROFILE_FILE)
 
 
-def _check_fields(name: str, section: str, values: Mapping[str, Any], cls: type | None,
+def _check_fields(name: str, section: str, values: Mapping[str, Any], cls: type,
                   path: Path) -> dict[str, float]:
-    """``values`` as floats, each a positive number of a field of ``cls`` (None: of
-    :data:`SENSOR_FIELDS`)."""
-    known = {f.name for f in fields(cls)} if cls is not None else set(SENSOR_FIELDS)
-    what = f"{cls.__name__}'s fields" if cls is not None else ", ".join(SENSOR_FIELDS)
+    known = {f.name for f in fields(cls)}
     out = {}
     for key, value in values.items():
         if key not in known or not isinstance(value, (int, float)) or not value > 0:
             raise SimenvError(f"profile {name!r} {section} field {key!r} = {value!r}: expected a "
-                              f"positive number for one of {what}",
+                              f"positive number for one of {cls.__name__}'s fields",
                               source=path, field=f"{name}.{section}.{key}")
         out[key] = float(value)
     return out
@@ -234,7 +203,6 @@ def _load(path: Path) -> dict[str, Profile]:
             name=name,
             thresholds=_check_fields(name, "thresholds", p.get("thresholds", {}), Thresholds, path),
             body=_check_fields(name, "body", p.get("body", {}), BodyThresholds, path),
-            sensor=_check_fields(name, "sensor", p.get("sensor", {}), None, path),
             provenance=dict(p.get("provenance", {})))
     return out
 
@@ -281,40 +249,12 @@ def apply_profile(config: ScoreConfig, profile: Profile | None) -> ScoreConfig:
                    body=_merged(config.body, DEFAULT_BODY_THRESHOLDS, profile.body))
 
 
-def sensor_values(motion: Motion, window: int) -> dict[str, float]:
-    """The sensor checks' values of one person (module docstring): ``limb_persistence``
-    (dimensionless, with a ``window``-frame running median) and ``body_jump`` (metres)."""
-    from simenv.plausibility.metrics.bone_length import limb_persistence
-    from simenv.plausibility.metrics.velocity import body_jump
-
-    return {"limb_persistence": limb_persistence(motion, window)[0],
-            "body_jump": body_jump(motion)}
-
-
-def sensor_failures(motion: Motion, profile: Profile | None
-                    ) -> dict[str, dict[str, float | str]]:
-    """The sensor checks ``motion`` fails under ``profile``, keyed by the metric whose
-    verdict each joins (``bone_length``, ``velocity``): ``{"check", "value", "limit"}``.
-    Empty for None (motion capture, body models) and for a profile without checks."""
-    if profile is None or "limb_window_frames" not in profile.sensor:
-        return {}
-    values = sensor_values(motion, int(profile.sensor["limb_window_frames"]))
-    out: dict[str, dict[str, float | str]] = {}
-    for check, (limit, metric) in SENSOR_CHECKS.items():
-        if limit in profile.sensor and values[check] > profile.sensor[limit]:
-            out[metric] = {"check": check, "value": values[check],
-                           "limit": profile.sensor[limit]}
-    return out
-
-
 __all__ = [
     "DECLARABLE_SOURCES",
     "DEPTH_FAMILIES",
     "FORMAT_KINDS",
     "MOCAP_PROFILE",
     "PROFILE_FILE",
-    "SENSOR_CHECKS",
-    "SENSOR_FIELDS",
     "SKELETON_KINDS",
     "SOURCE_KINDS",
     "Profile",
@@ -324,6 +264,4 @@ __all__ = [
     "load_profiles",
     "profile_for",
     "profile_path",
-    "sensor_failures",
-    "sensor_values",
 ]

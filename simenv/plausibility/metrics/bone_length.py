@@ -116,66 +116,6 @@ def bone_deviations(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS
     return out
 
 
-#: Canonical keypoints at the lower end of the limb bones (thighs, shins, upper arms,
-#: forearms): bones between two joints a depth camera localises on their own, unlike the
-#: trunk, hand and foot bones, whose ends it guesses (their lengths wander several times
-#: more on real Kinect clips: docs/plausibility.md, "Source kinds and depth-camera profiles").
-LIMB_ENDS: tuple[str, ...] = (
-    "left_knee", "left_ankle", "right_knee", "right_ankle",
-    "left_elbow", "left_wrist", "right_elbow", "right_wrist",
-)
-#: Relative length noise (fraction) below which a limb bone counts as still: the floor of
-#: :func:`limb_persistence`'s noise scale, so that a bone a sensor keeps rigid (MSR
-#: Action3D's shins) does not turn a sub-millimetre change into a large multiple.
-LIMB_NOISE_FLOOR = 0.01
-
-
-def limb_persistence(motion: Motion, window: int,
-                     thresholds: Thresholds = DEFAULT_THRESHOLDS) -> tuple[float, str]:
-    """The most persistent limb-bone length change of a clip, in units of the clip's own
-    frame-to-frame length noise (the self-referenced bone check of the depth-camera
-    profiles, :mod:`simenv.plausibility.profiles`).
-
-    For each source bone ending at a canonical :data:`LIMB_ENDS` keypoint whose median
-    length is at least ``bone_min_length_m``: ``d(t) = L(t) / median_t L - 1``; its
-    running median over ``window`` frames ``s(t)`` (edges repeat the end frames) is the
-    persistent part, ``d - s`` the frame-to-frame noise with RMS ``n``. The bone's value
-    is the 95th percentile over frames of ``|s(t) - median_t s|`` divided by
-    ``n + LIMB_NOISE_FLOOR``. A depth camera's length errors come and go from frame to
-    frame, so they sit in ``n``; a bone that keeps another length for a stretch of
-    frames (a stretched bone, a limb the generator grew) moves ``s``.
-
-    Args:
-        motion: any skeleton with canonical limb keypoints; positions (T, J, 3) metres.
-        window: running-median length in frames (odd, >= 3).
-
-    Returns:
-        (largest value over the limb bones, dimensionless; the bone ``"parent->child"``),
-        ``(0.0, "")`` without a limb bone or with fewer frames than ``window``.
-    """
-    from scipy.ndimage import median_filter  # only depth-camera profiles use it
-
-    skel = motion.skeleton
-    role = {v: k for k, v in skel.canonical.items()}
-    names, lengths = bone_lengths(motion)
-    keep = [k for k, (_, c) in enumerate(measured_bones(skel))
-            if role.get(skel.joint_names[c]) in LIMB_ENDS]
-    if not keep or motion.num_frames < window:
-        return 0.0, ""
-    length = lengths[:, keep]
-    med = np.median(length, axis=0)
-    ok = med >= thresholds.bone_min_length_m
-    if not ok.any():
-        return 0.0, ""
-    d = length[:, ok] / med[ok] - 1.0
-    smooth = median_filter(d, size=(window, 1), mode="nearest")
-    noise = np.sqrt(np.mean((d - smooth) ** 2, axis=0))
-    shift = np.percentile(np.abs(smooth - np.median(smooth, axis=0)), 95, axis=0)
-    z = shift / (noise + LIMB_NOISE_FLOOR)
-    k = int(np.argmax(z))
-    return float(z[k]), [names[i] for i, o in zip(keep, ok, strict=True) if o][k]
-
-
 def _canonical_bone_lengths(motion: Motion) -> tuple[list[str], np.ndarray]:
     """Per-frame lengths (T, B) float64 metres of the canonical keypoint
     pairs, named by child keypoint (``"left_knee"`` is hip to knee): the

@@ -55,21 +55,6 @@ def _speed_limits(names: tuple[str, ...], thresholds: Thresholds) -> np.ndarray:
     return np.array(limits, dtype=np.float64)
 
 
-def body_jump(motion: Motion) -> float:
-    """Largest departure (metres) of the keypoints' centroid from its constant-velocity
-    path: ``max_t |c(t+1) - 2 c(t) + c(t-1)|``, ``c`` the mean of the canonical keypoints
-    (the whole-body teleport check of the depth-camera profiles,
-    :mod:`simenv.plausibility.profiles`). A depth camera's joint errors are independent
-    from joint to joint, so they average out in ``c``; a body that jumps as a whole (a
-    tracker that swaps people, a bad generated frame) moves ``c`` by the full jump. 0.0
-    for fewer than 3 frames.
-    """
-    if motion.num_frames < 3:
-        return 0.0
-    c = motion.to_canonical().positions.astype(np.float64).mean(axis=1)
-    return float(np.max(np.linalg.norm(c[2:] - 2.0 * c[1:-1] + c[:-2], axis=-1)))
-
-
 def velocity(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> MetricResult:
     """Keypoint speeds beyond human limits, and teleports between frames.
 
