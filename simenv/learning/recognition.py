@@ -21,7 +21,11 @@ Training windows (:func:`training_windows`), one fresh window per clip and epoch
    length drawn in that range) ending at a random frame of the clip, frames before the
    clip's first holding its first pose (the loop's stream, where a person stands still
    before the gesture); every frame valid.
-4. **Normalise** (:func:`simenv.data.gestures.normalise_windows`), then **Kinect noise**
+4. **Normalise** (:func:`simenv.data.gestures.normalise_windows`); with
+   ``reconcile_joints`` the trunk joints are redefined alike for every sensor
+   (:func:`simenv.data.sensor_invariance.reconcile_joints`: ``neck`` the shoulder centre,
+   ``spine`` 0.3 of the way from the hip centre to it), as :func:`logits_of` does for a
+   network trained so; then **Kinect noise**
    (:func:`kinect_noise`): mirror image, rotation (yaw, and pitch/roll of a tilted
    sensor), isotropic and per-axis scale, Gaussian jitter, and dropped joints (a joint
    pulled toward its parent for the whole window, as a Kinect does with an occluded hand).
@@ -57,11 +61,14 @@ from simenv.data.gestures import (
     mirror_windows,
     normalise_windows,
 )
+from simenv.data.sensor_invariance import reconcile_joints
 from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
 from simenv.models.training import CpuBudget, seeded
 
 #: Frames of real motion in the short condition and the loop's tick (1 s at 25 fps).
 SHORT_FRAMES = 25
+#: Key of a network's ``config.extra`` marking it trained on reconciled trunk joints.
+RECONCILED = "reconcile_joints"
 
 
 @dataclass
@@ -85,6 +92,9 @@ class RecognitionConfig:
         drop_prob: probability of a window with one dropped joint.
         stream_prob: probability of a loop-tick window (module docstring, step 3);
             stream_frames: its length range [lo, hi] in frames (at most max_frames).
+        reconcile_joints: read the trunk joints as
+            :func:`~simenv.data.sensor_invariance.reconcile_joints` redefines them (the
+            network is marked so, and :func:`logits_of` reconciles its input too).
         max_minutes: CPU-time budget; training stops after the epoch that exceeds it.
     """
 
@@ -110,6 +120,7 @@ class RecognitionConfig:
     drop_prob: float = 0.3
     stream_prob: float = 0.0
     stream_frames: tuple[int, int] = (25, 75)
+    reconcile_joints: bool = False
     max_minutes: float = 20.0
 
     def __post_init__(self) -> None:
@@ -266,10 +277,14 @@ def training_windows(clips: Sequence[GestureClip], rng: np.random.Generator,
         vs.append(v)
         fc.append(to_forecast)
     x, valid = np.stack(xs), np.stack(vs)
-    x = normalise_windows(x, valid, joints=clip_skeleton(clips).joint_names)
+    joints = clip_skeleton(clips).joint_names
+    x = normalise_windows(x, valid, joints=joints)
     rows = np.flatnonzero(fc)
     if rows.size:
         x, valid = continue_windows(x, valid, rows, forecast)
+    if config.reconcile_joints:
+        # After the forecast: the network reads the whole window as logits_of gives it.
+        x = reconcile_joints(x, valid, joints=joints)
     return x, valid
 
 
@@ -334,9 +349,12 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
     y_all = np.array(y)
     skel = clip_skeleton(clips)
     rng = seeded(config.seed)
+    extra = dict(extra or {})
+    if config.reconcile_joints:
+        extra[RECONCILED] = True
     model = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, tuple(labels),
                                   fps=GESTURE_FPS, width=config.width, dropout=config.dropout,
-                                  extra=dict(extra or {})))
+                                  extra=extra))
     weights = class_weights(y_all, len(labels))
     steps = config.epochs * math.ceil(len(clips) / config.batch_size)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr,
@@ -373,17 +391,29 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
     return model.eval(), history
 
 
+def model_input(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Normalised windows (N, T, J, 3) as ``model`` was trained to read them: with the
+    trunk joints reconciled when its config's ``extra`` holds :data:`RECONCILED` (networks
+    trained before it, e.g. the shipped ``gesture-tcn*``, read them as given)."""
+    if model.config.extra.get(RECONCILED):
+        return reconcile_joints(x, valid, joints=model.config.joint_names)
+    return x
+
+
 @torch.no_grad()
 def logits_of(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray,
               batch_size: int = 256) -> np.ndarray:
-    """(N, C) raw logits (before the temperature) of normalised windows."""
+    """(N, C) raw logits (before the temperature) of normalised windows (through
+    :func:`model_input`)."""
     model.eval()
+    x = model_input(model, x, valid)
     out = [model(torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size], np.float32)),
                  torch.from_numpy(np.asarray(valid[i:i + batch_size], bool))).numpy()
            for i in range(0, len(x), batch_size)]
     return np.concatenate(out)
 
 
-__all__ = ["SHORT_FRAMES", "Forecaster", "RecognitionConfig", "class_weights", "clip_skeleton",
-           "continue_windows", "kinect_noise", "logits_of", "time_scale",
+__all__ = ["RECONCILED", "SHORT_FRAMES", "Forecaster", "RecognitionConfig", "class_weights",
+           "clip_skeleton", "continue_windows", "kinect_noise", "logits_of", "model_input",
+           "time_scale",
            "train_recogniser", "training_windows"]

@@ -1,0 +1,107 @@
+"""Joint definitions reconciled across sensors, for the gesture recogniser's input.
+
+The gesture joints (``gesture15``) are named alike in every dataset, but the trunk joints
+are not the same points of the body. Measured on the normalised windows of the corpus
+(first 60 frames of every clip, median, metres of the reference body; issue 34):
+
+=============== ============== ================= ================= ============
+dataset, sensor spine -> neck  neck above the    hip centre below  hip width
+                               shoulders         the spine
+=============== ============== ================= ================= ============
+Florence 3D     0.197          0.00              0.194             0.189
+(OpenNI-15)     (``Torso``,    (``Neck`` = mid-
+                mid-trunk)     shoulders)
+MSR Action3D    0.258, leaning 0.07              0.176, 0.15 m     0.33
+(Kinect v1 SDK  34 deg forward                   *in front of* the
+beta)           (its ``Spine``                   spine
+                lies behind
+                the body)
+MSRC-12         0.384          0.12              0.146             0.159
+(Kinect v1)
+UTKinect        0.349          0.10              0.145             0.157
+(Kinect v1)
+=============== ============== ================= ================= ============
+
+So a network reading ``spine`` and ``neck`` reads which sensor recorded a person -- and the
+window normalisation (:func:`simenv.data.gestures.normalise_windows`) puts its origin at
+``spine``, so every joint's position carries the offset. :func:`reconcile_joints`
+redefines the two trunk joints from joints every sensor places alike (the shoulders and
+the hips, whose centre is the body's midline in all of them), per frame:
+
+    neck'  = (l_shoulder + r_shoulder) / 2
+    spine' = h + SPINE_FRACTION (neck' - h),     h = (l_hip + r_hip) / 2
+
+and moves the window so that the mean ``spine'`` over its first
+:data:`~simenv.data.gestures.NORM_FRAMES` valid frames is the origin, as the
+normalisation does with ``spine``. Both definitions are affine combinations of joints, so
+the result does not depend on where, how turned, or how large the body was before
+(translation, rotation and uniform scale commute with them), nor on the frame rate (linear
+resampling commutes too): applied to normalised windows it equals normalising reconciled
+ones. :data:`SPINE_FRACTION` = 0.3 is where Kinect v1 puts its ``Spine`` (0.145 of
+0.49 m from the hip centre to the shoulder centre), so the Kinect v1 data move least.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from simenv.core.errors import SkeletonError
+from simenv.data.gestures import GESTURE15_JOINTS, NORM_FRAMES
+
+#: Height of the reconciled ``spine`` on the line from the hip centre (0) to the
+#: shoulder centre (1).
+SPINE_FRACTION = 0.3
+
+#: Joints :func:`reconcile_joints` reads or writes.
+RECONCILE_JOINTS: tuple[str, ...] = ("spine", "neck", "left_shoulder", "right_shoulder",
+                                     "left_hip", "right_hip")
+
+
+def reconcile_joints(windows: np.ndarray, valid: np.ndarray | None = None, *,
+                     joints: Sequence[str] = GESTURE15_JOINTS) -> np.ndarray:
+    """Windows with ``neck`` and ``spine`` redefined from the shoulders and hips (module
+    docstring), re-centred on the new ``spine``.
+
+    Args:
+        windows: (N, T, J, 3) or (T, J, 3) positions, metres, Z up (normalised windows,
+            or world-frame ones: the definitions do not depend on the frame).
+        valid: (N, T) or (T,) bool, True for real frames (default all real); the origin
+            is the mean new ``spine`` over each window's first ``NORM_FRAMES`` valid
+            frames (a window without one keeps its translation).
+        joints: joint names of axis J.
+
+    Returns:
+        float32 array of the shape of ``windows``.
+
+    Raises:
+        SkeletonError: ``joints`` lacks one of :data:`RECONCILE_JOINTS`, or its length is
+            not the windows' joint count.
+    """
+    names = list(joints)
+    missing = [j for j in RECONCILE_JOINTS if j not in names]
+    x = np.array(windows, dtype=np.float32)
+    if missing or x.ndim not in (3, 4) or x.shape[-2:] != (len(names), 3):
+        raise SkeletonError(
+            f"reconcile_joints needs windows (N, T, J, 3) on joints naming "
+            f"{', '.join(RECONCILE_JOINTS)}; got shape {x.shape}"
+            + (f", joints lacking {', '.join(missing)}" if missing else ""), field="joints")
+    single = x.ndim == 3
+    if single:
+        x = x[None]
+    v = (np.ones(x.shape[:2], bool) if valid is None
+         else np.asarray(valid, bool).reshape(x.shape[:2]))
+    i = {n: names.index(n) for n in RECONCILE_JOINTS}
+    hip = 0.5 * (x[:, :, i["left_hip"]] + x[:, :, i["right_hip"]])
+    neck = 0.5 * (x[:, :, i["left_shoulder"]] + x[:, :, i["right_shoulder"]])
+    x[:, :, i["neck"]] = neck
+    x[:, :, i["spine"]] = hip + SPINE_FRACTION * (neck - hip)
+    ref = v & (np.cumsum(v, axis=1) <= NORM_FRAMES)
+    cnt = ref.sum(axis=1)
+    origin = (x[:, :, i["spine"]] * ref[..., None]).sum(axis=1) / np.maximum(cnt, 1)[:, None]
+    x -= np.where(cnt[:, None] > 0, origin, 0.0)[:, None, None, :].astype(np.float32)
+    return x[0] if single else x
+
+
+__all__ = ["RECONCILE_JOINTS", "SPINE_FRACTION", "reconcile_joints"]
