@@ -23,8 +23,8 @@ touched; a clip without toe keypoints or planted frames is not touched. The rais
 in ``metadata["repairs"]``.
 
 Applied by :func:`simenv.load` to the formats in :data:`FILE_FLOOR_FORMATS` (the file's
-coordinate frame is the world frame); depth-camera readers estimate their floor themselves
-(:mod:`simenv.io.camera_frame`).
+coordinate frame is the world frame); depth-camera readers, and the joint-table reader on a
+camera-frame table, estimate their floor themselves (:mod:`simenv.io.camera_frame`).
 """
 
 from __future__ import annotations
@@ -92,10 +92,12 @@ def _raised(m: Motion, dz: float, note: str) -> Motion:
 def put_on_floor(loaded: Motion | Interaction) -> Motion | Interaction:
     """``loaded`` raised by :func:`floor_offset` when its file's floor is at the feet's joint
     centres (noted in ``metadata["repairs"]``); unchanged otherwise, and for formats not in
-    :data:`FILE_FLOOR_FORMATS`."""
+    :data:`FILE_FLOOR_FORMATS` or read from a depth camera's frame (``metadata["camera_frame"]``:
+    the reader put that clip on a floor it estimated from the feet)."""
     people = list(loaded.people) if isinstance(loaded, Interaction) else [loaded]
-    if str(people[0].metadata.get("format", "")).lower() not in FILE_FLOOR_FORMATS:
-        return loaded
+    meta = people[0].metadata
+    if str(meta.get("format", "")).lower() not in FILE_FLOOR_FORMATS or "camera_frame" in meta:
+        return loaded  # not the file's floor, or one the reader estimated from the feet
     dz = floor_offset(people)
     if dz <= 0.0:
         return loaded
