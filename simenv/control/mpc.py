@@ -40,6 +40,7 @@ from mujoco import rollout
 
 from simenv.body.humanoid import Humanoid
 from simenv.control.costs import CostWeights, TrackingCost
+from simenv.control.feedback import FeedbackLaw
 from simenv.control.model import SensorLayout, planning_model
 from simenv.control.reference import TrackingReference, actuated_indices
 from simenv.control.sampling import Sampler, Spline
@@ -109,6 +110,16 @@ class MPCConfig:
             follower's spins at 7-12 s) are tracked at 0.6 s with every seed tried (2 and 3;
             at 0.45 s neither 128 samples, finer noise nor the arms among the sampled parts
             tracked them; docs/plausibility.md).
+        feedback: between replans, correct the sampled actuators' servo targets with
+            time-varying LQR gains about the nominal's predicted states
+            (:class:`~simenv.control.feedback.FeedbackLaw`); off by default.
+        feedback_r: the feedback's control weight, per rad^2 of servo-target offset per
+            planning step, against the planner's cost weights.
+        feedback_knots: linearisations of the planning model per replan, spread over the
+            horizon (1: one, about the replan's state); None: one per planning step. Fewer
+            than one per step is cheaper but unreliable: on walk 02_01 one, three or twelve
+            of FAST's 56 steps made the body drift further from the plan than no feedback
+            did in some of four pushes (tests/test_control_feedback.py, docs/tracking_speed.md).
     """
 
     horizon_s: float = 0.45
@@ -133,6 +144,9 @@ class MPCConfig:
     rewind_s: float = 1.0
     attempts: int = 1
     retry_horizon_s: float | None = 0.6
+    feedback: bool = False
+    feedback_r: float = 1e-2
+    feedback_knots: int | None = None
 
     def __post_init__(self) -> None:
         checks = {
@@ -144,6 +158,8 @@ class MPCConfig:
             "retries": self.retries >= 0, "rewind_s": self.rewind_s > 0,
             "attempts": self.attempts >= 1,
             "retry_horizon_s": self.retry_horizon_s is None or self.retry_horizon_s > 0,
+            "feedback_r": self.feedback_r > 0,
+            "feedback_knots": self.feedback_knots is None or self.feedback_knots >= 1,
         }
         for name, ok in checks.items():
             if not ok:
@@ -243,6 +259,12 @@ class TrackingMPC:
         self.replans = 0
         self.rollout_steps = 0
         self.last_costs: np.ndarray = np.zeros(0)
+        self.feedback: FeedbackLaw | None = None
+        if config.feedback:
+            self.feedback = FeedbackLaw(
+                self.plan_model, reference, config.weights, humanoid.site_ids,
+                np.flatnonzero(sigma > 0) if sigma.any() else np.arange(self.model.nu),
+                f, config.feedback_r, config.feedback_knots or self.horizon, config.limit_rad)
 
     def _check_layout(self, layout: SensorLayout) -> None:
         if layout != self.layout:
@@ -280,6 +302,8 @@ class TrackingMPC:
         """Go back to a plan taken by :meth:`snapshot`."""
         knots, self.plan_step, self.replans = snapshot
         self.knots = knots.copy()
+        if self.feedback is not None:  # its gains are about a trajectory left behind
+            self.feedback.clear()
 
     def _offsets(self, step: int) -> np.ndarray:
         """(nu,) the nominal's offset at physics step ``step``."""
@@ -308,9 +332,19 @@ class TrackingMPC:
         self.plan_step = step
         self.replans += 1
         self.rollout_steps += costs.size * self.horizon
+        if self.feedback is not None:
+            before = self.feedback.steps
+            self.feedback.update(self._x0, self.ctrl_ref[ctrl_steps]
+                                 + self.spline.evaluate(self.knots),
+                                 step, data.qacc_warmstart)
+            self.rollout_steps += self.feedback.steps - before
 
     def control(self, data: mujoco.MjData, step: int) -> np.ndarray:
         """(nu,) servo targets for physics step ``step``, replanning when due."""
         if self.replans == 0 or step - self.plan_step >= self.config.replan_steps:
             self.plan(data, step)
-        return self.ctrl_ref[min(step, self.reference.n_steps)] + self._offsets(step)
+        u = self.ctrl_ref[min(step, self.reference.n_steps)] + self._offsets(step)
+        if self.feedback is not None:
+            u[self.feedback.actuators] += self.feedback.correction(self.model, data,
+                                                                   step - self.plan_step)
+        return u
