@@ -12,7 +12,7 @@ from simenv.core.errors import SkeletonError
 from simenv.core.motion import resample_linear
 from simenv.core.skeletons import GESTURE9_JOINTS
 from simenv.data.gestures import GESTURE15_JOINTS, load_labelled, normalise_windows
-from simenv.data.sensor_invariance import SPINE_FRACTION, reconcile_joints
+from simenv.data.sensor_invariance import HIP_WIDTH_RATIO, SPINE_FRACTION, reconcile_joints
 
 J = list(GESTURE15_JOINTS)
 
@@ -35,27 +35,40 @@ def test_same_clip_moved_turned_scaled_gives_same_input(wave):
 
 
 def test_reconciling_commutes_with_resampling(wave):
-    # 25 fps -> 15 fps (the rate of MSR Action3D's and UTKinect's skeleton streams).
+    # 25 fps -> 15 fps (the rate of MSR Action3D's and UTKinect's skeleton streams): the
+    # trunk joints are affine in the others but the hip width is a norm, so the two
+    # orders agree to well under a millimetre, not exactly.
     n = round(len(wave) * 15 / 25)
     slow = resample_linear(wave, n)
     np.testing.assert_allclose(reconcile_joints(slow),
                                reconcile_joints(resample_linear(reconcile_joints(wave), n)),
-                               atol=1e-5)
+                               atol=5e-4)
 
 
 def test_trunk_joints_redefined_and_idempotent(wave):
-    x = reconcile_joints(normalise_windows(wave))
+    before = normalise_windows(wave)
+    x = reconcile_joints(before)
     hip = 0.5 * (x[:, J.index("left_hip")] + x[:, J.index("right_hip")])
     top = 0.5 * (x[:, J.index("left_shoulder")] + x[:, J.index("right_shoulder")])
+    shift = x[:1, J.index("left_wrist")] - before[:1, J.index("left_wrist")]
+    # The hip centre stays (up to the new origin); the hips stand HIP_WIDTH_RATIO
+    # shoulder widths apart.
+    np.testing.assert_allclose(hip, 0.5 * (before[:, J.index("left_hip")]
+                                           + before[:, J.index("right_hip")]) + shift,
+                               atol=1e-5)
+    np.testing.assert_allclose(
+        np.linalg.norm(x[:, J.index("left_hip")] - x[:, J.index("right_hip")], axis=1),
+        HIP_WIDTH_RATIO * np.linalg.norm(x[:, J.index("left_shoulder")]
+                                         - x[:, J.index("right_shoulder")], axis=1), rtol=1e-4)
     np.testing.assert_allclose(x[:, J.index("neck")], top, atol=1e-6)
     np.testing.assert_allclose(x[:, J.index("spine")], hip + SPINE_FRACTION * (top - hip),
                                atol=1e-6)
     assert np.abs(x[:10, J.index("spine")].mean(axis=0)).max() < 1e-6  # new origin
     np.testing.assert_allclose(reconcile_joints(x), x, atol=1e-6)
-    # Limbs are not touched: only the trunk's definition and the origin move.
-    limbs = [J.index(n) for n in J if n not in ("spine", "neck")]
-    shift = (x - normalise_windows(wave))[:, limbs]
-    np.testing.assert_allclose(shift, np.broadcast_to(shift[:1, :1], shift.shape), atol=1e-5)
+    # Arms, head, knees and ankles are not touched: only the trunk and the origin move.
+    limbs = [J.index(n) for n in J if n not in ("spine", "neck", "left_hip", "right_hip")]
+    np.testing.assert_allclose((x - before)[:, limbs],
+                               np.broadcast_to(shift, (len(x), len(limbs), 3)), atol=1e-5)
 
 
 def test_msr_trunk_upright_once_reconciled(gesture_root):
