@@ -12,7 +12,7 @@ sole (0.6x the 25-mm anthropometric toe height, the lowest toe height the body f
 so the file's zero cannot be the floor the person stood on, and every ground metric would
 then measure the file's convention instead of the motion.
 
-The rule (:func:`floor_offset`): on every frame the lower toe keypoint, when it is slow
+The rule (:func:`floor_offset`): on every frame the lower toe keypoint, when it stands still
 (:func:`planted_toe_heights`: the supporting ball, found without reference to any height, so
 independent of where the file's zero is), gives a ball height; when even
 their 90th percentile is below :data:`MIN_BALL_HEIGHT_M` -- nearly the whole stance below the
@@ -42,19 +42,23 @@ MIN_BALL_HEIGHT_M = 0.015
 #: Height of a planted ball above the sole, metres (the anthropometric value the body fit
 #: starts from, ``BodyDimensions.toe_height``).
 BALL_HEIGHT_M = 0.025
+#: Speed below which the lowest ball is taken as loaded, m/s: standing still (the
+#: ``skate_stance_speed_mps`` of :class:`~simenv.plausibility.thresholds.Thresholds`). Not
+#: the contact detector's 0.949 m/s: in gait that also takes the frames around heel strike,
+#: where both balls are still descending above the floor and the heel carries the weight.
+STILL_SPEED_MPS = 0.1
 #: Fewest supporting-ball samples (frames) to judge the floor on.
 MIN_PLANTED = 10
 #: ``metadata["format"]`` values whose floor is the file's own ground plane.
 FILE_FLOOR_FORMATS = frozenset({"bvh", "asf_amc", "joint_csv"})
 
 
-def planted_toe_heights(motion: Motion, speed_mps: float = 0.949) -> np.ndarray:
+def planted_toe_heights(motion: Motion, speed_mps: float = STILL_SPEED_MPS) -> np.ndarray:
     """Heights (metres, z of the file) of the supporting ball: on each frame the lowest toe
-    keypoint, where its 3-D speed to the next frame is below ``speed_mps`` (the contact
-    detector's, :func:`simenv.body.foot_contact.foot_contacts`). Unlike the contact
-    detector's height test, this does not depend on the clip's lowest level, so one stance
-    sunk through the floor does not hide the others. Empty when the skeleton maps no toe or
-    the clip has one frame."""
+    keypoint, where its 3-D speed to the next frame is below ``speed_mps`` (the ball stands
+    still). Found without any height test, so it does not depend on the clip's lowest level,
+    and one stance sunk through the floor does not hide the others. Empty when the skeleton
+    maps no toe or the clip has one frame."""
     try:
         canon = motion.to_canonical()
     except MotionError:
