@@ -45,9 +45,18 @@ with the hips to a fraction of a millimetre).
 0.49 m from the hip centre to the shoulder centre), and :data:`HIP_WIDTH_RATIO` = 0.5 near
 its hip width (0.44-0.45 shoulder widths), so the Kinect v1 data move least.
 
+Bone lengths still differ by sensor and person (thigh 0.42 m of the reference body in
+Florence 3D, 0.50-0.54 in the Kinect v1 sets, with the arms scaled alike).
+:func:`reference_bones` keeps every bone's direction and gives it the length of
+:data:`REFERENCE_BONES_M`, walking the tree from ``spine`` -- the recogniser's view of a
+body retargeted onto one reference skeleton, as the room reads its user off one fitted
+humanoid. It works on normalised windows (lengths in metres of the reference body), so it
+depends on nothing the normalisation removed. :func:`canonical_body` applies both.
+
 Measured (issue 34, cross-dataset protocol, 20 epochs, each dataset left out, 3 s / 1 s
 real, mean of the four): as given 0.442 / 0.385; ``neck`` and ``spine`` reconciled
-0.515 / 0.392; and the hips 0.565 / 0.448 (docs/recognition.md, *Across datasets*).
+0.515 / 0.392; and the hips 0.565 / 0.448; and reference bone lengths 0.596 / 0.498
+(docs/recognition.md, *Across datasets*).
 """
 
 from __future__ import annotations
@@ -57,7 +66,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from simenv.core.errors import SkeletonError
-from simenv.data.gestures import GESTURE15_JOINTS, NORM_FRAMES
+from simenv.data.gestures import GESTURE15_JOINTS, NORM_FRAMES, gesture_skeleton
 
 #: Height of the reconciled ``spine`` on the line from the hip centre (0) to the
 #: shoulder centre (1).
@@ -65,6 +74,18 @@ SPINE_FRACTION = 0.3
 
 #: Distance between the reconciled hips, in shoulder widths.
 HIP_WIDTH_RATIO = 0.5
+
+#: Bone lengths of the reference body, child joint -> length from its parent in
+#: ``gesture15``, metres of the normalised body (arm size
+#: :data:`~simenv.data.gestures.REFERENCE_SIZE_M`): the corpus's reconciled medians over
+#: its four datasets, rounded (neck = shoulder centre, so neck -> shoulder is half the
+#: shoulder width; spine -> hip follows from SPINE_FRACTION and HIP_WIDTH_RATIO).
+REFERENCE_BONES_M: dict[str, float] = {
+    "neck": 0.34, "head": 0.27, "left_shoulder": 0.17, "right_shoulder": 0.17,
+    "left_elbow": 0.265, "right_elbow": 0.265, "left_wrist": 0.26, "right_wrist": 0.26,
+    "left_hip": 0.167, "right_hip": 0.167, "left_knee": 0.45, "right_knee": 0.45,
+    "left_ankle": 0.40, "right_ankle": 0.40,
+}
 
 #: Joints :func:`reconcile_joints` reads or writes.
 RECONCILE_JOINTS: tuple[str, ...] = ("spine", "neck", "left_shoulder", "right_shoulder",
@@ -123,4 +144,51 @@ def reconcile_joints(windows: np.ndarray, valid: np.ndarray | None = None, *,
     return x[0] if single else x
 
 
-__all__ = ["HIP_WIDTH_RATIO", "RECONCILE_JOINTS", "SPINE_FRACTION", "reconcile_joints"]
+def reference_bones(windows: np.ndarray, *, joints: Sequence[str] = GESTURE15_JOINTS,
+                    parents: Sequence[int] | None = None) -> np.ndarray:
+    """Normalised windows with every bone given its :data:`REFERENCE_BONES_M` length along
+    its own direction, the root joint kept (module docstring).
+
+    Args:
+        windows: (..., J, 3) normalised positions, metres of the reference body.
+        joints: joint names of axis J; ``parents``: their parent indices (-1 for the root,
+            parents before children), default ``gesture15``'s.
+
+    Returns:
+        float32 array of the shape of ``windows`` (a bone of zero length keeps length 0).
+
+    Raises:
+        SkeletonError: a non-root joint without a reference length, or ``parents`` not
+            matching ``joints``.
+    """
+    names = list(joints)
+    parents = list(gesture_skeleton().parents if parents is None else parents)
+    missing = ([n for n, p in zip(names, parents, strict=True)
+                if p >= 0 and n not in REFERENCE_BONES_M] if len(parents) == len(names) else [])
+    x = np.asarray(windows, dtype=np.float32)
+    if missing or len(parents) != len(names) or x.shape[-2:] != (len(names), 3):
+        raise SkeletonError(
+            f"reference_bones needs windows (..., {len(names)}, 3) on a tree of the "
+            f"gesture15 joints; got shape {x.shape}, {len(parents)} parents"
+            + (f", no reference length for {', '.join(missing)}" if missing else ""),
+            field="joints")
+    out = x.copy()
+    for j, p in enumerate(parents):
+        if p < 0:
+            continue
+        bone = x[..., j, :] - x[..., p, :]
+        bone /= np.maximum(np.linalg.norm(bone, axis=-1, keepdims=True), 1e-6)
+        out[..., j, :] = out[..., p, :] + REFERENCE_BONES_M[names[j]] * bone
+    return out
+
+
+def canonical_body(windows: np.ndarray, valid: np.ndarray | None = None, *,
+                   joints: Sequence[str] = GESTURE15_JOINTS) -> np.ndarray:
+    """:func:`reconcile_joints` then :func:`reference_bones` of normalised windows
+    ((N, T, J, 3) or (T, J, 3), ``valid`` as for :func:`reconcile_joints`): the
+    recogniser's sensor-invariant input."""
+    return reference_bones(reconcile_joints(windows, valid, joints=joints), joints=joints)
+
+
+__all__ = ["HIP_WIDTH_RATIO", "RECONCILE_JOINTS", "REFERENCE_BONES_M", "SPINE_FRACTION",
+           "canonical_body", "reconcile_joints", "reference_bones"]

@@ -22,9 +22,9 @@ Training windows (:func:`training_windows`), one fresh window per clip and epoch
    clip's first holding its first pose (the loop's stream, where a person stands still
    before the gesture); every frame valid.
 4. **Normalise** (:func:`simenv.data.gestures.normalise_windows`); with
-   ``reconcile_joints`` the trunk joints are redefined alike for every sensor
-   (:func:`simenv.data.sensor_invariance.reconcile_joints`: ``neck`` the shoulder centre,
-   ``spine`` 0.3 of the way from the hip centre to it), as :func:`logits_of` does for a
+   ``canonical_body`` (default) the body is read alike from every sensor
+   (:func:`simenv.data.sensor_invariance.canonical_body`: trunk joints redefined from the
+   shoulders and hips, every bone at a reference length), as :func:`logits_of` does for a
    network trained so; then **Kinect noise**
    (:func:`kinect_noise`): mirror image, rotation (yaw, and pitch/roll of a tilted
    sensor), isotropic and per-axis scale, Gaussian jitter, and dropped joints (a joint
@@ -61,14 +61,14 @@ from simenv.data.gestures import (
     mirror_windows,
     normalise_windows,
 )
-from simenv.data.sensor_invariance import reconcile_joints
+from simenv.data.sensor_invariance import canonical_body
 from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
 from simenv.models.training import CpuBudget, seeded
 
 #: Frames of real motion in the short condition and the loop's tick (1 s at 25 fps).
 SHORT_FRAMES = 25
-#: Key of a network's ``config.extra`` marking it trained on reconciled trunk joints.
-RECONCILED = "reconcile_joints"
+#: Key of a network's ``config.extra`` marking it trained on canonical-body input.
+CANONICAL = "canonical_body"
 
 
 @dataclass
@@ -92,9 +92,9 @@ class RecognitionConfig:
         drop_prob: probability of a window with one dropped joint.
         stream_prob: probability of a loop-tick window (module docstring, step 3);
             stream_frames: its length range [lo, hi] in frames (at most max_frames).
-        reconcile_joints: read the trunk joints as
-            :func:`~simenv.data.sensor_invariance.reconcile_joints` redefines them (the
-            network is marked so, and :func:`logits_of` reconciles its input too).
+        canonical_body: read windows through
+            :func:`~simenv.data.sensor_invariance.canonical_body` (the network is marked
+            so, and :func:`logits_of` gives it its input the same way).
         max_minutes: CPU-time budget; training stops after the epoch that exceeds it.
     """
 
@@ -120,7 +120,7 @@ class RecognitionConfig:
     drop_prob: float = 0.3
     stream_prob: float = 0.0
     stream_frames: tuple[int, int] = (25, 75)
-    reconcile_joints: bool = False
+    canonical_body: bool = True
     max_minutes: float = 20.0
 
     def __post_init__(self) -> None:
@@ -282,9 +282,9 @@ def training_windows(clips: Sequence[GestureClip], rng: np.random.Generator,
     rows = np.flatnonzero(fc)
     if rows.size:
         x, valid = continue_windows(x, valid, rows, forecast)
-    if config.reconcile_joints:
+    if config.canonical_body:
         # After the forecast: the network reads the whole window as logits_of gives it.
-        x = reconcile_joints(x, valid, joints=joints)
+        x = canonical_body(x, valid, joints=joints)
     return x, valid
 
 
@@ -350,8 +350,8 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
     skel = clip_skeleton(clips)
     rng = seeded(config.seed)
     extra = dict(extra or {})
-    if config.reconcile_joints:
-        extra[RECONCILED] = True
+    if config.canonical_body:
+        extra[CANONICAL] = True
     model = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, tuple(labels),
                                   fps=GESTURE_FPS, width=config.width, dropout=config.dropout,
                                   extra=extra))
@@ -392,11 +392,12 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
 
 
 def model_input(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Normalised windows (N, T, J, 3) as ``model`` was trained to read them: with the
-    trunk joints reconciled when its config's ``extra`` holds :data:`RECONCILED` (networks
-    trained before it, e.g. the shipped ``gesture-tcn*``, read them as given)."""
-    if model.config.extra.get(RECONCILED):
-        return reconcile_joints(x, valid, joints=model.config.joint_names)
+    """Normalised windows (N, T, J, 3) as ``model`` was trained to read them: through
+    :func:`~simenv.data.sensor_invariance.canonical_body` when its config's ``extra``
+    holds :data:`CANONICAL` (networks trained before it, e.g. the shipped ``gesture-tcn*``,
+    read them as given)."""
+    if model.config.extra.get(CANONICAL):
+        return canonical_body(x, valid, joints=model.config.joint_names)
     return x
 
 
@@ -413,7 +414,7 @@ def logits_of(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray,
     return np.concatenate(out)
 
 
-__all__ = ["RECONCILED", "SHORT_FRAMES", "Forecaster", "RecognitionConfig", "class_weights",
+__all__ = ["CANONICAL", "SHORT_FRAMES", "Forecaster", "RecognitionConfig", "class_weights",
            "clip_skeleton", "continue_windows", "kinect_noise", "logits_of", "model_input",
            "time_scale",
            "train_recogniser", "training_windows"]
