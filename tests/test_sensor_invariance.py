@@ -1,6 +1,7 @@
-"""The reconciled trunk joints (simenv.data.sensor_invariance) on real recordings: the same
-clip moved, turned, scaled or resampled gives the same recogniser input, and the trunk
-that an MSR Action3D Kinect puts behind the body stands upright once reconciled."""
+"""The recogniser's sensor-invariant input (simenv.data.sensor_invariance) on real
+recordings: the same clip moved, turned, scaled or resampled gives the same input, the
+trunk that an MSR Action3D Kinect puts behind the body stands upright once reconciled,
+and two datasets' bodies get the same bone lengths."""
 
 from __future__ import annotations
 
@@ -11,15 +12,27 @@ import torch
 from simenv.core.errors import SkeletonError
 from simenv.core.motion import resample_linear
 from simenv.core.skeletons import GESTURE9_JOINTS
-from simenv.data.gestures import GESTURE15_JOINTS, load_labelled, normalise_windows
-from simenv.data.sensor_invariance import HIP_WIDTH_RATIO, SPINE_FRACTION, reconcile_joints
+from simenv.data.gestures import (
+    GESTURE15_JOINTS,
+    gesture_skeleton,
+    load_labelled,
+    normalise_windows,
+)
+from simenv.data.sensor_invariance import (
+    HIP_WIDTH_RATIO,
+    REFERENCE_BONES_M,
+    SPINE_FRACTION,
+    canonical_body,
+    reconcile_joints,
+    reference_bones,
+)
 
 J = list(GESTURE15_JOINTS)
 
 
 def _features(positions: np.ndarray) -> np.ndarray:
-    """The recogniser's input of a whole clip: normalised, then reconciled."""
-    return reconcile_joints(normalise_windows(positions), joints=GESTURE15_JOINTS)
+    """The recogniser's input of a whole clip: normalised, then canonical."""
+    return canonical_body(normalise_windows(positions), joints=GESTURE15_JOINTS)
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +90,7 @@ def test_msr_trunk_upright_once_reconciled(gesture_root):
     clip = load_labelled([gesture_root / "msr_action3d" / "a03_s01_e01_skeleton3D.txt"])[0]
     lean = {}
     for name, x in (("raw", normalise_windows(clip.positions)),
-                    ("reconciled", _features(clip.positions))):
+                    ("reconciled", reconcile_joints(normalise_windows(clip.positions)))):
         up = x[:, J.index("neck")] - x[:, J.index("spine")]
         lean[name] = np.degrees(np.arccos(np.median(up[:, 2] / np.linalg.norm(up, axis=1))))
     assert lean["raw"] > 25.0
@@ -92,23 +105,43 @@ def test_valid_frames_set_the_origin(wave):
     assert np.abs(out[5:15, J.index("spine")].mean(axis=0)).max() < 1e-6
 
 
+def test_bodies_of_two_sensors_get_the_same_bones(wave, gesture_root):
+    # UTKinect (Kinect v1) and Florence 3D (OpenNI): thighs 0.50 vs 0.42 m of the
+    # normalised body as recorded; directions kept, lengths the reference's.
+    florence = load_labelled([gesture_root / "florence3d"])[0].positions
+    parents = gesture_skeleton().parents
+    for clip in (wave, florence):
+        before = reconcile_joints(normalise_windows(clip))
+        x = reference_bones(before)
+        for j, p in enumerate(parents):
+            if p < 0:
+                continue
+            bone, was = x[:, j] - x[:, p], before[:, j] - before[:, p]
+            np.testing.assert_allclose(np.linalg.norm(bone, axis=1), REFERENCE_BONES_M[J[j]],
+                                       rtol=1e-4)
+            cos = (bone * was).sum(1) / np.linalg.norm(bone, axis=1) / np.linalg.norm(was, axis=1)
+            assert cos.min() > 1 - 1e-5
+        np.testing.assert_allclose(x[:, 0], before[:, 0])  # the root stays
+
+
 def test_joint_set_without_hips_is_refused():
     with pytest.raises(SkeletonError, match="left_hip"):
         reconcile_joints(np.zeros((4, len(GESTURE9_JOINTS), 3)), joints=GESTURE9_JOINTS)
+    with pytest.raises(SkeletonError, match="no reference length for pelvis"):
+        reference_bones(np.zeros((4, 2, 3)), joints=("spine", "pelvis"), parents=(-1, 0))
 
 
-def test_network_marked_reconciled_reads_reconciled_input(wave):
-    from simenv.data.gestures import gesture_skeleton
-    from simenv.learning.recognition import RECONCILED, logits_of
+def test_network_marked_canonical_reads_canonical_input(wave):
+    from simenv.learning.recognition import CANONICAL, logits_of
     from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
 
     skel = gesture_skeleton()
     torch.manual_seed(0)
     net = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b"), fps=25.0,
-                                width=16, extra={RECONCILED: True}))
+                                width=16, extra={CANONICAL: True}))
     x = normalise_windows(wave[:75])[None]
     valid = np.ones((1, len(x[0])), bool)
     net.eval()
     with torch.no_grad():
-        direct = net(torch.from_numpy(reconcile_joints(x, valid)), torch.from_numpy(valid))
+        direct = net(torch.from_numpy(canonical_body(x, valid)), torch.from_numpy(valid))
     np.testing.assert_allclose(logits_of(net, x, valid), direct.numpy(), atol=1e-5)

@@ -182,6 +182,13 @@ def reference_bones(windows: np.ndarray, *, joints: Sequence[str] = GESTURE15_JO
     return out
 
 
+def has_canonical_joints(joints: Sequence[str]) -> bool:
+    """Whether :func:`canonical_body` applies to windows on ``joints``: the joints of
+    :data:`RECONCILE_JOINTS`, every other one with a reference bone length."""
+    return (set(RECONCILE_JOINTS) <= set(joints)
+            and all(j in REFERENCE_BONES_M or j == "spine" for j in joints))
+
+
 def canonical_body(windows: np.ndarray, valid: np.ndarray | None = None, *,
                    joints: Sequence[str] = GESTURE15_JOINTS) -> np.ndarray:
     """:func:`reconcile_joints` then :func:`reference_bones` of normalised windows
@@ -191,4 +198,4 @@ def canonical_body(windows: np.ndarray, valid: np.ndarray | None = None, *,
 
 
 __all__ = ["HIP_WIDTH_RATIO", "RECONCILE_JOINTS", "REFERENCE_BONES_M", "SPINE_FRACTION",
-           "canonical_body", "reconcile_joints", "reference_bones"]
+           "canonical_body", "has_canonical_joints", "reconcile_joints", "reference_bones"]

@@ -61,7 +61,7 @@ from simenv.data.gestures import (
     mirror_windows,
     normalise_windows,
 )
-from simenv.data.sensor_invariance import canonical_body
+from simenv.data.sensor_invariance import canonical_body, has_canonical_joints
 from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
 from simenv.models.training import CpuBudget, seeded
 
@@ -94,7 +94,9 @@ class RecognitionConfig:
             stream_frames: its length range [lo, hi] in frames (at most max_frames).
         canonical_body: read windows through
             :func:`~simenv.data.sensor_invariance.canonical_body` (the network is marked
-            so, and :func:`logits_of` gives it its input the same way).
+            so, and :func:`logits_of` gives it its input the same way); on a joint set
+            without the joints it redefines (gesture9, a dataset's native skeleton) the
+            windows are read as normalised and the network is not marked.
         max_minutes: CPU-time budget; training stops after the epoch that exceeds it.
     """
 
@@ -282,7 +284,7 @@ def training_windows(clips: Sequence[GestureClip], rng: np.random.Generator,
     rows = np.flatnonzero(fc)
     if rows.size:
         x, valid = continue_windows(x, valid, rows, forecast)
-    if config.canonical_body:
+    if config.canonical_body and has_canonical_joints(joints):
         # After the forecast: the network reads the whole window as logits_of gives it.
         x = canonical_body(x, valid, joints=joints)
     return x, valid
@@ -350,7 +352,7 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
     skel = clip_skeleton(clips)
     rng = seeded(config.seed)
     extra = dict(extra or {})
-    if config.canonical_body:
+    if config.canonical_body and has_canonical_joints(skel.joint_names):
         extra[CANONICAL] = True
     model = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, tuple(labels),
                                   fps=GESTURE_FPS, width=config.width, dropout=config.dropout,
@@ -395,7 +397,8 @@ def model_input(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray) -> np.ndar
     """Normalised windows (N, T, J, 3) as ``model`` was trained to read them: through
     :func:`~simenv.data.sensor_invariance.canonical_body` when its config's ``extra``
     holds :data:`CANONICAL` (networks trained before it, e.g. the shipped ``gesture-tcn*``,
-    read them as given)."""
+    read them as given). Every path that feeds such a network must pass here:
+    :meth:`SkeletonTCN.predict_proba` and ``classify_world`` do not."""
     if model.config.extra.get(CANONICAL):
         return canonical_body(x, valid, joints=model.config.joint_names)
     return x
