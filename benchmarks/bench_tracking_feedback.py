@@ -63,6 +63,8 @@ VARIANTS: dict[str, dict] = {
     "16ms_step_fb3": {"timestep_factor": 8, "feedback": True, "feedback_knots": 3},
     "16ms_step_fb10": {"timestep_factor": 8, "feedback": True, "feedback_knots": 10},
     "16ms_step_fb_every": {"timestep_factor": 8, "feedback": True},
+    "32_samples": {"n_samples": 32},
+    "32_samples_fb1": {"n_samples": 32, "feedback": True, "feedback_knots": 1},
 }
 CLIPS = ("bvh/02_01.bvh", "bvh/12_01.bvh", "bvh/35_17.bvh")
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
