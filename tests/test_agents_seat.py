@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import simenv
+from simenv.agents.curtain import curtain_spot
 from simenv.agents.seat import (
     CHAIR_AT_DESK_M,
     RETURN_STAGES,
@@ -22,6 +23,7 @@ from simenv.agents.seat import (
     seated_on_chair,
 )
 from simenv.agents.stand import plan_sit_down, plan_stand_up, standing
+from simenv.agents.window import window_spot
 from simenv.assets import WALK, asset_path
 from simenv.core.errors import SimenvError
 from simenv.envs.interaction_room import InteractionRoomEnv
@@ -54,6 +56,7 @@ def _react_and_return(env: InteractionRoomEnv, reaction: str, act: str
     lowest: dict[str, float] = {}
     while True:
         *_, truncated, _ = env.step(action if k == decide else 0)
+        assert env.agent_assistance_n() == 0.0  # no help at any step
         k += 1
         if env.log and env.log[0].get("stages"):
             name = env.log[0]["stages"][-1]["stage"]
@@ -99,26 +102,30 @@ def _assert_seated(env: InteractionRoomEnv, stages: dict[str, dict[str, Any]]) -
                                                         ("bright", "close_curtain", "pull")])
 def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act: str):
     """The real CMU walk's first half second labelled ``label`` (discomfort scenario): the
-    reaction's chain stands, walks, acts (its object changes), then returns and sits."""
-    short = simenv.load(asset_path(WALK)).slice(0, 60)
+    reaction's chain stands, walks to the object on its own legs, acts with the hand (its
+    object changes: the window's push, the curtain's pull through the palm's grasp), then
+    returns and sits."""
+    short = simenv.load(asset_path(WALK)).slice(0, 60)  # the user stays far away
     env = InteractionRoomEnv(short, gestures=[GestureEvent(label, 0.2, 0.5)],
                              scenario="discomfort", predictor="constant-velocity-50")
-    _, stages = _react_and_return(env, reaction, act)
-    _assert_seated(env, stages)
-
-
-def test_real_msr_session_labelled_cold_closes_the_window_and_sits_back(shared_data):
-    """The real MSR Action3D recording the rehearsal test labels ``cold``: close the
-    window, walk back, sit."""
-    from simenv.io import msr_action3d
-    from simenv.room.session import Session
-
-    clip = msr_action3d.read(shared_data / "gestures" / "msr_action3d" /
-                             "a01_s01_e01_skeleton3D.txt")
-    session = Session(clip, (GestureEvent("cold", 0.0, clip.num_frames / clip.fps),))
-    env = InteractionRoomEnv(session, scenario="discomfort",
-                             predictor="constant-velocity-50")
-    _, stages = _react_and_return(env, "close_window", "push")
+    entry, stages = _react_and_return(env, reaction, act)
+    assert entry["started"] and entry["gesture"] == label
+    assert "assistance" not in stages["stand_up"]  # standing up has no help to measure
+    walk = stages["walk"]
+    assert not walk["outcome"]["fell"], entry.get("failed_stage")
+    assert walk["assistance"]["steps"] > 0 and walk["assistance"]["max_n"] == 0.0
+    start = Room("discomfort")  # where the spot is with the objects as at the start
+    d0 = start.make_data()
+    mujoco.mj_forward(start.model, d0)
+    spot, _ = (window_spot if act == "push" else curtain_spot)(start, d0)
+    assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
+    # The object changed because of the hand, after the walk, and stays changed.
+    act_start = entry["t_decision"] + stages["stand_up"]["duration_s"] + walk["duration_s"]
+    assert entry["t_object_changed"] > act_start
+    if act == "pull":
+        assert entry["grasped"] is True  # the curtain is drawn through the palm's grasp
+    assert env.room.object_labels(env.data)[reaction.split("_")[1]] == "closed"
+    assert entry["assistance"]["max_bw"] == 0.0
     _assert_seated(env, stages)
 
 

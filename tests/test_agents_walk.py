@@ -9,15 +9,11 @@ import mujoco
 import numpy as np
 import pytest
 
-import simenv
 from simenv.agents.gait import standing_agent
 from simenv.agents.reach import pd_targets, upper_body_joints
 from simenv.agents.walk import FALLEN_FRACTION, STEP_M, GaitMeter, plan_walk, walk_steps
-from simenv.assets import WALK, asset_path
 from simenv.core.errors import SimenvError
-from simenv.envs.interaction_room import InteractionRoomEnv
 from simenv.room.room import Room
-from simenv.room.session import PERCEPTION_FPS, GestureEvent
 
 #: An open spot of the discomfort room (clear of the furniture and the user) and a heading
 #: towards the north wall, 1.7 m away.
@@ -100,57 +96,6 @@ def test_walk_refuses_a_body_that_is_not_standing():
     mujoco.mj_forward(room.model, data)
     with pytest.raises(SimenvError, match="not standing"):
         plan_walk(room, data, np.array([-1.0, 1.5]), np.pi / 2)
-
-
-def _react(label: str, reaction: str) -> tuple[InteractionRoomEnv, dict, dict]:
-    short = simenv.load(asset_path(WALK)).slice(0, 60)  # the user stays far away
-    env = InteractionRoomEnv(short, gestures=[GestureEvent(label, 0.2, 0.5)],
-                             scenario="discomfort", predictor="constant-velocity-50")
-    env.reset(seed=0)
-    decide, k, truncated, info = int(round(0.3 * PERCEPTION_FPS)), 0, False, {}
-    act = env.reactions.index(reaction)
-    while not truncated and not (env.log and env.log[0]["success"] is not None):
-        *_, truncated, info = env.step(act if k == decide else 0)
-        assert env.agent_assistance_n() == 0.0  # no help at any step
-        k += 1
-    (entry,) = env.log
-    return env, entry, info
-
-
-def test_cold_label_stands_walks_to_the_window_on_its_own_legs():
-    from simenv.agents.window import window_spot
-
-    env, entry, info = _react("cold", "close_window")
-    assert entry["started"] and entry["gesture"] == "cold"
-    stages = {s["stage"]: s for s in entry["stages"]}
-    assert "assistance" not in stages["stand_up"]  # standing up has no help to measure
-    walk = stages["walk"]
-    assert not walk["outcome"]["fell"], entry.get("failed_stage")
-    start = Room("discomfort")  # where the spot is with the window open, as at the start
-    d0 = start.make_data()
-    mujoco.mj_forward(start.model, d0)
-    spot, _ = window_spot(start, d0)
-    assert np.linalg.norm(np.asarray(walk["pelvis_end"][:2]) - spot) < 0.15
-    a = walk["assistance"]
-    assert a["steps"] > 0 and a["max_n"] == 0.0 and entry["assistance"]["max_n"] == 0.0
-    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "push"]
-    # Success is what the window's joint says.
-    assert entry["success"] == (info["object_labels"]["window"] == "closed")
-    assert entry["success"] is True and entry["t_object_changed"] > entry["t_decision"]
-    assert env.room.assist_wrench(env.data) == (0.0, 0.0)
-
-
-def test_bright_label_draws_the_curtain_through_the_grasp():
-    """Discomfort scenario, "bright" on the real walk: stand up, walk to the curtain on
-    its own legs, the palm's proximity grasp closes on its edge and the hand draws it."""
-    env, entry, info = _react("bright", "close_curtain")
-    assert not entry.get("fell"), entry.get("failed_stage")
-    assert [s["stage"] for s in entry["stages"]][:3] == ["stand_up", "walk", "pull"]
-    assert entry["grasped"] is True
-    assert entry["success"] is True and info["object_labels"]["curtain"] == "closed"
-    pull_start = entry["t_decision"] + sum(s["duration_s"] for s in entry["stages"][:2])
-    assert entry["t_object_changed"] > pull_start
-    assert entry["assistance"]["max_bw"] == 0.0
 
 
 def test_standing_act_keeps_its_balance_with_no_help():

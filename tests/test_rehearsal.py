@@ -11,6 +11,7 @@ import pytest
 import simenv
 import simenv.models
 import simenv.room.scenario
+from simenv.agents.seat import CHAIR_AT_DESK_M
 from simenv.assets import WALK, asset_path
 from simenv.core.errors import SimenvError
 from simenv.data.gestures import GESTURE15_JOINTS
@@ -299,6 +300,10 @@ def test_real_session_labelled_cold_walks_to_the_window_and_closes_it(tmp_path: 
     assert walk["max_n"] == 0.0 and len(walk["per_frame_n"]) == -(-walk["steps"] // 20)
     assert reaction["assistance"]["max_bw"] == 0.0 and not reaction.get("fell")
     assert reaction["success"] is True
+    seat = reaction["stages"][-1]["outcome"]  # seated on the chair, rolled to the desk
+    assert seat["success"] and seat["seat_contact"] and not seat["fallen"]
+    assert abs(seat["pelvis_height_error_m"]) < 0.05 and seat["seat_distance_m"] < 0.15
+    assert seat["chair_at_desk"] and seat["chair_from_desk_m"] <= CHAIR_AT_DESK_M
     rows = [json.loads(line) for line in (tmp_path / "log.jsonl").read_text().splitlines()]
     closed = [r["t"] for r in rows if r["labels"]["window"] == "closed"]
     t_push = reaction["t_decision"] + sum(s["duration_s"] for s in reaction["stages"][:2])
