@@ -36,11 +36,12 @@ from pathlib import Path  # noqa: E402
 
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
-from eval_tracking import clip_motion  # noqa: E402
+from eval_tracking import ACROBATICS, clip_motion, clips  # noqa: E402
 
 from simenv.body.retarget import retarget  # noqa: E402
 from simenv.control import FAST, TrackingMPC, TrackingReference  # noqa: E402
 from simenv.core.config import shared_data_root  # noqa: E402
+from simenv.plausibility.corrupt import CORRUPTIONS  # noqa: E402
 from simenv.plausibility.tracking import track  # noqa: E402
 
 #: The variants of docs/tracking_speed.md: MPCConfig fields over FAST's. replan_steps are
@@ -67,6 +68,13 @@ VARIANTS: dict[str, dict] = {
     "32_samples_fb1": {"n_samples": 32, "feedback": True, "feedback_knots": 1},
 }
 CLIPS = ("bvh/02_01.bvh", "bvh/12_01.bvh", "bvh/35_17.bvh")
+#: The corrupted copies (clip, corruption, strength; seed 0) the previous default planner
+#: fails (docs/plausibility.md, docs/tracking_speed.md): a tracker must fail them too.
+DEFAULT_FAILS = tuple((c, k, s) for k, s, cs in (
+    ("teleport", 1.0, ("bvh/02_01.bvh", "bvh/35_17.bvh", "bvh/49_04.bvh",
+                       "asf_amc/103_charleston1.amc")),
+    ("time_warp", 10.0, ("bvh/02_01.bvh", "bvh/35_17.bvh", "bvh/49_04.bvh")),
+    ("float", 50.0, ("bvh/02_01.bvh", "bvh/35_17.bvh", "bvh/49_04.bvh"))) for c in cs)
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
@@ -76,22 +84,36 @@ def run(args: argparse.Namespace) -> None:
         done = {(r["variant"], r["clip"], r["seed"])
                 for r in map(json.loads, filter(str.strip, args.out.read_text().splitlines()))}
     cmu = args.data / "cmu"
-    for clip in args.clips:
+    jobs = [(c, "none", 0.0) for c in args.clips]
+    if args.clips == ["clean20"]:   # eval_tracking.py's 20 non-acrobatic clean clips
+        jobs = [(str(p.relative_to(cmu)), "none", 0.0) for p in clips(args.data)
+                if p.stem not in ACROBATICS]
+    elif args.clips == ["corrupt"]:
+        jobs = list(DEFAULT_FAILS)
+    for clip, corruption, strength in jobs:
+        key = clip if corruption == "none" else f"{clip} {corruption} {strength:g}"
         fitted = None
         for seed in args.seeds:
             for name in args.variants:
-                if (name, clip, seed) in done:
+                if (name, key, seed) in done:
                     continue
-                fitted = fitted or retarget(clip_motion(cmu / clip, args.seconds))
-                cfg = replace(FAST, nthread=1, attempts=1, seed=seed, **VARIANTS[name])
+                if fitted is None:
+                    motion = clip_motion(cmu / clip, args.seconds)
+                    if corruption != "none":
+                        motion = CORRUPTIONS[corruption].fn(motion, strength, seed=0)
+                    fitted = retarget(motion)
+                cfg = replace(FAST, nthread=1, attempts=args.attempts, seed=seed,
+                              **VARIANTS[name])
                 cpu = time.process_time()
                 tr = track(fitted, controller="mpc", mpc=cfg, max_seconds=args.seconds)
                 cpu = time.process_time() - cpu
                 sim = tr.steps * fitted.humanoid.model.opt.timestep
-                rec = {"variant": name, "clip": clip, "seed": seed, "success": tr.success,
+                rec = {"variant": name, "clip": key, "seed": seed, "success": tr.success,
                        "mpjpe_mm": tr.mpjpe_mm, "time_to_failure_s": tr.time_to_failure_s,
                        "steps_per_step": tr.rollout_steps / tr.steps,
-                       "cpu_per_sim_s": cpu / sim, "load": os.getloadavg()[0]}
+                       "cpu_per_sim_s": cpu / sim, "runs": tr.runs,
+                       "attempts": args.attempts, "seconds": args.seconds,
+                       "load": os.getloadavg()[0]}
                 with args.out.open("a") as f:
                     f.write(json.dumps(rec) + "\n")
                 print(json.dumps(rec), flush=True)
@@ -102,7 +124,7 @@ def table(args: argparse.Namespace) -> None:
     for r in map(json.loads, filter(str.strip, args.out.read_text().splitlines())):
         rows[(r["variant"], r["seed"])].append(r)
     for (name, seed), rs in rows.items():
-        cells = " | ".join(f"{Path(r['clip']).stem} {r['mpjpe_mm']:.0f}"
+        cells = " | ".join(f"{Path(r['clip']).name} {r['mpjpe_mm']:.0f}"
                            + ("" if r["success"] else f" (fell {r['time_to_failure_s']:.2f})")
                            for r in rs)
         steps = [r["steps_per_step"] for r in rs]
@@ -161,10 +183,13 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("out/bench_tracking_feedback.jsonl"))
     ap.add_argument("--data", type=Path, default=shared_data_root())
     ap.add_argument("--clips", nargs="+", default=list(CLIPS),
-                    help="paths under cmu/ (never the reserved trials)")
+                    help="run: paths under cmu/ (never the reserved trials); 'clean20': the "
+                         "20 clean clips of eval_tracking.py; 'corrupt': DEFAULT_FAILS")
     ap.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=list(VARIANTS))
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--attempts", type=int, default=1,
+                    help="run: planner seeds a run may try (the scorer's: 3)")
     args = ap.parse_args()
     if args.command == "run":
         args.out.parent.mkdir(parents=True, exist_ok=True)
