@@ -3,14 +3,19 @@
 
 ``--result DIR`` is the run reported; ``--variant DIR --variant-name TEXT`` (optional) a run
 of the same protocol with one change, put beside it (before / after, cross-dataset and
-within-dataset). Every number comes from those files. The section sits between its markers;
-they are appended to the page when absent.
+within-dataset); ``--before DIR --before-name TEXT`` (optional) the reverse: the run reported
+is the one with the change, DIR the same protocol without it. ``--explored FILE`` (optional)
+a JSON list of the exploration runs that chose the change (``name``, ``change`` and per
+left-out dataset its ``real_3s`` / ``real_1s`` accuracy), tabled as measured. Every number
+comes from those files. The section sits between its markers; they are appended to the page
+when absent.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import subprocess
 import sys
 import time
@@ -63,10 +68,41 @@ def _worst_classes(result: dict[str, Any], cond: str = "real_3s") -> list[str]:
     return out
 
 
+def _before_after(before: dict[str, Any], after: dict[str, Any]) -> list[str]:
+    """Rows: per left-out dataset and condition, accuracy before -> after."""
+    lines = ["| left out | condition | cross-dataset | within-dataset "
+             "(leave-subjects-out) |", "|---|---|---|---|"]
+    for name, d in before["datasets"].items():
+        for cond, c in d["conditions"].items():
+            v = after["datasets"][name]["conditions"][cond]
+            lines.append(
+                f"| {name} | {cond} | {c['cross_dataset']['accuracy']:.3f} -> "
+                f"{v['cross_dataset']['accuracy']:.3f} | "
+                f"{c['within_dataset']['accuracy']:.3f} -> "
+                f"{v['within_dataset']['accuracy']:.3f} |")
+    return lines
+
+
+def _explored(runs: list[dict[str, Any]], names: list[str]) -> list[str]:
+    """Rows: per exploration run, its change and each left-out dataset's 3 s / 1 s."""
+    lines = ["| run | change | " + " | ".join(f"{n} 3 s / 1 s" for n in names)
+             + " | mean 3 s / 1 s |", "|---|---|" + "---|" * (len(names) + 1)]
+    for run in runs:
+        cells = [run[n] for n in names]
+        mean3 = sum(c["real_3s"] for c in cells) / len(cells)
+        mean1 = sum(c["real_1s"] for c in cells) / len(cells)
+        lines.append(f"| {run['name']} | {run['change']} | "
+                     + " | ".join(f"{c['real_3s']:.3f} / {c['real_1s']:.3f}" for c in cells)
+                     + f" | {mean3:.3f} / {mean1:.3f} |")
+    return lines
+
+
 def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None = None,
-            variant_name: str = "") -> str:
+            variant_name: str = "", before: dict[str, Any] | None = None,
+            before_name: str = "", explored: list[dict[str, Any]] | None = None) -> str:
     """The section's markdown (without the markers)."""
     cfg = result["config"]
+    canonical = bool(cfg.get("canonical_body"))
     met = [(name, cond) for name, d in result["datasets"].items()
            for cond, c in d["conditions"].items()
            if c["cross_dataset"]["accuracy"] >= result["goals"].get(cond, 2.0)]
@@ -89,7 +125,11 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
         + (f"Run: `{result['command']}`. " if "command" in result else "")
         + f"Corpus: {result['clips']} clips. Every network was trained with the same options: "
         f"{cfg['epochs']} epochs (the shipped recogniser's default: "
-        f"{RecognitionConfig.epochs}), no forecast windows. The only forecaster available "
+        f"{RecognitionConfig.epochs}), no forecast windows, "
+        + ("the canonical body as input (`simenv.data.sensor_invariance.canonical_body`: "
+           "trunk joints redefined from the shoulders and hips, every bone at a reference "
+           "length). " if canonical else "the normalised windows as input. ")
+        + "The only forecaster available "
         "was trained on "
         "every dataset, so the 1 s + 2 s forecast condition is not measured here.",
         *(["", "MSRC-12 (`msrc12`) is read from a copy outside the repository (its files state "
@@ -113,17 +153,18 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
     if variant is not None:
         lines += ["", f"### One change toward sensor invariance: {variant_name}", "",
                   f"Changed options: {_changed(result, variant)}. Same corpus, protocol "
-                  "and seeds. Accuracy before -> after:", "",
-                  "| left out | condition | cross-dataset | within-dataset "
-                  "(leave-subjects-out) |", "|---|---|---|---|"]
-        for name, d in result["datasets"].items():
-            for cond, c in d["conditions"].items():
-                v = variant["datasets"][name]["conditions"][cond]
-                lines.append(
-                    f"| {name} | {cond} | {c['cross_dataset']['accuracy']:.3f} -> "
-                    f"{v['cross_dataset']['accuracy']:.3f} | "
-                    f"{c['within_dataset']['accuracy']:.3f} -> "
-                    f"{v['within_dataset']['accuracy']:.3f} |")
+                  "and seeds. Accuracy before -> after:", "", *_before_after(result, variant)]
+    if before is not None:
+        lines += ["", f"### The change this run makes: {before_name}", "",
+                  f"Changed options: {_changed(before, result)}. Same corpus, protocol "
+                  "and seeds. Accuracy before -> after (this run):", "",
+                  *_before_after(before, result)]
+    if explored:
+        names = sorted(result["datasets"])
+        lines += ["", "### How the input was chosen", "",
+                  "Exploration runs, one change at a time on top of the previous kept one "
+                  "(cross-dataset networks only, same corpus, seeds and 20 epochs; the shared "
+                  "clips of each left-out dataset):", "", *_explored(explored, names)]
     return "\n".join(lines)
 
 
@@ -133,16 +174,25 @@ def main() -> int:
                         help="output folder of the run reported")
     parser.add_argument("--variant", type=Path, help="output folder of a run with one change")
     parser.add_argument("--variant-name", default="", help="what the variant changed")
+    parser.add_argument("--before", type=Path,
+                        help="output folder of the same protocol without this run's change")
+    parser.add_argument("--before-name", default="", help="what this run changed")
+    parser.add_argument("--explored", type=Path,
+                        help="JSON list of the exploration runs (module docstring)")
     args = parser.parse_args()
     result = json.loads((args.result / "cross_dataset.json").read_text())
     variant = (json.loads((args.variant / "cross_dataset.json").read_text())
                if args.variant else None)
-    command = "python benchmarks/cross_dataset_docs.py " + " ".join(sys.argv[1:])
+    before = (json.loads((args.before / "cross_dataset.json").read_text())
+              if args.before else None)
+    explored = json.loads(args.explored.read_text()) if args.explored else None
+    command = "python benchmarks/cross_dataset_docs.py " + shlex.join(sys.argv[1:])
     page = ROOT / "docs" / "recognition.md"
     if BEGIN not in page.read_text():
         page.write_text(page.read_text().rstrip("\n") + f"\n\n{BEGIN}\n{END}\n")
     replace_section(page, BEGIN, END, section(result, _header(command), variant,
-                                              args.variant_name))
+                                              args.variant_name, before, args.before_name,
+                                              explored))
     print(f"wrote the cross-dataset section of {page}")
     return 0
 

@@ -5,7 +5,9 @@ For each dataset of the corpus in turn (:func:`run_cross_dataset`): one network 
 on every clip of the *other* datasets (the room vocabulary, idle clips included;
 :func:`simenv.learning.recognition.train_recogniser`, no forecast windows) and tested on
 the left-out dataset's clips, windows centre-cropped as in the room protocol: ``real_3s``
-(3 s of real motion) and ``real_1s`` (its first second). A left-out dataset can hold
+(3 s of real motion) and ``real_1s`` (its first second), read as the network was trained
+to read them (:func:`~simenv.learning.recognition.logits_of`: the canonical body of
+:mod:`simenv.data.sensor_invariance` by default). A left-out dataset can hold
 labels no other dataset has (Florence's answer_phone, drink, read_watch; UTKinect's walk):
 no network trained on the others can name them, so the protocol's figure is on the
 **shared** clips, those whose label the training datasets have; the excluded labels and
