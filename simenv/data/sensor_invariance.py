@@ -53,6 +53,15 @@ body retargeted onto one reference skeleton, as the room reads its user off one 
 humanoid. It works on normalised windows (lengths in metres of the reference body), so it
 depends on nothing the normalisation removed. :func:`canonical_body` applies both.
 
+Retargeting does not do this. The room reads its user off the humanoid fitted to the
+recording (:func:`simenv.perception.protocol.avatar_clips`), and that body is fitted to
+the sensor's own joints, so its keypoints keep the sensor's trunk: on one UTKinect wave,
+one MSR Action3D wave and one MSRC-12 bow, ``spine`` at 0.39 / 0.68 / 0.36 of the way from
+the hip centre to the shoulder centre and hips 0.42 / 0.78 / 0.44 shoulder widths apart on
+the avatar, against 0.39 / 0.69 / 0.36 and 0.43 / 0.79 / 0.46 in the recorded joints.
+Training on recorded joints and testing on the avatar's is therefore consistent within a
+sensor, and equally sensor-specific; :func:`canonical_body` applies on either path.
+
 Measured (issue 34, cross-dataset protocol, 20 epochs, each dataset left out, 3 s / 1 s
 real, mean of the four): as given 0.442 / 0.385; ``neck`` and ``spine`` reconciled
 0.515 / 0.392; and the hips 0.565 / 0.448; and reference bone lengths 0.596 / 0.498
