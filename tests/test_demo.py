@@ -23,8 +23,6 @@ from simenv.cli.common import save_npz, summary
 from simenv.cli.demo_job import (
     demo_score_config,
     export_glb,
-    planner_record,
-    planning_cost,
     stage,
     write_poster,
 )
@@ -44,6 +42,7 @@ from simenv.envs.rehearsal import rehearse
 from simenv.io.loader import load
 from simenv.plausibility.html_report import report_score, write_index, write_report
 from simenv.plausibility.metric import DEFAULT_SCORE_CONFIG, ScoreConfig
+from simenv.plausibility.planner import planner_record, planning_cost
 from simenv.plausibility.report import score
 from simenv.room.session import GestureEvent, Session
 

@@ -90,3 +90,5 @@ def test_rehearse_command_dispatches_to_a_shipped_generator(
     assert f"{name} answering" in capsys.readouterr().out
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["model"] == name and Path(summary["report"]).is_file()
+    # The verdicts' planner is recorded: here the suite's quick one, simenv score's default.
+    assert summary["scoring"]["n_samples"] == 16 and summary["scoring"]["attempts"] == 1

@@ -34,17 +34,20 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.body.render import render_result
 from simenv.cli.common import describe, retarget_clip, save_npz, summary
 from simenv.cli.demo_page import write_page
-from simenv.control import MPCConfig, fast_planner
+from simenv.control import fast_planner
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction
 from simenv.data import interaction_data as idata
-from simenv.envs.reaction_rehearsal import generate_reaction, user_motion
+from simenv.envs.reaction_rehearsal import (
+    generate_reaction,
+    rehearse_reaction,
+    user_motion,
+)
 from simenv.envs.rehearsal import rehearse
 from simenv.io.loader import load
 from simenv.learning.eval_interaction import SHARED
@@ -53,7 +56,8 @@ from simenv.models import load as load_model
 from simenv.plausibility import report as report_module
 from simenv.plausibility.html_report import IndexEntry, report_score, write_index, write_report
 from simenv.plausibility.metric import ScoreConfig
-from simenv.plausibility.report import PlausibilityReport, score
+from simenv.plausibility.planner import planner_record, planning_cost
+from simenv.plausibility.report import score
 from simenv.room.export import export_result, export_room
 from simenv.room.session import GestureEvent, Session
 
@@ -98,12 +102,6 @@ def demo_score_config(base: ScoreConfig | None = None) -> ScoreConfig:
     return replace(base, mpc=mpc, tracking_assisted_detail=False)
 
 
-def planning_cost(mpc: MPCConfig) -> float:
-    """Planning-model steps a planner rolls out per physics step, first attempt (samples x
-    horizon steps per replan / physics steps between replans)."""
-    return mpc.n_samples * mpc.horizon_s / mpc.timestep_factor / mpc.replan_steps
-
-
 #: Wall and CPU seconds of each stage of a run, by stage name.
 Stages = dict[str, dict[str, float]]
 
@@ -118,26 +116,6 @@ def stage(stages: Stages, name: str) -> Iterator[None]:
     finally:
         stages[name] = {"wall_s": round(time.perf_counter() - wall, 2),
                         "cpu_s": round(time.process_time() - cpu, 2)}
-
-
-def planner_record(config: ScoreConfig) -> dict[str, Any]:
-    """What the demo's physics verdicts were computed with: the planner's settings, whether
-    the assisted PD run was reported, and the same in words (``text``) for the page."""
-    mpc = config.mpc
-    retry = mpc.horizon_s if mpc.retry_horizon_s is None else mpc.retry_horizon_s
-    seeds = (f"up to {mpc.attempts} seeds (the further ones over {retry:g} s)"
-             if mpc.attempts > 1 else "one seed")
-    shipped = report_module.DEFAULT_SCORE_CONFIG.mpc
-    text = (f"unassisted MPC with {mpc.n_samples} samples per replan"
-            f"{' in mirrored pairs' if mpc.antithetic else ''} over {mpc.horizon_s:g} s, "
-            f"planning step {mpc.timestep_factor} physics steps, {seeds}; simenv score plans "
-            f"with {shipped.n_samples} samples, planning step {shipped.timestep_factor} "
-            f"physics steps ({planning_cost(shipped) / planning_cost(mpc):.0f}x the "
-            "rolled-out steps)")
-    return {"n_samples": mpc.n_samples, "antithetic": mpc.antithetic,
-            "timestep_factor": mpc.timestep_factor, "horizon_s": mpc.horizon_s,
-            "attempts": mpc.attempts, "retry_horizon_s": retry, "seed": mpc.seed,
-            "assisted_detail": config.tracking_assisted_detail, "text": text}
 
 
 def run_demo(
@@ -331,9 +309,11 @@ def react(out_dir: Path, config: ScoreConfig) -> tuple[dict[str, Any], dict[str,
 
 
 def _reaction(out_dir: Path, config: ScoreConfig) -> dict[str, Any]:
-    """:data:`REACTION_MODEL` answers :data:`REACTION_FILE` of the handshake pair, tracked
-    and scored with ``config``; writes ``reaction.npz``, ``report/report.html`` and
-    ``summary.json`` as ``simenv rehearse --agent`` does. Returns the demo's record."""
+    """:data:`REACTION_MODEL` answers :data:`REACTION_FILE` of the handshake pair (its first
+    :data:`REACTION_SECONDS`), tracked and scored with ``config``: ``simenv rehearse
+    --agent`` (:func:`simenv.envs.reaction_rehearsal.rehearse_reaction`) writes
+    ``reaction.npz``, ``report/report.html`` and ``summary.json``. Returns the demo's
+    record."""
     if REACTION_MODEL not in available():
         print(f"[reaction] {REACTION_MODEL} is not shipped in assets/models; skipped",
               flush=True)
@@ -341,52 +321,17 @@ def _reaction(out_dir: Path, config: ScoreConfig) -> dict[str, Any]:
     session = f"{HANDSHAKE_PAIR}/{REACTION_FILE}"
     print(f"[reaction] {REACTION_MODEL} answers {session} (first "
           f"{REACTION_SECONDS:g} s): generate, retarget, track, score", flush=True)
-    t0 = time.perf_counter()
-    inter, start = reaction_clip()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out_dir / "reaction.npz", user=inter.actor.positions,
-                        agent=inter.reactor.positions, fps=np.float64(inter.actor.fps),
-                        joints=np.array(idata.INTER18_JOINTS))
-    scored = score(inter, physics=True, config=config)
-    report = str(write_report(scored, out_dir / "report", video=False))
-    s = _reaction_summary(scored, session, inter, start, report, config)
-    s["seconds"] = time.perf_counter() - t0
-    (out_dir / "summary.json").write_text(json.dumps(s, indent=1) + "\n")
+    s = rehearse_reaction(asset_path(HANDSHAKE_PAIR) / REACTION_FILE, REACTION_MODEL,
+                          out_dir, seconds=REACTION_SECONDS, video=False, config=config,
+                          shared=SHARED)
     agent = s["agent"]
     print(f"[reaction] agent {agent['verdict']} (score {agent['score']:.0f}; failed: "
           f"{', '.join(agent['failed']) or 'none'}); interaction {s['interaction']['verdict']}",
           flush=True)
     return {"model": s["model"], "session": session, "frames": s["frames"],
             "agent": {k: agent[k] for k in ("verdict", "score", "failed")},
-            "interaction": s["interaction"]["verdict"], "start": start,
-            "report": report, "folder": str(out_dir)}
-
-
-def _reaction_summary(scored: PlausibilityReport, session: str, inter: Interaction,
-                      start: dict[str, Any], report: str, config: ScoreConfig
-                      ) -> dict[str, Any]:
-    """``reaction/summary.json`` in the layout of ``simenv rehearse --agent``'s, plus the
-    planner of its verdicts (``scoring``)."""
-    agent, user = scored.people[1], scored.people[0]
-    return {
-        "session": session, "model": REACTION_MODEL, "frames": inter.actor.num_frames,
-        "fps": inter.actor.fps, "start": start,
-        "agent": {"verdict": agent.verdict, "score": agent.score, "failed": agent.failed,
-                  "metrics": {k: {"value": _plain(m.value), "threshold": _plain(m.threshold),
-                                  "passed": m.passed, "unit": m.unit}
-                              for k, m in agent.metrics.items()}},
-        "user": {"verdict": user.verdict, "score": user.score},
-        "interaction": {"verdict": scored.verdict, **{
-            k: {"value": _plain(m.value), "passed": m.passed}
-            for k, m in (scored.interaction or {}).items()}},
-        "scoring": planner_record(config),
-        "report": report,
-    }
-
-
-def _plain(x: Any) -> Any:
-    """A JSON-ready number: NumPy scalars as Python ones."""
-    return x.item() if isinstance(x, np.generic) else x
+            "interaction": s["interaction"]["verdict"], "start": s["start"],
+            "report": s["report"], "folder": str(out_dir)}
 
 
 def export_glb(result: Any, path: Path) -> Path | None:

@@ -25,7 +25,7 @@ ROOM_ONLY = {"--joint-map": "joint_map", "--scenario": "scenario", "--gesture": 
              "--predictor": "predictor", "--classifier": "classifier",
              "--templates": "templates", "--width": "width", "--height": "height"}
 #: Reaction-generator options the room rehearsal does not use: option -> its dest.
-GENERATOR_ONLY = {"--seconds": "seconds", "--shared": "shared"}
+GENERATOR_ONLY = {"--seconds": "seconds", "--shared": "shared", "--planner": "planner"}
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -41,7 +41,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def rehearsal_parser() -> tuple[argparse.ArgumentParser, list[str]]:
     """The parser of ``simenv rehearse`` and the reaction generators among its agents."""
     from simenv.envs import rehearsal
+    from simenv.envs.reaction_rehearsal import PLANNER_HELP
     from simenv.models import interaction_model_names
+    from simenv.plausibility.planner import PLANNERS
 
     generators = interaction_model_names("reaction")
     parser = command_parser("simenv rehearse", DESCRIPTION)
@@ -53,6 +55,7 @@ def rehearsal_parser() -> tuple[argparse.ArgumentParser, list[str]]:
     group.add_argument("--shared", help="corpus root of the training windows that give the "
                        "agent's start pose (default: --data, else $SIMENV_SHARED_DATA or "
                        "../shared/data)")
+    group.add_argument("--planner", choices=PLANNERS, default="default", help=PLANNER_HELP)
     return parser, generators
 
 

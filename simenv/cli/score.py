@@ -131,11 +131,9 @@ def score_config(args: argparse.Namespace, progress: bool = False) -> ScoreConfi
     if args.tracking_attempts is not None:
         config = dataclasses.replace(config, mpc=dataclasses.replace(
             config.mpc, attempts=args.tracking_attempts))
-    if args.planner == "fast":
-        from simenv.control import fast_planner
+    from simenv.plausibility.planner import with_planner
 
-        config = dataclasses.replace(config, mpc=fast_planner(config.mpc))
-    return config
+    return with_planner(config, args.planner)
 
 
 def run(args: argparse.Namespace) -> int:

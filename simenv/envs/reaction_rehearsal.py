@@ -50,7 +50,10 @@ from simenv.data import interaction_data as idata
 from simenv.learning.eval_interaction import SHARED
 from simenv.models import interaction_model_entry, load
 from simenv.models.reaction_baselines import MirrorActor
+from simenv.plausibility import report as report_module
 from simenv.plausibility.html_report import write_report
+from simenv.plausibility.metric import ScoreConfig
+from simenv.plausibility.planner import PLANNERS, planner_record, with_planner
 from simenv.plausibility.report import score
 from simenv.room.session import Session
 
@@ -132,7 +135,8 @@ def _training_windows(shared: Path) -> idata.InteractionWindows | None:
 def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any,
                       out: str | os.PathLike[str], *, shared: str | os.PathLike[str] |
                       None = None, seconds: float | None = None, report: bool = True,
-                      video: bool = True, progress: bool = False) -> dict[str, Any]:
+                      video: bool = True, progress: bool = False,
+                      config: ScoreConfig | None = None) -> dict[str, Any]:
     """Generate, track and score the agent's reaction to ``session`` (module docstring).
 
     Args:
@@ -145,6 +149,9 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
         seconds: use only the first ``seconds`` of the session.
         report, video: write ``report/report.html`` (and its video).
         progress: say each step on stderr as it starts, with the time so far.
+        config: the scorer's settings (default: ``simenv score``'s); e.g. the fast planner,
+            :func:`simenv.plausibility.planner.with_planner`. The summary records the
+            planner (``scoring``).
 
     Returns:
         the summary written to ``summary.json``.
@@ -183,7 +190,8 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
     # 361 s for the 2.9-s bundled walk, two people, on a shared 2-core machine).
     step(3, "scoring both people with physics: retargeting, then unassisted MPC tracking "
          "of each (the long step: minutes per second of motion)")
-    scored = score(inter, physics=True)
+    config = config or report_module.DEFAULT_SCORE_CONFIG
+    scored = score(inter, physics=True, config=config)
     agent = scored.people[1]
     pair = scored.interaction or {}
     summary = {
@@ -197,6 +205,7 @@ def rehearse_reaction(session: str | os.PathLike[str] | Motion, model: str | Any
         "user": {"verdict": scored.people[0].verdict, "score": scored.people[0].score},
         "interaction": {"verdict": scored.verdict, **{
             k: {"value": m.value, "passed": m.passed} for k, m in pair.items()}},
+        "scoring": planner_record(config),
         "seconds": time.perf_counter() - t0,
     }
     if report:
@@ -212,6 +221,12 @@ def _json(x: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
+#: ``--planner``'s help, shared with ``simenv rehearse``'s parser.
+PLANNER_HELP = ("the physics tracking's planner (simenv.plausibility.planner): default, "
+                "simenv score's, or fast (simenv.control.FAST: a quarter of the rolled-out "
+                "steps, less close tracking; docs/tracking_speed.md)")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m simenv.envs.reaction_rehearsal SESSION --agent MODEL --out DIR``; 2 on a user
     error."""
@@ -224,19 +239,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, help="only the first SECONDS of the session")
     ap.add_argument("--shared", help="corpus root for the start pose")
     ap.add_argument("--no-render", action="store_true", help="no video in the report")
+    ap.add_argument("--planner", choices=PLANNERS, default="default", help=PLANNER_HELP)
     return run_args(ap.parse_args(argv))
 
 
 def run_args(args: argparse.Namespace) -> int:
     """Rehearse with parsed options (``session``, ``agent``, ``out``, ``seconds``,
-    ``shared``, ``no_render``: those of :func:`main`), print the one-line summary; 2 on a
-    user error."""
+    ``shared``, ``no_render``, ``planner``: those of :func:`main`), print the one-line
+    summary; 2 on a user error."""
     import torch  # heavy; the generator loaded later imports it anyway, here it gets 1 thread
 
     torch.set_num_threads(1)
     try:
+        config = with_planner(report_module.DEFAULT_SCORE_CONFIG, args.planner)
         s = rehearse_reaction(args.session, args.agent, args.out, shared=args.shared,
-                              seconds=args.seconds, video=not args.no_render, progress=True)
+                              seconds=args.seconds, video=not args.no_render, progress=True,
+                              config=config)
     except SimenvError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
