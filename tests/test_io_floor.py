@@ -39,3 +39,14 @@ def test_calibrated_floor_and_sunk_stance_untouched() -> None:
     assert not _floor_notes(walk)
     assert floor_offset([walk]) == 0.0
     assert floor_offset([sink(walk, 10.0, seed=0)]) == 0.0
+
+
+@pytest.mark.parametrize("depth_m", [0.05, 0.2])
+def test_a_whole_clip_sunk_through_the_floor_is_left_for_the_metrics(depth_m: float) -> None:
+    """A joint-centre floor puts the planted balls at zero; the real Xia walk lowered so they
+    stand centimetres below it is a sunk body (a generator's defect), not that convention."""
+    xia = simenv.load(XIA / "xia_angry_13_000.bvh")  # raised onto the floor when read
+    sunk = xia.with_positions(xia.positions - np.array([0.0, 0.0, BALL_HEIGHT_M + depth_m],
+                                                       np.float32))
+    assert np.median(planted_toe_heights(sunk)) == pytest.approx(-depth_m, abs=1e-4)
+    assert floor_offset([sunk]) == 0.0

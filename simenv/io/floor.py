@@ -17,10 +17,13 @@ The rule (:func:`floor_offset`): on every frame the lower toe keypoint, when it 
 independent of where the file's zero is), gives a ball height; when even
 their 90th percentile is below :data:`MIN_BALL_HEIGHT_M` -- nearly the whole stance below the
 lowest possible ball -- the floor is at the joint centres, and the clip is raised so that
-the planted balls' median stands at :data:`BALL_HEIGHT_M`. One stance sinking (a capture
-glitch, a corrupted segment) leaves the other stances' balls above the bound and is not
-touched; a clip without toe keypoints or planted frames is not touched. The raise is noted
-in ``metadata["repairs"]``.
+the planted balls' median stands at :data:`BALL_HEIGHT_M`. A floor at the joint centres
+puts the planted balls about zero (measured: medians -12 to +8 mm on the Xia clips); a
+median more than a ball's height (:data:`BALL_HEIGHT_M`) below it is a body sunk through
+the floor (a defect the ground metrics must see, e.g. in a generated clip), not that
+convention, and is not touched. One stance sinking (a capture glitch, a corrupted segment)
+leaves the other stances' balls above the bound and is not touched; a clip without toe
+keypoints or planted frames is not touched. The raise is noted in ``metadata["repairs"]``.
 
 Applied by :func:`simenv.load` to the formats in :data:`FILE_FLOOR_FORMATS` (the file's
 coordinate frame is the world frame); depth-camera readers, and the joint-table reader on a
@@ -82,6 +85,8 @@ def floor_offset(people: list[Motion]) -> float:
     toes = np.concatenate([planted_toe_heights(m) for m in people])
     if toes.size < MIN_PLANTED or np.percentile(toes, 90) >= MIN_BALL_HEIGHT_M:
         return 0.0
+    if np.median(toes) < -BALL_HEIGHT_M:
+        return 0.0  # sunk through the floor, not a floor at the joint centres
     return float(BALL_HEIGHT_M - np.median(toes))
 
 
