@@ -35,10 +35,24 @@ def add_joint_map_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--joint-map", metavar="FILE.toml", help=JOINT_MAP_HELP)
 
 
+def add_units_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--units UNIT`` and ``--scale M``: the file's length unit when the reader cannot
+    tell it from the skeleton's size (BVH, ASF/AMC and joint tables detect it)."""
+    from simenv.io import UNIT_SCALES
+
+    parser.add_argument("--units", choices=tuple(UNIT_SCALES), help=(
+        "the file's length unit, instead of the one detected from the skeleton's size "
+        "(BVH, ASF/AMC, joint tables)"))
+    parser.add_argument("--scale", type=float, metavar="M", help=(
+        "metres per file unit, for a skeleton in no known unit (e.g. a character rig "
+        "twice human size: 0.005 for centimetres)"))
+
+
 def read_options(args: argparse.Namespace) -> dict[str, Any]:
-    """Reader options of a command's arguments (``joint_map=`` when given)."""
-    joint_map = getattr(args, "joint_map", None)
-    return {} if joint_map is None else {"joint_map": joint_map}
+    """Reader options of a command's arguments: ``joint_map=``, ``units=`` and ``scale=``
+    where given."""
+    return {name: value for name in ("joint_map", "units", "scale")
+            if (value := getattr(args, name, None)) is not None}
 
 
 #: The model kinds of ``train`` and ``eval``.
@@ -253,7 +267,8 @@ def _residuals(result: Any) -> np.ndarray:
 
 
 __all__ = ["EXIT_USER_ERROR", "JOINT_MAP_HELP", "MODEL_KINDS", "PATH_HELP", "HelpFormatter",
-           "add_joint_map_option", "add_model_command", "check_suffix", "command_parser",
+           "add_joint_map_option", "add_model_command", "add_units_options", "check_suffix",
+           "command_parser",
            "describe",
            "joint_map_record",
            "positive_int", "read_options", "retarget_clip", "save_npz", "summary"]

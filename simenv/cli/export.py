@@ -5,7 +5,13 @@ from __future__ import annotations
 
 import argparse
 
-from simenv.cli.common import PATH_HELP, add_joint_map_option, positive_int, read_options
+from simenv.cli.common import (
+    PATH_HELP,
+    add_joint_map_option,
+    add_units_options,
+    positive_int,
+    read_options,
+)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -24,6 +30,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     exp.add_argument("--stride", type=positive_int, default=1,
                      help="keep every S-th frame of the animation (default 1)")
     add_joint_map_option(exp)
+    add_units_options(exp)
     exp.set_defaults(func=run)
 
 

@@ -9,7 +9,13 @@ import json
 from pathlib import Path
 from typing import Any
 
-from simenv.cli.common import PATH_HELP, add_joint_map_option, describe, read_options
+from simenv.cli.common import (
+    PATH_HELP,
+    add_joint_map_option,
+    add_units_options,
+    describe,
+    read_options,
+)
 from simenv.core.errors import SimenvError
 from simenv.core.joint_map import JointMapping, joint_map_template
 from simenv.core.motion import Interaction
@@ -28,6 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "write the first person's joint map as a TOML file to edit and pass back with "
         "--joint-map (every keypoint listed, the unmapped ones commented out)"))
     add_joint_map_option(info)
+    add_units_options(info)
     info.set_defaults(func=run)
 
 

@@ -7,6 +7,7 @@ import argparse
 from simenv.cli.common import (
     PATH_HELP,
     add_joint_map_option,
+    add_units_options,
     check_suffix,
     positive_int,
     read_options,
@@ -30,6 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ren.add_argument("--width", type=positive_int, default=320, help="pixels (default 320)")
     ren.add_argument("--height", type=positive_int, default=240, help="pixels (default 240)")
     add_joint_map_option(ren)
+    add_units_options(ren)
     ren.set_defaults(func=run)
 
 

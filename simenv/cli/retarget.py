@@ -9,6 +9,7 @@ import json
 from simenv.cli.common import (
     PATH_HELP,
     add_joint_map_option,
+    add_units_options,
     check_suffix,
     positive_int,
     read_options,
@@ -35,6 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "print one JSON object: frames, fps, people, mean_residual_m, p95_residual_m, "
         "max_residual_m, seconds"))
     add_joint_map_option(ret)
+    add_units_options(ret)
     ret.set_defaults(func=run)
 
 

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from simenv.cli.common import EXIT_USER_ERROR, add_joint_map_option, positive_int
+from simenv.cli.common import EXIT_USER_ERROR, add_joint_map_option, add_units_options, positive_int
 from simenv.core.errors import SimenvError
 
 if TYPE_CHECKING:  # the scorer's settings load MuJoCo
@@ -79,6 +79,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "With --reference on depth-camera clips, --source mocap measures the values the "
         "reference compares at the default thresholds, where they are not cut to 0"))
     add_joint_map_option(sco)
+    add_units_options(sco)
     sco.set_defaults(func=run)
 
 
@@ -160,7 +161,8 @@ def run(args: argparse.Namespace) -> int:
     job = ScoreJob(physics=args.physics, report_dir=None if report_dir is None
                    else str(report_dir), config=score_config(args, progress),
                    restore_collapsed_bones=args.restore_collapsed_bones,
-                   joint_map=args.joint_map, source=args.source)
+                   joint_map=args.joint_map, source=args.source, units=args.units,
+                   scale=args.scale)
     if args.reference:
         reference = calibrate_reference(args.reference, job, exclude=targets, jobs=args.jobs,
                                         backend=args.backend, ray_address=args.ray_address,

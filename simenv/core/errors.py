@@ -50,6 +50,11 @@ class SimenvError(Exception):
         return f"{', '.join(where)}: {self.detail}" if where else self.detail
 
 
+class ReaderOptionError(SimenvError, TypeError):
+    """An option given for a file whose reader does not take it (e.g. ``units=`` for a
+    Kinect recording); a ``TypeError`` too, as a call with an unknown keyword is."""
+
+
 class FormatError(SimenvError):
     """A file is malformed: truncated, non-numeric, wrong channel count, ..."""
 

@@ -207,7 +207,9 @@ def detect_units(
         options = ", ".join(f"{n}: {height * v:.4g} m" for n, v in UNIT_SCALES.items())
         raise UnitsError(
             f"rest-pose size {height:.4g} file units is not a plausible person in any known "
-            f"unit ({options}); expected {lo}-{hi} m. Pass units= or scale= explicitly",
+            f"unit ({options}); expected {lo}-{hi} m. Give the unit (simenv.load(path, "
+            f"units='cm'); the commands' --units cm) or metres per file unit (scale=, "
+            f"--scale)",
             source=source,
         )
     reason = (

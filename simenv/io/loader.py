@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from simenv.core.errors import MotionError, SimenvError, UnknownFormatError
+from simenv.core.errors import MotionError, ReaderOptionError, SimenvError, UnknownFormatError
 from simenv.core.joint_map import JointMapSource, map_motion
 from simenv.core.motion import Interaction, Motion
 from simenv.io.floor import put_on_floor
@@ -157,9 +157,10 @@ def _read(path: Path, name: str, mod: ModuleType, kwargs: dict[str, Any], *,
     unknown = [k for k in kwargs if k not in params and not takes_any]
     if unknown:
         accepted = [k for k, p in params.items() if p.kind is p.KEYWORD_ONLY]
-        raise TypeError(
-            f"{path}: the {name} reader does not take {', '.join(unknown)}; it accepts "
-            f"{', '.join(accepted) or 'no options'}"
+        raise ReaderOptionError(
+            f"the {name} reader does not take {', '.join(unknown)}; it accepts "
+            f"{', '.join(accepted) or 'no options'}",
+            source=path, field=unknown[0],
         )
     return read(path, **kwargs)
 

@@ -104,6 +104,8 @@ class ScoreJob:
         source: the source kind of every target (``"auto"``: detected per clip;
             :data:`simenv.plausibility.profiles.DECLARABLE_SOURCES`), which picks the
             thresholds' profile.
+        units, scale: the targets' length unit or metres per file unit, for readers that
+            take them (:func:`simenv.io.load`); None: detected per file.
     """
 
     physics: bool = True
@@ -113,11 +115,14 @@ class ScoreJob:
     reference: Reference | None = None
     joint_map: str | None = None
     source: str = "auto"
+    units: str | None = None
+    scale: float | None = None
 
 
 def _read_options(target: Path, job: ScoreJob) -> dict[str, Any]:
     """Reader options of ``job`` that apply to ``target`` (BVH-only ones to BVH only)."""
-    options: dict[str, Any] = {} if job.joint_map is None else {"joint_map": job.joint_map}
+    options: dict[str, Any] = {name: value for name in ("joint_map", "units", "scale")
+                               if (value := getattr(job, name)) is not None}
     if not job.restore_collapsed_bones:
         return options
     files = sorted(target.iterdir()) if target.is_dir() else [target]
