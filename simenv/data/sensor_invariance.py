@@ -49,9 +49,9 @@ Bone lengths still differ by sensor and person (thigh 0.42 m of the reference bo
 Florence 3D, 0.50-0.54 in the Kinect v1 sets, with the arms scaled alike).
 :func:`reference_bones` keeps every bone's direction and gives it the length of
 :data:`REFERENCE_BONES_M`, walking the tree from ``spine`` -- the recogniser's view of a
-body retargeted onto one reference skeleton, as the room reads its user off one fitted
-humanoid. It works on normalised windows (lengths in metres of the reference body), so it
-depends on nothing the normalisation removed. :func:`canonical_body` applies both.
+body retargeted onto one reference skeleton. It works on normalised windows (lengths in
+metres of the reference body), so it depends on nothing the normalisation removed.
+:func:`canonical_body` applies both.
 
 Retargeting does not do this. The room reads its user off the humanoid fitted to the
 recording (:func:`simenv.perception.protocol.avatar_clips`), and that body is fitted to
