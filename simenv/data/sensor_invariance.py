@@ -86,9 +86,13 @@ HIP_WIDTH_RATIO = 0.5
 
 #: Bone lengths of the reference body, child joint -> length from its parent in
 #: ``gesture15``, metres of the normalised body (arm size
-#: :data:`~simenv.data.gestures.REFERENCE_SIZE_M`): the corpus's reconciled medians over
-#: its four datasets, rounded (neck = shoulder centre, so neck -> shoulder is half the
-#: shoulder width; spine -> hip follows from SPINE_FRACTION and HIP_WIDTH_RATIO).
+#: :data:`~simenv.data.gestures.REFERENCE_SIZE_M`): an adult's proportions, set once by eye
+#: from the corpus's per-dataset medians before the one run that measured them, not tuned
+#: (neck = shoulder centre, so neck -> shoulder is half the shoulder width). The reconciled
+#: medians of the four datasets, for comparison: spine -> neck 0.23-0.30, neck -> head
+#: 0.23-0.32, half shoulder width 0.15-0.18, upper arm 0.26-0.27, forearm 0.24-0.28,
+#: spine -> hip 0.13-0.15, thigh 0.42-0.54, shank 0.39-0.41. Every body gets these
+#: lengths, so their values do not favour a dataset.
 REFERENCE_BONES_M: dict[str, float] = {
     "neck": 0.34, "head": 0.27, "left_shoulder": 0.17, "right_shoulder": 0.17,
     "left_elbow": 0.265, "right_elbow": 0.265, "left_wrist": 0.26, "right_wrist": 0.26,
