@@ -45,10 +45,15 @@ from torch import nn
 
 from simenv.core.errors import MotionError
 from simenv.data.gestures import normalise_windows
+from simenv.data.sensor_invariance import canonical_body
 from simenv.models.checkpoint import CheckpointMixin
 from simenv.models.gesture_classifier import SkeletonClasses, valid_mask
 
 CHECKPOINT_FORMAT = "simenv-skeleton-tcn-1"
+#: Key of ``TCNConfig.extra`` marking a network trained on canonical-body input
+#: (:func:`simenv.data.sensor_invariance.canonical_body`), which :meth:`SkeletonTCN.model_input`
+#: then gives it whoever calls it.
+CANONICAL_BODY = "canonical_body"
 #: Dilations of the residual blocks (receptive field 1 + 4 (1 + 2 + 4 + 1) = 33 frames).
 DILATIONS: tuple[int, ...] = (1, 2, 4, 1)
 KERNEL = 5
@@ -64,7 +69,8 @@ class TCNConfig(SkeletonClasses):
         width: channels D of the blocks.
         dropout: dropout before the output layer and inside the blocks, in training.
         temperature: softmax temperature τ of :meth:`SkeletonTCN.predict_proba`.
-        extra: JSON-able provenance (joint set, dataset, protocol).
+        extra: JSON-able provenance (joint set, dataset, protocol); ``canonical_body``
+            (:data:`CANONICAL_BODY`) true: the network reads canonical-body input.
     """
 
     fps: float = 25.0
@@ -162,14 +168,24 @@ class SkeletonTCN(CheckpointMixin, nn.Module):
         """(B, C) class logits (before the temperature)."""
         return self.out(self.drop(self.features(x, valid)))
 
+    def model_input(self, x: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+        """Normalised windows (N, T, J, 3) as this network was trained to read them: through
+        :func:`~simenv.data.sensor_invariance.canonical_body` when ``config.extra`` marks it
+        so (:data:`CANONICAL_BODY`), as given otherwise (e.g. the shipped ``gesture-tcn*``).
+        :meth:`predict_proba` and :meth:`classify_world` apply it; a caller of
+        :meth:`forward` passes its windows through it."""
+        if not self.config.extra.get(CANONICAL_BODY):
+            return x
+        return canonical_body(x, valid, joints=self.config.joint_names)
+
     @torch.no_grad()
     def predict_proba(self, x: np.ndarray, valid: np.ndarray | None = None,
                       batch_size: int = 256) -> np.ndarray:
         """(N, C) calibrated probabilities ``softmax(logits / τ)`` of normalised windows
-        (N, T, J, 3)."""
+        (N, T, J, 3) (through :meth:`model_input`)."""
         if self.training:
             self.eval()
-        xt = torch.as_tensor(np.asarray(x, np.float32))
+        xt = torch.as_tensor(np.asarray(self.model_input(x, valid), np.float32))
         vt = None if valid is None else torch.as_tensor(np.asarray(valid, bool))
         tau = self.config.temperature
         out = [torch.softmax(self(xt[i:i + batch_size],
@@ -239,6 +255,10 @@ class SkeletonTCNEnsemble(CheckpointMixin, nn.Module):
             if (c.joint_names, c.parents, c.labels, c.width, c.fps) != shape:
                 raise ValueError(f"ensemble member {k} differs from member 0 in its joints, "
                                  "labels, width or frame rate")
+            if bool(c.extra.get(CANONICAL_BODY)) != bool(first.extra.get(CANONICAL_BODY)):
+                raise ValueError(f"ensemble member {k} and member 0 read different input "
+                                 "(canonical-body or normalised windows): the fused pass "
+                                 "gives every member the same windows")
         self.members = nn.ModuleList(members)
         #: The shared contract, temperature 1: :meth:`forward` is already scaled.
         self.config = replace(first, temperature=1.0)
@@ -309,8 +329,8 @@ class SkeletonTCNEnsemble(CheckpointMixin, nn.Module):
     def predict_proba(self, x: np.ndarray, valid: np.ndarray | None = None,
                       batch_size: int = 256) -> np.ndarray:
         """(N, C) ensemble probabilities (class docstring) of normalised windows
-        (N, T, J, 3)."""
-        xt = torch.as_tensor(np.asarray(x, np.float32))
+        (N, T, J, 3) (through the members' :meth:`SkeletonTCN.model_input`)."""
+        xt = torch.as_tensor(np.asarray(self.members[0].model_input(x, valid), np.float32))
         vt = None if valid is None else torch.as_tensor(np.asarray(valid, bool))
         out = [torch.softmax(self(xt[i:i + batch_size],
                                   None if vt is None else vt[i:i + batch_size]), -1)

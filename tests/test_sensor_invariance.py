@@ -132,16 +132,34 @@ def test_joint_set_without_hips_is_refused():
 
 
 def test_network_marked_canonical_reads_canonical_input(wave):
-    from simenv.learning.recognition import CANONICAL, logits_of
-    from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
+    """Whoever calls it (the protocols' logits_of, the room loop's predict_proba, world-frame
+    classify_world, an ensemble), a network marked canonical reads canonical-body input."""
+    from simenv.learning.recognition import logits_of
+    from simenv.models.skeleton_tcn import (
+        CANONICAL_BODY,
+        SkeletonTCN,
+        SkeletonTCNEnsemble,
+        TCNConfig,
+    )
 
     skel = gesture_skeleton()
     torch.manual_seed(0)
-    net = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b"), fps=25.0,
-                                width=16, extra={CANONICAL: True}))
+    config = TCNConfig(skel.joint_names, skel.parents, ("a", "b"), fps=25.0, width=16,
+                       extra={CANONICAL_BODY: True})
+    net = SkeletonTCN(config)
     x = normalise_windows(wave[:75])[None]
     valid = np.ones((1, len(x[0])), bool)
     net.eval()
     with torch.no_grad():
         direct = net(torch.from_numpy(canonical_body(x, valid)), torch.from_numpy(valid))
     np.testing.assert_allclose(logits_of(net, x, valid), direct.numpy(), atol=1e-5)
+    expected = torch.softmax(direct / config.temperature, -1).numpy()
+    np.testing.assert_allclose(net.predict_proba(x, valid), expected, atol=1e-5)
+    np.testing.assert_allclose(net.classify_world(wave[:75]), expected[0], atol=1e-5)
+    np.testing.assert_allclose(SkeletonTCNEnsemble([net]).predict_proba(x, valid),
+                               torch.softmax(direct / config.temperature, -1).numpy(),
+                               atol=1e-5)
+    plain = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b"), fps=25.0,
+                                  width=16))
+    with pytest.raises(ValueError, match="different input"):
+        SkeletonTCNEnsemble([net, plain])

@@ -24,8 +24,8 @@ Training windows (:func:`training_windows`), one fresh window per clip and epoch
 4. **Normalise** (:func:`simenv.data.gestures.normalise_windows`); with
    ``canonical_body`` (default) the body is read alike from every sensor
    (:func:`simenv.data.sensor_invariance.canonical_body`: trunk joints redefined from the
-   shoulders and hips, every bone at a reference length), as :func:`logits_of` does for a
-   network trained so; then **Kinect noise**
+   shoulders and hips, every bone at a reference length), as a network trained so reads
+   every window (:meth:`SkeletonTCN.model_input`); then **Kinect noise**
    (:func:`kinect_noise`): mirror image, rotation (yaw, and pitch/roll of a tilted
    sensor), isotropic and per-axis scale, Gaussian jitter, and dropped joints (a joint
    pulled toward its parent for the whole window, as a Kinect does with an occluded hand).
@@ -62,13 +62,11 @@ from simenv.data.gestures import (
     normalise_windows,
 )
 from simenv.data.sensor_invariance import canonical_body, has_canonical_joints
-from simenv.models.skeleton_tcn import SkeletonTCN, TCNConfig
+from simenv.models.skeleton_tcn import CANONICAL_BODY, SkeletonTCN, TCNConfig
 from simenv.models.training import CpuBudget, seeded
 
 #: Frames of real motion in the short condition and the loop's tick (1 s at 25 fps).
 SHORT_FRAMES = 25
-#: Key of a network's ``config.extra`` marking it trained on canonical-body input.
-CANONICAL = "canonical_body"
 
 
 @dataclass
@@ -94,7 +92,8 @@ class RecognitionConfig:
             stream_frames: its length range [lo, hi] in frames (at most max_frames).
         canonical_body: read windows through
             :func:`~simenv.data.sensor_invariance.canonical_body` (the network is marked
-            so, and :func:`logits_of` gives it its input the same way); on a joint set
+            so, and :meth:`SkeletonTCN.model_input` gives it its input the same way); on a
+            joint set
             without the joints it redefines (gesture9, a dataset's native skeleton) the
             windows are read as normalised and the network is not marked.
         max_minutes: CPU-time budget; training stops after the epoch that exceeds it.
@@ -353,7 +352,7 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
     rng = seeded(config.seed)
     extra = dict(extra or {})
     if config.canonical_body and has_canonical_joints(skel.joint_names):
-        extra[CANONICAL] = True
+        extra[CANONICAL_BODY] = True
     model = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, tuple(labels),
                                   fps=GESTURE_FPS, width=config.width, dropout=config.dropout,
                                   extra=extra))
@@ -393,31 +392,19 @@ def train_recogniser(clips: Sequence[GestureClip], labels: Sequence[str],
     return model.eval(), history
 
 
-def model_input(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Normalised windows (N, T, J, 3) as ``model`` was trained to read them: through
-    :func:`~simenv.data.sensor_invariance.canonical_body` when its config's ``extra``
-    holds :data:`CANONICAL` (networks trained before it, e.g. the shipped ``gesture-tcn*``,
-    read them as given). Every path that feeds such a network must pass here:
-    :meth:`SkeletonTCN.predict_proba` and ``classify_world`` do not."""
-    if model.config.extra.get(CANONICAL):
-        return canonical_body(x, valid, joints=model.config.joint_names)
-    return x
-
-
 @torch.no_grad()
 def logits_of(model: SkeletonTCN, x: np.ndarray, valid: np.ndarray,
               batch_size: int = 256) -> np.ndarray:
     """(N, C) raw logits (before the temperature) of normalised windows (through
-    :func:`model_input`)."""
+    :meth:`SkeletonTCN.model_input`)."""
     model.eval()
-    x = model_input(model, x, valid)
+    x = model.model_input(x, valid)
     out = [model(torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size], np.float32)),
                  torch.from_numpy(np.asarray(valid[i:i + batch_size], bool))).numpy()
            for i in range(0, len(x), batch_size)]
     return np.concatenate(out)
 
 
-__all__ = ["CANONICAL", "SHORT_FRAMES", "Forecaster", "RecognitionConfig", "class_weights",
-           "clip_skeleton", "continue_windows", "kinect_noise", "logits_of", "model_input",
-           "time_scale",
-           "train_recogniser", "training_windows"]
+__all__ = ["SHORT_FRAMES", "Forecaster", "RecognitionConfig", "class_weights", "clip_skeleton",
+           "continue_windows", "kinect_noise", "logits_of", "time_scale", "train_recogniser",
+           "training_windows"]
