@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from simenv.plausibility.metrics.joint_limits import joint_limit_excess, joint_l
 from simenv.plausibility.metrics.self_penetration import self_contact_pairs, self_penetration
 
 UP = np.array([0.0, 0.0, 1.0], dtype=np.float32)
+DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -163,3 +165,24 @@ def test_short_clips(walk_2s_retargeted) -> None:
     assert r.passed is None and "3 frames" in r.reason
     one = replace(walk_2s_retargeted, qpos=walk_2s_retargeted.qpos[:1])
     assert body_penetration(one).timeline.shape == (1,)
+
+
+def test_penetration_judges_only_the_geoms_the_source_places(walk_2s, walk_2s_retargeted
+                                                            ) -> None:
+    """HumanML3D's SMPL joints end at the wrists: the hands' angle is the fit's guess, so
+    their geoms are not judged for penetration; a CMU skeleton's hand keypoints place them.
+    The real HumanML3D clip 011673 sits low on the floor with the forearms pointing down:
+    the guessed hands, not the observed body, reach below it."""
+    from simenv.plausibility.metrics.ground_penetration import observed_geoms
+
+    model = walk_2s_retargeted.humanoid.model
+    body = np.flatnonzero(model.geom_bodyid > 0)
+    assert np.array_equal(observed_geoms(walk_2s_retargeted, walk_2s), body)
+    sitting = simenv.load(DATA / "humanml3d" / "new_joints" / "011673.npy").slice(0, 21)
+    fitted = retarget(sitting)
+    model = fitted.humanoid.model
+    seen = observed_geoms(fitted, sitting)
+    left_out = np.setdiff1d(np.flatnonzero(model.geom_bodyid > 0), seen)
+    assert {model.body(int(model.geom_bodyid[g])).name for g in left_out} == {
+        "left_hand", "right_hand"}
+    assert body_penetration(fitted).value > body_penetration(fitted, geoms=seen).value

@@ -60,18 +60,34 @@ def ground_penetration_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_T
                       ("mean_mm", "frames_below_floor"))
 
 
-def lowest_geom_z(result: RetargetResult, poses: BodyPoses | None) -> tuple[np.ndarray, BodyPoses]:
-    """(T,) height of the lowest body geom point, metres, and the poses used
-    (``poses`` when given, else computed)."""
+def lowest_geom_z(result: RetargetResult, poses: BodyPoses | None,
+                  geoms: np.ndarray | None = None) -> tuple[np.ndarray, BodyPoses]:
+    """(T,) height of the lowest point of ``geoms`` (default: every body geom), metres, and
+    the poses used (``poses`` when given, else computed)."""
     model = result.humanoid.model
     if poses is None:
         poses = body_poses(model, result.qpos)
-    return geom_lowest_z(model, poses, body_geoms(model)).min(axis=1), poses
+    geoms = body_geoms(model) if geoms is None else geoms
+    return geom_lowest_z(model, poses, geoms).min(axis=1), poses
+
+
+def observed_geoms(result: RetargetResult, motion: Motion) -> np.ndarray:
+    """The body geoms whose pose the source places: every body geom but a hand's when the
+    source has no hand keypoint (e.g. SMPL's 22 joints end at the wrists). The fit then
+    only guesses the hand's angle at the wrist (along the forearm), so where such a hand
+    meets the floor the source shows nothing of it."""
+    model = result.humanoid.model
+    geoms = body_geoms(model)
+    seen = set(motion.to_canonical().skeleton.joint_names)
+    unseen = {b for b in range(model.nbody) for side in ("left", "right")
+              if f"{side}_hand" not in seen and model.body(b).name.endswith(f"{side}_hand")}
+    return geoms[~np.isin(model.geom_bodyid[geoms], list(unseen))]
 
 
 def body_penetration(result: RetargetResult,
                      thresholds: BodyThresholds = DEFAULT_BODY_THRESHOLDS, *,
-                     poses: BodyPoses | None = None) -> MetricResult:
+                     poses: BodyPoses | None = None,
+                     geoms: np.ndarray | None = None) -> MetricResult:
     """Depth of the body's lowest geom point below the floor.
 
     Timeline: ``max(0, -min_g z_low,g(t)) * 1000`` mm over every body geom
@@ -80,9 +96,10 @@ def body_penetration(result: RetargetResult,
     ``geom_penetration_max_mm``. Details: ``mean_mm`` (PhysDiff's
     "penetrate", here on geoms instead of mesh vertices) and
     ``frames_below_floor`` (fraction of frames deeper than 1 mm). ``poses``:
-    ``result``'s forward kinematics when the caller has them.
+    ``result``'s forward kinematics when the caller has them; ``geoms``: the geoms
+    judged (default every body geom; the scorer passes :func:`observed_geoms`).
     """
-    lowest, _ = lowest_geom_z(result, poses)
+    lowest, _ = lowest_geom_z(result, poses, geoms)
     depth = np.maximum(-lowest, 0.0) * 1000.0
     return MetricResult.from_timeline(
         "body_penetration", depth, float(depth.max()), "mm",
@@ -103,16 +120,21 @@ class GroundOnBody(BodyMetric):
         return replace(result, name=self.name)
 
 
-class GeomPenetration(GroundOnBody):
+class GeomPenetration(BodyMetric):
     """Lowest body geom point below the floor (:func:`body_penetration`).
 
-    Per frame ``max(0, -min_g z_low,g(t))`` in mm over every body geom (exact
-    lowest points of capsules and boxes); value: the maximum; passes at <=
-    ``geom_penetration_max_mm``.
+    Per frame ``max(0, -min_g z_low,g(t))`` in mm over the body geoms the source places
+    (:func:`observed_geoms`: exact lowest points of capsules and boxes); value: the
+    maximum; passes at <= ``geom_penetration_max_mm``.
     """
 
     name, limit = "ground_penetration", attrgetter("geom_penetration_max_mm")
-    measure = staticmethod(body_penetration)
+
+    def compute(self, inputs: PersonInputs) -> MetricResult:
+        body = fitted_body(inputs)
+        result = body_penetration(body, inputs.config.body, poses=inputs.poses,
+                                  geoms=observed_geoms(body, inputs.motion))
+        return replace(result, name=self.name)
 
 
 class KeypointPenetration(KeypointMetric):
