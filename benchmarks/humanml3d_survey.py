@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from doc_sections import replace_section
+from result_rows import read_rows
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.core.errors import SimenvError
@@ -126,17 +127,6 @@ def score_corruption(key: str, name: str, seed: int, max_seconds: float) -> dict
         row |= {"error": str(exc), "error_type": type(exc).__name__, "caught": False}
     row["cpu_s"] = round(time.process_time() - t0, 1)
     return row
-
-
-def read_rows(path: Path) -> dict[str, dict[str, Any]]:
-    """Rows already written to the JSONL ``path``, by key (the last one of a key wins)."""
-    rows: dict[str, dict[str, Any]] = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            if line.strip():
-                row = json.loads(line)
-                rows[row["key"]] = row
-    return rows
 
 
 def _fmt(x: Any) -> str:

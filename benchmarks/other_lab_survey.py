@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from doc_sections import replace_section
+from result_rows import read_rows
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.cli.common import describe
@@ -214,17 +215,6 @@ def score_file(key: str, lab: str, role: str, path: Path, max_seconds: float
         "cpu_s": round(time.process_time() - t0, 1),
     }
     return row
-
-
-def read_rows(path: Path) -> dict[str, dict[str, Any]]:
-    """Rows already written to the JSONL ``path``, by key (the last one of a key wins)."""
-    rows: dict[str, dict[str, Any]] = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            if line.strip():
-                row = json.loads(line)
-                rows[row["key"]] = row
-    return rows
 
 
 def _fmt(x: Any) -> str:
