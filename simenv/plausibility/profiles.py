@@ -7,8 +7,8 @@ joint on its own in every frame: its bones change length by tens of percent and 
 jump, so judged by the mocap thresholds nearly every real depth-camera clip is "implausible"
 (``bone_length`` at 2-30 tolerances, docs/plausibility.md). Those clips are judged instead by
 their *sensor family's profile*: thresholds set from real clips of that family, bundled in
-``simenv/assets/profiles/depth_camera.json`` (written, with how it was computed, by
-``benchmarks/depth_camera_profiles.py``).
+``assets/profiles/depth_camera.json`` (installed as ``simenv/assets/profiles/``; written,
+with how it was computed, by ``benchmarks/depth_camera_profiles.py``).
 
 Source kinds (:data:`SOURCE_KINDS`)
     ``mocap`` (BVH, ASF/AMC), ``body_model`` (joints of a fitted body model: SMPL-22 of
