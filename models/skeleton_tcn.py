@@ -325,12 +325,17 @@ class SkeletonTCNEnsemble(CheckpointMixin, nn.Module):
         tau = torch.tensor(self.temperatures, dtype=x.dtype)[None, :, None]
         return (self.member_logits(x, valid) / tau).mean(1)
 
+    def model_input(self, x: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+        """Normalised windows as the members read them (:meth:`SkeletonTCN.model_input`;
+        every member reads the same input, checked when the ensemble is made)."""
+        return self.members[0].model_input(x, valid)
+
     @torch.no_grad()
     def predict_proba(self, x: np.ndarray, valid: np.ndarray | None = None,
                       batch_size: int = 256) -> np.ndarray:
         """(N, C) ensemble probabilities (class docstring) of normalised windows
-        (N, T, J, 3) (through the members' :meth:`SkeletonTCN.model_input`)."""
-        xt = torch.as_tensor(np.asarray(self.members[0].model_input(x, valid), np.float32))
+        (N, T, J, 3) (through :meth:`model_input`)."""
+        xt = torch.as_tensor(np.asarray(self.model_input(x, valid), np.float32))
         vt = None if valid is None else torch.as_tensor(np.asarray(valid, bool))
         out = [torch.softmax(self(xt[i:i + batch_size],
                                   None if vt is None else vt[i:i + batch_size]), -1)

@@ -156,9 +156,10 @@ def test_network_marked_canonical_reads_canonical_input(wave):
     expected = torch.softmax(direct / config.temperature, -1).numpy()
     np.testing.assert_allclose(net.predict_proba(x, valid), expected, atol=1e-5)
     np.testing.assert_allclose(net.classify_world(wave[:75]), expected[0], atol=1e-5)
-    np.testing.assert_allclose(SkeletonTCNEnsemble([net]).predict_proba(x, valid),
-                               torch.softmax(direct / config.temperature, -1).numpy(),
-                               atol=1e-5)
+    ensemble = SkeletonTCNEnsemble([net])
+    np.testing.assert_allclose(ensemble.predict_proba(x, valid), expected, atol=1e-5)
+    np.testing.assert_allclose(logits_of(ensemble, x, valid),
+                               direct.numpy() / config.temperature, atol=1e-5)
     plain = SkeletonTCN(TCNConfig(skel.joint_names, skel.parents, ("a", "b"), fps=25.0,
                                   width=16))
     with pytest.raises(ValueError, match="different input"):
