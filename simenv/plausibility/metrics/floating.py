@@ -14,6 +14,8 @@ is the only support. Thresholds: ``float_*``, ``ballistic_tolerance_m`` and
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from simenv.body.geometry import BodyPoses
@@ -22,8 +24,14 @@ from simenv.core.motion import Motion
 from simenv.plausibility import kernels
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.clips import ClipBatch, MetricSpec, score_clip
-from simenv.plausibility.metric import KeypointMetric, ScoreConfig
-from simenv.plausibility.metrics.ground_penetration import GroundOnBody, lowest_geom_z
+from simenv.plausibility.metric import (
+    BodyMetric,
+    KeypointMetric,
+    PersonInputs,
+    ScoreConfig,
+    fitted_body,
+)
+from simenv.plausibility.metrics.ground_penetration import lowest_geom_z
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 from simenv.plausibility.timeline import MetricResult
 
@@ -156,7 +164,7 @@ def body_floating(result: RetargetResult,
     )
 
 
-class GeomFloating(GroundOnBody):
+class GeomFloating(BodyMetric):
     """Airborne geoms without a free-fall centre of mass
     (:func:`body_floating`).
 
@@ -168,10 +176,13 @@ class GeomFloating(GroundOnBody):
     """
 
     name = "floating"
-    measure = staticmethod(body_floating)
 
     def limit(self, body: BodyThresholds) -> float:
         return body.geom_float_clearance_m * 1000.0
+
+    def compute(self, inputs: PersonInputs) -> MetricResult:
+        result = body_floating(fitted_body(inputs), inputs.config.body, poses=inputs.poses)
+        return replace(result, name=self.name)
 
 
 class KeypointFloating(KeypointMetric):

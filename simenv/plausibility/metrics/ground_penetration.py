@@ -13,7 +13,6 @@ millimetres out.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import replace
 from operator import attrgetter
 
@@ -106,18 +105,6 @@ def body_penetration(result: RetargetResult,
         thresholds.geom_penetration_max_mm,
         details={"mean_mm": float(depth.mean()), "frames_below_floor": float((depth > 1).mean())},
     )
-
-
-class GroundOnBody(BodyMetric):
-    """The geom version of a keypoint ground metric: its family function
-    (``measure``) names the result after itself; the report uses the stable
-    name the keypoint version shares."""
-
-    measure: Callable[..., MetricResult]
-
-    def compute(self, inputs: PersonInputs) -> MetricResult:
-        result = self.measure(fitted_body(inputs), inputs.config.body, poses=inputs.poses)
-        return replace(result, name=self.name)
 
 
 class GeomPenetration(BodyMetric):
