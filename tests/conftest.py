@@ -21,6 +21,16 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("SIMENV_HYPOTHESIS", "ci"))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def avatar_cache(tmp_path_factory: pytest.TempPathFactory):
+    """The session's own cache of avatar keypoints (``SIMENV_CACHE``, read by
+    :func:`simenv.perception.protocol.avatar_clips` and the README commands the suite runs):
+    the suite starts empty, as on a fresh clone, and leaves the user's cache alone."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("SIMENV_CACHE", str(tmp_path_factory.mktemp("cache")))
+        yield
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Root of the real mocap corpus; skips the test when it is absent."""

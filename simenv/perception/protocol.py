@@ -4,7 +4,15 @@ What the loop sees (:func:`avatar_clips`): each recording is retargeted onto the
 fitted body and placed in the room (:func:`simenv.room.session.user_track`, the
 rehearsal's path), and the avatar's keypoints are read on the gesture joints -- not the
 raw Kinect joints, which the agent never sees. Florence 3D has no pelvis and cannot be
-retargeted; its clips are left out and listed.
+retargeted; its clips are left out and listed. Retargeting the corpus's 877 clips takes
+about 22 s of CPU, so each clip's avatar keypoints are kept on disk (:func:`avatar_cache_dir`:
+``$SIMENV_CACHE/avatar_clips``, default ``~/.cache/simenv/avatar_clips``; ``SIMENV_CACHE=off``
+keeps nothing), one file per clip named by a hash of everything that makes them: the clip's
+source motion (positions, frame rate, skeleton and metadata other than its file path, as the
+reader made them from the file's bytes), the scenario file's bytes and the code
+(:data:`AVATAR_CODE`'s Python sources, the MuJoCo and NumPy versions), so a change to any of
+them is a new file. Files are written under a temporary name and renamed into place, so two
+processes filling the cache at once never read a partial file.
 
 Streaming (:func:`stream_readings`): a clip plays from its first frame (before it, the
 person holds the first pose); the loop ticks every :data:`TICK_FRAMES` frames with a
@@ -32,8 +40,15 @@ a held-out fold, the readings of the other folds (cross-fitting), never its own.
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -54,27 +69,120 @@ THRESHOLD_GRID: tuple[float, ...] = tuple(np.round(np.arange(0.30, 0.96, 0.025),
 GREET_LABEL = "wave"
 
 
+#: Environment variable naming the cache's root folder (``off``: no cache).
+CACHE_ENV = "SIMENV_CACHE"
+#: The simenv sources that turn a source motion into avatar keypoints (package folders and
+#: modules, relative to the ``simenv`` package): their bytes are part of each cache key.
+AVATAR_CODE: tuple[str, ...] = ("core", "body", "room", "data/gestures.py",
+                                "perception/protocol.py")
+
+
+def avatar_cache_dir() -> Path | None:
+    """Folder of the avatar keypoints cache (module docstring), None when ``SIMENV_CACHE``
+    is ``off``."""
+    root = os.environ.get(CACHE_ENV)
+    if root == "off":
+        return None
+    if not root:
+        root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "simenv"
+    return Path(root) / "avatar_clips"
+
+
+@functools.lru_cache(maxsize=1)
+def _code_key() -> str:
+    """Hash of :data:`AVATAR_CODE`'s Python files and the MuJoCo and NumPy versions."""
+    import mujoco
+
+    package = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256(f"mujoco {mujoco.__version__} numpy {np.__version__}".encode())
+    for entry in AVATAR_CODE:
+        path = package / entry
+        for file in sorted(path.rglob("*.py")) if path.is_dir() else [path]:
+            digest.update(str(file.relative_to(package)).encode())
+            digest.update(file.read_bytes())
+    return digest.hexdigest()
+
+
+def _json_default(value: Any) -> Any:
+    """Arrays and other values of a motion's metadata as JSON."""
+    return value.tolist() if isinstance(value, np.ndarray) else str(value)
+
+
+def _avatar_key(clip: GestureClip, scenario_bytes: bytes) -> str:
+    """The cache key of ``clip``'s avatar keypoints (module docstring)."""
+    m = clip.source
+    digest = hashlib.sha256(_code_key().encode())
+    digest.update(scenario_bytes)
+    for array in (m.positions, m.rotations):
+        if array is not None:
+            digest.update(f"{array.dtype} {array.shape}".encode())
+            digest.update(np.ascontiguousarray(array).tobytes())
+    s = m.skeleton
+    digest.update(json.dumps(
+        [m.fps, s.name, s.joint_names, s.parents, sorted(s.canonical.items()),
+         {k: v for k, v in m.metadata.items() if k != "source"}],
+        sort_keys=True, default=_json_default).encode())
+    return digest.hexdigest()
+
+
+def _read_entry(path: Path) -> np.ndarray | str | None:
+    """A cached clip: its keypoints (T, 15, 3), the reason it was skipped, or None when
+    there is no readable entry (a damaged one is made again)."""
+    try:
+        with np.load(path) as entry:
+            return str(entry["skipped"]) if "skipped" in entry else entry["keypoints"]
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+
+
+def _write_entry(path: Path, **arrays: Any) -> None:
+    """Write an entry under a temporary name in its folder, then rename it into place
+    (atomic: a reader sees the whole file or none)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".npz")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
 def avatar_clips(clips: Sequence[GestureClip], scenario: str = "default", *,
                  progress: bool = True) -> tuple[list[GestureClip], list[str]]:
     """The clips as the room's agent sees them (module docstring): the same labels and
     names, positions (T, 15, 3) of the avatar's keypoints on ``gesture15``, metres, Z up,
-    25 fps. Returns (clips, skipped clips with the reason)."""
+    25 fps; read from the cache when it holds them (:func:`avatar_cache_dir`). Returns
+    (clips, skipped clips with the reason)."""
     # The session retargets onto the room's user: MuJoCo and the solver, needed here only.
+    from simenv.room.scenario import scenario_path
     from simenv.room.session import Session, user_track
 
     cols = [CANONICAL_KEYPOINTS.index(j) for j in GESTURE15_JOINTS]
+    cache = avatar_cache_dir()
+    scenario_bytes = scenario_path(scenario).read_bytes()
     out, skipped = [], []
     for clip in tqdm(clips, desc="retarget onto the avatar", disable=not progress):
         if clip.source is None:
             skipped.append(f"{clip.name}: no source motion")
             continue
-        try:
-            kp = user_track(Session(clip.source), scenario).keypoints
-        except SimenvError as exc:
-            skipped.append(f"{clip.name}: {exc.detail}")
+        path = cache / f"{_avatar_key(clip, scenario_bytes)}.npz" if cache else None
+        kp = _read_entry(path) if path else None
+        if kp is None:
+            try:
+                kp = user_track(Session(clip.source), scenario).keypoints[:, cols].astype(
+                    np.float32)
+            except SimenvError as exc:
+                kp = f"{clip.name}: {exc.detail}"
+            if path:
+                _write_entry(path, **({"skipped": kp} if isinstance(kp, str)
+                                      else {"keypoints": kp}))
+        if isinstance(kp, str):
+            skipped.append(kp)
             continue
-        out.append(GestureClip(kp[:, cols].astype(np.float32), clip.label, clip.source_label,
-                               clip.dataset, clip.subject, clip.name, clip.source))
+        out.append(GestureClip(kp, clip.label, clip.source_label, clip.dataset,
+                               clip.subject, clip.name, clip.source))
     return out, skipped
 
 
@@ -294,6 +402,7 @@ def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[
                                              "decided_before_end", "stages")}}
 
 
-__all__ = ["FALSE_GREET_TARGET", "GREET_LABEL", "THRESHOLD_GRID", "TICK_FRAMES",
-           "StreamReading", "avatar_clips", "choose_threshold", "cross_fitted_outcomes",
-           "loop_outcomes", "stream_readings", "tick_frames"]
+__all__ = ["AVATAR_CODE", "CACHE_ENV", "FALSE_GREET_TARGET", "GREET_LABEL", "THRESHOLD_GRID",
+           "TICK_FRAMES", "StreamReading", "avatar_cache_dir", "avatar_clips",
+           "choose_threshold", "cross_fitted_outcomes", "loop_outcomes", "stream_readings",
+           "tick_frames"]
