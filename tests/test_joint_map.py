@@ -227,8 +227,39 @@ def test_unnamed_skeleton_mapped_from_hierarchy_and_pose(tmp_path: Path, clip: s
 @pytest.mark.skipif(not CONVENTIONS_DIR.exists(), reason="tests/data/conventions absent")
 @pytest.mark.parametrize("path", sorted(CONVENTIONS_DIR.glob("*/*.bvh")), ids=lambda p: p.name)
 def test_real_files_of_other_labs_map_every_keypoint(path: Path) -> None:
+    """Every keypoint, except a hand the file does not have (its end on the wrist, or a
+    stray end), which the reader must say it dropped."""
     motion = simenv.load(path)
-    assert len(motion.skeleton.canonical) == 21, motion.skeleton.canonical
+    missing = set(skeletons.CANONICAL_KEYPOINTS) - set(motion.skeleton.canonical)
+    assert missing <= {"left_hand", "right_hand"}, motion.skeleton.canonical
+    said = " ".join([*motion.metadata.get("quirks", []),
+                     *(motion.metadata.get("joint_map") or {}).get("notes", [])])
+    for key in missing:
+        assert f"{key} dropped" in said or f"{key} -> " in said, (key, said)
+
+
+MASS = CONVENTIONS_DIR / "snu_mass"
+
+
+def test_helper_joint_named_like_its_bone_is_not_ambiguous() -> None:
+    """SNU MRL's kick hangs mesh helpers named like the bones below them (``Neck`` under
+    ``Character1_Neck``, ``L_Foot`` under ``Character1_LeftFoot``): the name means the
+    joint above, not nothing."""
+    canonical = simenv.load(MASS / "mass_kick.bvh").skeleton.canonical
+    assert canonical["neck"] == "Character1_Neck"
+    assert canonical["spine"] == "Character1_Spine"
+    assert canonical["left_ankle"] == "Character1_LeftFoot"
+    assert canonical["right_ankle"] == "Character1_RightFoot"
+
+
+def test_stray_end_far_off_the_wrist_is_not_a_hand() -> None:
+    """SNU MRL's walk: the right hand's End Site is 1.6 m off the wrist (the left one is
+    where a hand is): no hand keypoint rather than one across the room."""
+    motion = simenv.load(MASS / "mass_walk.bvh")
+    canonical = motion.skeleton.canonical
+    assert "right_hand" not in canonical and canonical["left_hand"] == "Character1_LeftHand_end"
+    notes = motion.metadata["joint_map"]["notes"]
+    assert any(n.startswith("right_hand -> Character1_RightHand_end dropped") for n in notes)
 
 
 @needs_data

@@ -347,9 +347,9 @@ def _by_names(tree: _Tree, prefix: str) -> tuple[dict[str, str], dict[str, str],
         side = "left" if key.startswith("left_") else "right" if key.startswith("right_") else None
         declared = convention.keypoints.get(key.replace("right_", "left_"))
         for alias in declared or ():
-            hits = lookup.get(_declared(alias, side), [])
-            if len(hits) == 1:
-                return hits[0]
+            hit = _one_of(tree, lookup.get(_declared(alias, side), []))
+            if hit is not None:
+                return hit
         return None
 
     scores = []
@@ -371,6 +371,18 @@ def _by_names(tree: _Tree, prefix: str) -> tuple[dict[str, str], dict[str, str],
                 used.add(j)
     _hand_and_foot_rule(canonical, how, tree)
     return canonical, how, best[1].name
+
+
+def _one_of(tree: _Tree, hits: list[str]) -> str | None:
+    """The joint a name means when several joints share it after normalisation: the one
+    above all the others (a rig's helper or twist joint named like its bone hangs below it,
+    as SNU MRL's ``Character1_Neck`` > ``Neck``, ``Character1_LeftFoot`` > ``L_Foot``);
+    None when no such joint exists (the name is ambiguous)."""
+    if len(hits) <= 1:
+        return hits[0] if hits else None
+    idx = [tree.index[h] for h in hits]
+    top = [a for a in idx if all(a == b or tree.is_ancestor(a, b) for b in idx)]
+    return tree.names[top[0]] if len(top) == 1 else None
 
 
 def _hand_and_foot_rule(canonical: dict[str, str], how: dict[str, str], tree: _Tree) -> None:
@@ -441,10 +453,11 @@ def _spine_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tr
 
 
 def _ends_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
-                      rest: np.ndarray) -> None:
+                      rest: np.ndarray, exclude: set[str] | frozenset[str] = frozenset()
+                      ) -> None:
     """A hand or toe the names did not give: the first joint at least 3 % of the body's
     height beyond the wrist or ankle, along the child that reaches furthest (the middle
-    finger's knuckle, the ball of the foot)."""
+    finger's knuckle, the ball of the foot); never one of ``exclude``."""
     size = float(np.ptp(rest[:, 2])) or 1.0
     for side in ("left", "right"):
         for outer, inner in (("wrist", "hand"), ("ankle", "toe")):
@@ -452,8 +465,40 @@ def _ends_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tre
             if base is None or f"{side}_{inner}" in canonical:
                 continue
             j = _distal(tree, tree.index[base], rest, 0.03 * size)
-            if j is not None and tree.names[j] not in canonical.values():
+            if (j is not None and tree.names[j] not in canonical.values()
+                    and tree.names[j] not in exclude):
                 canonical[f"{side}_{inner}"], how[f"{side}_{inner}"] = tree.names[j], HOW_TOPOLOGY
+
+
+def _drop_far_ends(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
+                   pos: np.ndarray, notes: list[str]) -> set[str]:
+    """Drop a hand or toe farther from the wrist or ankle than the forearm or shank is long
+    (median over the clip): no hand or forefoot is, so the joint is a rig's stray end
+    (SNU MRL's MASS walk: ``Character1_RightHand_end`` 1.6 m off the wrist). The
+    topology step may then find a nearer one.
+
+    Args:
+        pos: (T, J, 3) positions, metres.
+
+    Returns:
+        The joints dropped.
+    """
+    dropped: set[str] = set()
+    for side in ("left", "right"):
+        for upper, outer, inner in (("elbow", "wrist", "hand"), ("knee", "ankle", "toe")):
+            u, a, b = (canonical.get(f"{side}_{k}") for k in (upper, outer, inner))
+            if not (u and a and b):
+                continue
+            iu, ia, ib = (tree.index[j] for j in (u, a, b))
+            limb = float(np.median(np.linalg.norm(pos[:, ia] - pos[:, iu], axis=-1)))
+            end = float(np.median(np.linalg.norm(pos[:, ib] - pos[:, ia], axis=-1)))
+            if end > limb > 0:
+                notes.append(f"{side}_{inner} -> {b} dropped: {end:.2f} m from the {outer}, "
+                             f"longer than the {upper}-{outer} segment ({limb:.2f} m)")
+                del canonical[f"{side}_{inner}"]
+                how.pop(f"{side}_{inner}", None)
+                dropped.add(b)
+    return dropped
 
 
 def _segments(chain: list[int], pos: np.ndarray) -> list[tuple[int, int, float]]:
@@ -677,8 +722,9 @@ def infer_joint_map(names: Sequence[str], parents: Sequence[int],
                          "and head were found from the hierarchy and the pose")
     _check_chains(canonical, how, tree, notes)
     _spine_by_topology(canonical, how, tree, rest)
+    far = _drop_far_ends(canonical, how, tree, pos, notes) if positions is not None else set()
     if rest is not None:
-        _ends_by_topology(canonical, how, tree, rest)
+        _ends_by_topology(canonical, how, tree, rest, far)
     ordered = {k: canonical[k] for k in CANONICAL_KEYPOINTS if k in canonical}
     return JointMapping(ordered, {k: how[k] for k in ordered}, convention, tuple(notes))
 
