@@ -292,14 +292,16 @@ def _count(sel: list[dict[str, Any]]) -> str:
     return f"{ok} of {len(sel)} plausible ({100 * ok / len(sel):.0f} %)"
 
 
-def _before_lines(rows: dict[str, dict[str, Any]], before: dict[str, dict[str, Any]]
-                  ) -> list[str]:
-    """The development set before the fixes (``before``: the same clips scored by the code
-    before them) and the clips whose verdict or score moved."""
-    sel = [r for r in before.values() if r["role"] == "dev"]
+def _before_lines(rows: dict[str, dict[str, Any]], before: dict[str, dict[str, Any]],
+                  role: str = "dev") -> list[str]:
+    """The development set ``role`` before the fixes (``before``: the same clips scored by
+    the code before them) and the clips whose verdict or score moved."""
+    sel = [r for r in before.values() if r["role"] == role]
+    if not sel:
+        return []
     moved = [f"`{k}` {b.get('verdict', 'error')} {b.get('score', 0):.0f} ({_failing(b)}) -> "
              f"{rows[k].get('verdict', 'error')} {rows[k].get('score', 0):.0f}"
-             for k, b in sorted(before.items()) if k in rows and b["role"] == "dev"
+             for k, b in sorted(before.items()) if k in rows and b["role"] == role
              and (b.get("verdict"), round(b.get("score", 0))) != (
                  rows[k].get("verdict"), round(rows[k].get("score", 0)))]
     return [f"Development set before the fixes: {_count(sel)}; moved: " +
@@ -324,8 +326,8 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
         sel = [r for r in rows.values() if r["role"] == role]
         if sel:
             lines += [f"**{title}**: {_count(sel)}.", "", *_table(sel), ""]
-        if sel and role == "dev" and before:
-            lines += _before_lines(rows, before)
+        if sel and role in ("dev", "dev2") and before:
+            lines += _before_lines(rows, before, role)
     if posthoc:
         held = {r["key"]: r for r in rows.values() if r["role"] == "heldout"}
         merged = list((held | posthoc).values())
@@ -355,8 +357,9 @@ def main() -> None:
     ap.add_argument("--docs-only", action="store_true",
                     help="write the table from --out without scoring")
     ap.add_argument("--no-docs", action="store_true", help="do not write docs/plausibility.md")
-    ap.add_argument("--before", type=Path, default=None, help=(
-        "JSONL of the development set scored before the fixes: its moved clips are listed"))
+    ap.add_argument("--before", type=Path, nargs="*", default=None, help=(
+        "JSONL files of the development sets scored before the fixes: their moved clips "
+        "are listed"))
     ap.add_argument("--posthoc", type=Path, default=None, help=(
         "JSONL of held-out clips rescored after a change a held-out failure prompted: "
         "listed apart in the docs"))
@@ -381,7 +384,8 @@ def main() -> None:
               f"{row.get('score', float('nan')):6.1f}  {_failing(row)}  "
               f"[{row['cpu_s']} s CPU]", flush=True)
     posthoc = read_rows(args.posthoc) if args.posthoc is not None else None
-    before = read_rows(args.before) if args.before is not None else None
+    before = ({k: r for b in args.before for k, r in read_rows(b).items()}
+              if args.before else None)
     text = markdown(done, args.max_seconds, posthoc, before)
     print(text)
     if not args.no_docs:
