@@ -287,6 +287,62 @@ def _v(x: Sequence[float]) -> tuple[float, float, float]:
     return (float(a[0]), float(a[1]), float(a[2]))
 
 
+#: Largest sideways offset of a knee keypoint from its hip-ankle line that the fit
+#: takes as the source skeleton's rest geometry (:attr:`RestGeometry.left_knee_lateral`),
+#: metres: a person-sized skeleton's knee joint centre (SMPL's: 29-40 mm) sits well
+#: within it; beyond it the "knee" is not a knee.
+KNEE_LATERAL_MAX = 0.1
+
+
+@dataclass(frozen=True)
+class RestGeometry:
+    """The source skeleton's constant rest geometry, which the body carries so that its
+    zero pose is the source's own rest pose rather than a pose read into it.
+
+    A skeleton's joint centres need not sit where this humanoid's straight segments put
+    them: SMPL's knee joint centre lies 29-40 mm lateral of the line from hip to ankle
+    even on a straight leg, and its head joint sits forward of its neck joint. Measured
+    as pose, such constants read as a thigh turned ~90 deg to "bend" the hinge knee
+    sideways, or a neck flexed 50 deg on an upright frame. Measured by
+    :func:`fit_dimensions` from the clip's own frames; the default is this humanoid's
+    straight layout (every field neutral).
+
+    Attributes:
+        left_knee_lateral, right_knee_lateral: the knee keypoint's offset from the
+            hip-ankle line along the knee's hinge axis, metres, outwards positive
+            (within :data:`KNEE_LATERAL_MAX`). The hinge turns about a line through
+            the keypoint, so the offset is invariant under knee flexion: the thigh
+            carries the keypoint off its axis and the shin's hinge sits on the line.
+        head_direction: unit direction of the neck -> head keypoint in the neck body's
+            frame at zero neck angles (x forward, y left, z along the chest -> neck
+            line); (0, 0, 1) is straight on.
+    """
+
+    left_knee_lateral: float = 0.0
+    right_knee_lateral: float = 0.0
+    head_direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        for side in _SIDES:
+            a = float(getattr(self, f"{side}_knee_lateral"))
+            if not (np.isfinite(a) and abs(a) <= KNEE_LATERAL_MAX):
+                raise RetargetError(
+                    f"{side}_knee_lateral = {a!r} m; a knee keypoint's sideways rest offset "
+                    f"must be within +-{KNEE_LATERAL_MAX} m", field=f"{side}_knee_lateral")
+            object.__setattr__(self, f"{side}_knee_lateral", a)
+        h = np.asarray(self.head_direction, dtype=float).reshape(-1)
+        if h.shape != (3,) or not np.all(np.isfinite(h)) or h[2] <= 0.0:
+            raise RetargetError(f"head_direction = {h.tolist()}; expected a finite 3-vector "
+                                "pointing up the neck (positive z)", field="head_direction")
+        object.__setattr__(self, "head_direction", _v(h / np.linalg.norm(h)))
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-friendly dict of the fields."""
+        return {"left_knee_lateral": self.left_knee_lateral,
+                "right_knee_lateral": self.right_knee_lateral,
+                "head_direction": list(self.head_direction)}
+
+
 @dataclass(frozen=True)
 class BodyDimensions:
     """The measurements that define a body, metres (body frame: x forward, y left, z up).
@@ -318,6 +374,8 @@ class BodyDimensions:
             the sole with the foot flat. toes_length: toe keypoint -> tip.
         heel_length: heel behind the ankle. foot_width: sole width.
         girth: scale of the segment radii (1 = default adult).
+        rest: the source skeleton's own rest geometry (:class:`RestGeometry`): a knee
+            keypoint off the hip-ankle line, a head keypoint off the neck's axis.
         notes: how the dimensions were obtained (fallbacks are recorded here).
     """
 
@@ -349,11 +407,12 @@ class BodyDimensions:
     heel_length: float = 0.06
     foot_width: float = 0.09
     girth: float = 1.0
+    rest: RestGeometry = field(default_factory=RestGeometry)
     notes: tuple[str, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            if f.name == "notes":
+            if f.name in ("notes", "rest"):
                 continue
             v = np.asarray(getattr(self, f.name), dtype=float)
             if not np.all(np.isfinite(v)):
@@ -378,6 +437,13 @@ class BodyDimensions:
                     raise RetargetError(
                         f"{side}_{seg} = {getattr(self, f'{side}_{seg}'):.4f} m; a limb "
                         "segment must be at least 0.05 m", field=f"{side}_{seg}")
+        for side in _SIDES:
+            a = abs(getattr(self.rest, f"{side}_knee_lateral"))
+            if a > 0.5 * min(getattr(self, f"{side}_thigh"), getattr(self, f"{side}_shin")):
+                raise RetargetError(
+                    f"{side}_knee_lateral = {a:.4f} m is more than half the {side} thigh or "
+                    "shin; the knee keypoint cannot sit that far off its leg's line",
+                    field=f"{side}_knee_lateral")
         if not HEIGHT_RANGE[0] <= self.height <= HEIGHT_RANGE[1]:
             raise RetargetError(
                 f"standing height {self.height:.3f} m is outside {HEIGHT_RANGE} m",
@@ -385,12 +451,21 @@ class BodyDimensions:
 
     # -- derived quantities -------------------------------------------------
 
+    def leg_line(self, side: str) -> tuple[float, float]:
+        """``(hip -> knee hinge, knee hinge -> ankle)`` along the straight leg's line,
+        metres: the thigh and shin lengths less the knee keypoint's sideways rest
+        offset (:attr:`RestGeometry.left_knee_lateral`; equal to them without one)."""
+        a = getattr(self.rest, f"{side}_knee_lateral")
+        thigh, shin = getattr(self, f"{side}_thigh"), getattr(self, f"{side}_shin")
+        if a == 0.0:  # exact: no rounding through the square root
+            return float(thigh), float(shin)
+        return float(np.sqrt(thigh**2 - a * a)), float(np.sqrt(shin**2 - a * a))
+
     @property
     def hip_height(self) -> float:
         """Height of the pelvis keypoint when standing straight, metres."""
         leg = max(
-            self.ankle_height + getattr(self, f"{s}_shin") + getattr(self, f"{s}_thigh")
-            - getattr(self, f"{s}_hip_offset")[2]
+            self.ankle_height + sum(self.leg_line(s)) - getattr(self, f"{s}_hip_offset")[2]
             for s in _SIDES
         )
         return float(leg)
@@ -405,7 +480,8 @@ class BodyDimensions:
     def height(self) -> float:
         """Standing height (sole to top of the head), metres."""
         return float(self.hip_height + self.lumbar_offset[2] + self.lumbar + self.thorax
-                     + self.upper_chest + self.neck + self.head_radius * 1.75)
+                     + self.upper_chest + self.neck * self.rest.head_direction[2]
+                     + self.head_radius * 1.75)
 
     @property
     def scale(self) -> float:
@@ -478,6 +554,9 @@ class BodyDimensions:
         foot = (s["left_toe"] + s["right_toe"]) / 2
         ch["toes_length"] = base.toes_length * foot
         ch["heel_length"] = base.heel_length * foot
+        ch["rest"] = replace(base.rest, **{
+            f"{side}_knee_lateral": getattr(base.rest, f"{side}_knee_lateral")
+            * s[f"{side}_knee"] for side in _SIDES})
         ch["notes"] = (*base.notes, f"per-bone scale {np.round(vec, 3).tolist()}")
         return replace(base, **ch)
 
@@ -486,7 +565,8 @@ class BodyDimensions:
         out: dict[str, object] = {}
         for f in fields(self):
             v = getattr(self, f.name)
-            out[f.name] = list(v) if isinstance(v, tuple) else v
+            out[f.name] = (list(v) if isinstance(v, tuple)
+                           else v.to_dict() if isinstance(v, RestGeometry) else v)
         out["height"] = self.height
         return out
 
@@ -531,17 +611,25 @@ def _arm_quat(side: str) -> list[float]:
     return [float(np.cos(a / 2)), float(np.sin(a / 2)), 0.0, 0.0]
 
 
+def _knee_site(d: BodyDimensions, side: str) -> np.ndarray:
+    """Knee keypoint in the thigh frame: down the leg's line to the knee hinge, then
+    outwards along the hinge axis by the source's rest offset."""
+    lateral = getattr(d.rest, f"{side}_knee_lateral") * (1.0 if side == "left" else -1.0)
+    return np.array([0.0, lateral, -d.leg_line(side)[0]])
+
+
 def _rest_keypoints(d: BodyDimensions) -> np.ndarray:
     kp: dict[str, np.ndarray] = {"pelvis": np.zeros(3)}
     pivot = np.asarray(d.lumbar_offset, dtype=float)
     kp["spine"] = pivot if d.spine_on_pelvis else pivot + [0, 0, d.lumbar]
     kp["chest"] = pivot + [0, 0, d.lumbar + d.thorax]
     kp["neck"] = kp["chest"] + [0, 0, d.upper_chest]
-    kp["head"] = kp["neck"] + [0, 0, d.neck]
+    kp["head"] = kp["neck"] + d.neck * np.asarray(d.rest.head_direction)
     for s in _SIDES:
         kp[f"{s}_hip"] = np.asarray(getattr(d, f"{s}_hip_offset"))
-        kp[f"{s}_knee"] = kp[f"{s}_hip"] - [0, 0, getattr(d, f"{s}_thigh")]
-        kp[f"{s}_ankle"] = kp[f"{s}_knee"] - [0, 0, getattr(d, f"{s}_shin")]
+        thigh, shin = d.leg_line(s)
+        kp[f"{s}_knee"] = kp[f"{s}_hip"] + _knee_site(d, s)
+        kp[f"{s}_ankle"] = kp[f"{s}_hip"] - [0, 0, thigh + shin]
         kp[f"{s}_toe"] = kp[f"{s}_ankle"] + _foot_vector(d, s)
         pivot = kp["chest"] + [0, 0, d.clavicle_pivot]
         kp[f"{s}_shoulder"] = pivot + _clavicle_dir(s) * getattr(d, f"{s}_clavicle")
@@ -671,9 +759,10 @@ def _add_trunk(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str, pos: Sequenc
     _site(chest, prefix + "neck", (0, 0, d.upper_chest))
     neck = _child(chest, prefix + "neck", (0, 0, d.upper_chest))
     _joints(neck, "neck", None, prefix, actuated)
-    _capsule(neck, (0, 0, 0), (0, 0, d.neck), 0.045 * g, prefix + "neck", _SKIN)
-    _site(neck, prefix + "head", (0, 0, d.neck))
-    head = _child(neck, prefix + "head", (0, 0, d.neck))
+    head_at = d.neck * np.asarray(d.rest.head_direction)
+    _capsule(neck, (0, 0, 0), head_at, 0.045 * g, prefix + "neck", _SKIN)
+    _site(neck, prefix + "head", head_at)
+    head = _child(neck, prefix + "head", head_at)
     _capsule(head, (0.02 * g, 0, 0.07 * g), (0.02 * g, 0, 0.07 * g), d.head_radius,
              prefix + "head", _SKIN)
     return pelvis, chest
@@ -716,12 +805,13 @@ def _add_leg(pelvis: mujoco.MjsBody, d: BodyDimensions, s: str, prefix: str,
     p = f"{prefix}{s}_"
     thigh = _child(pelvis, p + "thigh", np.asarray(getattr(d, f"{s}_hip_offset")))
     _joints(thigh, "thigh", s, prefix, actuated)
-    lt = getattr(d, f"{s}_thigh")
+    # The knee hinge sits on the hip-ankle line; the keypoint may sit off it along the
+    # hinge axis (the source's rest geometry), where flexion does not move it.
+    lt, ls = d.leg_line(s)
     _capsule(thigh, (0, 0, -0.08 * lt), (0, 0, -lt), 0.066 * g, p + "thigh")
-    _site(thigh, p + "knee", (0, 0, -lt))
+    _site(thigh, p + "knee", _knee_site(d, s))
     shin = _child(thigh, p + "shin", (0, 0, -lt))
     _joints(shin, "shin", s, prefix, actuated)
-    ls = getattr(d, f"{s}_shin")
     _capsule(shin, (0, 0, -0.02), (0, 0, -ls + 0.04 * g), 0.045 * g, p + "shin")
     _site(shin, p + "ankle", (0, 0, -ls))
     foot = _child(shin, p + "foot", (0, 0, -ls))
@@ -1171,6 +1261,107 @@ def _pelvis_offsets(kp: Mapping[str, np.ndarray], body_model: bool
     return out
 
 
+#: The straightest frames of a leg, on which the fit reads its knees' rest offset: those
+#: whose knee keypoint lies nearest the hip-ankle line, up to this percentile of the
+#: clip's distances.
+STRAIGHT_LEG_PERCENTILE = 10.0
+
+#: Smallest sideways knee offset the fit tells from zero, metres (a rigid skeleton's
+#: straight leg is exactly straight; its joint centres carry float noise only).
+KNEE_LATERAL_RESOLUTION = 0.001
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def _knee_displacement(kp: Mapping[str, np.ndarray], side: str, R: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Sideways (outwards) and forward parts of the knee keypoint's displacement from
+    the hip-ankle line on the leg's straightest frames (:data:`STRAIGHT_LEG_PERCENTILE`),
+    metres, along the pelvis frame ``R`` (T, 3, 3) made normal to the leg."""
+    hip, knee, ankle = (kp[f"{side}_{k}"] for k in ("hip", "knee", "ankle"))
+    sign = 1.0 if side == "left" else -1.0
+    thigh, down = knee - hip, _unit(ankle - hip)
+    off = thigh - np.sum(thigh * down, axis=-1, keepdims=True) * down
+    out = R[:, :, 1] * sign
+    out = _unit(out - np.sum(out * down, axis=-1, keepdims=True) * down)
+    fwd = np.cross(down, out) * sign
+    dist = np.linalg.norm(off, axis=-1)
+    straight = dist <= np.percentile(dist, STRAIGHT_LEG_PERCENTILE)
+    return np.sum(off * out, axis=-1)[straight], np.sum(off * fwd, axis=-1)[straight]
+
+
+def _knee_lateral(kp: Mapping[str, np.ndarray], R: np.ndarray) -> float:
+    """The knees' sideways rest offset from the hip-ankle line, metres (outwards
+    positive), or 0 when the clip shows none.
+
+    A knee bends forwards: a hinge puts the knee keypoint in front of its hip-ankle
+    line, never beside it. So on each leg's straightest frames (the knee nearest the
+    line, :func:`_knee_displacement`) the displacement is split along the pelvis frame
+    ``R`` (T, 3, 3) into a forward part (flexion: pose) and a sideways part. When the
+    sideways part's median over both legs exceeds the forward part's (by
+    :data:`KNEE_LATERAL_RESOLUTION`), the legs are straighter than the sideways offset
+    lets them be, and that median is the skeleton's offset (the skeleton is taken as
+    symmetric: one value for both knees, read over both legs' frames). Measured: SMPL
+    clips with straight legs (HumanML3D 007005, 000021, M010968) 29-40 mm sideways
+    against a forward part under 35 mm; every shared CMU clip's straightest frames are
+    bent forwards (the sideways part -22 to +23 mm, at most a third of the forward part)
+    or exactly straight: 0."""
+    lateral, forward = [], []
+    for s in _SIDES:
+        if all(f"{s}_{k}" in kp for k in ("hip", "knee", "ankle")):
+            lat, fwd = _knee_displacement(kp, s, R)
+            lateral.append(lat)
+            forward.append(fwd)
+    if not lateral:
+        return 0.0
+    lat, fwd = float(np.median(np.concatenate(lateral))), float(np.median(np.concatenate(forward)))
+    if abs(lat) <= abs(fwd) + KNEE_LATERAL_RESOLUTION:
+        return 0.0
+    return float(np.clip(lat, -KNEE_LATERAL_MAX, KNEE_LATERAL_MAX))
+
+
+#: Shortest chest -> neck and neck -> head distances (median, metres) from which the fit
+#: reads the head keypoint's rest direction (:func:`_head_direction`).
+HEAD_FRAME_MIN = 0.01
+
+
+def _head_direction(kp: Mapping[str, np.ndarray]) -> tuple[float, float, float]:
+    """The neck -> head keypoint's rest direction in the chest frame (z along chest ->
+    neck, y along the shoulder line): its median over the clip.
+
+    The head's last keypoint carries no face direction, so nothing in one frame tells a
+    head keypoint the skeleton puts forward of the neck (SMPL's: 33-58 deg forward of
+    the chest -> neck line, median over a clip, on upright trunks) from a head bowed.
+    The clip's median head direction is taken as its neutral; the neck's hinges are
+    judged from it. Straight on (0, 0, 1) without chest, neck, head and both shoulders,
+    or when the chest and neck or the neck and head coincide."""
+    need = ("chest", "neck", "head", "left_shoulder", "right_shoulder")
+    if not all(k in kp for k in need):
+        return (0.0, 0.0, 1.0)
+    up, head = kp["neck"] - kp["chest"], kp["head"] - kp["neck"]
+    if min(np.median(np.linalg.norm(up, axis=-1)),
+           np.median(np.linalg.norm(head, axis=-1))) < HEAD_FRAME_MIN:
+        return (0.0, 0.0, 1.0)
+    z = _unit(up)
+    y = kp["left_shoulder"] - kp["right_shoulder"]
+    y = _unit(y - np.sum(y * z, axis=-1, keepdims=True) * z)
+    frame = np.stack([np.cross(y, z), y, z], axis=-1)
+    d = np.median(np.einsum("tji,tj->ti", frame, _unit(head)), axis=0)
+    return _v(d / np.linalg.norm(d)) if d[2] > 0 else (0.0, 0.0, 1.0)
+
+
+def _rest_geometry(kp: Mapping[str, np.ndarray]) -> RestGeometry:
+    """The source skeleton's rest geometry measured from the clip (:class:`RestGeometry`):
+    the knees' sideways offset (:func:`_knee_lateral`; from the legs with hip, knee and
+    ankle) and the head's direction (:func:`_head_direction`)."""
+    R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
+    knee = _knee_lateral(kp, R)
+    return RestGeometry(left_knee_lateral=knee, right_knee_lateral=knee,
+                        head_direction=_head_direction(kp))
+
+
 def _split_trunk(measured: dict[str, float]) -> None:
     """A spine rigid on the pelvis: the source bends its lumbar and lower
     thorax at that one keypoint, and nothing it measures tells how the bend
@@ -1253,7 +1444,7 @@ def _lengths_or_default(measured: Mapping[str, float], scale: float
     of the keypoint-measured lengths that fell back."""
     out, fallback = {}, []
     for f in fields(BodyDimensions):
-        if f.name in ("notes", "girth") or f.name.endswith("_offset"):
+        if f.name in ("notes", "girth", "rest") or f.name.endswith("_offset"):
             continue
         if f.name in measured:
             out[f.name] = measured[f.name]
@@ -1267,9 +1458,18 @@ def _lengths_or_default(measured: Mapping[str, float], scale: float
 
 def _fit_notes(motion: Motion, num_frames: int, measured: Mapping[str, float],
                fallback: Sequence[str], scale: float, derived_chest: bool,
-               spine_on_pelvis: bool) -> tuple[str, ...]:
+               spine_on_pelvis: bool, rest: RestGeometry) -> tuple[str, ...]:
     """The fit's provenance and every fallback, for :attr:`BodyDimensions.notes`."""
     notes = [f"fitted to {motion.name!r} ({num_frames} frames, median over frames)"]
+    knees = {s: getattr(rest, f"{s}_knee_lateral") for s in _SIDES}
+    if any(knees.values()):
+        notes.append("knee keypoints off the straight leg's line (the skeleton's rest "
+                     "geometry): " + ", ".join(f"{s} {1000 * a:+.1f} mm outwards"
+                                               for s, a in knees.items()))
+    tilt = np.degrees(np.arctan2(rest.head_direction[0], rest.head_direction[2]))
+    if abs(tilt) >= 1.0:
+        notes.append(f"head keypoint {tilt:+.0f} deg forward of the neck's axis (the clip's "
+                     "median, taken as the neutral head)")
     if spine_on_pelvis:
         notes.append("spine keypoint rigid on the pelvis: the lumbar and the thorax turn at it "
                      "(zero lumbar length)")
@@ -1329,8 +1529,9 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     toe_h, drop = _foot_heights(motion, kp, scale)
     ch["toe_height"], ch["ankle_height"] = toe_h, toe_h + drop
     ch["girth"] = float(np.clip(scale, 0.6, 1.4))
+    ch["rest"] = rest = _rest_geometry(kp)
     ch["notes"] = _fit_notes(motion, canon.num_frames, measured, fallback, scale, derived_chest,
-                             spine_on_pelvis)
+                             spine_on_pelvis, rest)
     try:
         return replace(DEFAULT, **ch)
     except RetargetError as exc:

@@ -266,6 +266,8 @@ class _Problem:
         kp = {k: rest[i] for i, k in enumerate(humanoid.keypoint_names)}
         self.rest_triangle = pelvis_frames(kp["pelvis"][None], kp["left_hip"][None],
                                            kp["right_hip"][None], kp["spine"][None])[0]
+        #: Per side, the knee keypoint's sideways rest offset (metres, outwards).
+        self.knee_lateral = {s: getattr(d.rest, f"{s}_knee_lateral") for s in ("left", "right")}
 
 
 #: One problem per humanoid: its tree and point tables depend only on the
@@ -415,6 +417,9 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                     bend = np.cross(_unit(u), _unit(targets[nxt] - targets[child]))
                     w0 = -y if part == "upper_arm" else y
                     strength = np.linalg.norm(bend, axis=-1)
+                    if part == "thigh" and prob.knee_lateral[side]:
+                        bend, strength = _knee_axis(u, targets[nxt] - targets[child],
+                                                    prob.knee_lateral[side], side)
                     cue = bend
                     if part == "thigh" and has(f"{pre}toe"):
                         # Straight leg: the foot points forward in the knee plane.
@@ -440,6 +445,44 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
             R = compose_hinges(Rp, tree.hinge_axis[tree.body_hinges[b][:1]], th[:, None])
         Rb[:, b], xb[:, b] = R, x
     return root_pos, root_rot, theta
+
+
+def _knee_axis(thigh: np.ndarray, shin: np.ndarray, lateral: float, side: str
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The knee's hinge axis when the knee keypoint sits ``lateral`` metres outwards of
+    the hip-ankle line along it (:attr:`simenv.body.humanoid.RestGeometry.left_knee_lateral`),
+    and how well the pose shows it.
+
+    The hinge J = K - s lateral n (s = +1 left, -1 right; n points left, the flexion
+    axis) lies in the plane through the hip-ankle line normal to n, so the knee's
+    displacement d from that line has the component ``s lateral`` along n:
+    n = r unit(d) + sqrt(1 - r^2) unit(d x e), r = s lateral / |d|, e = unit(hip ->
+    ankle), the root taken for flexion (without an offset: the bend plane's normal).
+    The bend plane's normal alone would tilt n by the offset: a straight leg's sideways
+    kink read as a knee bent sideways.
+
+    Args:
+        thigh: (T, 3) hip -> knee keypoint, metres. shin: (T, 3) knee -> ankle keypoint.
+        lateral: the rest offset, metres, outwards positive. side: "left" or "right".
+    Returns:
+        ``(axis, strength)``: (T, 3) the axis, and (T,) the sine of the knee's flexion
+        about it (the triangle hip - hinge - ankle), 0 where the leg is as straight as
+        the offset or straighter (the axis is then the offset's direction, and the
+        flexion plane is not seen).
+    """
+    sign = 1.0 if side == "left" else -1.0
+    line = thigh + shin
+    e = _unit(line)
+    d = thigh - np.sum(thigh * e, axis=-1, keepdims=True) * e
+    dist = np.linalg.norm(d, axis=-1)
+    r = np.clip(sign * lateral / np.maximum(dist, 1e-12), -1.0, 1.0)
+    axis = r[:, None] * _unit(d) + np.sqrt(1.0 - r * r)[:, None] * _unit(np.cross(d, e))
+    a2 = lateral * lateral
+    hinge = np.sqrt(np.maximum(dist**2 - a2, 0.0))
+    upper = np.sqrt(np.maximum(np.sum(thigh * thigh, axis=-1) - a2, 1e-12))
+    lower = np.sqrt(np.maximum(np.sum(shin * shin, axis=-1) - a2, 1e-12))
+    strength = np.linalg.norm(line, axis=-1) * hinge / (upper * lower)
+    return axis, np.clip(strength, 0.0, 1.0)
 
 
 def _toe_lift(tree: HingeTree, b: int, Rp: np.ndarray, x: np.ndarray, corners: np.ndarray,
