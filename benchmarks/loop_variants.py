@@ -34,7 +34,10 @@ members' out-of-fold mean logits, the loop threshold chosen on all out-of-fold l
 for one network) under ``--window-rule``, which the checkpoint records
 (``loop_window_rule``: the room's loop combines its windows so), written as ``DIR/N.npz``
 (:class:`simenv.models.skeleton_tcn.SkeletonTCNEnsemble`) with its card ``DIR/N.md`` (the
-unseen-subject numbers of ``score``). Copy both into ``assets/models`` to ship.
+unseen-subject numbers of ``score``; ``--previous CHECKPOINT``: the ensemble it replaces,
+its figures beside them; whether the fold networks had per-fold forecasters, from
+``NAME_s<S>/forecasters.json``, which ``train`` writes). Copy both into ``assets/models``
+to ship.
 """
 
 from __future__ import annotations
@@ -70,6 +73,7 @@ from simenv.learning.recognition_protocols import (  # noqa: E402
     condition_windows,
 )
 from simenv.models.skeleton_tcn import (  # noqa: E402
+    CANONICAL_BODY,
     SkeletonTCN,
     SkeletonTCNEnsemble,
     fit_temperature,
@@ -133,12 +137,15 @@ def _parse_sets(pairs: list[str]) -> dict[str, Any]:
 def cmd_train(args: argparse.Namespace) -> None:
     clips = load_gesture_clips(GESTURES, idle=True)
     avatars = _avatars(Path(args.avatars), clips)
-    config = RecognitionConfig(seed=args.seed, **_parse_sets(args.set))
+    sets = _parse_sets(args.set) | ({"epochs": args.epochs} if args.epochs else {})
+    config = RecognitionConfig(seed=args.seed, **sets)
     forecasters = fold_forecasters(Path(args.forecasters) if args.forecasters else None,
                                    SUBJECT_FOLDS)
     folder = Path(args.out) / f"{args.tag}_s{args.seed}"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "config.json").write_text(json.dumps(config.__dict__, indent=1))
+    # The fold networks' forecast windows (the card says whether they had them).
+    (folder / "forecasters.json").write_text(json.dumps({"forecasters": args.forecasters}))
     for k, (train, test) in enumerate(split_subject_folds(clips)):
         if args.folds and k not in args.folds or (folder / f"fold{k}_readings.npz").is_file():
             continue
@@ -245,13 +252,42 @@ def train_members(members: list[Path], out: Path) -> list[Path]:
     return paths
 
 
+def _greeted(loop: dict[str, Any]) -> str:
+    """Waves, other actions and idle clips greeted by a loop's outcomes, as text."""
+    return ", ".join(f"{what} {k}/{n} ({k / n:.1%})" for what, (k, n) in
+                     zip(("waves", "other actions", "idle"),
+                         (loop["greet_clips"], loop["other_clips"], loop["idle_clips"]),
+                         strict=True))
+
+
+def _previous(metadata: dict[str, Any]) -> str:
+    """The card's comparison with the ensemble this one replaces (its checkpoint's
+    metadata under ``previous``), or ""."""
+    old = metadata.get("previous")
+    if not old:
+        return ""
+    acc, loop = old["protocol_accuracy"], old["unseen_subject_loop"]
+    read = "canonical-body" if old["canonical_body"] else "normalised, not canonical-body,"
+    return f"""
+Replaces `{old['file']}` ({read} input), whose fold networks gave, on the same folds: real_3s
+{acc['real_3s']['accuracy']:.3f}, real_1s {acc['real_1s']['accuracy']:.3f}; the loop
+{_greeted(loop)}; decision median {loop['decision_after_onset_s']['median']} s.
+"""
+
+
 def ensemble_card(name: str, metadata: dict[str, Any]) -> str:
     """The shipped ensemble's model card (markdown)."""
     r, acc = metadata["unseen_subject_loop"], metadata["protocol_accuracy"]
-    greeted = ", ".join(f"{what} {k}/{n} ({k / n:.1%})" for what, (k, n) in
-                        zip(("waves", "other actions", "idle"),
-                            (r["greet_clips"], r["other_clips"], r["idle_clips"]), strict=True))
+    greeted = _greeted(r)
     d = r["decision_after_onset_s"]
+    reads = ("the canonical body (`simenv.data.sensor_invariance.canonical_body`: trunk "
+             "joints redefined from the shoulders and hips, every bone at a reference "
+             "length), marked in the members' config so every caller feeds it so"
+             if metadata["config"].get("canonical_body", False) else
+             "normalised windows (`simenv.data.gestures.normalise_windows`)")
+    folds_forecast = ("with \"1 s real + forecast\" windows from per-fold forecasters"
+                      if metadata.get("fold_forecasters") else "without forecast windows "
+                      "(no per-fold forecaster given)")
     return f"""# {name}
 
 The room's gesture recogniser: {len(metadata['members'])} skeleton TCNs
@@ -263,6 +299,7 @@ joints at 25 fps and the room's vocabulary ({', '.join(GESTURE_LABELS)}). Member
 gesture corpus with "1 s real + forecast" windows from `predictor-gesture-25-50`, by
 `python benchmarks/loop_variants.py ship {' '.join(metadata['members'])} --window-rule
 {metadata['loop_window_rule']}`.
+Input: {reads}.
 Temperature {metadata['temperature']:.3f} (fitted on the members' out-of-fold mean logits);
 loop threshold {metadata['loop_threshold']} (chosen on every out-of-fold loop reading: greetings
 on at most 2 % of non-wave clips); real windows {metadata['loop_windows']} frames, their
@@ -271,7 +308,8 @@ probabilities combined by the `{metadata['loop_window_rule']}` rule
 
 ## On subjects it never saw
 
-Leave-subjects-out, {SUBJECT_FOLDS} folds, with the fold networks of the same variants.
+Leave-subjects-out, {SUBJECT_FOLDS} folds, with the fold networks of the same variants
+(trained {folds_forecast}).
 Accuracy on the room vocabulary: real_3s {acc['real_3s']['accuracy']:.3f} (balanced
 {acc['real_3s']['balanced_accuracy']:.3f}), real_1s {acc['real_1s']['accuracy']:.3f}
 (balanced {acc['real_1s']['balanced_accuracy']:.3f}).
@@ -280,6 +318,7 @@ The loop (cross-fitted temperature and threshold): {greeted}; decision after the
 onset median {d['median']} s, p90 {d['p90']} s; {r['decided_before_end']:.1%} of the greeted
 waves decided before the wave ends.
 
+{_previous(metadata)}
 Training options: `{json.dumps(metadata['config'])}`.
 """
 
@@ -299,16 +338,26 @@ def cmd_ship(args: argparse.Namespace) -> None:
         for cond, key in (("real_3s", "z3"), ("real_1s", "z1"))}
     loop = _cross_fitted(readings, mean, args.window_rule)
     configs = [json.loads((m / "config.json").read_text()) for m in members]
+    provenance = [m / "forecasters.json" for m in members]
+    fold_forecasters = all(p.is_file() and json.loads(p.read_text())["forecasters"]
+                           for p in provenance)
     metadata = {"loop_threshold": threshold, "loop_uses_forecast": False,
                 "loop_windows": list(LOOP_WINDOWS), "loop_window_rule": args.window_rule,
                 "temperature": temperature,
                 "members": [m.name for m in members], "seeds": [c["seed"] for c in configs],
+                "fold_forecasters": fold_forecasters,
                 "config": configs[0],
                 "protocol_accuracy": {c: {k: a[k] for k in ("accuracy", "balanced_accuracy")}
                                       for c, a in accuracy.items()},
                 "unseen_subject_loop": {k: loop[k] for k in (
                     "greet_clips", "other_clips", "idle_clips", "decision_after_onset_s",
                     "decided_before_end")}}
+    if args.previous:
+        old = SkeletonTCNEnsemble.load(args.previous)
+        metadata["previous"] = {
+            "file": Path(args.previous).name,
+            "canonical_body": bool(old.members[0].config.extra.get(CANONICAL_BODY, False)),
+            **{k: old.metadata[k] for k in ("protocol_accuracy", "unseen_subject_loop")}}
     ensemble = SkeletonTCNEnsemble([calibrated(n, temperature) for n in nets])
     ensemble.save(ship / f"{args.name}.npz", metadata)
     (ship / f"{args.name}.md").write_text(ensemble_card(args.name, metadata))
@@ -329,6 +378,9 @@ def main() -> None:
     p.add_argument("--set", nargs="*", default=[], help="RecognitionConfig key=JSON value")
     p.add_argument("--forecasters", help="folder of per-fold gesture predictors")
     p.add_argument("--folds", type=int, nargs="*")
+    p.add_argument("--epochs", type=int, help="training epochs of each network (a quick run: "
+                   "1; default --set's, else RecognitionConfig's); config.json records them, "
+                   "so ship trains its members as long")
     p = sub.add_parser("import")
     p.add_argument("--tag", required=True)
     p.add_argument("--seed", type=int, default=0)
@@ -347,6 +399,8 @@ def main() -> None:
     p.add_argument("--window-rule", choices=WINDOW_RULES, default="max",
                    help="the real-window rule the threshold is chosen with and the "
                    "checkpoint records")
+    p.add_argument("--previous", help="the ensemble checkpoint this one replaces: its "
+                   "unseen-subject figures go into the card beside the new ones")
     args = parser.parse_args()
     if args.command in ("score", "ship"):
         missing = _missing_members(Path(args.out), args.members)

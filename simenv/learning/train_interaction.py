@@ -237,6 +237,8 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--out", help="output folder (default out/train-interaction/MODEL)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the initialisation and "
                     "the batches")
+    ap.add_argument("--epochs", type=int, help="training epochs (a quick run: 1; default "
+                    "--config's, else the model's)")
     ap.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -253,6 +255,8 @@ def main(argv: Sequence[str] | None = None,
     torch.set_num_threads(1)
     try:
         options = read_options(args.config) if args.config else {}
+        if args.epochs is not None:
+            options["epochs"] = args.epochs
         config = make_config(args.model, options, source=args.config)
         res = run(args.model, config=config, shared=args.shared, out=args.out,
                   seed=args.seed, progress=not args.quiet)
