@@ -370,3 +370,67 @@ def test_scene_holds_several_people() -> None:
     assert q[:, scene.qpos_slices[1]].shape == (3, b.nq)
     with pytest.raises(RetargetError, match="unique"):
         build_scene([a, b], ["x", "x"])
+
+
+HUMANML3D = Path(__file__).parent / "data" / "humanml3d"
+
+
+def test_fit_reads_a_knee_off_the_straight_leg_as_the_skeleton(shared_data) -> None:
+    """SMPL's knee joint centre sits beside the hip-ankle line even on a straight leg
+    (real HumanML3D M010968, BMLmovi: legs straight throughout, the knee 29 mm outwards).
+    The fit measures that offset from the clip and puts the knee keypoint there on the
+    thigh, along the knee's hinge axis, keeping the bone lengths; a CMU skeleton, whose
+    straight leg is straight, keeps a knee on the line."""
+    from simenv.io.loader import load
+
+    d = fit_dimensions(load(HUMANML3D / "new_joints" / "M010968.npy"))
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        a = getattr(d.rest, f"{side}_knee_lateral")
+        assert 0.02 < a < 0.045, side
+        rest = d.rest_keypoints()
+        hip, knee, ankle = (rest[CANONICAL_KEYPOINTS.index(f"{side}_{k}")]
+                            for k in ("hip", "knee", "ankle"))
+        assert np.linalg.norm(knee - hip) == pytest.approx(getattr(d, f"{side}_thigh"))
+        assert np.linalg.norm(ankle - knee) == pytest.approx(getattr(d, f"{side}_shin"))
+        # Straight leg: the ankle under the hip, the knee out beside the line.
+        np.testing.assert_allclose((ankle - hip)[:2], 0.0, atol=1e-12)
+        assert (knee - hip)[1] == pytest.approx(sign * a)
+    assert any("knee keypoints off" in n for n in d.notes)
+    cmu = fit_dimensions(bvh.read(shared_data / "cmu/bvh/02_01.bvh"))
+    assert cmu.rest.left_knee_lateral == cmu.rest.right_knee_lateral == 0.0
+    assert cmu.leg_line("left") == (cmu.left_thigh, cmu.left_shin)
+
+
+def test_fit_reads_the_head_direction_from_the_clip() -> None:
+    """SMPL's head joint sits forward of its neck joint (real HumanML3D M010655: 50 deg
+    forward of the chest -> neck line on its upright first frame). The fit takes the
+    clip's median head direction as the neck's zero, so the upright frame's neck is
+    near neutral instead of 50 of its 55 deg of flexion."""
+    from simenv.io.loader import load
+
+    d = fit_dimensions(load(HUMANML3D / "new_joints" / "M010655.npy"))
+    tilt = np.degrees(np.arctan2(d.rest.head_direction[0], d.rest.head_direction[2]))
+    assert 35.0 < tilt < 65.0
+    h = Humanoid(d)
+    head = h.keypoints(h.default_qpos())[CANONICAL_KEYPOINTS.index("head")]
+    neck = h.keypoints(h.default_qpos())[CANONICAL_KEYPOINTS.index("neck")]
+    assert np.linalg.norm(head - neck) == pytest.approx(d.neck)
+    assert d.height == pytest.approx(d.hip_height + d.lumbar_offset[2] + d.lumbar + d.thorax
+                                     + d.upper_chest + (head - neck)[2] + 1.75 * d.head_radius)
+
+
+@pytest.mark.parametrize("change", [{"left_knee_lateral": 0.2},
+                                    {"right_knee_lateral": float("nan")},
+                                    {"head_direction": (0.0, 0.0, -1.0)}])
+def test_absurd_rest_geometry_is_rejected(change: dict[str, object]) -> None:
+    from simenv.body.humanoid import RestGeometry
+
+    with pytest.raises(RetargetError, match=next(iter(change))):
+        RestGeometry(**change)
+
+
+def test_a_knee_offset_longer_than_half_the_leg_is_rejected() -> None:
+    from simenv.body.humanoid import RestGeometry
+
+    with pytest.raises(RetargetError, match="left_knee_lateral"):
+        BodyDimensions(left_thigh=0.15, rest=RestGeometry(left_knee_lateral=0.09))

@@ -244,3 +244,22 @@ def test_interaction_refuses_a_single_body(shared_data) -> None:
     pair = loader.load(shared_data / "cmu/two_person/18_19_walk_shake_hands").slice(0, 5)
     with pytest.raises(RetargetError, match="one fitted body per person"):
         retarget(pair, fit_humanoid(pair.actor))
+
+
+def test_a_straight_smpl_leg_fits_without_turning_the_thigh() -> None:
+    """Real HumanML3D M010968 (BMLmovi, SMPL joint centres): the legs stay straight, the
+    knee joint centre 29 mm beside the hip-ankle line. Before the fit carried that offset
+    the hinge knee "bent" sideways and the thigh turned to its +-57 deg bound (joint_limits
+    38 deg on thigh_rot); now the straight leg fits with the thigh near neutral, exactly."""
+    from pathlib import Path
+
+    motion = loader.load(Path(__file__).parent / "data/humanml3d/new_joints/M010968.npy")
+    fit = retarget(motion)
+    h = fit.humanoid
+    q = np.rad2deg(fit.qpos[:, h.hinge_qpos])
+    for side in ("left", "right"):
+        rot = q[:, h.joint_names.index(f"{side}_thigh_rot")]
+        assert np.percentile(np.abs(rot), 95) < 20.0, side
+    assert fit.p95_residual < 0.002
+    # On the same frames the neck sits near its zero (the head's rest direction).
+    assert np.percentile(np.abs(q[:, h.joint_names.index("neck_flex")]), 95) < 15.0
