@@ -399,3 +399,65 @@ def test_z_up_file_detected_from_its_rest_pose() -> None:
     assert (head - ankles > 0.5 * motion.height()).all()
     lying = bvh.read(path, up="y")
     assert lying.height() < 0.6 * motion.height()
+
+
+def _own_axes(src: Path, dst: Path) -> Path:
+    """``src`` rewritten on a rig whose joints carry their own axes, as the SNU Motion
+    Database's exporter writes: each joint's frame turned so its first child's OFFSET lies
+    along its X axis, every rotation channel changed to match, so the motion is the same
+    and only the all-zero rest pose is no standing body."""
+    f = bvh.parse(src)
+    n = len(f.joints)
+    kids = [[k for k in range(n) if f.parents[k] == j] for j in range(n)]
+    turn = [np.eye(3) for _ in range(n)]
+    for j in range(n):
+        d = next((f.offsets[k] for k in kids[j] if np.linalg.norm(f.offsets[k]) > 1e-6), None)
+        if d is not None and any(c.lower().endswith("rotation") for c in f.channels[j]):
+            turn[j] = Rotation.align_vectors([d], [[1.0, 0.0, 0.0]])[0].as_matrix()
+    data, col = f.data.copy(), 0
+    for j, chans in enumerate(f.channels):
+        above = turn[f.parents[j]] if f.parents[j] >= 0 else np.eye(3)
+        rot = [col + i for i, c in enumerate(chans) if c.lower().endswith("rotation")]
+        order = "".join(c[0].upper() for c in chans if c.lower().endswith("rotation"))
+        if rot:
+            local = Rotation.from_euler(order, data[:, rot], degrees=True).as_matrix()
+            data[:, rot] = Rotation.from_matrix(above.T @ local @ turn[j]).as_euler(
+                order, degrees=True)
+        col += len(chans)
+    offsets = [f.offsets[j] @ turn[f.parents[j]] if f.parents[j] >= 0 else f.offsets[j]
+               for j in range(n)]
+    lines = ["HIERARCHY"]
+
+    def emit(j: int, pad: str) -> None:
+        off = f"{pad}  OFFSET {' '.join(f'{v:.6f}' for v in offsets[j])}"
+        if f.end_site[j]:
+            lines.extend([f"{pad}End Site", f"{pad}{{", off, f"{pad}}}"])
+            return
+        lines.extend([f"{pad}{'ROOT' if f.parents[j] < 0 else 'JOINT'} {f.joints[j]}",
+                      f"{pad}{{", off, f"{pad}  CHANNELS {len(f.channels[j])} "
+                      f"{' '.join(f.channels[j])}"])
+        for k in kids[j]:
+            emit(k, pad + "  ")
+        lines.append(f"{pad}}}")
+
+    emit(0, "")
+    lines += ["MOTION", f"Frames: {len(data)}", f"Frame Time: {f.frame_time:.8f}"]
+    lines += [" ".join(f"{v:.6f}" for v in row) for row in data]
+    dst.write_text("\n".join(lines) + "\n")
+    return dst
+
+
+def test_rig_with_its_own_axes_reads_as_the_same_motion(tmp_path: Path) -> None:
+    """A real clip (SNU MRL's MASS kick, tests/data/conventions/snu_mass) rewritten on a rig
+    whose joints carry their own axes: its all-zero rest pose lies sideways (it read as Z up
+    and laid the actor down), so the up axis and the units come from the motion, which
+    reads as the original to float precision."""
+    src = Path(__file__).parent / "data" / "conventions" / "snu_mass" / "mass_kick.bvh"
+    if not src.exists():
+        pytest.skip(f"{src} absent")
+    original, rigged = bvh.read(src), bvh.read(_own_axes(src, tmp_path / "own_axes.bvh"))
+    assert np.abs(rigged.positions - original.positions).max() < 1e-5
+    assert rigged.metadata["units"] == original.metadata["units"] == "cm"
+    assert any(q.startswith("rest pose is no standing body") for q in rigged.metadata["quirks"])
+    assert not any(q.startswith("rest pose is no standing") or q.startswith("up axis")
+                   for q in original.metadata["quirks"])

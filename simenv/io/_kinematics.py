@@ -238,21 +238,39 @@ def rest_extents(parents: Sequence[int], offsets: np.ndarray) -> np.ndarray:
     rest = np.zeros((1, len(parents), 3, 3))
     rest[:] = np.eye(3)
     pos, _ = forward_kinematics(parents, offsets, rest)
+    return np.ptp(pos[0][body_joints(parents)], axis=0)
+
+
+def posed_extents(parents: Sequence[int], positions: np.ndarray) -> np.ndarray:
+    """(3,) sides of the body's bounding box in the motion (median over frames), over the
+    joints of :func:`body_joints`: its size when the all-zero rest pose is no standing body
+    (rigs whose joints carry their own axes write every OFFSET along the joint's X).
+
+    Args:
+        positions: (T, J, 3) joint positions, any unit and axes.
+    """
+    body = body_joints(parents)
+    return np.median(np.ptp(positions[:, body], axis=1), axis=0)
+
+
+def body_joints(parents: Sequence[int]) -> list[int]:
+    """The joints at and below the first joint with several children (the pelvis), or every
+    joint when the skeleton has several roots."""
     children: dict[int, list[int]] = {}
     for j, p in enumerate(parents):
         children.setdefault(int(p), []).append(j)
     roots = children.get(-1, [])
-    body = list(range(len(parents)))
-    if len(roots) == 1:
-        hub = roots[0]
-        while len(children.get(hub, [])) == 1:
-            hub = children[hub][0]
-        body, stack = [], [hub]
-        while stack:
-            j = stack.pop()
-            body.append(j)
-            stack.extend(children.get(j, []))
-    return np.ptp(pos[0][body], axis=0)
+    if len(roots) != 1:
+        return list(range(len(parents)))
+    hub = roots[0]
+    while len(children.get(hub, [])) == 1:
+        hub = children[hub][0]
+    body, stack = [], [hub]
+    while stack:
+        j = stack.pop()
+        body.append(j)
+        stack.extend(children.get(j, []))
+    return body
 
 
 def tpose_jump(positions: np.ndarray) -> tuple[float, float, float] | None:

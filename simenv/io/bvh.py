@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from simenv.core.errors import FormatError
+from simenv.core.errors import FormatError, UnitsError
 from simenv.core.joint_map import (
     JointMapping,
     JointMapSource,
@@ -62,6 +62,7 @@ from simenv.io._kinematics import (
     forward_kinematics,
     is_tpose_frame0,
     matrices_to_quaternions,
+    posed_extents,
     rest_extent,
     rest_extents,
     to_z_up_metres,
@@ -419,6 +420,68 @@ def canonical_map(names: list[str]) -> dict[str, str]:
     return cmu_canonical_map(names)
 
 
+def _head_over_feet(bvh: BvhFile, pos: np.ndarray) -> np.ndarray | None:
+    """(T, 3) head minus the ankles' (else toes') midpoint, file units and axes, when the
+    names give a head and both ankles or toes (names alone: positions are not needed)."""
+    canon = infer_joint_map(bvh.joints, bvh.parents).canonical
+    index = {n: i for i, n in enumerate(bvh.joints)}
+    for feet in (("left_ankle", "right_ankle"), ("left_toe", "right_toe")):
+        if "head" in canon and all(f in canon for f in feet):
+            mid = 0.5 * sum(pos[:, index[canon[f]]] for f in feet)
+            return pos[:, index[canon["head"]]] - mid
+    return None
+
+
+def _posed_if_rest_lies(bvh: BvhFile, quirks: list[str]) -> np.ndarray | None:
+    """The (T, J, 3) positions of the motion, file units and axes, when the all-zero rest
+    pose is no standing body: its head not above its feet along Y or Z by half their
+    distance (a rig whose joints carry their own axes writes every OFFSET along the joint's
+    X: SNU Motion Database). None for a standing rest pose (then the rest pose says the up
+    axis and the size, as before) or when the names give no head and feet."""
+    rest = np.broadcast_to(np.eye(3), (1, len(bvh.joints), 3, 3))
+    rest_pos, _ = forward_kinematics(bvh.parents, bvh.offsets, rest)
+    v = _head_over_feet(bvh, rest_pos)
+    if v is None:
+        return None
+    v = v[0]
+    if max(v[1], v[2]) > 0.5 * np.linalg.norm(v):
+        return None
+    local, offsets, translations = _local_rotations(bvh, bvh.offsets)
+    pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
+    quirks.append("rest pose is no standing body (head not above the feet with every "
+                  "rotation zero: the joints carry their own axes): up axis and units "
+                  "measured on the motion")
+    return pos
+
+
+def _up_from_motion(bvh: BvhFile, pos: np.ndarray) -> str:
+    """The up axis along which the head stands over the feet in the motion (median over
+    frames of :func:`_head_over_feet` on ``pos``), for a rest pose that is no standing
+    body (:func:`_posed_if_rest_lies`)."""
+    v = _head_over_feet(bvh, pos)
+    assert v is not None  # _posed_if_rest_lies found the head and the feet
+    m = np.median(v, axis=0)
+    return "z" if m[2] > m[1] else "y"
+
+
+def _units_from_motion(bvh: BvhFile, pos: np.ndarray, height: float, path: Path,
+                       units: str | None, scale: float | None
+                       ) -> tuple[str, float, str, list[str]]:
+    """:func:`detect_units` on the body's size in the motion (:func:`posed_extents` of
+    ``pos``, file units) for a rest pose that is no standing body; on the rest pose's size
+    ``height`` when the caller gave the unit or the motion's size is no person either."""
+    if units is not None or scale is not None:
+        return detect_units(height, source=path, units=units, scale=scale)
+    size = float(posed_extents(bvh.parents, pos).max())
+    try:
+        name, s, reason, notes = detect_units(size, source=path)
+    except UnitsError:
+        return detect_units(height, source=path)
+    reason = reason.replace("rest-pose size", "size in the motion", 1)
+    return name, s, (f"{reason} (the all-zero rest pose, {height:.4g} file units across, is "
+                     "no standing body)"), notes
+
+
 def _detect_up(bvh: BvhFile, quirks: list[str]) -> str:
     """The file's up axis: ``"y"`` (the BVH standard) unless the rest pose stands along Z
     (its Z side over 1.5 times its Y side; a T-pose's depth is a fraction of its height),
@@ -695,9 +758,12 @@ def _to_motion(
 ) -> Motion:
     quirks: list[str] = []
     height = rest_extent(bvh.parents, bvh.offsets)
+    posed = _posed_if_rest_lies(bvh, quirks)
     if up is None:
-        up = _detect_up(bvh, quirks)
-    unit_name, s, reason, unit_quirks = detect_units(height, source=path, units=units, scale=scale)
+        up = _detect_up(bvh, quirks) if posed is None else _up_from_motion(bvh, posed)
+    unit_name, s, reason, unit_quirks = (
+        detect_units(height, source=path, units=units, scale=scale) if posed is None
+        else _units_from_motion(bvh, posed, height, path, units, scale))
     quirks += unit_quirks
 
     repairs: list[str] | None = None
