@@ -763,9 +763,19 @@ def _add_trunk(spec: mujoco.MjSpec, d: BodyDimensions, prefix: str, pos: Sequenc
     _capsule(neck, (0, 0, 0), head_at, 0.045 * g, prefix + "neck", _SKIN)
     _site(neck, prefix + "head", head_at)
     head = _child(neck, prefix + "head", head_at)
+    # The skull sits along the neck -> head keypoint line, wherever the source puts it.
+    head.quat = _quat_between((0.0, 0.0, 1.0), d.rest.head_direction)
     _capsule(head, (0.02 * g, 0, 0.07 * g), (0.02 * g, 0, 0.07 * g), d.head_radius,
              prefix + "head", _SKIN)
     return pelvis, chest
+
+
+def _quat_between(a: Sequence[float], b: Sequence[float]) -> list[float]:
+    """(w, x, y, z) of the smallest rotation taking unit ``a`` onto unit ``b`` (not
+    opposite); the identity, exactly, when they are equal."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    q = np.array([1.0 + a @ b, *np.cross(a, b)])
+    return (q / np.linalg.norm(q)).tolist()
 
 
 def _add_arm(chest: mujoco.MjsBody, d: BodyDimensions, s: str, prefix: str,
