@@ -14,10 +14,14 @@ One JSON line per clip or corrupted copy goes to ``out/humanml3d/results.jsonl``
 finishes (a rerun skips the keys already there); the markdown table is written between the
 markers of docs/plausibility.md.
 
+``--before FILE`` (a JSONL of an earlier run, e.g. before a change to the body fit) adds the
+earlier count and the real clips whose verdict or score moved.
+
 Usage (about 1-3 min of CPU per 6-s clip; niced, one process)::
 
     nice -n 10 .venv/bin/python benchmarks/humanml3d_survey.py
-    .venv/bin/python benchmarks/humanml3d_survey.py --docs-only
+    .venv/bin/python benchmarks/humanml3d_survey.py --docs-only \\
+        --before out/humanml3d/results_before.jsonl
 """
 
 from __future__ import annotations
@@ -140,9 +144,25 @@ def _failing(row: dict[str, Any]) -> str:
                      .rstrip() for n, f in row["failing"].items()) or "-"
 
 
-def markdown(rows: dict[str, dict[str, Any]], max_seconds: float) -> str:
-    """The generated section: the real clips' table with the plausible count, and the
-    corruptions caught by their target metric."""
+def _moved(rows: dict[str, dict[str, Any]], before: dict[str, dict[str, Any]]) -> list[str]:
+    """The earlier run's plausible count and the real clips whose verdict or score moved."""
+    old = [r for r in before.values() if r["kind"] == "real"]
+    ok = sum(r.get("verdict") == "plausible" for r in old)
+    moved = [f"`{k}` {b.get('verdict')} {_fmt(b.get('score'))} ({_failing(b)}) -> "
+             f"{rows[k].get('verdict')} {_fmt(rows[k].get('score'))} ({_failing(rows[k])})"
+             for k, b in sorted(before.items())
+             if b["kind"] == "real" and k in rows
+             and (b.get("verdict"), b.get("score")) != (rows[k].get("verdict"),
+                                                        rows[k].get("score"))]
+    return ["", f"**Before** (`--before`, an earlier run): {ok} of {len(old)} plausible; "
+            f"moved: {'; '.join(moved) or 'none'}."]
+
+
+def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
+             before: dict[str, dict[str, Any]] | None = None) -> str:
+    """The generated section: the real clips' table with the plausible count (and, given
+    ``before``, the earlier run's count and the clips that moved), and the corruptions
+    caught by their target metric."""
     real = [r for r in rows.values() if r["kind"] == "real"]
     bad = [r for r in rows.values() if r["kind"] == "corrupt"]
     ok = sum(r.get("verdict") == "plausible" for r in real)
@@ -162,6 +182,8 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float) -> str:
         lines.append(f"| {r['key']} | {r['source']} | {r['seconds']} of {r['source_seconds']}"
                      f" | {r['verdict']} | {r['score']:.1f} | {_failing(r)} | "
                      f"{r['cpu_s']:.0f} |")
+    if before:
+        lines += _moved(rows, before)
     if bad:
         caught = sum(r["caught"] for r in bad)
         lines += ["", f"**Seeded corruptions** (moderate strength, seed = clip's position, "
@@ -195,6 +217,8 @@ def main() -> None:
     ap.add_argument("--no-corrupt", action="store_true", help="skip the corrupted copies")
     ap.add_argument("--docs-only", action="store_true", help="only rewrite the docs table")
     ap.add_argument("--out", type=Path, default=OUT / "results.jsonl", help="results JSONL")
+    ap.add_argument("--before", type=Path, default=None,
+                    help="JSONL of an earlier run: list its count and the clips that moved")
     args = ap.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     rows = read_rows(args.out)
@@ -216,7 +240,8 @@ def main() -> None:
                 fh.write(json.dumps(row) + "\n")
             print(key, row.get("verdict"), row.get("score"), row.get("caught", ""),
                   _failing(row), row["cpu_s"], flush=True)
-    replace_section(DOC, BEGIN, END, markdown(rows, args.max_seconds))
+    before = read_rows(args.before) if args.before else None
+    replace_section(DOC, BEGIN, END, markdown(rows, args.max_seconds, before))
 
 
 if __name__ == "__main__":
