@@ -154,8 +154,11 @@ def _moved(rows: dict[str, dict[str, Any]], before: dict[str, dict[str, Any]]) -
              if b["kind"] == "real" and k in rows
              and (b.get("verdict"), b.get("score")) != (rows[k].get("verdict"),
                                                         rows[k].get("score"))]
+    missing = [f"`{k}` ({b.get('verdict')} {_fmt(b.get('score'))} then)"
+               for k, b in sorted(before.items()) if b["kind"] == "real" and k not in rows]
     return ["", f"**Before** (`--before`, an earlier run): {ok} of {len(old)} plausible; "
-            f"moved: {'; '.join(moved) or 'none'}."]
+            f"moved: {'; '.join(moved) or 'none'}."
+            + (f" Not rescored: {', '.join(missing)}." if missing else "")]
 
 
 def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
