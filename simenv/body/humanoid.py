@@ -13,7 +13,9 @@ Each body carries a site at its canonical keypoint (site name = keypoint name, s
 ``data.site_xpos``. A keypoint is the origin of the body it starts, except the
 rigid ones: the hips live on the pelvis, the neck on the chest, and the spine on
 the pelvis for a source whose spine keypoint is rigid there (SMPL ``spine1``:
-the lumbar then turns at it, :attr:`BodyDimensions.lumbar_offset`).
+the lumbar then turns at it, :attr:`BodyDimensions.lumbar_offset`), and a knee
+keypoint the source puts beside its hip-ankle line (on the thigh, off the knee
+hinge along its axis; :class:`RestGeometry`, with the head keypoint's direction).
 
 Joints are hinges (triplets where the anatomy has three degrees of freedom, so
 every degree of freedom gets its own box limit and its own position actuator).
