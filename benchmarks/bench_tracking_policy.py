@@ -24,6 +24,8 @@ runs already there; ``--summary`` prints the table of a results file::
     nohup nice -n 10 .venv/bin/python benchmarks/bench_tracking_policy.py \
         --policy assets/models/tracking-policy.npz --out out/bench_policy.jsonl &
     .venv/bin/python benchmarks/bench_tracking_policy.py --out out/bench_policy.jsonl --summary
+
+``--trackers`` runs some of them only (a planner baseline can run before the policy exists).
 """
 
 from __future__ import annotations
@@ -65,8 +67,9 @@ def _done(out: Path) -> set[tuple[str, str, float, str]]:
 
 
 def run(args: argparse.Namespace) -> None:
-    policy = TrackingPolicy.load(args.policy)
-    trackers = ["policy", "alone", "fast"] + (["default"] if args.default else [])
+    trackers = args.trackers + (["default"] if args.default else [])
+    policy = (TrackingPolicy.load(args.policy)
+              if {"policy", "alone"} & set(trackers) else None)
     jobs = [(c, "none", 0.0) for c in args.clips]
     if args.corrupt:
         jobs += [(c, k, s) for c in args.clips if c in CORRUPT_CLIPS for k, s in CORRUPT_RUNS]
@@ -92,7 +95,8 @@ def run(args: argparse.Namespace) -> None:
             cpu = time.process_time() - cpu
             sim_s = tr.steps * fitted.humanoid.model.opt.timestep
             rec = {"clip": clip, "corruption": corruption, "strength": strength,
-                   "tracker": name, "seconds": args.seconds, "policy": args.policy,
+                   "tracker": name, "seconds": args.seconds,
+                   "policy": args.policy if name in ("policy", "alone") else None,
                    "cpu_s": cpu, "cpu_ratio": cpu / max(sim_s, 1e-9),
                    "fallback_fraction": fallback, "load_average": os.getloadavg()[0],
                    **_record(tr, motion.fps)}
@@ -157,6 +161,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("out/bench_policy.jsonl"))
     ap.add_argument("--clips", nargs="*", default=list(EVAL_CLIPS))
     ap.add_argument("--seconds", type=float, default=4.0)
+    ap.add_argument("--trackers", nargs="*", default=["policy", "alone", "fast"],
+                    choices=["policy", "alone", "fast", "default"])
     ap.add_argument("--default", action="store_true", help="also the default planner")
     ap.add_argument("--corrupt", action="store_true", help="also the corrupted copies")
     ap.add_argument("--summary", action="store_true", help="print the table of --out only")

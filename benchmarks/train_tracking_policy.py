@@ -65,6 +65,8 @@ TWO_PERSON: tuple[str, ...] = (
     "60_61_salsa_05/60_05_scaled.bvh", "60_61_salsa_05/61_05_scaled.bvh",
     "60_61_salsa_10/60_10_scaled.bvh", "60_61_salsa_10/61_10_scaled.bvh")
 TRAIN_CLIPS: tuple[str, ...] = ALL_CLEAN[1::2] + TWO_PERSON
+#: Seconds of a failed run's recording dropped before the failure.
+FALL_DROP_S = 0.5
 #: The planner the data come from: FAST with one rollout thread per process.
 EXPERT = replace(FAST, nthread=1)
 
@@ -109,8 +111,12 @@ def record_clip(fitted: RetargetResult, seconds: float, policy: TrackingPolicy |
             if errs[-1] > fail or not np.isfinite(data.qacc).all():
                 break
         feats, offs, actuators = np.array(rec.features), np.array(rec.offsets), rec.actuators
+        expert = rec.expert_steps / max(len(rec.features), 1)
+    if len(errs) < ref.n_steps:  # the planner's last actions before a fall: not a lesson
+        keep = max(0, len(feats) - int(round(FALL_DROP_S / ref.dt)))
+        feats, offs = feats[:keep], offs[:keep]
     summary = {"steps": len(errs), "of": ref.n_steps, "tracked": len(errs) == ref.n_steps,
-               "mean_error_mm": 1000 * float(np.mean(errs)),
+               "mean_error_mm": 1000 * float(np.mean(errs)), "expert_fraction": expert,
                "cpu_s": time.process_time() - cpu}
     return feats, offs, actuators, summary
 
@@ -171,14 +177,15 @@ def fit(args: argparse.Namespace) -> None:
             loss.backward()
             opt.step()
             sched.step()
-            total += float(loss)
+            total += loss.item()
         if epoch % max(1, args.epochs // 10) == 0 or epoch == args.epochs - 1:
             rms = limit * (total / (n // args.batch)) ** 0.5
             print(f"epoch {epoch} rms offset error {rms:.4f} rad", flush=True)
     linears = [m for m in net if isinstance(m, torch.nn.Linear)]
     with torch.no_grad():
         rms = limit * float(torch.mean((torch.tanh(net(Xt)) - Yt) ** 2)) ** 0.5
-    info = {"rounds": args.rounds, "clips": sorted({f.stem.split(".")[0] for f in files}),
+    clips = sorted({f.name.removesuffix(".npz").replace("__", "/") for f in files})
+    info = {"rounds": args.rounds, "clips": clips,
             "train_clips": list(TRAIN_CLIPS), "eval_clips": list(EVAL_CLIPS),
             "samples": n, "expert": "FAST (64 antithetic samples, 8 ms planning step)",
             "hidden": [args.hidden] * args.layers, "epochs": args.epochs, "seed": args.seed,

@@ -333,6 +333,7 @@ class ExpertRecorder(_Controller):
     Attributes:
         features: recorded (D,) feature vectors; offsets: the planner's (A,) offsets of the
             sampled actuators, radians, one per physics step recorded.
+        expert_steps: physics steps the planner drove.
     """
 
     def __init__(self, humanoid: Humanoid, reference: TrackingReference,
@@ -344,6 +345,7 @@ class ExpertRecorder(_Controller):
         self._expert_drives = policy is None
         self.features: list[np.ndarray] = []
         self.offsets: list[np.ndarray] = []
+        self.expert_steps = 0
 
     def control(self, data: mujoco.MjData, step: int) -> np.ndarray:
         """(nu,) servo targets for physics step ``step``; records the step."""
@@ -352,14 +354,16 @@ class ExpertRecorder(_Controller):
         self.features.append(obs)
         self.offsets.append(u[self.actuators] - self.ctrl_ref[min(step, self.reference.n_steps),
                                                               self.actuators])
-        if self.policy is None:
+        if self.policy is not None:
+            err = body_error(data, self.site_ids, self.reference, step)
+            if err > self.engage_m:
+                self._expert_drives = True
+            elif err < self.release_m:
+                self._expert_drives = False
+        if self._expert_drives:
+            self.expert_steps += 1
             return u
-        err = body_error(data, self.site_ids, self.reference, step)
-        if err > self.engage_m:
-            self._expert_drives = True
-        elif err < self.release_m:
-            self._expert_drives = False
-        return u if self._expert_drives else self._policy_control(self.policy, obs, step)
+        return self._policy_control(self.policy, obs, step)
 
 
 __all__ = ["LOOKAHEAD_STEPS", "ExpertRecorder", "Observer", "PolicyConfig", "PolicyTracker",
