@@ -18,7 +18,7 @@ policy tracker on the corrupted copies of ``eval_tracking.py`` (its ``CORRUPT_RU
 evaluation clips among its ``CORRUPT_CLIPS``, which should fail.
 
 Lines go to ``--out`` (JSONL, one per run: the ``TrackingResult`` record of
-``eval_tracking.py`` plus the CPU time and the fallback share) as they finish; a rerun skips
+``eval_tracking.py`` (:func:`result_record`) plus the CPU time and the fallback share) as they finish; a rerun skips
 runs already there; ``--summary`` prints the table of a results file::
 
     nohup nice -n 10 .venv/bin/python benchmarks/bench_tracking_policy.py \
@@ -42,7 +42,7 @@ from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from eval_tracking import CORRUPT_CLIPS, CORRUPT_RUNS, _record  # noqa: E402
+from eval_tracking import CORRUPT_CLIPS, CORRUPT_RUNS  # noqa: E402
 from train_tracking_policy import EVAL_CLIPS, clip_motion, clip_path  # noqa: E402
 
 from simenv.body.retarget import retarget  # noqa: E402
@@ -50,13 +50,23 @@ from simenv.control import FAST, MPCConfig  # noqa: E402
 from simenv.control.policy import PolicyConfig, TrackingPolicy  # noqa: E402
 from simenv.plausibility.corrupt import CORRUPTIONS  # noqa: E402
 from simenv.plausibility.policy_tracking import track_policy  # noqa: E402
-from simenv.plausibility.tracking import track  # noqa: E402
+from simenv.plausibility.tracking import TrackingResult, track  # noqa: E402
 
 PLANNERS = {"fast": replace(FAST, nthread=1), "default": replace(MPCConfig(), nthread=1)}
 #: The fallback and its thresholds: PolicyConfig's defaults, the planner on one thread.
 FALLBACK = PolicyConfig(planner=PLANNERS["fast"])
 #: No fallback: the planner never engages.
 ALONE = replace(FALLBACK, engage_m=float("inf"))
+
+
+def result_record(tr: TrackingResult) -> dict[str, float | bool | str | None]:
+    """A run's :class:`TrackingResult` as ``eval_tracking.py`` records it (fewer fields)."""
+    return {"success": tr.success, "time_to_failure_s": tr.time_to_failure_s,
+            "simulated_s": tr.simulated_s, "mpjpe_mm": tr.mpjpe_mm,
+            "max_error_mm": float(np.nanmax(tr.body_error)) * 1000.0,
+            "work_j_per_kg": tr.work_j_per_kg, "wall_s": tr.wall_s, "runs": tr.runs,
+            "rollout_per_step": tr.rollout_steps / max(tr.steps, 1),
+            "realtime_ratio": tr.wall_s / max(tr.steps * 0.002, 1e-9), "error": tr.error}
 
 
 def _done(out: Path) -> set[tuple[str, str, float, str]]:
@@ -99,7 +109,7 @@ def run(args: argparse.Namespace) -> None:
                    "policy": args.policy if name in ("policy", "alone") else None,
                    "cpu_s": cpu, "cpu_ratio": cpu / max(sim_s, 1e-9),
                    "fallback_fraction": fallback, "load_average": os.getloadavg()[0],
-                   **_record(tr, motion.fps)}
+                   **result_record(tr)}
             with args.out.open("a") as f:
                 f.write(json.dumps(rec) + "\n")
             print(f"{clip:22s} {corruption:10s} {strength:5.1f} {name:8s} "
