@@ -17,9 +17,9 @@ fallback drove; then the ratios against FAST and the default. ``--corrupt`` runs
 policy tracker on the corrupted copies of ``eval_tracking.py`` (its ``CORRUPT_RUNS``) of the
 evaluation clips among its ``CORRUPT_CLIPS``, which should fail.
 
-Lines go to ``--out`` (JSONL, one per run: the ``TrackingResult`` record of
-``eval_tracking.py`` (:func:`result_record`) plus the CPU time and the fallback share) as they finish; a rerun skips
-runs already there; ``--summary`` prints the table of a results file::
+Lines go to ``--out`` (JSONL, one per run: the ``TrackingResult`` fields of
+``eval_tracking.py`` (:func:`result_record`) plus the CPU time and the fallback share) as
+they finish; a rerun skips runs already there; ``--summary`` prints the table of a results file::
 
     nohup nice -n 10 .venv/bin/python benchmarks/bench_tracking_policy.py \
         --policy assets/models/tracking-policy.npz --out out/bench_policy.jsonl &
