@@ -14,6 +14,13 @@ scripts, modules and ``simenv`` command) and, where the parser that runs it can 
 without running it, its options parse. The ``text`` block of the command line's
 synopsis is checked against each command's ``--help``: every option it names exists.
 
+A long command (a shipped model's recipe) runs with its *quick options*: a comment of the
+command (on its line or under it) saying ``quick: `OPTIONS` `` documents its smallest setting
+(one epoch, a few steps, a short clip) and the test runs the command as written with OPTIONS
+added at its end (comments removed), so every option of the full command is still parsed and
+run, and the steps and outputs are the same, in seconds instead of hours; the test's output
+says which quick options it added.
+
 Commands that need earlier outputs find them because the README shows those steps first in
 the same block: running one command alone runs the earlier commands of its block first.
 """
@@ -47,6 +54,8 @@ LONG = ("simenv train ", "simenv eval ", "simenv rehearse ", "simenv render ",
         "python benchmarks/", "python -m simenv.learning")
 #: Seconds a README command may take before it counts as hung.
 TIMEOUT_S = 600
+#: How a README comment gives a command's quick options (module docstring).
+QUICK = re.compile(r"quick: `([^`]+)`")
 
 
 @dataclass(frozen=True)
@@ -61,6 +70,16 @@ class Snippet:
     expected: str | None = None  # README-shown output (JSON with ... for any value)
     not_run: str | None = None   # the README's reason for not running it
     prints: tuple[str, ...] = ()  # text the README says it prints
+    quick: str | None = None      # the README's quick options of a long command
+
+    @property
+    def command(self) -> str:
+        """What the test runs: the code, or with quick options the command's words (comments
+        and line continuations removed) and the quick options after them."""
+        if self.quick is None:
+            return self.code
+        return shlex.join(shlex.split(self.code.replace("\\\n", " "), comments=True)
+                          + shlex.split(self.quick))
 
     @property
     def id(self) -> str:
@@ -87,14 +106,16 @@ def _blocks(text: str) -> list[tuple[str, int, str, list[str]]]:
 
 
 def _bash_commands(lines: list[str], first: int
-                   ) -> list[tuple[str, int, str | None, str | None, tuple[str, ...]]]:
-    """(command, line, shown output, reason not run, printed texts) of a bash block: a line
-    ending in ``\\`` continues on the next; comment lines under a command that hold a JSON
-    object are its shown output, ``prints `TEXT` `` in them a text it prints; a comment
-    saying :data:`NOT_RUN` gives the reason for its command, on a line of its own for the
-    command above it, or, opening the block, for every command of the block."""
+                   ) -> list[tuple[str, int, str | None, str | None, tuple[str, ...],
+                                   str | None]]:
+    """(command, line, shown output, reason not run, printed texts, quick options) of a bash
+    block: a line ending in ``\\`` continues on the next; comment lines under a command that
+    hold a JSON object are its shown output, ``prints `TEXT` `` in them a text it prints; a
+    comment saying :data:`NOT_RUN` gives the reason for its command, on a line of its own
+    for the command above it, or, opening the block, for every command of the block; its
+    quick options (:data:`QUICK`) are in its own comment or the comment lines under it."""
     commands: list[tuple[str, int, str | None]] = []
-    block_reason, reasons, prints = None, {}, {}
+    block_reason, reasons, prints, quick = None, {}, {}, {}
     i = 0
     while i < len(lines):
         line, start = lines[i], first + i
@@ -106,6 +127,7 @@ def _bash_commands(lines: list[str], first: int
             if commands:
                 prints.setdefault(commands[-1][1], []).extend(
                     re.findall(r"prints `([^`]+)`", body))
+                quick[commands[-1][1]] = quick.get(commands[-1][1]) or _quick(line)
             if NOT_RUN in body:
                 reason = _reason(_comment(lines, i))
                 if commands:
@@ -126,10 +148,17 @@ def _bash_commands(lines: list[str], first: int
             i += 1
             parts.append(lines[i])
         commands.append(("\n".join(parts), start, None))
+        quick[start] = _quick("\n".join(parts))
         i += 1
     return [(code, at, shown, block_reason or reasons.get(at)
-             or (_reason(code) if NOT_RUN in code else None), tuple(prints.get(at, ())))
-            for code, at, shown in commands]
+             or (_reason(code) if NOT_RUN in code else None), tuple(prints.get(at, ())),
+             quick.get(at)) for code, at, shown in commands]
+
+
+def _quick(text: str) -> str | None:
+    """The quick options a README comment in ``text`` gives, or None."""
+    found = QUICK.search(text.split("#", 1)[1]) if "#" in text else None
+    return found.group(1) if found else None
 
 
 def _comment(lines: list[str], i: int) -> str:
@@ -221,18 +250,28 @@ def _run(snippet: Snippet, cwd: Path) -> subprocess.CompletedProcess:
     if snippet.language == "python":
         argv = [str(VENV_BIN / "python"), "-c", snippet.code]
     else:
-        argv = [shutil.which("bash") or "/bin/bash", "-c", snippet.code]
+        argv = [shutil.which("bash") or "/bin/bash", "-c", snippet.command]
     done = subprocess.run(argv, cwd=cwd, env=_environment(cwd), capture_output=True, text=True,
                           timeout=TIMEOUT_S)
     assert done.returncode == 0, (
-        f"README line {snippet.line} exited with {done.returncode}:\n{snippet.code}\n"
+        f"README line {snippet.line} exited with {done.returncode}:\n{snippet.command}\n"
         f"--- stdout\n{done.stdout[-3000:]}\n--- stderr\n{done.stderr[-3000:]}")
     return done
 
 
-def _params() -> list:
+#: README blocks holding a recipe with quick options (:data:`QUICK`): their commands run in
+#: tests/test_readme_recipes.py, a module of its own, so that the suite's workers (``--dist
+#: loadfile``: a module runs on one worker) run them beside this module's commands.
+RECIPE_BLOCKS = frozenset(s.block for s in SNIPPETS if s.quick)
+
+
+def snippet_params(recipes: bool) -> list:
+    """The snippets of the recipe blocks (``recipes``) or of the other blocks, as pytest
+    parameters (the long ones marked ``readme_long``)."""
     marks = []
     for s in SNIPPETS:
+        if (s.block in RECIPE_BLOCKS) != recipes:
+            continue
         long = s.language == "bash" and (s.code.startswith(LONG) or (
             s.code.startswith("simenv score ") and "--no-physics" not in s.code))
         marks.append(pytest.param(s, id=s.id,
@@ -240,9 +279,16 @@ def _params() -> list:
     return marks
 
 
-@pytest.mark.parametrize("snippet", _params())
+@pytest.mark.parametrize("snippet", snippet_params(recipes=False))
 def test_readme_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
     """The snippet exits with 0 (after the earlier commands of its block) and prints what the
+    README shows of its output."""
+    run_snippet(snippet, clone, ran)
+
+
+def run_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
+    """Run ``snippet`` in ``clone`` after the earlier commands of its block not yet ``ran``
+    (skipped when the README says it is not run), print its CPU time and check what the
     README shows of its output."""
     if snippet.not_run:
         pytest.skip(f"README: {snippet.not_run}")
@@ -256,7 +302,8 @@ def test_readme_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     ran.add(snippet.line)
     cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-    print(f"README line {snippet.line}: {cpu:.1f} s of CPU")
+    quick = f" (with the README's quick options {snippet.quick})" if snippet.quick else ""
+    print(f"README line {snippet.line}{quick}: {cpu:.1f} s of CPU")
     for text in snippet.prints:
         assert text in done.stdout, (
             f"README line {snippet.line} says it prints {text!r}; it printed:\n{done.stdout}")
@@ -280,17 +327,24 @@ def test_readme_extraction() -> None:
         "```", "## Use", "```bash", "cmd --x \\", "    --y   # note", '# {"k": 1, "v": ...}',
         "cmd two  # not run by tests/test_readme.py: a browser", "cmd three",
         "# prints `3 done` (and more)",
-        "# not run by tests/test_readme.py: a", "# cluster", "cmd four", "```",
+        "# not run by tests/test_readme.py: a", "# cluster", "cmd four", "cmd five \\",
+        "    --long  # the full run; quick: `--epochs 1`", "cmd six  # slow",
+        "   # quick: `--steps 5 --x 'a b'`", "```",
         "```python", "import simenv", "```", "```text", "simenv info FILE", "```"])
     snippets = readme_snippets(text)
     assert [(s.language, s.line, s.section, s.not_run) for s in snippets] == [
         ("bash", 4, "Title", "root needed"), ("bash", 8, "Use", None),
         ("bash", 11, "Use", "a browser"), ("bash", 12, "Use", "a cluster"),
-        ("bash", 16, "Use", None), ("python", 19, "Use", None)]
+        ("bash", 16, "Use", None), ("bash", 17, "Use", None), ("bash", 19, "Use", None),
+        ("python", 23, "Use", None)]
     assert snippets[3].prints == ("3 done",)
+    assert [s.quick for s in snippets[4:7]] == [None, "--epochs 1", "--steps 5 --x 'a b'"]
+    assert snippets[4].command == snippets[4].code
+    assert snippets[5].command == "cmd five --long --epochs 1"
+    assert snippets[6].command == "cmd six --steps 5 --x 'a b'"
     assert snippets[1].code == "cmd --x \\\n    --y   # note"
     assert _expected(snippets[1].expected) == {"k": 1, "v": None}
-    assert synopsis_lines(text) == [(22, "simenv info FILE")]
+    assert synopsis_lines(text) == [(26, "simenv info FILE")]
 
 
 def _parser_of(words: list[str]):
