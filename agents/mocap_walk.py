@@ -23,14 +23,21 @@ step the servo targets are ::
     u = u*(t) - K(t) dx,   dx = (mj_differentiatePos(x*_q, x_q), x_v - x*_v)
 
 (``x*`` interpolated between its stored steps). The feedback absorbs what differs from the
-offline run: the seams between primitives (one cycle's end state is not exactly the next
-one's start), the room's model and the body's drift. Primitives join at the gait phases
-they were cut at (:attr:`Primitive.phase_in` / :attr:`Primitive.phase_out`, the left or
-the right foot at mid-swing); every primitive also exists mirrored left to right
-(:func:`mirror`), so the right bend is the tracked left one reflected and a walk can start
-and stop on either foot (half-cycle lengths). :func:`compose` picks the sequence whose
-predicted end (:class:`Anchors`) is nearest the goal, and at every seam
-:class:`MocapWalkPlan` re-picks the bend of the next cycle from where the body really is.
+offline run: the room's model and the body's drift. It does not absorb a seam between two
+states of the tracked run: pieces join only where one starts on the other's last tracked
+state (:func:`seam_rms` within :data:`SEAM_TOL_RAD`, :attr:`Anchors.join`), i.e. in the
+order they were tracked (``start`` -> ``half_c`` -> ``half_b`` -> ``half_a`` / ``straight``
+-> ``half_d`` / ``left``, each half cycle ending at the left or the right foot's mid-swing,
+:attr:`Primitive.phase_in` / :attr:`Primitive.phase_out`), and a stop after a piece whose
+last state it was tracked from. Joining any two pieces at the same gait phase (one cycle's
+end state is 0.12-0.2 rad rms from another cycle's start, up to 0.64 rad at a foot; a
+mirrored piece's up to 1.7 rad at the neck) fell in 4 of 8 composed walks on open floor,
+and blending the reference across such a seam (the offset fading over 0.3 or 0.6 s) in 6-8
+of 8 (measured). Every primitive also exists mirrored left to right (:func:`mirror`), so
+the right bend is the tracked left one reflected and a walk can start on either foot;
+mirrored pieces join mirrored ones. :func:`compose` picks the sequence whose predicted end
+(:class:`Anchors`) is nearest the goal, and at every seam :class:`MocapWalkPlan` re-picks
+the rest of the walk (stop now or walk on, and how) from where the body really is.
 
 Replayed in the room from the tracked run's own first state, the stored targets alone
 reproduce the tracked run to the millimetre for 5 s (the room's agent is the same model;
@@ -40,21 +47,14 @@ Nothing but the agent's servos and its contacts acts on it: the plan's feedback 
 :class:`~simenv.agents.walk.GaitMeter`, which measures the external help (0 N) and the
 pelvis's height every physics step.
 
-Stops: the library holds one stop per walking primitive (``stop_after_<name>``, tracked
-from that primitive's last tracked state, :attr:`Primitive.after`), and a stop is played
-only after its own primitive (a single stop cut from the main run, entered at a seam, fell
-in 8 of 8 composed walks on open floor, measured).
+Stops: the library holds one stop per walking phase it can end in (``stop_after_<name>``,
+tracked from that piece's last tracked state, :attr:`Primitive.after`; ``half_d`` ends on
+``straight``'s last state and shares its stop). A stop after a right mid-swing walks one
+more cycle than one after a left mid-swing (the tracked reference comes to rest after a
+right foot's swing): 1.5 m against 0.9 m.
 
-Measured (benchmarks/bench_mocap_walk.py and short replays, 1 thread): the start from
-the room's standing agent and the gait cycles hold (1.2 m/s along the path, 0 N of
-help). Standing to standing without a fall: ``start`` + its stop (2.26 m in 5.5 s, and
-mirrored), ``start_short`` + its stop (and mirrored), ``start`` + ``straight`` + its stop,
-``start`` + ``half_a`` + its stop; the benchmark's straight walk ends 0.04 m from its goal.
-Still falling: after the seams ``start_short`` -> ``half_b`` (``start_short`` ends while
-the body is still speeding up) and ``start`` -> ``left``, in the stop that follows; the
-shortest walk is ``start_short`` + its stop, 2.2 m, so a nearer goal is overshot; and the
-stop after ``start_short`` mirrored fell in the room's window walk (on open floor it
-stands).
+Measured (``benchmarks/bench_mocap_walk.py``, 1 thread, shared machine; the figures in
+docs/room.md): see the module's tests and the walking section of docs/room.md.
 """
 
 from __future__ import annotations
@@ -94,6 +94,9 @@ FEEDBACK_CLIP_RAD = 0.3
 UNFED = ("clavicle", "upper_arm", "forearm", "hand")
 #: Body dimensions may differ from the library's by this much (m) and still replay.
 DIMS_TOL_M = 1e-3
+#: Largest seam (:func:`seam_rms`) a composed walk may have, rad: pieces join only where
+#: the first starts on the other's last tracked state (float32 storage: 1e-7 rad).
+SEAM_TOL_RAD = 1e-3
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:
@@ -323,6 +326,12 @@ def _then(a: Frame, b: Frame) -> Frame:
     return a[0] + b[0], _rot(a[0]) @ b[1] + a[1]
 
 
+def seam_rms(a: Primitive, b: Primitive) -> float:
+    """Root mean square of the hinge angles' differences (rad) between ``a``'s last
+    stored state and ``b``'s first."""
+    return float(np.sqrt(np.mean((a.qpos[-1, 7:] - b.qpos[0, 7:]) ** 2)))
+
+
 class Anchors:
     """Where each primitive of ``lib`` has ``h``'s :data:`ANCHOR_KEYPOINTS` on the floor at
     its first and last stored step ((K, 2), m), and the placements joining them: ``join[a,
@@ -338,7 +347,7 @@ class Anchors:
         self.join: dict[tuple[str, str], Frame] = {}
         for a, pa in lib.primitives.items():
             for b, pb in lib.primitives.items():
-                if pa.phase_out == pb.phase_in != "stand":
+                if pa.phase_out == pb.phase_in != "stand" and seam_rms(pa, pb) <= SEAM_TOL_RAD:
                     self.join[a, b] = fit_frame(self.first[b], self.last[a])
         self.sites = idx
 
@@ -351,23 +360,20 @@ class Anchors:
         return _rot(f[0]) @ self.end[names[-1]] + f[1]
 
 
-def _sequences(lib: Library, max_cycles: int) -> list[list[str]]:
-    """Every phase-consistent sequence start .. stop with at most ``max_cycles`` primitives
-    between them."""
-    prims = lib.primitives
-    by_phase: dict[str, list[str]] = {}
-    for n, p in prims.items():
-        if p.phase_in != "stand" and p.phase_out != "stand":
-            by_phase.setdefault(p.phase_in, []).append(n)
-    stops = {ph: [n for n, p in prims.items() if p.phase_out == "stand" and p.phase_in == ph]
-             for ph in ("left", "right")}
+def _sequences(anchors: Anchors, max_cycles: int) -> list[list[str]]:
+    """Every sequence start .. stop with at most ``max_cycles`` primitives between them
+    whose seams all join (:attr:`Anchors.join`: the same tracked state)."""
+    prims = anchors.lib.primitives
+    nxt: dict[str, list[str]] = {}
+    for a, b in anchors.join:
+        nxt.setdefault(a, []).append(b)
     out: list[list[str]] = []
 
     def extend(seq: list[str], depth: int) -> None:
-        phase = prims[seq[-1]].phase_out
-        out.extend([*seq, e] for e in stops[phase] if prims[e].after in (None, seq[-1]))
-        if depth < max_cycles:
-            for n in by_phase.get(phase, []):
+        for n in nxt.get(seq[-1], []):
+            if prims[n].phase_out == "stand":
+                out.append([*seq, n])
+            elif depth < max_cycles:
                 extend([*seq, n], depth + 1)
 
     for n, p in prims.items():
@@ -386,7 +392,7 @@ def compose(anchors: Anchors, keypoints: np.ndarray, goal: np.ndarray,
     best, cost, err = None, np.inf, np.inf
     frames = {n: fit_frame(anchors.first[n], keypoints) for n, p in lib.primitives.items()
               if p.phase_in == "stand"}
-    for seq in _sequences(lib, max_cycles):
+    for seq in _sequences(anchors, max_cycles):
         end = anchors.predicted_end(seq, frames[seq[0]])
         e = float(np.linalg.norm(end - goal))
         c = e + SECOND_M * sum(lib.seconds(n) for n in seq)
@@ -396,20 +402,17 @@ def compose(anchors: Anchors, keypoints: np.ndarray, goal: np.ndarray,
     return best, err
 
 
-def _stop_after(lib: Library, name: str) -> str | None:
-    """The stop tracked after primitive ``name``, if any."""
-    return next((n for n, p in lib.primitives.items() if p.after == name), None)
-
-
 class MocapWalkPlan:
     """The primitives ``names`` played on the agent (module docstring), with the
     interface of a :class:`~simenv.agents.reach.PDPlan` (``duration``, ``grasps``,
     ``feedback``, :meth:`control`).
 
-    At each seam the next primitive is placed where the body is (its first pelvis pose on
-    the measured pelvis); when ``goal`` is given, a cycle whose phases allow it is
-    re-picked among the cycles of the same duration (straight, bend left, bend right) as
-    the one whose sequence then ends nearest the goal.
+    At each seam the next primitive is placed where the body is (its first keypoints on
+    the measured ones); when ``goal`` is given, the rest of the walk is re-chosen there
+    among the joined sequences that begin with the pieces played (:func:`compose`'s, with
+    at most :data:`MAX_CYCLES` pieces between start and stop) as the one whose predicted
+    end is nearest the goal, so :attr:`duration` may change at a seam (read it every
+    step).
     """
 
     def __init__(self, room: Room, data: mujoco.MjData, names: list[str],
@@ -429,6 +432,7 @@ class MocapWalkPlan:
         self._shadow_at: tuple[str, int] = ("", -1)
         self._shadow_u = np.zeros(self._model.nu)
         self.anchors = anchors_of(lib, room.agent)
+        self._options = _sequences(self.anchors, MAX_CYCLES)
         self._cur = -1
         self._anchor = (0.0, np.zeros(2))
         self._dq = np.zeros(room.agent.nv)
@@ -452,7 +456,7 @@ class MocapWalkPlan:
         """Place primitive ``i`` on the measured body (re-picking its bend)."""
         anc = self.anchors
         kp = data.site_xpos[self.room.agent_sites[anc.sites], :2]
-        if self.goal is not None and 0 < i < len(self.names) - 1:
+        if self.goal is not None and i > 0:
             self._repick(i, kp)
         name = self.names[i]
         self._anchor = fit_frame(anc.first[name], kp)
@@ -462,25 +466,23 @@ class MocapWalkPlan:
         self.seams.append((t, name, float(q[0]), float(q[1]), quat_yaw(q[3:7])))
 
     def _repick(self, i: int, kp: np.ndarray) -> None:
-        prims = self.lib.primitives
-        cur = prims[self.names[i]]
-        options = [n for n, p in prims.items() if p.phase_in == cur.phase_in
-                   and p.phase_out == cur.phase_out and p.knots == cur.knots]
-        rest = self.names[i + 1:]
-        best, cost = (self.names[i], rest), np.inf
-        for n in options:
-            tail = rest
-            if prims[rest[0]].after is not None:  # the stop tracked after ``n``
-                stop = _stop_after(self.lib, n)
-                if stop is None:
-                    continue
-                tail = [stop, *rest[1:]]
-            end = self.anchors.predicted_end([n, *tail], fit_frame(self.anchors.first[n], kp))
+        """The rest of the walk from piece ``i`` on re-chosen, among the sequences that
+        begin with the pieces played so far, as the one whose predicted end from the
+        measured keypoints ``kp`` (K, 2) is nearest the goal."""
+        played = self.names[:i]
+        best, cost = self.names[i:], np.inf
+        for seq in self._options:
+            if seq[:i] != played or len(seq) <= i:
+                continue
+            end = self.anchors.predicted_end(seq[i:], fit_frame(self.anchors.first[seq[i]], kp))
             c = float(np.linalg.norm(end - self.goal))
             if c < cost - 1e-9:
-                best, cost = (n, tail), c
-        self.names[i] = best[0]
-        self.names[i + 1:] = best[1]
+                best, cost = seq[i:], c
+        self.names[i:] = best
+        st = self.lib.stride
+        self._starts = np.concatenate([[0], np.cumsum([self.lib.primitives[n].knots * st
+                                                       for n in self.names])])
+        self.duration = float(self._starts[-1] * self.lib.dt) + SETTLE_S
 
     def _reference(self, p: Primitive, s: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                         int]:

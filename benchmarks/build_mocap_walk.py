@@ -22,7 +22,9 @@ What it does, deterministically (seeded planner, one fixed clip):
    distance) is retried with the next seed;
 5. cuts the tracked run at the cycle boundaries into the primitives ``start`` (standing
    to the end of the first full cycle), ``start_short``, ``straight``, ``half_a``,
-   ``half_b`` and ``left`` (:data:`CUTS`);
+   ``half_b``, ``left`` and the half cycles ``half_c`` and ``half_d`` that chain them in
+   the run's order (:data:`CUTS`: the walk joins pieces only where one starts on the
+   other's last tracked state);
 6. tracks one stop after each of them (:data:`STOP_AFTER`, :func:`track_stop`: from its
    last tracked state, the same planner and seed), and gives every primitive
    time-varying feedback gains: discrete LQR (:func:`lqr_gains`) on
@@ -214,6 +216,20 @@ def double_support(h: Humanoid, cyc: np.ndarray) -> int:
     return int(np.argmin(z))
 
 
+def clip_at(cyc: np.ndarray, adv: np.ndarray, tau: float) -> np.ndarray:
+    """(nq,) the looped clip (cycle ``cyc`` (P, nq), advancing ``adv`` (2,) m a cycle) at
+    (fractional) frame ``tau``, walking straight."""
+    P = len(cyc)
+    k = int(np.floor(tau))
+    c, f = divmod(k, P)
+    c1, f1 = divmod(k + 1, P)
+    a = cyc[f].copy()
+    a[:2] += c * adv
+    b = cyc[f1].copy()
+    b[:2] += c1 * adv
+    return _blend(a, b, tau - k)
+
+
 def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
                         cycles: tuple[int, ...] = CYCLES) -> tuple[np.ndarray, dict]:
     """The reference (T, nq) at ``fps`` (module docstring, 3) and the times (s) of the
@@ -223,15 +239,7 @@ def composite_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: floa
     P = len(cyc)
 
     def clip(tau: float) -> np.ndarray:
-        """The looped clip at (fractional) frame ``tau`` (straight)."""
-        k = int(np.floor(tau))
-        c, f = divmod(k, P)
-        c1, f1 = divmod(k + 1, P)
-        a = cyc[f].copy()
-        a[:2] += c * adv
-        b = cyc[f1].copy()
-        b[:2] += c1 * adv
-        return _blend(a, b, tau - k)
+        return clip_at(cyc, adv, tau)
 
     stand = standing_pose(h)
     start_stand = _place_standing(h, stand, clip(0.0))
@@ -404,6 +412,10 @@ def lqr_gains(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, ctrl: n
 #: [3, 4) the left bend, [4, 5) straight, the slow-down ends in the double support after
 #: 5.5; the right bend is the left one mirrored
 #: (:mod:`simenv.agents.mocap_walk`), as are the primitives joining at the other foot.
+#: ``half_c`` ([1, 1.5)) and ``half_d`` ([2.5, 3)) chain the others in the run's order:
+#: start -> half_c -> half_b -> half_a or straight -> half_d or left (pieces of different
+#: cycles at the same phase differ by 0.12-0.2 rad rms and joined there fell in 4 of 8
+#: composed walks, measured).
 CUTS: dict[str, tuple[float | None, float | None, str, str]] = {
     "start": (None, 1.0, "stand", "left"),
     "start_short": (None, 0.5, "stand", "right"),
@@ -411,14 +423,17 @@ CUTS: dict[str, tuple[float | None, float | None, str, str]] = {
     "half_a": (2.0, 2.5, "left", "right"),
     "half_b": (1.5, 2.0, "right", "left"),
     "left": (3.0, 4.0, "left", "left"),
+    "half_c": (1.0, 1.5, "left", "right"),
+    "half_d": (2.5, 3.0, "right", "left"),
 }
-#: The stops: one tracking run after each walking primitive (name -> the stop that
-#: follows it), from the primitive's last tracked state, of the reference's tail from the
-#: same gait phase (cycle 5.0 after a left mid-swing, 4.5 after a right one) to the end
-#: (the slow-down and standing). Cut from the main run after one kind of piece only, the
-#: stop fell after every other kind (and, entered at a seam, after that kind too): 8 of 8
-#: composed walks on open floor fell in the stop (measured).
-STOP_AFTER = ("start", "start_short", "straight", "half_a", "half_b", "left")
+#: The stops: one tracking run after each walking primitive that ends where no other
+#: stop starts (``half_d`` ends on ``straight``'s last state), from its last tracked
+#: state, of the reference's tail from the same gait phase (cycle 5.0 after a left
+#: mid-swing, 4.5 after a right one) to the end (the slow-down and standing). Cut from the
+#: main run after one kind of piece only, the stop fell after every other kind (and,
+#: entered at a seam, after that kind too): 8 of 8 composed walks on open floor fell in
+#: the stop (measured).
+STOP_AFTER = ("start", "start_short", "straight", "half_a", "half_b", "left", "half_c")
 #: Physics steps between stored steps (and per feedback gain).
 STRIDE = 5
 
@@ -458,6 +473,63 @@ def track_stop(h: Humanoid, base: RetargetResult, q: np.ndarray, taus: np.ndarra
         if bool(out["ok"]):
             break
     return out
+def halt_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
+                   at: np.ndarray) -> np.ndarray:
+    """(T, nq) a stop from a right mid-swing as short as those from a left one: the looped
+    clip from its right mid-swing (frame P / 2) slowed to rest (minimum-jerk speed over
+    :data:`DECEL_S`) in the double support as the left foot lands after its swing (frame
+    P + :func:`double_support`), then :data:`END_S` still; placed on the floor onto the
+    pose ``at`` (nq,) as :func:`stop_reference` places its tail. The stops of
+    :data:`STOP_AFTER` from a right mid-swing walk one more cycle (their reference comes to
+    rest after a right swing); coming to rest as the right foot itself lands (0.15 s after
+    mid-swing) would stop 1.2 m/s within 0.3 s."""
+    from simenv.agents.mocap_walk import ANCHOR_KEYPOINTS, fit_frame
+
+    P = len(cyc)
+    tau0 = 0.5 * P
+    end_tau = tau0 + 0.5 * P + double_support(h, cyc)
+    decel_s = min(DECEL_S, 2.0 * (end_tau - tau0) / fps)
+    tau, frames, dt = tau0, [], 1.0 / fps
+    while tau + 1 < end_tau - fps * decel_s / 2:
+        frames.append(clip_at(cyc, adv, tau))
+        tau += 1
+    for t in np.arange(0, decel_s, dt):
+        frames.append(clip_at(cyc, adv, tau))
+        tau += fps * dt * (1 - min_jerk(t / decel_s))
+    last = clip_at(cyc, adv, tau)
+    frames += [last] * int(round(END_S * fps))
+    tail = np.array(frames)
+    idx = [list(h.keypoint_names).index(k) for k in ANCHOR_KEYPOINTS]
+    psi, off = fit_frame(h.keypoints(tail[0])[idx, :2], h.keypoints(at)[idx, :2])
+    c, sn = np.cos(psi), np.sin(psi)
+    tail[:, :2] = tail[:, :2] @ np.array([[c, sn], [-sn, c]]) + off
+    for i in range(len(tail)):
+        tail[i, 3:7] = _qmul(_quat_z(psi), tail[i, 3:7])
+    return tail
+
+
+#: The short stops (``halt_after_<piece>``, :func:`halt_reference`): one tracking run after
+#: each piece ending at a right mid-swing.
+HALT_AFTER = ("start_short", "half_c", "half_a")
+
+
+def track_halt(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndarray,
+               fps: float, taus: np.ndarray, run: dict[str, np.ndarray], after: str,
+               seed: int, tries: int, log: Path | None) -> dict[str, np.ndarray]:
+    """The tracked short stop after primitive ``after`` (:data:`HALT_AFTER`), as
+    :func:`track_stop` but of :func:`halt_reference`."""
+    dt = float(run["dt"])
+    step = int(round(int(np.searchsorted(taus, CUTS[after][1])) / fps / dt / STRIDE)) * STRIDE
+    state = (run["qpos"][step].copy(), run["qvel"][step].copy())
+    tail = halt_reference(h, cyc, adv, fps, state[0])
+    for s in range(seed, seed + tries):
+        out = track_reference(h, base, tail, fps, s, log, state=state)
+        out["seed"] = np.array(s)
+        if bool(out["ok"]):
+            break
+    return out
+
+
 #: Rank of the gains' basis over time. Measured on the start's first 2 s in the tracked
 #: model, pushed sideways 0.2 m/s: the pelvis 0.27 m off the tracked run after 2 s with
 #: the full gains (Q 10 / 50 / 0.1), 0.28 m at rank 100, 0.35 at rank 40; at rank 5 (99.9 %
@@ -484,8 +556,9 @@ def _advance(h: Humanoid, q0: np.ndarray, q1: np.ndarray) -> list[float]:
 def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps: float,
                   out: Path, provenance: dict, stops: dict[str, dict[str, np.ndarray]]
                   ) -> dict:
-    """Cut the tracked ``run`` into :data:`CUTS`, add the tracked ``stops`` (name of the
-    primitive each follows -> its run, :func:`track_stop`), give them LQR gains and write
+    """Cut the tracked ``run`` into :data:`CUTS`, add the tracked ``stops`` (their names,
+    ``stop_after_<piece>`` or ``halt_after_<piece>`` -> its run, :func:`track_stop`,
+    :func:`track_halt`), give them LQR gains and write
     the library to ``out`` (:data:`simenv.agents.mocap_walk.LIBRARY`'s JSON); returns its
     metadata."""
     from simenv.agents.mocap_walk import body_signature, pack_array
@@ -516,8 +589,8 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
                       fb, STRIDE)
         for k in range(len(g)):
             gain_at[a + k * STRIDE] = g[k]
-    stop_gains = {a: lqr_gains(model, sr["qpos"], sr["qvel"], sr["ctrl"], fb, STRIDE)
-                  for a, sr in stops.items()}
+    stop_gains = {n: lqr_gains(model, sr["qpos"], sr["qvel"], sr["ctrl"], fb, STRIDE)
+                  for n, sr in stops.items()}
     used = sorted(gain_at)
     flat = np.concatenate([np.array([gain_at[k] for k in used]).reshape(len(used), -1),
                            *[g.reshape(len(g), -1) for g in stop_gains.values()]])
@@ -538,11 +611,11 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
             "phase_in": CUTS[name][2], "phase_out": CUTS[name][3],
             "steps": [int(a), int(b)], "seconds": (b - a) * dt,
             "advance": _advance(h, run["qpos"][a], run["qpos"][b])}
-    for after, srun in stops.items():
-        name = f"stop_after_{after}"
+    for name, srun in stops.items():
+        after = name.split("_after_", 1)[1]
         b = len(srun["qpos"]) - 1
         k = np.arange(0, b - b % STRIDE + 1, STRIDE)
-        gk = stop_gains[after][: len(k)].reshape(len(k), -1)
+        gk = stop_gains[name][: len(k)].reshape(len(k), -1)
         arrays[f"{name}_qpos"] = srun["qpos"][k].astype(np.float32)
         arrays[f"{name}_qvel"] = srun["qvel"][k].astype(np.float32)
         arrays[f"{name}_ctrl"] = srun["ctrl"][k].astype(np.float32)
@@ -614,25 +687,32 @@ def main() -> int:
         "generator": "benchmarks/build_mocap_walk.py", "seed": int(run["seed"]),
         "planner": "simenv.control.TrackingMPC, MPCConfig defaults but seed",
         "turn_deg": TURN_DEG, "cycles": list(CYCLES), "stop_after": list(STOP_AFTER),
+        "halt_after": list(HALT_AFTER),
         "tracked_mean_err_m": float(run["err"].mean()),
         "tracked_max_err_m": float(run["err"].max()),
         "tracking_wall_s": float(run["wall_s"]),
         "lqr": {"q_pos": Q_POS, "q_root": Q_ROOT, "q_vel": Q_VEL, "r_ctrl": R_CTRL}}
     taus = np.asarray(times["taus"])
     stops = {}
-    for after in STOP_AFTER:  # each tracked run is cached beside the main one
-        path = args.tracked.with_name(f"{args.tracked.stem}_stop_{after}.npz")
-        if not path.exists():
-            np.savez(path, **track_stop(h, base, q, taus, fps, run, after, args.seed,
-                                        args.tries, args.log))
-        stops[after] = dict(np.load(path))
-        with args.log.open("a") as f:
-            f.write(f"stop after {after}: ok={bool(stops[after]['ok'])} seed "
-                    f"{int(stops[after]['seed'])} mean err {stops[after]['err'].mean():.3f} "
-                    f"max {stops[after]['err'].max():.3f}\n")
-        if not bool(stops[after]["ok"]):
-            print(f"the tracker failed the stop after {after} on every seed: no library")
-            return 1
+    for kind, afters in (("stop", STOP_AFTER), ("halt", HALT_AFTER)):
+        for after in afters:  # each tracked run is cached beside the main one
+            name = f"{kind}_after_{after}"
+            suffix = f"stop_{after}" if kind == "stop" else name
+            path = args.tracked.with_name(f"{args.tracked.stem}_{suffix}.npz")
+            if not path.exists():
+                out = (track_stop(h, base, q, taus, fps, run, after, args.seed, args.tries,
+                                  args.log) if kind == "stop" else
+                       track_halt(h, base, cyc, adv, fps, taus, run, after, args.seed,
+                                  args.tries, args.log))
+                np.savez(path, **out)
+            stops[name] = dict(np.load(path))
+            sr = stops[name]
+            with args.log.open("a") as f:
+                f.write(f"{name}: ok={bool(sr['ok'])} seed {int(sr['seed'])} mean err "
+                        f"{sr['err'].mean():.3f} max {sr['err'].max():.3f}\n")
+            if not bool(sr["ok"]):
+                print(f"the tracker failed {name} on every seed: no library")
+                return 1
     t0 = time.perf_counter()
     meta = build_library(h, run, taus, fps, args.out, provenance, stops)
     with args.log.open("a") as f:
