@@ -588,10 +588,11 @@ def run_fold(recordings: Sequence[Recording], fold: int | None, config: TrainCon
 
 def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
                    config: TrainConfig | None = None, folds: Sequence[int] = range(5),
-                   retrain: bool = False, progress: bool = True) -> dict[str, Any]:
+                   retrain: bool = False, progress: bool = True,
+                   eval_stride: int = EVAL_STRIDE) -> dict[str, Any]:
     """Leave-subjects-out evaluation: per fold, the model trained without its subjects
     (read from ``out/fold{K}/model.npz``, trained when missing or ``retrain``) scored on
-    that fold's Kinect windows; plus all folds pooled.
+    that fold's Kinect windows (every ``eval_stride`` frames); plus all folds pooled.
 
     Returns:
         ``{"folds": {K: evaluate-table}, "pooled": {group: table}, "train_cpu_s": {K: s},
@@ -600,7 +601,8 @@ def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
     config = config or TrainConfig()
     skipped: list[str] = []
     recordings = load_sequences(data, skipped=skipped)
-    result: dict[str, Any] = {"folds": {}, "train_cpu_s": {}, "skipped": skipped}
+    result: dict[str, Any] = {"folds": {}, "train_cpu_s": {}, "skipped": skipped,
+                              "eval_stride": eval_stride}
     for k in folds:
         path = fold_dir(k, out) / "model.npz"
         if retrain or not path.is_file():
@@ -612,7 +614,7 @@ def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
         if held & trained_on:
             raise SimenvError(f"fold {k} checkpoint was trained on held-out subjects "
                               f"{sorted(held & trained_on)}", source=path)
-        windows, names = eval_windows(test_recs)
+        windows, names = eval_windows(test_recs, stride=eval_stride)
         result["folds"][k] = evaluate(model, windows, names, retrieval_baselines(
             train_recs, model.history_len, model.future_len))
         result["train_cpu_s"][k] = model.metadata.get("train_cpu_s")
@@ -881,7 +883,8 @@ def write_doc(path: Path, result: dict[str, Any], command: str, root_mode: str) 
         f"{datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC; do not edit by hand.", "",
         "Protocol: leave-subjects-out, 5 folds (`simenv.data.gestures.subject_fold`); the model of "
         "fold K (`out/gesture-predictor/fold{K}/model.npz`) never saw fold K's subjects and "
-        "is scored on every 75-frame window (stride 5 frames) of their Kinect recordings "
+        "is scored on every 75-frame window (stride "
+        f"{result.get('eval_stride', EVAL_STRIDE)} frames) of their Kinect recordings "
         "(UTKinect whole sessions, MSR Action3D clips >= 3 s). Florence 3D has no clip "
         "of 3 s, so it is in neither training nor this table. ZV = zero-velocity, "
         "CV = constant-velocity (last frame-to-frame step).", "",
@@ -935,6 +938,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=None, help="shared data folder")
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--steps", type=int, default=TrainConfig.steps)
+    parser.add_argument("--eval-stride", type=int, default=EVAL_STRIDE, help=(
+        "with --evaluate: frames between evaluated windows (a quick run: 25; default "
+        f"{EVAL_STRIDE})"))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--horizon-weight", type=float, default=TrainConfig.horizon_weight)
     parser.add_argument("--speed-weight", type=float, default=TrainConfig.speed_weight)
@@ -961,7 +967,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 "observer_input": args.observer_input})
     if args.evaluate:
         result = evaluate_folds(data, out=args.out, config=config,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, eval_stride=args.eval_stride)
         result["commit"] = git_commit()
         (args.out / "folds.json").write_text(json.dumps(result, indent=1, default=str))
         print(markdown_table(result, args.root_mode))
