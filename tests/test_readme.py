@@ -226,9 +226,10 @@ def clone(tmp_path_factory: pytest.TempPathFactory, shared_data: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def ran() -> set[int]:
-    """README lines of the snippets already run in this module's clone."""
-    return set()
+def ran() -> dict[int, bool]:
+    """README lines of the snippets already run in this module's clone: whether each
+    exited with 0."""
+    return {}
 
 
 def _environment(cwd: Path) -> dict[str, str]:
@@ -280,27 +281,33 @@ def snippet_params(recipes: bool) -> list:
 
 
 @pytest.mark.parametrize("snippet", snippet_params(recipes=False))
-def test_readme_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
+def test_readme_snippet(snippet: Snippet, clone: Path, ran: dict[int, bool]) -> None:
     """The snippet exits with 0 (after the earlier commands of its block) and prints what the
     README shows of its output."""
     run_snippet(snippet, clone, ran)
 
 
-def run_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
+def run_snippet(snippet: Snippet, clone: Path, ran: dict[int, bool]) -> None:
     """Run ``snippet`` in ``clone`` after the earlier commands of its block not yet ``ran``
-    (skipped when the README says it is not run), print its CPU time and check what the
-    README shows of its output."""
+    (skipped when the README says it is not run; failed when one of those failed, which
+    is not run again), print its CPU time and check what the README shows of its output."""
     if snippet.not_run:
         pytest.skip(f"README: {snippet.not_run}")
     for earlier in SNIPPETS:
         if earlier.block == snippet.block and earlier.line < snippet.line \
-                and earlier.line not in ran and not earlier.not_run:
-            _run(earlier, clone)
-            ran.add(earlier.line)
+                and not earlier.not_run:
+            if earlier.line not in ran:
+                ran[earlier.line] = False
+                _run(earlier, clone)
+                ran[earlier.line] = True
+            if not ran[earlier.line]:
+                pytest.fail(f"README line {earlier.line}, before this command in its block, "
+                            "failed")
+    ran[snippet.line] = False
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     done = _run(snippet, clone)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    ran.add(snippet.line)
+    ran[snippet.line] = True
     cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     quick = f" (with the README's quick options {snippet.quick})" if snippet.quick else ""
     print(f"README line {snippet.line}{quick}: {cpu:.1f} s of CPU")
@@ -321,7 +328,8 @@ def run_snippet(snippet: Snippet, clone: Path, ran: set[int]) -> None:
 
 
 def test_readme_extraction() -> None:
-    """Continuation lines, shown output and the three places of a not-run reason."""
+    """Continuation lines, shown output, the three places of a not-run reason and the two of
+    quick options."""
     text = "\n".join([
         "# Title", "```bash", "# (not run by tests/test_readme.py: root needed)", "make a",
         "```", "## Use", "```bash", "cmd --x \\", "    --y   # note", '# {"k": 1, "v": ...}',

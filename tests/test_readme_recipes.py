@@ -13,7 +13,8 @@ from test_readme import Snippet, clone, ran, run_snippet, snippet_params  # noqa
 
 
 @pytest.mark.parametrize("snippet", snippet_params(recipes=True))
-def test_readme_recipe(snippet: Snippet, clone: Path, ran: set[int]) -> None:  # noqa: F811
+def test_readme_recipe(snippet: Snippet, clone: Path, ran: dict[int, bool]  # noqa: F811
+                       ) -> None:
     """The recipe's command exits with 0 (after the earlier commands of its block), run with
     its quick options."""
     run_snippet(snippet, clone, ran)
