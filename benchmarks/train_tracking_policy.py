@@ -67,6 +67,8 @@ TWO_PERSON: tuple[str, ...] = (
 TRAIN_CLIPS: tuple[str, ...] = ALL_CLEAN[1::2] + TWO_PERSON
 #: Seconds of a failed run's recording dropped before the failure.
 FALL_DROP_S = 0.5
+#: Least feature scale in the normalisation (m, rad, m/s alike; about 3 degrees or 5 cm).
+STD_FLOOR = 0.05
 #: The planner the data come from: FAST with one rollout thread per process.
 EXPERT = replace(FAST, nthread=1)
 
@@ -150,7 +152,8 @@ def fit(args: argparse.Namespace) -> None:
     files = sorted(f for r in args.rounds for f in (OUT / f"round{r}").glob("*.npz"))
     X = np.concatenate([np.load(f)["features"] for f in files]).astype(np.float64)
     Y = np.concatenate([np.load(f)["offsets"] for f in files]).astype(np.float64)
-    mean, std = X.mean(0), X.std(0) + 1e-3
+    # A feature nearly constant over the training clips must not blow up elsewhere.
+    mean, std = X.mean(0), np.maximum(X.std(0), STD_FLOOR)
     limit = EXPERT.limit_rad
     Xt = torch.tensor((X - mean) / std, dtype=torch.float32)
     # Targets as tanh pre-activations, clipped short of the limit.
