@@ -252,14 +252,19 @@ def test_helper_joint_named_like_its_bone_is_not_ambiguous() -> None:
     assert canonical["right_ankle"] == "Character1_RightFoot"
 
 
-def test_stray_end_far_off_the_wrist_is_not_a_hand() -> None:
-    """SNU MRL's walk: the right hand's End Site is 1.6 m off the wrist (the left one is
-    where a hand is): no hand keypoint rather than one across the room."""
+def test_stray_or_stub_end_of_the_wrist_is_not_a_hand() -> None:
+    """SNU MRL's walk: the right hand's End Site is 1.6 m off the wrist, the left one 9 mm:
+    neither says where a hand is, so neither is a hand keypoint (one across the room, one a
+    stub the fit would take for an observed hand); the feet's ends stay."""
     motion = simenv.load(MASS / "mass_walk.bvh")
     canonical = motion.skeleton.canonical
-    assert "right_hand" not in canonical and canonical["left_hand"] == "Character1_LeftHand_end"
+    assert "right_hand" not in canonical and "left_hand" not in canonical
+    assert canonical["left_toe"] == "Character1_LeftToeBase"
     notes = motion.metadata["joint_map"]["notes"]
-    assert any(n.startswith("right_hand -> Character1_RightHand_end dropped") for n in notes)
+    assert any(n.startswith("right_hand -> Character1_RightHand_end dropped: 1.618 m")
+               for n in notes)
+    assert any(n.startswith("left_hand -> Character1_LeftHand_end dropped: 0.009 m")
+               for n in notes)
 
 
 @needs_data

@@ -470,12 +470,14 @@ def _ends_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tre
                 canonical[f"{side}_{inner}"], how[f"{side}_{inner}"] = tree.names[j], HOW_TOPOLOGY
 
 
-def _drop_far_ends(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
-                   pos: np.ndarray, notes: list[str]) -> set[str]:
-    """Drop a hand or toe farther from the wrist or ankle than the forearm or shank is long
-    (median over the clip): no hand or forefoot is, so the joint is a rig's stray end
-    (SNU MRL's MASS walk: ``Character1_RightHand_end`` 1.6 m off the wrist). The
-    topology step may then find a nearer one.
+def _drop_stray_ends(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
+                     pos: np.ndarray, notes: list[str]) -> set[str]:
+    """Drop a hand or toe that is no hand or forefoot (medians over the clip): one farther
+    from the wrist or ankle than the forearm or shank is long (a rig's stray end: SNU MRL's
+    MASS walk, ``Character1_RightHand_end`` 1.6 m off the wrist), or one within a tenth of
+    that length of it (a stub End Site on the joint: MASS's left hands, 1 cm off; a hand
+    keypoint there says nothing of where the hand is, so the hand is not judged as placed
+    by the source). The topology step may then find a better one.
 
     Args:
         pos: (T, J, 3) positions, metres.
@@ -492,12 +494,15 @@ def _drop_far_ends(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
             iu, ia, ib = (tree.index[j] for j in (u, a, b))
             limb = float(np.median(np.linalg.norm(pos[:, ia] - pos[:, iu], axis=-1)))
             end = float(np.median(np.linalg.norm(pos[:, ib] - pos[:, ia], axis=-1)))
-            if end > limb > 0:
-                notes.append(f"{side}_{inner} -> {b} dropped: {end:.2f} m from the {outer}, "
-                             f"longer than the {upper}-{outer} segment ({limb:.2f} m)")
-                del canonical[f"{side}_{inner}"]
-                how.pop(f"{side}_{inner}", None)
-                dropped.add(b)
+            if limb <= 0 or 0.1 * limb <= end <= limb:
+                continue
+            what = (f"longer than the {upper}-{outer} segment" if end > limb
+                    else f"under a tenth of the {upper}-{outer} segment")
+            notes.append(f"{side}_{inner} -> {b} dropped: {end:.3f} m from the {outer}, "
+                         f"{what} ({limb:.2f} m)")
+            del canonical[f"{side}_{inner}"]
+            how.pop(f"{side}_{inner}", None)
+            dropped.add(b)
     return dropped
 
 
@@ -722,9 +727,10 @@ def infer_joint_map(names: Sequence[str], parents: Sequence[int],
                          "and head were found from the hierarchy and the pose")
     _check_chains(canonical, how, tree, notes)
     _spine_by_topology(canonical, how, tree, rest)
-    far = _drop_far_ends(canonical, how, tree, pos, notes) if positions is not None else set()
+    stray = (_drop_stray_ends(canonical, how, tree, pos, notes) if positions is not None
+             else set())
     if rest is not None:
-        _ends_by_topology(canonical, how, tree, rest, far)
+        _ends_by_topology(canonical, how, tree, rest, stray)
     ordered = {k: canonical[k] for k in CANONICAL_KEYPOINTS if k in canonical}
     return JointMapping(ordered, {k: how[k] for k in ordered}, convention, tuple(notes))
 
