@@ -17,12 +17,15 @@ servos and contacts acts on it):
 * on open floor (:data:`OPEN_GOALS`: the same room 16 m square, the agent at (-6, -4)
   facing east, far from the furniture): eight goals 2.5-5 m ahead and up to 1.5 m aside.
 
-The primitives' walk is measured alone (``mocap``) and followed by the stepping gait's
+The primitives' walk is measured alone (``mocap``: it heads where the body faces), after
+the stepping gait's turn on the spot to face the goal when it is more than
+:data:`simenv.agents.walk.ALIGN_DEG` off (``turn+mocap``), and followed by the stepping gait's
 walk onto the goal when it ends more than 0.15 m off and standing (``mocap+step``: the
 stop that corrects the remaining offset, :func:`simenv.agents.walk.plan_walk`, facing the
 walk's heading).
 
-Per walk and gait: simulated seconds, wall seconds (1 thread) and their ratio, the mean
+Per walk and gait: simulated seconds, wall and CPU seconds (1 thread) and their ratios to
+it (CPU: the cost on one core, whatever else the machine runs), the mean
 speeds, whether it fell, the lowest pelvis height, the pelvis's distance from the goal at
 the end, the largest external help on any physics step (N), when it fell and, for the
 primitives, the sequence planned and played (and the piece it fell in). Speeds: the
@@ -48,9 +51,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from simenv.agents.gait import standing_agent
+from simenv.agents.gait import standing_agent, wrap_angle
 from simenv.agents.mocap_walk import Library, load_library, plan_mocap_walk
-from simenv.agents.walk import plan_walk
+from simenv.agents.walk import ALIGN_DEG, plan_walk
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
 from simenv.room.scenario import Scenario, load_scenario
@@ -105,24 +108,41 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
     data = standing_agent(room, np.array(start), yaw)
     goal_a = np.array(goal)
     heading = float(np.arctan2(*(goal_a - start)[::-1]))
-    if gait.startswith("mocap"):
+    path: list = []
+    extra: dict[str, Any] = {}
+    t0, c0 = time.perf_counter(), time.process_time()
+    sim, fell_at, turn = 0.0, None, None
+    if gait == "turn+mocap" and abs(wrap_angle(heading - yaw)) > np.deg2rad(ALIGN_DEG):
+        turn = plan_walk(room, data, np.array(start), heading)  # on the spot
+        sim, fell_at = _play(room, data, turn, path, 0.0)
+        extra["turn_s"] = sim
+        if turn.feedback.fallen():
+            extra["fell_in"] = "turn"
+            plan: Any = turn
+    if extra.get("fell_in") == "turn":
+        more = 0.0
+    elif "mocap" in gait:
         plan = plan_mocap_walk(room, data, goal_a, lib)
-        extra: dict[str, Any] = {"planned": list(plan.names)}
+        extra["planned"] = list(plan.names)
     else:
         plan = plan_walk(room, data, goal_a, heading)
-        extra = {"steps": len(plan.steps)}
-    path: list = []
-    t0 = time.perf_counter()
-    sim, fell_at = _play(room, data, plan, path, 0.0)
+        extra["steps"] = len(plan.steps)
+    if "fell_in" not in extra:
+        more, fell1 = _play(room, data, plan, path, sim)
+        sim += more
+        fell_at = fell_at if fell_at is not None else fell1
     out = plan.feedback.outcome(data)
     help_max = plan.feedback.summary()["max_n"]
-    if gait.startswith("mocap"):
+    if turn is not None:
+        help_max = max(help_max, turn.feedback.summary()["max_n"])
+    if "mocap" in gait and "planned" in extra:
         extra["seams"] = [[round(float(x), 3) if isinstance(x, float) else x for x in s]
                           for s in plan.seams]
         extra["played"] = plan.names  # the tail re-chosen at the seams
         if fell_at is not None:
-            extra["fell_in"] = [s[1] for s in plan.seams if s[0] <= fell_at][-1]
-        extra["walk_s"], extra["walk_goal_error_m"] = sim, out["goal_error_m"]
+            extra["fell_in"] = [s[1] for s in plan.seams if s[0] <= fell_at - (sim - more)
+                                ][-1]
+        extra["walk_s"], extra["walk_goal_error_m"] = more, out["goal_error_m"]
     if gait == "mocap+step" and not out["fell"] and out["goal_error_m"] > CORRECT_M:
         try:
             fix = plan_walk(room, data, goal_a, heading)
@@ -139,12 +159,13 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
         out["lowest_pelvis_m"] = min(out["lowest_pelvis_m"], plan.feedback.lowest_m)
         help_max = max(help_max, fix.feedback.summary()["max_n"])
         extra["correction_s"], extra["correction_steps"] = more, len(fix.steps)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     path_a = np.array([*path, data.qpos[room.agent_qpos][:2].copy()])
     dist = float(np.linalg.norm(np.diff(path_a, axis=0), axis=1).sum())
     net = float(np.linalg.norm(path_a[-1] - path_a[0]))
     return {"gait": gait, "simulated_s": sim, "wall_s": wall,
-            "cost_x_real_time": wall / sim, "distance_m": dist,
+            "cost_x_real_time": wall / sim, "cpu_s": cpu, "cpu_x_real_time": cpu / sim,
+            "distance_m": dist,
             "path_speed_mps": dist / sim, "net_m": net,
             "net_speed_mps": net / sim, **out, "fell_at_s": fell_at,
             "help_max_n": help_max, **extra}
@@ -168,7 +189,7 @@ BEGIN, END = "<!-- mocap-walk:begin (benchmarks/bench_mocap_walk.py) -->", "<!--
 
 def table(rows: list[dict[str, Any]]) -> str:
     """The rows as a markdown table (one line per walk and gait)."""
-    head = ("| walk | gait | simulated s | wall / simulated | fell | from the goal m | net m/s | "
+    head = ("| walk | gait | simulated s | CPU / simulated | fell | from the goal m | net m/s | "
             "path m/s | help max N | pieces played |")
     lines = [head, "| " + " | ".join(["---"] * 10) + " |"]
     for r in rows:
@@ -180,7 +201,8 @@ def table(rows: list[dict[str, Any]]) -> str:
         if r.get("fell_in"):
             played += f"; fell in {r['fell_in']}"
         lines.append(f"| {r['walk']} | {r['gait']} | {r['simulated_s']:.1f} | "
-                     f"{r['cost_x_real_time']:.2f} | {r['fell']} | {r['goal_error_m']:.2f} | "
+                     f"{r.get('cpu_x_real_time', r['cost_x_real_time']):.2f} | {r['fell']} | "
+                     f"{r['goal_error_m']:.2f} | "
                      f"{r['net_speed_mps']:.2f} | {r['path_speed_mps']:.2f} | "
                      f"{r['help_max_n']:.0f} | {played} |")
     return "\n".join(lines)
@@ -190,16 +212,17 @@ def write_docs(path: Path, rows: list[dict[str, Any]], command: str) -> None:
     """Replace the text between :data:`BEGIN` and :data:`END` in ``path`` with the table."""
     text = path.read_text()
     a, b = text.index(BEGIN) + len(BEGIN), text.index(END)
-    body = (f"\n\nGenerated by `{command}` (1 thread, shared machine under load: wall "
-            f"times are noisy).\n\n{table(rows)}\n\n")
+    body = (f"\n\nGenerated by `{command}` (1 thread, shared machine under load; CPU "
+            f"seconds of the walk's process per simulated second).\n\n{table(rows)}\n\n")
     path.write_text(text[:a] + body + text[b:])
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("out/bench_mocap_walk"))
-    parser.add_argument("--gaits", nargs="*", default=["mocap", "mocap+step", "stepping"],
-                        choices=["mocap", "mocap+step", "stepping"],
+    parser.add_argument("--gaits", nargs="*",
+                        default=["mocap", "turn+mocap", "mocap+step", "stepping"],
+                        choices=["mocap", "turn+mocap", "mocap+step", "stepping"],
                         help="which gaits (the stepping gait takes minutes a walk)")
     parser.add_argument("--walks", nargs="*", default=[*WALKS, "open"],
                         help=f"names among {list(WALKS)} and 'open' (the open-floor goals)")
