@@ -129,7 +129,7 @@ class Primitive:
             m, turn rad). mirrored: the tracked primitive reflected left to right
             (:func:`mirror`; its gains are on the library's mirrored basis). after: for a
             stop, the primitive it was tracked after (it starts on that one's last state
-            and is played after it only), else None.
+            and follows only a piece ending there, :attr:`Anchors.join`), else None.
     """
 
     name: str
@@ -341,7 +341,9 @@ def seam_rms(a: Primitive, b: Primitive) -> float:
 class Anchors:
     """Where each primitive of ``lib`` has ``h``'s :data:`ANCHOR_KEYPOINTS` on the floor at
     its first and last stored step ((K, 2), m), and the placements joining them: ``join[a,
-    b]`` takes ``b``'s coordinates into ``a``'s with ``b``'s first pose on ``a``'s last."""
+    b]`` takes ``b``'s coordinates into ``a``'s with ``b``'s first pose on ``a``'s last,
+    for the pairs that may join (``b`` starts on ``a``'s last tracked state: phases equal,
+    :func:`seam_rms` within :data:`SEAM_TOL_RAD`)."""
 
     def __init__(self, lib: Library, h: Humanoid) -> None:
         names = list(h.keypoint_names)
@@ -557,9 +559,9 @@ def plan_mocap_walk(room: Room, data: mujoco.MjData, goal: np.ndarray,
     """Plan for walking the standing agent towards ``goal`` (x, y, m) with the primitives
     (module docstring): the sequence :func:`compose` picks from where the pelvis is and
     where it heads. It starts straight ahead, so face the goal first (a turn on the
-    spot, :func:`simenv.agents.walk.turn_steps`) unless the bends should bring it round;
-    the pelvis ends within about half a step of the goal (``feedback.outcome``), the rest
-    is a step for the stepping gait.
+    spot, :func:`simenv.agents.walk.turn_steps`); the pelvis ends where the nearest chain
+    of pieces ends (``feedback.outcome``: 0.12-0.35 m off on open floor, measured), in
+    stride, a stance the stepping gait cannot start from (module docstring).
 
     Raises:
         SimenvError: the agent is not standing, or the library was built for another
