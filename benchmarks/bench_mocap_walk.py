@@ -35,7 +35,11 @@ simulated time.
 Usage::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_mocap_walk.py \\
-        [--out out/bench_mocap_walk] [--gaits mocap mocap+step stepping] [--walks NAME ...]
+        [--out out/bench_mocap_walk] [--gaits mocap turn+mocap mocap+step stepping] \\
+        [--walks NAME ... open] [--library FILE] [--rows EARLIER.json ...] [--docs docs/room.md]
+
+The table in docs/room.md: the primitives' gaits in one run, the stepping gait's rows (it
+takes 1-2 min of simulation a walk) from a ``--gaits stepping`` run merged with ``--rows``.
 """
 
 from __future__ import annotations
