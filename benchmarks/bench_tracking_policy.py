@@ -146,7 +146,8 @@ def summary(args: argparse.Namespace) -> None:
     totals = {}
     for t in trackers:
         rs = [by[(c, t)] for c in clips if (c, t) in by]
-        cpu = sum(r["cpu_s"] for r in rs) / sum(r["simulated_s"] for r in rs)
+        # Per simulated second actually stepped (a failed run stops early).
+        cpu = sum(r["cpu_s"] for r in rs) / sum(r["cpu_s"] / r["cpu_ratio"] for r in rs)
         totals[t] = cpu
         extra = (f", fallback {np.mean([r['fallback_fraction'] for r in rs]):.2f} of the steps"
                  if t == "policy" else "")
