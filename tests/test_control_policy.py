@@ -107,3 +107,19 @@ def test_bad_policy_input_is_a_typed_error(policy, walk_2s_retargeted, tmp_path)
         track_policy(walk_2s_retargeted, short, max_seconds=0.1)
     with pytest.raises(PhysicsError, match="release_m"):
         PolicyConfig(engage_m=0.05, release_m=0.1)
+
+
+def test_shipped_policy_fits_a_fitted_body(walk_2s_retargeted):
+    """The trained policy (assets/models/tracking-policy.npz, its card beside it) reads the
+    features of another fitted body and drives it, alone, through the walk's first 0.1 s."""
+    from importlib import resources
+
+    path = resources.files("simenv.assets") / "models" / "tracking-policy.npz"
+    if not path.is_file():
+        pytest.skip("assets/models/tracking-policy.npz is not shipped")
+    assert "split" in path.with_name("tracking-policy.md").read_text().lower()
+    shipped = TrackingPolicy.load(path)
+    run = track_policy(walk_2s_retargeted, shipped, PolicyConfig(engage_m=np.inf,
+                                                                  planner=PLANNER),
+                       max_seconds=0.1)
+    assert run.policy_steps == 50 and run.result.success
