@@ -25,8 +25,9 @@ greeted, idle greeted, decision time after the clip's start (the labelled onset)
 from its checkpoint) on the MSRC-12 clips, which no shipped recogniser trained on:
 accuracy in ``real_3s`` / ``real_1s`` and the loop's greetings.
 
-``docs``: the section of docs/recognition.md between the markers, from ``OUT/scores.json``
-and ``OUT/shipped.json``.
+``docs [--lso-scores FILE]``: the section of docs/recognition.md between the markers, from
+``OUT/scores.json``, ``OUT/shipped.json`` and a ``benchmarks/loop_variants.py``
+``scores.jsonl`` (its member sets' leave-subjects-out loop).
 """
 
 from __future__ import annotations
@@ -221,8 +222,9 @@ def cmd_shipped(args: argparse.Namespace) -> None:
     path.write_text(json.dumps(rows, indent=1))
 
 
-def section(out: Path, command: str) -> str:
-    """The generated docs section (markdown, between the markers)."""
+def section(out: Path, command: str, lso_scores: str | None = None) -> str:
+    """The generated docs section (markdown, between the markers); ``lso_scores``: a
+    ``benchmarks/loop_variants.py`` ``scores.jsonl`` whose member sets are listed."""
     result = json.loads((out / "scores.json").read_text())
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True, cwd=REPO).stdout.strip()
@@ -276,12 +278,30 @@ def section(out: Path, command: str) -> str:
                          f"{_greeted(*r['other_clips'])} ({r['threshold']}) | "
                          f"{u['real_3s']:.3f} / {u['real_1s']:.3f} | "
                          f"{_greeted(*u['greet_clips'])} / {_greeted(*u['other_clips'])} |")
+    if lso_scores is not None:
+        lines += ["", "The room's recipe shortened as here (20 epochs, no per-fold forecaster), "
+                  "leave-subjects-out on the room's corpus, per member set "
+                  f"(`benchmarks/loop_variants.py score MEMBER [MEMBER] --window-rule mean --json`, "
+                  f"rows of `{lso_scores}`): what the input changes at equal recipe.", "",
+                  "| members | canonical body | waves greeted | other actions greeted | idle "
+                  "greeted | decision after onset, s (median / p90) |", "|---|---|---|---|---|---|"]
+        seen = {}
+        for line in Path(lso_scores).read_text().splitlines():
+            row = json.loads(line)
+            seen[" + ".join(row["members"])] = row  # the last score of a member set
+        for key, r in seen.items():
+            config = json.loads((Path(lso_scores).parent / r["members"][0] / "config.json")
+                                .read_text())
+            m = r["decision_after_onset_s"]
+            lines.append(f"| {key} | {'yes' if config.get('canonical_body') else 'no'} | "
+                         f"{_greeted(*r['greet_clips'])} | {_greeted(*r['other_clips'])} | "
+                         f"{_greeted(*r['idle_clips'])} | {m['median']} / {m['p90']} |")
     return "\n".join(lines + [END])
 
 
 def cmd_docs(args: argparse.Namespace) -> None:
     text = DOC.read_text()
-    new = section(Path(args.out), args.command_line)
+    new = section(Path(args.out), args.command_line, args.lso_scores)
     if BEGIN in text:
         head, rest = text.split(BEGIN, 1)
         text = head + new + rest.split(END, 1)[1]
@@ -307,6 +327,7 @@ def main() -> None:
     p.add_argument("checkpoints", nargs="+")
     p.add_argument("--label", help="row name (default: the file's stem)")
     p = sub.add_parser("docs")
+    p.add_argument("--lso-scores", help="a loop_variants scores.jsonl to list (optional)")
     p.add_argument("--command-line", default="python benchmarks/cross_dataset_loop.py docs",
                    help="the commands to name in the section's header")
     args = parser.parse_args()
