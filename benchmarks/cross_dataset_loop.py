@@ -281,7 +281,8 @@ def section(out: Path, command: str, lso_scores: str | None = None) -> str:
     if lso_scores is not None:
         lines += ["", "The room's recipe shortened as here (20 epochs, no per-fold forecaster), "
                   "leave-subjects-out on the room's corpus, per member set "
-                  f"(`benchmarks/loop_variants.py score MEMBER [MEMBER] --window-rule mean --json`, "
+                  "(`benchmarks/loop_variants.py score MEMBER [MEMBER] --window-rule mean "
+                  f"--json`, "
                   f"rows of `{lso_scores}`): what the input changes at equal recipe.", "",
                   "| members | canonical body | waves greeted | other actions greeted | idle "
                   "greeted | decision after onset, s (median / p90) |", "|---|---|---|---|---|---|"]
