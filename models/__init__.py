@@ -34,7 +34,7 @@ INTERACTION_MODELS: dict[str, tuple[str, str, str]] = {
 
 #: Name prefixes of shipped checkpoints and what they hold.
 KINDS: tuple[str, ...] = ("predictor-", "gesture-classifier", "gesture-tcn",
-                         *INTERACTION_MODELS)
+                         "tracking-policy", *INTERACTION_MODELS)
 
 
 def _folder() -> Path:
@@ -80,8 +80,9 @@ def load(name: str) -> Any:
     probabilities), ``gesture-tcn-ensemble`` the room's recogniser, TCNs run as one
     :class:`simenv.models.skeleton_tcn.SkeletonTCNEnsemble`; ``gesture-classifier`` gives a
     :class:`simenv.models.gesture_classifier.GestureClassifier` (``classify_world``,
-    ``predict_proba``, ``features``); an :data:`INTERACTION_MODELS` name gives that
-    two-person model.
+    ``predict_proba``, ``features``); ``tracking-policy`` the learned tracking policy
+    :class:`simenv.control.policy.TrackingPolicy` (an experiment, not used in scoring:
+    docs/tracking_speed.md); an :data:`INTERACTION_MODELS` name gives that two-person model.
 
     Raises:
         SimenvError: unknown name (the message lists the available ones).
@@ -112,6 +113,10 @@ def load(name: str) -> Any:
         from simenv.models.skeleton_tcn import SkeletonTCN
 
         return SkeletonTCN.load(path)
+    if name.startswith("tracking-policy"):
+        from simenv.control.policy import TrackingPolicy
+
+        return TrackingPolicy.load(path)
     if name.startswith("gesture-classifier"):
         from simenv.models.gesture_classifier import GestureClassifier
 

@@ -110,15 +110,17 @@ def test_bad_policy_input_is_a_typed_error(policy, walk_2s_retargeted, tmp_path)
 
 
 def test_shipped_policy_fits_a_fitted_body(walk_2s_retargeted):
-    """The trained policy (assets/models/tracking-policy.npz, its card beside it) reads the
-    features of another fitted body and drives it, alone, through the walk's first 0.1 s."""
-    from importlib import resources
+    """The trained policy (assets/models/tracking-policy.npz, its card beside it), loaded by
+    name as every shipped model, reads the features of another fitted body and drives it,
+    alone, through the walk's first 0.1 s."""
+    import simenv.models
 
-    path = resources.files("simenv.assets") / "models" / "tracking-policy.npz"
-    if not path.is_file():
+    if "tracking-policy" not in simenv.models.available():
         pytest.skip("assets/models/tracking-policy.npz is not shipped")
-    assert "split" in path.with_name("tracking-policy.md").read_text().lower()
-    shipped = TrackingPolicy.load(path)
+    path = simenv.models.checkpoint_path("tracking-policy")
+    assert "split" in path.with_suffix(".md").read_text().lower()
+    shipped = simenv.models.load("tracking-policy")
+    assert isinstance(shipped, TrackingPolicy)
     run = track_policy(walk_2s_retargeted, shipped, PolicyConfig(engage_m=np.inf,
                                                                   planner=PLANNER),
                        max_seconds=0.1)

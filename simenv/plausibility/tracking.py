@@ -57,6 +57,7 @@ import math
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -167,6 +168,32 @@ def _work(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     return float(p[p > 0].sum())
 
 
+class Tracker(Protocol):
+    """What drives the simulated body in a tracking run: :class:`simenv.control.TrackingMPC`,
+    or anything with its interface (:class:`simenv.control.policy.PolicyTracker`).
+
+    ``config.retries`` / ``config.rewind_s`` say whether and how far a failed run rewinds
+    (to states the body reached itself, with the plan taken by ``snapshot`` then)."""
+
+    config: MPCConfig
+
+    @property
+    def rollout_steps(self) -> int:
+        """Planning-model steps rolled out so far."""
+
+    def control(self, data: mujoco.MjData, step: int) -> np.ndarray:
+        """(nu,) servo targets for physics step ``step``."""
+
+    def snapshot(self) -> Any:
+        """The tracker's state, for :meth:`restore`."""
+
+    def restore(self, snapshot: Any) -> None:
+        """Go back to a state taken by :meth:`snapshot`."""
+
+    def close(self) -> None:
+        """Release the tracker's threads."""
+
+
 def _controller(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
                 max_seconds: float | None, controller: str, mpc: MPCConfig | None
                 ) -> tuple[TrackingReference, TrackingMPC | None, mujoco.MjModel]:
@@ -200,7 +227,7 @@ def _mocap_path(result: RetargetResult, ref: TrackingReference
 
 
 def _advance(model: mujoco.MjModel, data: mujoco.MjData, ref: TrackingReference,
-             planner: TrackingMPC | None, k: int,
+             planner: Tracker | None, k: int,
              mocap: tuple[np.ndarray, np.ndarray] | None, work: float) -> tuple[float, float]:
     """Step the physics from reference frame ``k - 1`` to ``k``.
 
@@ -257,7 +284,7 @@ class _Checkpoint:
 
 
 def _rewind(run: _Run, checkpoints: list[_Checkpoint], frame: int, back: int,
-            model: mujoco.MjModel, data: mujoco.MjData, planner: TrackingMPC) -> int:
+            model: mujoco.MjModel, data: mujoco.MjData, planner: Tracker) -> int:
     """Put the body and the plan back to the latest checkpoint at least ``back`` frames
     before ``frame`` (the first one if none is that early); forget what came after.
     Returns the checkpoint's frame."""
@@ -275,7 +302,7 @@ def _rewind(run: _Run, checkpoints: list[_Checkpoint], frame: int, back: int,
 
 
 def _simulate(result: RetargetResult, ref: TrackingReference, model: mujoco.MjModel,
-              planner: TrackingMPC | None, thresholds: BodyThresholds, assist: bool,
+              planner: Tracker | None, thresholds: BodyThresholds, assist: bool,
               bar: tqdm, frame0: int = 0) -> _Run:
     """Run the controller from the first reference state over the reference frames
     1 .. n_frames - 1 (``bar`` counts them; an error names frame ``frame0 + k``, the
@@ -527,20 +554,43 @@ def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
                progress: bool, frame0: int = 0) -> TrackingResult:
     """One simulation from ``result``'s first frame (:func:`track`'s whole-clip run; a
     segment's, whose first frame is the clip's ``frame0``)."""
-    h = result.humanoid
     ref, planner, model = _controller(result, thresholds, assist, max_seconds, controller, mpc)
+    return run_tracker(result, ref, model, planner, thresholds, controller, assist=assist,
+                       progress=progress, frame0=frame0)
+
+
+def run_tracker(result: RetargetResult, ref: TrackingReference, model: mujoco.MjModel,
+                tracker: Tracker | None, thresholds: BodyThresholds, name: str, *,
+                assist: bool = False, progress: bool = False, frame0: int = 0
+                ) -> TrackingResult:
+    """One simulation of ``ref`` from its first state, driven by ``tracker`` (None: the PD
+    servos on the reference targets), judged as :func:`track` judges; closes ``tracker``.
+
+    Args:
+        result: the retargeted clip ``ref`` was made from (its humanoid, name, frames).
+        ref: the reference per physics step.
+        model: the simulated model (``tracker.model`` for a planner; the assisted model
+            with ``assist``).
+        tracker: what drives the body (:class:`Tracker`).
+        thresholds: failure distance and gravity.
+        name: the result's ``controller`` field and the progress bar's label.
+        assist: measure the root assistance (``model`` has its weld; PD only).
+        progress: show a progress bar over the reference frames.
+        frame0: the clip's frame ``result``'s first frame is (errors name clip frames).
+    """
+    h = result.humanoid
     fps, n_frames = ref.fps, ref.n_frames
     wall = time.perf_counter()
-    bar = tqdm(total=n_frames - 1, desc=f"track {result.name} ({controller})",
+    bar = tqdm(total=n_frames - 1, desc=f"track {result.name} ({name})",
                unit="frame", disable=not progress)
     try:
-        run = _simulate(result, ref, model, planner, thresholds, assist, bar, frame0)
+        run = _simulate(result, ref, model, tracker, thresholds, assist, bar, frame0)
     finally:
         bar.close()
-        if planner is not None:
-            planner.close()
+        if tracker is not None:
+            tracker.close()
     wall = time.perf_counter() - wall
-    rolled = planner.rollout_steps if planner is not None else 0
+    rolled = tracker.rollout_steps if tracker is not None else 0
     failed_at = run.failed_at
     tracked = n_frames if failed_at is None else failed_at + (0 if run.error else 1)
     ok = failed_at is None
@@ -560,7 +610,7 @@ def _track_run(result: RetargetResult, thresholds: BodyThresholds, assist: bool,
         steps=run.steps,
         wall_s=wall,
         sim_keypoints=full,
-        controller=controller,
+        controller=name,
         work_j=run.work,
         work_j_per_kg=run.work / h.total_mass,
         retries=run.retries,
