@@ -30,7 +30,8 @@ Usage (about 1-2 min of CPU per 4-s clip; run it niced, one process)::
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev2
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout2
     .venv/bin/python benchmarks/other_lab_survey.py --docs-only \\
-        --before out/other_lab/before.jsonl --posthoc out/other_lab/posthoc.jsonl
+        --before out/other_lab/before.jsonl out/other_lab/dev2_before.jsonl \\
+        --posthoc out/other_lab/posthoc.jsonl out/other_lab/posthoc2.jsonl
 
 (``before.jsonl``: the development set scored by the code before the fixes, ``--out`` of
 that run; ``posthoc.jsonl``: held-out clips rescored after a change a held-out failure
@@ -235,11 +236,14 @@ def score_file(key: str, lab: str, role: str, path: Path, max_seconds: float
                 "cpu_s": round(time.process_time() - t0, 1)}
         return row
     rec = report.to_records()[0]
-    quirks = [q for q in info.get("quirks", []) if "up axis" in q]
+    quirks = info.get("quirks", [])
+    up = ("z (detected)" if any(q.startswith("up axis Z") for q in quirks) else
+          "y (from the motion)" if any(q.startswith("rest pose is no standing body")
+                                       for q in quirks) else "y")
     floor = [r for r in clip.metadata.get("repairs", []) if "simenv.io.floor" in r]
     row |= {
         "convention": _convention(info), "units": info.get("units_in_file"),
-        "up": "z (detected)" if quirks else "y", "stature_m": info.get("stature_m"),
+        "up": up, "stature_m": info.get("stature_m"),
         "fps": clip.fps, "seconds": round(motion.duration, 2),
         "source_seconds": round(clip.duration, 2), "floor_repair": floor[0] if floor else None,
         "verdict": rec["verdict"],
@@ -328,13 +332,17 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
             lines += [f"**{title}**: {_count(sel)}.", "", *_table(sel), ""]
         if sel and role in ("dev", "dev2") and before:
             lines += _before_lines(rows, before, role)
-    if posthoc:
-        held = {r["key"]: r for r in rows.values() if r["role"] == "heldout"}
-        merged = list((held | posthoc).values())
-        lines += ["**Held-out clips rescored after a change prompted by a held-out failure** "
+    for role, title in (("heldout", "Held-out set"),
+                        ("heldout2", "Second survey, held-out set")):
+        redone = {k: r for k, r in (posthoc or {}).items() if r["role"] == role}
+        if not redone:
+            continue
+        held = {r["key"]: r for r in rows.values() if r["role"] == role}
+        merged = list((held | redone).values())
+        lines += [f"**{title}: clips rescored after a change prompted by a held-out failure** "
                   "(not held out for that change; the clips whose loaded motion it changes): "
-                  f"{_count(list(posthoc.values()))}; the held-out set with these rows: "
-                  f"{_count(merged)}.", "", *_table(list(posthoc.values())), ""]
+                  f"{_count(list(redone.values()))}; the held-out set with these rows: "
+                  f"{_count(merged)}.", "", *_table(list(redone.values())), ""]
     return "\n".join(lines).rstrip()
 
 
@@ -360,9 +368,9 @@ def main() -> None:
     ap.add_argument("--before", type=Path, nargs="*", default=None, help=(
         "JSONL files of the development sets scored before the fixes: their moved clips "
         "are listed"))
-    ap.add_argument("--posthoc", type=Path, default=None, help=(
-        "JSONL of held-out clips rescored after a change a held-out failure prompted: "
-        "listed apart in the docs"))
+    ap.add_argument("--posthoc", type=Path, nargs="*", default=None, help=(
+        "JSONL files of held-out clips rescored after a change a held-out failure "
+        "prompted: listed apart in the docs, per held-out set"))
     args = ap.parse_args()
     todo: list[tuple[str, str, str, Path]] = []
     if not args.docs_only:
@@ -383,7 +391,8 @@ def main() -> None:
         print(f"{key:32s} {row.get('verdict', 'error'):12s} "
               f"{row.get('score', float('nan')):6.1f}  {_failing(row)}  "
               f"[{row['cpu_s']} s CPU]", flush=True)
-    posthoc = read_rows(args.posthoc) if args.posthoc is not None else None
+    posthoc = ({k: r for f in args.posthoc for k, r in read_rows(f).items()}
+               if args.posthoc else None)
     before = ({k: r for b in args.before for k, r in read_rows(b).items()}
               if args.before else None)
     text = markdown(done, args.max_seconds, posthoc, before)
