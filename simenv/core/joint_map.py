@@ -13,11 +13,14 @@ export) is mapped in three steps, each recorded per keypoint in :class:`JointMap
    Conventions are read whole because the same word means different joints in different
    ones: ``LeftShoulder`` is the clavicle in MotionBuilder, Unity, Xsens and Rokoko rigs and
    the shoulder joint in Kinect and SMPL; ``LeftHand`` is the wrist in a rig and the hand
-   centre in Kinect when a ``WristLeft`` exists.
+   centre in Kinect when a ``WristLeft`` exists. A name several joints answer means the one
+   above all the others (a rig's helper named like its bone hangs below it), else nothing.
 2. **Topology.** ``chest`` is where the two arm chains leave the spine (the lowest common
    ancestor of the shoulders); ``spine`` the first joint above the pelvis on the way to it.
    Chains must run down the tree (hip above knee above ankle above toe, shoulder above elbow
-   above wrist above hand); a keypoint whose joint breaks its chain is dropped.
+   above wrist above hand); a keypoint whose joint breaks its chain is dropped, and so is a
+   hand or toe farther from its wrist or ankle than the segment above is long, or within a
+   tenth of that length (a stray or stub End Site: no hand is there).
 3. **Rest pose** (only when names give no pelvis or no hips): the two leaf chains that end
    lowest are the legs and their common ancestor the pelvis; the branch point of the spine
    is the chest, its two longest branches the arms and the remaining one the neck and head.
