@@ -438,16 +438,12 @@ STOP_AFTER = ("start", "start_short", "straight", "half_a", "half_b", "left", "h
 STRIDE = 5
 
 
-def stop_reference(h: Humanoid, q: np.ndarray, taus: np.ndarray, phase: str,
-                   at: np.ndarray) -> np.ndarray:
-    """(T, nq) the tail of the reference ``q`` (its frames' places ``taus`` in cycles)
-    from the last gait phase ``phase`` before the slow-down, placed on the floor (turned
-    about the vertical and shifted, :func:`simenv.agents.mocap_walk.fit_frame` on the
-    legs' keypoints) onto the pose ``at`` (nq,)."""
+def _placed_on(h: Humanoid, tail: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """``tail`` (T, nq) turned about the vertical and shifted so that its first frame's leg
+    keypoints lie on those of the pose ``at`` (nq,) (:func:`simenv.agents.mocap_walk.fit_frame`);
+    changes ``tail`` in place and returns it."""
     from simenv.agents.mocap_walk import ANCHOR_KEYPOINTS, fit_frame
 
-    i0 = int(np.searchsorted(taus, 5.0 if phase == "left" else 4.5))
-    tail = q[i0:].copy()
     idx = [list(h.keypoint_names).index(k) for k in ANCHOR_KEYPOINTS]
     psi, off = fit_frame(h.keypoints(tail[0])[idx, :2], h.keypoints(at)[idx, :2])
     c, sn = np.cos(psi), np.sin(psi)
@@ -455,6 +451,17 @@ def stop_reference(h: Humanoid, q: np.ndarray, taus: np.ndarray, phase: str,
     for i in range(len(tail)):
         tail[i, 3:7] = _qmul(_quat_z(psi), tail[i, 3:7])
     return tail
+
+
+def stop_reference(h: Humanoid, q: np.ndarray, taus: np.ndarray, phase: str,
+                   at: np.ndarray) -> np.ndarray:
+    """(T, nq) the tail of the reference ``q`` (its frames' places ``taus`` in cycles)
+    from the last gait phase ``phase`` before the slow-down, placed on the floor (turned
+    about the vertical and shifted, :func:`simenv.agents.mocap_walk.fit_frame` on the
+    legs' keypoints) onto the pose ``at`` (nq,)."""
+    i0 = int(np.searchsorted(taus, 5.0 if phase == "left" else 4.5))
+    tail = q[i0:].copy()
+    return _placed_on(h, tail, at)
 
 
 def track_stop(h: Humanoid, base: RetargetResult, q: np.ndarray, taus: np.ndarray,
@@ -483,8 +490,6 @@ def halt_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
     :data:`STOP_AFTER` from a right mid-swing walk one more cycle (their reference comes to
     rest after a right swing); coming to rest as the right foot itself lands (0.15 s after
     mid-swing) would stop 1.2 m/s within 0.3 s."""
-    from simenv.agents.mocap_walk import ANCHOR_KEYPOINTS, fit_frame
-
     P = len(cyc)
     tau0 = 0.5 * P
     end_tau = tau0 + 0.5 * P + double_support(h, cyc)
@@ -499,13 +504,7 @@ def halt_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
     last = clip_at(cyc, adv, tau)
     frames += [last] * int(round(END_S * fps))
     tail = np.array(frames)
-    idx = [list(h.keypoint_names).index(k) for k in ANCHOR_KEYPOINTS]
-    psi, off = fit_frame(h.keypoints(tail[0])[idx, :2], h.keypoints(at)[idx, :2])
-    c, sn = np.cos(psi), np.sin(psi)
-    tail[:, :2] = tail[:, :2] @ np.array([[c, sn], [-sn, c]]) + off
-    for i in range(len(tail)):
-        tail[i, 3:7] = _qmul(_quat_z(psi), tail[i, 3:7])
-    return tail
+    return _placed_on(h, tail, at)
 
 
 #: A tracked stop whose keypoint error passed this at some step is left out of the
