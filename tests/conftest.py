@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-import simenv  # noqa: F401  (chooses MUJOCO_GL before any test module imports mujoco)
+import simenv  # (imported first: chooses MUJOCO_GL before any test module imports mujoco)
 from simenv.core.config import shared_data_root
 
 REPO = Path(__file__).resolve().parent.parent
@@ -109,3 +109,13 @@ def walk_2s_retargeted(walk_2s):
     from simenv.body.retarget import retarget
 
     return retarget(walk_2s)
+
+
+@pytest.fixture(scope="session")
+def walk_1s_report():
+    """:func:`simenv.score` of the bundled real CMU walk 02_01, first 1 s (120 frames at
+    120 fps), with the shipped planner, once per test session (xdist worker): the report and
+    HTML-page tests judge the same run; none of them modifies it."""
+    from simenv.assets import WALK, asset_path
+
+    return simenv.score(simenv.load(asset_path(WALK)).slice(0, 120))
