@@ -130,7 +130,8 @@ def test_benchmark_rejects_unknown_datasets(gesture_root: Path):
 
 
 def test_an_ensemble_benchmark_reports_its_first_networks_alone(gesture_root: Path):
-    config = RecognitionConfig(partial_prob=0.0, max_frames=75, epochs=1)
+    # A thin network: the assertions are about which networks are reported, not accuracy.
+    config = RecognitionConfig(partial_prob=0.0, max_frames=75, epochs=1, width=16)
     pair = run_benchmark("msr_action3d", gesture_root, config, members=2, progress=False)
     one = run_benchmark("msr_action3d", gesture_root, config, members=1, progress=False)
     assert one["smaller_ensembles"] == []
@@ -162,7 +163,10 @@ def test_room_nearest_neighbour_keeps_subjects_apart(utk):
 
 
 def test_room_descriptors_choose_on_training_subjects_only(utk):
-    r = room_descriptors(utk, lie_group=True, progress=False)
+    # Two folds (a documented option): the same per-fold choice on training subjects as
+    # the default five, with fewer fits.
+    r = room_descriptors(utk, lie_group=True, folds=2, progress=False)
+    assert len(r["folds"]) == 2
     assert r["method"] == "covariance and Lie-group descriptors"
     assert r["descriptors"] == ["covariance", "lie group"]
     tested = [s for f in r["folds"] for s in f["test_subjects"]]
