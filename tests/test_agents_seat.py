@@ -108,12 +108,17 @@ def test_act_then_walk_back_and_sit_on_the_chair(label: str, reaction: str, act:
     short = simenv.load(asset_path(WALK)).slice(0, 60)  # the user stays far away
     env = InteractionRoomEnv(short, gestures=[GestureEvent(label, 0.2, 0.5)],
                              scenario="discomfort", predictor="constant-velocity-50")
+    # The reaction the scenario answers ``label`` with (what the labels agent of
+    # simenv.envs.rehearsal decides).
+    assert env.scenario.behaviour.reaction_for(label).name == reaction
     entry, stages = _react_and_return(env, reaction, act)
     assert entry["started"] and entry["gesture"] == label
     assert "assistance" not in stages["stand_up"]  # standing up has no help to measure
     walk = stages["walk"]
     assert not walk["outcome"]["fell"], entry.get("failed_stage")
     assert walk["assistance"]["steps"] > 0 and walk["assistance"]["max_n"] == 0.0
+    # and per frame of the walk (20 physics steps), as summary.json records it
+    assert len(walk["assistance"]["per_frame_n"]) == -(-walk["assistance"]["steps"] // 20)
     start = Room("discomfort")  # where the spot is with the objects as at the start
     d0 = start.make_data()
     mujoco.mj_forward(start.model, d0)
