@@ -84,7 +84,7 @@ def test_rehearse_command_dispatches_to_a_shipped_generator(
     if name not in available():
         pytest.skip(f"{name} is not shipped in assets/models")
     status = cli.main(["rehearse", "cmu_02_01_walk.bvh", "--agent", name, "--out",
-                       str(tmp_path), "--seconds", "1.2", "--shared", str(shared_data),
+                       str(tmp_path), "--seconds", "0.6", "--shared", str(shared_data),
                        "--no-render"])
     assert status == 0
     assert f"{name} answering" in capsys.readouterr().out
