@@ -41,6 +41,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -470,16 +471,29 @@ def track_stop(h: Humanoid, base: RetargetResult, q: np.ndarray, taus: np.ndarra
     """The tracked stop following primitive ``after`` of the main ``run`` (:data:`STOP_AFTER`):
     from its last tracked state, the reference's tail (:func:`stop_reference`); retried
     with the next seed while the tracker fails."""
+    return _track_tail_after(h, base, fps, taus, run, after, seed, tries, log,
+                             lambda at: stop_reference(h, q, taus, CUTS[after][3], at))
+
+
+def _track_tail_after(h: Humanoid, base: RetargetResult, fps: float, taus: np.ndarray,
+                      run: dict[str, np.ndarray], after: str, seed: int, tries: int,
+                      log: Path | None, tail_on: Callable[[np.ndarray], np.ndarray]
+                      ) -> dict[str, np.ndarray]:
+    """The tracked tail ``tail_on(at)`` (T, nq) from the main ``run``'s last tracked state
+    of primitive ``after`` (its pose ``at``); retried with the next seed while the tracker
+    fails."""
     dt = float(run["dt"])
     step = int(round(int(np.searchsorted(taus, CUTS[after][1])) / fps / dt / STRIDE)) * STRIDE
     state = (run["qpos"][step].copy(), run["qvel"][step].copy())
-    tail = stop_reference(h, q, taus, CUTS[after][3], state[0])
+    tail = tail_on(state[0])
     for s in range(seed, seed + tries):
         out = track_reference(h, base, tail, fps, s, log, state=state)
         out["seed"] = np.array(s)
         if bool(out["ok"]):
             break
     return out
+
+
 def halt_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
                    at: np.ndarray) -> np.ndarray:
     """(T, nq) a stop from a right mid-swing as short as those from a left one: the looped
@@ -521,16 +535,8 @@ def track_halt(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndarr
                seed: int, tries: int, log: Path | None) -> dict[str, np.ndarray]:
     """The tracked short stop after primitive ``after`` (:data:`HALT_AFTER`), as
     :func:`track_stop` but of :func:`halt_reference`."""
-    dt = float(run["dt"])
-    step = int(round(int(np.searchsorted(taus, CUTS[after][1])) / fps / dt / STRIDE)) * STRIDE
-    state = (run["qpos"][step].copy(), run["qvel"][step].copy())
-    tail = halt_reference(h, cyc, adv, fps, state[0])
-    for s in range(seed, seed + tries):
-        out = track_reference(h, base, tail, fps, s, log, state=state)
-        out["seed"] = np.array(s)
-        if bool(out["ok"]):
-            break
-    return out
+    return _track_tail_after(h, base, fps, taus, run, after, seed, tries, log,
+                             lambda at: halt_reference(h, cyc, adv, fps, at))
 
 
 #: Rank of the gains' basis over time. Measured on the start's first 2 s in the tracked
