@@ -45,7 +45,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import pickle
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
@@ -96,15 +95,10 @@ from simenv.perception.train_recogniser import (  # noqa: E402
 GESTURES = shared_data_root(None) / "gestures"
 
 
-def _avatars(path: Path, clips: list[Any]) -> list[Any]:
-    """The loop's avatar clips (cached in ``path``; Florence has none)."""
-    if path.is_file():
-        av = pickle.load(path.open("rb"))
-        return av[0] if isinstance(av, tuple) else av
-    av, _ = avatar_clips([c for c in clips if c.dataset != "florence3d"])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    pickle.dump(av, path.open("wb"))
-    return av
+def _avatars(clips: list[Any]) -> list[Any]:
+    """The loop's avatar clips (Florence has none; kept on disk by
+    :func:`simenv.perception.protocol.avatar_clips`)."""
+    return avatar_clips([c for c in clips if c.dataset != "florence3d"])[0]
 
 
 def _readings(model: SkeletonTCN, test: list[Any], avatars: list[Any], k: int
@@ -136,7 +130,7 @@ def _parse_sets(pairs: list[str]) -> dict[str, Any]:
 
 def cmd_train(args: argparse.Namespace) -> None:
     clips = load_gesture_clips(GESTURES, idle=True)
-    avatars = _avatars(Path(args.avatars), clips)
+    avatars = _avatars(clips)
     sets = _parse_sets(args.set) | ({"epochs": args.epochs} if args.epochs else {})
     config = RecognitionConfig(seed=args.seed, **sets)
     forecasters = fold_forecasters(Path(args.forecasters) if args.forecasters else None,
@@ -161,7 +155,7 @@ def cmd_train(args: argparse.Namespace) -> None:
 
 def cmd_import(args: argparse.Namespace) -> None:
     clips = load_gesture_clips(GESTURES, idle=True)
-    avatars = _avatars(Path(args.avatars), clips)
+    avatars = _avatars(clips)
     folder = Path(args.out) / f"{args.tag}_s{args.seed}"
     folder.mkdir(parents=True, exist_ok=True)
     for k, (_, test) in enumerate(split_subject_folds(clips)):
@@ -369,8 +363,6 @@ def cmd_ship(args: argparse.Namespace) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/exp14-loop")
-    parser.add_argument("--avatars", default="out/exp14-loop/avatar_clips.pkl",
-                        help="cache of the loop's avatar clips (made when missing)")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("train")
     p.add_argument("--tag", required=True)
