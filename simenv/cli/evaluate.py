@@ -46,7 +46,8 @@ KIND_DESCRIPTIONS = {
 KIND_DESCRIPTIONS["recogniser"] = KIND_DESCRIPTIONS["classifier"]
 
 #: ``eval classifier``'s options that only --benchmark uses: option -> its dest.
-BENCHMARK_ONLY = {"--members": "members", "--whole-sequences": "whole_sequences",
+BENCHMARK_ONLY = {"--members": "members", "--epochs": "epochs",
+                  "--whole-sequences": "whole_sequences",
                   "--joints": "joints", "--neighbour": "neighbour",
                   "--covariance": "covariance", "--lie-group": "lie_group",
                   "--mirror-test": "mirror_test"}
