@@ -23,12 +23,20 @@ had prompted a post-hoc change: labs and rigs the first survey never read (SNU M
 martial arts, SNU MRL's MASS motions, HDM05's ASF/AMC, the PyMO demo walk), split before any
 of their files was loaded; two of the four sources are held out whole.
 
+A **third survey** (roles ``dev3`` / ``heldout3``) reads files of AnimatedDrawings' first
+commit (``bbe02ed``), whose motion folders were removed later: a five-year-old child
+performer on FAIR's capture rig (a performer and body size no survey read) and the Trinity
+Speech-Gesture dataset (Trinity College Dublin: a lab no survey read, six channels on every
+joint), the latter held out whole; split fixed before any of them was loaded.
+
 Usage (about 1-2 min of CPU per 4-s clip; run it niced, one process)::
 
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev2
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout2
+    nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev3
+    nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout3
     .venv/bin/python benchmarks/other_lab_survey.py --docs-only \\
         --before out/other_lab/before.jsonl out/other_lab/dev2_before.jsonl \\
         --posthoc out/other_lab/posthoc.jsonl out/other_lab/posthoc2.jsonl
@@ -74,6 +82,10 @@ SNU_MDB = "SNU Motion Database, martial arts (SNU MRL; UE-style local-axis rig)"
 SNU_MASS = "SNU MRL MASS motions (HumanIK `Character1_` rig with `_RIGMESH` helpers)"
 PYMO = "PyMO demo walk (Alemi; optical capture per the file, lab not stated)"
 HDM05 = "HDM05 (Univ. Bonn; Vicon, ASF/AMC)"
+# Third survey (sources no earlier survey read; split fixed before any was read).
+FAIR_CHILD = ("FAIR AnimatedDrawings `5yr_old` (a child performer; FAIR's capture rig, "
+              "performer new)")
+TCD = "Trinity Speech-Gesture (Trinity College Dublin; optical, 6 channels per joint)"
 
 
 @dataclass(frozen=True)
@@ -89,6 +101,8 @@ class Entry:
         repo: ``owner+name`` folder of the snapshot under the mirror, when ``path`` is None.
         blob: the file's path inside that snapshot (read at its HEAD).
         companions: other blobs of the snapshot the file needs beside it (an AMC's ASF).
+        commit: the snapshot commit the blobs are read at (HEAD when None: some files
+            exist only in a repository's history).
     """
 
     key: str
@@ -98,6 +112,7 @@ class Entry:
     repo: str | None = None
     blob: str | None = None
     companions: tuple[str, ...] = ()
+    commit: str | None = None
 
 
 DME = "DeepMotionEditing+deep-motion-editing"
@@ -111,6 +126,9 @@ MASS = "lsw9021+MASS"
 TCR = "snumrl+TimeCriticalResponse"
 MARTIAL = "mrl.motion.critical/data/martial_arts_compact/motion/"
 HDM_DIR = "ActionSegmentation_Pose/HDM05-Parser/data/"
+#: AnimatedDrawings' first public commit, whose animate/Data/BVH folders were later removed.
+AD_EARLY = "bbe02ed9f504a1446ca7d056902d562bb9a7ab62"
+AD_BVH = "animate/Data/BVH/"
 
 #: The survey's files; the dev / held-out split was chosen before any was scored.
 MANIFEST: tuple[Entry, ...] = (
@@ -160,12 +178,25 @@ MANIFEST: tuple[Entry, ...] = (
           blob="demos/data/AV_8Walk_Meredith_HVHA_Rep1.bvh"),
     Entry("hdm05_dg_06-03_03", HDM05, "heldout2", repo="yz-cnsdqz+dynamic_clustering",
           blob=HDM_DIR + "HDM_dg_06-03_03_120.amc", companions=(HDM_DIR + "HDM_dg.asf",)),
+    # Third survey, development set (dev3): two files of the child performer. Its held-out
+    # set (heldout3): that performer's other clips and the Trinity files, held out whole.
+    # Left out: `8yr_old` (the performer of `fair1`, read by the first survey), `cmu*` and
+    # `sst` (captured at CMU, or CMU-skeleton motion-graph output) and `mixamo` (read).
+    *(Entry(f"fair_child5_{n}", FAIR_CHILD, "dev3", repo=AD, blob=f"{AD_BVH}5yr_old/{n}.bvh",
+            commit=AD_EARLY) for n in ("walking", "jumping")),
+    *(Entry(f"fair_child5_{n}", FAIR_CHILD, "heldout3", repo=AD,
+            blob=f"{AD_BVH}5yr_old/{n}.bvh", commit=AD_EARLY)
+      for n in ("running", "skipping", "twirling", "pick_up", "catch", "push_pull",
+                "wave_hello", "dab")),
+    *(Entry(f"tcd_natural_talking_{n}", TCD, "heldout3", repo=AD,
+            blob=f"{AD_BVH}tcd/NaturalTalking_{n}.bvh", commit=AD_EARLY)
+      for n in ("100", "1000")),
 )
 
 
 def materialise(entry: Entry, mirror: Path, dest: Path) -> Path:
     """The file of ``entry`` on disk: its repository path, or its blob read from the
-    snapshot ``mirror/<repo>/repo`` by ``git show HEAD:<blob>`` into ``dest`` (never into the
+    snapshot ``mirror/<repo>/repo`` by ``git show <commit>:<blob>`` into ``dest`` (never into the
     repository: several of these files may not be redistributed).
 
     Raises:
@@ -182,8 +213,9 @@ def materialise(entry: Entry, mirror: Path, dest: Path) -> Path:
         if not git_dir.exists():
             raise SimenvError(f"snapshot {entry.repo} not under {mirror} (fetch github:"
                               f"{entry.repo.replace('+', '/')} first)", field="repo")
-        done = subprocess.run(["git", "-C", str(git_dir), "show", f"HEAD:{blob}"],
-                              capture_output=True, check=False)
+        done = subprocess.run(
+            ["git", "-C", str(git_dir), "show", f"{entry.commit or 'HEAD'}:{blob}"],
+            capture_output=True, check=False)
         if done.returncode != 0:
             raise SimenvError(f"{blob} not in snapshot {entry.repo}: "
                               f"{done.stderr.decode().strip()}", field="blob")
@@ -326,14 +358,17 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
     for role, title in (("dev", "Development set"), ("heldout", "Held-out set"),
                         ("dev2", "Second survey, development set"),
                         ("heldout2", "Second survey, held-out set (scored once)"),
+                        ("dev3", "Third survey, development set"),
+                        ("heldout3", "Third survey, held-out set (scored once)"),
                         ("extra", "Other files")):
         sel = [r for r in rows.values() if r["role"] == role]
         if sel:
             lines += [f"**{title}**: {_count(sel)}.", "", *_table(sel), ""]
-        if sel and role in ("dev", "dev2") and before:
+        if sel and role in ("dev", "dev2", "dev3") and before:
             lines += _before_lines(rows, before, role)
     for role, title in (("heldout", "Held-out set"),
-                        ("heldout2", "Second survey, held-out set")):
+                        ("heldout2", "Second survey, held-out set"),
+                        ("heldout3", "Third survey, held-out set")):
         redone = {k: r for k, r in (posthoc or {}).items() if r["role"] == role}
         if not redone:
             continue
@@ -349,7 +384,8 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("paths", nargs="*", type=Path, help="extra motion files (role 'extra')")
-    ap.add_argument("--role", choices=("dev", "heldout", "dev2", "heldout2", "all", "none"),
+    ap.add_argument("--role", choices=("dev", "heldout", "dev2", "heldout2", "dev3",
+                                       "heldout3", "all", "none"),
                     default="all",
                     help="which manifest files to score (default all; none: only PATHs)")
     ap.add_argument("--only", nargs="*", default=None, help="manifest keys to score")
