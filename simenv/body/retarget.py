@@ -422,9 +422,12 @@ def _initial_guess(prob: _Problem, targets: dict[str, np.ndarray], T: int,
                                                     prob.knee_lateral[side], side)
                     cue = bend
                     if part == "thigh" and has(f"{pre}toe"):
-                        # Straight leg: the foot points forward in the knee plane.
-                        foot = -np.cross(_unit(u), _unit(targets[f"{pre}toe"]
-                                                         - targets[f"{pre}ankle"]))
+                        # Near-straight or fully folded knee (small sine): the foot
+                        # points forward in the knee plane. Crossed with the shin it
+                        # hangs from, not the thigh: a full squat's thigh runs along
+                        # the foot, so that cross product has no direction.
+                        foot = -np.cross(_unit(targets[nxt] - targets[child]),
+                                         _unit(targets[f"{pre}toe"] - targets[f"{pre}ankle"]))
                         wgt = np.clip((strength - 0.1) / 0.2, 0, 1)[:, None]
                         cue = wgt * _unit(bend) + (1 - wgt) * _unit(foot)
                         strength = np.maximum(strength, np.linalg.norm(foot, axis=-1))
