@@ -10,11 +10,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_io_kinder_gator import utk_session, write_kinder_gator
 
 from simenv.cli import main as cli
-from simenv.data.gestures import GESTURE_FPS, LoadReport
+from simenv.core.errors import SimenvError
+from simenv.data.gestures import GESTURE_FPS, LoadReport, still_mask
 from simenv.io import msrc12, utkinect
-from simenv.learning.cross_dataset import MSRC12_AFTER_S, MSRC12_BEFORE_S, msrc12_clips
+from simenv.learning.cross_dataset import (
+    KINDER_GATOR_ROOM_LABELS,
+    MSRC12_AFTER_S,
+    MSRC12_BEFORE_S,
+    kinder_gator_clips,
+    kinder_gator_label,
+    msrc12_clips,
+    run_cross_dataset,
+)
+from simenv.learning.recognition import RecognitionConfig
 
 
 def _msrc12_file(folder: Path, stem: str, session: Path, gesture: int) -> list[float]:
@@ -99,3 +110,56 @@ def test_cross_dataset_command(gesture_root: Path, tmp_path: Path,
         assert saved["labels"] == result["labels"] and saved["rows"] == "true label"
         assert (out / f"confusion_{name}.png").stat().st_size > 0
     assert "utkinect left out, per class" in text and "most confused with" in text
+
+
+def test_kinder_gator_room_labels() -> None:
+    assert kinder_gator_label("Wave your hand") == kinder_gator_label(
+        "Wave your other hand") == "wave"
+    assert kinder_gator_label("Bow") == "bow"
+    assert kinder_gator_label("Touch your toes") == "bend_down"
+    # A raised hand without waving, beckoning and walking in place are no room gesture.
+    for motion in ("Raise your hand", "Signal someone to come here", "Walk in place",
+                   "Throw a ball"):
+        assert kinder_gator_label(motion) == "other"
+    assert set(KINDER_GATOR_ROOM_LABELS.values()) == {"wave", "bow", "bend_down"}
+
+
+def test_kinder_gator_clips_cut_the_moving_part(gesture_root: Path, tmp_path: Path) -> None:
+    _, t_s, xyz = utk_session(gesture_root)
+    session = utkinect.read(gesture_root / "utkinect" / "joints" / "joints_s01_e01.txt",
+                            timing="rows")
+    seg = next(g for g in session.metadata["segments"] if g["label"] == "waveHands")
+    # The wave segment (row indices of the session) with 2 s of the session on each side.
+    rows = (t_s >= t_s[int(seg["start"])] - 2.0) & (t_s <= t_s[int(seg["end"]) - 1] + 2.0)
+    for motion, pid in (("Wave-your-other-hand", 934), ("Bow", 934), ("Punch", 103),
+                        ("Throw-a-ball", 103), ("Wave-your-hand", 103)):
+        write_kinder_gator(tmp_path / ("Children" if pid == 103 else "Adults")
+                           / f"POSE-p{pid}_01-{motion}-1.csv", t_s[rows], xyz[rows], pid,
+                           motion)
+    report = LoadReport()
+    clips = kinder_gator_clips(tmp_path, report=report)
+    assert report.skipped == []
+    moving = [c for c in clips if c.label != "idle"]
+    # Of the 'other' motions (sorted: Punch, Throw a ball), the first person (p103) uses
+    # every fifth from the first.
+    assert sorted((c.subject, c.source_label, c.label) for c in moving) == [
+        (103, "Punch", "other"), (103, "Wave your hand", "wave"), (934, "Bow", "bow"),
+        (934, "Wave your other hand", "wave")]
+    assert {c.dataset for c in clips} == {"kindergator"}
+    for c in moving:
+        still = still_mask(c.positions, GESTURE_FPS)
+        assert not still[0] and not still[-1]  # trimmed to the moving part
+        assert c.positions.shape[1:] == (15, 3) and c.source is not None
+    with pytest.raises(SimenvError, match="no Kinder-Gator recording"):
+        kinder_gator_clips(tmp_path / "Adults" / "none")
+
+
+def test_train_only_datasets_must_be_in_the_corpus(gesture_root: Path, tmp_path: Path
+                                                   ) -> None:
+    from simenv.data.gestures import load_labelled
+
+    clips = load_labelled([gesture_root / "utkinect" / "joints" / "joints_s01_e01.txt"])
+    with pytest.raises(SimenvError, match="train_only names kindergator"):
+        run_cross_dataset(clips, RecognitionConfig(epochs=1), train_only=("kindergator",))
+    with pytest.raises(SimenvError, match="at least two datasets to leave out"):
+        run_cross_dataset(clips, RecognitionConfig(epochs=1))

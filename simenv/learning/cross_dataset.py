@@ -27,6 +27,24 @@ keep its ~6000 instances from outweighing the 1092 clips of the other three data
 Its gestures map to the room vocabulary as :data:`MSRC12_ROOM_LABELS` (bow is a bow; the
 other eleven, game and music-control gestures, are ``other``). No idle clips are cut from
 it. Person p06 is reserved for evaluation and never read (:data:`MSRC12_RESERVED`).
+
+Kinder-Gator (:func:`kinder_gator_clips`, :mod:`simenv.io.kinder_gator`) joins the corpus
+as a **training-only** source when its folder is given: 10 adults and 10 children on a
+Kinect v1, one recording per motion and person. It brings what the three room corpora lack
+most when one of them is left out: one-hand waves of either hand by 20 more people (with
+MSR Action3D left out, the network otherwise learns ``wave`` from Florence's 24 short
+right-hand waves and UTKinect's 20 two-hand waves only). Its motions map to the room
+vocabulary as :data:`KINDER_GATOR_ROOM_LABELS` ("Wave your hand" / "Wave your other hand"
+are waves, "Bow" a bow, "Touch your toes" a bend down -- the trunk folds toward the floor,
+hands near the feet, as MSR's bend --, every other motion ``other``: raising a hand without
+waving, beckoning, signalling to stop, throwing, walking or running in place as MSR's
+jogging). Each recording holds one motion between still stretches: the clip is the moving
+part (first to last frame not still, :func:`simenv.data.gestures.still_mask`), its still
+lead-in and lead-out become ``idle`` clips as for MSR Action3D. Of the 54 ``other``
+motions each person contributes :data:`KINDER_GATOR_OTHER_SHARE` (every fifth of the
+sorted list, shifted by person), so 1000 recordings of ``other`` do not outweigh the rest.
+It is never a left-out test set (``train_only`` of :func:`run_cross_dataset`): 20 people
+of one lab are too few to stand for a dataset's figure beside the four.
 """
 
 from __future__ import annotations
@@ -41,9 +59,12 @@ import numpy as np
 from tqdm import tqdm
 
 from simenv.core.errors import SimenvError
+from simenv.core.motion import Motion
 from simenv.data.gestures import (
     GESTURE_FPS,
     GESTURE_LABELS,
+    IDLE_EDGE_MIN_S,
+    IDLE_LABEL,
     SUBJECT_FOLDS,
     GestureClip,
     LoadReport,
@@ -51,9 +72,10 @@ from simenv.data.gestures import (
     load_gesture_clips,
     room_reaction,
     split_subject_folds,
+    still_mask,
     to_gesture_joints,
 )
-from simenv.io import msrc12
+from simenv.io import kinder_gator, msrc12
 from simenv.learning.recognition import RecognitionConfig, logits_of, train_recogniser
 from simenv.learning.recognition_protocols import classification_scores, real_windows
 
@@ -72,6 +94,15 @@ MSRC12_PER_FILE = 1
 MSRC12_BEFORE_S = 2.0
 #: ... and this long after, s.
 MSRC12_AFTER_S = 1.0
+
+#: Kinder-Gator motion name -> room label (module docstring); any other motion is ``other``.
+KINDER_GATOR_ROOM_LABELS: dict[str, str] = {
+    "Wave your hand": "wave", "Wave your other hand": "wave", "Bow": "bow",
+    "Touch your toes": "bend_down"}
+#: One in this many of a person's ``other`` motions is used (module docstring).
+KINDER_GATOR_OTHER_SHARE = 5
+#: Dataset key of Kinder-Gator clips.
+KINDER_GATOR = "kindergator"
 
 _PERSON = re.compile(r"_p(\d+)$", re.IGNORECASE)
 
@@ -141,14 +172,84 @@ def msrc12_clips(folder: str | Path, *, per_file: int = MSRC12_PER_FILE,
     return clips
 
 
+def _gesture_clip(part: Motion, label: str, source_label: str, subject: int,
+                  name: str) -> GestureClip:
+    """A clip of ``part`` (any Kinect v1 motion) on the gesture15 joints at 25 fps."""
+    sub = part.with_positions(to_gesture_joints(part),
+                              skeleton=gesture_skeleton()).resample(GESTURE_FPS)
+    return GestureClip(sub.positions, label, source_label, KINDER_GATOR, subject, name, part)
+
+
+def kinder_gator_label(motion: str) -> str:
+    """Room label of a Kinder-Gator motion name (:data:`KINDER_GATOR_ROOM_LABELS`)."""
+    return KINDER_GATOR_ROOM_LABELS.get(motion, "other")
+
+
+def kinder_gator_clips(folder: str | Path, *, report: LoadReport | None = None
+                       ) -> list[GestureClip]:
+    """Gesture and idle clips of the Kinder-Gator recordings under ``folder`` (module
+    docstring), ``dataset="kindergator"``, ``subject`` the participant id.
+
+    Args:
+        folder: the dataset folder (holding ``Adults/`` and ``Children/``) or one with
+            the ``POSE-*.csv`` files.
+        report: filled with the recordings skipped and why (unreadable, never moving).
+
+    Raises:
+        SimenvError: a folder with no Kinder-Gator recording.
+    """
+    folder = Path(folder)
+    report = report if report is not None else LoadReport()
+    paths = sorted(folder.glob(kinder_gator.PATTERN)) + sorted(
+        folder.glob(f"*/{kinder_gator.PATTERN}"))
+    named = [(p, kinder_gator.labels_from_name(p)) for p in paths]
+    named = [(p, n) for p, n in named if n]
+    if not named:
+        raise SimenvError(f"no Kinder-Gator recording here (expected {kinder_gator.PATTERN} "
+                          "in it or in Adults/ and Children/ below it)", source=folder,
+                          field="kindergator")
+    people = sorted({int(n["subject"]) for _, n in named})
+    others = sorted({str(n["motion"]) for _, n in named} - set(KINDER_GATOR_ROOM_LABELS))
+    clips: list[GestureClip] = []
+    for path, n in named:
+        motion, subject = str(n["motion"]), int(n["subject"])
+        label = kinder_gator_label(motion)
+        if label == "other" and (others.index(motion) + people.index(subject)) \
+                % KINDER_GATOR_OTHER_SHARE:
+            continue
+        try:
+            m = kinder_gator.read(path)
+        except SimenvError as exc:
+            report.skipped.append(f"{path.name}: {exc.detail}")
+            continue
+        still = still_mask(to_gesture_joints(m), m.fps) if m.num_frames >= 2 else None
+        moving = np.flatnonzero(~still) if still is not None else np.array([], int)
+        if moving.size < 2:
+            report.skipped.append(f"{path.name}: the person never moves")
+            continue
+        lo, hi = int(moving[0]), int(moving[-1]) + 1
+        clips.append(_gesture_clip(m.slice(lo, hi), label, motion, subject, m.name))
+        edge = int(np.ceil(IDLE_EDGE_MIN_S * m.fps))
+        for k, (a, b) in enumerate(((0, lo), (hi, m.num_frames))):
+            if b - a >= edge:
+                clips.append(_gesture_clip(m.slice(a, b), IDLE_LABEL, "still lead-in/out",
+                                           subject, f"{m.name}_idle{k}"))
+    return clips
+
+
 def load_corpus(data: str | Path, *, msrc12_folder: str | Path | None = None,
+                kinder_gator_folder: str | Path | None = None,
                 report: LoadReport | None = None) -> list[GestureClip]:
     """The protocol's corpus: every clip of the gesture corpus under ``data`` (idle clips
-    included) and, with ``msrc12_folder``, the MSRC-12 clips (:func:`msrc12_clips`)."""
+    included) and, with ``msrc12_folder``, the MSRC-12 clips (:func:`msrc12_clips`), with
+    ``kinder_gator_folder`` the Kinder-Gator clips (:func:`kinder_gator_clips`; train
+    them only: ``train_only=("kindergator",)`` of :func:`run_cross_dataset`)."""
     report = report if report is not None else LoadReport()
     clips = load_gesture_clips(data, idle=True, report=report)
     if msrc12_folder is not None:
         clips += msrc12_clips(msrc12_folder, report=report)
+    if kinder_gator_folder is not None:
+        clips += kinder_gator_clips(kinder_gator_folder, report=report)
     return clips
 
 
@@ -201,7 +302,8 @@ def _task(job: tuple[str, str | int, RecognitionConfig, int]
 
 
 def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *,
-                      folds: int = SUBJECT_FOLDS, jobs: int = 1, progress: bool = True
+                      folds: int = SUBJECT_FOLDS, jobs: int = 1, progress: bool = True,
+                      train_only: Sequence[str] = (), cross_only: bool = False
                       ) -> dict[str, Any]:
     """The cross-dataset protocol (module docstring) on ``clips``.
 
@@ -214,6 +316,10 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
         jobs: networks trained at once, each in its own process of one thread (the
             results do not depend on it: every network has its seed and its data).
         progress: progress bars.
+        train_only: datasets that train every network but are never left out (e.g.
+            ``("kindergator",)``).
+        cross_only: train the cross-dataset networks only; the ``within_dataset``
+            scores are then absent (for exploring options: half the CPU).
 
     Returns:
         ``labels``, ``datasets`` (per left-out dataset: its training datasets, clip
@@ -225,18 +331,24 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
         ``goals``, ``config`` and the CPU s of every network.
 
     Raises:
-        SimenvError: fewer than two datasets, or a fold without test clips.
+        SimenvError: fewer than two datasets to leave out, a ``train_only`` dataset not
+            in the corpus, or a fold without test clips.
     """
     global _CORPUS
     labels = list(GESTURE_LABELS)
     config = replace(config, forecast_prob=0.0)
-    names = sorted({c.dataset for c in clips})
+    present = {c.dataset for c in clips}
+    absent = sorted(set(train_only) - present)
+    if absent:
+        raise SimenvError(f"train_only names {', '.join(absent)}, which the corpus lacks "
+                          f"(its datasets: {', '.join(sorted(present))})", field="train_only")
+    names = sorted(present - set(train_only))
     if len(names) < 2:
-        raise SimenvError(f"the cross-dataset protocol needs at least two datasets; got "
-                          f"{', '.join(names) or 'none'}", field="data")
+        raise SimenvError(f"the cross-dataset protocol needs at least two datasets to leave "
+                          f"out; got {', '.join(names) or 'none'}", field="data")
     split = split_subject_folds(clips, folds)
     work = ([("cross", n, config, folds) for n in names]
-            + [("within", k, config, folds) for k in range(folds)])
+            + ([] if cross_only else [("within", k, config, folds) for k in range(folds)]))
     _CORPUS = list(clips)
     try:
         if jobs > 1:
@@ -276,20 +388,26 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
         y = np.array([labels.index(c.label) for c in test])
         preds, cpu = cross[name]
         entry: dict[str, Any] = {
-            "train_datasets": [n for n in names if n != name], "train_clips": len(train),
+            "train_datasets": sorted(present - {name}), "train_clips": len(train),
             "test_clips": len(test), "shared_clips": int(shared.sum()),
             "excluded": excluded, "train_cpu_s": round(cpu, 1), "conditions": {}}
         for cond in CONDITIONS:
-            lso = np.array([within[cond][id(c)] for c in test])
             entry["conditions"][cond] = {
                 "cross_dataset": _scores(y[shared], preds[cond][shared]),
-                "cross_dataset_all_clips": round(float((preds[cond] == y).mean()), 4),
-                "within_dataset": _scores(y[shared], lso[shared]),
-            }
+                "cross_dataset_all_clips": round(float((preds[cond] == y).mean()), 4)}
+            if not cross_only:
+                lso = np.array([within[cond][id(c)] for c in test])
+                entry["conditions"][cond]["within_dataset"] = _scores(y[shared], lso[shared])
         out[name] = entry
     return {"labels": labels, "datasets": out, "goals": GOALS, "config": asdict(config),
             "within_dataset_folds": folds, "within_dataset_train_cpu_s":
-            [round(c, 1) for c in within_cpu], "clips": len(clips)}
+            [round(c, 1) for c in within_cpu], "clips": len(clips),
+            "train_only": {n: sum(c.dataset == n for c in clips) for n in sorted(train_only)}}
+
+
+def _fmt(scores: dict[str, Any] | None, key: str) -> str:
+    """``scores[key]`` to 3 decimals, or "not run" (a ``cross_only`` run)."""
+    return "not run" if scores is None else f"{scores[key]:.3f}"
 
 
 def summary_table(result: dict[str, Any]) -> str:
@@ -303,17 +421,20 @@ def summary_table(result: dict[str, Any]) -> str:
     for name, d in result["datasets"].items():
         excluded = ", ".join(f"{k} {v}" for k, v in d["excluded"].items()) or "none"
         for cond, c in d["conditions"].items():
-            cross, within = c["cross_dataset"], c["within_dataset"]
+            cross, within = c["cross_dataset"], c.get("within_dataset")
             goal = result["goals"].get(cond)
             verdict = ("" if goal is None else
                        f">= {goal:.2f} {'met' if cross['accuracy'] >= goal else '**not met**'}")
             lines.append(
                 f"| {name} | {' + '.join(d['train_datasets'])} | {d['shared_clips']} of "
                 f"{d['test_clips']} ({excluded}) | {cond} | {cross['accuracy']:.3f} | "
-                f"{verdict} | {within['accuracy']:.3f} | {cross['balanced_accuracy']:.3f} / "
-                f"{within['balanced_accuracy']:.3f} | {c['cross_dataset_all_clips']:.3f} |")
+                f"{verdict} | {_fmt(within, 'accuracy')} | "
+                f"{cross['balanced_accuracy']:.3f} / {_fmt(within, 'balanced_accuracy')} | "
+                f"{c['cross_dataset_all_clips']:.3f} |")
     return "\n".join(lines)
 
 
-__all__ = ["CONDITIONS", "GOALS", "MSRC12_PER_FILE", "MSRC12_RESERVED", "MSRC12_ROOM_LABELS",
-           "load_corpus", "msrc12_clips", "run_cross_dataset", "summary_table"]
+__all__ = ["CONDITIONS", "GOALS", "KINDER_GATOR", "KINDER_GATOR_OTHER_SHARE",
+           "KINDER_GATOR_ROOM_LABELS", "MSRC12_PER_FILE", "MSRC12_RESERVED",
+           "MSRC12_ROOM_LABELS", "kinder_gator_clips", "kinder_gator_label", "load_corpus",
+           "msrc12_clips", "run_cross_dataset", "summary_table"]
