@@ -17,9 +17,17 @@ markers of docs/plausibility.md.
 ``--before FILE`` (a JSONL of an earlier run, e.g. before a change to the body fit) adds the
 earlier count and the real clips whose verdict or score moved.
 
+Roles. :data:`CLIPS` is the **development** set: every one of its clips has been diagnosed
+on. :data:`HELD_OUT` is the **held-out** set, fixed (and committed) before any of its clips
+was loaded or scored, and scored once, after the fixes (``--role heldout``); its table
+reports that first scoring. Its files are read from fetched GitHub snapshots under
+``/work/.mirror`` (``git show COMMIT:PATH`` into ``--extract-to``, /tmp by default): AMASS
+motion is not redistributable, so they are never copied into the repository.
+
 Usage (about 1-3 min of CPU per 6-s clip; niced, one process)::
 
     nice -n 10 .venv/bin/python benchmarks/humanml3d_survey.py
+    nice -n 10 .venv/bin/python benchmarks/humanml3d_survey.py --role heldout
     .venv/bin/python benchmarks/humanml3d_survey.py --docs-only \\
         --before out/humanml3d/results_before.jsonl
 """
@@ -28,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import time
 from pathlib import Path
 from typing import Any
@@ -65,8 +74,49 @@ CLIPS: dict[str, tuple[str, str]] = {
     "000021": ("joints22/000021.npy", "KIT/4/WalkInCounterClockwiseCircle02, 0-180 (raw joints)"),
 }
 
+#: Held-out real clips: key -> (snapshot folder under /work/.mirror, commit, path in the
+#: repository, AMASS source and frames per HumanML3D's index.csv). Chosen before any was read.
+#: The search (stored-code index: every HumanML3D fork's and MDM / MoMask / priorMDM fork's
+#: ``.npy`` files, ``new_joints`` / ``new_joint_vecs`` paths; snapshots of the forks the
+#: index lists) found one real clip not in :data:`CLIPS`: the official ``000000`` of the
+#: HumanML3D author's second repository (``syeon-yoo/priorMDM``'s ``000000`` / ``000002``
+#: features have no snapshot here). Its ``new_joint_vecs`` twin is the same motion.
+HELD_OUT: dict[str, tuple[str, str, str, str]] = {
+    "000000": ("EricGuoICT+HumanML3D", "46853f48a8dc00e0c98e57a3ccd6f9128c9124d0",
+               "HumanML3D/new_joints/000000.npy", "KIT/3/kick_high_left02, 0-117"),
+}
+
 #: Corruptions scored per clip: one per joint-level family the issue names.
 CORRUPTED = ("foot_slide", "jitter", "sink")
+
+
+MIRROR = Path("/work/.mirror")
+
+
+def clip_path(key: str, extract_to: Path) -> Path:
+    """The file of clip ``key``: under tests/data/humanml3d for the development set, or
+    read from its snapshot by ``git show`` into ``extract_to`` for the held-out set.
+
+    Raises:
+        SimenvError: the snapshot is not fetched or lacks the file.
+    """
+    if key in CLIPS:
+        return DATA / CLIPS[key][0]
+    repo, commit, blob, _ = HELD_OUT[key]
+    dest = extract_to / repo / blob
+    if not dest.exists():
+        git_dir = MIRROR / repo / "repo"
+        if not git_dir.is_dir():
+            raise SimenvError(f"snapshot {repo} not under {MIRROR} (fetch github:"
+                              f"{repo.replace('+', '/')})")
+        out = subprocess.run(["git", "--git-dir", str(git_dir), "show", f"{commit}:{blob}"],
+                             capture_output=True, check=False)
+        if out.returncode:
+            raise SimenvError(f"{repo} @ {commit[:7]} has no {blob}: "
+                              f"{out.stderr.decode().strip()}")
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_bytes(out.stdout)
+    return dest
 
 
 def trimmed(motion: Motion, max_seconds: float) -> Motion:
@@ -88,19 +138,32 @@ def _record(motion: Motion, physics: bool) -> dict[str, Any]:
     }
 
 
-def score_clip(key: str, max_seconds: float) -> dict[str, Any]:
+def _role(key: str) -> str:
+    return "dev" if key in CLIPS else "heldout"
+
+
+def _source(key: str) -> tuple[str, str]:
+    """(file as the docs name it, AMASS source and frames) of clip ``key``."""
+    if key in CLIPS:
+        return CLIPS[key]
+    repo, commit, blob, source = HELD_OUT[key]
+    return f"{repo.replace('+', '/')} @ {commit[:7]} : {blob}", source
+
+
+def score_clip(key: str, max_seconds: float, extract_to: Path) -> dict[str, Any]:
     """Load, trim and score one real clip (physics on, default settings).
 
     Returns:
-        A JSON-ready row: ``key``, ``kind`` "real", ``source``, ``seconds`` (scored),
-        ``source_seconds``, ``verdict``, ``score``, ``failing``, ``metrics``, ``violations``,
-        ``cpu_s``; or ``error`` when the file does not load or score.
+        A JSON-ready row: ``key``, ``kind`` "real", ``role``, ``source``, ``seconds``
+        (scored), ``source_seconds``, ``verdict``, ``score``, ``failing``, ``metrics``,
+        ``violations``, ``cpu_s``; or ``error`` when the file does not load or score.
     """
-    rel, source = CLIPS[key]
-    row: dict[str, Any] = {"key": key, "kind": "real", "file": rel, "source": source}
+    rel, source = _source(key)
+    row: dict[str, Any] = {"key": key, "kind": "real", "role": _role(key), "file": rel,
+                           "source": source}
     t0 = time.process_time()
     try:
-        clip = load(DATA / rel)
+        clip = load(clip_path(key, extract_to))
         motion = trimmed(clip, max_seconds)
         row |= {"seconds": round(motion.duration, 2), "source_seconds": round(clip.duration, 2)}
         row |= _record(motion, physics=True)
@@ -110,20 +173,21 @@ def score_clip(key: str, max_seconds: float) -> dict[str, Any]:
     return row
 
 
-def score_corruption(key: str, name: str, seed: int, max_seconds: float) -> dict[str, Any]:
+def score_corruption(key: str, name: str, seed: int, max_seconds: float, extract_to: Path
+                     ) -> dict[str, Any]:
     """One seeded corruption of clip ``key`` at its moderate strength, physics off.
 
     Returns:
         A JSON-ready row with ``caught`` (every target metric failed) besides the record.
     """
     spec = CORRUPTIONS[name]
-    row: dict[str, Any] = {"key": f"{key}/{name}", "kind": "corrupt", "clip": key,
-                           "corruption": name, "strength": spec.moderate,
+    row: dict[str, Any] = {"key": f"{key}/{name}", "kind": "corrupt", "role": _role(key),
+                           "clip": key, "corruption": name, "strength": spec.moderate,
                            "unit": STRENGTH_UNITS[name], "seed": seed,
                            "targets": list(spec.targets)}
     t0 = time.process_time()
     try:
-        motion = trimmed(load(DATA / CLIPS[key][0]), max_seconds)
+        motion = trimmed(load(clip_path(key, extract_to)), max_seconds)
         row |= _record(spec.fn(motion, spec.moderate, seed=seed), physics=False)
         row["caught"] = all(row["metrics"].get(t, {}).get("passed") is False
                             for t in spec.targets)
@@ -161,20 +225,10 @@ def _moved(rows: dict[str, dict[str, Any]], before: dict[str, dict[str, Any]]) -
             + (f" Not rescored: {', '.join(missing)}." if missing else "")]
 
 
-def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
-             before: dict[str, dict[str, Any]] | None = None) -> str:
-    """The generated section: the real clips' table with the plausible count (and, given
-    ``before``, the earlier run's count and the clips that moved), and the corruptions
-    caught by their target metric."""
-    real = [r for r in rows.values() if r["kind"] == "real"]
-    bad = [r for r in rows.values() if r["kind"] == "corrupt"]
+def _clip_table(real: list[dict[str, Any]]) -> list[str]:
+    """The plausible count and one table row per real clip."""
     ok = sum(r.get("verdict") == "plausible" for r in real)
-    lines = [f"Generated by `benchmarks/humanml3d_survey.py`: each real clip's first "
-             f"{max_seconds:g} s, `simenv.score(..., physics=True)` (default planner, default "
-             "thresholds, `source=\"auto\"`). AMASS source and frames per HumanML3D's "
-             "`index.csv`; files and licences in `tests/data/humanml3d/SOURCES.md`.", "",
-             f"**Real clips**: {ok} of {len(real)} plausible "
-             f"({100 * ok / max(len(real), 1):.0f} %).", "",
+    lines = [f"{ok} of {len(real)} plausible ({100 * ok / max(len(real), 1):.0f} %).", "",
              "| clip | AMASS source, frames | seconds | verdict | score | "
              "failing metrics (value / threshold) | CPU s |", "|---" * 7 + "|"]
     for r in sorted(real, key=lambda r: r["key"]):
@@ -185,11 +239,36 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
         lines.append(f"| {r['key']} | {r['source']} | {r['seconds']} of {r['source_seconds']}"
                      f" | {r['verdict']} | {r['score']:.1f} | {_failing(r)} | "
                      f"{r['cpu_s']:.0f} |")
+    return lines
+
+
+def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
+             before: dict[str, dict[str, Any]] | None = None) -> str:
+    """The generated section: per role, the real clips' table with the plausible count
+    (and, given ``before``, the earlier run's count and the development clips that moved),
+    then the corruptions caught by their target metric."""
+    real = [r for r in rows.values() if r["kind"] == "real"]
+    bad = [r for r in rows.values() if r["kind"] == "corrupt"]
+    dev = [r for r in real if r.get("role", "dev") == "dev"]
+    held = [r for r in real if r.get("role") == "heldout"]
+    lines = [f"Generated by `benchmarks/humanml3d_survey.py`: each real clip's first "
+             f"{max_seconds:g} s, `simenv.score(..., physics=True)` (default planner, default "
+             "thresholds, `source=\"auto\"`). AMASS source and frames per HumanML3D's "
+             "`index.csv`; development files and licences in "
+             "`tests/data/humanml3d/SOURCES.md`, held-out files named by repository, commit "
+             "and path (read from the snapshot, not copied).", "",
+             "**Development set** (every clip diagnosed on): " + _clip_table(dev)[0],
+             *_clip_table(dev)[1:]]
+    if held:
+        table = _clip_table(held)
+        lines += ["", "**Held-out set** (fixed and committed before any clip was read; scored "
+                  "once, after the fixes; first scored): " + table[0], *table[1:]]
     if before:
         lines += _moved(rows, before)
     if bad:
         caught = sum(r["caught"] for r in bad)
-        lines += ["", f"**Seeded corruptions** (moderate strength, seed = clip's position, "
+        lines += ["", f"**Seeded corruptions** of both sets (moderate strength, seed = clip's "
+                  f"position in development then held-out order, "
                   f"physics off): {caught} of {len(bad)} caught by their target metric "
                   f"({100 * caught / len(bad):.0f} %).", "",
                   "| corruption | strength | target | caught | clips missed (target value / "
@@ -222,18 +301,24 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=OUT / "results.jsonl", help="results JSONL")
     ap.add_argument("--before", type=Path, default=None,
                     help="JSONL of an earlier run: list its count and the clips that moved")
+    ap.add_argument("--role", choices=("dev", "heldout"), default="dev",
+                    help="the set to score (default: the development set)")
+    ap.add_argument("--extract-to", type=Path, default=Path("/tmp/simenv_humanml3d_heldout"),
+                    help="where held-out files are written from their snapshots")
     args = ap.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     rows = read_rows(args.out)
     if not args.docs_only:
-        keys = args.only or list(CLIPS)
+        keys = args.only or list(CLIPS if args.role == "dev" else HELD_OUT)
+        order = list(CLIPS) + list(HELD_OUT)
         jobs: list[tuple[str, Any]] = []
         for key in keys:
-            jobs.append((key, lambda k=key: score_clip(k, args.max_seconds)))
+            jobs.append((key, lambda k=key: score_clip(k, args.max_seconds, args.extract_to)))
             if not args.no_corrupt:
-                seed = list(CLIPS).index(key)
+                seed = order.index(key)
                 jobs += [(f"{key}/{n}", lambda k=key, n=n, s=seed:
-                          score_corruption(k, n, s, args.max_seconds)) for n in CORRUPTED]
+                          score_corruption(k, n, s, args.max_seconds, args.extract_to))
+                         for n in CORRUPTED]
         for key, job in jobs:
             if key in rows:
                 continue
