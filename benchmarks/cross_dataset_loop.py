@@ -2,7 +2,8 @@
 
 ``train [--datasets D ...]``: for each left-out dataset D of the cross-dataset corpus
 (:func:`simenv.learning.cross_dataset.load_corpus`: the gesture corpus and, with
-``--msrc12``, MSRC-12 without person p06), one network trained on every clip of the other
+``--msrc12``, MSRC-12 without person p06; with ``--kindergator``, Kinder-Gator, which
+trains every network and is never left out), one network trained on every clip of the other
 datasets with the shipped ensemble members' options (``--config``, default the
 ``stream_s0`` options of ``benchmarks/loop_variants.py``; ``forecast_prob`` 0: no
 forecaster here was trained without D), saved as ``OUT/<D>.npz`` with its readings
@@ -25,9 +26,11 @@ greeted, idle greeted, decision time after the clip's start (the labelled onset)
 from its checkpoint) on the MSRC-12 clips, which no shipped recogniser trained on:
 accuracy in ``real_3s`` / ``real_1s`` and the loop's greetings.
 
-``docs [--lso-scores FILE]``: the section of docs/recognition.md between the markers, from
-``OUT/scores.json``, ``OUT/shipped.json`` and a ``benchmarks/loop_variants.py``
-``scores.jsonl`` (its member sets' leave-subjects-out loop).
+``docs [--lso-scores FILE] [--before OUT2]``: the section of docs/recognition.md between
+the markers, from ``OUT/scores.json``, ``OUT/shipped.json``, a
+``benchmarks/loop_variants.py`` ``scores.jsonl`` (its member sets' leave-subjects-out loop)
+and, with ``--before``, another run's ``scores.json`` beside this one's (what a change of
+training sources did).
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ import numpy as np  # noqa: E402
 
 from simenv.core.config import shared_data_root  # noqa: E402
 from simenv.data.gestures import GESTURE_LABELS, GestureClip  # noqa: E402
-from simenv.learning.cross_dataset import load_corpus  # noqa: E402
+from simenv.learning.cross_dataset import KINDER_GATOR, load_corpus  # noqa: E402
 from simenv.learning.recognition import (  # noqa: E402
     RecognitionConfig,
     logits_of,
@@ -82,7 +85,8 @@ def _corpus(args: argparse.Namespace) -> list[GestureClip]:
     cache = Path(args.out) / "corpus.pkl"
     if cache.is_file():
         return pickle.load(cache.open("rb"))
-    clips = load_corpus(shared_data_root(None) / "gestures", msrc12_folder=args.msrc12)
+    clips = load_corpus(shared_data_root(None) / "gestures", msrc12_folder=args.msrc12,
+                        kinder_gator_folder=args.kindergator)
     cache.parent.mkdir(parents=True, exist_ok=True)
     pickle.dump(clips, cache.open("wb"))
     return clips
@@ -107,7 +111,8 @@ def cmd_train(args: argparse.Namespace) -> None:
     config = replace(config, forecast_prob=0.0)
     if args.epochs:
         config = replace(config, epochs=args.epochs)
-    names = args.datasets or sorted({c.dataset for c in clips} - {"florence3d"})
+    # Kinder-Gator trains only (simenv.learning.cross_dataset); Florence has no avatar.
+    names = args.datasets or sorted({c.dataset for c in clips} - {"florence3d", KINDER_GATOR})
     for name in names:
         if (out / f"{name}_readings.pkl").is_file():
             continue
@@ -123,7 +128,8 @@ def cmd_train(args: argparse.Namespace) -> None:
                     "y": np.array([GESTURE_LABELS.index(c.label) for c in test]),
                     "stream": stream_readings(avatars, model, None, seed=0,
                                               real_windows=LOOP_WINDOWS),
-                    "config": config.__dict__, "train_cpu_s": history["train_cpu_s"]}
+                    "config": config.__dict__, "train_cpu_s": history["train_cpu_s"],
+                    "train_datasets": sorted({c.dataset for c in clips} - {name})}
         pickle.dump(readings, (out / f"{name}_readings.pkl").open("wb"))
         print(f"{name} left out: {history['train_cpu_s']} CPU s", flush=True)
 
@@ -154,7 +160,9 @@ def score(out: Path, window_rule: str) -> dict[str, Any]:
         row = loop_outcomes(held, GESTURE_LABELS, fold["threshold"], temps[k],
                             use_forecast=False, window_rule=window_rule)
         per[n] = {"temperature": round(temps[k], 4), "train_cpu_s": data[n]["train_cpu_s"],
-                  "epochs": data[n]["config"]["epochs"], **{key: row[key] for key in keys}}
+                  "epochs": data[n]["config"]["epochs"],
+                  "train_datasets": data[n].get("train_datasets"),
+                  **{key: row[key] for key in keys}}
         # An upper bound, not a figure the room could reach: temperature and threshold
         # fitted on the left-out dataset itself.
         tau = fit_temperature(np.concatenate([data[n]["z3"], data[n]["z1"]]),
@@ -222,9 +230,11 @@ def cmd_shipped(args: argparse.Namespace) -> None:
     path.write_text(json.dumps(rows, indent=1))
 
 
-def section(out: Path, command: str, lso_scores: str | None = None) -> str:
+def section(out: Path, command: str, lso_scores: str | None = None,
+            before: Path | None = None) -> str:
     """The generated docs section (markdown, between the markers); ``lso_scores``: a
-    ``benchmarks/loop_variants.py`` ``scores.jsonl`` whose member sets are listed."""
+    ``benchmarks/loop_variants.py`` ``scores.jsonl`` whose member sets are listed;
+    ``before``: the output folder of another run, whose rows are listed beside these."""
     result = json.loads((out / "scores.json").read_text())
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True, cwd=REPO).stdout.strip()
@@ -244,6 +254,7 @@ def section(out: Path, command: str, lso_scores: str | None = None) -> str:
              "an ensemble of two. Florence 3D has no avatar (no pelvis); MSRC-12 has no "
              "wave (its gestures are bow and other). Goal: >= 90 % of waves greeted, "
              "<= 3 % of other actions, decision median <= 1.5 s after onset.", "",
+             *_sources(result),
              "The rows *fitted on itself* fit the temperature and choose the threshold "
              "on the left-out dataset's own readings: an upper bound no room could reach "
              "(it would need labelled recordings of the new people), not a result.", "",
@@ -258,6 +269,8 @@ def section(out: Path, command: str, lso_scores: str | None = None) -> str:
                          f"{_greeted(*r['other_clips'])} | {_greeted(*r['idle_clips'])} | "
                          f"{m['median']} / {m['p90']} | {r['threshold']} | "
                          f"{r['temperature']} |")
+    if before is not None:
+        lines += _before_rows(json.loads((before / "scores.json").read_text()), result)
     shipped = out / "shipped.json"
     if shipped.is_file():
         rows = json.loads(shipped.read_text())
@@ -300,9 +313,42 @@ def section(out: Path, command: str, lso_scores: str | None = None) -> str:
     return "\n".join(lines + [END])
 
 
+def _sources(result: dict[str, Any]) -> list[str]:
+    """A sentence naming the training sources of the networks (when the run recorded them)."""
+    sources = {name: d.get("train_datasets") for name, d in result["datasets"].items()}
+    if not all(sources.values()):
+        return []
+    return [" ".join(f"With {name} left out the network trained on "
+                     f"{' + '.join(train)}." for name, train in sources.items())
+            + (" Kinder-Gator (`kindergator`: 20 people, 10 of them children, on a Kinect v1, "
+               "read from a copy outside the repository, tests/data/kinder_gator/SOURCES.md) "
+               "trains every network and is never left out."
+               if any(KINDER_GATOR in t for t in sources.values()) else ""), ""]
+
+
+def _before_rows(before: dict[str, Any], after: dict[str, Any]) -> list[str]:
+    """Markdown: per left-out dataset, the protocol's loop outcomes of ``before`` -> ``after``."""
+    lines = ["", "Before -> after the change of training sources (the protocol's calibration, "
+             "same options, seeds and left-out recordings; before, each network trained on "
+             "the other datasets of the corpus only):", "",
+             "| left out | waves greeted | other actions greeted | idle greeted | decision "
+             "median after onset, s |", "|---|---|---|---|---|"]
+    for name, a in after["datasets"].items():
+        b = before["datasets"].get(name)
+        if b is None:
+            continue
+        lines.append(f"| {name} | {_greeted(*b['greet_clips'])} -> {_greeted(*a['greet_clips'])}"
+                     f" | {_greeted(*b['other_clips'])} -> {_greeted(*a['other_clips'])} | "
+                     f"{_greeted(*b['idle_clips'])} -> {_greeted(*a['idle_clips'])} | "
+                     f"{b['decision_after_onset_s']['median']} -> "
+                     f"{a['decision_after_onset_s']['median']} |")
+    return lines
+
+
 def cmd_docs(args: argparse.Namespace) -> None:
     text = DOC.read_text()
-    new = section(Path(args.out), args.command_line, args.lso_scores)
+    new = section(Path(args.out), args.command_line, args.lso_scores,
+                  Path(args.before) if args.before else None)
     if BEGIN in text:
         head, rest = text.split(BEGIN, 1)
         text = head + new + rest.split(END, 1)[1]
@@ -316,6 +362,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="out/cross-dataset-loop")
     parser.add_argument("--msrc12", help="MSRC-12 folder (p06 never read)")
+    parser.add_argument("--kindergator", help="Kinder-Gator folder (trains, never left out)")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("train")
     p.add_argument("--datasets", nargs="*")
@@ -329,6 +376,7 @@ def main() -> None:
     p.add_argument("--label", help="row name (default: the file's stem)")
     p = sub.add_parser("docs")
     p.add_argument("--lso-scores", help="a loop_variants scores.jsonl to list (optional)")
+    p.add_argument("--before", help="another run's output folder, listed beside this one")
     p.add_argument("--command-line", default="python benchmarks/cross_dataset_loop.py docs",
                    help="the commands to name in the section's header")
     args = parser.parse_args()

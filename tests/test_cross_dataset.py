@@ -105,6 +105,9 @@ def test_cross_dataset_command(gesture_root: Path, tmp_path: Path,
             assert c["cross_dataset"]["n"] == c["within_dataset"]["n"] == d["shared_clips"]
             confusion = np.array(c["cross_dataset"]["confusion"])
             assert confusion.sum() == d["shared_clips"]
+            by_source = c["by_source_label"].values()
+            assert sum(r["n"] for r in by_source) == d["test_clips"]
+            assert all(sum(r["read_as"].values()) == r["n"] >= r["right"] for r in by_source)
             assert f"| {name} |" in text
         saved = json.loads((out / f"confusion_{name}.json").read_text())
         assert saved["labels"] == result["labels"] and saved["rows"] == "true label"

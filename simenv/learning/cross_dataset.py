@@ -263,6 +263,20 @@ def _scores(y: np.ndarray, pred: np.ndarray) -> dict[str, Any]:
     return s
 
 
+def _by_source(test: Sequence[GestureClip], y: np.ndarray, pred: np.ndarray,
+               labels: list[str]) -> dict[str, dict[str, Any]]:
+    """Per dataset class of the test clips (``source_label``): its room label, clip count,
+    how many were read right and the labels they were read as (counts)."""
+    out: dict[str, dict[str, Any]] = {}
+    for c, t, p in zip(test, y, pred, strict=True):
+        row = out.setdefault(c.source_label, {"label": c.label, "n": 0, "right": 0,
+                                              "read_as": {}})
+        row["n"] += 1
+        row["right"] += int(t == p)
+        row["read_as"][labels[p]] = row["read_as"].get(labels[p], 0) + 1
+    return out
+
+
 def _predictions(train: Sequence[GestureClip], test: Sequence[GestureClip],
                  config: RecognitionConfig, tag: str, progress: bool
                  ) -> tuple[dict[str, np.ndarray], float]:
@@ -326,7 +340,8 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
         counts, ``excluded`` labels with their clip counts, the network's training CPU s,
         and per condition ``cross_dataset`` (scores of :func:`classification_scores` on
         the shared clips: accuracy, balanced accuracy, per-class recall, confusion,
-        room-reaction accuracy), ``cross_dataset_all_clips`` (accuracy on every clip) and
+        room-reaction accuracy), ``cross_dataset_all_clips`` (accuracy on every clip),
+        ``by_source_label`` (per dataset class: room label, clips, right, read as) and
         ``within_dataset`` (the leave-subjects-out scores of the same shared clips)),
         ``goals``, ``config`` and the CPU s of every network.
 
@@ -394,7 +409,8 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
         for cond in CONDITIONS:
             entry["conditions"][cond] = {
                 "cross_dataset": _scores(y[shared], preds[cond][shared]),
-                "cross_dataset_all_clips": round(float((preds[cond] == y).mean()), 4)}
+                "cross_dataset_all_clips": round(float((preds[cond] == y).mean()), 4),
+                "by_source_label": _by_source(test, y, preds[cond], labels)}
             if not cross_only:
                 lso = np.array([within[cond][id(c)] for c in test])
                 entry["conditions"][cond]["within_dataset"] = _scores(y[shared], lso[shared])
