@@ -103,6 +103,11 @@ DIMS_TOL_M = 1e-3
 #: Largest seam (:func:`seam_rms`) a composed walk may have, rad: pieces join only where
 #: the first starts on the other's last tracked state (float32 storage: 1e-7 rad).
 SEAM_TOL_RAD = 1e-3
+#: The kinds of stop (name prefixes): ``stop`` / ``halt`` end in stride (feet 0.5 m apart
+#: along the walk), ``close`` with the feet close (tracked from real motion capture of a
+#: person shortening the last step, :data:`CLOSE_ENDS`).
+STRIDE_ENDS = ("stop", "halt")
+CLOSE_ENDS = ("close",)
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:
@@ -368,9 +373,11 @@ class Anchors:
         return _rot(f[0]) @ self.end[names[-1]] + f[1]
 
 
-def _sequences(anchors: Anchors, max_cycles: int) -> list[list[str]]:
+def _sequences(anchors: Anchors, max_cycles: int, ends: tuple[str, ...] = STRIDE_ENDS
+               ) -> list[list[str]]:
     """Every sequence start .. stop with at most ``max_cycles`` primitives between them
-    whose seams all join (:attr:`Anchors.join`: the same tracked state)."""
+    whose seams all join (:attr:`Anchors.join`: the same tracked state), ending in a stop
+    of one of the kinds ``ends`` (:data:`STRIDE_ENDS`, :data:`CLOSE_ENDS`)."""
     prims = anchors.lib.primitives
     nxt: dict[str, list[str]] = {}
     for a, b in anchors.join:
@@ -380,7 +387,8 @@ def _sequences(anchors: Anchors, max_cycles: int) -> list[list[str]]:
     def extend(seq: list[str], depth: int) -> None:
         for n in nxt.get(seq[-1], []):
             if prims[n].phase_out == "stand":
-                out.append([*seq, n])
+                if n.split("_after_", 1)[0] in ends:
+                    out.append([*seq, n])
             elif depth < max_cycles:
                 extend([*seq, n], depth + 1)
 
@@ -390,23 +398,43 @@ def _sequences(anchors: Anchors, max_cycles: int) -> list[list[str]]:
     return out
 
 
+def _passes(origin: np.ndarray, goal: np.ndarray, end: np.ndarray,
+            overshoot_m: float | None) -> bool:
+    """Whether ``end`` (2,) lies more than ``overshoot_m`` beyond ``goal`` (2,) along the
+    line from ``origin`` (2,) (never with ``overshoot_m`` None)."""
+    if overshoot_m is None:
+        return False
+    d = goal - origin
+    n = float(np.linalg.norm(d))
+    return n > 0 and float((end - origin) @ d) / n > n + overshoot_m
+
+
 def compose(anchors: Anchors, keypoints: np.ndarray, goal: np.ndarray,
-            max_cycles: int = MAX_CYCLES) -> tuple[list[str], float]:
-    """The primitive sequence (start, cycles, stop) from the standing body whose
-    :data:`ANCHOR_KEYPOINTS` are at ``keypoints`` (K, 2) whose predicted end
-    (:meth:`Anchors.predicted_end`) is nearest ``goal`` (2,) (plus :data:`SECOND_M` per
-    second of walking), and that end's distance from the goal, m."""
+            max_cycles: int = MAX_CYCLES, ends: tuple[str, ...] = STRIDE_ENDS,
+            overshoot_m: float | None = None) -> tuple[list[str] | None, float]:
+    """The primitive sequence (start, cycles, a stop of the kinds ``ends``) from the
+    standing body whose :data:`ANCHOR_KEYPOINTS` are at ``keypoints`` (K, 2) whose
+    predicted end (:meth:`Anchors.predicted_end`) is nearest ``goal`` (2,) (plus
+    :data:`SECOND_M` per second of walking), and that end's distance from the goal, m.
+
+    Raises:
+        SimenvError: the library has no stop of the kinds ``ends``."""
     lib = anchors.lib
     best, cost, err = None, np.inf, np.inf
     frames = {n: fit_frame(anchors.first[n], keypoints) for n, p in lib.primitives.items()
               if p.phase_in == "stand"}
-    for seq in _sequences(anchors, max_cycles):
+    seqs = _sequences(anchors, max_cycles, ends)
+    if not seqs:
+        raise SimenvError(f"the walking primitives have no stop of the kinds {list(ends)} "
+                          "(rebuild them with benchmarks/build_mocap_walk.py)", field="ends")
+    for seq in seqs:
         end = anchors.predicted_end(seq, frames[seq[0]])
+        if _passes(keypoints[0], goal, end, overshoot_m):
+            continue
         e = float(np.linalg.norm(end - goal))
         c = e + SECOND_M * sum(lib.seconds(n) for n in seq)
         if c < cost:
             best, cost, err = seq, c, e
-    assert best is not None
     return best, err
 
 
@@ -424,12 +452,16 @@ class MocapWalkPlan:
     """
 
     def __init__(self, room: Room, data: mujoco.MjData, names: list[str],
-                 goal: np.ndarray | None = None, lib: Library | None = None) -> None:
+                 goal: np.ndarray | None = None, lib: Library | None = None,
+                 ends: tuple[str, ...] = STRIDE_ENDS, overshoot_m: float | None = None
+                 ) -> None:
         self.room = room
         self.lib = lib = lib or load_library()
         _check_body(room, lib)
         self.names = list(names)
         self.goal = None if goal is None else np.asarray(goal, float)[:2]
+        self._origin = data.qpos[room.agent_qpos][:2].copy()
+        self._overshoot = overshoot_m
         self.grasps: tuple = ()
         st = lib.stride
         self._starts = np.concatenate([[0], np.cumsum([lib.primitives[n].knots * st
@@ -440,7 +472,7 @@ class MocapWalkPlan:
         self._shadow_at: tuple[str, int] = ("", -1)
         self._shadow_u = np.zeros(self._model.nu)
         self.anchors = anchors_of(lib, room.agent)
-        self._options = _sequences(self.anchors, MAX_CYCLES)
+        self._options = _sequences(self.anchors, MAX_CYCLES, ends)
         self._cur = -1
         self._anchor = (0.0, np.zeros(2))
         self._dq = np.zeros(room.agent.nv)
@@ -483,6 +515,8 @@ class MocapWalkPlan:
             if seq[:i] != played or len(seq) <= i:
                 continue
             end = self.anchors.predicted_end(seq[i:], fit_frame(self.anchors.first[seq[i]], kp))
+            if _passes(self._origin, self.goal, end, self._overshoot):
+                continue
             c = float(np.linalg.norm(end - self.goal))
             if c < cost - 1e-9:
                 best, cost = seq[i:], c
@@ -554,7 +588,8 @@ class _Passthrough:
 
 
 def plan_mocap_walk(room: Room, data: mujoco.MjData, goal: np.ndarray,
-                    lib: Library | None = None, max_cycles: int = MAX_CYCLES
+                    lib: Library | None = None, max_cycles: int = MAX_CYCLES,
+                    ends: tuple[str, ...] = STRIDE_ENDS, overshoot_m: float | None = None
                     ) -> MocapWalkPlan:
     """Plan for walking the standing agent towards ``goal`` (x, y, m) with the primitives
     (module docstring): the sequence :func:`compose` picks from where the pelvis is and
@@ -572,8 +607,170 @@ def plan_mocap_walk(room: Room, data: mujoco.MjData, goal: np.ndarray,
     _check_body(room, lib)
     anc = anchors_of(lib, room.agent)
     kp = data.site_xpos[room.agent_sites[anc.sites], :2]
-    names, _ = compose(anc, kp, np.asarray(goal, float)[:2], max_cycles)
-    return MocapWalkPlan(room, data, names, goal, lib)
+    names, _ = compose(anc, kp, np.asarray(goal, float)[:2], max_cycles, ends, overshoot_m)
+    if names is None:
+        raise SimenvError(f"every walk of the primitives passes the goal by more than "
+                          f"{overshoot_m} m", field="goal")
+    return MocapWalkPlan(room, data, names, goal, lib, ends, overshoot_m)
+
+
+#: A composed walk is played only when its predicted end is at least this much nearer the
+#: goal than where the body stands, m (else the stepping gait walks the whole way).
+MIN_GAIN_M = 0.3
+#: How far a composed walk may be predicted to end beyond the goal (along the line from
+#: where it starts), m: the goal may be in front of a wall (the walk to the window passed
+#: its spot and struck the wall, measured).
+OVERSHOOT_M = 0.05
+#: The stepping gait corrects the walk's end when it is farther than this from the goal,
+#: m, or turned more than :data:`simenv.agents.walk.ALIGN_DEG` from its heading.
+ARRIVE_M = 0.05
+#: While a stage of :class:`PersonWalk` is still to be planned, its duration reads this
+#: much beyond the current stage's end, s.
+PENDING_S = 1.0
+
+
+class _StagesMeter:
+    """The :class:`~simenv.agents.walk.GaitMeter` readings of a :class:`PersonWalk`'s
+    stages as one (``summary``, ``outcome``, ``fallen``, ``lowest_m``, ``grasp_max_n``)."""
+
+    def __init__(self, room: Room, goal: np.ndarray) -> None:
+        self.room, self.goal = room, goal
+        self.meters: list[GaitMeter] = []
+
+    def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
+        return targets  # each stage's own meter has measured already
+
+    def merged(self) -> GaitMeter:
+        """One meter holding every stage's readings in order."""
+        m = GaitMeter(self.room, _Passthrough(), self.goal)  # type: ignore[arg-type]
+        for x in self.meters:
+            m.forces_n += x.forces_n
+            m.torques_nm += x.torques_nm
+            m.lowest_m = min(m.lowest_m, x.lowest_m)
+            m.grasp_max_n = max(m.grasp_max_n, x.grasp_max_n)
+        return m
+
+    def summary(self, steps_per_frame: int = 20) -> dict:
+        """:meth:`simenv.agents.walk.GaitMeter.summary` over all stages."""
+        return self.merged().summary(steps_per_frame)
+
+    def outcome(self, data: mujoco.MjData) -> dict:
+        """:meth:`simenv.agents.walk.GaitMeter.outcome` over all stages."""
+        return self.merged().outcome(data)
+
+    def fallen(self) -> bool:
+        """Whether the body fell in any stage so far."""
+        return self.merged().fallen()
+
+    @property
+    def lowest_m(self) -> float:
+        """The lowest pelvis height over the stages so far, m."""
+        return self.merged().lowest_m
+
+
+class PersonWalk:
+    """Walking the standing agent to ``goal`` (x, y, m) facing ``goal_yaw`` (rad) at a
+    person's pace where the primitives reach, with the interface of a
+    :class:`~simenv.agents.reach.PDPlan`; its stages, each planned from the state the one
+    before it left:
+
+    1. ``turn``: the stepping gait's turn on the spot to face the goal
+       (:func:`simenv.agents.walk.plan_walk` onto the pelvis's own place), when the body
+       faces more than :data:`simenv.agents.walk.ALIGN_DEG` away from it;
+    2. ``mocap``: the primitives' walk ending with the feet close (:data:`CLOSE_ENDS`,
+       :func:`plan_mocap_walk`), when its predicted end is at least :data:`MIN_GAIN_M`
+       nearer the goal than the body is (so a goal nearer than the shortest walk is left to
+       the stepping gait);
+    3. ``step``: the stepping gait's walk onto the goal and turn onto ``goal_yaw``, when
+       the body ends farther than :data:`ARRIVE_M` from it or turned away from its heading.
+
+    :attr:`duration` grows as stages are planned (read it every step); :attr:`stages`
+    lists the stages played ((name, start s, plan)); ``feedback`` measures the help (none)
+    and the outcome over all of them.
+    """
+
+    def __init__(self, room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
+                 lib: Library | None = None) -> None:
+        check_standing(room, data, "walk")
+        self.room, self.lib = room, lib or load_library()
+        _check_body(room, self.lib)
+        self.goal = np.asarray(goal, float)[:2]
+        self.goal_yaw = float(goal_yaw)
+        self.grasps: tuple = ()
+        self.feedback = _StagesMeter(room, self.goal)
+        self.stages: list[tuple[str, float, object]] = []
+        #: Why the stepping gait's correction was refused (its footsteps out of the legs'
+        #: reach from the stance the walk ended in), or None.
+        self.refused: str | None = None
+        self._todo = ["turn", "mocap", "step"]
+        self._end = 0.0
+        self._next(0.0, data)
+
+    @property
+    def duration(self) -> float:
+        """Seconds planned so far (plus :data:`PENDING_S` while a stage is to be planned)."""
+        cur = self.stages[-1][1] + self.stages[-1][2].duration if self.stages else 0.0
+        return cur + (PENDING_S if self._todo else 0.0)
+
+    def _plan(self, name: str, data: mujoco.MjData) -> object | None:
+        from simenv.agents.walk import ALIGN_DEG, plan_walk
+
+        q = data.qpos[self.room.agent_qpos]
+        to = self.goal - q[:2]
+        dist = float(np.linalg.norm(to))
+        heading = float(np.arctan2(to[1], to[0]))
+        off = abs(np.rad2deg(np.angle(np.exp(1j * (heading - quat_yaw(q[3:7]))))))
+        if name == "turn":
+            return plan_walk(self.room, data, q[:2].copy(), heading) if off > ALIGN_DEG \
+                else None
+        if name == "mocap":
+            anc = anchors_of(self.lib, self.room.agent)
+            kp = data.site_xpos[self.room.agent_sites[anc.sites], :2]
+            names, err = compose(anc, kp, self.goal, MAX_CYCLES, CLOSE_ENDS, OVERSHOOT_M)
+            if names is None or err > dist - MIN_GAIN_M:
+                return None
+            return MocapWalkPlan(self.room, data, names, self.goal, self.lib, CLOSE_ENDS,
+                                 OVERSHOOT_M)
+        yaw_off = abs(np.rad2deg(np.angle(np.exp(1j * (self.goal_yaw - quat_yaw(q[3:7]))))))
+        if dist <= ARRIVE_M and yaw_off <= ALIGN_DEG:
+            return None
+        try:
+            return plan_walk(self.room, data, self.goal, self.goal_yaw)
+        except SimenvError as exc:  # the body stands where it ended, reported
+            self.refused = str(exc)
+            return None
+
+    def _next(self, t: float, data: mujoco.MjData) -> None:
+        """Plan the next stage that is needed from the state now (``t`` s into the walk)."""
+        while self._todo:
+            name = self._todo.pop(0)
+            if self.stages and self.stages[-1][2].feedback.fallen():
+                self._todo.clear()
+                return
+            plan = self._plan(name, data)
+            if plan is not None:
+                self.stages.append((name, t, plan))
+                self.feedback.meters.append(plan.feedback)
+                return
+
+    def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
+        """(nu,) the agent's servo targets ``t`` s into the walk."""
+        name, t0, plan = self.stages[-1]
+        if t - t0 >= plan.duration and self._todo:
+            self._next(t, data)
+            name, t0, plan = self.stages[-1]
+        return plan.control(t - t0, data)
+
+
+def plan_person_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
+                     lib: Library | None = None) -> PersonWalk:
+    """:class:`PersonWalk` to ``goal`` (x, y, m) facing ``goal_yaw`` (rad).
+
+    Raises:
+        SimenvError: the agent is not standing, the library was built for another body,
+            or a stepping gait's footstep is out of the legs' reach.
+    """
+    return PersonWalk(room, data, goal, goal_yaw, lib)
 
 
 _ANCHORS: dict[tuple[int, int], Anchors] = {}
@@ -587,6 +784,7 @@ def anchors_of(lib: Library, h: Humanoid) -> Anchors:
     return _ANCHORS[key]
 
 
-__all__ = ["ANCHOR_KEYPOINTS", "LIBRARY", "Anchors", "Library", "MocapWalkPlan", "Primitive",
-           "anchors_of", "body_signature", "compose", "fit_frame", "load_library", "mirror",
-           "plan_mocap_walk"]
+__all__ = ["ANCHOR_KEYPOINTS", "CLOSE_ENDS", "LIBRARY", "STRIDE_ENDS", "Anchors", "Library",
+           "MocapWalkPlan", "PersonWalk", "Primitive", "anchors_of", "body_signature",
+           "compose", "fit_frame", "load_library", "mirror", "plan_mocap_walk",
+           "plan_person_walk"]

@@ -56,7 +56,14 @@ import mujoco
 import numpy as np
 
 from simenv.agents.gait import standing_agent, wrap_angle
-from simenv.agents.mocap_walk import Library, load_library, plan_mocap_walk
+from simenv.agents.mocap_walk import (
+    CLOSE_ENDS,
+    STRIDE_ENDS,
+    Library,
+    load_library,
+    plan_mocap_walk,
+    plan_person_walk,
+)
 from simenv.agents.walk import ALIGN_DEG, plan_walk
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
@@ -123,15 +130,25 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
         if turn.feedback.fallen():
             extra["fell_in"] = "turn"
             plan: Any = turn
-    if extra.get("fell_in") == "turn":
+    if gait == "person":
+        plan = plan_person_walk(room, data, goal_a, heading, lib)
+        more, fell_at = _play(room, data, plan, path, 0.0)
+        sim = more
+        extra["stages"] = [[n, round(t0, 2), round(p.duration, 2)] for n, t0, p in plan.stages]
+        extra["played"] = [x for n, _, p in plan.stages
+                           for x in (p.names if n == "mocap" else [f"{n} {p.duration:.1f} s"])]
+        if plan.refused:
+            extra["correction_refused"] = plan.refused
+    elif extra.get("fell_in") == "turn":
         more = 0.0
     elif "mocap" in gait:
-        plan = plan_mocap_walk(room, data, goal_a, lib)
+        ends = CLOSE_ENDS if gait == "mocap+step" else STRIDE_ENDS
+        plan = plan_mocap_walk(room, data, goal_a, lib, ends=ends)
         extra["planned"] = list(plan.names)
     else:
         plan = plan_walk(room, data, goal_a, heading)
         extra["steps"] = len(plan.steps)
-    if "fell_in" not in extra:
+    if "fell_in" not in extra and gait != "person":
         more, fell1 = _play(room, data, plan, path, sim)
         sim += more
         fell_at = fell_at if fell_at is not None else fell1
@@ -226,7 +243,7 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("out/bench_mocap_walk"))
     parser.add_argument("--gaits", nargs="*",
                         default=["mocap", "turn+mocap", "mocap+step", "stepping"],
-                        choices=["mocap", "turn+mocap", "mocap+step", "stepping"],
+                        choices=["mocap", "turn+mocap", "mocap+step", "person", "stepping"],
                         help="which gaits (the stepping gait takes minutes a walk)")
     parser.add_argument("--walks", nargs="*", default=[*WALKS, "open"],
                         help=f"names among {list(WALKS)} and 'open' (the open-floor goals)")

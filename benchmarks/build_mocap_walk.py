@@ -28,7 +28,14 @@ What it does, deterministically (seeded planner, one fixed clip):
 6. tracks one stop after each of them (:data:`STOP_AFTER`, :func:`track_stop`: from its
    last tracked state, the same planner and seed), and gives every primitive
    time-varying feedback gains: discrete LQR (:func:`lqr_gains`) on
-   ``mujoco.mjd_transitionFD`` linearisations about the tracked states.
+   ``mujoco.mjd_transitionFD`` linearisations about the tracked states;
+7. tracks one *closing* stop after each walking piece (:data:`CLOSE_AFTER`,
+   :func:`track_close`): the gait to the frame nearest the start of real motion capture
+   of a person coming to rest with a short last step (CMU 19_01, :data:`CLOSE_CLIP`), a
+   cross-fade into it, the clip to rest: the walk ends with the feet close, a stance the
+   stepping gait can take over from (the other stops end in stride, feet 0.5 m apart). A
+   stop or halt or closing stop the tracker fails, or whose error passes
+   :data:`KEEP_MAX_ERR_M`, is left out.
 
 Usage::
 
@@ -55,6 +62,7 @@ from simenv.assets import WALK, asset_path
 from simenv.body.humanoid import Humanoid
 from simenv.body.retarget import RetargetResult, retarget_motion
 from simenv.control import MPCConfig, TrackingMPC, TrackingReference, fast_planner
+from simenv.core.config import shared_data_root
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
 from simenv.plausibility.dynamics import dynamics_settings
 from simenv.room.room import Room
@@ -539,6 +547,93 @@ def track_halt(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndarr
                              lambda at: halt_reference(h, cyc, adv, fps, at))
 
 
+#: Real motion capture of a person coming to rest from a walk with the feet close: CMU
+#: 19_01 ("walk, shake hands", subject B; the shared corpus's
+#: ``cmu/two_person/18_19_walk_shake_hands/19_01.bvh``) walks in at 1.1 m/s, shortens its
+#: last step (the left foot lands 0.27 m ahead of the right, a stride being 0.55 m), slows
+#: to rest by 1.1 s with the right heel still raised (ankle 3-5 cm up) and lowers it by
+#: 1.6 s, the pelvis drifting back 0.1 m between the feet; then the feet stand 0.15-0.2 m
+#: apart along the walk and 0.2 m aside (measured on the retargeted clip). Its first frame
+#: is 0.14 s after a right heel strike.
+CLOSE_CLIP = ("cmu", "two_person", "18_19_walk_shake_hands", "19_01.bvh")
+#: The clip is played at its pace to CLOSE_SLOW_S, then slowed to rest (minimum-jerk speed,
+#: over twice the clip's time) at CLOSE_END_S, s (ended at 1.1 s, the tracked body stood
+#: on its left foot with the right on its toes, 46 deg, and the stepping gait fell from
+#: there, measured).
+CLOSE_SLOW_S, CLOSE_END_S = 1.1, 1.6
+#: Cross-fade from the walk's gait into the closing clip, s.
+CLOSE_FADE_S = 0.1
+#: The closing clip's heading: its pelvis's travel over its first this many s.
+CLOSE_DIR_S = 0.3
+#: The closing stops (``close_after_<piece>``, :func:`close_reference`): one tracking run
+#: after each walking piece, shortest chains first.
+CLOSE_AFTER = ("start_short", "start", "half_c", "half_b", "half_a", "straight", "left")
+
+
+def closing_clip(h: Humanoid) -> np.ndarray:
+    """(T, nq) :data:`CLOSE_CLIP` retargeted onto ``h``, at its pace to
+    :data:`CLOSE_SLOW_S` and slowed to rest at :data:`CLOSE_END_S` (frames blended)."""
+    res = retarget_motion(simenv.load(shared_data_root().joinpath(*CLOSE_CLIP)), h)
+    q, fps = np.asarray(res.qpos, float), float(res.fps)
+    a, b = CLOSE_SLOW_S * fps, CLOSE_END_S * fps
+    frames = list(q[: int(a)])
+    n = int(round(2 * (b - a)))  # mean speed 1/2 of the clip's
+    taus = [a + (b - a) * float(np.trapezoid(
+        [1 - min_jerk(u) for u in np.linspace(0, j / n, 50)], dx=j / n / 49)) * 2
+        for j in range(n + 1)]
+    for tau in taus:
+        k = min(int(np.floor(tau)), len(q) - 2)
+        frames.append(_blend(q[k], q[k + 1], tau - k))
+    return np.array(frames)
+
+
+def close_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
+                    clip: np.ndarray, phase: str, at: np.ndarray) -> np.ndarray:
+    """(T, nq) a stop that ends with the feet close: the looped clip (cycle ``cyc``,
+    advance ``adv``) from the mid-swing ``phase`` (``"left"``: frame 0, ``"right"``: P / 2)
+    to the frame whose leg hinges are nearest the closing ``clip``'s first (rms), a
+    cross-fade over :data:`CLOSE_FADE_S` into ``clip`` (placed there by its legs'
+    keypoints), the clip to rest and :data:`END_S` still; placed on the floor onto the pose
+    ``at`` (nq,) as :func:`stop_reference` places its tail."""
+    P = len(cyc)
+    legs = [i for i, n in enumerate(h.joint_names)
+            if any(k in n for k in ("thigh", "shin", "foot", "toes"))]
+    tau0 = 0.0 if phase == "left" else 0.5 * P
+    rms = [float(np.sqrt(np.mean((cyc[f, 7:][legs] - clip[0, 7:][legs]) ** 2)))
+           for f in range(P)]
+    f = int(np.argmin(rms))
+    tau1 = float(f if f > tau0 else f + P)
+    frames = [clip_at(cyc, adv, t) for t in np.arange(tau0, tau1)]
+    # The clip turned onto the looped walk's direction (+x) by its pelvis's travel over
+    # its first CLOSE_DIR_S and shifted onto the join frame's pelvis (placed by one
+    # frame's leg keypoints instead, the other subject's stride turned it 25 deg, measured).
+    d = clip[int(round(CLOSE_DIR_S * fps)), :2] - clip[0, :2]
+    psi = -float(np.arctan2(d[1], d[0]))
+    placed = clip.copy()
+    c, sn = np.cos(psi), np.sin(psi)
+    placed[:, :2] = (clip[:, :2] - clip[0, :2]) @ np.array([[c, sn], [-sn, c]])
+    placed[:, :2] += clip_at(cyc, adv, tau1)[:2]
+    for i in range(len(placed)):
+        placed[i, 3:7] = _qmul(_quat_z(psi), placed[i, 3:7])
+    n = int(round(CLOSE_FADE_S * fps))
+    frames += [_blend(clip_at(cyc, adv, tau1 + k), placed[k], min_jerk(k / n))
+               for k in range(n)]
+    frames += list(placed[n:])
+    frames += [placed[-1]] * int(round(END_S * fps))
+    return _placed_on(h, np.array(frames), at)
+
+
+def track_close(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndarray,
+                fps: float, taus: np.ndarray, run: dict[str, np.ndarray], clip: np.ndarray,
+                after: str, seed: int, tries: int, log: Path | None
+                ) -> dict[str, np.ndarray]:
+    """The tracked closing stop after primitive ``after`` (:data:`CLOSE_AFTER`), as
+    :func:`track_stop` but of :func:`close_reference`."""
+    return _track_tail_after(h, base, fps, taus, run, after, seed, tries, log,
+                             lambda at: close_reference(h, cyc, adv, fps, clip,
+                                                        CUTS[after][3], at))
+
+
 #: Rank of the gains' basis over time. Measured on the start's first 2 s in the tracked
 #: model, pushed sideways 0.2 m/s: the pelvis 0.27 m off the tracked run after 2 s with
 #: the full gains (Q 10 / 50 / 0.1), 0.28 m at rank 100, 0.35 at rank 40; at rank 5 (99.9 %
@@ -702,27 +797,38 @@ def main() -> int:
         "tracking_wall_s": float(run["wall_s"]),
         "lqr": {"q_pos": Q_POS, "q_root": Q_ROOT, "q_vel": Q_VEL, "r_ctrl": R_CTRL}}
     taus = np.asarray(times["taus"])
+    provenance["close_after"] = list(CLOSE_AFTER)
+    provenance["close_source"] = ("CMU 19_01 walk, shake hands, subject B (shared corpus "
+                                  f"{'/'.join(CLOSE_CLIP)}), real motion capture, "
+                                  "mocap.cs.cmu.edu (NSF EIA-0196217), to "
+                                  f"{CLOSE_END_S} s, slowed to rest from {CLOSE_SLOW_S} s")
     stops = {}
-    for kind, afters in (("stop", STOP_AFTER), ("halt", HALT_AFTER)):
+    clip = closing_clip(h)
+    for kind, afters in (("stop", STOP_AFTER), ("halt", HALT_AFTER), ("close", CLOSE_AFTER)):
         for after in afters:  # each tracked run is cached beside the main one
             name = f"{kind}_after_{after}"
             suffix = f"stop_{after}" if kind == "stop" else name
             path = args.tracked.with_name(f"{args.tracked.stem}_{suffix}.npz")
             if not path.exists():
-                out = (track_stop(h, base, q, taus, fps, run, after, args.seed, args.tries,
-                                  args.log) if kind == "stop" else
-                       track_halt(h, base, cyc, adv, fps, taus, run, after, args.seed,
-                                  args.tries, args.log))
+                if kind == "stop":
+                    out = track_stop(h, base, q, taus, fps, run, after, args.seed, args.tries,
+                                     args.log)
+                elif kind == "halt":
+                    out = track_halt(h, base, cyc, adv, fps, taus, run, after, args.seed,
+                                     args.tries, args.log)
+                else:
+                    out = track_close(h, base, cyc, adv, fps, taus, run, clip, after,
+                                      args.seed, args.tries, args.log)
                 np.savez(path, **out)
             stops[name] = dict(np.load(path))
             sr = stops[name]
             with args.log.open("a") as f:
                 f.write(f"{name}: ok={bool(sr['ok'])} seed {int(sr['seed'])} mean err "
                         f"{sr['err'].mean():.3f} max {sr['err'].max():.3f}\n")
-            if not bool(sr["ok"]):
+            if not bool(sr["ok"]) and kind == "stop":
                 print(f"the tracker failed {name} on every seed: no library")
                 return 1
-            if float(sr["err"].max()) > KEEP_MAX_ERR_M:
+            if not bool(sr["ok"]) or float(sr["err"].max()) > KEEP_MAX_ERR_M:
                 del stops[name]
                 provenance.setdefault("left_out", []).append(
                     {"stop": name, "seed": int(sr["seed"]), "max_err_m": float(sr["err"].max())})
