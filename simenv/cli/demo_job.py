@@ -38,6 +38,7 @@ import cv2
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.body.render import render_result
 from simenv.cli.common import describe, retarget_clip, save_npz, summary
+from simenv.cli.demo import REACTION_SECONDS
 from simenv.cli.demo_page import write_page
 from simenv.control import fast_planner
 from simenv.core.errors import SimenvError
@@ -79,12 +80,10 @@ REHEARSAL_SESSION = f"{HANDSHAKE_PAIR}/19_01.bvh"
 #: show the mechanism: the agent must press the cigarette out with its own simulated hand.
 REHEARSAL_GESTURE = ("smell", 0.5, 1.5)
 #: The reaction generator of ``reaction/`` and the session it answers (person A of the
-#: handshake pair, who walks up and offers a hand), cut to its first seconds to keep the
-#: demo short: tracking both people is most of the demo's CPU (4 s: 117 s of the 244), so
-#: the reaction covers as long as the pair's clip shows (2.5 s).
+#: handshake pair, who walks up and offers a hand), cut to its first seconds
+#: (:data:`simenv.cli.demo.REACTION_SECONDS` unless told) to keep the demo short.
 REACTION_MODEL = "interformer"
 REACTION_FILE = "18_01.bvh"
-REACTION_SECONDS = 2.5
 
 
 def demo_score_config(base: ScoreConfig | None = None) -> ScoreConfig:
@@ -120,7 +119,7 @@ def stage(stages: Stages, name: str) -> Iterator[None]:
 
 def run_demo(
     out_dir: str | Path, *, stride: int | None = None, width: int = 320, height: int = 240,
-    config: ScoreConfig | None = None,
+    config: ScoreConfig | None = None, reaction_seconds: float = REACTION_SECONDS,
 ) -> dict[str, Any]:
     """Run the demo, write its files into ``out_dir`` and print where they are.
 
@@ -131,6 +130,7 @@ def run_demo(
         width, height: video size in pixels.
         config: the scoring of the clips and of the reaction (default
             :func:`demo_score_config`).
+        reaction_seconds: seconds of :data:`REACTION_FILE` the reaction generator answers.
 
     Returns:
         The summary written to ``out_dir/summary.json``; ``stages`` holds each stage's wall
@@ -149,7 +149,7 @@ def run_demo(
     # tracked) and the clips' scoring, so that the cores stay busy to the end. "spawn": a
     # fresh interpreter, not a fork of one holding an OpenGL context and threads.
     with ProcessPoolExecutor(max_workers=2, mp_context=get_context("spawn")) as physics:
-        answer = physics.submit(react, out_dir / "reaction", config)
+        answer = physics.submit(react, out_dir / "reaction", config, reaction_seconds)
         scoring = {name: physics.submit(score_clip, name, asset, out_dir, config)
                    for name, asset in DEMO_CLIPS}
         for name, asset in DEMO_CLIPS:
@@ -300,17 +300,18 @@ def reaction_clip(seconds: float = REACTION_SECONDS) -> tuple[Interaction, dict[
     return generate_reaction(user, load_model(REACTION_MODEL), windows)
 
 
-def react(out_dir: Path, config: ScoreConfig) -> tuple[dict[str, Any], dict[str, float]]:
+def react(out_dir: Path, config: ScoreConfig, seconds: float = REACTION_SECONDS
+          ) -> tuple[dict[str, Any], dict[str, float]]:
     """:func:`_reaction`, and its wall and CPU seconds."""
     stages: Stages = {}
     with stage(stages, "reaction"):
-        answer = _reaction(out_dir, config)
+        answer = _reaction(out_dir, config, seconds)
     return answer, stages["reaction"]
 
 
-def _reaction(out_dir: Path, config: ScoreConfig) -> dict[str, Any]:
+def _reaction(out_dir: Path, config: ScoreConfig, seconds: float) -> dict[str, Any]:
     """:data:`REACTION_MODEL` answers :data:`REACTION_FILE` of the handshake pair (its first
-    :data:`REACTION_SECONDS`), tracked and scored with ``config``: ``simenv rehearse
+    ``seconds``), tracked and scored with ``config``: ``simenv rehearse
     --agent`` (:func:`simenv.envs.reaction_rehearsal.rehearse_reaction`) writes
     ``reaction.npz``, ``report/report.html`` and ``summary.json``. Returns the demo's
     record."""
@@ -320,9 +321,9 @@ def _reaction(out_dir: Path, config: ScoreConfig) -> dict[str, Any]:
         return {"skipped": f"{REACTION_MODEL} not shipped"}
     session = f"{HANDSHAKE_PAIR}/{REACTION_FILE}"
     print(f"[reaction] {REACTION_MODEL} answers {session} (first "
-          f"{REACTION_SECONDS:g} s): generate, retarget, track, score", flush=True)
+          f"{seconds:g} s): generate, retarget, track, score", flush=True)
     s = rehearse_reaction(asset_path(HANDSHAKE_PAIR) / REACTION_FILE, REACTION_MODEL,
-                          out_dir, seconds=REACTION_SECONDS, video=False, config=config,
+                          out_dir, seconds=seconds, video=False, config=config,
                           shared=SHARED)
     agent = s["agent"]
     print(f"[reaction] agent {agent['verdict']} (score {agent['score']:.0f}; failed: "
