@@ -15,7 +15,8 @@ finishes (a rerun skips the keys already there); the markdown table is written b
 markers of docs/plausibility.md.
 
 ``--before FILE`` (a JSONL of an earlier run, e.g. before a change to the body fit) adds the
-earlier count and the real clips whose verdict or score moved.
+earlier count and the real clips whose verdict or score moved. ``--carry FILE`` fills in the
+rows of clips this run has not rescored from an earlier run, and the docs name them.
 
 Roles. :data:`CLIPS` is the **development** set: every one of its clips has been diagnosed
 on. :data:`HELD_OUT` is the **held-out** set, fixed (and committed) before any of its clips
@@ -259,12 +260,16 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
              "and path (read from the snapshot, not copied).", "",
              "**Development set** (every clip diagnosed on): " + _clip_table(dev)[0],
              *_clip_table(dev)[1:]]
+    carried = sorted(r["key"] for r in dev if r.get("carried"))
+    if carried:
+        lines += ["", f"Rows of {', '.join(f'`{k}`' for k in carried)} (and their corruptions) "
+                  "are carried from an earlier run (`--carry`), not rescored by this one."]
+    if before:
+        lines += _moved(rows, before)
     if held:
         table = _clip_table(held)
         lines += ["", "**Held-out set** (fixed and committed before any clip was read; scored "
                   "once, after the fixes; first scored): " + table[0], *table[1:]]
-    if before:
-        lines += _moved(rows, before)
     if bad:
         caught = sum(r["caught"] for r in bad)
         lines += ["", f"**Seeded corruptions** of both sets (moderate strength, seed = clip's "
@@ -301,6 +306,9 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=OUT / "results.jsonl", help="results JSONL")
     ap.add_argument("--before", type=Path, default=None,
                     help="JSONL of an earlier run: list its count and the clips that moved")
+    ap.add_argument("--carry", type=Path, default=None,
+                    help="JSONL of an earlier run whose rows stand in for clips --out lacks "
+                         "(docs only; the table says which)")
     ap.add_argument("--role", choices=("dev", "heldout"), default="dev",
                     help="the set to score (default: the development set)")
     ap.add_argument("--extract-to", type=Path, default=Path("/tmp/simenv_humanml3d_heldout"),
@@ -328,6 +336,9 @@ def main() -> None:
                 fh.write(json.dumps(row) + "\n")
             print(key, row.get("verdict"), row.get("score"), row.get("caught", ""),
                   _failing(row), row["cpu_s"], flush=True)
+    if args.carry:
+        rows |= {k: r | {"carried": True} for k, r in read_rows(args.carry).items()
+                 if k not in rows}
     before = read_rows(args.before) if args.before else None
     replace_section(DOC, BEGIN, END, markdown(rows, args.max_seconds, before))
 
