@@ -6,9 +6,13 @@ of the same protocol with one change, put beside it (before / after, cross-datas
 within-dataset); ``--before DIR --before-name TEXT`` (optional) the reverse: the run reported
 is the one with the change, DIR the same protocol without it. ``--explored FILE`` (optional)
 a JSON list of the exploration runs that chose the change (``name``, ``change`` and per
-left-out dataset its ``real_3s`` / ``real_1s`` accuracy), tabled as measured. Every number
-comes from those files. The section sits between its markers; they are appended to the page
-when absent.
+left-out dataset its ``real_3s`` / ``real_1s`` accuracy), tabled as measured. ``--waves
+FILE`` (optional) the JSON of ``benchmarks/wave_diagnosis.py`` (what each source shows as a
+wave), tabled with its plot ``docs/cross_dataset_waves.png``. A run made with
+``cross_only`` (no leave-subjects-out networks) shows "not run" in its within-dataset
+cells. ``--text FILE`` (optional) a markdown file of findings put after the tables. Every
+number comes from those files. The section sits between its markers; they are appended to
+the page when absent.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from doc_sections import replace_section
+from wave_diagnosis import table as waves_table
 
 from simenv.learning.cross_dataset import summary_table
 from simenv.learning.recognition import RecognitionConfig
@@ -68,6 +73,11 @@ def _worst_classes(result: dict[str, Any], cond: str = "real_3s") -> list[str]:
     return out
 
 
+def _within(c: dict[str, Any]) -> str:
+    """A condition's within-dataset accuracy, or "not run" (a ``cross_only`` run)."""
+    return f"{c['within_dataset']['accuracy']:.3f}" if "within_dataset" in c else "not run"
+
+
 def _before_after(before: dict[str, Any], after: dict[str, Any]) -> list[str]:
     """Rows: per left-out dataset and condition, accuracy before -> after."""
     lines = ["| left out | condition | cross-dataset | within-dataset "
@@ -77,10 +87,24 @@ def _before_after(before: dict[str, Any], after: dict[str, Any]) -> list[str]:
             v = after["datasets"][name]["conditions"][cond]
             lines.append(
                 f"| {name} | {cond} | {c['cross_dataset']['accuracy']:.3f} -> "
-                f"{v['cross_dataset']['accuracy']:.3f} | "
-                f"{c['within_dataset']['accuracy']:.3f} -> "
-                f"{v['within_dataset']['accuracy']:.3f} |")
+                f"{v['cross_dataset']['accuracy']:.3f} | {_within(c)} -> {_within(v)} |")
     return lines
+
+
+def _wave_sources(result: dict[str, Any], cond: str = "real_3s") -> list[str]:
+    """Rows: per left-out dataset, each of its classes labelled ``wave``: clips read as
+    wave and what the others were read as (the run's ``by_source_label``)."""
+    lines = ["| left out | dataset class | read as wave | the others read as |",
+             "|---|---|---|---|"]
+    for name, d in result["datasets"].items():
+        for source, r in d["conditions"][cond].get("by_source_label", {}).items():
+            if r["label"] != "wave":
+                continue
+            rest = ", ".join(f"{k} {v}" for k, v in sorted(r["read_as"].items(),
+                                                          key=lambda kv: -kv[1])
+                             if k != "wave") or "none"
+            lines.append(f"| {name} | {source} | {r['right']}/{r['n']} | {rest} |")
+    return lines if len(lines) > 2 else []
 
 
 def _explored(runs: list[dict[str, Any]], names: list[str]) -> list[str]:
@@ -99,7 +123,8 @@ def _explored(runs: list[dict[str, Any]], names: list[str]) -> list[str]:
 
 def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None = None,
             variant_name: str = "", before: dict[str, Any] | None = None,
-            before_name: str = "", explored: list[dict[str, Any]] | None = None) -> str:
+            before_name: str = "", explored: list[dict[str, Any]] | None = None,
+            waves: dict[str, Any] | None = None) -> str:
     """The section's markdown (without the markers)."""
     cfg = result["config"]
     canonical = bool(cfg.get("canonical_body"))
@@ -121,7 +146,11 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
         "without that dataset can name them. Beside each figure stands the within-dataset "
         "one: the same clips under leave-subjects-out over the whole corpus "
         f"({result['within_dataset_folds']} folds). There the subjects are unseen but "
-        "their dataset is not. Windows are centre-cropped as in the room protocol. "
+        "their dataset is not"
+        + ("" if result["within_dataset_train_cpu_s"] else
+           " (not run here: this run trained the cross-dataset networks only, "
+           "`cross_only`)")
+        + ". Windows are centre-cropped as in the room protocol. "
         + (f"Run: `{result['command']}`. " if "command" in result else "")
         + f"Corpus: {result['clips']} clips. Every network was trained with the same options: "
         f"{cfg['epochs']} epochs (the shipped recogniser's default: "
@@ -137,6 +166,15 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
             "they are). It contributes one clip per recording, cut around the middle gesture "
             "tag. Person p06 is never read. Its bow is `bow`; its other eleven gestures are "
             "`other`."] if "msrc12" in result["datasets"] else []),
+        *(["", f"Kinder-Gator (`kindergator`, {result['train_only']['kindergator']} clips) "
+            "trains every network and is never left out "
+            "(`run_cross_dataset(train_only=...)`): 10 adults and 10 children on a Kinect v1 "
+            "(`simenv.io.kinder_gator`), read from a copy outside the repository (no licence "
+            "allowing redistribution; tests/data/kinder_gator/SOURCES.md). Its waves of "
+            "either hand are `wave`, its bow `bow`, touch your toes `bend_down`, every fifth "
+            "of its 54 other motions per person `other`; each clip is the recording's moving "
+            "part, its still edges `idle`."]
+          if result.get("train_only", {}).get("kindergator") else []),
         "",
         summary_table(result),
         "",
@@ -150,13 +188,29 @@ def section(result: dict[str, Any], header: str, variant: dict[str, Any] | None 
         "",
         *_worst_classes(result),
     ]
+    if waves is not None:
+        lines += ["", "### What each dataset shows as a wave", "",
+                  "`python benchmarks/wave_diagnosis.py` on the corpus's wave clips, "
+                  "normalised and put on the canonical body as the network reads them "
+                  "(metres of the reference body); the hand is the wrist that travels most, "
+                  "as the reader labels it. The plot (docs/cross_dataset_waves.png) draws the "
+                  "waving wrist's height over the head against time for every clip.", "",
+                  waves_table(waves), "", "![waving wrist over the head, per source]"
+                  "(cross_dataset_waves.png)"]
+    rows = _wave_sources(result)
+    if rows:
+        lines += ["", "Each wave class of a left-out dataset (3 s real, cross-dataset, this "
+                  "run):", "", *rows]
     if variant is not None:
         lines += ["", f"### One change toward sensor invariance: {variant_name}", "",
                   f"Changed options: {_changed(result, variant)}. Same corpus, protocol "
                   "and seeds. Accuracy before -> after:", "", *_before_after(result, variant)]
     if before is not None:
+        corpus = ("Same corpus" if before["clips"] == result["clips"] else
+                  f"Training corpus {before['clips']} -> {result['clips']} clips (the same "
+                  "left-out test clips)")
         lines += ["", f"### The change this run makes: {before_name}", "",
-                  f"Changed options: {_changed(before, result)}. Same corpus, protocol "
+                  f"Changed options: {_changed(before, result)}. {corpus}, same protocol "
                   "and seeds. Accuracy before -> after (this run):", "",
                   *_before_after(before, result)]
     if explored:
@@ -179,6 +233,10 @@ def main() -> int:
     parser.add_argument("--before-name", default="", help="what this run changed")
     parser.add_argument("--explored", type=Path,
                         help="JSON list of the exploration runs (module docstring)")
+    parser.add_argument("--waves", type=Path,
+                        help="JSON of benchmarks/wave_diagnosis.py (optional)")
+    parser.add_argument("--text", type=Path,
+                        help="a markdown file of findings put after the tables (optional)")
     args = parser.parse_args()
     result = json.loads((args.result / "cross_dataset.json").read_text())
     variant = (json.loads((args.variant / "cross_dataset.json").read_text())
@@ -186,13 +244,16 @@ def main() -> int:
     before = (json.loads((args.before / "cross_dataset.json").read_text())
               if args.before else None)
     explored = json.loads(args.explored.read_text()) if args.explored else None
+    waves = json.loads(args.waves.read_text()) if args.waves else None
     command = "python benchmarks/cross_dataset_docs.py " + shlex.join(sys.argv[1:])
     page = ROOT / "docs" / "recognition.md"
     if BEGIN not in page.read_text():
         page.write_text(page.read_text().rstrip("\n") + f"\n\n{BEGIN}\n{END}\n")
-    replace_section(page, BEGIN, END, section(result, _header(command), variant,
-                                              args.variant_name, before, args.before_name,
-                                              explored))
+    text = section(result, _header(command), variant, args.variant_name, before,
+                   args.before_name, explored, waves)
+    if args.text:
+        text += "\n\n" + args.text.read_text().strip()
+    replace_section(page, BEGIN, END, text)
     print(f"wrote the cross-dataset section of {page}")
     return 0
 
