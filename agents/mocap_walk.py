@@ -103,11 +103,6 @@ DIMS_TOL_M = 1e-3
 #: Largest seam (:func:`seam_rms`) a composed walk may have, rad: pieces join only where
 #: the first starts on the other's last tracked state (float32 storage: 1e-7 rad).
 SEAM_TOL_RAD = 1e-3
-#: The kinds of stop (name prefixes): ``stop`` / ``halt`` end in stride (feet 0.5 m apart
-#: along the walk), ``close`` with the feet close (tracked from real motion capture of a
-#: person shortening the last step, :data:`CLOSE_ENDS`).
-STRIDE_ENDS = ("stop", "halt")
-CLOSE_ENDS = ("close",)
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:
@@ -373,11 +368,9 @@ class Anchors:
         return _rot(f[0]) @ self.end[names[-1]] + f[1]
 
 
-def _sequences(anchors: Anchors, max_cycles: int, ends: tuple[str, ...] = STRIDE_ENDS
-               ) -> list[list[str]]:
+def _sequences(anchors: Anchors, max_cycles: int) -> list[list[str]]:
     """Every sequence start .. stop with at most ``max_cycles`` primitives between them
-    whose seams all join (:attr:`Anchors.join`: the same tracked state), ending in a stop
-    of one of the kinds ``ends`` (:data:`STRIDE_ENDS`, :data:`CLOSE_ENDS`)."""
+    whose seams all join (:attr:`Anchors.join`: the same tracked state)."""
     prims = anchors.lib.primitives
     nxt: dict[str, list[str]] = {}
     for a, b in anchors.join:
@@ -387,8 +380,7 @@ def _sequences(anchors: Anchors, max_cycles: int, ends: tuple[str, ...] = STRIDE
     def extend(seq: list[str], depth: int) -> None:
         for n in nxt.get(seq[-1], []):
             if prims[n].phase_out == "stand":
-                if n.split("_after_", 1)[0] in ends:
-                    out.append([*seq, n])
+                out.append([*seq, n])
             elif depth < max_cycles:
                 extend([*seq, n], depth + 1)
 
@@ -410,24 +402,19 @@ def _passes(origin: np.ndarray, goal: np.ndarray, end: np.ndarray,
 
 
 def compose(anchors: Anchors, keypoints: np.ndarray, goal: np.ndarray,
-            max_cycles: int = MAX_CYCLES, ends: tuple[str, ...] = STRIDE_ENDS,
-            overshoot_m: float | None = None) -> tuple[list[str] | None, float]:
-    """The primitive sequence (start, cycles, a stop of the kinds ``ends``) from the
-    standing body whose :data:`ANCHOR_KEYPOINTS` are at ``keypoints`` (K, 2) whose
-    predicted end (:meth:`Anchors.predicted_end`) is nearest ``goal`` (2,) (plus
-    :data:`SECOND_M` per second of walking), and that end's distance from the goal, m.
-
-    Raises:
-        SimenvError: the library has no stop of the kinds ``ends``."""
+            max_cycles: int = MAX_CYCLES, overshoot_m: float | None = None
+            ) -> tuple[list[str] | None, float]:
+    """The primitive sequence (start, cycles, stop) from the standing body whose
+    :data:`ANCHOR_KEYPOINTS` are at ``keypoints`` (K, 2) whose predicted end
+    (:meth:`Anchors.predicted_end`) is nearest ``goal`` (2,) (plus :data:`SECOND_M` per
+    second of walking), and that end's distance from the goal, m. With ``overshoot_m``,
+    only sequences whose predicted end is at most that far beyond the goal along the line
+    from the pelvis (the goal may be in front of a wall); ``(None, inf)`` when none is."""
     lib = anchors.lib
     best, cost, err = None, np.inf, np.inf
     frames = {n: fit_frame(anchors.first[n], keypoints) for n, p in lib.primitives.items()
               if p.phase_in == "stand"}
-    seqs = _sequences(anchors, max_cycles, ends)
-    if not seqs:
-        raise SimenvError(f"the walking primitives have no stop of the kinds {list(ends)} "
-                          "(rebuild them with benchmarks/build_mocap_walk.py)", field="ends")
-    for seq in seqs:
+    for seq in _sequences(anchors, max_cycles):
         end = anchors.predicted_end(seq, frames[seq[0]])
         if _passes(keypoints[0], goal, end, overshoot_m):
             continue
@@ -453,8 +440,7 @@ class MocapWalkPlan:
 
     def __init__(self, room: Room, data: mujoco.MjData, names: list[str],
                  goal: np.ndarray | None = None, lib: Library | None = None,
-                 ends: tuple[str, ...] = STRIDE_ENDS, overshoot_m: float | None = None
-                 ) -> None:
+                 overshoot_m: float | None = None) -> None:
         self.room = room
         self.lib = lib = lib or load_library()
         _check_body(room, lib)
@@ -472,7 +458,7 @@ class MocapWalkPlan:
         self._shadow_at: tuple[str, int] = ("", -1)
         self._shadow_u = np.zeros(self._model.nu)
         self.anchors = anchors_of(lib, room.agent)
-        self._options = _sequences(self.anchors, MAX_CYCLES, ends)
+        self._options = _sequences(self.anchors, MAX_CYCLES)
         self._cur = -1
         self._anchor = (0.0, np.zeros(2))
         self._dq = np.zeros(room.agent.nv)
@@ -589,8 +575,7 @@ class _Passthrough:
 
 def plan_mocap_walk(room: Room, data: mujoco.MjData, goal: np.ndarray,
                     lib: Library | None = None, max_cycles: int = MAX_CYCLES,
-                    ends: tuple[str, ...] = STRIDE_ENDS, overshoot_m: float | None = None
-                    ) -> MocapWalkPlan:
+                    overshoot_m: float | None = None) -> MocapWalkPlan:
     """Plan for walking the standing agent towards ``goal`` (x, y, m) with the primitives
     (module docstring): the sequence :func:`compose` picks from where the pelvis is and
     where it heads. It starts straight ahead, so face the goal first (a turn on the
@@ -607,11 +592,11 @@ def plan_mocap_walk(room: Room, data: mujoco.MjData, goal: np.ndarray,
     _check_body(room, lib)
     anc = anchors_of(lib, room.agent)
     kp = data.site_xpos[room.agent_sites[anc.sites], :2]
-    names, _ = compose(anc, kp, np.asarray(goal, float)[:2], max_cycles, ends, overshoot_m)
+    names, _ = compose(anc, kp, np.asarray(goal, float)[:2], max_cycles, overshoot_m)
     if names is None:
         raise SimenvError(f"every walk of the primitives passes the goal by more than "
                           f"{overshoot_m} m", field="goal")
-    return MocapWalkPlan(room, data, names, goal, lib, ends, overshoot_m)
+    return MocapWalkPlan(room, data, names, goal, lib, overshoot_m)
 
 
 #: A composed walk is played only when its predicted end is at least this much nearer the
@@ -677,10 +662,10 @@ class PersonWalk:
     1. ``turn``: the stepping gait's turn on the spot to face the goal
        (:func:`simenv.agents.walk.plan_walk` onto the pelvis's own place), when the body
        faces more than :data:`simenv.agents.walk.ALIGN_DEG` away from it;
-    2. ``mocap``: the primitives' walk ending with the feet close (:data:`CLOSE_ENDS`,
-       :func:`plan_mocap_walk`), when its predicted end is at least :data:`MIN_GAIN_M`
-       nearer the goal than the body is (so a goal nearer than the shortest walk is left to
-       the stepping gait);
+    2. ``mocap``: the primitives' walk (:class:`MocapWalkPlan`; none predicted to pass
+       the goal by more than :data:`OVERSHOOT_M`), when its predicted end is at least
+       :data:`MIN_GAIN_M` nearer the goal than the body is (so a goal nearer than the
+       shortest walk is left to the stepping gait);
     3. ``step``: the stepping gait's walk onto the goal and turn onto ``goal_yaw``, when
        the body ends farther than :data:`ARRIVE_M` from it or turned away from its heading.
 
@@ -690,8 +675,10 @@ class PersonWalk:
     """
 
     def __init__(self, room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
-                 lib: Library | None = None) -> None:
+                 lib: Library | None = None, overshoot_m: float | None = OVERSHOOT_M
+                 ) -> None:
         check_standing(room, data, "walk")
+        self.overshoot_m = overshoot_m
         self.room, self.lib = room, lib or load_library()
         _check_body(room, self.lib)
         self.goal = np.asarray(goal, float)[:2]
@@ -726,11 +713,11 @@ class PersonWalk:
         if name == "mocap":
             anc = anchors_of(self.lib, self.room.agent)
             kp = data.site_xpos[self.room.agent_sites[anc.sites], :2]
-            names, err = compose(anc, kp, self.goal, MAX_CYCLES, CLOSE_ENDS, OVERSHOOT_M)
+            names, err = compose(anc, kp, self.goal, MAX_CYCLES, self.overshoot_m)
             if names is None or err > dist - MIN_GAIN_M:
                 return None
-            return MocapWalkPlan(self.room, data, names, self.goal, self.lib, CLOSE_ENDS,
-                                 OVERSHOOT_M)
+            return MocapWalkPlan(self.room, data, names, self.goal, self.lib,
+                                 self.overshoot_m)
         yaw_off = abs(np.rad2deg(np.angle(np.exp(1j * (self.goal_yaw - quat_yaw(q[3:7]))))))
         if dist <= ARRIVE_M and yaw_off <= ALIGN_DEG:
             return None
@@ -763,14 +750,18 @@ class PersonWalk:
 
 
 def plan_person_walk(room: Room, data: mujoco.MjData, goal: np.ndarray, goal_yaw: float,
-                     lib: Library | None = None) -> PersonWalk:
-    """:class:`PersonWalk` to ``goal`` (x, y, m) facing ``goal_yaw`` (rad).
+                     lib: Library | None = None, overshoot_m: float | None = OVERSHOOT_M
+                     ) -> PersonWalk:
+    """:class:`PersonWalk` to ``goal`` (x, y, m) facing ``goal_yaw`` (rad), its walk
+    predicted to pass the goal by at most ``overshoot_m`` (None: any; on open floor the
+    nearest end may lie beyond the goal: a goal 3.2 m away is then missed by 0.35 m
+    instead of 0.87 m, measured).
 
     Raises:
         SimenvError: the agent is not standing, the library was built for another body,
             or a stepping gait's footstep is out of the legs' reach.
     """
-    return PersonWalk(room, data, goal, goal_yaw, lib)
+    return PersonWalk(room, data, goal, goal_yaw, lib, overshoot_m)
 
 
 _ANCHORS: dict[tuple[int, int], Anchors] = {}
@@ -784,7 +775,7 @@ def anchors_of(lib: Library, h: Humanoid) -> Anchors:
     return _ANCHORS[key]
 
 
-__all__ = ["ANCHOR_KEYPOINTS", "CLOSE_ENDS", "LIBRARY", "STRIDE_ENDS", "Anchors", "Library",
+__all__ = ["ANCHOR_KEYPOINTS", "LIBRARY", "Anchors", "Library",
            "MocapWalkPlan", "PersonWalk", "Primitive", "anchors_of", "body_signature",
            "compose", "fit_frame", "load_library", "mirror", "plan_mocap_walk",
            "plan_person_walk"]

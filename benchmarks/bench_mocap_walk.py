@@ -56,14 +56,7 @@ import mujoco
 import numpy as np
 
 from simenv.agents.gait import standing_agent, wrap_angle
-from simenv.agents.mocap_walk import (
-    CLOSE_ENDS,
-    STRIDE_ENDS,
-    Library,
-    load_library,
-    plan_mocap_walk,
-    plan_person_walk,
-)
+from simenv.agents.mocap_walk import Library, load_library, plan_mocap_walk, plan_person_walk
 from simenv.agents.walk import ALIGN_DEG, plan_walk
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
@@ -142,8 +135,7 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
     elif extra.get("fell_in") == "turn":
         more = 0.0
     elif "mocap" in gait:
-        ends = CLOSE_ENDS if gait == "mocap+step" else STRIDE_ENDS
-        plan = plan_mocap_walk(room, data, goal_a, lib, ends=ends)
+        plan = plan_mocap_walk(room, data, goal_a, lib)
         extra["planned"] = list(plan.names)
     else:
         plan = plan_walk(room, data, goal_a, heading)

@@ -15,6 +15,8 @@ import simenv
 from simenv.agents.gait import standing_agent
 from simenv.agents.mocap_walk import (
     ANCHOR_KEYPOINTS,
+    ARRIVE_M,
+    OVERSHOOT_M,
     SEAM_TOL_RAD,
     MocapWalkPlan,
     _swap,
@@ -24,6 +26,7 @@ from simenv.agents.mocap_walk import (
     load_library,
     mirror,
     plan_mocap_walk,
+    plan_person_walk,
     seam_rms,
 )
 from simenv.assets import WALK, asset_path
@@ -126,6 +129,77 @@ def test_compose_ends_within_half_a_step_of_the_goal(lib, room):
                    "0.54 m")
 def test_compose_reaches_a_near_goal_to_the_side(lib, room):
     _compose_check(lib, room, ([2.2, 0.6],))
+
+
+def test_compose_never_passes_a_goal_in_front_of_a_wall(lib, room):
+    """With ``overshoot_m`` no composed walk is predicted to end past the goal: a goal
+    nearer than the shortest walk has none, a farther one the nearest that stays short."""
+    anc = anchors_of(lib, room.agent)
+    names = list(room.agent.keypoint_names)
+    standing = room.agent.keypoints(room.agent.default_qpos())
+    kp = standing[[names.index(k) for k in ANCHOR_KEYPOINTS], :2]
+    ahead = np.array([1.0, 0.0])  # the rest pose faces +x
+    seq, err = compose(anc, kp, kp[0] + 1.2 * ahead, overshoot_m=OVERSHOOT_M)
+    assert seq is None and err == np.inf
+    free, _ = compose(anc, kp, kp[0] + 3.0 * ahead)
+    seq, _ = compose(anc, kp, kp[0] + 3.0 * ahead, overshoot_m=OVERSHOOT_M)
+    for s in (free, seq):
+        assert s is not None
+    end = anc.predicted_end(seq, fit_frame(anc.first[seq[0]], kp))
+    assert (end - kp[0]) @ ahead <= 3.0 + OVERSHOOT_M
+    free_end = anc.predicted_end(free, fit_frame(anc.first[free[0]], kp))
+    assert (free_end - kp[0]) @ ahead > 3.0 + OVERSHOOT_M  # the guard changed the choice
+
+
+def _open_room():
+    s = load_scenario("discomfort")
+    return Room(replace(s, name="open_floor", room=replace(s.room, size=(16.0, 16.0))))
+
+
+def _play(room, data, plan):
+    dt = room.model.opt.timestep
+    i = 0
+    while i * dt < plan.duration:
+        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
+        mujoco.mj_step(room.model, data)
+        i += 1
+    return i * dt
+
+
+def test_person_walk_leaves_a_near_goal_to_the_stepping_gait():
+    """A goal 0.2 m ahead, nearer than the shortest walk of the primitives: the stepping
+    gait walks there alone, no help, and arrives."""
+    room = _open_room()
+    start = np.array([-6.0, -4.0])
+    data = standing_agent(room, start, EAST)
+    plan = plan_person_walk(room, data, start + [0.2, 0.0], EAST)
+    _play(room, data, plan)
+    assert [s[0] for s in plan.stages] == ["step"]
+    out = plan.feedback.outcome(data)
+    assert out["success"] and not out["fell"], out
+    assert plan.feedback.summary()["max_n"] == 0.0
+
+
+def test_person_walk_turns_then_walks_at_pace_to_a_goal_aside():
+    """A goal 4 m ahead and 1.5 m aside on open floor: a stepping turn on the spot to face
+    it, then the primitives' walk; no fall, no help, at several times the stepping gait's
+    0.04 m/s, ending within a half cycle's advance of the goal. The stepping gait cannot
+    take over from the walk's stance in stride (its first weight shift is out of the
+    legs' reach): the correction is refused and reported."""
+    room = _open_room()
+    start = np.array([-6.0, -4.0])
+    data = standing_agent(room, start, EAST)
+    goal = start + [4.0, 1.5]
+    plan = plan_person_walk(room, data, goal, float(np.arctan2(1.5, 4.0)))
+    t = _play(room, data, plan)
+    assert [s[0] for s in plan.stages] == ["turn", "mocap"]
+    out = plan.feedback.outcome(data)
+    assert not out["fell"], out
+    assert plan.feedback.summary()["max_n"] == 0.0
+    half = plan.lib.primitives["half_b"].advance[0]
+    assert out["goal_error_m"] <= half, out
+    assert out["goal_error_m"] > ARRIVE_M and plan.refused is not None
+    assert np.linalg.norm(data.qpos[room.agent_qpos][:2] - start) / t > 0.15
 
 
 def test_walks_two_metres_and_stops_unassisted_at_pace():
