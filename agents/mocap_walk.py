@@ -61,6 +61,14 @@ standing to standing (the stepping gait: 0.05 m, 0.04 m/s); it walks where the b
 Its shortest walk is 1.54 m; in the room the walk to the window falls. It ends in stride,
 a stance the stepping gait cannot take over from (its first weight shift is out of the
 legs' reach), so it is not wired into the room's reactions.
+
+:class:`PersonWalk` puts the stepping gait around it: a turn on the spot to face the goal,
+the walk only where it gains (its predicted end 0.3 m nearer the goal, passing it by at
+most :data:`OVERSHOOT_M`), else the stepping gait the whole way (the walk to the window: no
+fall, 0.05 m off, at 0.04 m/s). Closing stops that end with the feet close, tracked from
+real motion capture of a person stopping (``build_mocap_walk.py --close``), did not give
+the stepping gait a stance it could start from (it fell from their tilted pelvis and
+raised heel, measured; docs/room.md), so the walk still ends 0.1-0.9 m off the goal.
 """
 
 from __future__ import annotations

@@ -210,7 +210,8 @@ def table(rows: list[dict[str, Any]]) -> str:
         if r.get("correction_s"):
             played += f"; stepping correction {r['correction_s']:.1f} s"
         if r.get("correction_refused"):
-            played += "; correction refused (stance out of the stepping gait's reach)"
+            why = r["correction_refused"].split("): ", 1)[-1].split(": ", 1)[-1]
+            played += f"; correction refused ({why})"
         if r.get("fell_in"):
             played += f"; fell in {r['fell_in']}"
         lines.append(f"| {r['walk']} | {r['gait']} | {r['simulated_s']:.1f} | "
