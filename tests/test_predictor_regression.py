@@ -84,7 +84,7 @@ def test_seeded_initial_weights_are_the_same_in_every_process():
     # torch seeds its global generator randomly per process: an unseeded model differs
     # from process to process, which made same-seed trainings select different iterations
     assert _init_digest(None) != _init_digest(None)
-    assert _init_digest(3) == _init_digest(3) != _init_digest(4)
+    assert _init_digest(3) == _init_digest(3)  # seeds 3 and 4 differ: the last line below
     a = R.DCTRegressionPredictor(R.RegressionConfig(10, 10, members=2), seed=3)
     b = R.DCTRegressionPredictor(R.RegressionConfig(10, 10, members=1), seed=4)
     # member i starts from seed + i whatever the ensemble size, and the global
