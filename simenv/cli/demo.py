@@ -8,11 +8,6 @@ from pathlib import Path
 
 from simenv.cli.common import positive_int
 
-#: Seconds of the handshake's person A that the demo's reaction generator answers by default
-#: (:mod:`simenv.cli.demo_job`): tracking both people is most of the demo's CPU (4 s: 117 s
-#: of the 244), so the reaction covers as long as the pair's clip shows (2.5 s).
-REACTION_SECONDS = 2.5
-
 
 def _seconds(text: str) -> float:
     """argparse type: a finite number of seconds > 0."""
@@ -35,9 +30,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     demo.add_argument("--out", default="out/demo", help="output folder (default out/demo)")
     demo.add_argument("--stride", type=positive_int, default=None,
                       help="render every S-th frame (default: chosen to keep the demo short)")
-    demo.add_argument("--reaction-seconds", type=_seconds, default=REACTION_SECONDS,
-                      help="seconds of the handshake's person A the reaction generator answers "
-                      "(default %(default)s; tracking both people is most of the demo's CPU)")
+    demo.add_argument("--reaction-seconds", type=_seconds, metavar="S", help=(
+        "seconds of the handshake's person A the reaction generator answers (default: 2.5, "
+        "simenv.cli.demo_job.REACTION_SECONDS; tracking both people is most of the demo's "
+        "CPU)"))
     demo.add_argument("--check", action="store_true", help=(
         "then check the page: every link resolves, and a headless Chromium screenshot "
         "(index.png) is not blank and shows every video's poster"))

@@ -38,7 +38,6 @@ import cv2
 from simenv.assets import HANDSHAKE_PAIR, WALK, asset_path
 from simenv.body.render import render_result
 from simenv.cli.common import describe, retarget_clip, save_npz, summary
-from simenv.cli.demo import REACTION_SECONDS
 from simenv.cli.demo_page import write_page
 from simenv.control import fast_planner
 from simenv.core.errors import SimenvError
@@ -80,10 +79,13 @@ REHEARSAL_SESSION = f"{HANDSHAKE_PAIR}/19_01.bvh"
 #: show the mechanism: the agent must press the cigarette out with its own simulated hand.
 REHEARSAL_GESTURE = ("smell", 0.5, 1.5)
 #: The reaction generator of ``reaction/`` and the session it answers (person A of the
-#: handshake pair, who walks up and offers a hand), cut to its first seconds
-#: (:data:`simenv.cli.demo.REACTION_SECONDS` unless told) to keep the demo short.
+#: handshake pair, who walks up and offers a hand), cut to its first seconds to keep the
+#: demo short: tracking both people is most of the demo's CPU (4 s: 117 s of the 244), so
+#: the reaction covers as long as the pair's clip shows (2.5 s; ``simenv demo
+#: --reaction-seconds``).
 REACTION_MODEL = "interformer"
 REACTION_FILE = "18_01.bvh"
+REACTION_SECONDS = 2.5
 
 
 def demo_score_config(base: ScoreConfig | None = None) -> ScoreConfig:
@@ -119,7 +121,7 @@ def stage(stages: Stages, name: str) -> Iterator[None]:
 
 def run_demo(
     out_dir: str | Path, *, stride: int | None = None, width: int = 320, height: int = 240,
-    config: ScoreConfig | None = None, reaction_seconds: float = REACTION_SECONDS,
+    config: ScoreConfig | None = None, reaction_seconds: float | None = None,
 ) -> dict[str, Any]:
     """Run the demo, write its files into ``out_dir`` and print where they are.
 
@@ -130,7 +132,8 @@ def run_demo(
         width, height: video size in pixels.
         config: the scoring of the clips and of the reaction (default
             :func:`demo_score_config`).
-        reaction_seconds: seconds of :data:`REACTION_FILE` the reaction generator answers.
+        reaction_seconds: seconds of :data:`REACTION_FILE` the reaction generator answers
+            (default :data:`REACTION_SECONDS`).
 
     Returns:
         The summary written to ``out_dir/summary.json``; ``stages`` holds each stage's wall
@@ -139,6 +142,7 @@ def run_demo(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     config = config or demo_score_config()
+    reaction_seconds = REACTION_SECONDS if reaction_seconds is None else reaction_seconds
     started, cpu = time.perf_counter(), _cpu_seconds()
     stages: Stages = {}
     clips: dict[str, Any] = {}

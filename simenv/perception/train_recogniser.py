@@ -60,7 +60,6 @@ from typing import Any
 import numpy as np
 
 import simenv.models
-from simenv.cli.common import positive_int
 from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.data.gestures import (
@@ -397,7 +396,7 @@ def add_benchmark_options(p: argparse.ArgumentParser | argparse._ArgumentGroup) 
     """The benchmark options besides the dataset, data, output and ``--json``."""
     p.add_argument("--members", type=int, default=1,
                    help="networks of consecutive seeds averaged per fold")
-    p.add_argument("--epochs", type=positive_int, default=BENCHMARK_EPOCHS,
+    p.add_argument("--epochs", type=int, default=BENCHMARK_EPOCHS,
                    help="training epochs of each network (default %(default)s; 1: a quick "
                    "run with throw-away numbers)")
     p.add_argument("--whole-sequences", action="store_true",
