@@ -89,6 +89,9 @@ def test_cross_dataset_command(gesture_root: Path, tmp_path: Path,
     with pytest.raises(SystemExit):
         cli.main(["eval", "classifier", "--msrc12", str(tmp_path)])
     assert "--msrc12: only with --protocol" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "classifier", "--kindergator", str(tmp_path), "--cross-only"])
+    assert "--kindergator, --cross-only: only with --protocol" in capsys.readouterr().err
     out = tmp_path / "out"
     assert cli.main(["eval", "classifier", "--protocol", "cross-dataset", "--data", str(data),
                      "--config", str(config), "--folds", "2", "--out", str(out)]) == 0
