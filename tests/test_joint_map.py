@@ -267,6 +267,34 @@ def test_stray_or_stub_end_of_the_wrist_is_not_a_hand() -> None:
                for n in notes)
 
 
+def test_arms_crossing_over_are_noted_not_remapped() -> None:
+    """A real walk (Xia et al., tests/data/conventions) maps with no crossing note; the same
+    frames with the two arm chains' positions exchanged (each arm hanging from the other
+    shoulder, as a capture solve that flips both clavicles leaves them: FAIR's
+    ``5yr_old/skipping``) keep their names' map and get the note that the arms cross."""
+    motion = simenv.load(CONVENTIONS_DIR / "cmu_motionbuilder" / "xia_angry_13_000.bvh")
+    names, parents = list(motion.skeleton.joint_names), motion.skeleton.parents
+    plain = infer_joint_map(names, parents, motion.positions)
+    assert not any("cross over" in n for n in plain.notes)
+
+    def arm(side: str) -> list[int]:
+        """The shoulder joint and every joint below it, in file order."""
+        below = [names.index(plain.canonical[f"{side}_shoulder"])]
+        for j, parent in enumerate(parents):
+            if parent in below:
+                below.append(j)
+        return below
+
+    crossed = motion.positions.copy()
+    left, right = arm("left"), arm("right")
+    assert len(left) == len(right)
+    crossed[:, left + right] = crossed[:, right + left]
+    mapping = infer_joint_map(names, parents, crossed)
+    assert mapping.canonical == plain.canonical
+    note = next(n for n in mapping.notes if "cross over" in n)
+    assert "on 100 % of frames" in note
+
+
 @needs_data
 def test_user_map_round_trip_through_template(tmp_path: Path) -> None:
     """The template of an unnamed skeleton, edited, maps it: the user's word stands."""

@@ -509,6 +509,34 @@ def _drop_stray_ends(canonical: dict[str, str], how: dict[str, str], tree: _Tree
     return dropped
 
 
+def _note_crossed_arms(canonical: Mapping[str, str], tree: _Tree, pos: np.ndarray,
+                       notes: list[str]) -> None:
+    """Say when the shoulders face the other way from the hips on most frames: the left
+    shoulder keypoint on the right of the right one, seen along the up axis (Z) across the
+    hip line. No trunk twists past 90 degrees, so the file's arm chains cross over (arm
+    labels swapped, or clavicle rotations flipped by the capture's solve: FAIR's
+    ``5yr_old/skipping``, clavicles turned ~180 degrees, shoulder line 173 degrees from the
+    hip line); the map is kept as named, the note says why the fit will twist the spine.
+
+    Args:
+        pos: (T, J, 3) positions, metres, Z up.
+    """
+    keys = ("left_hip", "right_hip", "left_shoulder", "right_shoulder")
+    if not all(k in canonical for k in keys):
+        return
+    lh, rh, ls, rs = (pos[:, tree.index[canonical[k]], :2] for k in keys)
+    hips, shoulders = lh - rh, ls - rs
+    cross = hips[:, 0] * shoulders[:, 1] - hips[:, 1] * shoulders[:, 0]
+    turn = np.degrees(np.abs(np.arctan2(cross, np.einsum("ti,ti->t", hips, shoulders))))
+    crossed = float(np.mean(turn > 90.0))
+    if crossed > 0.5:
+        notes.append(f"the arms cross over: the shoulder line ({canonical['left_shoulder']} - "
+                     f"{canonical['right_shoulder']}) faces away from the hip line on "
+                     f"{100 * crossed:.0f} % of frames ({np.median(turn):.0f} deg median); no "
+                     "trunk twists that far: the file's arm labels or clavicle rotations look "
+                     "swapped")
+
+
 def _segments(chain: list[int], pos: np.ndarray) -> list[tuple[int, int, float]]:
     """The chain cut into straight segments (start, end, length in metres): consecutive bones
     within 5 degrees of each other over the clip are one segment (twist and roll joints lie on
@@ -732,6 +760,8 @@ def infer_joint_map(names: Sequence[str], parents: Sequence[int],
     _spine_by_topology(canonical, how, tree, rest)
     stray = (_drop_stray_ends(canonical, how, tree, pos, notes) if positions is not None
              else set())
+    if positions is not None:
+        _note_crossed_arms(canonical, tree, pos, notes)
     if rest is not None:
         _ends_by_topology(canonical, how, tree, rest, stray)
     ordered = {k: canonical[k] for k in CANONICAL_KEYPOINTS if k in canonical}
