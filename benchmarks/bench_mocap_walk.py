@@ -56,7 +56,13 @@ import mujoco
 import numpy as np
 
 from simenv.agents.gait import standing_agent, wrap_angle
-from simenv.agents.mocap_walk import Library, load_library, plan_mocap_walk, plan_person_walk
+from simenv.agents.mocap_walk import (
+    CLOSE_STOP,
+    Library,
+    load_library,
+    plan_mocap_walk,
+    plan_person_walk,
+)
 from simenv.agents.walk import ALIGN_DEG, plan_walk
 from simenv.core.errors import SimenvError
 from simenv.room.room import Room
@@ -123,8 +129,9 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
         if turn.feedback.fallen():
             extra["fell_in"] = "turn"
             plan: Any = turn
-    if gait == "person":
-        plan = plan_person_walk(room, data, goal_a, heading, lib)
+    if gait.startswith("person"):
+        plan = plan_person_walk(room, data, goal_a, heading, lib,
+                                stop=CLOSE_STOP if gait == "person+close" else None)
         more, fell_at = _play(room, data, plan, path, 0.0)
         sim = more
         extra["stages"] = [[n, round(t0, 2), round(p.duration, 2)] for n, t0, p in plan.stages]
@@ -140,7 +147,7 @@ def _run(gait: str, start: tuple[float, float], yaw: float, goal: tuple[float, f
     else:
         plan = plan_walk(room, data, goal_a, heading)
         extra["steps"] = len(plan.steps)
-    if "fell_in" not in extra and gait != "person":
+    if "fell_in" not in extra and not gait.startswith("person"):
         more, fell1 = _play(room, data, plan, path, sim)
         sim += more
         fell_at = fell_at if fell_at is not None else fell1
@@ -236,7 +243,8 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("out/bench_mocap_walk"))
     parser.add_argument("--gaits", nargs="*",
                         default=["mocap", "turn+mocap", "mocap+step", "stepping"],
-                        choices=["mocap", "turn+mocap", "mocap+step", "person", "stepping"],
+                        choices=["mocap", "turn+mocap", "mocap+step", "person", "person+close",
+                                 "stepping"],
                         help="which gaits (the stepping gait takes minutes a walk)")
     parser.add_argument("--walks", nargs="*", default=[*WALKS, "open"],
                         help=f"names among {list(WALKS)} and 'open' (the open-floor goals)")

@@ -29,14 +29,16 @@ What it does, deterministically (seeded planner, one fixed clip):
    last tracked state, the same planner and seed), and gives every primitive
    time-varying feedback gains: discrete LQR (:func:`lqr_gains`) on
    ``mujoco.mjd_transitionFD`` linearisations about the tracked states;
-7. with ``--close PIECE ...`` (not in the shipped library), tracks a *closing* stop after
-   those pieces (:data:`CLOSE_AFTER`, :func:`track_close`): the gait to the frame nearest
-   the start of real motion capture of a person coming to rest with a short last step
-   (CMU 19_01, :data:`CLOSE_CLIP`), a cross-fade into it, the clip to rest: the walk ends
-   with the feet 0.07-0.1 m apart along the walk instead of 0.45-0.5 m, but on the ball
-   of the rear foot, and the stepping gait fell from that stance (docs/room.md). A halt
-   or closing stop the tracker fails, or whose error passes :data:`KEEP_MAX_ERR_M`, is
-   left out.
+7. with ``--close PIECE ...``, tracks a *closing* stop after those pieces
+   (:data:`CLOSE_AFTER`, :func:`track_close`): the gait to the frame nearest the start of
+   real motion capture of a person coming to rest with a short last step (CMU 19_01,
+   :data:`CLOSE_CLIP`), a cross-fade into it, the clip to rest, then a blend onto the
+   stepping gait's upright stance over the same feet (:func:`gait_stance`): the walk ends
+   with the feet 0.1 m apart along the walk instead of 0.45-0.5 m, the pelvis upright and
+   the feet flat, a stance the stepping gait starts from (without the blend the tracked
+   body ended on the ball of the rear foot, its pelvis tilted 12-32 deg, and the stepping
+   gait fell from there, measured). A halt or closing stop the tracker fails, or whose
+   error passes :data:`KEEP_MAX_ERR_M`, is left out.
 
 Usage::
 
@@ -564,6 +566,9 @@ CLOSE_REST_S = 1.1
 CLOSE_FADE_S = 0.1
 #: The closing clip's heading: its pelvis's travel over its first this many s.
 CLOSE_DIR_S = 0.3
+#: After the clip, a blend onto the stepping gait's upright stance over the same feet
+#: (:func:`gait_stance`), s.
+CLOSE_STAND_S = 1.5
 #: The pieces a closing stop (``close_after_<piece>``, :func:`close_reference`) may be
 #: tracked after (``--close``), shortest chains first.
 CLOSE_AFTER = ("start_short", "start", "half_c", "half_b", "half_a", "straight", "left")
@@ -576,7 +581,8 @@ def closing_clip(h: Humanoid) -> np.ndarray:
 
 
 def close_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
-                    clip: np.ndarray, phase: str, at: np.ndarray) -> np.ndarray:
+                    clip: np.ndarray, phase: str, at: np.ndarray,
+                    stand_s: float = 0.0) -> np.ndarray:
     """(T, nq) a stop that ends with the feet close: the looped clip (cycle ``cyc``,
     advance ``adv``) from the mid-swing ``phase`` (``"left"``: frame 0, ``"right"``: P / 2)
     to the frame whose leg hinges are nearest the closing ``clip``'s first (rms), a
@@ -607,8 +613,37 @@ def close_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
     frames += [_blend(clip_at(cyc, adv, tau1 + k), placed[k], min_jerk(k / n))
                for k in range(n)]
     frames += list(placed[n:])
-    frames += [placed[-1]] * int(round(END_S * fps))
+    if stand_s > 0:  # then onto the stepping gait's upright stance over the same feet
+        up = gait_stance(h, placed[-1])
+        k = int(round(stand_s * fps))
+        frames += [_blend(placed[-1], up, min_jerk(j / k)) for j in range(1, k + 1)]
+    frames += [frames[-1]] * int(round(END_S * fps))
     return _placed_on(h, np.array(frames), at)
+
+
+def gait_stance(h: Humanoid, q: np.ndarray) -> np.ndarray:
+    """(nq,) the stepping gait's standing pose (:func:`simenv.agents.gait.balanced_pose`:
+    the pelvis upright :data:`simenv.agents.gait.STAND_DROP_M` below standing, the centre
+    of mass over the middle of the soles, the arms hanging) with the feet flat where they
+    stand in ``q`` (nq,)."""
+    from simenv.agents import gait
+
+    m = h.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = q
+    mujoco.mj_kinematics(m, d)
+    feet = {}
+    for side in gait.SIDES:
+        b = m.body(f"{side}_foot").id
+        fwd = d.xmat[b].reshape(3, 3)[:2, 0]
+        feet[side] = (d.xpos[b, :2].copy(), float(np.arctan2(fwd[1], fwd[0])))
+    ik = gait.leg_ik(h)
+    upper = standing_pose(h)
+    mid = 0.5 * (gait.support_centre(*feet["left"]) + gait.support_centre(*feet["right"]))
+    yaw = float(np.angle(np.exp(1j * feet["left"][1]) + np.exp(1j * feet["right"][1])))
+    pose, _ = gait.balanced_pose(ik, upper, {s: ik.place(s, *feet[s]) for s in gait.SIDES},
+                                 mid, yaw, float(upper[2]) - gait.STAND_DROP_M, q)
+    return pose
 
 
 def track_close(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndarray,
@@ -619,7 +654,7 @@ def track_close(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndar
     :func:`track_stop` but of :func:`close_reference`."""
     return _track_tail_after(h, base, fps, taus, run, after, seed, tries, log,
                              lambda at: close_reference(h, cyc, adv, fps, clip,
-                                                        CUTS[after][3], at))
+                                                        CUTS[after][3], at, CLOSE_STAND_S))
 
 
 #: Rank of the gains' basis over time. Measured on the start's first 2 s in the tracked
@@ -745,8 +780,7 @@ def main() -> int:
                         help="the tracked run (reused when present)")
     parser.add_argument("--log", type=Path, default=Path("/tmp/mw_build.log"))
     parser.add_argument("--close", nargs="*", default=[], choices=CLOSE_AFTER,
-                        help="pieces to track a closing stop after (not in the shipped "
-                        "library: the stepping gait fell from the stance they end in)")
+                        help="pieces to track a closing stop after (module docstring, 7)")
     parser.add_argument("--stride", type=int, default=5,
                         help="physics steps per gain (held in between)")
     args = parser.parse_args()
