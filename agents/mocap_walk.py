@@ -453,7 +453,9 @@ class MocapWalkPlan:
     among the joined sequences that begin with the pieces played (:func:`compose`'s, with
     at most :data:`MAX_CYCLES` pieces between start and stop) as the one whose predicted
     end is nearest the goal, so :attr:`duration` may change at a seam (read it every
-    step).
+    step); with ``overshoot_m``, none predicted to pass the goal by more than that (m,
+    along the line from where the walk started), with ``stop``, only those ending in a
+    stop whose name starts with it (:func:`compose`).
     """
 
     def __init__(self, room: Room, data: mujoco.MjData, names: list[str],
@@ -709,7 +711,6 @@ class PersonWalk:
         #: reach from the stance the walk ended in), or None.
         self.refused: str | None = None
         self._todo = ["turn", "mocap", "step"]
-        self._end = 0.0
         self._next(0.0, data)
 
     @property
@@ -761,10 +762,10 @@ class PersonWalk:
 
     def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
         """(nu,) the agent's servo targets ``t`` s into the walk."""
-        name, t0, plan = self.stages[-1]
+        _, t0, plan = self.stages[-1]
         if t - t0 >= plan.duration and self._todo:
             self._next(t, data)
-            name, t0, plan = self.stages[-1]
+            _, t0, plan = self.stages[-1]
         return plan.control(t - t0, data)
 
 
@@ -795,7 +796,7 @@ def anchors_of(lib: Library, h: Humanoid) -> Anchors:
     return _ANCHORS[key]
 
 
-__all__ = ["ANCHOR_KEYPOINTS", "LIBRARY", "Anchors", "Library",
+__all__ = ["ANCHOR_KEYPOINTS", "CLOSE_STOP", "LIBRARY", "Anchors", "Library",
            "MocapWalkPlan", "PersonWalk", "Primitive", "anchors_of", "body_signature",
            "compose", "fit_frame", "load_library", "mirror", "plan_mocap_walk",
            "plan_person_walk"]

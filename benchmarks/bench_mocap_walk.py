@@ -23,6 +23,10 @@ the stepping gait's turn on the spot to face the goal when it is more than
 walk onto the goal when it ends more than 0.15 m off and standing (``mocap+step``: the
 stop that corrects the remaining offset, :func:`simenv.agents.walk.plan_walk`, facing the
 walk's heading).
+``person`` is :class:`simenv.agents.mocap_walk.PersonWalk` (a stepping turn when needed,
+the primitives' walk where it gains without passing the goal, the stepping gait onto the
+goal); ``person+close`` the same ending in the closing stops (a ``--library`` built with
+``build_mocap_walk.py --close``).
 
 Per walk and gait: simulated seconds, wall and CPU seconds (1 thread) and their ratios to
 it (CPU: the cost on one core, whatever else the machine runs), the mean
@@ -35,7 +39,7 @@ simulated time.
 Usage::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_mocap_walk.py \\
-        [--out out/bench_mocap_walk] [--gaits mocap turn+mocap mocap+step stepping] \\
+        [--out out/bench_mocap_walk] [--gaits mocap turn+mocap mocap+step person stepping] \\
         [--walks NAME ... open] [--library FILE] [--rows EARLIER.json ...] [--docs docs/room.md]
 
 The table in docs/room.md: the primitives' gaits in one run, the stepping gait's rows (it

@@ -567,7 +567,8 @@ CLOSE_FADE_S = 0.1
 #: The closing clip's heading: its pelvis's travel over its first this many s.
 CLOSE_DIR_S = 0.3
 #: After the clip, a blend onto the stepping gait's upright stance over the same feet
-#: (:func:`gait_stance`), s.
+#: (:func:`gait_stance`), s (without it the tracked body ended on the ball of the rear
+#: foot, the pelvis tilted 12-32 deg, and the stepping gait fell from there, measured).
 CLOSE_STAND_S = 1.5
 #: The pieces a closing stop (``close_after_<piece>``, :func:`close_reference`) may be
 #: tracked after (``--close``), shortest chains first.
@@ -581,14 +582,15 @@ def closing_clip(h: Humanoid) -> np.ndarray:
 
 
 def close_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
-                    clip: np.ndarray, phase: str, at: np.ndarray,
-                    stand_s: float = 0.0) -> np.ndarray:
+                    clip: np.ndarray, phase: str, at: np.ndarray) -> np.ndarray:
     """(T, nq) a stop that ends with the feet close: the looped clip (cycle ``cyc``,
     advance ``adv``) from the mid-swing ``phase`` (``"left"``: frame 0, ``"right"``: P / 2)
     to the frame whose leg hinges are nearest the closing ``clip``'s first (rms), a
-    cross-fade over :data:`CLOSE_FADE_S` into ``clip`` (placed there by its legs'
-    keypoints), the clip to rest and :data:`END_S` still; placed on the floor onto the pose
-    ``at`` (nq,) as :func:`stop_reference` places its tail."""
+    cross-fade over :data:`CLOSE_FADE_S` into ``clip`` (turned onto the walk by its
+    pelvis's travel), the clip to rest, a blend over :data:`CLOSE_STAND_S` onto the
+    stepping gait's stance over the same feet (:func:`gait_stance`) and :data:`END_S`
+    still; placed on the floor onto the pose ``at`` (nq,) as :func:`stop_reference` places
+    its tail."""
     P = len(cyc)
     legs = [i for i, n in enumerate(h.joint_names)
             if any(k in n for k in ("thigh", "shin", "foot", "toes"))]
@@ -613,10 +615,9 @@ def close_reference(h: Humanoid, cyc: np.ndarray, adv: np.ndarray, fps: float,
     frames += [_blend(clip_at(cyc, adv, tau1 + k), placed[k], min_jerk(k / n))
                for k in range(n)]
     frames += list(placed[n:])
-    if stand_s > 0:  # then onto the stepping gait's upright stance over the same feet
-        up = gait_stance(h, placed[-1])
-        k = int(round(stand_s * fps))
-        frames += [_blend(placed[-1], up, min_jerk(j / k)) for j in range(1, k + 1)]
+    up = gait_stance(h, placed[-1])
+    k = int(round(CLOSE_STAND_S * fps))
+    frames += [_blend(placed[-1], up, min_jerk(j / k)) for j in range(1, k + 1)]
     frames += [frames[-1]] * int(round(END_S * fps))
     return _placed_on(h, np.array(frames), at)
 
@@ -654,7 +655,7 @@ def track_close(h: Humanoid, base: RetargetResult, cyc: np.ndarray, adv: np.ndar
     :func:`track_stop` but of :func:`close_reference`."""
     return _track_tail_after(h, base, fps, taus, run, after, seed, tries, log,
                              lambda at: close_reference(h, cyc, adv, fps, clip,
-                                                        CUTS[after][3], at, CLOSE_STAND_S))
+                                                        CUTS[after][3], at))
 
 
 #: Rank of the gains' basis over time. Measured on the start's first 2 s in the tracked
@@ -829,7 +830,8 @@ def main() -> int:
         provenance["close_source"] = ("CMU 19_01 walk, shake hands, subject B (shared corpus "
                                       f"{'/'.join(CLOSE_CLIP)}), real motion capture, "
                                       "mocap.cs.cmu.edu (NSF EIA-0196217), to "
-                                      f"{CLOSE_REST_S} s")
+                                      f"{CLOSE_REST_S} s, then {CLOSE_STAND_S} s onto the "
+                                      "stepping gait's stance")
     stops = {}
     for kind, afters in (("stop", STOP_AFTER), ("halt", HALT_AFTER), ("close", args.close)):
         for after in afters:  # each tracked run is cached beside the main one
