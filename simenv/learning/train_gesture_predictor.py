@@ -562,9 +562,11 @@ def fold_dir(fold: int | None, out: Path = OUT) -> Path:
 
 
 def run_fold(recordings: Sequence[Recording], fold: int | None, config: TrainConfig,
-             out: Path = OUT, progress: bool = True) -> tuple[GesturePredictor, dict[str, Any]]:
+             out: Path = OUT, progress: bool = True, eval_stride: int = EVAL_STRIDE
+             ) -> tuple[GesturePredictor, dict[str, Any]]:
     """Train one fold's model (``fold=None``: all subjects), evaluate it on the fold's
-    held-out windows and write ``model.npz``, ``metrics.json`` and ``card.md``."""
+    held-out windows (every ``eval_stride`` frames) and write ``model.npz``,
+    ``metrics.json`` and ``card.md``."""
     train_recs, test_recs = split_fold(recordings, fold)
     model, history = train(train_recs, config, progress=progress)
     held = sorted({r.subject_key for r in test_recs if r.subject_key})
@@ -573,7 +575,7 @@ def run_fold(recordings: Sequence[Recording], fold: int | None, config: TrainCon
                                "train": {k: v for k, v in history.items() if k != "loss"},
                                "loss": history["loss"], "config": asdict(config)}
     if test_recs:
-        windows, names = eval_windows(test_recs)
+        windows, names = eval_windows(test_recs, stride=eval_stride)
         metrics["eval"] = evaluate(model, windows, names)
     folder = fold_dir(fold, out)
     folder.mkdir(parents=True, exist_ok=True)
@@ -606,7 +608,7 @@ def evaluate_folds(data: str | os.PathLike[str], *, out: Path = OUT,
     for k in folds:
         path = fold_dir(k, out) / "model.npz"
         if retrain or not path.is_file():
-            run_fold(recordings, k, config, out, progress)
+            run_fold(recordings, k, config, out, progress, eval_stride)
         model = GesturePredictor.load(path)  # with the metadata a fresh model lacks
         train_recs, test_recs = split_fold(recordings, k)
         held = {r.subject_key for r in test_recs}
@@ -939,7 +941,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--steps", type=int, default=TrainConfig.steps)
     parser.add_argument("--eval-stride", type=int, default=EVAL_STRIDE, help=(
-        "with --evaluate: frames between evaluated windows (a quick run: 25; default "
+        "frames between evaluated windows (a quick run: 25; default "
         f"{EVAL_STRIDE})"))
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--horizon-weight", type=float, default=TrainConfig.horizon_weight)
@@ -985,7 +987,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     fold = None if args.all else args.fold
     if fold is not None and not 0 <= fold < 5:
         parser.error("--fold must be in 0..4")
-    model, metrics = run_fold(recordings, fold, config, args.out, not args.no_progress)
+    model, metrics = run_fold(recordings, fold, config, args.out, not args.no_progress,
+                              args.eval_stride)
     print(f"fold {fold}: {metrics['train']['cpu_s']:.0f} CPU s; "
           f"wrote {fold_dir(fold, args.out) / 'model.npz'}")
     if "eval" in metrics:
