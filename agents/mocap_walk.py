@@ -68,8 +68,9 @@ most :data:`OVERSHOOT_M`), else the stepping gait the whole way (the walk to the
 fall, 0.05 m off, at 0.04 m/s). Closing stops that end with the feet close and the pelvis
 upright, tracked from real motion capture of a person stopping and then onto the stepping
 gait's stance (``build_mocap_walk.py --close``, :data:`CLOSE_STOP`), let the stepping gait
-take over in 2 of 10 walks (0.025-0.06 m from the goal) and 7 fell (measured;
-docs/room.md), so they are not bundled and the walk still ends 0.1-0.9 m off the goal.
+take over straight ahead (4 of 5 open-floor walks 0.023-0.059 m from the goal) but every
+walk after a stepping turn fell (measured; docs/room.md), so they are not bundled and the
+walk still ends 0.1-0.9 m off the goal.
 """
 
 from __future__ import annotations
@@ -115,7 +116,7 @@ SEAM_TOL_RAD = 1e-3
 #: The name prefix of the closing stops (``close_after_<piece>``: tracked from real motion
 #: capture of a person coming to rest with a short last step, then onto the stepping
 #: gait's upright stance; ``benchmarks/build_mocap_walk.py --close``, not in the bundled
-#: library: the stepping gait took over in 2 of 10 such walks, 7 fell, measured).
+#: library: every walk after a stepping turn fell in them, measured).
 CLOSE_STOP = "close_after_"
 
 
