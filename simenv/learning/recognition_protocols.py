@@ -126,6 +126,8 @@ BENCHMARK_PROTOCOLS: dict[str, str] = {
 }
 #: Longest training crop of the benchmarks, frames at 25 fps (5 s).
 BENCHMARK_FRAMES = 125
+#: Training epochs of a benchmark's networks (the published protocols' runs).
+BENCHMARK_EPOCHS = 60
 #: Joint sets of the benchmarks (module docstring, *Joints*).
 BENCHMARK_JOINTS: tuple[str, ...] = ("gesture15", "native")
 BenchmarkJoints = Literal["gesture15", "native"]
@@ -450,6 +452,12 @@ def _ensemble_sizes(members: int) -> list[int]:
     return [k for k in range(1, members) if k == 1 or k % 2]
 
 
+def benchmark_config(epochs: int = BENCHMARK_EPOCHS) -> RecognitionConfig:
+    """The benchmarks' networks: no partial windows, crops up to :data:`BENCHMARK_FRAMES`
+    frames, ``epochs`` epochs (1: every step of a run, its numbers thrown away)."""
+    return RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES, epochs=epochs)
+
+
 def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | None = None,
                   *, members: int = 1, whole_sequences: bool = False,
                   joints: BenchmarkJoints = "gesture15",
@@ -504,8 +512,7 @@ def run_benchmark(dataset: str, root: str | Path, config: RecognitionConfig | No
                           "classifier; give a covariance mode", field="lie_group")
     alone = neighbour is not None or covariance == "alone"
     root = Path(root)
-    config = config or RecognitionConfig(partial_prob=0.0, max_frames=BENCHMARK_FRAMES,
-                                         epochs=60)
+    config = config or benchmark_config()
     source = "msr_action3d" if dataset.startswith("msr_action3d") else dataset
     clips = load_gesture_clips(root, datasets=(source,))
     excluded: list[str] = []
