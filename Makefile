@@ -85,7 +85,8 @@ demo-check: $(STAMP)
 # The suite runs on every core, at most 4 (pytest-xdist workers; each holds MuJoCo, torch and
 # the corpus in memory), one test file per worker at a time so that a file's shared fixtures (a
 # retargeted clip, a trained model, a physics run) are built once (xdist's loadgroup does not
-# group under pytest 9.2: pytest-dev/pytest-xdist#1386). TEST_WORKERS=1 runs it on one.
+# group under pytest 9.2: pytest-dev/pytest-xdist#1386), the longest files first (tests/conftest.py
+# LONGEST_FILES, kept in that order by --no-loadscope-reorder). TEST_WORKERS=1 runs it on one.
 # numpy's OpenBLAS and torch's OpenMP get the cores left per worker: with two workers on two
 # cores each spinning two BLAS threads, the room-descriptor protocol test took 64 s instead of 25.
 NPROC := $(shell nproc 2>/dev/null || echo 2)
@@ -94,7 +95,7 @@ TEST_THREADS ?= $(shell echo $$(( $(NPROC) / $(TEST_WORKERS) > 1 ? $(NPROC) / $(
 
 test: $(STAMP)
 	$(RUN_ENV) OMP_NUM_THREADS=$(TEST_THREADS) OPENBLAS_NUM_THREADS=$(TEST_THREADS) \
-		$(BIN)/pytest -n $(TEST_WORKERS) --dist loadfile
+		$(BIN)/pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # ruff, then the import rules of docs/architecture.md (import-linter contracts and AST scans).
 lint: $(STAMP)

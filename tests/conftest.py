@@ -21,6 +21,26 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("SIMENV_HYPOTHESIS", "ci"))
 
 
+#: The suite's longest files, longest first (CPU of a fresh-clone run: the README's commands
+#: and recipes take 3-6 min each, the others 1-2 min). They go to the workers first, so that
+#: no long file starts near the end and runs alone while the other workers idle
+#: (longest-processing-time-first; `make test` keeps this order with --no-loadscope-reorder,
+#: where xdist would otherwise hand out the files with the most tests first).
+LONGEST_FILES = (
+    "test_readme_recipes.py", "test_readme.py", "test_rehearsal.py",
+    "test_eval_interaction.py", "test_agents_seat.py", "test_agents_window_open.py",
+    "test_plausibility_html_report.py", "test_plausibility_report.py",
+    "test_recognition_protocols.py", "test_covariance.py", "test_cli.py", "test_models.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The longest files first (:data:`LONGEST_FILES`); every file's tests stay together and
+    in their order, the other files in collection order."""
+    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def avatar_cache(tmp_path_factory: pytest.TempPathFactory):
     """The session's own cache of avatar keypoints (``SIMENV_CACHE``, read by
