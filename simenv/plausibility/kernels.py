@@ -1011,13 +1011,29 @@ def _foot_track(p: np.ndarray, foot: int, floor: float, height: float, fps: floa
 
 
 @njit(cache=True)
+def _apart_speed(p: np.ndarray, a: int, b: int, fps: float, out: np.ndarray) -> None:
+    """out (T - 1,) <- horizontal speed (m/s) of keypoint ``a`` relative to
+    ``b`` over each frame pair of the (3, J, T) planes ``p``."""
+    for t in range(out.shape[0]):
+        dx = ((np.float64(p[0, a, t + 1]) - np.float64(p[0, a, t]))
+              - (np.float64(p[0, b, t + 1]) - np.float64(p[0, b, t])))
+        dy = ((np.float64(p[1, a, t + 1]) - np.float64(p[1, a, t]))
+              - (np.float64(p[1, b, t + 1]) - np.float64(p[1, b, t])))
+        out[t] = np.sqrt(dx * dx + dy * dy) * fps
+
+
+@njit(cache=True)
 def _unsupported_slides(rel: np.ndarray, low: np.ndarray, v_h: np.ndarray,
-                        raw_sliding: np.ndarray, skate_speed: float, margin: float,
-                        stance_speed: float, min_run: int, sliding: np.ndarray) -> None:
+                        v_apart: np.ndarray, raw_sliding: np.ndarray, skate_speed: float,
+                        margin: float, stance_speed: float, min_run: int,
+                        sliding: np.ndarray) -> None:
     """sliding (F, T - 1) <- the slides of ``raw_sliding`` whose foot carries
     weight (not while the other foot, slower than ``skate_speed``, stands
-    more than ``margin`` lower at both frames), kept where they last
-    ``min_run`` frame pairs. rel, v_h: as :func:`_foot_track`, per foot."""
+    more than ``margin`` lower at both frames, nor while both feet slide and
+    move apart faster than ``skate_speed`` unless this foot is the one more
+    than ``margin`` lower at both frames), kept where they last ``min_run``
+    frame pairs. rel, v_h: as :func:`_foot_track`, per foot; v_apart
+    (T - 1,): horizontal speed of one foot relative to the other, m/s."""
     f_count, pairs = v_h.shape[0], v_h.shape[1]
     for f in range(f_count):
         o = f_count - 1 - f
@@ -1029,7 +1045,13 @@ def _unsupported_slides(rel: np.ndarray, low: np.ndarray, v_h: np.ndarray,
             # Or stands still on the floor: a foot sliding beside it is dragged, unloaded.
             supported = supported or (f_count == 2 and v_h[o, t] < stance_speed
                                       and low[o, t] and low[o, t + 1])
-            sliding[f, t] = raw_sliding[f, t] and not supported
+            # Both feet low and fast, moving apart as fast as a slide, neither clearly
+            # the lower (the stance foot a low swing passes): the feet move on their
+            # own (a hop or a shuffle step), not a body sliding on its stance.
+            airborne = (f_count == 2 and raw_sliding[o, t] and v_apart[t] > skate_speed
+                        and not (rel[f, t] + margin < rel[o, t]
+                                 and rel[f, t + 1] + margin < rel[o, t + 1]))
+            sliding[f, t] = raw_sliding[f, t] and not (supported or airborne)
         if min_run > 1:
             _keep_long_runs(sliding[f], min_run)
 
@@ -1071,13 +1093,16 @@ def foot_skate(p: np.ndarray, zmin: np.ndarray, feet: np.ndarray, heights: np.nd
     v_avg = np.empty(pairs)
     slide = np.zeros(pairs)
     disp = np.empty(pairs)
+    v_apart = np.zeros(pairs)
     floor, ankle_floor = _foot_floors(p, zmin, feet, ankle, buf, tmp)
     for f in range(f_count):
         _foot_track(p, feet[f], ankle_floor if ankle[f] else floor, heights[f], fps,
                     skate_speed, contact_speed, rel[f], low[f], v_h[f], planted[f],
                     raw_sliding[f])
-    _unsupported_slides(rel, low, v_h, raw_sliding, skate_speed, margin, stance_speed,
-                        min_run, sliding)
+    if f_count == 2:
+        _apart_speed(p, feet[0], feet[1], fps, v_apart)
+    _unsupported_slides(rel, low, v_h, v_apart, raw_sliding, skate_speed, margin,
+                        stance_speed, min_run, sliding)
     skating_pairs = 0
     gmd_pairs = 0
     for t in range(pairs):

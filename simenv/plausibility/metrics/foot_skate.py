@@ -40,7 +40,16 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     the other foot is planted and lower (by more than
     ``skate_support_margin_m``), or low and standing still (horizontal speed
     below ``skate_stance_speed_mps``), is unloaded -- the weight is on the
-    other foot -- and does not count either.
+    other foot -- and does not count either. Nor does a pair where both feet
+    are low and sliding and move apart (horizontal speed of one relative to
+    the other) faster than ``skate_speed_mps``, unless this foot is the one
+    lower by more than the support margin: the feet move on their own, as in
+    a hop or a shuffle step (a child hopping in place, toes 1.6-3.1 cm up,
+    read 0.085 before), while a body sliding on its stance carries both feet
+    along together. Measured (``benchmarks/foot_skate_hop_check.py``): no
+    verdict of the shared CMU corpus moves (largest change 0.024), seeded
+    ``foot_slide`` copies stay caught (CMU 27 of 27; Kinect sets 2 fewer of
+    472 and 203).
 
     Timeline: ``max_f v_f(t)`` over skating feet (0 when none) in **mm per
     frame at 20 fps** (``speed * 1000 / skate_reference_fps``, PhysDiff's
@@ -97,7 +106,8 @@ class FootSkate(KeypointMetric):
 
     A low foot (within its contact height of the floor) sliding faster than
     ``skate_speed_mps`` for at least ``skate_min_duration_s``, unless the
-    other, lower foot carries the weight; timeline: the skating foot's speed
+    other, lower foot carries the weight or both feet move apart (a hop);
+    timeline: the skating foot's speed
     in mm per frame at ``skate_reference_fps``; value: fraction of frame pairs
     with a skating foot; passes at <= ``skate_ratio_max``.
     """

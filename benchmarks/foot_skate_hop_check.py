@@ -1,0 +1,145 @@
+"""``foot_skate`` before and after a kernel change: real clips, seeded slides, the hop file.
+
+Scores ``foot_skate`` (kinematic, no body fit) on every person of the shared CMU corpus
+(single-person BVH and ASF/AMC, both people of the two-person trials), of the shared Kinect
+sets the depth-camera profiles use (:data:`depth_camera_profiles.SOURCES`, which skips the
+reserved MSR Action3D subject 10), and of the FAIR AnimatedDrawings development file
+``tests/data/conventions/other/fair1_dab_zup.bvh`` (a child hopping in a dab), each at its
+detected source's thresholds (:func:`simenv.plausibility.profiles.detect_source`: the mocap
+defaults, or the Kinect family's ``skate_ratio_max``). Every person whose clean clip passes
+``foot_skate`` is also scored after :func:`simenv.plausibility.corrupt.foot_slide` (seed 0) at
+the registry's moderate strength (1 m/s) and at three times it: a failing copy is a caught
+slide. Writes one JSON line per person to ``--out``; ``--compare BEFORE AFTER`` prints the
+verdicts that moved, the largest value change per source, and the detection rates with
+the seeded copies' mean value (how far above the limit the slides stay).
+
+Run the "before" side on a copy of the unchanged code (``git archive HEAD simenv`` into a
+folder, ``PYTHONPATH=that folder``) and the "after" side on the changed one::
+
+    PYTHONPATH=/tmp/before nice -n 10 .venv/bin/python benchmarks/foot_skate_hop_check.py \\
+        --out out/foot_skate/before.jsonl
+    nice -n 10 .venv/bin/python benchmarks/foot_skate_hop_check.py --out out/foot_skate/after.jsonl
+    .venv/bin/python benchmarks/foot_skate_hop_check.py --compare out/foot_skate/before.jsonl \\
+        out/foot_skate/after.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from depth_camera_profiles import SOURCES, _motions
+
+import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.core.config import shared_data_root
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Interaction, Motion
+from simenv.io.loader import load
+from simenv.plausibility import foot_skate
+from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES
+from simenv.plausibility.profiles import detect_source, profile_for
+from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
+
+REPO = Path(__file__).resolve().parents[1]
+#: The development file whose hops ``foot_skate`` read as sliding (docs/plausibility.md).
+FAIR_DAB = REPO / "tests" / "data" / "conventions" / "other" / "fair1_dab_zup.bvh"
+#: Seeded slide levels: the registry's moderate strength, and three times it (m/s).
+LEVELS = {"moderate": CORRUPTIONS["foot_slide"].moderate,
+          "strong": 3.0 * CORRUPTIONS["foot_slide"].moderate}
+
+
+def people() -> Iterator[tuple[str, str, Motion]]:
+    """(source, label, motion) of every person judged."""
+    cmu = shared_data_root() / "cmu"
+    paths = (sorted((cmu / "bvh").glob("*.bvh")) + sorted((cmu / "asf_amc").glob("*.amc"))
+             + sorted(p for p in (cmu / "two_person").iterdir() if p.is_dir()))
+    for path in paths:
+        clip = load(path)
+        for i, m in enumerate(clip.people if isinstance(clip, Interaction) else (clip,)):
+            yield "cmu", f"{path.parent.name}/{path.name}#{i}", m
+    yield "fair", FAIR_DAB.name, load(FAIR_DAB)
+    for source in SOURCES:
+        for label, m in _motions(source):
+            yield source.name, label, m
+
+
+def thresholds_of(m: Motion) -> Thresholds:
+    """The thresholds of ``m``'s detected source (its profile's, or the mocap defaults)."""
+    profile = profile_for(detect_source(m))
+    return DEFAULT_THRESHOLDS if profile is None else replace(DEFAULT_THRESHOLDS,
+                                                              **profile.thresholds)
+
+
+def row(source: str, label: str, m: Motion) -> dict[str, Any]:
+    """One person's clean value and pass, and its seeded slides' values and passes."""
+    th = thresholds_of(m)
+    clean = foot_skate(m, th)
+    out: dict[str, Any] = {"source": source, "label": label, "frames": m.num_frames,
+                           "limit": th.skate_ratio_max, "value": clean.value,
+                           "passed": clean.passed, "seeded": {}}
+    if clean.passed and m.num_frames >= MIN_FRAMES:
+        for level, strength in LEVELS.items():
+            try:
+                bad = foot_skate(CORRUPTIONS["foot_slide"].fn(m, strength, seed=0), th)
+            except SimenvError:  # no planted foot to slide
+                continue
+            out["seeded"][level] = {"value": bad.value, "passed": bad.passed}
+    return out
+
+
+def compare(before: Path, after: Path) -> None:
+    """Print moved verdicts, largest value change per source and detection rates."""
+    def read(p: Path) -> dict[tuple[str, str], dict[str, Any]]:
+        return {(r["source"], r["label"]): r
+                for r in map(json.loads, p.read_text().splitlines())}
+    b, a = read(before), read(after)
+    largest: dict[str, tuple[float, str]] = {}
+    caught: dict[tuple[str, str], list[int]] = {}
+    for key in sorted(b.keys() & a.keys()):
+        rb, ra = b[key], a[key]
+        if rb["passed"] != ra["passed"]:
+            print(f"verdict moved: {key[0]} {key[1]} {rb['value']:.4f} -> {ra['value']:.4f} "
+                  f"(limit {ra['limit']})")
+        if rb["value"] is not None and ra["value"] is not None:
+            d = abs(ra["value"] - rb["value"])
+            if d >= largest.get(key[0], (-1.0, ""))[0]:
+                largest[key[0]] = (d, key[1])
+        for level in LEVELS:
+            sb, sa = rb["seeded"].get(level), ra["seeded"].get(level)
+            if sb and sa:
+                c = caught.setdefault((key[0], level), [0, 0, 0, 0.0, 0.0])
+                c[0] += 1
+                c[1] += sb["passed"] is False
+                c[2] += sa["passed"] is False
+                c[3] += sb["value"]
+                c[4] += sa["value"]
+    for source, (d, label) in largest.items():
+        print(f"{source}: largest |change| {d:.4f} ({label})")
+    for (source, level), (n, cb, ca, vb, va) in sorted(caught.items()):
+        print(f"{source} foot_slide {level}: caught {cb}/{n} before, {ca}/{n} after; "
+              f"mean value {vb / n:.3f} -> {va / n:.3f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, help="JSON-lines file to write")
+    ap.add_argument("--compare", type=Path, nargs=2, metavar=("BEFORE", "AFTER"))
+    args = ap.parse_args()
+    if args.compare:
+        compare(*args.compare)
+        return
+    if args.out is None:
+        ap.error("--out or --compare is required")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with args.out.open("w") as fh:
+        for source, label, m in people():
+            fh.write(json.dumps(row(source, label, m)) + "\n")
+            fh.flush()
+
+
+if __name__ == "__main__":
+    main()
