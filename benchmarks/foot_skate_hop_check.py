@@ -9,7 +9,9 @@ detected source's thresholds (:func:`simenv.plausibility.profiles.detect_source`
 defaults, or the Kinect family's ``skate_ratio_max``). Every person whose clean clip passes
 ``foot_skate`` is also scored after :func:`simenv.plausibility.corrupt.foot_slide` (seed 0) at
 the registry's moderate strength (1 m/s) and at three times it: a failing copy is a caught
-slide. Writes one JSON line per person to ``--out``; ``--compare BEFORE AFTER`` prints the
+slide. So is a stance-foot slide the registry lacks (:func:`stance_slide`: only the toe of
+the one planted foot drifts, while the other foot swings), the case the hop exemption must
+leave counted. Writes one JSON line per person to ``--out``; ``--compare BEFORE AFTER`` prints the
 verdicts that moved, the largest value change per source, and the detection rates with
 the seeded copies' mean value (how far above the limit the slides stay).
 
@@ -32,9 +34,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from depth_camera_profiles import SOURCES, _motions
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.body.foot_contact import foot_contacts
 from simenv.core.config import shared_data_root
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Interaction, Motion
@@ -67,6 +71,25 @@ def people() -> Iterator[tuple[str, str, Motion]]:
             yield source.name, label, m
 
 
+def stance_slide(m: Motion, speed: float) -> Motion | None:
+    """Canonical copy of ``m`` whose toe drifts at ``speed`` m/s along +x through each run
+    of frames its foot alone is planted (:func:`simenv.body.foot_contact.foot_contacts`),
+    back in place after the run; None without two toes."""
+    canon = m.to_canonical()
+    feet, contacts = foot_contacts(canon)
+    if feet != ["left_toe", "right_toe"]:
+        return None
+    pos = canon.positions.astype(np.float64)
+    for f, name in enumerate(feet):
+        alone = contacts[:, f] & ~contacts[:, 1 - f]
+        # Frames since the run began (0 outside runs): the drift restarts with each stance.
+        since = np.zeros(len(alone))
+        for t in range(1, len(alone)):
+            since[t] = since[t - 1] + 1 if alone[t] and alone[t - 1] else 0
+        pos[:, canon.skeleton.index(name), 0] += since * speed / m.fps
+    return canon.with_positions(pos.astype(np.float32))
+
+
 def thresholds_of(m: Motion) -> Thresholds:
     """The thresholds of ``m``'s detected source (its profile's, or the mocap defaults)."""
     profile = profile_for(detect_source(m))
@@ -88,6 +111,10 @@ def row(source: str, label: str, m: Motion) -> dict[str, Any]:
             except SimenvError:  # no planted foot to slide
                 continue
             out["seeded"][level] = {"value": bad.value, "passed": bad.passed}
+        stance = stance_slide(m, LEVELS["moderate"])
+        if stance is not None:
+            bad = foot_skate(stance, th)
+            out["seeded"]["stance"] = {"value": bad.value, "passed": bad.passed}
     return out
 
 
@@ -108,7 +135,7 @@ def compare(before: Path, after: Path) -> None:
             d = abs(ra["value"] - rb["value"])
             if d >= largest.get(key[0], (-1.0, ""))[0]:
                 largest[key[0]] = (d, key[1])
-        for level in LEVELS:
+        for level in (*LEVELS, "stance"):
             sb, sa = rb["seeded"].get(level), ra["seeded"].get(level)
             if sb and sa:
                 c = caught.setdefault((key[0], level), [0, 0, 0, 0.0, 0.0])
