@@ -2,7 +2,9 @@
 are pinned (``tests/data/kinematic_golden.npz``).
 
 The golden file was written by the straightforward, unoptimised metric code
-(commit 701f1ef); ``tests/test_plausibility_kinematic_golden.py`` checks that
+(commit 701f1ef), but for ``walk_drift``'s ``foot_skate``, rewritten when the metric
+stopped counting feet moving apart in a hop as sliding (commit 02a2c98: 0.792 -> 0.725,
+still failing; no other case moved); ``tests/test_plausibility_kinematic_golden.py`` checks that
 the optimised metrics and :func:`simenv.plausibility.kinematic_metrics_batch`
 still give the same values. Regenerate (only when a metric changes *on
 purpose*) with::
