@@ -68,9 +68,9 @@ most :data:`OVERSHOOT_M`), else the stepping gait the whole way (the walk to the
 fall, 0.05 m off, at 0.04 m/s). Closing stops that end with the feet close and the pelvis
 upright, tracked from real motion capture of a person stopping and then onto the stepping
 gait's stance (``build_mocap_walk.py --close``, :data:`CLOSE_STOP`), let the stepping gait
-take over straight ahead (4 of 5 open-floor walks 0.023-0.059 m from the goal) but every
-walk after a stepping turn fell (measured; docs/room.md), so they are not bundled and the
-walk still ends 0.1-0.9 m off the goal.
+take over straight ahead in one library of three (4 of 5 open-floor walks 0.023-0.059 m
+from the goal), never after a stepping turn (measured; docs/room.md), so they are not
+bundled and the walk still ends 0.1-0.9 m off the goal.
 """
 
 from __future__ import annotations

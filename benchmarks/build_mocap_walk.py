@@ -682,12 +682,12 @@ def _advance(h: Humanoid, q0: np.ndarray, q1: np.ndarray) -> list[float]:
 
 
 def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps: float,
-                  out: Path, provenance: dict, stops: dict[str, dict[str, np.ndarray]]
-                  ) -> dict:
+                  out: Path, provenance: dict, stops: dict[str, dict[str, np.ndarray]],
+                  rank: int = GAIN_RANK) -> dict:
     """Cut the tracked ``run`` into :data:`CUTS`, add the tracked ``stops`` (their names,
     ``stop_after_<piece>`` or ``halt_after_<piece>`` -> its run, :func:`track_stop`,
-    :func:`track_halt`), give them LQR gains and write
-    the library to ``out`` (:data:`simenv.agents.mocap_walk.LIBRARY`'s JSON); returns its
+    :func:`track_halt`), give them LQR gains (on a basis of rank ``rank`` over time) and
+    write the library to ``out`` (:data:`simenv.agents.mocap_walk.LIBRARY`'s JSON); returns its
     metadata."""
     from simenv.agents.mocap_walk import body_signature, pack_array
 
@@ -723,7 +723,7 @@ def build_library(h: Humanoid, run: dict[str, np.ndarray], taus: np.ndarray, fps
     flat = np.concatenate([np.array([gain_at[k] for k in used]).reshape(len(used), -1),
                            *[g.reshape(len(g), -1) for g in stop_gains.values()]])
     _, sv, vt = np.linalg.svd(flat, full_matrices=False)
-    r = min(GAIN_RANK, len(sv))
+    r = min(rank, len(sv))
     basis = vt[:r]
     arrays: dict[str, np.ndarray] = {}
     meta: dict = {"primitives": {}, **provenance, "rank": r, "stride": STRIDE,
@@ -782,6 +782,8 @@ def main() -> int:
     parser.add_argument("--log", type=Path, default=Path("/tmp/mw_build.log"))
     parser.add_argument("--close", nargs="*", default=[], choices=CLOSE_AFTER,
                         help="pieces to track a closing stop after (module docstring, 7)")
+    parser.add_argument("--rank", type=int, default=GAIN_RANK,
+                        help="rank of the gains' basis over time (GAIN_RANK)")
     parser.add_argument("--stride", type=int, default=5,
                         help="physics steps per gain (held in between)")
     args = parser.parse_args()
@@ -865,7 +867,7 @@ def main() -> int:
                 with args.log.open("a") as f:
                     f.write(f"{name} left out (max error over {KEEP_MAX_ERR_M} m)\n")
     t0 = time.perf_counter()
-    meta = build_library(h, run, taus, fps, args.out, provenance, stops)
+    meta = build_library(h, run, taus, fps, args.out, provenance, stops, args.rank)
     with args.log.open("a") as f:
         f.write(f"library {args.out}: rank {meta['rank']}, gain error "
                 f"{meta['gain_relative_error']:.4f}, {time.perf_counter() - t0:.0f} s, "
