@@ -116,7 +116,7 @@ SEAM_TOL_RAD = 1e-3
 #: The name prefix of the closing stops (``close_after_<piece>``: tracked from real motion
 #: capture of a person coming to rest with a short last step, then onto the stepping
 #: gait's upright stance; ``benchmarks/build_mocap_walk.py --close``, not in the bundled
-#: library: every walk after a stepping turn fell in them, measured).
+#: library: no walk after a stepping turn arrived with them, measured).
 CLOSE_STOP = "close_after_"
 
 
