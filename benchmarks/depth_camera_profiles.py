@@ -168,7 +168,7 @@ def _files(path: Path) -> list[Path]:
                   and "label" not in p.name.lower())
 
 
-def _motions(source: Source) -> Iterator[tuple[str, Motion]]:
+def source_motions(source: Source) -> Iterator[tuple[str, Motion]]:
     """(label, motion) of every person of ``source`` (NuiSI: 5-s windows)."""
     if source.name == "utkinect":
         loaded = load(source.paths[0])
@@ -204,7 +204,7 @@ def read_people() -> dict[str, list[Person]]:
     out: dict[str, list[Person]] = {}
     for source in SOURCES:
         people = []
-        for label, m in _motions(source):
+        for label, m in source_motions(source):
             people.append(Person(source.name, label, m, values_of(kinematic_metrics(m)),
                                  {w: sensor_values(m, w) for w in WINDOWS}))
         out[source.name] = people

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from depth_camera_profiles import SOURCES, _motions
+from depth_camera_profiles import SOURCES, source_motions
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.body.foot_contact import foot_contacts
@@ -67,7 +67,7 @@ def people() -> Iterator[tuple[str, str, Motion]]:
             yield "cmu", f"{path.parent.name}/{path.name}#{i}", m
     yield "fair", FAIR_DAB.name, load(FAIR_DAB)
     for source in SOURCES:
-        for label, m in _motions(source):
+        for label, m in source_motions(source):
             yield source.name, label, m
 
 
