@@ -83,3 +83,23 @@ def is_number(token: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def resample_stamped(t_s: np.ndarray, pos: np.ndarray, fps: float) -> tuple[np.ndarray,
+                                                                           np.ndarray]:
+    """Positions sampled at time stamps, linearly interpolated onto a uniform grid.
+
+    Args:
+        t_s: (N,) increasing time stamps, seconds from the first (N >= 2).
+        pos: (N, J, 3) positions at those stamps.
+        fps: frames per second of the grid, which starts at 0 and ends at or before the
+            last stamp.
+
+    Returns:
+        times (M,) seconds and positions (M, J, 3) on the grid.
+    """
+    times = np.arange(int(np.floor(t_s[-1] * fps + 1e-9)) + 1) / fps
+    flat = pos.reshape(len(pos), -1)
+    out = np.stack([np.interp(times, t_s, flat[:, c]) for c in range(flat.shape[1])], axis=1)
+    return times, out.reshape(len(times), *pos.shape[1:])
+

@@ -38,7 +38,7 @@ import numpy as np
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import KINECT_V1_JOINTS, kinect_v1_skeleton
-from simenv.io._kinect_text import table_lines, to_floats
+from simenv.io._kinect_text import resample_stamped, table_lines, to_floats
 from simenv.io.camera_frame import world_motion
 
 #: Output frame rate of the uniform grid, frames/s (the Kinect v1 skeleton stream).
@@ -147,10 +147,7 @@ def read(path: str | Path, *, fps: float | None = KINDER_GATOR_FPS) -> Motion:
             raise MotionError(f"only one tracked frame; need 2 to interpolate onto a {fps:g} "
                               "fps grid (or read with fps=None)", source=path)
         out_fps = float(fps)
-        times = np.arange(int(np.floor(t_s[-1] * out_fps + 1e-9)) + 1) / out_fps
-        flat = pos.reshape(len(pos), -1)
-        pos = np.stack([np.interp(times, t_s, flat[:, c]) for c in range(flat.shape[1])],
-                       axis=1).reshape(len(times), JOINTS, 3)
+        _, pos = resample_stamped(t_s, pos, out_fps)
     meta: dict[str, object] = {
         "source": str(path), "format": "kinder_gator", "units": "m (camera frame)",
         "dataset": "Kinder-Gator", "repairs": repairs,

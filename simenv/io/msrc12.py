@@ -39,7 +39,13 @@ import numpy as np
 from simenv.core.errors import FormatError, MotionError
 from simenv.core.motion import Motion
 from simenv.core.skeletons import kinect_v1_skeleton
-from simenv.io._kinect_text import check_counts, sniff_rows, table_lines, to_floats
+from simenv.io._kinect_text import (
+    check_counts,
+    resample_stamped,
+    sniff_rows,
+    table_lines,
+    to_floats,
+)
 from simenv.io._text import read_text, split_lines
 from simenv.io.camera_frame import world_motion
 
@@ -197,10 +203,7 @@ def read(path: Path, *, fps: float | None = MSRC12_FPS, tags: Path | str | None 
             raise MotionError("only one tracked frame; need 2 to interpolate onto a "
                               f"{fps:g} fps grid (or read with fps=None)", source=path)
         out_fps = float(fps)
-        times = np.arange(int(np.floor(t_s[-1] * out_fps + 1e-9)) + 1) / out_fps
-        flat = pos.reshape(len(pos), -1)
-        pos = np.stack([np.interp(times, t_s, flat[:, c]) for c in range(flat.shape[1])],
-                       axis=1).reshape(len(times), JOINTS, 3)
+        times, pos = resample_stamped(t_s, pos, out_fps)
     meta: dict[str, object] = {
         "source": str(path),
         "format": "msrc12",
