@@ -225,19 +225,13 @@ def test_composed_walk_joins_its_pieces_at_pace_and_stands():
     """A 3.6 m goal on open floor: the start, two half cycles and a stop, each piece
     starting on the last tracked state of the one before; no fall, no help, and the end
     within half a half-cycle's advance of where the composition predicted."""
-    s = load_scenario("discomfort")
-    room = Room(replace(s, name="open_floor", room=replace(s.room, size=(16.0, 16.0))))
+    room = _open_room()
     start = np.array([-6.0, -4.0])
     data = standing_agent(room, start, EAST)
     plan = plan_mocap_walk(room, data, start + [3.6, 0.0])
     anc = plan.anchors
     kp = data.site_xpos[room.agent_sites[anc.sites], :2].copy()
-    dt = room.model.opt.timestep
-    i = 0
-    while i * dt < plan.duration:
-        data.ctrl[room.agent_ctrl] = plan.control(i * dt, data)
-        mujoco.mj_step(room.model, data)
-        i += 1
+    _play(room, data, plan)
     assert len(plan.seams) >= 3, plan.names  # two seams between walking pieces at least
     out = plan.feedback.outcome(data)
     assert not out["fell"], (plan.names, out)
