@@ -25,6 +25,7 @@ from simenv.core.joint_map import (
 )
 from simenv.io import bvh
 from simenv.io._kinematics import rest_extent
+from simenv.io.joint_csv import azure_kinect_skeleton
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 CONVENTIONS_DIR = Path(__file__).parent / "data" / "conventions"
@@ -70,6 +71,17 @@ def test_names_alone_give_the_library_maps(make) -> None:
     if sk.name == "nuitrack":
         expected["neck"] = "JOINT_NECK"
     assert found == expected
+
+
+@pytest.mark.parametrize("spine", ["SPINE_NAVEL", "SpineNavel", "SPINE_NAVAL"])
+def test_azure_kinect_spine_in_every_sdk_spelling(spine: str) -> None:
+    """The Body Tracking SDK 1.0 renamed ``SPINE_NAVAL`` to ``SPINE_NAVEL`` (the C# SDK's
+    ``JointId.SpineNavel``): every spelling is the spine by name, not only by topology."""
+    sk = azure_kinect_skeleton()
+    names = [spine if n == "SPINE_NAVAL" else n for n in sk.joint_names]
+    mapping = infer_joint_map(names, sk.parents)
+    assert mapping.canonical["spine"] == spine
+    assert mapping.how["spine"] == "name (azure_kinect)"
 
 
 # Real CMU clips re-exported under each convention's joint names. Keys are the cgspeed

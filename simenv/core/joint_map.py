@@ -166,10 +166,10 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
         left_toe="FootLeft", spine="SpineMid", neck="SpineShoulder", head="Head",
         left_shoulder="ShoulderLeft", left_elbow="ElbowLeft", left_wrist="WristLeft",
         left_hand="HandLeft"),
-    _convention(
+    _convention(  # SDK 1.0 renamed SPINE_NAVAL (kept for older files) to SPINE_NAVEL
         "azure_kinect", "Azure Kinect Body Tracking (k4abt_joint_id_t)",
         pelvis="PELVIS", left_hip="HIP_LEFT", left_knee="KNEE_LEFT", left_ankle="ANKLE_LEFT",
-        left_toe="FOOT_LEFT", spine="SPINE_NAVAL", neck="NECK", head="HEAD",
+        left_toe="FOOT_LEFT", spine="SPINE_NAVEL|SPINE_NAVAL", neck="NECK", head="HEAD",
         left_shoulder="SHOULDER_LEFT", left_elbow="ELBOW_LEFT", left_wrist="WRIST_LEFT",
         left_hand="HAND_LEFT"),
     _convention(

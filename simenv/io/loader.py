@@ -61,6 +61,8 @@ READERS: tuple[str, ...] = (
     "h36m",
     # Before joint_csv, which claims .csv: an MSRC-12 recording has no header row.
     "msrc12",
+    # Before joint_csv, which claims .csv: an Azure Kinect SDK table packs "x y z" per cell.
+    "azure_kinect",
     "joint_csv",
 )
 
