@@ -434,3 +434,28 @@ def test_a_knee_offset_longer_than_half_the_leg_is_rejected() -> None:
 
     with pytest.raises(RetargetError, match="left_knee_lateral"):
         BodyDimensions(left_thigh=0.15, rest=RestGeometry(left_knee_lateral=0.09))
+
+
+def test_fit_reads_a_rig_spine_hung_from_the_pelvis_joint_upright() -> None:
+    """FAIR's capture rig (real BVH, tests/data/conventions/other) hangs its first spine
+    joint from ``Hips`` 5.3 cm away, 34 deg off the trunk's line, with the pelvis keypoint
+    on the hip line. Taken as the trunk's direction, that offset made the performer's
+    upright trunk read ~28 deg of thorax flexion; as a joint rigid on the pelvis, with the
+    trunk's zero from the rig's rest pose, the upright dab reads within a few degrees and
+    the lumbar joint sits at the spine keypoint. A CMU rig, whose spine ends a lumbar bone,
+    is not such a rig."""
+    from simenv.body.humanoid import rest_trunk
+    from simenv.body.retarget import retarget
+    from simenv.io.loader import load
+
+    dab = load(Path(__file__).parent / "data/conventions/other/fair1_dab_zup.bvh").slice(0, 60)
+    assert rest_trunk(dab) is not None
+    d = fit_dimensions(dab)
+    assert d.spine_on_pelvis and d.lumbar == 0.0
+    assert any("rest pose" in n for n in d.notes)
+    h = Humanoid(d)
+    fit = retarget(dab, h)
+    assert float(np.percentile(fit.residuals, 95)) < 0.005
+    q = np.rad2deg(fit.qpos[:, h.hinge_qpos])
+    trunk = sum(np.median(q[:, h.joint_names.index(j)]) for j in ("lumbar_flex", "thorax_flex"))
+    assert abs(trunk) < 10.0, trunk

@@ -12,8 +12,9 @@ Each body carries a site at its canonical keypoint (site name = keypoint name, s
 :data:`simenv.core.skeletons.CANONICAL_KEYPOINTS`), so keypoints are read from
 ``data.site_xpos``. A keypoint is the origin of the body it starts, except the
 rigid ones: the hips live on the pelvis, the neck on the chest, and the spine on
-the pelvis for a source whose spine keypoint is rigid there (SMPL ``spine1``:
-the lumbar then turns at it, :attr:`BodyDimensions.lumbar_offset`), and a knee
+the pelvis for a source whose spine keypoint is rigid there (SMPL ``spine1``, a
+rig's first spine joint hung from its pelvis joint: the lumbar then turns at it,
+:attr:`BodyDimensions.lumbar_offset`), and a knee
 keypoint the source puts beside its hip-ankle line (on the thigh, off the knee
 hinge along its axis; :class:`RestGeometry`, with the head keypoint's direction).
 
@@ -1243,7 +1244,47 @@ def _rigid_spine(kp: Mapping[str, np.ndarray], s_loc: np.ndarray) -> bool:
     return bool(np.percentile(spread, 95) <= RIGID_SPINE_SPREAD)
 
 
-def _pelvis_offsets(kp: Mapping[str, np.ndarray], body_model: bool
+def rest_trunk(motion: Motion) -> dict[str, np.ndarray] | None:
+    """The rest pose's pelvis, hips, spine and trunk-top keypoints (each (1, 3), metres)
+    when ``motion``'s spine keypoint is rigid on its pelvis by construction, else None.
+
+    A source whose positions are forward kinematics of fixed offsets (BVH and ASF/AMC:
+    ``metadata["offsets_m"]``) carries a joint that is the pelvis joint's own child
+    along with the pelvis: its position is the pelvis's transform applied to a
+    constant offset. When the canonical spine is such a child, the rest pose (every
+    rotation zero: positions are the summed offsets) tells where the rig's trunk
+    stands relative to that offset. The trunk top is the chest keypoint, else the neck.
+    """
+    sk, meta = motion.skeleton, motion.metadata
+    c = sk.canonical
+    top = "chest" if "chest" in c else "neck"
+    if "offsets_m" not in meta or not {"pelvis", "left_hip", "right_hip", "spine", top} <= c.keys():
+        return None
+    if sk.parents[sk.index(c["spine"])] != sk.index(c["pelvis"]):
+        return None
+    offsets = np.asarray(meta["offsets_m"], dtype=np.float64)
+    if offsets.shape != (len(sk.joint_names), 3):
+        return None
+    rest = np.zeros_like(offsets)
+    for j, parent in enumerate(sk.parents):
+        rest[j] = offsets[j] + (rest[parent] if parent >= 0 else 0.0)
+    keys = ("pelvis", "left_hip", "right_hip", "spine")
+    out = {k: rest[None, sk.index(c[k])] for k in keys}
+    out["top"] = rest[None, sk.index(c[top])]
+    return out
+
+
+def _rest_trunk_tilt(rest: Mapping[str, np.ndarray]) -> float:
+    """Angle about the hip axis (radians) from the spine keypoint's direction to the rest
+    pose's pelvis -> trunk-top direction, in the pelvis frame the spine gives
+    (:func:`pelvis_frames` with the pelvis keypoint on the hip line)."""
+    R = pelvis_frames(rest["pelvis"], rest["left_hip"], rest["right_hip"], rest["spine"])[0]
+    top = R.T @ (rest["top"][0] - rest["pelvis"][0])
+    return float(np.arctan2(top[0], top[2]))
+
+
+def _pelvis_offsets(kp: Mapping[str, np.ndarray], body_model: bool,
+                    rest: Mapping[str, np.ndarray] | None = None
                     ) -> dict[str, tuple[float, float, float]]:
     """``left_hip_offset`` / ``right_hip_offset``: median hip positions in the
     pelvis frame (metres), and ``lumbar_offset``.
@@ -1255,6 +1296,15 @@ def _pelvis_offsets(kp: Mapping[str, np.ndarray], body_model: bool
     pelvis rather than to that joint's offset (SMPL's ``spine1`` sits 17-25 deg
     behind the pelvis keypoint's line; tilted by it, SMPL's zero pose read 21
     deg of hip extension and 22 of thorax flexion; untilted, 4 and 4).
+
+    With the pelvis keypoint on the hip line the frame's z axis comes from the
+    spine keypoint, so its rigidity cannot be measured; ``rest`` (:func:`rest_trunk`)
+    says it from the source's hierarchy. Such a spine is the lumbar joint too, and
+    the frame is rotated about the hip axis so that the rest pose's trunk is +z: the
+    offset of a rig's first spine joint is a design choice, not the trunk's line (a
+    FAIR capture rig's lies 34 deg off it; taken as the trunk, a standing child read
+    34 deg of thorax flexion).
+
     Otherwise the frame is rotated about the hip axis
     so that the median spine direction is +z, and ``lumbar_offset`` is zero."""
     R = pelvis_frames(kp["pelvis"], kp["left_hip"], kp["right_hip"], kp.get("spine"))
@@ -1262,8 +1312,13 @@ def _pelvis_offsets(kp: Mapping[str, np.ndarray], body_model: bool
     tilt = 0.0
     if "spine" in kp:
         s_loc = np.einsum("tji,tj->ti", R, kp["spine"] - kp["pelvis"])
+        on_hip_line = not _pelvis_off_hip_line(
+            _hip_axis_and_up(kp["pelvis"], kp["left_hip"], kp["right_hip"])[1])
         if body_model and _rigid_spine(kp, s_loc):
             out["lumbar_offset"] = _v(np.median(s_loc, axis=0))
+        elif rest is not None and on_hip_line:
+            tilt = _rest_trunk_tilt(rest)
+            out["lumbar_offset"] = _v(np.median(s_loc, axis=0) @ _rot_y(tilt))
         else:
             tilt = float(np.arctan2(np.median(s_loc[:, 0]), np.median(s_loc[:, 2])))
     R = R @ _rot_y(tilt)
@@ -1470,7 +1525,8 @@ def _lengths_or_default(measured: Mapping[str, float], scale: float
 
 def _fit_notes(motion: Motion, num_frames: int, measured: Mapping[str, float],
                fallback: Sequence[str], scale: float, derived_chest: bool,
-               spine_on_pelvis: bool, rest: RestGeometry) -> tuple[str, ...]:
+               spine_on_pelvis: bool, rest: RestGeometry, trunk_from_rest: bool
+               ) -> tuple[str, ...]:
     """The fit's provenance and every fallback, for :attr:`BodyDimensions.notes`."""
     notes = [f"fitted to {motion.name!r} ({num_frames} frames, median over frames)"]
     knees = {s: getattr(rest, f"{s}_knee_lateral") for s in _SIDES}
@@ -1484,7 +1540,9 @@ def _fit_notes(motion: Motion, num_frames: int, measured: Mapping[str, float],
                      "median, taken as the neutral head)")
     if spine_on_pelvis:
         notes.append("spine keypoint rigid on the pelvis: the lumbar and the thorax turn at it "
-                     "(zero lumbar length)")
+                     "(zero lumbar length)" + ("; the source's spine joint is its pelvis "
+                                              "joint's child, and the trunk's zero is its rest "
+                                              "pose's" if trunk_from_rest else ""))
     if fallback:
         notes.append(f"missing keypoints: {', '.join(fallback)} from the default adult scaled "
                      f"by {scale:.3f} (median measured/default bone ratio)")
@@ -1509,7 +1567,10 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     pelvis fits exactly. A spine keypoint that does not move in the pelvis
     frame is rigid on it: it becomes the lumbar joint
     (:attr:`BodyDimensions.lumbar_offset`; the frame is then not rotated), with
-    the thorax joint at the same point (:func:`_split_trunk`). The clavicle
+    the thorax joint at the same point (:func:`_split_trunk`). So does a spine
+    joint that a BVH or ASF/AMC rig hangs from its pelvis joint when the pelvis
+    keypoint lies on the hip line (:func:`rest_trunk`); the frame is then rotated
+    so that the rig's rest-pose trunk is upright. The clavicle
     pivot is the point of the chest->neck segment whose distance to the
     shoulders varies least. Without a chest keypoint, the spine->neck distance
     is split into thorax and upper chest in the default proportion. Other
@@ -1526,8 +1587,9 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
                             f"{missing}; the pelvis and both hips are required", source=src)
     P = canon.positions.astype(np.float64)
     kp = {k: P[:, i] for i, k in enumerate(names)}
-    ch: dict[str, object] = dict(_pelvis_offsets(
-        kp, body_model=motion.skeleton.name in RIGID_SPINE_SKELETONS))
+    body_model = motion.skeleton.name in RIGID_SPINE_SKELETONS
+    rest_pose = None if body_model else rest_trunk(motion)
+    ch: dict[str, object] = dict(_pelvis_offsets(kp, body_model=body_model, rest=rest_pose))
     measured = {name: v for name, (a, b) in _BONE_KEYPOINTS.items()
                 if (v := _median_distance(kp, a, b)) is not None}
     derived_chest = _derive_chest(kp, measured)
@@ -1543,7 +1605,8 @@ def fit_dimensions(motion: Motion) -> BodyDimensions:
     ch["girth"] = float(np.clip(scale, 0.6, 1.4))
     ch["rest"] = rest = _rest_geometry(kp)
     ch["notes"] = _fit_notes(motion, canon.num_frames, measured, fallback, scale, derived_chest,
-                             spine_on_pelvis, rest)
+                             spine_on_pelvis, rest,
+                             spine_on_pelvis and rest_pose is not None)
     try:
         return replace(DEFAULT, **ch)
     except RetargetError as exc:
