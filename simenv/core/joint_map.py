@@ -97,8 +97,8 @@ def _convention(name: str, description: str, prefix: str = "", **keypoints: str
 #: docstring). Sources: Autodesk HumanIK / MotionBuilder character template, Mixamo rigs,
 #: Unity ``HumanBodyBones``, Unreal Engine 4/5 Mannequin, SMPL joint names (AMASS, SMPL-X
 #: exporters), 3ds Max Biped, Xsens MVN segment names, OptiTrack Motive baseline skeleton,
-#: Rokoko Studio, Perception Neuron, Kinect SDK v1/v2 ``JointType`` and Azure Kinect Body
-#: Tracking ``k4abt_joint_id_t``.
+#: Rokoko Studio, Perception Neuron, Sony mocopi, Kinect SDK v1/v2 ``JointType`` and Azure
+#: Kinect Body Tracking ``k4abt_joint_id_t``.
 CONVENTIONS: tuple[NamingConvention, ...] = (
     _convention(
         "motionbuilder", "Autodesk HumanIK / MotionBuilder (CMU cgspeed, Ubisoft LAFAN1, "
@@ -154,6 +154,11 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
         pelvis="hip", left_hip="lThigh", left_knee="lShin", left_ankle="lFoot",
         left_toe="lToe|lFoot_end", spine="abdomen", neck="neck", head="head",
         left_shoulder="lShldr", left_elbow="lForeArm", left_wrist="lHand", left_hand="lMid1"),
+    _convention(  # no spine named: torso_1 sits ~5 cm above root; the topology rule picks
+        "mocopi", "Sony mocopi (BVH export; root, torso_1..7, neck_1..2, l_up_leg ...)",
+        pelvis="root", left_hip="l_up_leg", left_knee="l_low_leg", left_ankle="l_foot",
+        left_toe="l_toes", neck="neck_1", head="head", left_shoulder="l_up_arm",
+        left_elbow="l_low_arm", left_wrist="l_hand"),
     _convention(
         "kinect_v1", "Kinect SDK 1.x (NUI_SKELETON_POSITION_INDEX)",
         pelvis="HipCenter", left_hip="HipLeft", left_knee="KneeLeft", left_ankle="AnkleLeft",
@@ -433,13 +438,22 @@ def _check_chains(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
 
 def _spine_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
                        rest: np.ndarray | None) -> None:
-    """``chest`` where the arms leave the spine; ``spine`` the first joint above the pelvis."""
+    """``chest`` where the arms leave the spine; ``spine`` the first joint above the pelvis.
+
+    A joint the names call the spine that is itself where the arms leave it is the chest:
+    a minimal rig's only trunk joint (PyMO's demo walk: ``Hips -> Spine``, the head and
+    both arms on ``Spine``) carries the shoulders, and fitted as the lumbar it bent the
+    chest 40 deg to reach them. The spine is then whatever lies between it and the pelvis.
+    """
     ls, rs, pelvis = (canonical.get(k) for k in ("left_shoulder", "right_shoulder", "pelvis"))
     if ls and rs and "chest" not in canonical:
         hub = tree.lca(tree.index[ls], tree.index[rs])
         neck = canonical.get("neck")
         if neck is not None and hub == tree.index[neck]:
             hub = tree.parents[hub]  # clavicles on the neck (3ds Max Biped)
+        if hub >= 0 and canonical.get("spine") == tree.names[hub]:
+            del canonical["spine"]
+            how.pop("spine", None)
         taken = {canonical[k] for k in ("pelvis", "spine", "neck") if k in canonical}
         if (hub >= 0 and tree.names[hub] not in taken and pelvis is not None
                 and tree.is_ancestor(tree.index[pelvis], hub)):

@@ -61,7 +61,7 @@ READERS: tuple[str, ...] = (
     "h36m",
     # Before joint_csv, which claims .csv: an MSRC-12 recording has no header row.
     "msrc12",
-    # Before joint_csv, which claims .csv: an Azure Kinect SDK table packs "x y z" per cell.
+    # Claims .json; an Azure Kinect SDK .csv ("x y z" per cell) is the one joint_csv refuses.
     "azure_kinect",
     "joint_csv",
 )
