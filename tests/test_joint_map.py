@@ -17,6 +17,7 @@ from simenv.core.errors import RetargetError, SkeletonError
 from simenv.core.joint_map import (
     CONVENTIONS,
     HOW_REST_POSE,
+    HOW_TOPOLOGY,
     HOW_USER,
     infer_joint_map,
     joint_map_template,
@@ -309,6 +310,32 @@ def test_arms_crossing_over_are_noted_not_remapped() -> None:
     assert mapping.canonical == plain.canonical
     note = next(n for n in mapping.notes if "cross over" in n)
     assert "on 100 % of frames" in note
+
+
+def test_minimal_rig_whose_spine_carries_the_arms_maps_it_as_the_chest() -> None:
+    """A minimal rig (PyMO's demo walk: ``Hips -> Spine``, the head and both arms on
+    ``Spine``) has one trunk joint, and it is where the arms leave the trunk: the chest, not
+    the lumbar. Built from a real walk (Xia et al.): its chest hub's positions under the name
+    ``Spine``, the head, arms and legs hung from it and from ``Hips``."""
+    motion = simenv.load(CONVENTIONS_DIR / "cmu_motionbuilder" / "xia_angry_13_000.bvh")
+    full = infer_joint_map(motion.skeleton.joint_names, motion.skeleton.parents,
+                           motion.positions).canonical
+    rig = [("Hips", None, "pelvis"), ("Spine", "Hips", "chest"), ("Head", "Spine", "head")]
+    for side in ("Left", "Right"):
+        s = side.lower()
+        rig += [(f"{side}Arm", "Spine", f"{s}_shoulder"),
+                (f"{side}ForeArm", f"{side}Arm", f"{s}_elbow"),
+                (f"{side}Hand", f"{side}ForeArm", f"{s}_wrist"),
+                (f"{side}UpLeg", "Hips", f"{s}_hip"), (f"{side}Leg", f"{side}UpLeg", f"{s}_knee"),
+                (f"{side}Foot", f"{side}Leg", f"{s}_ankle"),
+                (f"{side}ToeBase", f"{side}Foot", f"{s}_toe")]
+    names = [name for name, _, _ in rig]
+    parents = [-1 if parent is None else names.index(parent) for _, parent, _ in rig]
+    idx = [motion.skeleton.index(full[key]) for _, _, key in rig]
+    mapping = infer_joint_map(names, parents, motion.positions[:, idx])
+    assert mapping.canonical["chest"] == "Spine"
+    assert mapping.how["chest"] == HOW_TOPOLOGY
+    assert "spine" not in mapping.canonical
 
 
 @needs_data

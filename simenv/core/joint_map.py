@@ -451,7 +451,8 @@ def _spine_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tr
         neck = canonical.get("neck")
         if neck is not None and hub == tree.index[neck]:
             hub = tree.parents[hub]  # clavicles on the neck (3ds Max Biped)
-        if hub >= 0 and canonical.get("spine") == tree.names[hub]:
+        elif (hub >= 0 and canonical.get("spine") == tree.names[hub] and pelvis is not None
+              and tree.is_ancestor(tree.index[pelvis], hub)):
             del canonical["spine"]
             how.pop("spine", None)
         taken = {canonical[k] for k in ("pelvis", "spine", "neck") if k in canonical}
