@@ -278,3 +278,26 @@ def test_a_preamble_above_the_header_is_skipped(tmp_path: Path, mvn: Motion) -> 
     assert joint_csv.sniff(path, b"")
     m = simenv.load(path)
     np.testing.assert_array_equal(m.positions, mvn.positions)
+
+
+AZURE_SQUAT = (Path(__file__).parent / "data" / "conventions" / "azure_kinect"
+               / "gymtrainer_bodyweight_squat_side_view.csv")
+
+
+def test_azure_kinect_1_0_spelling_is_still_the_declared_layout(tmp_path: Path) -> None:
+    """Body Tracking 1.0 renamed ``SPINE_NAVAL`` to ``SPINE_NAVEL``: a real Azure Kinect
+    squat (tests/data/conventions/azure_kinect) written as ``<joint>.x`` columns in mm with
+    the new name is still the Azure layout in camera coordinates, read as the Azure reader
+    reads the recording (not as a world frame with the feet 0.8 m below z = 0)."""
+    lines = AZURE_SQUAT.read_text(encoding="utf-8-sig").splitlines()[1:]
+    raw = np.array([[c.split() for c in r.split(",")] for r in lines], dtype=np.float64)
+    names = [j.replace("SPINE_NAVAL", "SPINE_NAVEL") for j in joint_csv.AZURE_KINECT_JOINTS]
+    rows = [[str(round(k * 1e6 / 15)), *(f"{v:.3f}" for v in xyz.ravel() * 1000)]
+            for k, xyz in enumerate(raw)]
+    path = _write(tmp_path / "azure.csv",
+                  ["timestamp_us", *(f"{n}.{a}" for n in names for a in "xyz")], rows)
+    m = simenv.load(path)
+    assert m.metadata["layout"] == "azure_kinect32" and "camera_frame" in m.metadata
+    assert m.skeleton.canonical["spine"] == "SPINE_NAVEL" and m.fps == 15
+    want = simenv.load(AZURE_SQUAT, fps=15)
+    assert np.abs(m.positions - want.positions).max() < 1e-3

@@ -642,23 +642,33 @@ def _resample(positions: np.ndarray, times: np.ndarray, fps: float) -> np.ndarra
 # -- hierarchy -----------------------------------------------------------------------------
 
 
+#: Spellings of one declared joint: Azure Kinect Body Tracking 1.0 renamed ``SPINE_NAVAL``
+#: (the layout's name) to ``SPINE_NAVEL`` (C#: ``SpineNavel``).
+_LAYOUT_ALIASES = {"spinenavel": "spinenaval"}
+
+
+def _layout_key(name: str) -> str:
+    key = _key(name)
+    return _LAYOUT_ALIASES.get(key, key)
+
+
 def _declared_layout(joints: Sequence[str]) -> Skeleton | None:
     """The declared skeleton whose joints include all of ``joints`` and whose root is among
     them, renamed and restricted to the table's joints (fewest extra joints wins a tie)."""
-    keys = {_key(j): j for j in joints}
+    keys = {_layout_key(j): j for j in joints}
     fits = []
     for make in DECLARED_LAYOUTS:
         sk = make()
-        own = {_key(n): n for n in sk.joint_names}
+        own = {_layout_key(n): n for n in sk.joint_names}
         root = sk.joint_names[sk.parents.index(-1)]
-        if set(keys) <= set(own) and _key(root) in keys:
+        if set(keys) <= set(own) and _layout_key(root) in keys:
             fits.append((sk.num_joints - len(keys), sk, own))
     if not fits:
         return None
     _, sk, own = min(fits, key=lambda f: f[0])
     sub = sk.subset([own[k] for k in keys], name=sk.name if len(keys) == sk.num_joints
                     else f"{sk.name}_{len(keys)}")
-    return Skeleton(sub.name, tuple(keys[_key(n)] for n in sub.joint_names), sub.parents)
+    return Skeleton(sub.name, tuple(keys[_layout_key(n)] for n in sub.joint_names), sub.parents)
 
 
 def name_keypoints(joints: Sequence[str]) -> dict[str, str]:
