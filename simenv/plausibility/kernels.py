@@ -1023,6 +1023,38 @@ def _apart_speed(p: np.ndarray, a: int, b: int, fps: float, out: np.ndarray) -> 
 
 
 @njit(cache=True)
+def _drop_approaches(sliding: np.ndarray, low: np.ndarray, v_h: np.ndarray,
+                     skate_speed: float) -> None:
+    """Clear, in place, the runs of ``sliding`` (T - 1,) of one foot that are
+    a swing's approach to its touchdown: the run ends at a touchdown (the
+    next frame pair the foot is low, ``low`` (T,), and no faster than
+    ``skate_speed`` m/s) and every frame pair of its second half is slower
+    than every pair of its first half (``v_h`` (T - 1,), m/s; a run of n
+    pairs splits at n // 2). A loaded foot sliding holds its speed, so its
+    halves overlap, and it ends where it lifts or its slide goes on."""
+    pairs = sliding.shape[0]
+    t = 0
+    while t < pairs:
+        if not sliding[t]:
+            t += 1
+            continue
+        start = t
+        while t < pairs and sliding[t]:
+            t += 1
+        half = (t - start) // 2
+        if half == 0 or t == pairs or not low[t + 1] or v_h[t] > skate_speed:
+            continue
+        slowest_first = v_h[start]
+        for k in range(start + 1, start + half):
+            slowest_first = min(slowest_first, v_h[k])
+        fastest_second = v_h[start + half]
+        for k in range(start + half + 1, t):
+            fastest_second = max(fastest_second, v_h[k])
+        if fastest_second < slowest_first:
+            sliding[start:t] = False
+
+
+@njit(cache=True)
 def _unsupported_slides(rel: np.ndarray, low: np.ndarray, v_h: np.ndarray,
                         v_apart: np.ndarray, raw_sliding: np.ndarray, skate_speed: float,
                         margin: float, stance_speed: float, min_run: int,
@@ -1031,9 +1063,11 @@ def _unsupported_slides(rel: np.ndarray, low: np.ndarray, v_h: np.ndarray,
     weight (not while the other foot, slower than ``skate_speed``, stands
     more than ``margin`` lower at both frames, nor while both feet slide and
     move apart faster than ``skate_speed`` unless this foot is the one more
-    than ``margin`` lower at both frames), kept where they last ``min_run``
-    frame pairs. rel, v_h: as :func:`_foot_track`, per foot; v_apart
-    (T - 1,): horizontal speed of one foot relative to the other, m/s."""
+    than ``margin`` lower at both frames, nor in a run that is a swing's
+    approach to its touchdown, :func:`_drop_approaches`), kept where they
+    last ``min_run`` frame pairs. rel, v_h: as :func:`_foot_track`, per
+    foot; v_apart (T - 1,): horizontal speed of one foot relative to the
+    other, m/s."""
     f_count, pairs = v_h.shape[0], v_h.shape[1]
     for f in range(f_count):
         o = f_count - 1 - f
@@ -1052,6 +1086,7 @@ def _unsupported_slides(rel: np.ndarray, low: np.ndarray, v_h: np.ndarray,
                         and not (rel[f, t] + margin < rel[o, t]
                                  and rel[f, t + 1] + margin < rel[o, t + 1]))
             sliding[f, t] = raw_sliding[f, t] and not (supported or airborne)
+        _drop_approaches(sliding[f], low[f], v_h[f], skate_speed)
         if min_run > 1:
             _keep_long_runs(sliding[f], min_run)
 
