@@ -11,9 +11,13 @@ defaults, or the Kinect family's ``skate_ratio_max``). Every person whose clean 
 the registry's moderate strength (1 m/s) and at three times it: a failing copy is a caught
 slide. So is a stance-foot slide the registry lacks (:func:`stance_slide`: only the toe of
 the one planted foot drifts, while the other foot swings), the case the hop exemption must
-leave counted. Writes one JSON line per person to ``--out``; ``--compare BEFORE AFTER`` prints the
-verdicts that moved, the largest value change per source, and the detection rates with
-the seeded copies' mean value (how far above the limit the slides stay).
+leave counted. Every copy also lists its sliding runs however short (the metric with
+``skate_min_duration_s`` one frame): the runs a change removes whole, e.g. the swing's approaches
+to a touchdown that ``foot_skate`` no longer counts, short ones included. Writes one JSON
+line per person to ``--out``; ``--compare BEFORE AFTER`` prints the verdicts that moved, the
+largest value change per source, the detection rates with the seeded copies' mean value
+(how far above the limit the slides stay), and per source and copy the stretches of
+skating removed (those lasting the minimum duration, which the value counts, apart).
 
 Run the "before" side on a copy of the unchanged code (``git archive HEAD simenv`` into a
 folder, ``PYTHONPATH=that folder``) and the "after" side on the changed one::
@@ -97,24 +101,56 @@ def thresholds_of(m: Motion) -> Thresholds:
                                                               **profile.thresholds)
 
 
+def slide_runs(m: Motion, th: Thresholds) -> list[list[int]]:
+    """[first, last] frame of each sliding run of ``m`` however short (``foot_skate`` with a
+    minimum duration of one frame pair; its timeline is positive on the second frame of each
+    skating pair)."""
+    short = replace(th, skate_min_duration_s=1.0 / m.fps)
+    tl = np.nan_to_num(foot_skate(m, short).timeline) > 0
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], tl.astype(np.int8), [0]])))
+    return [[int(a) - 1, int(b) - 1] for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def judged(m: Motion, th: Thresholds) -> dict[str, Any]:
+    """``foot_skate`` value and pass of one copy, and its sliding runs (:func:`slide_runs`)."""
+    r = foot_skate(m, th)
+    return {"value": r.value, "passed": r.passed, "runs": slide_runs(m, th)}
+
+
 def row(source: str, label: str, m: Motion) -> dict[str, Any]:
-    """One person's clean value and pass, and its seeded slides' values and passes."""
+    """One person's clean value, pass and runs, and its seeded slides' ones."""
     th = thresholds_of(m)
-    clean = foot_skate(m, th)
+    clean = judged(m, th)
     out: dict[str, Any] = {"source": source, "label": label, "frames": m.num_frames,
-                           "limit": th.skate_ratio_max, "value": clean.value,
-                           "passed": clean.passed, "seeded": {}}
-    if clean.passed and m.num_frames >= MIN_FRAMES:
+                           "fps": m.fps, "limit": th.skate_ratio_max,
+                           "min_s": th.skate_min_duration_s, **clean, "seeded": {}}
+    if clean["passed"] and m.num_frames >= MIN_FRAMES:
         for level, strength in LEVELS.items():
             try:
-                bad = foot_skate(CORRUPTIONS["foot_slide"].fn(m, strength, seed=0), th)
+                out["seeded"][level] = judged(
+                    CORRUPTIONS["foot_slide"].fn(m, strength, seed=0), th)
             except SimenvError:  # no planted foot to slide
                 continue
-            out["seeded"][level] = {"value": bad.value, "passed": bad.passed}
         stance = stance_slide(m, LEVELS["moderate"])
         if stance is not None:
-            bad = foot_skate(stance, th)
-            out["seeded"]["stance"] = {"value": bad.value, "passed": bad.passed}
+            out["seeded"]["stance"] = judged(stance, th)
+    return out
+
+
+def removed_runs(rb: dict[str, Any], ra: dict[str, Any]) -> list[list[int]]:
+    """[first, last] frame of each stretch of skating frame pairs of one copy before
+    (``rb``) that is no longer skating after (``ra``); [] when either side did not list
+    runs. The timeline joins the feet, so a foot's run removed beside the other foot's
+    kept run shows only where it stood alone."""
+    def pairs(r: dict[str, Any]) -> set[int]:
+        return {t for first, last in r.get("runs", []) for t in range(first, last)}
+    gone = sorted(pairs(rb) - pairs(ra))
+    out: list[list[int]] = []
+    for t in gone:
+        if out and out[-1][1] == t:
+            out[-1][1] = t + 1
+        else:
+            out.append([t, t + 1])
     return out
 
 
@@ -146,9 +182,37 @@ def compare(before: Path, after: Path) -> None:
                 c[4] += sa["value"]
     for source, (d, label) in largest.items():
         print(f"{source}: largest |change| {d:.4f} ({label})")
+    print_removed(b, a)
     for (source, level), (n, cb, ca, vb, va) in sorted(caught.items()):
         print(f"{source} foot_slide {level}: caught {cb}/{n} before, {ca}/{n} after; "
               f"mean value {vb / n:.3f} -> {va / n:.3f}")
+
+
+def print_removed(b: dict[tuple[str, str], dict[str, Any]],
+                  a: dict[tuple[str, str], dict[str, Any]]) -> None:
+    """Each removed stretch (:func:`removed_runs`) lasting the minimum duration (source,
+    person, copy, frames); then per source and copy: runs before, stretches removed, those
+    lasting the minimum duration, and the longest (frame pairs)."""
+    tally: dict[tuple[str, str], list[int]] = {}
+    for key in sorted(b.keys() & a.keys()):
+        rb, ra = b[key], a[key]
+        min_pairs = max(1, round(rb.get("min_s", 0.0) * rb.get("fps", 0.0)))
+        copies = [("clean", rb, ra)] + [(level, rb["seeded"][level], ra["seeded"][level])
+                                        for level in rb["seeded"].keys() & ra["seeded"].keys()]
+        for kind, cb, ca in copies:
+            gone = [last - first for first, last in removed_runs(cb, ca)]
+            t = tally.setdefault((key[0], kind), [0, 0, 0, 0])
+            t[0] += len(cb.get("runs", []))
+            t[1] += len(gone)
+            t[2] += sum(n >= min_pairs for n in gone)
+            t[3] = max([t[3], *gone])
+            for first, last in removed_runs(cb, ca):
+                if last - first >= min_pairs:
+                    print(f"run removed: {key[0]} {key[1]} {kind} frames {first}-{last}")
+    for (source, kind), (n, gone, long, longest) in sorted(tally.items()):
+        if n:
+            print(f"{source} {kind}: {n} runs, {gone} stretches removed, {long} lasting the "
+                  f"minimum duration; longest {longest} pairs")
 
 
 def main() -> None:
