@@ -68,6 +68,7 @@ GRID: dict[str, tuple[float, ...]] = {
     "window_s": (1.0, 1.5, 2.0, 3.0),
     "raise_height": (-0.5, -0.25, 0.0, 0.25, 0.5),
     "swing": (0.15, 0.2, 0.3, 0.4, 0.5),
+    "max_rise": (0.5, 1.0, 2.0),
     "reversals": (1, 2, 3),
 }
 Fires = list[tuple[np.ndarray, np.ndarray]]
@@ -123,8 +124,7 @@ def _evaluate(rules: list[WaveRule], parts: dict[Any, list[GestureClip]], seeds:
     """Cross-fitted over the keys of ``parts`` (datasets or folds): each part's rule
     chosen on the others, and on itself (the ceiling)."""
     t0 = time.process_time()
-    fires = {k: [stream_fires(clips, r, seed=seeds[k]) for r in rules]
-             for k, clips in parts.items()}
+    fires = {k: stream_fires(clips, rules, seed=seeds[k]) for k, clips in parts.items()}
     cpu_s = time.process_time() - t0
     out: dict[str, Any] = {}
     pooled_clips, pooled_fires = [], []
@@ -178,7 +178,8 @@ def _greeted(k: int, n: int) -> str:
 
 def _rule(r: dict[str, Any]) -> str:
     return (f"{r['window_s']:g} s, wrist >= {r['raise_height']:+g} sw, swing >= "
-            f"{r['swing']:g} sw, >= {r['reversals']} reversals")
+            f"{r['swing']:g} sw, rise <= {r['max_rise']:g} x swing, >= {r['reversals']} "
+            "reversals")
 
 
 def network_rows() -> dict[str, list[str]]:
