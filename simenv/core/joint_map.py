@@ -78,18 +78,24 @@ class NamingConvention:
             :func:`normalise`, so ``L_Hip``, ``left_hip`` and ``HipLeft`` are one name.
         prefix: a namespace the convention's files carry (informational; every namespace is
             stripped by :func:`normalise`).
+        sensor: the depth-camera family whose skeleton tracker names joints this way
+            (``"kinect_v1"``, ``"kinect_v2"``), None for motion capture and body models. A file
+            so named holds a depth camera's estimates in that camera's frame, whatever its
+            format (a NiTE recording exported to BVH): :func:`sensor_family`.
     """
 
     name: str
     description: str
     keypoints: Mapping[str, tuple[str, ...]]
     prefix: str = ""
+    sensor: str | None = None
 
 
-def _convention(name: str, description: str, prefix: str = "", **keypoints: str
-                ) -> NamingConvention:
+def _convention(name: str, description: str, prefix: str = "", sensor: str | None = None,
+                **keypoints: str) -> NamingConvention:
     return NamingConvention(name, description,
-                            {k: tuple(v.split("|")) for k, v in keypoints.items()}, prefix)
+                            {k: tuple(v.split("|")) for k, v in keypoints.items()}, prefix,
+                            sensor)
 
 
 #: The naming conventions in use, left-side names (see :class:`NamingConvention`).
@@ -97,8 +103,8 @@ def _convention(name: str, description: str, prefix: str = "", **keypoints: str
 #: docstring). Sources: Autodesk HumanIK / MotionBuilder character template, Mixamo rigs,
 #: Unity ``HumanBodyBones``, Unreal Engine 4/5 Mannequin, SMPL joint names (AMASS, SMPL-X
 #: exporters), 3ds Max Biped, Xsens MVN segment names, OptiTrack Motive baseline skeleton,
-#: Rokoko Studio, Perception Neuron, Sony mocopi, Kinect SDK v1/v2 ``JointType`` and Azure
-#: Kinect Body Tracking ``k4abt_joint_id_t``.
+#: Rokoko Studio, Perception Neuron, Sony mocopi, Kinect SDK v1/v2 ``JointType``, OpenNI / NiTE
+#: ``XN_SKEL_*`` and Azure Kinect Body Tracking ``k4abt_joint_id_t``.
 CONVENTIONS: tuple[NamingConvention, ...] = (
     _convention(
         "motionbuilder", "Autodesk HumanIK / MotionBuilder (CMU cgspeed, Ubisoft LAFAN1, "
@@ -160,19 +166,24 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
         left_toe="l_toes", neck="neck_1", head="head", left_shoulder="l_up_arm",
         left_elbow="l_low_arm", left_wrist="l_hand"),
     _convention(
-        "kinect_v1", "Kinect SDK 1.x (NUI_SKELETON_POSITION_INDEX)",
+        "kinect_v1", "Kinect SDK 1.x (NUI_SKELETON_POSITION_INDEX)", sensor="kinect_v1",
         pelvis="HipCenter", left_hip="HipLeft", left_knee="KneeLeft", left_ankle="AnkleLeft",
         left_toe="FootLeft", spine="Spine", neck="ShoulderCenter", head="Head",
         left_shoulder="ShoulderLeft", left_elbow="ElbowLeft", left_wrist="WristLeft",
         left_hand="HandLeft"),
+    _convention(  # no pelvis: the torso centre is the spine, the hips hang from it
+        "openni", "OpenNI / NiTE (PrimeSense, Kinect v1 era; XN_SKEL_* names, often as BVH)",
+        sensor="kinect_v1", left_hip="LEFT_HIP", left_knee="LEFT_KNEE",
+        left_ankle="LEFT_FOOT", spine="TORSO", neck="NECK", head="HEAD",
+        left_shoulder="LEFT_SHOULDER", left_elbow="LEFT_ELBOW", left_wrist="LEFT_HAND"),
     _convention(
-        "kinect_v2", "Kinect SDK 2.0 (JointType; NTU RGB+D)",
+        "kinect_v2", "Kinect SDK 2.0 (JointType; NTU RGB+D)", sensor="kinect_v2",
         pelvis="SpineBase", left_hip="HipLeft", left_knee="KneeLeft", left_ankle="AnkleLeft",
         left_toe="FootLeft", spine="SpineMid", neck="SpineShoulder", head="Head",
         left_shoulder="ShoulderLeft", left_elbow="ElbowLeft", left_wrist="WristLeft",
         left_hand="HandLeft"),
     _convention(  # SDK 1.0 renamed SPINE_NAVAL (kept for older files) to SPINE_NAVEL
-        "azure_kinect", "Azure Kinect Body Tracking (k4abt_joint_id_t)",
+        "azure_kinect", "Azure Kinect Body Tracking (k4abt_joint_id_t)", sensor="kinect_v2",
         pelvis="PELVIS", left_hip="HIP_LEFT", left_knee="KNEE_LEFT", left_ankle="ANKLE_LEFT",
         left_toe="FOOT_LEFT", spine="SPINE_NAVEL|SPINE_NAVAL", neck="NECK", head="HEAD",
         left_shoulder="SHOULDER_LEFT", left_elbow="ELBOW_LEFT", left_wrist="WRIST_LEFT",
@@ -186,6 +197,14 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
         left_elbow="ForeArm|LowerArm|Elbow|Radius", left_wrist="Wrist|Hand",
         left_hand="Hand|HandMiddle1|Middle1|FingerBase"),
 )
+
+def sensor_family(motion: Motion) -> str | None:
+    """The depth-camera family (:attr:`NamingConvention.sensor`) whose convention mapped
+    ``motion``'s joints by name (``metadata["joint_map"]["convention"]``), else None."""
+    record = motion.metadata.get("joint_map")
+    name = record.get("convention") if isinstance(record, Mapping) else None
+    return next((c.sensor for c in CONVENTIONS if c.name == name), None)
+
 
 # Rig prefixes that precede a name with a separator ("Bip01 L Thigh", "Character1_Hips").
 _RIG_PREFIX = re.compile(r"^(?:bip0*1|character\d*|jnt|joint|def|mch|org|b)[\s_.\-]+",

@@ -37,13 +37,14 @@ The estimate (tilt, pitch, roll, sensor height, fit residual) is returned as a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from simenv.core.errors import MotionError
-from simenv.core.motion import Motion
+from simenv.core.joint_map import sensor_family
+from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import Skeleton
 
 #: Camera (x left, y up, z forward) -> Z-up axes: ``p_zup = KINECT_TO_ZUP @ p_cam``.
@@ -378,3 +379,53 @@ def world_motion(
     meta = dict(metadata)
     meta["camera_frame"] = est.as_metadata()
     return Motion(world, fps, skeleton, name, meta)
+
+
+#: Reader output (Z up: the file's up axis became ``+Z``) -> the Kinect camera convention
+#: (``x`` left, ``y`` up, ``z`` forward): ``(X, Y, Z) -> (X, Z, -Y)``, a proper rotation.
+ZUP_TO_CAMERA = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+#: ``metadata["format"]`` values a reader takes the file's own frame for (no floor estimate).
+FILE_FRAME_FORMATS = frozenset({"bvh", "asf_amc", "joint_csv"})
+
+
+#: A sensor-named file whose estimated floor lies within these of level and of z = 0 is
+#: already in a world frame and is left as it is (the estimate's scatter on levelled real
+#: Kinect clips: tilt < 3 deg, floor < 5 cm off).
+WORLD_FRAME_TILT_DEG = 3.0
+WORLD_FRAME_HEIGHT_M = 0.05
+
+
+def level_sensor_frame(loaded: Motion | Interaction) -> Motion | Interaction:
+    """A file holding a depth camera's skeleton, put in the world frame on its floor.
+
+    A BVH, ASF/AMC or joint table whose joints a depth camera's tracker named
+    (:func:`simenv.core.joint_map.sensor_family`: a NiTE recording exported to BVH, an
+    OpenNI or Kinect tool's dump) holds the sensor's estimates in the sensor's frame: the
+    floor is about the sensor's height below the file's zero, and tilted with it. Such a
+    clip (both people of a two-person clip: one sensor) goes through
+    :func:`estimate_floor`, from the reader's Z-up output turned back into the camera
+    convention (:data:`ZUP_TO_CAMERA`; the reader took the file's up axis for ``+Z``); the
+    estimate goes to ``metadata["camera_frame"]``. Anything else, a clip a reader already
+    levelled (``metadata["camera_frame"]``), or one whose feet already stand level on z = 0
+    (:data:`WORLD_FRAME_TILT_DEG`, :data:`WORLD_FRAME_HEIGHT_M`: Kinect data someone put in a
+    world frame) is returned unchanged.
+
+    Raises:
+        MotionError: the feet or the body axis give no floor (see :func:`estimate_floor`).
+    """
+    people = list(loaded.people) if isinstance(loaded, Interaction) else [loaded]
+    meta = people[0].metadata
+    if (str(meta.get("format", "")).lower() not in FILE_FRAME_FORMATS or "camera_frame" in meta
+            or sensor_family(people[0]) is None):
+        return loaded
+    cams = [(p.positions.astype(np.float64) @ ZUP_TO_CAMERA.T, p.skeleton) for p in people]
+    est = estimate_floor(cams, source=meta.get("source"))
+    if est.tilt_deg <= WORLD_FRAME_TILT_DEG and abs(est.sensor_height_m) <= WORLD_FRAME_HEIGHT_M:
+        return loaded  # already level on z = 0: the file is in a world frame
+    levelled = [replace(p, positions=est.apply(cam).astype(np.float32),
+                        metadata={**p.metadata, "camera_frame": est.as_metadata()})
+                for p, (cam, _) in zip(people, cams, strict=True)]
+    if isinstance(loaded, Interaction):
+        return replace(loaded, actor=levelled[0], reactor=levelled[1])
+    return levelled[0]

@@ -38,6 +38,7 @@ import numpy as np
 from simenv.core.errors import MotionError, ReaderOptionError, SimenvError, UnknownFormatError
 from simenv.core.joint_map import JointMapSource, map_motion
 from simenv.core.motion import Interaction, Motion
+from simenv.io.camera_frame import level_sensor_frame
 from simenv.io.floor import put_on_floor
 
 #: Reader modules of :mod:`simenv.io`, in detection priority order.
@@ -199,14 +200,18 @@ def load(path: str | Path | Sequence[str | Path], **kwargs: Any) -> Loaded:
 
 
 def _mapped(loaded: Loaded, joint_map: JointMapSource | None) -> Loaded:
-    """Every person of ``loaded`` through :func:`map_motion`, then each clip on its floor
-    (:func:`~simenv.io.floor.put_on_floor`: it needs the mapped toe keypoints)."""
+    """Every person of ``loaded`` through :func:`map_motion`, then each clip on its floor: a
+    depth camera's skeleton in a file format levelled onto the floor its feet give
+    (:func:`~simenv.io.camera_frame.level_sensor_frame`), any other file's floor checked
+    (:func:`~simenv.io.floor.put_on_floor`); both need the mapped keypoints."""
     if isinstance(loaded, list):
         return [_mapped(x, joint_map) for x in loaded]  # type: ignore[misc]
     if isinstance(loaded, Interaction):
-        return put_on_floor(replace(loaded, actor=map_motion(loaded.actor, joint_map),
-                                    reactor=map_motion(loaded.reactor, joint_map)))
-    return put_on_floor(map_motion(loaded, joint_map))
+        mapped: Motion | Interaction = replace(loaded, actor=map_motion(loaded.actor, joint_map),
+                                               reactor=map_motion(loaded.reactor, joint_map))
+    else:
+        mapped = map_motion(loaded, joint_map)
+    return put_on_floor(level_sensor_frame(mapped))
 
 
 def _load(path: str | Path | Sequence[str | Path], kwargs: dict[str, Any]) -> Loaded:

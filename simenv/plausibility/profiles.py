@@ -18,8 +18,10 @@ Source kinds (:data:`SOURCE_KINDS`)
     only: a model's output), ``unknown``.
 
 Detection (:func:`detect_source`)
-    From the reader's skeleton name (:data:`SKELETON_KINDS`), else its ``format`` metadata
-    (:data:`FORMAT_KINDS`), else ``unknown``. A declared kind (``source=``, ``simenv score
+    From the reader's skeleton name (:data:`SKELETON_KINDS`), else the joint names when a
+    depth camera's tracker uses them (OpenNI / NiTE, Kinect, Azure Kinect names in a BVH or a
+    joint table: :attr:`~simenv.core.joint_map.NamingConvention.sensor`), else its ``format``
+    metadata (:data:`FORMAT_KINDS`), else ``unknown``. A declared kind (``source=``, ``simenv score
     --source``) wins; ``generated`` is judged by the profile of the family its skeleton comes
     from (a model trained on NTU RGB+D is asked to move like NTU's real clips), the mocap
     thresholds otherwise.
@@ -42,6 +44,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from simenv.core.errors import SimenvError
+from simenv.core.joint_map import sensor_family
 from simenv.core.motion import Interaction, Motion
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, BodyThresholds
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
@@ -133,10 +136,15 @@ def _first(clip: Motion | Interaction) -> Motion:
 
 
 def _measured_kind(motion: Motion) -> tuple[str, str]:
-    """(kind, how) from the skeleton name, else the reader's format."""
+    """(kind, how) from the skeleton name, else the naming convention a depth camera's tracker
+    uses (:func:`~simenv.core.joint_map.sensor_family`: a NiTE recording written as BVH is a
+    depth camera's clip, not motion capture), else the reader's format."""
     name = motion.skeleton.name
     if name in SKELETON_KINDS:
         return SKELETON_KINDS[name], f"skeleton {name}"
+    family = sensor_family(motion)
+    if family is not None:
+        return family, f"joint names {motion.metadata['joint_map']['convention']}"
     fmt = motion.metadata.get("format")
     if isinstance(fmt, str) and fmt in FORMAT_KINDS:
         return FORMAT_KINDS[fmt], f"format {fmt}"
