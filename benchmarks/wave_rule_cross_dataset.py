@@ -48,10 +48,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from doc_sections import replace_section, section  # noqa: E402
 
 from simenv.core.config import shared_data_root  # noqa: E402
-from simenv.data.gestures import GestureClip, subject_fold  # noqa: E402
+from simenv.data.gestures import GESTURE_LABELS, GestureClip, subject_fold  # noqa: E402
 from simenv.learning.cross_dataset import load_corpus  # noqa: E402
-from simenv.models.skeleton_tcn import SkeletonTCNEnsemble  # noqa: E402
-from simenv.perception.protocol import FALSE_GREET_TARGET, avatar_clips  # noqa: E402
+from simenv.models.skeleton_tcn import SkeletonTCNEnsemble, fit_temperature  # noqa: E402
+from simenv.perception.loop import real_stage  # noqa: E402
+from simenv.perception.protocol import (  # noqa: E402
+    FALSE_GREET_TARGET,
+    GREET_LABEL,
+    THRESHOLD_GRID,
+    avatar_clips,
+)
 from simenv.perception.wave_rule import WaveRule, rule_outcomes, stream_fires  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -146,6 +152,133 @@ def _evaluate(rules: list[WaveRule], parts: dict[Any, list[GestureClip]], seeds:
             "grid_cpu_s": round(cpu_s, 1)}
 
 
+
+#: Fusions with the network (``fuse``): the network's wave probability floors under which
+#: the rule's firing is ignored (``and``); the network's own thresholds (``or``).
+WAVE_FLOORS: tuple[float, ...] = (0.05, 0.1, 0.2, 0.3, 0.4)
+#: What ``fuse`` measures (:func:`_fusion`).
+FUSIONS: tuple[str, ...] = ("network", "and", "or")
+
+
+def _network(readings_dir: Path, names: list[str]) -> dict[str, dict[str, Any]]:
+    """Per left-out dataset, the network's per-tick wave probability and whether it
+    decides ``wave`` alone, from ``benchmarks/cross_dataset_loop.py train``'s readings:
+    temperature fitted on the other left-out datasets (its ``score``), real windows
+    combined by the ``mean`` rule (the room's), no forecast stage."""
+    data = {n: pickle.load((readings_dir / f"{n}_readings.pkl").open("rb")) for n in names}
+    k = GESTURE_LABELS.index(GREET_LABEL)
+    out = {}
+    for n in names:
+        others = [data[m] for m in names if m != n]
+        tau = fit_temperature(np.concatenate([d[key] for d in others for key in ("z3", "z1")]),
+                              np.concatenate([d["y"] for d in others for _ in ("z3", "z1")]))
+        ticks, p_wave, p_top = [], [], []
+        for r in data[n]["stream"]:
+            z = r.logits_real / tau
+            e = np.exp(z - z.max(axis=-1, keepdims=True))
+            p = real_stage(e / e.sum(axis=-1, keepdims=True), "mean")
+            ticks.append(r.ticks_s)
+            # The network decides wave where wave is its top class (decide's first stage).
+            p_wave.append(p[:, k])
+            p_top.append(np.where(p.argmax(axis=1) == k, p[:, k], 0.0))
+        out[n] = {"temperature": round(float(tau), 4), "names": [r.name for r in
+                                                                  data[n]["stream"]],
+                  "ticks": ticks, "p_wave": p_wave, "p_top_wave": p_top}
+    return out
+
+
+def _flat(clips: Sequence[GestureClip], fires: Sequence[Fires], net: dict[str, Any]
+          ) -> dict[str, Any]:
+    """Arrays over every tick of ``clips`` (rules' firings (R, N), network (N,)) and the
+    clips' first tick, group and length, for scoring thousands of fusions at once."""
+    counts = np.array([len(t) for t, _ in fires[0]])
+    group = np.array([0 if c.label == GREET_LABEL else 2 if c.label == "idle" else 1
+                      for c in clips])
+    return {"fired": np.stack([np.concatenate([f for _, f in rule]) for rule in fires]),
+            "ticks": np.concatenate([t for t, _ in fires[0]]),
+            "p_wave": np.concatenate(net["p_wave"]),
+            "p_top_wave": np.concatenate(net["p_top_wave"]),
+            "starts": np.concatenate([[0], np.cumsum(counts)[:-1]]), "group": group}
+
+
+def _rates(flat: dict[str, Any], fired: np.ndarray) -> tuple[float, float, float]:
+    """(waves greeted rate, false-greeting rate, median decision s) of ``fired`` (N,)."""
+    greeted = np.maximum.reduceat(fired.astype(np.uint8), flat["starts"]).astype(bool)
+    first = np.minimum.reduceat(np.where(fired, flat["ticks"], np.inf), flat["starts"])
+    g = flat["group"]
+    waves = greeted[g == 0]
+    median = float(np.median(first[(g == 0) & greeted])) if waves.any() else np.inf
+    return float(waves.mean()) if waves.size else 0.0, float(greeted[g > 0].mean()), median
+
+
+def _choose_fusion(flat: dict[str, Any], kind: str) -> tuple[int, float]:
+    """(rule index, parameter) of the ``kind`` fusion (:func:`_fusion`) that
+    :func:`choose_rule`'s criterion picks on ``flat``."""
+    best, key = (0, 0.0), None
+    for i in range(1 if kind == "network" else len(flat["fired"])):
+        for value in WAVE_FLOORS if kind == "and" else THRESHOLD_GRID:
+            recall, false, median = _rates(flat, _fusion(flat, kind, i, value))
+            ok = false <= FALSE_GREET_TARGET
+            rank = (ok, recall if ok else -false, -median)
+            if key is None or rank > key:
+                best, key = (i, float(value)), rank
+    return best
+
+
+def cmd_fuse(args: argparse.Namespace) -> None:
+    avatars = _avatars(args)
+    rules = grid_rules()
+    readings = Path(args.readings)
+    names = sorted(p.name.removesuffix("_readings.pkl") for p in readings.glob("*_readings.pkl"))
+    net = _network(readings, names)
+    parts = {n: [c for c in avatars if c.dataset == n] for n in names}
+    fires = {n: stream_fires(parts[n], rules, seed=0) for n in names}
+    for n in names:
+        if [c.name for c in parts[n]] != net[n]["names"] or not all(
+                np.allclose(t, u) for (t, _), u in zip(fires[n][0], net[n]["ticks"],
+                                                       strict=True)):
+            raise SystemExit(f"{n}: the network's readings are not of these clips and ticks")
+    flats = {n: _flat(parts[n], fires[n], net[n]) for n in names}
+    result: dict[str, Any] = {"floors": list(WAVE_FLOORS), "datasets": {}}
+    for n in names:
+        calib_names = [m for m in names if m != n]
+        calib_clips = [c for m in calib_names for c in parts[m]]
+        calib_fires = [[f for m in calib_names for f in fires[m][i]]
+                       for i in range(len(rules))]
+        calib = _flat(calib_clips, calib_fires, {
+            key: [a for m in calib_names for a in net[m][key]]
+            for key in ("p_wave", "p_top_wave")})
+        row: dict[str, Any] = {"temperature": net[n]["temperature"]}
+        for kind in FUSIONS:
+            i, value = _choose_fusion(calib, kind)
+            fired = _fusion(flats[n], kind, i, value)
+            split = np.split(fired, flats[n]["starts"][1:])
+            row[kind] = {"rule": rules[i].__dict__, "parameter": value,
+                         **rule_outcomes(parts[n], [(t, f) for (t, _), f in
+                                                    zip(fires[n][0], split, strict=True)])}
+        result["datasets"][n] = row
+        for kind in FUSIONS:
+            d = row[kind]
+            print(f"{n} left out, {kind}: waves {_greeted(*d['greet_clips'])}, other "
+                  f"{_greeted(*d['other_clips'])}, idle {_greeted(*d['idle_clips'])}, median "
+                  f"{d['decision_after_onset_s']['median']} s; {_rule(d['rule'])}, "
+                  f"parameter {d['parameter']}", flush=True)
+    path = Path(args.out) / "fusion.json"
+    path.write_text(json.dumps(result, indent=1))
+    print(f"wrote {path}")
+
+
+def _fusion(flat: dict[str, Any], kind: str, i: int, value: float) -> np.ndarray:
+    """The firing (N,) of one fusion of rule ``i`` with the network: ``and``, the rule
+    fires and the network's wave probability is at least ``value``; ``or``, the rule
+    fires or the network decides wave alone at threshold ``value``; ``network``, the
+    network alone at threshold ``value`` (the rule ignored)."""
+    if kind == "and":
+        return flat["fired"][i] & (flat["p_wave"] >= value)
+    network = flat["p_top_wave"] >= value
+    return network if kind == "network" else flat["fired"][i] | network
+
+
 def cmd_run(args: argparse.Namespace) -> None:
     avatars = _avatars(args)
     rules = grid_rules()
@@ -215,12 +348,14 @@ def doc_section(out: Path, command: str) -> str:
         "`simenv.perception.wave_rule`: at each tick of the loop (every second, the same "
         "phases and recordings as the network's rows above, retargeted onto the avatar) "
         "the rule reads the last `window_s` of the avatar's keypoints and fires when one "
-        "wrist, held at least `raise_height` shoulder widths above its shoulder, reverses "
-        "its sideways motion (the body's own shoulder axis) at least `reversals` times, "
-        "each half-swing at least `swing` shoulder widths long and at 0.4-3 Hz; a clip is "
-        "greeted when any tick fires. No training: its parameters are chosen from a grid "
-        f"of {result['rules']} rules (window_s {grid['window_s']} s, raise_height "
-        f"{grid['raise_height']}, swing {grid['swing']}, reversals {grid['reversals']}) "
+        "wrist reverses its sideways motion (along the body's own shoulder axis) at least "
+        "`reversals` times, each half-swing at least `swing` shoulder widths long, at "
+        "0.4-3 Hz, its vertical range at most `max_rise` times its sideways travel, the "
+        "wrist at least `raise_height` shoulder widths above its shoulder throughout; a "
+        "clip is greeted when any tick fires. No training: its parameters are chosen from "
+        f"a grid of {result['rules']} rules (window_s {grid['window_s']} s, raise_height "
+        f"{grid['raise_height']}, swing {grid['swing']}, max_rise {grid['max_rise']}, "
+        f"reversals {grid['reversals']}) "
         "as the network's threshold is: the most waves greeted with at most "
         f"{result['false_greet_target']:.0%} of the other and idle clips greeted, on the "
         "clips of every *other* dataset (Kinder-Gator included: the rule learns nothing "
@@ -254,12 +389,42 @@ def doc_section(out: Path, command: str) -> str:
               f"| the room's ensemble (`gesture-tcn-ensemble`, its checkpoint's metadata) | "
               f"{' | '.join(_cells(meta))} | |", "",
               "Per source class of each left-out dataset, clips greeted by the rule chosen "
-              "on the other datasets (classes with none greeted and no wave left out):", ""]
+              "on the other datasets (every wave class; the other classes where it greeted "
+              "any clip):", ""]
     for name, d in result["cross_dataset"]["parts"].items():
         shown = [f"{k} {g}/{n}" for k, (g, n) in d["by_class"].items()
                  if g or k.startswith("wave")]
         lines.append(f"* {name}: {', '.join(shown) or 'none greeted'}")
+    if (out / "fusion.json").is_file():
+        lines += _fusion_lines(json.loads((out / "fusion.json").read_text()))
     return "\n".join(lines)
+
+
+def _fusion_lines(fusion: dict[str, Any]) -> list[str]:
+    """Markdown: the ``fuse`` table."""
+    how = {"network": "network alone", "and": "rule and network's wave probability >= floor",
+           "or": "rule or network"}
+    lines = ["", "Fused with the network (`fuse`): one network per left-out dataset "
+             "(`benchmarks/cross_dataset_loop.py train --epochs 20`, trained on every "
+             "other dataset, Kinder-Gator included, read at the same ticks), its "
+             "temperature fitted on the other left-out datasets and its windows combined "
+             "by the `mean` rule. Each fusion's rule and parameter (the network's wave "
+             "probability floor for *and*, in "
+             f"{fusion['floors']}; the network's threshold for *or* and alone) are chosen "
+             "together by the same criterion on the other datasets that have a network "
+             "(MSR Action3D, MSRC-12, UTKinect: each read by the network that never saw "
+             "it), never on the left-out one.", "",
+             "| left out | recogniser | waves greeted | other actions greeted | idle "
+             "greeted | decision after onset, s (median / p90) | chosen |",
+             "|---|---|---|---|---|---|---|"]
+    for name, row in fusion["datasets"].items():
+        for kind, label in how.items():
+            r = row[kind]
+            chosen = (f"threshold {r['parameter']}" if kind == "network" else
+                      f"{_rule(r['rule'])}; {'floor' if kind == 'and' else 'threshold'} "
+                      f"{r['parameter']}")
+            lines.append(f"| {name} | {label} | {' | '.join(_cells(r))} | {chosen} |")
+    return lines
 
 
 def cmd_docs(args: argparse.Namespace) -> None:
@@ -274,11 +439,14 @@ def main() -> None:
     parser.add_argument("--kindergator", help="Kinder-Gator folder")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("run")
+    p = sub.add_parser("fuse")
+    p.add_argument("--readings", default="out/cross-dataset-loop-kg",
+                   help="benchmarks/cross_dataset_loop.py train's output folder")
     p = sub.add_parser("docs")
     p.add_argument("--command-line", default="python benchmarks/wave_rule_cross_dataset.py "
                    "docs", help="the commands to name in the section's header")
     args = parser.parse_args()
-    {"run": cmd_run, "docs": cmd_docs}[args.command](args)
+    {"run": cmd_run, "fuse": cmd_fuse, "docs": cmd_docs}[args.command](args)
 
 
 if __name__ == "__main__":
