@@ -1022,12 +1022,20 @@ def _apart_speed(p: np.ndarray, a: int, b: int, fps: float, out: np.ndarray) -> 
         out[t] = np.sqrt(dx * dx + dy * dy) * fps
 
 
+#: Frame pairs a sliding run needs before its speeds can show a fall throughout
+#: (:func:`_drop_approaches`): speeds in random order put every pair of the second
+#: half below every pair of the first with probability 1 / C(n, n // 2), at most
+#: 1 in 20 from 6 pairs on (1 in 2 for 2 pairs, the Kinect rates' shortest slides).
+APPROACH_MIN_PAIRS = 6
+
+
 @njit(cache=True)
 def _drop_approaches(sliding: np.ndarray, low: np.ndarray, v_h: np.ndarray,
                      skate_speed: float) -> None:
     """Clear, in place, the runs of ``sliding`` (T - 1,) of one foot that are
-    a swing's approach to its touchdown: the run ends at a touchdown (the
-    next frame pair the foot is low, ``low`` (T,), and no faster than
+    a swing's approach to its touchdown: the run lasts at least
+    :data:`APPROACH_MIN_PAIRS` frame pairs, ends at a touchdown (the next
+    frame pair the foot is low, ``low`` (T,), and no faster than
     ``skate_speed`` m/s) and every frame pair of its second half is slower
     than every pair of its first half (``v_h`` (T - 1,), m/s; a run of n
     pairs splits at n // 2). A loaded foot sliding holds its speed, so its
@@ -1042,7 +1050,8 @@ def _drop_approaches(sliding: np.ndarray, low: np.ndarray, v_h: np.ndarray,
         while t < pairs and sliding[t]:
             t += 1
         half = (t - start) // 2
-        if half == 0 or t == pairs or not low[t + 1] or v_h[t] > skate_speed:
+        if (t - start < APPROACH_MIN_PAIRS or t == pairs or not low[t + 1]
+                or v_h[t] > skate_speed):
             continue
         slowest_first = v_h[start]
         for k in range(start + 1, start + half):

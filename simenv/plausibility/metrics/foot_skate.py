@@ -50,17 +50,21 @@ def foot_skate(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> M
     verdict of the shared CMU corpus moves (largest change 0.024), seeded
     ``foot_slide`` copies stay caught (CMU 27 of 27; Kinect sets 2 fewer of
     472 and 203). Nor does a sliding run that is a swing's approach to its
-    touchdown: the run ends where the foot, still low, slows to at most
-    ``skate_speed_mps`` (it lands), and every frame pair of its second half
-    is slower than every pair of its first half (it decelerates throughout
-    into the landing); a loaded foot sliding holds its speed until it lifts
-    or slides on. A running foot swinging in low before its touchdown (a
-    real run's toe 3.7-4.3 cm up at 6.2 down to 2.4 m/s, read 0.0945 before)
-    is such a run. What the rule gives up: a foot that slides and slows
-    steadily to rest within its run (a skid to a stop) reads as an
-    approach. Measured (same benchmark): no value of the shared CMU corpus
-    moves, seeded ``foot_slide`` copies stay caught (CMU 27 of 27 at 1 and
-    3 m/s; Kinect sets unchanged).
+    touchdown: the run lasts at least 6 frame pairs
+    (:data:`simenv.plausibility.kernels.APPROACH_MIN_PAIRS`: fewer speeds
+    fall in order by chance too often), ends where the foot, still low,
+    slows to at most ``skate_speed_mps`` (it lands), and every frame pair of
+    its second half is slower than every pair of its first half (it
+    decelerates throughout into the landing); a loaded foot sliding holds
+    its speed until it lifts or slides on. A running foot swinging in low
+    before its touchdown (a real run's toe 3.7-4.3 cm up at 6.2 down to
+    2.4 m/s over 19 pairs: HDM05 `dg_06-03_03`, held out; 0.0945 before, 0
+    after) is such a run. What the rule gives up: a foot that slides and
+    slows steadily to rest within its run (a skid to a stop) reads as an
+    approach. Measured (same benchmark): no
+    value of the shared CMU corpus, the FAIR dab or the Kinect sets moves;
+    seeded ``foot_slide`` copies stay caught (CMU 27 of 27 at 1 and 3 m/s;
+    every source unchanged).
 
     Timeline: ``max_f v_f(t)`` over skating feet (0 when none) in **mm per
     frame at 20 fps** (``speed * 1000 / skate_reference_fps``, PhysDiff's
