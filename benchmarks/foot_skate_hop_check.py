@@ -11,19 +11,20 @@ defaults, or the Kinect family's ``skate_ratio_max``). Every person whose clean 
 the registry's moderate strength (1 m/s) and at three times it: a failing copy is a caught
 slide. So is a stance-foot slide the registry lacks (:func:`stance_slide`: only the toe of
 the one planted foot drifts, while the other foot swings), the case the hop exemption must
-leave counted. Every copy also lists its sliding runs however short (the metric with
-``skate_min_duration_s`` one frame): the runs a change removes whole, e.g. the swing's approaches
-to a touchdown that ``foot_skate`` no longer counts, short ones included. Writes one JSON
+leave counted. Every copy also lists its sliding runs however short (the metric with a
+``skate_min_duration_s`` of one frame), so that a change's effect shows on the runs too short
+to count, e.g. the swing's approaches to a touchdown of the CMU runs. Writes one JSON
 line per person to ``--out``; ``--compare BEFORE AFTER`` prints the verdicts that moved, the
 largest value change per source, the detection rates with the seeded copies' mean value
 (how far above the limit the slides stay), and per source and copy the stretches of
 skating removed (those lasting the minimum duration, which the value counts, apart).
 
 Run the "before" side on a copy of the unchanged code (``git archive HEAD simenv`` into a
-folder, ``PYTHONPATH=that folder``) and the "after" side on the changed one::
+folder, ``PYTHONPATH=that folder``; ``SIMENV_SHARED_DATA`` then names the corpus, which the
+copy cannot find beside it) and the "after" side on the changed one (about 3 min each)::
 
-    PYTHONPATH=/tmp/before nice -n 10 .venv/bin/python benchmarks/foot_skate_hop_check.py \\
-        --out out/foot_skate/before.jsonl
+    SIMENV_SHARED_DATA=../shared/data PYTHONPATH=/tmp/before nice -n 10 \\
+        .venv/bin/python benchmarks/foot_skate_hop_check.py --out out/foot_skate/before.jsonl
     nice -n 10 .venv/bin/python benchmarks/foot_skate_hop_check.py --out out/foot_skate/after.jsonl
     .venv/bin/python benchmarks/foot_skate_hop_check.py --compare out/foot_skate/before.jsonl \\
         out/foot_skate/after.jsonl
