@@ -404,12 +404,12 @@ def level_sensor_frame(loaded: Motion | Interaction) -> Motion | Interaction:
     OpenNI or Kinect tool's dump) holds the sensor's estimates in the sensor's frame: the
     floor is about the sensor's height below the file's zero, and tilted with it. Such a
     clip (both people of a two-person clip: one sensor) goes through
-    :func:`estimate_floor`, from the reader's Z-up output turned back into the camera
-    convention (:data:`ZUP_TO_CAMERA`; the reader took the file's up axis for ``+Z``); the
-    estimate goes to ``metadata["camera_frame"]``. Anything else, a clip a reader already
-    levelled (``metadata["camera_frame"]``), or one whose feet already stand level on z = 0
-    (:data:`WORLD_FRAME_TILT_DEG`, :data:`WORLD_FRAME_HEIGHT_M`: Kinect data someone put in a
-    world frame) is returned unchanged.
+    :func:`estimate_floor` in the file's own axes, which are the camera's (the reader's
+    change of a Y-up file to Z up, :data:`ZUP_TO_CAMERA`, undone; a file the reader took as
+    Z up is already in them); the estimate goes to ``metadata["camera_frame"]``. Anything
+    else, a clip a reader already levelled (``metadata["camera_frame"]``), or one whose feet
+    already stand level on z = 0 (:data:`WORLD_FRAME_TILT_DEG`, :data:`WORLD_FRAME_HEIGHT_M`:
+    Kinect data someone put in a world frame) is returned unchanged.
 
     Raises:
         MotionError: the feet or the body axis give no floor (see :func:`estimate_floor`).
@@ -419,7 +419,10 @@ def level_sensor_frame(loaded: Motion | Interaction) -> Motion | Interaction:
     if (str(meta.get("format", "")).lower() not in FILE_FRAME_FORMATS or "camera_frame" in meta
             or sensor_family(people[0]) is None):
         return loaded
-    cams = [(p.positions.astype(np.float64) @ ZUP_TO_CAMERA.T, p.skeleton) for p in people]
+    # The file's own axes are the camera's: undo the reader's axis change (none when it read
+    # the file's Z as up, a sensor that stood the person along its optical axis's normal).
+    turn = ZUP_TO_CAMERA if str(meta.get("up_axis_in_file", "Y")).upper() == "Y" else np.eye(3)
+    cams = [(p.positions.astype(np.float64) @ turn.T, p.skeleton) for p in people]
     est = estimate_floor(cams, source=meta.get("source"))
     if est.tilt_deg <= WORLD_FRAME_TILT_DEG and abs(est.sensor_height_m) <= WORLD_FRAME_HEIGHT_M:
         return loaded  # already level on z = 0: the file is in a world frame
