@@ -26,7 +26,9 @@ Usage::
 
 One JSON line per file goes to ``out/depth_bvh_survey/<role>.jsonl`` as it is judged (a
 rerun skips the files there); the corruption counts to ``<role>_corruptions.json``; the
-section of docs/plausibility.md between the markers is rewritten from what is there.
+section of docs/plausibility.md between the markers is rewritten from what is there. A run
+kept from before a change (``heldout_first.jsonl`` / ``heldout_first_corruptions.json``: the
+held-out set as first scored) is tabulated beside the current one.
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ FOLDER = "evaluation/mae_evaluator/bvhs/"
 ROLES: dict[str, tuple[str, ...]] = {"dev": ("ah", "ba"),
                                      "heldout": ("ank", "ark", "bk", "jk", "sk")}
 BEGIN, END = "<!-- depth-bvh-survey:begin -->", "<!-- depth-bvh-survey:end -->"
+#: Result files tabulated, in order, with their labels.
+TABLES: dict[str, str] = {"dev": "development", "heldout_first": "held out, first scored",
+                          "heldout": "held out, now"}
 
 
 def files(role: str) -> list[str]:
@@ -90,12 +95,13 @@ def judge(path: Path) -> tuple[dict[str, Any], Person | None]:
         row.update(loaded=False, error=str(exc)[:300])
         return row, None
     kind = detect_source(motion)
-    profile = profile_for(kind)
+    profile = profile_for(kind, motion.fps)
     fails = failed(motion, profile)
     cf = motion.metadata.get("camera_frame", {})
     row.update(loaded=True, frames=motion.num_frames, fps=motion.fps,
                convention=motion.metadata.get("joint_map", {}).get("convention"),
-               source_kind=kind.record(), sensor_height_m=cf.get("sensor_height_m"),
+               source_kind=kind.record(), profile=profile.name if profile else None,
+               sensor_height_m=cf.get("sensor_height_m"),
                tilt_deg=cf.get("tilt_deg"), inside=not fails, failed=fails,
                cpu_s=round(time.process_time() - t0, 2))
     return row, Person("mae", path.name, motion, {}, {})
@@ -117,7 +123,7 @@ def corruption_counts(people: list[Person]) -> dict[str, dict[str, Any]]:
                 except SimenvError:
                     continue
                 made += 1
-                f = failed(bad, profile_for(detect_source(p.motion)))
+                f = failed(bad, profile_for(detect_source(p.motion), p.motion.fps))
                 outside += bool(f)
                 caught += any(t in f for t in c.targets)
             out[f"{name}/{level}"] = {"strength": strength, "copies": made, "outside": outside,
@@ -164,7 +170,7 @@ def markdown() -> str:
         f"{', '.join(ROLES['heldout'])} (split fixed before any of their files was read).", "",
         "| role | files | loaded | kinect_v1 profile by joint names | sensor height, m (median) "
         "| inside the profile | outside by |", "|---|---|---|---|---|---|---|"]
-    for role in ROLES:
+    for role, label in TABLES.items():
         path = OUT / f"{role}.jsonl"
         if not path.exists():
             continue
@@ -177,16 +183,17 @@ def markdown() -> str:
             for n in r["failed"]:
                 outside[n] = outside.get(n, 0) + 1
         lines.append(
-            f"| {role} | {len(rows)} | {len(ok)} | {by} | "
+            f"| {label} | {len(rows)} | {len(ok)} | {by} | "
             f"{heights[len(heights) // 2] if heights else '-'} | "
             f"{_pct(sum(r['inside'] for r in ok), len(ok))} | "
             + (", ".join(f"`{n}` {k}" for n, k in sorted(outside.items())) or "-") + " |")
-    for role in ROLES:
+    for role, label in TABLES.items():
         path = OUT / f"{role}_corruptions.json"
         if not path.exists():
             continue
         counts = json.loads(path.read_text())
-        lines += ["", f"Seeded corruptions of the {role} clips inside their profile (seed 0):", "",
+        lines += ["", f"Seeded corruptions of the clips inside their profile ({label}; seed 0):",
+                  "",
                   "| corruption | level (strength) | copies | outside the profile | caught by its "
                   "target metric |", "|---|---|---|---|---|"]
         total: dict[str, list[int]] = {}

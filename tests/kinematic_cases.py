@@ -4,7 +4,10 @@ are pinned (``tests/data/kinematic_golden.npz``).
 The golden file was written by the straightforward, unoptimised metric code
 (commit 701f1ef), but for ``walk_drift``'s ``foot_skate``, rewritten when the metric
 stopped counting feet moving apart in a hop as sliding (commit 02a2c98: 0.792 -> 0.725,
-still failing; no other case moved); ``tests/test_plausibility_kinematic_golden.py`` checks that
+still failing; no other case moved), and ``walk_no_toes``'s ``floating``, rewritten when a
+toe-less skeleton's ankles started counting their sole height lower (120.1 mm, failing ->
+0, passing: the real walk does not float; no other case moved);
+``tests/test_plausibility_kinematic_golden.py`` checks that
 the optimised metrics and :func:`simenv.plausibility.kinematic_metrics_batch`
 still give the same values. Regenerate (only when a metric changes *on
 purpose*) with::

@@ -66,6 +66,18 @@ def test_lifted_walk_floats(walk) -> None:
     assert start == 0 and end == walk.num_frames - 1 and worst > 300.0
 
 
+def test_a_skeleton_without_toes_stands_on_the_soles_below_its_ankles(walk) -> None:
+    """The real walk with its toe keypoints dropped (an OpenNI / H36M-style layout): its
+    lower ankle, 5-12 cm up, is its lowest point; counted a sole lower it is on the floor,
+    so the walk does not float (it did: 120 mm), and lifted 20 cm it still does."""
+    canon = walk.to_canonical()
+    keep = [n for n in canon.skeleton.joint_names if not n.endswith("_toe")]
+    toeless = Motion(canon.positions[:, [canon.skeleton.index(n) for n in keep]], canon.fps,
+                     canon.skeleton.subset(keep), "no_toes")
+    assert floating(toeless).passed
+    assert floating(_shift(toeless, 0.20)).passed is False
+
+
 def test_lifted_jumps_still_jump_but_the_ground_phases_float(jumps) -> None:
     r = floating(_shift(jumps, 0.30))
     assert r.passed is False and r.details["floating_fraction"] > 0.5

@@ -8,6 +8,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from simenv.cli import score as score_cli
@@ -18,6 +19,7 @@ from simenv.plausibility.metric import ScoreConfig
 from simenv.plausibility.profiles import (
     DECLARABLE_SOURCES,
     apply_profile,
+    at_profile_rate,
     detect_source,
     load_profiles,
     profile_for,
@@ -32,7 +34,9 @@ MSR = "gestures/msr_action3d/a01_s01_e01_skeleton3D.txt"
 
 def test_bundled_profiles_name_their_calibration() -> None:
     profiles = load_profiles()
-    assert set(profiles) == {"kinect_v1", "kinect_v2"}
+    assert set(profiles) == {"kinect_v1", "kinect_v1@30", "kinect_v2"}
+    assert {n: p.fps for n, p in profiles.items()} == {"kinect_v1": 15.0, "kinect_v1@30": 30.0,
+                                                      "kinect_v2": 30.0}
     for p in profiles.values():
         assert p.thresholds["bone_length_rel_max"] > DEFAULT_THRESHOLDS.bone_length_rel_max
         assert p.provenance["script"] == "benchmarks/depth_camera_profiles.py"
@@ -40,6 +44,30 @@ def test_bundled_profiles_name_their_calibration() -> None:
     # The held-out sources never enter a calibration.
     assert "ntu" not in profiles["kinect_v2"].provenance["calibration_sources"]
     assert not {"florence3d", "sbu"} & set(profiles["kinect_v1"].provenance["calibration_sources"])
+    assert set(profiles["kinect_v1@30"].provenance["calibration_sources"]) == {"msrc12",
+                                                                              "kindergator"}
+
+
+def test_a_clip_is_judged_by_its_familys_profile_at_its_rate(shared_data: Path) -> None:
+    """A real Kinect v1 clip (MSR Action3D, 15 fps) is judged by the 15-fps profile; the same
+    clip at 20 fps (Florence 3D's rate) too, as it is; at 30 fps (the sensor's rate) by the
+    30-fps one; at 60 fps by the 30-fps one on every second frame, which the record says."""
+    msr = load(shared_data / MSR)
+    kind = detect_source(msr)
+    assert profile_for(kind).name == "kinect_v1"
+    assert [profile_for(kind, f).name for f in (10.0, 15.0, 20.0, 25.0, 30.0, 60.0)] == [
+        "kinect_v1", "kinect_v1", "kinect_v1", "kinect_v1@30", "kinect_v1@30", "kinect_v1@30"]
+    rec = score(msr, physics=False).to_records()[0]
+    assert rec["profile"] == "kinect_v1" and "judged_fps" not in rec["source_kind"]
+    mid = score(msr.resample(20.0), physics=False).to_records()[0]
+    assert mid["profile"] == "kinect_v1" and "judged_fps" not in mid["source_kind"]
+    fast = msr.resample(60.0)
+    thin = at_profile_rate(fast, profile_for(kind, 60.0))
+    assert thin.fps == 30.0 and thin.num_frames == (fast.num_frames + 1) // 2
+    np.testing.assert_array_equal(thin.positions, fast.positions[::2])
+    rec = score(fast, physics=False).to_records()[0]
+    assert rec["profile"] == "kinect_v1@30" and rec["source_kind"]["judged_fps"] == 30.0
+    assert rec["frames"] == thin.num_frames
 
 
 def test_real_kinect_v2_clip_is_judged_by_its_profile_by_default() -> None:

@@ -1230,8 +1230,9 @@ def _ballistic_rms(z: np.ndarray, start: int, n: int, fps: float, half_g: float)
 
 @njit(cache=True)
 def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray,
-             hand_reach: float, float_height: float, fps: float, gravity: float,
-             tolerance: float, tl: np.ndarray, details: np.ndarray) -> float:
+             hand_reach: float, ankles: np.ndarray, ankle_sole: float, float_height: float,
+             fps: float, gravity: float, tolerance: float, tl: np.ndarray,
+             details: np.ndarray) -> float:
     """Floating (airborne, not ballistic) of one clip (see
     :func:`simenv.plausibility.metrics.floating.floating`); T >= 3.
 
@@ -1239,6 +1240,8 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
         p: (3, J, T) planes. zmin: (T,) lowest keypoint height.
         com: (K,) keypoints of the centre-of-mass proxy (K >= 1).
         hands: (H,) keypoints counted ``hand_reach`` metres lower.
+        ankles: (A,) keypoints counted ``ankle_sole`` metres lower (the ankles of a
+            skeleton without toes; empty otherwise).
         float_height: metres. gravity: m/s^2. tolerance: RMS residual of a
             ballistic flight, metres.
         tl: (T,) out: timeline, mm. details: out: (airborne fraction,
@@ -1254,6 +1257,10 @@ def floating(p: np.ndarray, zmin: np.ndarray, com: np.ndarray, hands: np.ndarray
         zh = p[2, h]
         for t in range(t_count):
             lowest[t] = min(lowest[t], np.float64(zh[t]) - hand_reach)
+    for a in ankles:
+        za = p[2, a]
+        for t in range(t_count):
+            lowest[t] = min(lowest[t], np.float64(za[t]) - ankle_sole)
     com_z = _mean_height(p, com)
     tl[:] = 0.0
     worst, jumps, airborne, floating_frames = 0.0, 0, 0, 0
@@ -1289,7 +1296,8 @@ IDLE_ARGS: dict[int, tuple] = {
     FOOT: (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.bool_), 0.0, 0.0, 0.0,
            0.0, 0, 0, 0.0, 0.0),
     GROUND: (),
-    FLOAT: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0.0, 0.0, 0.0, 0.0, 0.0),
+    FLOAT: (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), 0.0,
+            np.zeros(0, dtype=np.int64), 0.0, 0.0, 0.0, 0.0, 0.0),
     JITTER: (False, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float32), 0.0, 0.0, 0,
              0.0, 0.0, 0.0, 0.0, 0.0, np.zeros((0, 2), dtype=np.int64)),
     VELOCITY: (np.zeros(0), 0.0, 0.0),

@@ -37,6 +37,7 @@ Profiles (:func:`profile_for`, :func:`apply_profile`)
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from functools import lru_cache
@@ -101,17 +102,24 @@ class SourceKind:
         kind: one of :data:`SOURCE_KINDS`.
         profile: the profile that judges it (:data:`MOCAP_PROFILE` or a family of
             :data:`DEPTH_FAMILIES`).
-        how: ``"declared"``, ``"skeleton <name>"``, ``"format <name>"`` or
-            ``"nothing matched"``.
+        how: ``"declared"``, ``"skeleton <name>"``, ``"joint names <convention>"``,
+            ``"format <name>"`` or ``"nothing matched"``.
+        judged_fps: the frame rate the clip was judged at when it was thinned towards its
+            profile's (:func:`at_profile_rate`), else None.
     """
 
     kind: str
     profile: str
     how: str
+    judged_fps: float | None = None
 
-    def record(self) -> dict[str, str]:
-        """JSON-ready ``{kind, profile, how}``."""
-        return {"kind": self.kind, "profile": self.profile, "how": self.how}
+    def record(self) -> dict[str, str | float]:
+        """JSON-ready ``{kind, profile, how}`` (and ``judged_fps`` when set)."""
+        out: dict[str, str | float] = {"kind": self.kind, "profile": self.profile,
+                                       "how": self.how}
+        if self.judged_fps is not None:
+            out["judged_fps"] = self.judged_fps
+        return out
 
 
 @dataclass(frozen=True)
@@ -123,12 +131,22 @@ class Profile:
         thresholds: :class:`Thresholds` field -> value (only the fields it changes).
         body: :class:`BodyThresholds` field -> value (only the fields it changes).
         provenance: how the values were computed (calibration sources, percentile, clips).
+        fps: the calibration clips' frame rate (their median). A depth camera's noise is per
+            frame, so the jerk and the frame-to-frame jumps of its clips grow with the rate:
+            the thresholds hold at this rate, a clip is judged by its family's profile of the
+            nearest rate (:func:`profile_for`) and one several times faster is thinned to it
+            (:func:`at_profile_rate`). None: judged at any rate.
     """
 
     name: str
     thresholds: dict[str, float]
     body: dict[str, float]
     provenance: dict[str, Any]
+    fps: float | None = None
+
+
+def _people(clip: Motion | Interaction) -> tuple[Motion, ...]:
+    return clip.people if isinstance(clip, Interaction) else (clip,)
 
 
 def _first(clip: Motion | Interaction) -> Motion:
@@ -207,11 +225,16 @@ def _load(path: Path) -> dict[str, Profile]:
                           source=path) from exc
     out = {}
     for name, p in raw.items():
+        fps = p.get("fps")
+        if fps is not None and not (isinstance(fps, (int, float)) and fps > 0):
+            raise SimenvError(f"profile {name!r} fps = {fps!r}: expected a positive frame rate "
+                              "or none", source=path, field=f"{name}.fps")
         out[name] = Profile(
             name=name,
             thresholds=_check_fields(name, "thresholds", p.get("thresholds", {}), Thresholds, path),
             body=_check_fields(name, "body", p.get("body", {}), BodyThresholds, path),
-            provenance=dict(p.get("provenance", {})))
+            provenance=dict(p.get("provenance", {})),
+            fps=None if fps is None else float(fps))
     return out
 
 
@@ -225,8 +248,14 @@ def load_profiles(path: str | Path | None = None) -> dict[str, Profile]:
     return _load(Path(path) if path is not None else profile_path())
 
 
-def profile_for(kind: SourceKind) -> Profile | None:
+def profile_for(kind: SourceKind, fps: float | None = None) -> Profile | None:
     """The family profile judging ``kind``, or None for the mocap defaults.
+
+    A family may hold one profile per calibration rate: ``<family>`` and
+    ``<family>@<fps>`` (:attr:`Profile.fps`). For a clip at ``fps`` the one whose rate is
+    nearest (by ratio; a tie goes to the slower) judges; see :func:`at_profile_rate` for a
+    clip several times faster than it. Without ``fps``, the family's own ``<family>``
+    profile.
 
     Raises:
         SimenvError: the bundled file lacks the family (names the file).
@@ -237,7 +266,31 @@ def profile_for(kind: SourceKind) -> Profile | None:
     if kind.profile not in profiles:
         raise SimenvError(f"no profile {kind.profile!r} in the bundled profiles (has "
                           f"{', '.join(profiles)})", source=profile_path(), field="profile")
-    return profiles[kind.profile]
+    rated = [(p.fps, p) for n, p in profiles.items()
+             if (n == kind.profile or n.startswith(f"{kind.profile}@")) and p.fps is not None]
+    if fps is None or fps <= 0 or not rated:
+        return profiles[kind.profile]
+    return min(rated, key=lambda r: (abs(math.log(fps / r[0])), r[0]))[1]
+
+
+def at_profile_rate(clip: Motion | Interaction, profile: Profile | None
+                    ) -> Motion | Interaction:
+    """``clip`` thinned to ``profile``'s rate when it is at least twice as fast: every
+    ``n``-th frame, ``n = floor(clip fps / profile fps)`` (a 60-fps clip judged by a 30-fps
+    profile reads frames 0, 2, 4, ...). Thinning keeps the sensor's own samples, so its noise
+    is the noise the profile was calibrated on; interpolating would smooth it (and a seeded
+    jitter with it). Unchanged otherwise, and for None or a rate-free profile."""
+    if profile is None or profile.fps is None:
+        return clip
+    step = math.floor(clip.fps / profile.fps + 1e-6)
+    if step < 2:
+        return clip
+    people = [replace(m, positions=m.positions[::step], fps=m.fps / step,
+                      rotations=None if m.rotations is None else m.rotations[::step])
+              for m in _people(clip)]
+    if isinstance(clip, Interaction):
+        return replace(clip, actor=people[0], reactor=people[1])
+    return people[0]
 
 
 def _merged(current: Any, default: Any, values: Mapping[str, float]) -> Any:
@@ -268,6 +321,7 @@ __all__ = [
     "Profile",
     "SourceKind",
     "apply_profile",
+    "at_profile_rate",
     "detect_source",
     "load_profiles",
     "profile_for",

@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -91,7 +91,13 @@ from simenv.plausibility.metric_registry import (
     PERSON_REGISTRY,
     alternatives,
 )
-from simenv.plausibility.profiles import SourceKind, apply_profile, detect_source, profile_for
+from simenv.plausibility.profiles import (
+    SourceKind,
+    apply_profile,
+    at_profile_rate,
+    detect_source,
+    profile_for,
+)
 from simenv.plausibility.published import published_record
 from simenv.plausibility.timeline import MetricResult
 
@@ -366,7 +372,13 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
         raise SimenvError(f"score expects a Motion, an Interaction or a path; got "
                           f"{type(motion_or_path).__name__}")
     kind = detect_source(clip, declared)
-    config = apply_profile(config, profile_for(kind))
+    profile = profile_for(kind, clip.fps)
+    config = apply_profile(config, profile)
+    if profile is not None and profile.name != kind.profile:
+        kind = replace(kind, profile=profile.name)  # the family's profile for this rate
+    judged = at_profile_rate(clip, profile)
+    if judged is not clip:
+        clip, kind = judged, replace(kind, judged_fps=judged.fps)
     fitted, missing = _fit(clip) if physics else (None, "physics=False")
     if isinstance(clip, Interaction):
         scene = fitted if isinstance(fitted, InteractionRetargetResult) else None

@@ -150,6 +150,13 @@ class Thresholds(PositiveThresholds):
             lower in the airborne test (adult hand length is 17-20 cm; in the
             CMU cartwheel 49_06 the hand keypoints stay 18-21 cm above the
             floor while the hands carry the body).
+        float_ankle_sole_m: 0.07. On a skeleton without toe keypoints (OpenNI /
+            NiTE, H36M-style layouts) the ankles are its lowest points, and an
+            ankle joint centre stands about 7 cm over the sole of a flat foot
+            (lateral malleolus height, adult anthropometry; the floor estimate of
+            :mod:`simenv.io.camera_frame` puts it there): their height counts
+            this much lower in the airborne test, so a standing foot has the
+            same 10-cm margin as a toe. Skeletons with toes are unchanged.
         ballistic_tolerance_m: 0.03. An airborne phase is a jump, not
             floating, when the centre-of-mass proxy's height is fitted by a
             free-fall parabola ``z0 + v0 t - g t^2 / 2`` with an RMS residual
@@ -214,6 +221,7 @@ class Thresholds(PositiveThresholds):
     penetration_max_mm: float = 30.0
     float_height_m: float = 0.10
     float_hand_reach_m: float = 0.15
+    float_ankle_sole_m: float = 0.07
     ballistic_tolerance_m: float = 0.03
     gravity_mps2: float = 9.81
 

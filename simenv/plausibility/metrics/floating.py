@@ -44,6 +44,9 @@ COM_KEYPOINTS: tuple[str, ...] = (
 
 #: Keypoints that may rest on the palm and fingers below them.
 HAND_KEYPOINTS: tuple[str, ...] = ("left_wrist", "right_wrist", "left_hand", "right_hand")
+#: A skeleton's toes; without them its ankles count ``float_ankle_sole_m`` lower.
+TOE_KEYPOINTS: tuple[str, ...] = ("left_toe", "right_toe")
+ANKLE_KEYPOINTS: tuple[str, ...] = ("left_ankle", "right_ankle")
 
 
 def ballistic_residual(height: np.ndarray, fps: float, gravity: float) -> float:
@@ -70,7 +73,9 @@ def floating(motion: Motion, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Met
     A frame is airborne when its lowest keypoint is more than
     ``float_height_m`` above the floor (z = 0); wrist and hand keypoints
     count ``float_hand_reach_m`` lower (the palm and fingers can carry the
-    body). Each maximal airborne run is tested for a ballistic flight: the
+    body), and on a skeleton without toe keypoints the ankles count
+    ``float_ankle_sole_m`` lower (the sole below the ankle joint). Each
+    maximal airborne run is tested for a ballistic flight: the
     centre-of-mass proxy (mean of the trunk keypoints :data:`COM_KEYPOINTS`
     present) must follow a free-fall parabola, i.e. vertical acceleration
     -g, within an RMS residual of ``ballistic_tolerance_m``
@@ -103,9 +108,12 @@ def floating_spec(batch: ClipBatch, thresholds: Thresholds = DEFAULT_THRESHOLDS)
         reason = (f"needs at least 3 frames to tell a jump from floating; the motion has "
                   f"{frames}")
     else:
+        toeless = not batch.indices(TOE_KEYPOINTS)
         args = (np.array(com_idx, dtype=np.int64),
                 np.array(batch.indices(HAND_KEYPOINTS), dtype=np.int64),
-                float(thresholds.float_hand_reach_m), float(thresholds.float_height_m),
+                float(thresholds.float_hand_reach_m),
+                np.array(batch.indices(ANKLE_KEYPOINTS) if toeless else [], dtype=np.int64),
+                float(thresholds.float_ankle_sole_m), float(thresholds.float_height_m),
                 float(batch.fps), float(thresholds.gravity_mps2),
                 float(thresholds.ballistic_tolerance_m))
     return MetricSpec(
