@@ -198,6 +198,7 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
         left_hand="Hand|HandMiddle1|Middle1|FingerBase"),
 )
 
+
 def sensor_family(motion: Motion) -> str | None:
     """The depth-camera family (:attr:`NamingConvention.sensor`) whose convention mapped
     ``motion``'s joints by name (``metadata["joint_map"]["convention"]``), else None."""

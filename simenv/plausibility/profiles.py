@@ -29,9 +29,11 @@ Detection (:func:`detect_source`)
 Profiles (:func:`profile_for`, :func:`apply_profile`)
     ``mocap`` for ``mocap``, ``body_model``, ``unknown`` and generated motion of those: the
     defaults, unchanged. ``kinect_v1`` and ``kinect_v2``: the bundled family profile, a set of
-    threshold fields. :func:`apply_profile` sets a profile field only where the given
-    configuration still holds that field's default, so thresholds a user set explicitly
-    stay theirs.
+    threshold fields calibrated at one frame rate (:attr:`Profile.fps`); a family may hold one
+    per rate (``kinect_v1`` at 15 fps, ``kinect_v1@30`` at 30), and a clip is judged by the
+    one of its nearest rate (:func:`profile_for`, :func:`at_profile_rate`).
+    :func:`apply_profile` sets a profile field only where the given configuration still
+    holds that field's default, so thresholds a user set explicitly stay theirs.
 """
 
 from __future__ import annotations
@@ -100,8 +102,9 @@ class SourceKind:
 
     Attributes:
         kind: one of :data:`SOURCE_KINDS`.
-        profile: the profile that judges it (:data:`MOCAP_PROFILE` or a family of
-            :data:`DEPTH_FAMILIES`).
+        profile: the profile that judges it (:data:`MOCAP_PROFILE`, a family of
+            :data:`DEPTH_FAMILIES`, or that family's profile for the clip's rate, e.g.
+            ``kinect_v1@30``).
         how: ``"declared"``, ``"skeleton <name>"``, ``"joint names <convention>"``,
             ``"format <name>"`` or ``"nothing matched"``.
         judged_fps: the frame rate the clip was judged at when it was thinned towards its
