@@ -183,6 +183,17 @@ def test_missing_required_keypoints_are_named(walk: Motion) -> None:
         retarget(motion)
 
 
+def test_a_layout_without_a_pelvis_joint_is_told_what_to_add(walk: Motion) -> None:
+    """Both hips but no pelvis (OpenNI / NiTE): a joint map cannot help, so the error says
+    what can."""
+    canon = walk.to_canonical()
+    keep = [k for k in canon.skeleton.joint_names if k != "pelvis"]
+    motion = Motion(canon.positions[:, [canon.skeleton.index(k) for k in keep]], 120.0,
+                    canon.skeleton.subset(keep))
+    with pytest.raises(RetargetError, match=r"\['pelvis'\].*no pelvis joint.*hips' midpoint"):
+        retarget(motion)
+
+
 def test_optional_keypoints_may_be_missing(walk: Motion) -> None:
     canon = walk.to_canonical()
     keep = [k for k in canon.skeleton.joint_names if not k.endswith(("_hand", "_toe"))]

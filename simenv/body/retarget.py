@@ -287,12 +287,18 @@ def _canonical(motion: Motion) -> Motion:
     missing = [k for k in REQUIRED_KEYPOINTS if k not in canon.skeleton.joint_names]
     if missing:
         source = motion.metadata.get("source")
+        if missing == ["pelvis"]:  # both hips mapped: the layout has no pelvis joint to map
+            way_out = ("The skeleton maps both hips but has no pelvis joint (OpenNI / NiTE "
+                       "layouts hang the hips from the torso centre): add a pelvis joint at the "
+                       "hips' midpoint to the motion to fit a body")
+        else:
+            way_out = (f"Map them yourself: `simenv info {source or 'FILE'} --write-joint-map "
+                       "map.toml` writes a map to edit, then pass --joint-map map.toml "
+                       "(Python: simenv.load(path, joint_map='map.toml'))")
         raise RetargetError(
             f"motion {motion.name!r} (skeleton {motion.skeleton.name!r}) lacks required "
             f"keypoint(s) {missing}; retargeting needs {list(REQUIRED_KEYPOINTS)}. Its joints "
-            f"are {', '.join(motion.skeleton.joint_names)}. Map them yourself: `simenv info "
-            f"{source or 'FILE'} --write-joint-map map.toml` writes a map to edit, then pass "
-            "--joint-map map.toml (Python: simenv.load(path, joint_map='map.toml'))",
+            f"are {', '.join(motion.skeleton.joint_names)}. {way_out}",
             source=source, field=missing[0])
     return canon
 
