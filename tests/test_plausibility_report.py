@@ -105,6 +105,27 @@ def test_raised_walk_needs_help_the_unassisted_controller_measures(walk):
     assert root.value <= root.details["inferred_mean"]
 
 
+def test_track_if_plausible_skips_the_tracking_of_a_failing_person_only(walk):
+    """``track_if_plausible``: the walk sunk 10 cm fails ground penetration before any
+    tracking, so it is not tracked (its tracking says why); the real walk passes everything
+    else, so it is tracked as without the option."""
+    from dataclasses import replace
+
+    from simenv.control import FAST
+
+    config = ScoreConfig(joint_limits=False, tracking_assisted_detail=False,
+                         mpc=replace(FAST, attempts=1), track_if_plausible=True)
+    sunk = score(_lowered(walk.slice(0, 60), 0.10), config=config).people[0]
+    assert sunk.verdict == "implausible"
+    tracking = sunk.metrics["tracking"]
+    assert tracking.passed is None and tracking.reason.startswith("skipped: ")
+    assert "ground_penetration" in tracking.reason
+    assert sunk.metrics["root_residual"].passed is not None  # the inferred residual
+    clean = score(walk.slice(0, 30), config=config).people[0]
+    assert clean.metrics["tracking"].reason is None
+    assert clean.metrics["tracking"].passed is not None
+
+
 def test_no_physics_reports_what_it_cannot_compute(walk):
     person = score(walk, physics=False).people[0]
     assert person.basis["ground_penetration"] == "keypoints"

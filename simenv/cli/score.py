@@ -65,6 +65,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(simenv.control.FAST: a quarter of the rolled-out steps, 3-4x quicker; on 20 clean "
         "CMU clips 20 tracked at 57 mm mean body error against 45, and a walk lifted 50 cm "
         "that the default fails it follows: docs/tracking_speed.md)"))
+    sco.add_argument("--track-if-plausible", action="store_true", help=(
+        "run the physics tracking (nearly all of the time) only for people whose other "
+        "metrics all pass: one already failing is implausible whatever the tracking finds, "
+        "so its tracking reads 'skipped' and its root residual is the inferred one; for "
+        "scoring many clips (two-person clips are always tracked)"))
     sco.add_argument("--reference", nargs="+", action="extend", metavar="REAL_PATH", help=(
         "judge the clips relative to real data of the same source: score these real files or "
         "folders (or read their earlier --out .jsonl results), calibrate every metric on them "
@@ -119,13 +124,13 @@ def score_config(args: argparse.Namespace, progress: bool = False) -> ScoreConfi
     """
     progress = progress and args.physics and args.jobs == 1 and args.backend == "local"
     if (args.tracking_segments is None and args.tracking_attempts is None
-            and args.planner == "default" and not progress):
+            and args.planner == "default" and not progress and not args.track_if_plausible):
         return None
     # The scorer's settings load MuJoCo: only when an option asks for them.
     from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS
     from simenv.plausibility.metric import ScoreConfig
 
-    config = ScoreConfig(progress=progress)
+    config = ScoreConfig(progress=progress, track_if_plausible=args.track_if_plausible)
     if args.tracking_segments is not None:
         config = dataclasses.replace(config, body=dataclasses.replace(
             DEFAULT_BODY_THRESHOLDS, tracking_segment_s=args.tracking_segments))

@@ -91,6 +91,12 @@ class ScoreConfig:
             of the pairwise ``contact`` metric, canonical names.
         progress: show a progress bar on stderr for the physics tracking (frames
             tracked of the total, time left), the step that takes minutes.
+        track_if_plausible: run the physics tracking (nearly all of the scorer's time)
+            only for a person whose other metrics all pass; one that already fails one is
+            implausible whatever the tracking finds, so its ``tracking`` is reported not
+            available ("skipped: ...") and its ``root_residual`` is the inferred one alone
+            (the tracking run would refine it). For scoring many clips, e.g. a generated
+            test set. Two-person clips are always tracked.
     """
 
     thresholds: Thresholds = DEFAULT_THRESHOLDS
@@ -103,6 +109,7 @@ class ScoreConfig:
     joint_limits: bool = True
     contact_pairs: tuple[tuple[str, str], ...] = DEFAULT_CONTACT_PAIRS
     progress: bool = False
+    track_if_plausible: bool = False
 
 
 DEFAULT_SCORE_CONFIG = ScoreConfig()

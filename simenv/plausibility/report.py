@@ -299,8 +299,26 @@ def _measure(registry: Sequence[Metric], inputs: PersonInputs | PairInputs
     return metrics, basis
 
 
+#: Metrics that read the tracking run (``ScoreConfig.track_if_plausible`` decides without them).
+READS_TRACKING: frozenset[str] = frozenset({"tracking", "root_residual"})
+
+
 def _score_person(inputs: PersonInputs) -> PersonReport:
-    metrics, basis = _measure(PERSON_REGISTRY, inputs)
+    config = inputs.config
+    metrics: dict[str, MetricResult] | None = None
+    if config.tracking and config.track_if_plausible and inputs.pair is None:
+        untracked = PersonInputs(inputs.motion, inputs.fitted, inputs.missing,
+                                 replace(config, tracking=False),
+                                 keypoint_metrics=inputs.keypoint_metrics)
+        metrics, basis = _measure(PERSON_REGISTRY, untracked)
+        failing = [n for n, r in metrics.items() if r.passed is False and n not in READS_TRACKING]
+        if failing:
+            why = f"skipped: the person already fails {', '.join(failing)} (track_if_plausible)"
+            metrics["tracking"] = replace(metrics["tracking"], reason=why)
+        else:
+            metrics = None
+    if metrics is None:
+        metrics, basis = _measure(PERSON_REGISTRY, inputs)
     motion = inputs.motion
     return PersonReport(person=inputs.person, name=motion.name, frames=motion.num_frames,
                         fps=motion.fps, metrics=metrics, basis=basis,
