@@ -8,7 +8,8 @@ and alternating which runs first so both see the same load:
   physical floor of any tracker);
 * the previous default planner (:data:`PREVIOUS`: 128 samples over 0.45 s, a 4 ms planning
   step, a replan every 20 ms) and a new one (``--new``: :data:`simenv.control.FAST` by
-  default, or the shipped default :class:`simenv.control.MPCConfig`), both through
+  default, the shipped default :class:`simenv.control.MPCConfig`, or ``screen``: the
+  default with ``screen_fraction`` a third), both through
   :func:`simenv.plausibility.tracking.track` with the scorer's attempts (``--attempts``,
   3 by default: the further ones plan over ``retry_horizon_s``).
 
@@ -55,7 +56,7 @@ from simenv.plausibility.tracking import TrackingResult, track  # noqa: E402
 #: The planner shipped before issue 35 (2026-12-04 to 12-07): every setting it changed.
 PREVIOUS = replace(MPCConfig(), n_samples=128, timestep_factor=2, antithetic=False)
 #: The planners ``--new`` names: the shipped default and the quarter-cost preset.
-NEW = {"default": MPCConfig(), "fast": FAST}
+NEW = {"default": MPCConfig(), "fast": FAST, "screen": MPCConfig(screen_fraction=1 / 3)}
 
 
 def _record(tr: TrackingResult, dt: float) -> dict[str, float | bool]:

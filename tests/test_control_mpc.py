@@ -214,3 +214,28 @@ def test_antithetic_coarse_planning_is_seeded_and_thread_independent(walk_2s_ret
     np.testing.assert_array_equal(runs[0].sim_keypoints, runs[1].sim_keypoints)
     assert not np.array_equal(runs[0].sim_keypoints[-1], runs[2].sim_keypoints[-1])
     assert runs[0].success and runs[0].rollout_steps == runs[1].rollout_steps
+
+
+def test_a_screened_replan_prices_its_survivors_as_a_whole_rollout_would(
+        walk_2s_retargeted) -> None:
+    """``screen_fraction``: every sample rolls a third of the horizon, the cheaper half the
+    rest from where it stopped. The continued rollouts cost exactly what whole ones do (the
+    same physics), the others never win (here the cheapest whole rollout is among the
+    survivors), and the rolled-out steps drop to N H (1/3 + 2/3 / 2)."""
+    ref = TrackingReference.from_retarget(walk_2s_retargeted, max_seconds=0.3)
+    costs, steps = {}, {}
+    for name, cfg in (("whole", QUICK), ("screened", replace(QUICK, screen_fraction=1 / 3))):
+        with TrackingMPC(walk_2s_retargeted.humanoid, ref, cfg) as mpc:
+            data = mujoco.MjData(mpc.model)
+            mpc.reset(data)
+            mpc.plan(data, 0)
+            costs[name], steps[name] = mpc.last_costs.copy(), mpc.rollout_steps
+    kept = np.isfinite(costs["screened"])
+    assert kept.sum() == QUICK.n_samples // 2
+    np.testing.assert_allclose(costs["screened"][kept], costs["whole"][kept], rtol=1e-9)
+    assert kept[np.argmin(costs["whole"])]
+    horizon = steps["whole"] // QUICK.n_samples
+    h1 = round(horizon / 3)
+    assert steps["screened"] == QUICK.n_samples * h1 + QUICK.n_samples // 2 * (horizon - h1)
+    with pytest.raises(PhysicsError, match="screen_fraction"):
+        MPCConfig(screen_fraction=1.0)

@@ -120,6 +120,11 @@ class MPCConfig:
             than one per step is cheaper but unreliable: on walk 02_01 one, three or twelve
             of FAST's 56 steps made the body drift further from the plan than no feedback
             did in some of four pushes (tests/test_control_feedback.py, docs/tracking_speed.md).
+        screen_fraction: roll every sample over this fraction of the horizon only, and the
+            cheaper half of them (by the cost of that part) on to its end from where they
+            stopped; the other half never wins (:meth:`TrackingMPC.plan`). Rolled-out steps
+            ``N H (f + (1 - f) / 2)``: a third saves a third. None: every sample rolls the
+            whole horizon.
     """
 
     horizon_s: float = 0.45
@@ -147,6 +152,7 @@ class MPCConfig:
     feedback: bool = False
     feedback_r: float = 1e-2
     feedback_knots: int | None = None
+    screen_fraction: float | None = None
 
     def __post_init__(self) -> None:
         checks = {
@@ -160,6 +166,7 @@ class MPCConfig:
             "retry_horizon_s": self.retry_horizon_s is None or self.retry_horizon_s > 0,
             "feedback_r": self.feedback_r > 0,
             "feedback_knots": self.feedback_knots is None or self.feedback_knots >= 1,
+            "screen_fraction": self.screen_fraction is None or 0 < self.screen_fraction < 1,
         }
         for name, ok in checks.items():
             if not ok:
@@ -319,25 +326,67 @@ class TrackingMPC:
         ctrl_steps = ref.window(step, self.horizon * f)[::f]
         controls = self.ctrl_ref[ctrl_steps] + self.spline.evaluate(samples)
         mujoco.mj_getState(self.model, data, self._x0, _STATE)
-        runner = self._pool if self._pool is not None else rollout
-        runner.rollout(self.plan_model, self._datas, self._x0[None], controls,
-                       initial_warmstart=data.qacc_warmstart[None],
-                       state=self._state, sensordata=self._sensor)
-        rows = self._rows
-        costs = self.cost(ctrl_steps[rows], self._sensor[:, rows],
-                          ref.window(step + f, self.horizon * f)[::f][rows],
-                          self._state[:, rows], samples)
+        state_steps = ref.window(step + f, self.horizon * f)[::f]
+        if self.config.screen_fraction is None:
+            self._roll(self._x0[None], controls, data.qacc_warmstart, self._state,
+                       self._sensor)
+            rows = self._rows
+            costs = self.cost(ctrl_steps[rows], self._sensor[:, rows], state_steps[rows],
+                              self._state[:, rows], samples)
+            self.rollout_steps += costs.size * self.horizon
+        else:
+            costs = self._screened(controls, data.qacc_warmstart, ctrl_steps, state_steps,
+                                   samples)
         self.knots = self.sampler.update(samples, costs)
         self.last_costs = costs
         self.plan_step = step
         self.replans += 1
-        self.rollout_steps += costs.size * self.horizon
         if self.feedback is not None:
             before = self.feedback.steps
             self.feedback.update(self._x0, self.ctrl_ref[ctrl_steps]
                                  + self.spline.evaluate(self.knots),
                                  step, data.qacc_warmstart)
             self.rollout_steps += self.feedback.steps - before
+
+    def _roll(self, x0: np.ndarray, controls: np.ndarray, warmstart: np.ndarray,
+              state: np.ndarray, sensor: np.ndarray) -> None:
+        """Roll ``controls`` (N, h, nu) out from ``x0`` (1 or N, nstate) into ``state`` /
+        ``sensor`` (N, h, ...)."""
+        runner = self._pool if self._pool is not None else rollout
+        runner.rollout(self.plan_model, self._datas, x0, controls,
+                       initial_warmstart=warmstart[None], state=state, sensordata=sensor)
+
+    def _screened(self, controls: np.ndarray, warmstart: np.ndarray, ctrl_steps: np.ndarray,
+                  state_steps: np.ndarray, samples: np.ndarray) -> np.ndarray:
+        """(N,) costs of a screened replan (:attr:`MPCConfig.screen_fraction`): every sample
+        rolled over the first ``h1`` planning steps, priced by the cost rows among them; the
+        cheaper half rolled on from their states after those steps and priced over the whole
+        horizon; the others NaN (never win). The cost rows are :attr:`_rows`, the same as
+        unscreened; the first part's are those before ``h1`` (at least its last step)."""
+        N, H = len(controls), self.horizon
+        h1 = min(H - 1, max(1, int(round(H * self.config.screen_fraction))))
+        head_state = np.empty((N, h1, self._state.shape[-1]))
+        head_sensor = np.empty((N, h1, self._sensor.shape[-1]))
+        self._roll(self._x0[None], np.ascontiguousarray(controls[:, :h1]), warmstart,
+                   head_state, head_sensor)
+        rows = self._rows[self._rows < h1]
+        rows = rows if rows.size else np.array([h1 - 1])
+        head = self.cost(ctrl_steps[rows], head_sensor[:, rows], state_steps[rows],
+                         head_state[:, rows], samples)
+        keep = np.argsort(np.where(np.isfinite(head), head, np.inf), kind="stable")[:N // 2]
+        tail_state = np.empty((len(keep), H - h1, self._state.shape[-1]))
+        tail_sensor = np.empty((len(keep), H - h1, self._sensor.shape[-1]))
+        self._roll(np.ascontiguousarray(head_state[keep, -1]),
+                   np.ascontiguousarray(controls[keep, h1:]), warmstart, tail_state,
+                   tail_sensor)
+        full_state = np.concatenate([head_state[keep], tail_state], axis=1)
+        full_sensor = np.concatenate([head_sensor[keep], tail_sensor], axis=1)
+        rows = self._rows
+        costs = np.full(N, np.nan)
+        costs[keep] = self.cost(ctrl_steps[rows], full_sensor[:, rows], state_steps[rows],
+                                full_state[:, rows], samples[keep])
+        self.rollout_steps += N * h1 + len(keep) * (H - h1)
+        return costs
 
     def control(self, data: mujoco.MjData, step: int) -> np.ndarray:
         """(nu,) servo targets for physics step ``step``, replanning when due."""
