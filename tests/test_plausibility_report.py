@@ -115,13 +115,13 @@ def test_track_if_plausible_skips_the_tracking_of_a_failing_person_only(walk):
 
     config = ScoreConfig(joint_limits=False, tracking_assisted_detail=False,
                          mpc=replace(FAST, attempts=1), track_if_plausible=True)
-    sunk = score(_lowered(walk.slice(0, 60), 0.10), config=config).people[0]
+    sunk = score(_lowered(walk.slice(0, 24), 0.10), config=config).people[0]
     assert sunk.verdict == "implausible"
     tracking = sunk.metrics["tracking"]
     assert tracking.passed is None and tracking.reason.startswith("skipped: ")
     assert "ground_penetration" in tracking.reason
     assert sunk.metrics["root_residual"].passed is not None  # the inferred residual
-    clean = score(walk.slice(0, 30), config=config).people[0]
+    clean = score(walk.slice(0, 12), config=config).people[0]
     assert clean.metrics["tracking"].reason is None
     assert clean.metrics["tracking"].passed is not None
 
