@@ -25,14 +25,11 @@ settings.load_profile(os.environ.get("SIMENV_HYPOTHESIS", "ci"))
 #: and recipes take 3-6 min each, the others 1-2 min). They go to the workers first, so that
 #: no long file starts near the end and runs alone while the other workers idle
 #: (longest-processing-time-first; `make test` keeps this order with --no-loadscope-reorder,
-#: where xdist would otherwise hand out the files with the most tests first). The two
-#: plausibility-report files come right after the README's so that the worker not running
-#: the recipes takes both: they share the session's 30-s physics run of the walk
-#: (``walk_1s_report``), which each worker that needs it computes once.
+#: where xdist would otherwise hand out the files with the most tests first).
 LONGEST_FILES = (
-    "test_readme_recipes.py", "test_readme.py",
-    "test_plausibility_html_report.py", "test_plausibility_report.py", "test_rehearsal.py",
+    "test_readme_recipes.py", "test_readme.py", "test_rehearsal.py",
     "test_eval_interaction.py", "test_agents_seat.py", "test_agents_window_open.py",
+    "test_plausibility_html_report.py", "test_plausibility_report.py",
     "test_recognition_protocols.py", "test_covariance.py", "test_cli.py", "test_models.py",
 )
 
