@@ -46,7 +46,7 @@ import json
 import os
 import tempfile
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -308,12 +308,43 @@ def _outcomes(readings: Sequence[StreamReading],
             if d.stage is not Stage.NONE:
                 decided.append((d.index, d.stage.value, r.ticks_s[t]))
         greets = [(float(t), stage) for c, stage, t in decided if c == k]
-        group = "greet_clips" if r.label == greet else \
-            "idle_clips" if r.label == "idle" else "other_clips"
-        out.append(_Outcome(group, greets[0] if greets else None,
+        out.append(_Outcome(outcome_group(r.label, greet), greets[0] if greets else None,
                             labels[decided[0][0]] == r.label if decided else None,
                             r.duration_s))
     return out
+
+
+def outcome_group(label: str, greet: str = GREET_LABEL) -> str:
+    """The group a clip of ``label`` counts in: ``greet_clips``, ``idle_clips`` or
+    ``other_clips``."""
+    return "greet_clips" if label == greet else "idle_clips" if label == "idle" \
+        else "other_clips"
+
+
+def greeting_rates(counts: Mapping[str, Sequence[int]], delays: Sequence[float],
+                   before_end: int) -> dict[str, Any]:
+    """The loop's counts with their rates and timing.
+
+    Args:
+        counts: per group of :func:`outcome_group`, [greeted, clips].
+        delays: per greeted wave, its decision time, s after the clip's start.
+        before_end: how many of those were decided before their clip ended.
+
+    Returns:
+        ``counts`` and ``greeted_rate``, ``other_greet_rate``, ``idle_greet_rate``,
+        ``false_greet_rate`` (other + idle), ``decision_after_onset_s`` (median, p90),
+        ``decided_before_end`` (share of the greeted waves).
+    """
+    (a, n), (b, m), (c, q) = (counts[g] for g in _GROUPS)
+    return {**counts,
+            "greeted_rate": round(a / max(n, 1), 4),
+            "other_greet_rate": round(b / max(m, 1), 4),
+            "idle_greet_rate": round(c / max(q, 1), 4),
+            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
+            "decision_after_onset_s": {
+                "median": round(float(np.median(delays)), 3) if delays else None,
+                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
+            "decided_before_end": round(before_end / max(len(delays), 1), 4)}
 
 
 def _summary(outcomes: Sequence[_Outcome]) -> dict[str, Any]:
@@ -326,17 +357,7 @@ def _summary(outcomes: Sequence[_Outcome]) -> dict[str, Any]:
     for o in waves:
         stages[o.greet[1]] += 1
     decided = [o.first_right for o in outcomes if o.first_right is not None]
-    (a, n), (b, m), (c, q) = (counts[g] for g in _GROUPS)
-    return {**counts,
-            "greeted_rate": round(a / max(n, 1), 4),
-            "other_greet_rate": round(b / max(m, 1), 4),
-            "idle_greet_rate": round(c / max(q, 1), 4),
-            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
-            "decision_after_onset_s": {
-                "median": round(float(np.median(delays)), 3) if delays else None,
-                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
-            "decided_before_end": round(sum(o.greet[0] < o.duration_s for o in waves)
-                                        / max(len(waves), 1), 4),
+    return {**greeting_rates(counts, delays, sum(o.greet[0] < o.duration_s for o in waves)),
             "stages": stages,
             "decided_right": round(sum(decided) / max(len(decided), 1), 4)}
 
@@ -404,5 +425,5 @@ def cross_fitted_outcomes(readings: Sequence[StreamReading], fold_of: Callable[[
 
 __all__ = ["AVATAR_CODE", "CACHE_ENV", "FALSE_GREET_TARGET", "GREET_LABEL", "THRESHOLD_GRID",
            "TICK_FRAMES", "StreamReading", "avatar_cache_dir", "avatar_clips",
-           "choose_threshold", "cross_fitted_outcomes", "loop_outcomes", "stream_readings",
-           "tick_frames"]
+           "choose_threshold", "cross_fitted_outcomes", "greeting_rates", "loop_outcomes",
+           "outcome_group", "stream_readings", "tick_frames"]

@@ -51,7 +51,13 @@ import numpy as np
 
 from simenv.core.errors import SimenvError
 from simenv.data.gestures import GESTURE15_JOINTS, GestureClip
-from simenv.perception.protocol import GREET_LABEL, TICK_FRAMES, tick_frames
+from simenv.perception.protocol import (
+    GREET_LABEL,
+    TICK_FRAMES,
+    greeting_rates,
+    outcome_group,
+    tick_frames,
+)
 
 _J = {name: k for k, name in enumerate(GESTURE15_JOINTS)}
 #: (shoulder, wrist) joint indices of each hand in ``gesture15``.
@@ -319,8 +325,7 @@ def rule_outcomes(clips: Sequence[GestureClip], fires: Sequence[tuple[np.ndarray
     groups = {"greet_clips": [0, 0], "other_clips": [0, 0], "idle_clips": [0, 0]}
     delays, before_end = [], 0
     for clip, (ticks_s, fired) in zip(clips, fires, strict=True):
-        group = "greet_clips" if clip.label == greet else \
-            "idle_clips" if clip.label == "idle" else "other_clips"
+        group = outcome_group(clip.label, greet)
         groups[group][1] += 1
         if fired.any():
             groups[group][0] += 1
@@ -328,15 +333,7 @@ def rule_outcomes(clips: Sequence[GestureClip], fires: Sequence[tuple[np.ndarray
                 t = float(ticks_s[np.argmax(fired)])
                 delays.append(t)
                 before_end += t < clip.num_frames / TICK_FRAMES
-    (a, n), (b, m), (c, q) = groups.values()
-    return {**groups, "greeted_rate": round(a / max(n, 1), 4),
-            "other_greet_rate": round(b / max(m, 1), 4),
-            "idle_greet_rate": round(c / max(q, 1), 4),
-            "false_greet_rate": round((b + c) / max(m + q, 1), 4),
-            "decision_after_onset_s": {
-                "median": round(float(np.median(delays)), 3) if delays else None,
-                "p90": round(float(np.percentile(delays, 90)), 3) if delays else None},
-            "decided_before_end": round(before_end / max(len(delays), 1), 4)}
+    return greeting_rates(groups, delays, before_end)
 
 
 __all__ = ["HANDS", "HalfSwings", "WaveReading", "WaveRule", "half_swings", "read_window",
