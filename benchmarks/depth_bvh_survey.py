@@ -40,14 +40,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from depth_camera_profiles import STRENGTH_MAX, STRONG, Person, failed
+from depth_camera_profiles import Person, corruptions, failed
 from doc_sections import replace_section
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.core.errors import SimenvError
 from simenv.io.loader import load
-from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES
-from simenv.plausibility.profiles import detect_source, profile_for
+from simenv.plausibility.profiles import Profile, detect_source, profile_for
 
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "plausibility.md"
@@ -109,25 +108,18 @@ def judge(path: Path) -> tuple[dict[str, Any], Person | None]:
 
 def corruption_counts(people: list[Person]) -> dict[str, dict[str, Any]]:
     """Per corruption and level: copies of the inside people, outside their profile, caught
-    by the targeted metric (each judged by its own detected profile)."""
+    by the targeted metric (:func:`depth_camera_profiles.corruptions`, each person judged by
+    the profile ``simenv score`` picks for it)."""
+    by_profile: dict[str, tuple[Profile, list[Person]]] = {}
+    for p in people:
+        profile = profile_for(detect_source(p.motion), p.motion.fps)
+        by_profile.setdefault(profile.name, (profile, []))[1].append(p)
     out: dict[str, dict[str, Any]] = {}
-    for name, c in CORRUPTIONS.items():
-        for level, strength in (("moderate", c.moderate),
-                                ("strong", min(STRONG * c.moderate, STRENGTH_MAX[name]))):
-            made = outside = caught = 0
-            for p in people:
-                if p.motion.num_frames < MIN_FRAMES:
-                    continue
-                try:
-                    bad = c.fn(p.motion, strength, seed=0)
-                except SimenvError:
-                    continue
-                made += 1
-                f = failed(bad, profile_for(detect_source(p.motion), p.motion.fps))
-                outside += bool(f)
-                caught += any(t in f for t in c.targets)
-            out[f"{name}/{level}"] = {"strength": strength, "copies": made, "outside": outside,
-                                      "caught": caught, "targets": list(c.targets)}
+    for profile, group in by_profile.values():
+        for key, c in corruptions(group, profile).items():
+            total = out.setdefault(key, {**c, "copies": 0, "outside": 0, "caught": 0})
+            for field in ("copies", "outside", "caught"):
+                total[field] += c[field]
     return out
 
 
