@@ -25,7 +25,7 @@ once per clip, by the caller that builds the inputs.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from functools import cached_property
@@ -139,6 +139,13 @@ class _Memo:
         if key not in self._results:
             self._results[key] = metric.compute(self)
         return self._results[key]
+
+    def reuse(self, other: _Memo, metrics: Iterable[Metric]) -> None:
+        """Take ``other``'s results of ``metrics``, computed on the same inputs under a
+        configuration that does not change them (only the tracking switch differs)."""
+        for metric in metrics:
+            if id(metric) in other._results:
+                self._results[id(metric)] = other._results[id(metric)]
 
 
 class PairInputs(_Memo):

@@ -315,7 +315,8 @@ def _score_person(inputs: PersonInputs) -> PersonReport:
         if failing:
             why = f"skipped: the person already fails {', '.join(failing)} (track_if_plausible)"
             metrics["tracking"] = replace(metrics["tracking"], reason=why)
-        else:
+        else:  # track it; what the untracked pass measured stands
+            inputs.reuse(untracked, [m for m in PERSON_REGISTRY if m.name not in READS_TRACKING])
             metrics = None
     if metrics is None:
         metrics, basis = _measure(PERSON_REGISTRY, inputs)
