@@ -46,6 +46,7 @@ from simenv.core.errors import MotionError
 from simenv.core.joint_map import sensor_family
 from simenv.core.motion import Interaction, Motion
 from simenv.core.skeletons import Skeleton
+from simenv.io.floor import FILE_FLOOR_FORMATS
 
 #: Camera (x left, y up, z forward) -> Z-up axes: ``p_zup = KINECT_TO_ZUP @ p_cam``.
 KINECT_TO_ZUP = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
@@ -385,10 +386,6 @@ def world_motion(
 #: (``x`` left, ``y`` up, ``z`` forward): ``(X, Y, Z) -> (X, Z, -Y)``, a proper rotation.
 ZUP_TO_CAMERA = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
-#: ``metadata["format"]`` values a reader takes the file's own frame for (no floor estimate).
-FILE_FRAME_FORMATS = frozenset({"bvh", "asf_amc", "joint_csv"})
-
-
 #: A sensor-named file whose estimated floor lies within these of level and of z = 0 is
 #: already in a world frame and is left as it is (the estimate's scatter on levelled real
 #: Kinect clips: tilt < 3 deg, floor < 5 cm off).
@@ -416,7 +413,7 @@ def level_sensor_frame(loaded: Motion | Interaction) -> Motion | Interaction:
     """
     people = list(loaded.people) if isinstance(loaded, Interaction) else [loaded]
     meta = people[0].metadata
-    if (str(meta.get("format", "")).lower() not in FILE_FRAME_FORMATS or "camera_frame" in meta
+    if (str(meta.get("format", "")).lower() not in FILE_FLOOR_FORMATS or "camera_frame" in meta
             or sensor_family(people[0]) is None):
         return loaded
     # The file's own axes are the camera's: undo the reader's axis change (none when it read
