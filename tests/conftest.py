@@ -34,6 +34,32 @@ LONGEST_FILES = (
 )
 
 
+#: Test files that share a costly session fixture (named here), scheduled as one unit so that
+#: one worker builds it once: with ``--dist loadfile`` each file is a unit and two files on two
+#: workers would build it twice (the shipped planner's run of the walk: 28 s of CPU each).
+SHARED_FIXTURE_FILES = {
+    "test_plausibility_html_report.py": "walk_1s_report",
+    "test_plausibility_report.py": "walk_1s_report",
+}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """``--dist loadfile``, with the files of :data:`SHARED_FIXTURE_FILES` grouped by the
+    fixture they share (xdist's own ``loadgroup`` does not group under pytest 9.2:
+    pytest-dev/pytest-xdist#1386); any other mode is xdist's."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class SharedFixtureScheduling(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = super()._split_scope(nodeid)
+            return SHARED_FIXTURE_FILES.get(Path(path).name, path)
+
+    return SharedFixtureScheduling(config, log)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The longest files first (:data:`LONGEST_FILES`); every file's tests stay together and
     in their order, the other files in collection order."""
@@ -134,8 +160,9 @@ def walk_2s_retargeted(walk_2s):
 @pytest.fixture(scope="session")
 def walk_1s_report():
     """:func:`simenv.score` of the bundled real CMU walk 02_01, first 1 s (120 frames at
-    120 fps), with the shipped planner, once per test session (xdist worker): the report and
-    HTML-page tests judge the same run; none of them modifies it."""
+    120 fps), with the shipped planner, once per test session: the report and HTML-page tests
+    judge the same run (one worker runs both files: :data:`SHARED_FIXTURE_FILES`); none of
+    them modifies it."""
     from simenv.assets import WALK, asset_path
 
     return simenv.score(simenv.load(asset_path(WALK)).slice(0, 120))
