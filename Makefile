@@ -85,8 +85,8 @@ demo-check: $(STAMP)
 # The suite runs on every core, at most 4 (pytest-xdist workers; each holds MuJoCo, torch and
 # the corpus in memory), one test file per worker at a time so that a file's shared fixtures (a
 # retargeted clip, a trained model, a physics run) are built once (files sharing a session
-# fixture run as one unit: tests/conftest.py SHARED_FIXTURE_FILES), the longest files first (tests/conftest.py
-# LONGEST_FILES, kept in that order by --no-loadscope-reorder). TEST_WORKERS=1 runs it on one.
+# fixture run as one unit: tests/conftest.py SHARED_FIXTURE_FILES), the longest files first
+# (tests/conftest.py LONGEST_FILES, kept in that order by --no-loadscope-reorder). TEST_WORKERS=1 runs it on one.
 # numpy's OpenBLAS and torch's OpenMP get the cores left per worker: with two workers on two
 # cores each spinning two BLAS threads, the room-descriptor protocol test took 64 s instead of 25.
 NPROC := $(shell nproc 2>/dev/null || echo 2)
