@@ -35,6 +35,13 @@ Solver (all frames at once, numpy):
    previous iterate (a Jacobi sweep). Converged frames leave the active set.
 3. **Floor**: the same solver on the frames whose sole boxes dip below the
    floor level, moving only the leg joints, with the one-sided floor term.
+
+A skeleton that maps both hips but no pelvis (OpenNI / NiTE and Florence 3D hang the
+hips from the torso centre) gets its pelvis keypoint at the hips' midpoint on every
+frame (:func:`with_derived_pelvis`), as H36M's pelvis sits on its hip line; the body
+is fitted to that motion and the repair is listed in ``RetargetResult.repairs``. The
+derivation stays here, not in the canonical mapping: the joint-level metrics judge the
+joints the file has, not a point made from two of them.
 """
 
 from __future__ import annotations
@@ -65,6 +72,7 @@ from simenv.body.ik import (
 )
 from simenv.core.errors import RetargetError
 from simenv.core.motion import Interaction, Motion
+from simenv.core.skeletons import Skeleton
 
 #: Keypoints without which the root cannot be placed.
 REQUIRED_KEYPOINTS = ("pelvis", "left_hip", "right_hip")
@@ -134,6 +142,10 @@ class RetargetResult(_ResidualStats):
         seconds: solver wall time.
         iterations: Levenberg-Marquardt iterations run.
         name: motion name.
+        notes: what the body fit assumed (keypoints it lacked, see
+            :func:`simenv.body.humanoid.fit_humanoid`).
+        repairs: what retargeting changed in the motion before fitting it (the
+            ``metadata["repairs"]`` it added, e.g. a pelvis derived at the hips' midpoint).
     """
 
     qpos: np.ndarray
@@ -146,6 +158,7 @@ class RetargetResult(_ResidualStats):
     iterations: int
     name: str = "motion"
     notes: list[str] = field(default_factory=list)
+    repairs: list[str] = field(default_factory=list)
 
     @property
     def num_frames(self) -> int:
@@ -172,6 +185,7 @@ class RetargetResult(_ResidualStats):
             "height_m": self.humanoid.dims.height,
             "dimensions": self.humanoid.dims.to_dict(),
             "notes": list(self.notes),
+            "repairs": list(self.repairs),
         }
 
 
@@ -282,23 +296,51 @@ def _problem(humanoid: Humanoid) -> _Problem:
     return prob
 
 
+#: Name of the joint :func:`with_derived_pelvis` adds.
+DERIVED_PELVIS_JOINT = "pelvis (hips' midpoint)"
+
+
+def with_derived_pelvis(motion: Motion) -> Motion:
+    """``motion`` with a pelvis joint at its hips' midpoint when its skeleton maps both
+    hips but no pelvis (OpenNI / NiTE, Florence 3D); ``motion`` itself otherwise.
+
+    The added joint (:data:`DERIVED_PELVIS_JOINT`, a root of its own: no rotation channel
+    moves it) holds ``(left_hip + right_hip) / 2`` on every frame, metres, and is mapped to
+    the canonical pelvis; ``metadata["repairs"]`` gains a note naming the two joints.
+    Rotations (T, J, 4) are dropped: the new joint has none.
+    """
+    sk = motion.skeleton
+    c = sk.canonical
+    if "pelvis" in c or not {"left_hip", "right_hip"} <= c.keys():
+        return motion
+    left, right = c["left_hip"], c["right_hip"]
+    hips = motion.positions[:, [sk.index(left), sk.index(right)]].astype(np.float64)
+    mid = hips.mean(axis=1, keepdims=True)
+    width = np.median(np.linalg.norm(hips[:, 0] - hips[:, 1], axis=-1))
+    skeleton = Skeleton(sk.name, (*sk.joint_names, DERIVED_PELVIS_JOINT), (*sk.parents, -1),
+                        {**c, "pelvis": DERIVED_PELVIS_JOINT})
+    note = (f"no pelvis joint: the pelvis keypoint is the midpoint of {left} and {right} on "
+            f"every frame (hips {1000 * width:.0f} mm apart, median; simenv.body.retarget)")
+    meta = dict(motion.metadata)
+    meta["repairs"] = [*meta.get("repairs", []), note]
+    positions = np.concatenate([motion.positions, mid.astype(motion.positions.dtype)], axis=1)
+    return Motion(positions, motion.fps, skeleton, motion.name, meta)
+
+
 def _canonical(motion: Motion) -> Motion:
+    """``motion`` on the canonical keypoints; it must map the pelvis and both hips (pass it
+    through :func:`with_derived_pelvis` first)."""
     canon = motion.to_canonical()
     missing = [k for k in REQUIRED_KEYPOINTS if k not in canon.skeleton.joint_names]
     if missing:
         source = motion.metadata.get("source")
-        if missing == ["pelvis"]:  # both hips mapped: the layout has no pelvis joint to map
-            way_out = ("The skeleton maps both hips but has no pelvis joint (OpenNI / NiTE "
-                       "layouts hang the hips from the torso centre): add a pelvis joint at the "
-                       "hips' midpoint to the motion to fit a body")
-        else:
-            way_out = (f"Map them yourself: `simenv info {source or 'FILE'} --write-joint-map "
-                       "map.toml` writes a map to edit, then pass --joint-map map.toml "
-                       "(Python: simenv.load(path, joint_map='map.toml'))")
         raise RetargetError(
             f"motion {motion.name!r} (skeleton {motion.skeleton.name!r}) lacks required "
-            f"keypoint(s) {missing}; retargeting needs {list(REQUIRED_KEYPOINTS)}. Its joints "
-            f"are {', '.join(motion.skeleton.joint_names)}. {way_out}",
+            f"keypoint(s) {missing}; retargeting needs {list(REQUIRED_KEYPOINTS)} (with both "
+            f"hips and no pelvis joint, the hips' midpoint is the pelvis). Its joints are "
+            f"{', '.join(motion.skeleton.joint_names)}. Map them yourself: `simenv info "
+            f"{source or 'FILE'} --write-joint-map map.toml` writes a map to edit, then pass "
+            "--joint-map map.toml (Python: simenv.load(path, joint_map='map.toml'))",
             source=source, field=missing[0])
     return canon
 
@@ -580,6 +622,9 @@ def retarget_motion(motion: Motion, humanoid: Humanoid | None = None,
                     options: RetargetOptions | None = None) -> RetargetResult:
     """Retarget one person (see :func:`retarget`)."""
     opts = options or RetargetOptions()
+    derived = with_derived_pelvis(motion)
+    repairs = [] if derived is motion else derived.metadata["repairs"][-1:]
+    motion = derived
     canon = _canonical(motion)
     t0 = time.perf_counter()
     notes: list[str] = []
@@ -624,7 +669,8 @@ def retarget_motion(motion: Motion, humanoid: Humanoid | None = None,
     res = np.linalg.norm(pts[:, sel] - targets[:, sel], axis=-1).astype(np.float32)
     return RetargetResult(qpos=qpos, residuals=res, keypoint_names=tuple(names),
                           targets=pos.astype(np.float32), humanoid=humanoid, fps=motion.fps,
-                          seconds=seconds, iterations=iters, name=motion.name, notes=notes)
+                          seconds=seconds, iterations=iters, name=motion.name, notes=notes,
+                          repairs=repairs)
 
 
 def retarget(motion: Motion | Interaction, humanoid: Humanoid | None = None,
@@ -632,8 +678,10 @@ def retarget(motion: Motion | Interaction, humanoid: Humanoid | None = None,
     """Retarget a motion (or both people of an interaction) onto MuJoCo humanoids.
 
     Args:
-        motion: a :class:`Motion` with at least the canonical pelvis and hips, or
-            an :class:`Interaction` (each person gets a body fitted to them).
+        motion: a :class:`Motion` with at least the canonical hips and pelvis (a
+            skeleton with both hips and no pelvis gets one at their midpoint,
+            :func:`with_derived_pelvis`), or an :class:`Interaction` (each person gets a
+            body fitted to them).
         humanoid: the body to use for a single motion; default: fitted to the
             motion with :func:`simenv.body.humanoid.fit_humanoid`.
         **options: fields of :class:`RetargetOptions` (e.g. ``iterations=8``).
