@@ -144,7 +144,8 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
         One record per person (``file``, ``person``, ``verdict``, ``score``,
         ``metrics``, ``violations``, ... see
         :meth:`PlausibilityReport.to_records`), plus ``seconds``, ``repairs``
-        (the reader's repairs, when it made any), and ``clip``
+        (the reader's repairs and the retargeting's, e.g. a pelvis derived at the hips'
+        midpoint, when they made any), and ``clip``
         (0, 1, ...) when the file holds several clips (e.g. an SBU file with
         two segments, a gesture session), and ``reference`` (where the person
         falls in ``job.reference``) when a reference is given; or, when the
@@ -168,7 +169,7 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
     records = []
     for i, (clip, report) in enumerate(zip(clips, reports, strict=True)):
         recs = report.to_records()
-        repairs = clip.metadata.get("repairs")
+        repairs = clip.metadata.get("repairs", [])
         if job.report_dir is not None:
             from simenv.plausibility.html_report import write_report  # MuJoCo, OpenCV
 
@@ -178,11 +179,13 @@ def score_target(target: str | Path, job: ScoreJob = ScoreJob()) -> list[dict[st
                 # Absolute: the index links it relative to its own folder, whatever the
                 # working directory (a relative report folder would otherwise be doubled).
                 rec["report"] = str(page.absolute())
-        for rec in recs:
+        for rec, person in zip(recs, report.people, strict=True):
             rec["file"] = str(target)
             rec["seconds"] = round(report.seconds, 3)
-            if repairs:
-                rec["repairs"] = list(repairs)
+            # The reader's repairs, then what retargeting changed to fit the body.
+            body = person.retargeted.repairs if person.retargeted is not None else []
+            if repairs or body:
+                rec["repairs"] = [*repairs, *body]
             if len(reports) > 1:
                 rec["clip"] = i
         records.extend(recs)
