@@ -55,7 +55,11 @@ loss (the velocity between the first two generated frames, as in the authors' co
 ``x_0..x_{T-2}`` (plus Gaussian noise of :attr:`InterFormerConfig.input_noise` metres,
 ours, see below) and predicts ``x_1..x_{T-1}`` in one pass. **Inference** is
 autoregressive from the given ``x_0``: each generated frame is appended to the decoder's
-input. **Long generation** (T beyond the trained window W): the sequence is generated in
+input. A decoder step's tokens depend on earlier steps only through the causal temporal
+attention, so generation decodes only the newest frame at each step
+(:meth:`InterFormer.decode_steps`), keeping the earlier steps' temporal keys and values
+per layer (:class:`DecoderCache`); the result equals re-decoding the whole sequence.
+**Long generation** (T beyond the trained window W): the sequence is generated in
 chunks of W frames; each new chunk starts ``chunk_context`` frames before the previous
 chunk's end, is re-normalised in the actor frame of its own first frame
 (:func:`~simenv.data.interaction_data.actor_frame`), takes those last generated frames as the
@@ -221,12 +225,22 @@ class Attention(nn.Module):
                 bias: torch.Tensor | None = None) -> torch.Tensor:
         """``x`` (N, L, D) queries, ``memory`` (N, S, D) keys/values, ``bias``
         broadcastable to (N, H, L, S) (``-inf`` = forbidden). Returns (N, L, D)."""
-        n, length, dim = x.shape
-        dh = dim // self.heads
-        q = self.q(x).view(n, length, self.heads, dh).transpose(1, 2)
-        k, v = (self.kv(memory).view(n, memory.shape[1], 2, self.heads, dh)
+        return self.attend(x, *self.keys_values(memory), bias)
+
+    def keys_values(self, memory: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(N, S, D) memory -> per-head keys and values, each (N, H, S, D / H)."""
+        n, length, dim = memory.shape
+        k, v = (self.kv(memory).view(n, length, 2, self.heads, dim // self.heads)
                 .permute(2, 0, 3, 1, 4))
-        att = nn.functional.scaled_dot_product_attention(q, k, v, attn_mask=bias)
+        return k, v
+
+    def attend(self, x: torch.Tensor, keys: torch.Tensor, values: torch.Tensor,
+               bias: torch.Tensor | None = None) -> torch.Tensor:
+        """``x`` (N, L, D) queries over ``keys``/``values`` (N, H, S, D / H) of
+        :meth:`keys_values`; ``bias`` as in :meth:`forward`. Returns (N, L, D)."""
+        n, length, dim = x.shape
+        q = self.q(x).view(n, length, self.heads, dim // self.heads).transpose(1, 2)
+        att = nn.functional.scaled_dot_product_attention(q, keys, values, attn_mask=bias)
         return self.drop(self.out(att.transpose(1, 2).reshape(n, length, dim)))
 
 
@@ -245,6 +259,49 @@ def _temporal(att: Attention, h: torch.Tensor, memory: torch.Tensor,
     q = h.transpose(1, 2).reshape(n * j, t, d)
     kv = memory.transpose(1, 2).reshape(n * j, memory.shape[1], d)
     return att(q, kv, bias).view(n, j, t, d).transpose(1, 2)
+
+
+class TemporalCache:
+    """The keys and values of one decoder layer's causal temporal attention for the decoder
+    steps computed so far, in a buffer of ``capacity`` steps filled step by step (a step's
+    keys never change once computed: the decoder is causal and otherwise per frame)."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.steps = 0
+        self._keys: torch.Tensor | None = None
+        self._values: torch.Tensor | None = None
+
+    def extend(self, keys: torch.Tensor, values: torch.Tensor
+               ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Append the (N J, H, L, d_h) keys and values of L new steps; returns those of
+        every step so far, each (N J, H, steps, d_h).
+
+        Raises:
+            MotionError: more steps than ``capacity``.
+        """
+        new = keys.shape[2]
+        if self.steps + new > self.capacity:
+            raise MotionError(f"decoder cache holds {self.capacity} steps; {self.steps} "
+                              f"cached + {new} new", field="reactor_in")
+        if self._keys is None or self._values is None:
+            shape = (*keys.shape[:2], self.capacity, keys.shape[3])
+            self._keys, self._values = keys.new_empty(shape), values.new_empty(shape)
+        self._keys[:, :, self.steps:self.steps + new] = keys
+        self._values[:, :, self.steps:self.steps + new] = values
+        self.steps += new
+        return self._keys[:, :, :self.steps], self._values[:, :, :self.steps]
+
+
+class DecoderCache:
+    """State of incremental decoding (:meth:`InterFormer.decode_steps`): the steps decoded
+    so far, the last reactor input frame (N, J, 3) (metres, for the next step's velocity
+    feature) and one :class:`TemporalCache` per decoder layer."""
+
+    def __init__(self, layers: int, capacity: int) -> None:
+        self.steps = 0
+        self.last: torch.Tensor | None = None
+        self.layers = [TemporalCache(capacity) for _ in range(layers)]
 
 
 def _ffn(dim: int, hidden: int, dropout: float) -> nn.Sequential:
@@ -286,26 +343,50 @@ class DecoderBlock(nn.Module):
         self.ffn = _ffn(dim, ffn, dropout)
 
     def forward(self, h: torch.Tensor, memory: torch.Tensor, adjacency_bias: torch.Tensor,
-                causal_bias: torch.Tensor, distance: torch.Tensor) -> torch.Tensor:
-        """``h`` (N, L, J, D) decoder tokens; ``memory`` (N, T, J, D) encoder output,
-        T >= L + 1; ``causal_bias`` (L, L); ``distance`` (N, L, J, J) the unscaled
-        interaction-distance term of step k (reactor frame k, actor frame k + 1)."""
-        n, length, j, _ = h.shape
+                distance: torch.Tensor, cache: TemporalCache | None = None) -> torch.Tensor:
+        """Decoder steps S..S+L-1.
+
+        Args:
+            h: (N, L, J, D) decoder tokens of the steps.
+            memory: (N, L, J, D) encoder output of the actor frames S+1..S+L (step k
+                reacts to actor frame k + 1).
+            adjacency_bias: (J, J) 0 / -inf.
+            distance: (N, L, J, J) the unscaled interaction-distance term of each step
+                (reactor frame k, actor frame k + 1).
+            cache: keys/values of steps 0..S-1, extended with the new steps' (S = 0 and
+                nothing kept when None).
+
+        Returns:
+            (N, L, J, D) the steps' output tokens.
+        """
+        n, length, j, d = h.shape
         x = self.norms[0](h)
         h = h + _spatial(self.spatial, x, x, adjacency_bias)
-        x = self.norms[1](h)
-        h = h + _temporal(self.temporal, x, x, causal_bias)
-        mem = self.memory_norm(memory)
+        x = self.norms[1](h).transpose(1, 2).reshape(n * j, length, d)
+        keys, values = self.temporal.keys_values(x)
+        if cache is not None:
+            keys, values = cache.extend(keys, values)
+        steps = keys.shape[2]
+        # Step S + i sees steps 0..S + i; one new step sees every cached one.
+        causal = None if length == 1 else torch.full(
+            (length, steps), float("-inf")).triu(steps - length + 1)
+        h = h + (self.temporal.attend(x, keys, values, causal)
+                 .view(n, j, length, d).transpose(1, 2))
         bias = (distance.reshape(n * length, 1, j, j)
                 * self.distance_scale.view(1, -1, 1, 1))
-        h = h + _spatial(self.cross_spatial, self.norms[2](h), mem[:, 1:length + 1], bias)
+        h = h + _spatial(self.cross_spatial, self.norms[2](h), self.memory_norm(memory),
+                         bias)
         return h + self.ffn(self.norms[3](h))
 
 
-def _features(p: torch.Tensor, fps: float) -> torch.Tensor:
-    """(N, T, J, 3) positions -> (N, T, J, 6) ``[position, velocity]`` (m, m/s)."""
+def _features(p: torch.Tensor, fps: float, previous: torch.Tensor | None = None
+              ) -> torch.Tensor:
+    """(N, T, J, 3) positions -> (N, T, J, 6) ``[position, velocity]`` (m, m/s); the first
+    frame's velocity is from ``previous`` (N, J, 3), the frame before, or 0 without it."""
     vel = torch.zeros_like(p)
     vel[:, 1:] = (p[:, 1:] - p[:, :-1]) * fps
+    if previous is not None:
+        vel[:, 0] = (p[:, 0] - previous) * fps
     return torch.cat([p, vel], dim=-1)
 
 
@@ -361,14 +442,45 @@ class InterFormer(CheckpointMixin, nn.Module):
         Returns:
             (N, L, J, 3) predicted reactor frames 1..L, metres.
         """
-        length = reactor_in.shape[1]
-        h = self.reactor_embed(_features(reactor_in, self.config.fps)) \
-            + self.reactor_joints + self.time_pe[:length, None]
-        causal = torch.full((length, length), float("-inf")).triu(1)
-        distance = interaction_distance_bias(reactor_in, actor[:, 1:length + 1],
+        return self.decode_steps(reactor_in, memory, actor)
+
+    def decode_steps(self, reactor_in: torch.Tensor, memory: torch.Tensor,
+                     actor: torch.Tensor, cache: DecoderCache | None = None
+                     ) -> torch.Tensor:
+        """Next-frame predictions of the decoder steps S..S+L-1 after the S steps that
+        ``cache`` holds: equal to rows S..S+L-1 of :meth:`decode` of all L + S frames,
+        computing only the new steps (their tokens depend on earlier steps only through
+        the causal temporal attention, whose keys and values the cache keeps).
+
+        Args:
+            reactor_in: (N, L, J, 3) reactor frames S..S+L-1 (actor frame, m).
+            memory: (N, T, J, D) encoder output of the actor window, T >= S + L + 1.
+            actor: (N, T, J, 3) the actor window.
+            cache: S = 0 without it; else extended with the new steps (from a fresh
+                :class:`DecoderCache` for S = 0).
+
+        Returns:
+            (N, L, J, 3) predicted reactor frames S+1..S+L, metres.
+
+        Raises:
+            MotionError: the actor window ends before frame S + L.
+        """
+        start = 0 if cache is None else cache.steps
+        stop = start + reactor_in.shape[1]
+        if stop >= actor.shape[1] or stop >= memory.shape[1]:
+            raise MotionError(f"decoder steps {start}..{stop - 1} need actor frames up to "
+                              f"{stop}; the window has {min(actor.shape[1], memory.shape[1])}",
+                              field="reactor_in")
+        previous = None if cache is None else cache.last
+        h = self.reactor_embed(_features(reactor_in, self.config.fps, previous)) \
+            + self.reactor_joints + self.time_pe[start:stop, None]
+        distance = interaction_distance_bias(reactor_in, actor[:, start + 1:stop + 1],
                                              self.config.distance_sigma)
-        for block in self.decoder:
-            h = block(h, memory, self.adjacency_bias, causal, distance)
+        for k, block in enumerate(self.decoder):
+            h = block(h, memory[:, start + 1:stop + 1], self.adjacency_bias, distance,
+                      None if cache is None else cache.layers[k])
+        if cache is not None:
+            cache.steps, cache.last = stop, reactor_in[:, -1]
         return reactor_in + OUTPUT_SCALE * self.head(self.out_norm(h))
 
     def forward(self, actor: torch.Tensor, reactor_in: torch.Tensor) -> torch.Tensor:
@@ -390,12 +502,16 @@ class InterFormer(CheckpointMixin, nn.Module):
             (N, T - C, J, 3) generated reactor frames C..T-1.
         """
         a = torch.as_tensor(actor, dtype=torch.float32)
-        seq = torch.as_tensor(prefix, dtype=torch.float32)
         memory = self.encode(a)
-        while seq.shape[1] < a.shape[1]:
-            nxt = self.decode(seq, memory, a)[:, -1:]
-            seq = torch.cat([seq, nxt], dim=1)
-        return seq[:, prefix.shape[1]:].numpy()
+        # Each step decodes only the newest frame (the cache keeps the earlier ones').
+        cache = DecoderCache(len(self.decoder), a.shape[1] - 1)
+        nxt = self.decode_steps(torch.as_tensor(prefix, dtype=torch.float32), memory, a,
+                                cache)[:, -1:]
+        frames = [nxt]
+        while cache.steps + 1 < a.shape[1]:
+            nxt = self.decode_steps(nxt, memory, a, cache)
+            frames.append(nxt)
+        return torch.cat(frames, dim=1).numpy()
 
     def generate(self, actor_window: np.ndarray, reactor_first_frame: np.ndarray
                  ) -> np.ndarray:

@@ -1,6 +1,7 @@
 """InterFormer: the attention masks and the interaction-distance term on toy inputs, the
-reaction-generator protocol (any T, chunked long generation), bad input, checkpoints and
-a short training run on real windows."""
+reaction-generator protocol (any T, chunked long generation), cached (incremental)
+decoding against the full re-decode, bad input, checkpoints and a short training run on
+real windows."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from simenv.core.errors import MotionError
 from simenv.data import interaction_data as idata
 from simenv.models.interformer import (
     Attention,
+    DecoderCache,
     InterFormer,
     InterFormerConfig,
     _spatial,
@@ -240,3 +242,70 @@ def test_shipped_checkpoint_loads_and_generates(recordings) -> None:
     test = windows.subset(idata.split_by_recording(windows).test[:2])
     out = model.generate(test.actor, test.reactor[:, 0])
     assert out.shape == test.reactor.shape and np.isfinite(out).all()
+
+
+# -- cached decoding --------------------------------------------------------------------
+
+
+def _full_redecode_rollout(model: InterFormer, actor: np.ndarray, prefix: np.ndarray
+                           ) -> np.ndarray:
+    """Reference generation within a chunk: every new frame re-decodes the whole sequence
+    so far and keeps the last row (what the cache must reproduce)."""
+    a = torch.as_tensor(actor, dtype=torch.float32)
+    seq = torch.as_tensor(prefix, dtype=torch.float32)
+    with torch.no_grad():
+        memory = model.encode(a)
+        while seq.shape[1] < a.shape[1]:
+            seq = torch.cat([seq, model.decode(seq, memory, a)[:, -1:]], dim=1)
+    return seq[:, prefix.shape[1]:].numpy()
+
+
+@pytest.fixture(scope="module")
+def shipped() -> InterFormer:
+    if not SHIPPED.is_file():
+        pytest.skip("shipped InterFormer not trained yet")
+    return InterFormer.load(SHIPPED)
+
+
+def test_decode_steps_in_blocks_equal_the_full_decode(shipped, recordings) -> None:
+    # Teacher-forced real frames decoded as a 10-frame prefix, then blocks of 3 and 1
+    # steps: every row (features with the previous block's last frame, causal attention
+    # over the cached keys) equals the one-pass decode.
+    model = shipped
+    rec = next(r for r in recordings if r.num_frames >= model.config.window)
+    window = model.config.window
+    a = torch.tensor(rec.actor.positions[None, :window], dtype=torch.float32)
+    b = torch.tensor(rec.reactor.positions[None, :window - 1], dtype=torch.float32)
+    cache = DecoderCache(model.config.decoder_layers, window - 1)
+    with torch.no_grad():
+        memory = model.encode(a)
+        full = model.decode(b, memory, a)
+        cuts = [0, 10, 13, 14, 17, window - 1]
+        rows = [model.decode_steps(b[:, i:j], memory, a, cache)
+                for i, j in zip(cuts[:-1], cuts[1:], strict=True)]
+        assert cache.steps == window - 1
+        np.testing.assert_allclose(torch.cat(rows, dim=1), full, atol=1e-5)
+        with pytest.raises(MotionError, match="need actor frames up to 40") as err:
+            model.decode_steps(b[:, -1:], memory, a, cache)
+    assert err.value.field == "reactor_in"
+
+
+def test_cached_generation_equals_the_full_re_decode(shipped, recordings, monkeypatch
+                                                     ) -> None:
+    # Two of the evaluation's 40-frame windows (one chunk from the given first frame) and
+    # a 90-frame real sequence (three chunks, each continuing from 10 generated frames).
+    model = shipped
+    windows = idata.make_windows(recordings, stride=40)
+    test = windows.subset(idata.split_by_recording(windows).test[:2])
+    rec = next(r for r in recordings if r.num_frames >= 90)
+    long_actor, long_b0 = rec.actor.positions[:90], rec.reactor.positions[0]
+    cached = (model.generate(test.actor, test.reactor[:, 0]),
+              model.generate(long_actor, long_b0))
+    monkeypatch.setattr(model, "_rollout",
+                        lambda actor, prefix: _full_redecode_rollout(model, actor, prefix))
+    full = (model.generate(test.actor, test.reactor[:, 0]),
+            model.generate(long_actor, long_b0))
+    for c, f in zip(cached, full, strict=True):
+        np.testing.assert_allclose(c, f, atol=1e-5)  # metres
+    # The model moves the reactor: the comparison is not between two still poses.
+    assert np.linalg.norm(full[1][-1] - full[1][0], axis=-1).max() > 0.05
