@@ -339,6 +339,48 @@ def test_minimal_rig_whose_spine_carries_the_arms_maps_it_as_the_chest() -> None
     assert "spine" not in mapping.canonical
 
 
+@pytest.mark.parametrize("asset", ["763", "Skeleton_001"])
+def test_motive3_hip_bone_named_after_the_asset_is_the_pelvis(asset: str) -> None:
+    """OptiTrack Motive 3 names a skeleton's hip bone after the asset (a real Gaga dance
+    export: ``763:763``, parent of ``763:Ab`` and ``763:LThigh``; SOURCES.md), a name no
+    convention can hold: the pelvis is where the named hips meet, the rest comes from
+    Motive's names. Built from a real walk (Xia et al.): each Motive bone at the joint the
+    walk's own map gives (the clavicle is the shoulder's parent)."""
+    motion = simenv.load(CONVENTIONS_DIR / "cmu_motionbuilder" / "xia_angry_13_000.bvh")
+    sk = motion.skeleton
+    full = infer_joint_map(sk.joint_names, sk.parents, motion.positions).canonical
+    root = f"{asset}:{asset}"
+    rig = [(root, None, "pelvis"), (f"{asset}:Ab", root, "spine"),
+           (f"{asset}:Chest", f"{asset}:Ab", "chest"), (f"{asset}:Neck", f"{asset}:Chest", "neck"),
+           (f"{asset}:Head", f"{asset}:Neck", "head")]
+    for c in ("L", "R"):
+        s = "left" if c == "L" else "right"
+        rig += [(f"{asset}:{c}Shoulder", f"{asset}:Chest", f"{s}_clavicle"),
+                (f"{asset}:{c}UArm", f"{asset}:{c}Shoulder", f"{s}_shoulder"),
+                (f"{asset}:{c}FArm", f"{asset}:{c}UArm", f"{s}_elbow"),
+                (f"{asset}:{c}Hand", f"{asset}:{c}FArm", f"{s}_wrist"),
+                (f"{asset}:{c}Thigh", root, f"{s}_hip"),
+                (f"{asset}:{c}Shin", f"{asset}:{c}Thigh", f"{s}_knee"),
+                (f"{asset}:{c}Foot", f"{asset}:{c}Shin", f"{s}_ankle"),
+                (f"{asset}:{c}Toe", f"{asset}:{c}Foot", f"{s}_toe")]
+    names = [name for name, _, _ in rig]
+    parents = [-1 if parent is None else names.index(parent) for _, parent, _ in rig]
+
+    def joint(key: str) -> int:
+        if key.endswith("_clavicle"):
+            return sk.parents[sk.index(full[key.replace("_clavicle", "_shoulder")])]
+        return sk.index(full[key])
+
+    mapping = infer_joint_map(names, parents, motion.positions[:, [joint(k) for _, _, k in rig]])
+    assert mapping.convention == "optitrack_motive"
+    assert mapping.canonical["pelvis"] == root
+    assert mapping.how["pelvis"] == HOW_TOPOLOGY
+    for name, _, key in rig[1:]:
+        if not key.endswith(("_clavicle", "chest")):
+            assert mapping.canonical[key] == name, key
+            assert mapping.how[key] == "name (optitrack_motive)", key
+
+
 @needs_data
 def test_user_map_round_trip_through_template(tmp_path: Path) -> None:
     """The template of an unnamed skeleton, edited, maps it: the user's word stands."""

@@ -16,7 +16,8 @@ export) is mapped in three steps, each recorded per keypoint in :class:`JointMap
    centre in Kinect when a ``WristLeft`` exists. A name several joints answer means the one
    above all the others (a rig's helper named like its bone hangs below it), else nothing.
 2. **Topology.** ``chest`` is where the two arm chains leave the spine (the lowest common
-   ancestor of the shoulders); ``spine`` the first joint above the pelvis on the way to it.
+   ancestor of the shoulders); ``spine`` the first joint above the pelvis on the way to it;
+   a ``pelvis`` no name gives is where the two named hips meet.
    Chains must run down the tree (hip above knee above ankle above toe, shoulder above elbow
    above wrist above hand); a keypoint whose joint breaks its chain is dropped, and so is a
    hand or toe farther from its wrist or ankle than the segment above is long, or within a
@@ -149,7 +150,7 @@ CONVENTIONS: tuple[NamingConvention, ...] = (
         "optitrack_motive", "OptiTrack Motive skeletons (often with an actor prefix)",
         pelvis="Hip|Hips", left_hip="LThigh", left_knee="LShin", left_ankle="LFoot",
         left_toe="LToe", spine="Ab", neck="Neck", head="Head", left_shoulder="LUArm",
-        left_elbow="LFArm", left_wrist="LHand"),
+        left_elbow="LFArm", left_wrist="LHand", left_hand="LMiddle1"),
     _convention(
         "rokoko", "Rokoko Studio (Smartsuit) and other Thigh/Shin rigs",
         pelvis="Hips", left_hip="LeftThigh", left_knee="LeftShin", left_ankle="LeftFoot",
@@ -454,6 +455,20 @@ def _check_chains(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
             notes.append(f"{key} -> {canonical[key]} dropped: not below the pelvis {pelvis}")
             del canonical[key]
             how.pop(key, None)
+
+
+def _pelvis_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tree) -> None:
+    """``pelvis`` where the two named hips meet (their lowest common ancestor) when no name
+    gives it. OptiTrack Motive 3 names the hip bone after the skeleton asset (``763:763`` in a
+    real Gaga dance export, its children ``763:Ab``, ``763:LThigh``), so no convention can; the
+    rest-pose step that ran instead took a straight knee for part of the thigh. Not when that
+    joint already stands for another keypoint (OpenNI's hips hang from the torso, the spine)."""
+    left, right = canonical.get("left_hip"), canonical.get("right_hip")
+    if "pelvis" in canonical or left is None or right is None:
+        return
+    hub = tree.lca(tree.index[left], tree.index[right])
+    if hub >= 0 and tree.names[hub] not in canonical.values():
+        canonical["pelvis"], how["pelvis"] = tree.names[hub], HOW_TOPOLOGY
 
 
 def _spine_by_topology(canonical: dict[str, str], how: dict[str, str], tree: _Tree,
@@ -775,6 +790,7 @@ def infer_joint_map(names: Sequence[str], parents: Sequence[int],
     prefix = common_prefix(list(names))
     notes: list[str] = []
     canonical, how, convention = _by_names(tree, prefix)
+    _pelvis_by_topology(canonical, how, tree)
     rest = None
     if positions is not None:
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, len(names), 3)
