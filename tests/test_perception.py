@@ -420,21 +420,35 @@ def test_loop_decisions_and_threshold_choice_on_known_readings():
 
 @shipped
 def test_loop_readings_on_real_clips(shared_data):
-    """Real MSR clips of a training subject (a wave and an idle lead-in) retargeted into
-    the room: each gives both stages' probabilities; a Florence clip (no pelvis keypoint)
-    is skipped with the reason."""
+    """Real MSR clips of a training subject (a wave and an idle lead-in) and a Florence clip
+    (no pelvis joint: retargeted with the hips' midpoint as its pelvis, noted in the
+    retargeting's repairs) retargeted into the room: each gives both stages'
+    probabilities; the Florence clip with its left hip unmapped is skipped with the
+    reason."""
+    from dataclasses import replace
+
+    from simenv.core.skeletons import Skeleton
     from simenv.data.gestures import load_gesture_clips
     from simenv.perception.loop import TrainedClassifier, load_predictor, loop_readings
+    from simenv.room.session import Session, user_track
 
     root = shared_data / "gestures"
     msr = load_gesture_clips(root, datasets=("msr_action3d",), idle=True)
     wave = next(c for c in msr if c.label == "wave" and c.subject == 1)
     idle = next(c for c in msr if c.label == "idle" and c.subject == 1)
     florence = load_gesture_clips(root, datasets=("florence3d",))[0]
+    sk = florence.source.skeleton
+    one_hip = replace(florence, name="one hip", source=replace(florence.source, skeleton=Skeleton(
+        sk.name, sk.joint_names, sk.parents,
+        {k: j for k, j in sk.canonical.items() if k != "left_hip"})))
     classifier = TrainedClassifier.shipped()
-    readings, skipped = loop_readings([wave, idle, florence], classifier, load_predictor())
-    assert [r.name for r in readings] == [wave.name, idle.name]
-    assert len(skipped) == 1 and skipped[0].startswith(florence.name)
+    readings, skipped = loop_readings([wave, idle, florence, one_hip], classifier,
+                                      load_predictor())
+    assert [r.name for r in readings] == [wave.name, idle.name, florence.name]
+    assert len(skipped) == 1 and skipped[0].startswith("one hip: ")
+    assert "['pelvis', 'left_hip']" in skipped[0]
+    (note,) = user_track(Session(florence.source)).result.repairs
+    assert "midpoint of LeftHip and RightHip" in note
     for r in readings:
         assert r.p_real.shape == r.p_pred.shape == (len(classifier.labels),)
         assert r.p_real.sum() == pytest.approx(1.0, abs=1e-5)

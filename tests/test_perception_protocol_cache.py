@@ -72,8 +72,10 @@ def test_cache_key_follows_content_and_code(cache, two_clips, monkeypatch):
 
 
 def test_cache_remakes_damaged_entries_and_keeps_skips(cache, two_clips, gesture_root):
-    """A truncated entry is made again; a clip that cannot be retargeted (Florence 3D: no
-    pelvis) is kept as its reason."""
+    """A truncated entry is made again. A real Florence 3D clip (no pelvis joint: the hips'
+    midpoint is its pelvis) is kept as keypoints; the same clip with its right hip unmapped
+    cannot be retargeted and is kept as its reason."""
+    from simenv.core.skeletons import Skeleton
     from simenv.data.gestures import load_gesture_clips
 
     first, _ = protocol.avatar_clips(two_clips[:1], progress=False)
@@ -81,10 +83,18 @@ def test_cache_remakes_damaged_entries_and_keeps_skips(cache, two_clips, gesture
     entry.write_bytes(entry.read_bytes()[:100])
     again, _ = protocol.avatar_clips(two_clips[:1], progress=False)
     assert _same(again, first) and len(_entries(cache)) == 1
-    florence = load_gesture_clips(gesture_root, datasets=("florence3d",))[:1]
-    _, skipped = protocol.avatar_clips(florence, progress=False)
-    _, cached = protocol.avatar_clips(florence, progress=False)
-    assert skipped and cached == skipped and len(_entries(cache)) == 2
+    florence = load_gesture_clips(gesture_root, datasets=("florence3d",))[0]
+    sk = florence.source.skeleton
+    one_hip = Skeleton(sk.name, sk.joint_names, sk.parents,
+                       {k: j for k, j in sk.canonical.items() if k != "right_hip"})
+    clips = [florence, replace(florence, source=replace(florence.source, skeleton=one_hip))]
+    kept, skipped = protocol.avatar_clips(clips, progress=False)
+    assert [c.name for c in kept] == [florence.name]
+    assert kept[0].positions.shape[1:] == (15, 3) and np.isfinite(kept[0].positions).all()
+    assert len(skipped) == 1 and skipped[0].startswith(florence.name)
+    assert "['pelvis', 'right_hip']" in skipped[0]
+    cached, cached_skips = protocol.avatar_clips(clips, progress=False)
+    assert _same(cached, kept) and cached_skips == skipped and len(_entries(cache)) == 3
 
 
 def test_two_writers_at_once(cache, two_clips):

@@ -738,7 +738,8 @@ def loop_readings(clips: Sequence[GestureClip], classifier: GestureModel, predic
 
     Returns:
         (one reading per clip that could be retargeted, the skipped clips with the
-        reason: no source motion, or no pelvis keypoint as in Florence 3D).
+        reason: no source motion, or the retargeting's error, e.g. a skeleton without the
+        hips).
     """
     # The session retargets onto the room's user: MuJoCo and the solver, needed here only.
     from simenv.room.session import Session, user_track

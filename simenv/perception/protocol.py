@@ -3,9 +3,11 @@
 What the loop sees (:func:`avatar_clips`): each recording is retargeted onto the user's
 fitted body and placed in the room (:func:`simenv.room.session.user_track`, the
 rehearsal's path), and the avatar's keypoints are read on the gesture joints -- not the
-raw Kinect joints, which the agent never sees. Florence 3D has no pelvis and cannot be
-retargeted; its clips are left out and listed. Retargeting the corpus's 877 clips takes
-about 22 s of CPU, so each clip's avatar keypoints are kept on disk (:func:`avatar_cache_dir`:
+raw Kinect joints, which the agent never sees. Florence 3D has no pelvis joint: the hips'
+midpoint is its pelvis (:func:`simenv.body.retarget.with_derived_pelvis`). A clip that cannot
+be retargeted is left out and listed with the reason. Retargeting the corpus's 877 MSR
+Action3D and UTKinect clips takes about 22 s of CPU, Florence 3D's 215 about 3.5 s, so each
+clip's avatar keypoints are kept on disk (:func:`avatar_cache_dir`:
 ``$SIMENV_CACHE/avatar_clips``, default ``~/.cache/simenv/avatar_clips``; ``SIMENV_CACHE=off``
 keeps nothing), one file per clip named by a hash of everything that makes them: the clip's
 source motion (positions, frame rate, skeleton and metadata other than its file path, as the
