@@ -37,6 +37,7 @@ the rate passed through the servos' damping (:class:`LinearTrajectory`).
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -348,7 +349,11 @@ class StepBalance:
         self._jc = np.zeros((3, m.nv))
         self._jf = np.zeros((3, m.nv))
         self._jr = np.zeros((3, m.nv))
-        self._geoms = [{m.geom(f"agent/{s}_{g}").id for g in ("foot", "toes")} for s in SIDES]
+        #: (ngeom, 2) whether each geom is part of the left / right foot.
+        self._foot_geom = np.zeros((m.ngeom, 2), dtype=bool)
+        for i, s in enumerate(SIDES):
+            for g in ("foot", "toes"):
+                self._foot_geom[m.geom(f"agent/{s}_{g}").id, i] = True
         self._wrench = np.zeros(6)
         self._root = int(m.jnt_dofadr[m.body("agent/pelvis").jntadr[0]])
         hips = [[f"{s}_thigh_{p}" for p in ("flex", "abd", "rot")] for s in SIDES]
@@ -358,28 +363,34 @@ class StepBalance:
     def loads(self, data: mujoco.MjData) -> np.ndarray:
         """(2,) the normal contact force on the left and right foot now, N."""
         out = np.zeros(2)
-        for k in range(data.ncon):
-            g1, g2 = data.contact.geom[k]
-            for i in range(2):
-                if g1 in self._geoms[i] or g2 in self._geoms[i]:
-                    mujoco.mj_contactForce(self.room.model, data, k, self._wrench)
-                    out[i] += self._wrench[0]
+        # Per contact (in order), the feet it touches: (ncon, 2) from its two geoms.
+        feet = self._foot_geom[data.contact.geom[:data.ncon]].any(axis=1)
+        for k in np.flatnonzero(feet.any(axis=1)):
+            mujoco.mj_contactForce(self.room.model, data, int(k), self._wrench)
+            out[feet[k]] += self._wrench[0]
         return out
+
+    def keyframe(self, t: float) -> int:
+        """Index of the keyframe segment ``t`` s into the plan is in (clamped to the
+        first and the last)."""
+        return min(max(int(self.times.searchsorted(t, side="right")) - 1, 0),
+                   len(self.times) - 2)
 
     def reference(self, t: float) -> tuple[np.ndarray, float]:
         """Planned centre of mass (2,), m, and pelvis heading, rad, at ``t`` s (straight
         between keyframes, as the targets)."""
-        i = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0,
-                        len(self.times) - 2))
-        s = float(np.clip((t - self.times[i]) / (self.times[i + 1] - self.times[i]), 0, 1))
+        return self._reference(t, self.keyframe(t))
+
+    def _reference(self, t: float, i: int) -> tuple[np.ndarray, float]:
+        s = min(max(float((t - self.times[i]) / (self.times[i + 1] - self.times[i])), 0.0),
+                1.0)
         return ((1 - s) * self.com[i] + s * self.com[i + 1],
                 float((1 - s) * self.yaws[i] + s * self.yaws[i + 1]))
 
     def __call__(self, t: float, data: mujoco.MjData, targets: np.ndarray) -> np.ndarray:
         m = self.room.model
-        ref, yaw = self.reference(t)
-        i = int(np.clip(np.searchsorted(self.times, t, side="right") - 1, 0,
-                        len(self.times) - 2))
+        i = self.keyframe(t)
+        ref, yaw = self._reference(t, i)
         down = self.down[i] & self.down[i + 1]
         touch = self.loads(data) > TOUCH_N
         mujoco.mj_jacSubtreeCom(m, data, self._jc, self._pelvis)
@@ -395,7 +406,7 @@ class StepBalance:
         share = down.astype(float)
         if down.all():
             ab = cen[1] - cen[0]
-            r = float(np.clip((ref - cen[0]) @ ab / max(float(ab @ ab), 1e-6), 0.0, 1.0))
+            r = min(max(float((ref - cen[0]) @ ab / max(float(ab @ ab), 1e-6)), 0.0), 1.0)
             share = np.array([1.0 - r, r])
         weight = self._mass * GRAVITY
         for j in range(2):
@@ -407,7 +418,7 @@ class StepBalance:
             u[self._act[j]] += tau / self._kp[self._act[j]]
         # The virtual force on the centre of mass through the legs on the floor.
         force = -self._mass * (self.k * (c - ref) + self.d * cd)
-        norm = float(np.linalg.norm(force))
+        norm = float(np.sqrt(force @ force))  # np.linalg.norm's own formula, without its checks
         if norm > self.f_max * weight:
             force *= self.f_max * weight / norm
         for j in np.flatnonzero(touch):
@@ -579,7 +590,7 @@ class SteppingPlan:
     def control(self, t: float, data: mujoco.MjData) -> np.ndarray:
         """(nu,) servo targets ``t`` s into the plan, corrected by :class:`StepBalance`;
         a step is planned when it starts, from the feet where they are."""
-        k = int(np.searchsorted(self.starts, t, side="right")) - 1
+        k = bisect.bisect_right(self.starts, t) - 1
         if self._stage is None or self._stage.t0 != self.starts[k]:
             com, q, ctrl = self._last
             try:
@@ -597,8 +608,7 @@ class SteppingPlan:
             fb.yaws, fb.down = np.array(st.yaws), np.array(st.down)
             fb.swing_yaw = self.steps[k].yaw if k < len(self.steps) else None
         st = self._stage
-        i = int(np.clip(np.searchsorted(st.times, t, side="right") - 1, 0,
-                        len(st.segments) - 1))
+        i = min(max(bisect.bisect_right(st.times, t) - 1, 0), len(st.segments) - 1)
         return self.feedback(t, data, st.segments[i].at(t - st.times[i]))
 
 

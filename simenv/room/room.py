@@ -562,6 +562,21 @@ class Room:
         self._agent_root = int(m.jnt_dofadr[m.body("agent/pelvis").jntadr[0]])
         self._grasp_eq = {name: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, name)
                           for name in (f"grasp/{h}/{o}" for h in HANDS for o in self.objects)}
+        self._help_eq = self._help_equalities()
+
+    def _help_equalities(self) -> np.ndarray:
+        """(neq,) bool: the equality constraints that would be help on the agent (one end on
+        its bodies, not a hand's proximity grasp), which :meth:`assist_wrench` measures."""
+        m = self.model
+        agent = set(self._agent_bodies.tolist())
+        grasps = set(self._grasp_eq.values())
+        out = np.zeros(m.neq, dtype=bool)
+        for eq in range(m.neq):
+            ends = {int(m.eq_obj1id[eq]), int(m.eq_obj2id[eq])}
+            if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE:
+                ends = {int(m.site_bodyid[i]) for i in ends}
+            out[eq] = eq not in grasps and bool(ends & agent)
+        return out
 
     # -- state ---------------------------------------------------------------
 
@@ -681,18 +696,13 @@ class Room:
         """
         x = data.xfrc_applied[self._agent_bodies]
         root = data.qfrc_applied[self._agent_root:self._agent_root + 6]
-        force = max(float(np.linalg.norm(x[:, :3], axis=1).max()), float(np.linalg.norm(root[:3])))
-        torque = max(float(np.linalg.norm(x[:, 3:], axis=1).max()),
-                     float(np.linalg.norm(root[3:])))
-        grasps = set(self._grasp_eq.values())
-        agent = set(self._agent_bodies.tolist())
-        m = self.model
-        for eq in np.flatnonzero(data.eq_active):
-            ends = {int(m.eq_obj1id[eq]), int(m.eq_obj2id[eq])}
-            if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE:
-                ends = {int(m.site_bodyid[i]) for i in ends}
-            if int(eq) in grasps or not ends & agent:
-                continue
+        force = torque = 0.0
+        if x.any() or root.any():  # (called every physics step: the norms only when needed)
+            force = max(float(np.linalg.norm(x[:, :3], axis=1).max()),
+                        float(np.linalg.norm(root[:3])))
+            torque = max(float(np.linalg.norm(x[:, 3:], axis=1).max()),
+                         float(np.linalg.norm(root[3:])))
+        for eq in np.flatnonzero(data.eq_active & self._help_eq):
             rows = np.flatnonzero(
                 (data.efc_type[:data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
                 & (data.efc_id[:data.nefc] == eq))
