@@ -130,6 +130,23 @@ def test_file_with_several_clips_scores_each(shared_data):
     assert records[0]["frames"] != records[2]["frames"]
 
 
+def test_records_list_the_retargetings_repairs(shared_data):
+    """A real SBU pair (OpenNI: both hips, no pelvis joint) gets a body per person, fitted
+    with the hips' midpoint as the pelvis; each person's record lists that repair."""
+    from simenv.plausibility.metric import ScoreConfig
+
+    job = ScoreJob(config=ScoreConfig(tracking=False))  # the bodies, not the simulation
+    records = score_target(shared_data / "other/sbu_kinect_sample/skeleton_pos.txt", job)
+    assert [r["person"] for r in records] == [0, 1]
+    for rec in records:
+        (note,) = rec["repairs"]
+        assert "midpoint of LEFT_HIP and RIGHT_HIP" in note
+        assert rec["metrics"]["joint_limits"]["passed"] is not None
+        assert rec["metrics"]["self_penetration"]["passed"] is not None
+    assert "repairs" not in score_target(shared_data / "other/sbu_kinect_sample/"
+                                         "skeleton_pos.txt", FAST)[0]
+
+
 def test_restore_collapsed_bones_repairs_bvh_targets_only(corpus, tmp_path):
     """The option reaches the BVH reader for files and BVH pair folders, lists the
     repairs in the records and moves the upper body; a non-BVH file is read as written."""
