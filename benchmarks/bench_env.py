@@ -9,12 +9,7 @@ speed the environment keeps (goal >= 0.5). Also the rehearsal pipeline's real-ti
 with rendering off (simulated seconds per wall second of :func:`simenv.envs.rehearsal.rehearse`
 after a warm-up run, whole and for its simulation loop alone; goal >= 3): the
 bundled walk in the discomfort scenario with a labelled "smell" gesture, so the agent's
-cigarette_out plan runs. And a reaction that walks (issue 35: a rehearsal with walking at
-most 3x slower than real time on one core): the walk's first half second labelled "cold",
-``close_window`` decided 0.3 s in, the environment stepped until the chain is over (stand
-up, walk to the window on the agent's own legs, push the pane, turn, walk back, sit, roll
-the chair in; the user holding its last pose), simulated seconds per wall second. Single
-process, one core. Usage::
+cigarette_out plan runs. Single process, one core. Usage::
 
     .venv/bin/python benchmarks/bench_env.py [--steps N] [--json]
 """
@@ -29,12 +24,12 @@ import time
 import mujoco
 import numpy as np
 
-import simenv  # (first: chooses MUJOCO_GL before mujoco renders)
-from simenv.assets import WALK, asset_path
+import simenv  # noqa: F401  (MUJOCO_GL before mujoco renders)
+from simenv.assets import WALK
 from simenv.envs.humanoid_track import HumanoidTrackEnv
 from simenv.envs.interaction_room import InteractionRoomEnv
 from simenv.envs.rehearsal import rehearse
-from simenv.room.session import PERCEPTION_FPS, GestureEvent, Session
+from simenv.room.session import GestureEvent, Session
 
 
 def _raw(model: mujoco.MjModel, data: mujoco.MjData, frame_skip: int, steps: int) -> float:
@@ -76,29 +71,7 @@ def bench(steps: int) -> dict[str, dict[str, float]]:
     sim = summary["duration_s"]
     out["rehearsal"] = {"simulated_s": sim, "wall_s": wall, **summary["timing_s"],
                         "real_time_factor": sim / wall}
-    out["walking_reaction"] = walking_reaction()
     return out
-
-
-def walking_reaction() -> dict[str, float | bool]:
-    """The ``close_window`` chain (module docstring) stepped to its end: simulated and
-    wall seconds, their ratio, and whether it succeeded and returned."""
-    short = simenv.load(asset_path(WALK)).slice(0, 60)
-    env = InteractionRoomEnv(short, gestures=[GestureEvent("cold", 0.2, 0.5)],
-                             scenario="discomfort", predictor="constant-velocity-50")
-    env.reset(seed=0)
-    decide, action, k = int(round(0.3 * PERCEPTION_FPS)), env.reactions.index("close_window"), 0
-    t0 = time.perf_counter()
-    while True:
-        *_, truncated, _ = env.step(action if k == decide else 0)
-        k += 1
-        if truncated or (env.log and env.log[0]["success"] is not None):
-            break
-    wall = time.perf_counter() - t0
-    entry = env.log[0] if env.log else {}
-    sim = k / PERCEPTION_FPS
-    return {"simulated_s": sim, "wall_s": wall, "real_time_factor": sim / wall,
-            "success": bool(entry.get("success")), "returned": bool(entry.get("returned"))}
 
 
 def main() -> None:
@@ -112,8 +85,6 @@ def main() -> None:
         return
     rehearsal = result.pop("rehearsal")
     for name, r in result.items():
-        if name == "walking_reaction":
-            continue
         print(f"{name:20s} frame_skip {r['frame_skip']:2d}: env {r['env_steps_per_s']:7.1f} "
               f"steps/s, raw mj_step {r['raw_steps_per_s']:7.1f} steps/s, "
               f"ratio {r['ratio']:.2f}")
@@ -122,10 +93,6 @@ def main() -> None:
           f"(preparation {r['preparation']:.2f}, loop {r['loop']:.2f}, outputs "
           f"{r['outputs']:.2f}): real-time factor {r['real_time_factor']:.2f}, simulation "
           f"loop alone {r['loop_real_time_factor']:.2f}")
-    w = result["walking_reaction"]
-    print(f"walking reaction (close_window, no rendering): {w['simulated_s']:.1f} s simulated "
-          f"in {w['wall_s']:.1f} s: real-time factor {w['real_time_factor']:.2f} (success "
-          f"{w['success']}, returned {w['returned']})")
 
 
 if __name__ == "__main__":
