@@ -702,10 +702,9 @@ def markdown(profiles: dict[str, dict[str, Any]], res: dict[str, Any], seconds: 
             lines.append(f"| {fam} | `{metric}` | {v['people']} | {v['p50']:.3g} | "
                          f"{v[f'p{PERCENTILE:g}']:.3g} | {v['max']:.3g} | {v['default']:g} |")
     lines += ["", "Real clips inside (every joint-level metric passes; physics off), before "
-              "(mocap defaults) and after (family profile). Florence 3D and SBU have no pelvis "
-              "keypoint, so no body is fitted to them and their physics-on verdict is this "
-              "one; MSR Action3D, UTKinect, NuiSI and NTU get a body, whose metrics this "
-              "table leaves out:", "",
+              "(mocap defaults) and after (family profile). Every source gets a body with "
+              "physics on (Florence 3D and SBU, which have no pelvis joint, with the pelvis at "
+              "the hips' midpoint), whose metrics this table leaves out:", "",
               *_source_rows(res["sources"], role, res["families"]), "",
               "Seeded corruptions (`simenv.plausibility.corrupt`, seed 0) of the held-out "
               "people that are inside their profile, at the registry's moderate strength and "

@@ -9,7 +9,8 @@ waves greeted with at most :data:`simenv.perception.protocol.FALSE_GREET_TARGET`
 other and idle clips greeted, on calibration clips only --
 
 * **across datasets**: for each left-out dataset D (MSR Action3D, MSRC-12, UTKinect and
-  Kinder-Gator; Florence 3D has no avatar), chosen on every clip of the other datasets;
+  Kinder-Gator; Florence 3D's clips, at most 1.75 s, are left out), chosen on every clip of
+  the other datasets;
   each dataset's ticks have phase seed 0, as ``benchmarks/cross_dataset_loop.py``'s;
 * **leave-subjects-out on the room's own corpus** (the shared gesture corpus's MSR
   Action3D and UTKinect clips, folds :func:`simenv.data.gestures.subject_fold`, fold k's
@@ -406,7 +407,7 @@ def doc_section(out: Path, command: str) -> str:
     lso = result["leave_subjects_out"]
     meta = SkeletonTCNEnsemble.load(ENSEMBLE).metadata["unseen_subject_loop"]
     lines += ["", "Leave-subjects-out on the room's own corpus (the shared corpus's MSR "
-              "Action3D and UTKinect clips; Florence 3D has no avatar), 5 folds, each "
+              "Action3D and UTKinect clips; Florence 3D's short clips left out), 5 folds, each "
               "fold's rule chosen on the other folds:", "",
               "| recogniser | waves greeted | other actions greeted | idle greeted | "
               "decision after onset, s (median / p90) | rules chosen per fold |",
