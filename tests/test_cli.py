@@ -70,6 +70,19 @@ def test_info_two_person_folder(capsys, shared_data: Path):
         assert 1.0 < person["height_m"] < person["stature_m"] < 2.1 and person["stature_m"] > 1.4
 
 
+def test_info_gives_a_stature_to_a_skeleton_without_pelvis(capsys, shared_data: Path):
+    """A real SBU pair (OpenNI: both hips, no pelvis joint): each person's stature is the
+    body retargeting fits, its pelvis at the hips' midpoint."""
+    path = shared_data / "other/sbu_kinect_sample/skeleton_pos.txt"
+    status, out, _ = run(capsys, "info", path, "--json")
+    assert status == 0
+    info = json.loads(out)
+    assert info["people"] == 2
+    for person in info["persons"]:
+        assert "pelvis" in person["joint_map"]["missing"]
+        assert 1.0 < person["height_m"] < person["stature_m"] < 2.1
+
+
 def test_bad_input_exits_2_without_traceback(tmp_path: Path, capsys):
     text = asset_path(WALK).read_text()
     truncated = tmp_path / "truncated.bvh"

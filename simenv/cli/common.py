@@ -118,11 +118,13 @@ def add_model_command(subparsers: argparse._SubParsersAction, verb: str, text: s
 
 
 def _stature(motion: Motion) -> float | None:
-    """Standing height (m, sole to top of head) of the body fitted to the bone lengths."""
+    """Standing height (m, sole to top of head) of the body fitted to the bone lengths (a
+    skeleton without a pelvis joint: the body retargeting fits, pelvis at the hips' midpoint)."""
     from simenv.body.humanoid import fit_dimensions  # MuJoCo: only when a clip is described
+    from simenv.body.retarget import with_derived_pelvis
 
     try:
-        return round(fit_dimensions(motion).height, 3)
+        return round(fit_dimensions(with_derived_pelvis(motion)).height, 3)
     except SimenvError:  # e.g. no pelvis/hips to measure a body from
         return None
 
