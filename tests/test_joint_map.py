@@ -242,6 +242,44 @@ def test_unnamed_skeleton_mapped_from_hierarchy_and_pose(tmp_path: Path, clip: s
         assert np.allclose(got[key], want[key], atol=1e-5), key
 
 
+def _knee_flexion(motion: simenv.Motion, side: str) -> np.ndarray:
+    """(T,) angle between thigh and shin, degrees (0 = straight), from the reader's map."""
+    sk = motion.skeleton
+    hip, knee, ankle = (motion.positions[:, sk.index(sk.canonical[f"{side}_{k}"])]
+                        for k in ("hip", "knee", "ankle"))
+    thigh, shin = knee - hip, ankle - knee
+    cos = np.einsum("ti,ti->t", thigh, shin) / (np.linalg.norm(thigh, axis=-1)
+                                                * np.linalg.norm(shin, axis=-1))
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+@pytest.mark.parametrize(("path", "seconds"), [
+    (CONVENTIONS_DIR / "cmu_motionbuilder" / "xia_depressed_18_000.bvh", None),
+    (CONVENTIONS_DIR / "xsens_mvn" / "emokine_mvn_segment_positions.csv", None),
+    pytest.param(DATA / "cmu" / "bvh" / "05_02.bvh", (7.0, 8.0), marks=needs_data),
+], ids=["xia_depressed_walk", "emokine_mvn_stand", "cmu_05_02_pirouette_stance"])
+def test_unnamed_straight_knee_is_the_knee(path: Path, seconds: tuple[float, float] | None
+                                           ) -> None:
+    """Real clips with a straight knee (median flexion under the 5 degrees at which the
+    rest-pose step merges bones into one segment): Xia's upright depressed walk, EmoKine's
+    standing MVN take, one second of CMU 05_02 on a straight left leg. With every joint
+    renamed ``J0``.. the legs are found by bone lengths: hip, knee, ankle and toe are the
+    reader's own, and so left and right (told from the feet)."""
+    motion = simenv.load(path)
+    if seconds is not None:
+        motion = motion.slice(*(round(t * motion.fps) for t in seconds))
+    assert min(np.median(_knee_flexion(motion, s)) for s in ("left", "right")) < 5.0
+    sk = motion.skeleton
+    anonymous = [f"J{i}" for i in range(len(sk.joint_names))]
+    mapping = infer_joint_map(anonymous, sk.parents, motion.positions)
+    assert mapping.how["left_knee"] == HOW_REST_POSE
+    for side in ("left", "right"):
+        for key in ("hip", "knee", "ankle", "toe"):
+            found = mapping.canonical.get(f"{side}_{key}")
+            want = f"J{sk.index(sk.canonical[f'{side}_{key}'])}"
+            assert found == want, (f"{side}_{key}", found, want)
+
+
 @pytest.mark.skipif(not CONVENTIONS_DIR.exists(), reason="tests/data/conventions absent")
 @pytest.mark.parametrize("path", sorted(CONVENTIONS_DIR.glob("*/*.bvh")), ids=lambda p: p.name)
 def test_real_files_of_other_labs_map_every_keypoint(path: Path) -> None:

@@ -26,9 +26,11 @@ export) is mapped in three steps, each recorded per keypoint in :class:`JointMap
    lowest are the legs and their common ancestor the pelvis; the branch point of the spine
    is the chest, its two longest branches the arms and the remaining one the neck and head.
    Along a limb the two longest straight segments are the upper and lower limb (so twist
-   and roll joints inside a segment are skipped). Left and right come from side tokens when
-   the names have them, otherwise from the body's own frame: up from pelvis to chest, forward
-   from the direction the feet point (or the knees bend), left = up x forward.
+   and roll joints inside a segment are skipped); a leg's segment twice as long as any
+   other is thigh and shin of a straight knee (a T-pose, a standing clip), cut at its
+   middle joint. Left and right come from side tokens when the names have them, otherwise
+   from the body's own frame: up from pelvis to chest, forward from the direction the feet
+   point (or the knees bend), left = up x forward.
 
 A user map (:func:`read_joint_map`, a TOML file ``[canonical] left_hip = "UpperLeg_L"``)
 replaces all of this; :func:`joint_map_template` writes such a file, pre-filled with what was
@@ -615,13 +617,60 @@ def _segments(chain: list[int], pos: np.ndarray) -> list[tuple[int, int, float]]
             for a, b in segs]
 
 
-def _limb(tree: _Tree, hub: int, start: int, leaf: int, pos: np.ndarray
+#: How many times longer than every other segment of a leg its longest one must be to be
+#: thigh and shin in one: those two are about one length, so together twice a shin, and no
+#: hip bone or foot is as long as a shin. Measured on real legs: bent ones' longest segment
+#: is at most 1.35 times the next, straight ones' merged thigh and shin 4.9 times or more.
+_KNEE_SPLIT = 2.0
+
+
+def _split_straight_knee(tree: _Tree, segs: list[tuple[int, int, float]], pos: np.ndarray
+                         ) -> list[tuple[int, int, float]]:
+    """A leg's segments with a straight knee's thigh-and-shin segment cut at the knee.
+
+    Thigh and shin are a leg's two long bones, of about one length (their ratio is near 1 in
+    every body and rig), each longer than the hip bone, the foot or the toes. A straight knee
+    (a T-pose, a standing clip: under the 5 degrees :func:`_segments` merges at) makes them one
+    segment over twice as long as any other, and the limb's first two segments would be the
+    whole leg and the foot (knee on the ankle joint, ankle on the toe). So a segment at least
+    :data:`_KNEE_SPLIT` times as long as every other one of the chain is cut at the joint
+    inside it nearest its middle, the knee, if one lies within its middle 40 %.
+
+    Args:
+        segs: the chain's straight segments (start, end, length in metres), :func:`_segments`.
+        pos: (T, J, 3) positions, metres.
+    """
+    if not segs:
+        return segs
+    i = max(range(len(segs)), key=lambda k: segs[k][2])
+    a, b, length = segs[i]
+    if any(_KNEE_SPLIT * s[2] > length for k, s in enumerate(segs) if k != i):
+        return segs
+    inside = [j for j in tree.path(a, b)[1:-1]
+              if np.median(np.linalg.norm(pos[:, j] - pos[:, tree.parents[j]], axis=-1)) >= 1e-4]
+    if not inside:
+        return segs
+    frac = {j: float(np.median(np.linalg.norm(pos[:, j] - pos[:, a], axis=-1))) / length
+            for j in inside}
+    knee = min(inside, key=lambda j: abs(frac[j] - 0.5))
+    if abs(frac[knee] - 0.5) > 0.2:
+        return segs
+    parts = [(a, knee), (knee, b)]
+    cut = [(s, e, float(np.median(np.linalg.norm(pos[:, e] - pos[:, s], axis=-1))))
+           for s, e in parts]
+    return [*segs[:i], *cut, *segs[i + 1:]]
+
+
+def _limb(tree: _Tree, hub: int, start: int, leaf: int, pos: np.ndarray, leg: bool = False
           ) -> tuple[int, int, int] | None:
     """(proximal joint, middle joint, distal joint) of the limb that leaves ``hub`` at
     ``start`` and ends at ``leaf``: its first two straight segments, after a girdle bone
     (clavicle, hip bone): a first segment that starts on the hub itself or is shorter than
-    each of the two after it."""
+    each of the two after it. A ``leg``'s straight knee is found by bone lengths
+    (:func:`_split_straight_knee`), not by its bend."""
     segs = _segments(tree.path(start, leaf), pos)
+    if leg:
+        segs = _split_straight_knee(tree, segs, pos)
     if len(segs) >= 3:
         gap = float(np.median(np.linalg.norm(pos[:, segs[0][0]] - pos[:, hub], axis=-1)))
         if gap < 0.1 * segs[0][2] or segs[0][2] < min(segs[1][2], segs[2][2]):
@@ -673,7 +722,7 @@ def _by_rest_pose(tree: _Tree, positions: np.ndarray, prefix: str,
     legs = []
     for leaf in (a, b):
         first = tree.path(hub, leaf)[1]
-        limb = _limb(tree, hub, first, leaf, pos)
+        limb = _limb(tree, hub, first, leaf, pos, leg=True)
         if limb is None:
             return {}, {}
         toe = _distal(tree, limb[2], rest, 0.03 * body)
