@@ -280,6 +280,27 @@ def test_unnamed_straight_knee_is_the_knee(path: Path, seconds: tuple[float, flo
             assert found == want, (f"{side}_{key}", found, want)
 
 
+@pytest.mark.parametrize("path", [
+    CONVENTIONS_DIR / "cmu_motionbuilder" / "xia_angry_13_000.bvh",
+    pytest.param(DATA / "cmu" / "bvh" / "35_17.bvh", marks=needs_data),
+], ids=["xia_angry_walk", "cmu_35_17_run"])
+def test_unnamed_bent_arm_ends_at_the_hand(path: Path) -> None:
+    """Real clips whose hands stay in front of the chest (an angry walk, a jog: the elbow
+    lies farther from the chest than the hand): with every joint renamed ``J0``.. the arm
+    chain runs to the hand, so shoulder, elbow and wrist are the reader's own, not the
+    clavicle, shoulder and elbow."""
+    motion = simenv.load(path)
+    sk = motion.skeleton
+    mapping = infer_joint_map([f"J{i}" for i in range(len(sk.joint_names))], sk.parents,
+                              motion.positions)
+    assert mapping.how["left_elbow"] == HOW_REST_POSE
+    for side in ("left", "right"):
+        for key in ("shoulder", "elbow", "wrist"):
+            found = mapping.canonical.get(f"{side}_{key}")
+            want = f"J{sk.index(sk.canonical[f'{side}_{key}'])}"
+            assert found == want, (f"{side}_{key}", found, want)
+
+
 @pytest.mark.skipif(not CONVENTIONS_DIR.exists(), reason="tests/data/conventions absent")
 @pytest.mark.parametrize("path", sorted(CONVENTIONS_DIR.glob("*/*.bvh")), ids=lambda p: p.name)
 def test_real_files_of_other_labs_map_every_keypoint(path: Path) -> None:

@@ -749,7 +749,10 @@ def _by_rest_pose(tree: _Tree, positions: np.ndarray, prefix: str,
     head_root = branches[2] if len(branches) > 2 else None
     arms = []
     for root in arm_roots:
-        leaf = max(tree.subtree(root), key=lambda s: float(np.linalg.norm(rest[s] - rest[chest])))
+        # The arm's end is a leaf: a bent elbow (hands in front of the chest) is farther
+        # from the chest than the hand.
+        leaf = max((s for s in tree.subtree(root) if not tree.children[s]),
+                   key=lambda s: float(np.linalg.norm(rest[s] - rest[chest])))
         limb = _limb(tree, chest, root, leaf, pos)
         if limb is None:
             return {}, {}
