@@ -65,6 +65,9 @@ READERS: tuple[str, ...] = (
     # Claims .json; an Azure Kinect SDK .csv ("x y z" per cell) is the one joint_csv refuses.
     "azure_kinect",
     "joint_csv",
+    # After joint_csv (both claim .csv; the first claimer explains an unrecognised one): takes
+    # an OptiTrack Motive export by its "Format Version" take row.
+    "motive_csv",
 )
 
 #: Bytes of a file handed to each reader's ``sniff``.
