@@ -260,6 +260,15 @@ def test_skeleton_never_tracked(tmp_path: Path, walk: Motion) -> None:
         motive_csv.read(path)
 
 
+def test_dropped_rows_noted_from_the_time_column(tmp_path: Path, walk: Motion) -> None:
+    path = write_take(tmp_path / "walk.csv", [("Actor1", walk)])
+    lines = path.read_text().split("\n")
+    path.write_text("\n".join(lines[:100] + lines[130:]))  # 30 frame rows cut out
+    m = motive_csv.read(path)
+    assert m.num_frames == FRAMES - 30 and m.fps == 120.0
+    assert any("rows missing" in q for q in m.metadata["quirks"])
+
+
 # -- malformed input --------------------------------------------------------------------------
 
 

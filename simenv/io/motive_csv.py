@@ -45,10 +45,9 @@ left out of a take with others (noted) and is a :class:`MotionError` alone.
 from __future__ import annotations
 
 import csv
-import io
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -58,7 +57,6 @@ from simenv.core.errors import FormatError, MotionError, SkeletonError, UnitsErr
 from simenv.core.joint_map import infer_joint_map
 from simenv.core.motion import Interaction, Motion, interpolate_gaps
 from simenv.core.skeletons import Skeleton
-from simenv.io._text import read_text
 from simenv.io.joint_csv import UP_TO_Z_UP, detect_up
 
 #: The loader asks this reader's sniff about ``.csv`` files too (joint_csv stays the reader
@@ -100,7 +98,7 @@ def sniff(path: Path, head: bytes) -> bool:
 
 @dataclass(frozen=True)
 class Take:
-    """The parsed layout of a Motive CSV export.
+    """A Motive CSV export: its header and the numbers simenv reads.
 
     Attributes:
         info: take row ``key -> value`` (``"Format Version"``, ``"Length Units"``, ...).
@@ -108,7 +106,10 @@ class Take:
         properties: the property row's cells (``Position``, ``Rotation``, ...).
         axes: the axis row's cells (``Frame``, ``Time (Seconds)``, ``X``, ...).
         header_lines: label (and ``"property"``, ``"axis"``) -> 1-based file line.
-        rows: the frame rows' cells; lines: (R,) 1-based file line of each.
+        columns: the file columns held in ``values``: the frame number, the time when there
+            is one (``clock`` of them), then every ``Bone`` ``Position`` column.
+        values: (R, len(columns)) float64 of the R frame rows; NaN where a bone cell is empty.
+        lines: (R,) 1-based file line of each frame row.
     """
 
     info: dict[str, str]
@@ -116,43 +117,50 @@ class Take:
     properties: list[str]
     axes: list[str]
     header_lines: dict[str, int]
-    rows: list[list[str]]
+    columns: tuple[int, ...]
+    clock: int
+    values: np.ndarray
     lines: list[int]
 
-
-def _rows(path: Path) -> list[tuple[int, list[str]]]:
-    """(1-based line, cells) of every row, blank rows included as ``[]``."""
-    reader = csv.reader(io.StringIO(read_text(path).lstrip("\ufeff"), newline=""))
-    out = []
-    try:
-        for cells in reader:
-            out.append((reader.line_num, [c.strip() for c in cells]))
-    except csv.Error as exc:
-        raise FormatError(f"not CSV: {exc}", source=path, line=reader.line_num) from None
-    return out
+    def column_name(self, c: int) -> str:
+        """File column ``c`` as ``<Name> <property> <axis>`` (``763:LShin Position X``)."""
+        return f"{self.labelled['Name'][c]} {self.properties[c]} {self.axes[c]}".strip()
 
 
 def parse_take(path: Path) -> Take:
-    """The take row, header rows and frame rows of a Motive CSV export (module docstring).
+    """The take row, header rows and frame rows of a Motive CSV export (module docstring),
+    read row by row (a full take is ~10^4 rows of ~10^3 cells; only bone positions are kept).
 
     Raises:
-        FormatError: no ``Format Version`` first, a missing ``Type``, ``Name`` or axis row,
-            a header or frame row with another cell count than the axis row (naming the line).
+        FormatError: no ``Format Version`` first, a missing ``Type``, ``Name``, property or
+            axis row, a header or frame row with another cell count than the axis row, a kept
+            cell that is not a number or an empty frame number / time (naming the line).
     """
     path = Path(path)
-    rows = _rows(path)
-    if not rows or not rows[0][1] or rows[0][1][0] != "Format Version":
+    try:
+        fh = path.open(encoding="utf-8-sig", errors="replace", newline="")
+    except OSError as exc:
+        raise FormatError(f"cannot read file: {exc.strerror or exc}", source=path) from None
+    with fh:
+        reader = csv.reader(fh)
+        try:
+            return _parse(path, ((reader.line_num, [c.strip() for c in cells])
+                                 for cells in reader))
+        except csv.Error as exc:
+            raise FormatError(f"not CSV: {exc}", source=path, line=reader.line_num) from None
+
+
+def _parse(path: Path, rows: Iterator[tuple[int, list[str]]]) -> Take:
+    _, first = next(rows, (1, []))
+    if not first or first[0] != "Format Version":
         raise FormatError("expected Motive's take row starting 'Format Version,<version>'",
                           source=path, line=1, field="Format Version")
-    first = rows[0][1]
     info = {k: v for k, v in zip(first[0::2], first[1::2], strict=False) if k}
     labelled: dict[str, list[str]] = {}
     header_lines: dict[str, int] = {}
     previous: tuple[int, list[str]] | None = None
-    k = 1
-    while k < len(rows):
-        line, cells = rows[k]
-        k += 1
+    axes: list[str] | None = None
+    for line, cells in rows:
         if not any(cells):
             continue
         if cells[0] == "Frame":
@@ -160,60 +168,63 @@ def parse_take(path: Path) -> Take:
                 raise FormatError("expected the property row (Position, Rotation, ...) above "
                                   "the axis row", source=path, line=line, field="property")
             header_lines["property"], header_lines["axis"] = previous[0], line
+            axes = cells
             break
         label = next((c for c in cells[:2] if c), "")
         if label in _LABELS:
             labelled[label], header_lines[label] = cells, line
         previous = (line, cells)
-    else:
+    if axes is None or previous is None:
         raise FormatError("no axis row ('Frame,Time (Seconds),X,Y,Z,...'); expected it below "
                           "the Type / Name / ID rows", source=path)
     for label in ("Type", "Name"):
         if label not in labelled:
             raise FormatError(f"no {label!r} header row; expected a row whose second cell is "
                               f"{label!r} above the axis row", source=path, field=label)
-    axes, properties = cells, previous[1]
+    properties = previous[1]
     width = len(axes)
     for name, line, row in [*((lab, header_lines[lab], labelled[lab]) for lab in labelled),
                             ("property", header_lines["property"], properties)]:
         if len(row) != width:
             raise FormatError(f"the {name} row has {len(row)} cells; the axis row has {width}",
                               source=path, line=line, field=name)
-    data = [(line, cells) for line, cells in rows[k:] if any(cells)]
-    for line, cells in data:
+    types = labelled["Type"]
+    clock = [0] + [c for c, a in enumerate(axes) if a == "Time (Seconds)"][:1]
+    keep = clock + [c for c in range(width) if types[c] == "Bone" and properties[c] == "Position"]
+    take = Take(info, labelled, properties, axes, header_lines, tuple(keep), len(clock),
+                np.empty((0, len(keep))), [])
+    values: list[list[float]] = []
+    for line, cells in rows:
+        if not any(cells):
+            continue
         if len(cells) != width:
             raise FormatError(f"row has {len(cells)} cells; the header has {width} columns "
                               "(a ragged or truncated row)", source=path, line=line)
-    return Take(info, labelled, properties, axes, header_lines, [c for _, c in data],
-                [line for line, _ in data])
+        tokens = [cells[c] for c in keep]
+        try:
+            row = [float(t) if t else math.nan for t in tokens]
+        except ValueError:
+            row = []
+        # Bone cells may be empty (a lost skeleton); the frame number and time may not.
+        if len(row) != len(keep) or not all(math.isfinite(v) for v in row[:len(clock)]) or \
+                any(math.isinf(v) for v in row):
+            _bad_cell(take, tokens, line, len(values), path)
+        values.append(row)
+        take.lines.append(line)
+    return replace(take, values=np.array(values, dtype=np.float64).reshape(-1, len(keep)))
 
 
-def _column_name(take: Take, c: int) -> str:
-    return f"{take.labelled['Name'][c]} {take.properties[c]} {take.axes[c]}".strip()
-
-
-def _floats(take: Take, cols: Sequence[int], path: Path, *, empty: bool) -> np.ndarray:
-    """(R, len(cols)) float64 of the frame rows' columns; an empty cell is NaN when
-    ``empty``, else (and any other non-number) a FormatError naming the line and column."""
-    tokens = [[row[c] for c in cols] for row in take.rows]
-    try:
-        values = np.array([[float(t) if t else math.nan for t in r] for r in tokens])
-    except ValueError:
-        values = None
-    ok = values is not None and not np.isinf(values).any() and (
-        empty or not np.isnan(values).any())
-    if ok:
-        return values.reshape(len(tokens), len(cols))
-    for r, row in enumerate(tokens):
-        for c, tok in zip(cols, row, strict=True):
-            try:
-                v = float(tok) if tok or not empty else math.nan
-            except ValueError:
-                v = None
-            if v is None or math.isinf(v) or (math.isnan(v) and not (empty and not tok)):
-                raise FormatError(f"expected a number, found {tok[:40]!r}", source=path,
-                                  line=take.lines[r], frame=r, field=_column_name(take, c))
-    raise FormatError("could not parse the frame rows", source=path)  # pragma: no cover
+def _bad_cell(take: Take, tokens: list[str], line: int, frame: int, path: Path) -> None:
+    """Raise the FormatError of the first kept cell of a row that is not a number (or is
+    empty in the frame number or time column)."""
+    for k, (c, tok) in enumerate(zip(take.columns, tokens, strict=True)):
+        try:
+            v = float(tok) if tok or k >= take.clock else math.nan
+        except ValueError:
+            v = None
+        if v is None or math.isinf(v) or (k < take.clock and not math.isfinite(v)):
+            raise FormatError(f"expected a number, found {tok[:40]!r}", source=path,
+                              line=line, frame=frame, field=take.column_name(c))
 
 
 # -- skeletons -------------------------------------------------------------------------------
@@ -471,16 +482,21 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
                                 f"{', '.join(repr(p.asset) for p in people)}", source=path,
                                 field="skeleton")
         people = chosen
-    # Column 0 is the frame number (parse_take found the axis row by it); the time is optional.
-    clock_cols = [0] + [i for i, a in enumerate(take.axes) if a == "Time (Seconds)"][:1]
-    clock = _floats(take, clock_cols, path, empty=False)
-    cols = [c for p in people for trio in p.columns for c in trio]
-    values = _floats(take, cols, path, empty=True)
+    at = {c: k for k, c in enumerate(take.columns)}
+    values = take.values[:, [at[c] for p in people for trio in p.columns for c in trio]]
+    clock = take.values[:, :take.clock]
     quirks: list[str] = []
+    if take.clock == 2 and len(take.lines) > 1:
+        # Over the whole take: Motive rounds the times it writes (0.008, 0.016, 0.025 s).
+        step = (clock[-1, 1] - clock[0, 1]) / (len(take.lines) - 1)
+        if abs(step * fps - 1.0) > 0.01:
+            quirks.append(f"Time (Seconds) advances {step * 1e3:.3f} ms per row on average, "
+                          f"not the {1e3 / fps:.3f} ms of {fps:g} fps: rows missing or "
+                          "re-timed; the frame rate is taken from the take row")
     pos_all, start = [], 0
     for p in people:
         n = 3 * len(p.bones)
-        pos_all.append(values[:, start:start + n].reshape(len(take.rows), len(p.bones), 3))
+        pos_all.append(values[:, start:start + n].reshape(len(take.lines), len(p.bones), 3))
         start += n
     complete = [~np.isnan(p).any(axis=(1, 2)) for p in pos_all]
     kept = [k for k, c in enumerate(complete) if c.any()]
@@ -488,7 +504,7 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
         quirks.append(f"skeleton {people[k].asset!r} has no frame with every bone tracked: "
                       "left out")
     if not kept:
-        raise MotionError(f"no frame has every bone of a skeleton ({len(take.rows)} frame "
+        raise MotionError(f"no frame has every bone of a skeleton ({len(take.lines)} frame "
                           "rows); Motive lost the skeleton throughout", source=path)
     people, pos_all = [people[k] for k in kept], [pos_all[k] for k in kept]
     span = _span(np.logical_and.reduce([complete[k] for k in kept]))
@@ -497,8 +513,8 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
                           source=path)
     first, last = span
     repairs: list[str] = []
-    if first or last < len(take.rows) - 1:
-        repairs.append(f"trimmed {first} leading and {len(take.rows) - 1 - last} trailing "
+    if first or last < len(take.lines) - 1:
+        repairs.append(f"trimmed {first} leading and {len(take.lines) - 1 - last} trailing "
                        f"frame(s) where a skeleton was not tracked (kept lines "
                        f"{take.lines[first]}-{take.lines[last]})")
     lines = take.lines[first:last + 1]
@@ -541,7 +557,7 @@ def _motion(person: Person, pos: np.ndarray, take: Take, path: Path, fps: float,
         "source": str(path), "format": FORMAT, "take": dict(take.info),
         "skeleton": person.asset, "units": unit, "scale_m_per_unit": scale,
         "up_axis_in_file": up, "up_reason": up_reason, "fps_reason": fps_reason,
-        "parents_from": person.parents_from, "rows_in_file": len(take.rows),
+        "parents_from": person.parents_from, "rows_in_file": len(take.lines),
         "first_frame": int(clock0[0]),
         "time_start_s": float(clock0[1]) if len(clock0) > 1 else None,
         "ignored_columns": {**ignored, "note": "positions of the skeletons' bones are read; "
