@@ -29,6 +29,14 @@ performer on FAIR's capture rig (a performer and body size no survey read) and t
 Speech-Gesture dataset (Trinity College Dublin: a lab no survey read, six channels on every
 joint), the latter held out whole; split fixed before any of them was loaded.
 
+A **fourth survey** (roles ``dev4`` / ``heldout4``) reads labs and performers no survey read:
+Aalto University's walking / limping / running captures of two performers (Förger & Takala;
+an OptiTrack-Arena-style ``Hips Ab Chest ... LeftCollar LeftHip LeftKnee LeftAnkle`` rig without
+toe joints, 100 fps; only the files that hold one capture at 100 % weight), the BFA style set
+(Aberman et al. 2020's own capture, retargeted to a CMU-derived skeleton; the styles Xia's set
+lacks) and the University of Adelaide's two example files (an OptiTrack Arena capture and a
+Perception Neuron capture), the last held out whole; split committed before any was loaded.
+
 Usage (about 1-2 min of CPU per 4-s clip; run it niced, one process)::
 
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev
@@ -37,6 +45,8 @@ Usage (about 1-2 min of CPU per 4-s clip; run it niced, one process)::
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout2
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev3
     nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout3
+    nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role dev4
+    nice -n 10 .venv/bin/python benchmarks/other_lab_survey.py --role heldout4
     .venv/bin/python benchmarks/other_lab_survey.py --docs-only \\
         --before out/other_lab/before.jsonl out/other_lab/dev2_before.jsonl \\
         --posthoc out/other_lab/posthoc.jsonl out/other_lab/posthoc2.jsonl
@@ -86,6 +96,13 @@ HDM05 = "HDM05 (Univ. Bonn; Vicon, ASF/AMC)"
 FAIR_CHILD = ("FAIR AnimatedDrawings `5yr_old` (a child performer; FAIR's capture rig, "
               "performer new)")
 TCD = "Trinity Speech-Gesture (Trinity College Dublin; optical, 6 channels per joint)"
+# Fourth survey (labs and performers no survey read; split committed before any was loaded).
+AALTO = ("Aalto University, Förger & Takala 2013 (optical, Arena-style rig without toes; "
+         "performers k and t)")
+BFA = ("BFA style set (Aberman et al. 2020's capture, retargeted to a CMU-derived skeleton; "
+       "zzzark/Semi-Motion-Style-Transfer)")
+ADELAIDE_ARENA = "University of Adelaide, `louise` (OptiTrack Arena export, no toe joints)"
+ADELAIDE_PN = "University of Adelaide, `milad` (Perception Neuron, 6 channels on every joint)"
 
 
 @dataclass(frozen=True)
@@ -129,6 +146,12 @@ HDM_DIR = "ActionSegmentation_Pose/HDM05-Parser/data/"
 #: AnimatedDrawings' first public commit, whose animate/Data/BVH folders were later removed.
 AD_EARLY = "bbe02ed9f504a1446ca7d056902d562bb9a7ab62"
 AD_BVH = "animate/Data/BVH/"
+AALTO_REPO = "sergioisidoro+MultimodalTranslation"
+#: Aalto's blends; a name's weights say how much of each listed capture it holds, so a file
+#: at 100 % of one capture is that capture.
+AALTO_DIR = "Data/interpolated/"
+BFA_REPO = "zzzark+Semi-Motion-Style-Transfer"
+ADELAIDE_REPO = "wspr+bvh-matlab"
 
 #: The survey's files; the dev / held-out split was chosen before any was scored.
 MANIFEST: tuple[Entry, ...] = (
@@ -191,6 +214,26 @@ MANIFEST: tuple[Entry, ...] = (
     *(Entry(f"tcd_natural_talking_{n}", TCD, "heldout3", repo=AD,
             blob=f"{AD_BVH}tcd/NaturalTalking_{n}.bvh", commit=AD_EARLY)
       for n in ("100", "1000")),
+    # Fourth survey, development set (dev4): one clip of each Aalto performer and one BFA
+    # style. Held out (heldout4): the other clips of those sources, and Adelaide whole.
+    # Left out: every Aalto blend of two or three captures (not one capture), BFA's styles
+    # that Xia's set also has (possibly Xia's motion), the same repository's content clips
+    # (CMU motion, or possibly) and Adelaide's `walk.bvh` (CMU's skeleton and motion).
+    *(Entry(f"aalto_{k}", AALTO, "dev4", repo=AALTO_REPO, blob=f"{AALTO_DIR}{b}.bvh")
+      for k, b in (("k_walk_regular", "k_run_slow_k_limp_fast_k_walk_regular_000_000_100"),
+                   ("t_limp_angry", "t_limp_angry_t_walk_angry_100_000"))),
+    Entry("bfa_happy", BFA, "dev4", repo=BFA_REPO, blob="m21_data/style/HAPPY.bvh"),
+    *(Entry(f"aalto_{k}", AALTO, "heldout4", repo=AALTO_REPO, blob=f"{AALTO_DIR}{b}.bvh")
+      for k, b in (("k_run_fast", "k_run_fast_k_run_slow_100_000"),
+                   ("k_limp_sad", "k_limp_sad_k_walk_sad_100_000"),
+                   ("k_walk_angry", "k_limp_angry_k_walk_angry_000_100"),
+                   ("t_walk_regular", "t_run_slow_t_limp_fast_t_walk_regular_000_000_100"),
+                   ("t_run_slow", "t_run_fast_t_run_slow_000_100"),
+                   ("t_walk_sad", "t_limp_sad_t_walk_sad_000_100"))),
+    *(Entry(f"bfa_{n.lower()}", BFA, "heldout4", repo=BFA_REPO, blob=f"m21_data/style/{n}.bvh")
+      for n in ("SNEAKY", "ZOMBIE")),
+    Entry("adelaide_louise", ADELAIDE_ARENA, "heldout4", repo=ADELAIDE_REPO, blob="louise.bvh"),
+    Entry("adelaide_milad", ADELAIDE_PN, "heldout4", repo=ADELAIDE_REPO, blob="milad.bvh"),
 )
 
 
@@ -360,15 +403,18 @@ def markdown(rows: dict[str, dict[str, Any]], max_seconds: float,
                         ("heldout2", "Second survey, held-out set (scored once)"),
                         ("dev3", "Third survey, development set"),
                         ("heldout3", "Third survey, held-out set (scored once)"),
+                        ("dev4", "Fourth survey, development set"),
+                        ("heldout4", "Fourth survey, held-out set (scored once)"),
                         ("extra", "Other files")):
         sel = [r for r in rows.values() if r["role"] == role]
         if sel:
             lines += [f"**{title}**: {_count(sel)}.", "", *_table(sel), ""]
-        if sel and role in ("dev", "dev2", "dev3") and before:
+        if sel and role in ("dev", "dev2", "dev3", "dev4") and before:
             lines += _before_lines(rows, before, role)
     for role, title in (("heldout", "Held-out set"),
                         ("heldout2", "Second survey, held-out set"),
-                        ("heldout3", "Third survey, held-out set")):
+                        ("heldout3", "Third survey, held-out set"),
+                        ("heldout4", "Fourth survey, held-out set")):
         redone = {k: r for k, r in (posthoc or {}).items() if r["role"] == role}
         if not redone:
             continue
@@ -385,7 +431,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("paths", nargs="*", type=Path, help="extra motion files (role 'extra')")
     ap.add_argument("--role", choices=("dev", "heldout", "dev2", "heldout2", "dev3",
-                                       "heldout3", "all", "none"),
+                                       "heldout3", "dev4", "heldout4", "all", "none"),
                     default="all",
                     help="which manifest files to score (default all; none: only PATHs)")
     ap.add_argument("--only", nargs="*", default=None, help="manifest keys to score")
