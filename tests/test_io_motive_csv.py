@@ -47,25 +47,26 @@ def walk(shared_data: Path) -> Motion:
     return bvh.read(shared_data / "cmu/bvh/02_01.bvh").slice(0, FRAMES)
 
 
-def _global_quats(m: Motion) -> np.ndarray:
-    """(T, J, 4) x, y, z, w global rotations of ``m``'s joints, Motive's Y-up axes."""
+def _global_quats(m: Motion, up: str) -> np.ndarray:
+    """(T, J, 4) x, y, z, w global rotations of ``m``'s joints in file axes with ``up`` up."""
     assert m.rotations is not None
     local = Rotation.from_quat(m.rotations.reshape(-1, 4), scalar_first=True).as_matrix()
     local = local.reshape(*m.rotations.shape[:2], 3, 3)
     world = np.empty_like(local)
     for j, p in enumerate(m.skeleton.parents):
         world[:, j] = local[:, j] if p < 0 else world[:, p] @ local[:, j]
-    c = UP_TO_Z_UP["y"]
+    c = UP_TO_Z_UP[up]
     y_up = c.T @ world @ c
     return Rotation.from_matrix(y_up.reshape(-1, 3, 3)).as_quat().reshape(*local.shape[:2], 4)
 
 
 def write_take(path: Path, people: list[tuple[str, Motion]], *, units: str = "Millimeters",
                parent_row: bool = True, hip_after_asset: bool = True,
-               take_row: dict[str, str] | None = None) -> Path:
+               take_row: dict[str, str] | None = None, up: str = "y") -> Path:
     """Write ``people`` (asset name, CMU motion) as a Motive CSV export (module docstring):
     Motive 3 by default; ``parent_row=False`` writes Motive 2's header (no Parent row);
-    ``hip_after_asset`` names the hip bone after the asset as Motive 3 does (else ``Hip``)."""
+    ``hip_after_asset`` names the hip bone after the asset as Motive 3 does (else ``Hip``);
+    ``up`` is the export's up axis (Motive's default Y)."""
     fps = people[0][1].fps
     frames = min(m.num_frames for _, m in people)
     info = {"Format Version": "1.25" if parent_row else "1.23", "Take Name": path.stem,
@@ -73,14 +74,14 @@ def write_take(path: Path, people: list[tuple[str, Motion]], *, units: str = "Mi
             "Capture Start Frame": "0", "Total Frames in Take": str(frames),
             "Total Exported Frames": str(frames), "Rotation Type": "Quaternion",
             "Length Units": units, "Coordinate Space": "Global", **(take_row or {})}
-    c, s = UP_TO_Z_UP["y"], SCALE.get(units, 1e-3)
+    c, s = UP_TO_Z_UP[up], SCALE.get(units, 1e-3)
     head = {"Type": ["", "Type"], "Name": ["", "Name"], "ID": ["", "ID"],
             "Parent": ["", "Parent"], "prop": ["", ""], "axis": ["Frame", "Time (Seconds)"]}
     blocks = []  # (T, k) values per column block
     for a, (asset, m) in enumerate(people):
         idx = {n: i for i, n in enumerate(m.skeleton.joint_names)}
         pos = (m.positions[:frames].astype(np.float64) @ c) / s  # Z up m -> Y up file units
-        quat = _global_quats(m)[:frames]
+        quat = _global_quats(m, up)[:frames]
         full = {b: f"{asset}:{asset if b == 'Hip' and hip_after_asset else b}" for b in BONES}
         parents = {b: ("Root" if b == "Hip" else full[motive_csv.MOTIVE_PARENTS[b]])
                    for b in BONES}
@@ -202,6 +203,19 @@ def test_loader_arbitrates_csv_readers(tmp_path: Path, walk: Motion) -> None:
     assert not motive_csv.sniff(mvn, mvn.read_bytes()[:4096])
 
 
+def test_other_axis_convention_detected_or_given(tmp_path: Path, walk: Motion) -> None:
+    path = write_take(tmp_path / "walk.csv", [("Actor1", walk)], up="z")  # Visual3D's preset
+    m = motive_csv.read(path)
+    assert m.metadata["up_axis_in_file"] == "z"
+    assert any("not Motive's default Y up" in q for q in m.metadata["quirks"])
+    np.testing.assert_allclose(m.positions, _expected(walk), atol=2e-6)
+    given = motive_csv.read(path, up="z")
+    assert given.metadata["quirks"] == []
+    np.testing.assert_array_equal(given.positions, m.positions)
+    with pytest.raises(FormatError, match="up must be"):
+        motive_csv.read(path, up="w")
+
+
 # -- several skeletons ------------------------------------------------------------------------
 
 
@@ -214,6 +228,9 @@ def test_two_skeletons_are_an_interaction(tmp_path: Path, walk: Motion, shared_d
     np.testing.assert_allclose(pair.actor.positions, _expected(walk), atol=2e-6)
     np.testing.assert_allclose(pair.reactor.positions, _expected(other), atol=2e-6)
     assert pair.actor.metadata["skeleton"] == "A" and pair.reactor.metadata["skeleton"] == "B"
+    loaded = simenv.load(path)
+    assert isinstance(loaded, Interaction)
+    assert len(loaded.actor.skeleton.canonical) == len(loaded.reactor.skeleton.canonical) == 21
     one = motive_csv.read(path, skeleton="B")
     assert isinstance(one, Motion)
     np.testing.assert_array_equal(one.positions, pair.reactor.positions)

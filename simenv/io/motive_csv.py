@@ -31,7 +31,8 @@ is ``Export Frame Rate`` (``Capture Frame Rate`` when an older file has no expor
 Motive's axes are Y up (its default axis convention) and are turned to simenv's Z up as in
 every Y-up reader (``(x, y, z) -> (x, -z, y)``); a take exported with another convention is
 recognised from the body (the feet-to-head direction, :func:`simenv.io.joint_csv.detect_up`),
-converted from that axis and noted in ``quirks``. ``Coordinate Space Local`` (bone positions
+converted from that axis and noted in ``quirks``; ``up=`` gives the axis instead (a take in
+which the body never stands up). ``Coordinate Space Local`` (bone positions
 relative to their parents) is refused: export with Global.
 
 **Lost frames.** Frames where Motive lost a skeleton (its bone cells empty) are never dropped
@@ -418,7 +419,8 @@ def _info_float(take: Take, key: str, path: Path) -> float | None:
 
 
 def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | None = MAX_GAP_S,
-         name: str | None = None) -> Motion | Interaction | list[Motion]:
+         up: str | None = None, name: str | None = None
+         ) -> Motion | Interaction | list[Motion]:
     """Read the skeletons of an OptiTrack Motive CSV export (module docstring).
 
     Args:
@@ -426,7 +428,9 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
         skeleton: the asset to read (the name before ``:`` in its bone names); default all.
         max_gap_s: longest run of frames (seconds) a bone may be empty and be interpolated;
             None interpolates any run.
-        name: clip name; default the file stem (with ``:<asset>`` for several skeletons).
+        up: the file's up axis (``"y"``, ``"z"``, ``"-x"``, ...: the take's export axis
+            convention); None detects it from the body (Y for Motive's default convention).
+        name: clip name; default the file stem (``<name>:<asset>`` for several skeletons).
 
     Returns:
         One skeleton: a :class:`Motion` (T, J, 3) float32 metres, Z up, one joint per bone;
@@ -448,6 +452,9 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
     if max_gap_s is not None and not max_gap_s >= 0:
         raise FormatError(f"max_gap_s must be >= 0 or None, got {max_gap_s!r}", source=path,
                           field="max_gap_s")
+    if up is not None and up.lower() not in UP_TO_Z_UP:
+        raise FormatError(f"up must be one of {', '.join(UP_TO_Z_UP)}, got {up!r}",
+                          source=path, field="up")
     take = parse_take(path)
     info = take.info
     space = info.get("Coordinate Space", "Global")
@@ -522,10 +529,11 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
     motions = []
     for p, pos in zip(people, pos_all, strict=True):
         filled, notes = _fill(pos[first:last + 1], p, lines, max_gap, fps, path)
+        clip = name or path.stem
         motions.append(_motion(p, filled, take, path, fps, fps_reason, scale, unit, ignored,
-                               repairs + notes, list(quirks),
-                               name if len(people) == 1 or name is None else None,
-                               clock[first], len(people) > 1))
+                               repairs + notes, list(quirks), up,
+                               f"{clip}:{p.asset or 'skeleton'}" if len(people) > 1 else clip,
+                               clock[first]))
     if len(motions) == 1:
         return motions[0]
     if len(motions) == 2:
@@ -541,18 +549,19 @@ def read(path: str | Path, *, skeleton: str | None = None, max_gap_s: float | No
 
 def _motion(person: Person, pos: np.ndarray, take: Take, path: Path, fps: float,
             fps_reason: str, scale: float, unit: str, ignored: dict[str, int],
-            repairs: list[str], quirks: list[str], name: str | None, clock0: np.ndarray,
-            several: bool) -> Motion:
+            repairs: list[str], quirks: list[str], forced_up: str | None, name: str,
+            clock0: np.ndarray) -> Motion:
     """One person's Motion: file axes to Z up, file units to metres, the joint map."""
     names, parents = list(person.bones), list(person.parents)
-    by_name = infer_joint_map(names, parents)
-    up, up_reason = detect_up(pos, names, by_name.canonical)
-    if up != "y":
+    if forced_up is not None:
+        up, up_reason = forced_up.lower(), f"up={forced_up!r} given by the caller"
+    else:
+        up, up_reason = detect_up(pos, names, infer_joint_map(names, parents).canonical)
+    if up != "y" and forced_up is None:
         quirks.append(f"the body stands along {up.upper()} in the file, not Motive's default "
                       f"Y up ({up_reason}): read with {up.upper()} up")
     metres = (pos @ UP_TO_Z_UP[up].T) * scale
     mapping = infer_joint_map(names, parents, metres)
-    label = person.asset or "skeleton"
     meta: dict[str, Any] = {
         "source": str(path), "format": FORMAT, "take": dict(take.info),
         "skeleton": person.asset, "units": unit, "scale_m_per_unit": scale,
@@ -565,8 +574,7 @@ def _motion(person: Person, pos: np.ndarray, take: Take, path: Path, fps: float,
         "repairs": repairs, "quirks": quirks, "joint_map": mapping.as_metadata(),
     }
     skel = Skeleton(f"motive{len(names)}", tuple(names), tuple(parents), mapping.canonical)
-    clip = name or (f"{path.stem}:{label}" if several else path.stem)
-    return Motion(metres.astype(np.float32), float(fps), skel, clip, meta)
+    return Motion(metres.astype(np.float32), float(fps), skel, name, meta)
 
 
 __all__ = ["EXTENSIONS", "FORMAT", "LENGTH_UNITS", "MAX_GAP_S", "MOTIVE_PARENTS", "Person",
