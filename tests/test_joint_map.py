@@ -301,6 +301,45 @@ def test_unnamed_bent_arm_ends_at_the_hand(path: Path) -> None:
             assert found == want, (f"{side}_{key}", found, want)
 
 
+def zero_rotation_rest(src: Path, dst: Path, frames: int = 2) -> Path:
+    """``src``'s skeleton with every channel zero on ``frames`` frames: the skeleton's own
+    rest pose (a T-pose, arms straight out, for CMU's and most rigs' skeletons)."""
+    head, _, motion = src.read_text().partition("MOTION")
+    channels = sum(int(n) for n in re.findall(r"CHANNELS\s+(\d+)", head))
+    frame_time = re.search(r"Frame Time:\s*(\S+)", motion)
+    assert frame_time is not None, src
+    row = " ".join(["0"] * channels)
+    dst.write_text(f"{head}MOTION\nFrames: {frames}\nFrame Time: {frame_time.group(1)}\n"
+                   + f"{row}\n" * frames)
+    return dst
+
+
+@pytest.mark.parametrize("path", [
+    CONVENTIONS_DIR / "other" / "fair1_dab_zup.bvh",
+    CONVENTIONS_DIR / "snu_mass" / "mass_walk.bvh",
+    pytest.param(WALK, marks=needs_data),
+    pytest.param(DATA / "cmu" / "bvh" / "131_01.bvh", marks=needs_data),
+], ids=["fair_dab", "snu_mass_walk", "cmu_02_01", "cmu_131_01"])
+def test_unnamed_straight_arm_rest_pose_is_the_arm(tmp_path: Path, path: Path) -> None:
+    """Real skeletons in their rest pose (every channel zero: arms straight out), every
+    joint renamed ``J0``..: the straight elbow's segment (upper arm and forearm, and the
+    hand in CMU's, the clavicle too in FAIR's) is cut at the elbow by bone lengths, so
+    shoulder, elbow, wrist and hand are the reader's own, not clavicle, shoulder and
+    fingertip."""
+    motion = simenv.load(zero_rotation_rest(path, tmp_path / path.name))
+    sk = motion.skeleton
+    mapping = infer_joint_map([f"J{i}" for i in range(len(sk.joint_names))], sk.parents,
+                              motion.positions)
+    assert mapping.how["left_elbow"] == HOW_REST_POSE
+    for side in ("left", "right"):
+        for key in ("shoulder", "elbow", "wrist", "hand"):
+            if f"{side}_{key}" not in sk.canonical:
+                continue  # MASS's hands: stub and stray End Sites, dropped by the reader
+            found = mapping.canonical.get(f"{side}_{key}")
+            want = f"J{sk.index(sk.canonical[f'{side}_{key}'])}"
+            assert found == want, (f"{side}_{key}", found, want)
+
+
 @pytest.mark.skipif(not CONVENTIONS_DIR.exists(), reason="tests/data/conventions absent")
 @pytest.mark.parametrize("path", sorted(CONVENTIONS_DIR.glob("*/*.bvh")), ids=lambda p: p.name)
 def test_real_files_of_other_labs_map_every_keypoint(path: Path) -> None:
