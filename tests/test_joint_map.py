@@ -340,6 +340,29 @@ def test_unnamed_straight_arm_rest_pose_is_the_arm(tmp_path: Path, path: Path) -
             assert found == want, (f"{side}_{key}", found, want)
 
 
+@pytest.mark.parametrize("path", [
+    pytest.param(DATA / "cmu" / "two_person" / "60_61_salsa_10" / "61_10_scaled.bvh",
+                 marks=needs_data),
+    CONVENTIONS_DIR / "azure_kinect" / "gymtrainer_bodyweight_squat_side_view.csv",
+], ids=["cmu_61_10_salsa_poser", "azure_kinect_squat"])
+def test_unnamed_head_branch_is_not_an_arm(path: Path) -> None:
+    """Real clips whose chest has a head branch with eyes (and ears, a nose): a salsa
+    dancer in hold (Poser names; the hands stay near the chest, so the eyes reach farther
+    from it than a hand) and an Azure Kinect squat. With every joint renamed ``J0``.. the
+    arms are the two mirror-image branches and the head is the joint the eyes hang from:
+    shoulder, elbow, wrist, neck and head are the reader's own."""
+    motion = simenv.load(path)
+    sk = motion.skeleton
+    mapping = infer_joint_map([f"J{i}" for i in range(len(sk.joint_names))], sk.parents,
+                              motion.positions)
+    assert mapping.how["head"] == HOW_REST_POSE
+    keys = [f"{s}_{k}" for s in ("left", "right") for k in ("shoulder", "elbow", "wrist")]
+    for key in [*keys, "neck", "head"]:
+        found = mapping.canonical.get(key)
+        want = f"J{sk.index(sk.canonical[key])}"
+        assert found == want, (key, found, want)
+
+
 @pytest.mark.skipif(not CONVENTIONS_DIR.exists(), reason="tests/data/conventions absent")
 @pytest.mark.parametrize("path", sorted(CONVENTIONS_DIR.glob("*/*.bvh")), ids=lambda p: p.name)
 def test_real_files_of_other_labs_map_every_keypoint(path: Path) -> None:
