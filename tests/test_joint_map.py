@@ -283,12 +283,14 @@ def test_unnamed_straight_knee_is_the_knee(path: Path, seconds: tuple[float, flo
 @pytest.mark.parametrize("path", [
     CONVENTIONS_DIR / "cmu_motionbuilder" / "xia_angry_13_000.bvh",
     pytest.param(DATA / "cmu" / "bvh" / "35_17.bvh", marks=needs_data),
-], ids=["xia_angry_walk", "cmu_35_17_run"])
+    CONVENTIONS_DIR / "snu_mass" / "mass_kick.bvh",
+], ids=["xia_angry_walk", "cmu_35_17_run", "snu_mass_kick"])
 def test_unnamed_bent_arm_ends_at_the_hand(path: Path) -> None:
     """Real clips whose hands stay in front of the chest (an angry walk, a jog: the elbow
-    lies farther from the chest than the hand): with every joint renamed ``J0``.. the arm
-    chain runs to the hand, so shoulder, elbow and wrist are the reader's own, not the
-    clavicle, shoulder and elbow."""
+    lies farther from the chest than the hand; a kick, where a 0.5 m mesh helper hanging
+    from the upper arm also reaches farther than the hand): with every joint renamed
+    ``J0``.. the arm chain runs to the hand, so shoulder, elbow and wrist are the reader's
+    own, not the clavicle, shoulder and elbow (or the helper)."""
     motion = simenv.load(path)
     sk = motion.skeleton
     mapping = infer_joint_map([f"J{i}" for i in range(len(sk.joint_names))], sk.parents,

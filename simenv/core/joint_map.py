@@ -863,10 +863,12 @@ def _by_rest_pose(tree: _Tree, positions: np.ndarray, prefix: str,
     head_root = others[0] if others else None
     arms = []
     for root in arm_roots:
-        # The arm's end is a leaf: a bent elbow (hands in front of the chest) is farther
-        # from the chest than the hand.
+        # The arm's end is a leaf (a bent elbow, hands in front of the chest, is farther
+        # from the chest than the hand) and one of the deepest: the fingers, not a helper
+        # hanging from the upper arm (SNU MASS's L_Humerus, 0.5 m long, beyond a bent hand).
         leaf = max((s for s in tree.subtree(root) if not tree.children[s]),
-                   key=lambda s: float(np.linalg.norm(rest[s] - rest[chest])))
+                   key=lambda s: (len(tree.ancestors(s)),
+                                  float(np.linalg.norm(rest[s] - rest[chest]))))
         limb = _limb(tree, chest, root, leaf, pos)
         if limb is None:
             return {}, {}
