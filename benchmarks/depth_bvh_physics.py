@@ -1,0 +1,123 @@
+"""NiTE recordings written as BVH, judged the way ``simenv score FILE`` does: physics on.
+
+An OpenNI / NiTE skeleton has both hips and no pelvis joint; the body fit puts its pelvis at
+the hips' midpoint (:func:`simenv.body.retarget.with_derived_pelvis`), so the default command
+fits a body and judges the body-level metrics with the ``kinect_v1@30`` profile's body
+thresholds, which were carried over from Kinect v1 clips with a real hip centre. This script
+measures that verdict on development files of ``benchmarks/depth_bvh_survey.py`` (furylynx/MAE,
+GPL-3.0, read from the snapshot into ``--extract-to``, never copied): each cut to its first
+``--max-seconds`` and scored by :func:`simenv.score` with ``physics=True`` (default planner,
+thresholds and ``source="auto"``) and, beside it, ``physics=False`` on the same cut.
+
+Files (:data:`FILES`, fixed before any was scored): only the development performers (``ah``,
+``ba``); one file per gesture folder, the first in sort order, over the 16 folders that are
+not a second or third take of another folder's gesture (``testeval_dontcare2``,
+``testeval_dontcare3``, ``testeval_pinch2``, ``testeval_scrollup2``, ``testeval_throw2`` left
+out). The held-out performers are never read.
+
+Usage (about 1-2 min of CPU per 4-s clip; niced, one process)::
+
+    nice -n 10 .venv/bin/python benchmarks/depth_bvh_physics.py
+
+One JSON line per file goes to ``out/depth_bvh_physics/dev.jsonl`` as it finishes (a rerun
+skips the files there): the physics-on verdict, score, failing metrics (value / threshold /
+unit), every metric's details, and the physics-off verdict and failing metrics. The result
+is summarised by hand in docs/plausibility.md (NiTE section, "With physics on").
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from depth_bvh_survey import FOLDER, materialise
+
+import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
+from simenv.core.errors import SimenvError
+from simenv.core.motion import Motion
+from simenv.io.loader import load
+
+REPO = Path(__file__).resolve().parents[1]
+OUT = REPO / "out" / "depth_bvh_physics"
+#: The development files scored, relative to the snapshot's BVH folder.
+FILES: tuple[str, ...] = (
+    "cut/ah_cut_01.bvh",
+    "dontcare/ah_dontcare_01.bvh",
+    "indi/ah_indi_01.bvh",
+    "raise/ah_raise_01.bvh",
+    "sequential/ah_sequential_01.bvh",
+    "wheel/ah_wheel_01.bvh",
+    "testeval_clap/ba_clap_01.bvh",
+    "testeval_cut/ba_cut_01.bvh",
+    "testeval_dontcare/ba_dontcare_01.bvh",
+    "testeval_hammer/ba_hammer_01.bvh",
+    "testeval_pinch/ba_pinch_01.bvh",
+    "testeval_rotation/ba_rotation_01.bvh",
+    "testeval_scroll_up/ba_scroll_up_01.bvh",
+    "testeval_scrolldown/ba_scroll_down_01.bvh",
+    "testeval_throw/ba_throw_01.bvh",
+    "testeval_wave/ba_wave_01.bvh",
+)
+
+
+def _failing(rec: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {n: {"value": m["value"], "threshold": m["threshold"], "unit": m["unit"]}
+            for n, m in rec["metrics"].items() if m["passed"] is False}
+
+
+def score_file(path: Path, max_seconds: float) -> dict[str, Any]:
+    """Load ``path``, cut it to its first ``max_seconds`` s and score it physics on and off.
+
+    Returns:
+        A JSON-ready row: ``file``, ``frames`` and ``seconds`` scored, ``verdict``, ``score``,
+        ``profile``, ``failing`` {metric: {value, threshold, unit}} and ``metrics`` (each
+        metric's record, details included) with physics on, ``off_verdict`` / ``off_failing``
+        with physics off, ``repairs``, ``cpu_s`` (physics on); or ``error`` (a typed
+        :class:`SimenvError`).
+    """
+    row: dict[str, Any] = {"file": path.name}
+    try:
+        clip = load(path)
+        if not isinstance(clip, Motion):
+            raise SimenvError(f"{path}: expected one person's clip", field="people")
+        motion = clip.slice(0, min(clip.num_frames, int(round(max_seconds * clip.fps))))
+        off = simenv.score(motion, physics=False).to_records()[0]
+        t0 = time.process_time()
+        rec = simenv.score(motion, physics=True).to_records()[0]
+    except SimenvError as exc:
+        return row | {"error": str(exc), "error_type": type(exc).__name__}
+    return row | {
+        "frames": motion.num_frames, "seconds": round(motion.duration, 2),
+        "verdict": rec["verdict"], "score": rec["score"], "profile": rec.get("profile"),
+        "failing": _failing(rec), "metrics": rec["metrics"], "repairs": rec.get("repairs"),
+        "off_verdict": off["verdict"], "off_score": off["score"], "off_failing": _failing(off),
+        "cpu_s": round(time.process_time() - t0, 1)}
+
+
+def main() -> None:
+    """Score every file of :data:`FILES` not yet in the results."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--max-seconds", type=float, default=4.0, help="seconds scored per file")
+    ap.add_argument("--extract-to", type=Path, default=Path("/tmp/mae_bvh"),
+                    help="where the snapshot's files are written (outside the repository)")
+    args = ap.parse_args()
+    OUT.mkdir(parents=True, exist_ok=True)
+    rows_path = OUT / "dev.jsonl"
+    done = {json.loads(line)["file"] for line in rows_path.read_text().splitlines()} \
+        if rows_path.exists() else set()
+    for i, rel in enumerate(FILES):
+        if Path(rel).name in done:
+            continue
+        row = score_file(materialise(FOLDER + rel, args.extract_to), args.max_seconds)
+        with rows_path.open("a") as fh:
+            fh.write(json.dumps(row, default=str) + "\n")
+        print(f"[{i + 1}/{len(FILES)}] {row['file']}: {row.get('verdict', row.get('error'))} "
+              f"{ {n: f['value'] for n, f in row.get('failing', {}).items()} } "
+              f"off {row.get('off_verdict')} {row.get('cpu_s')} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
