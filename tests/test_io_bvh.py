@@ -461,3 +461,54 @@ def test_rig_with_its_own_axes_reads_as_the_same_motion(tmp_path: Path) -> None:
     assert any(q.startswith("rest pose is no standing body") for q in rigged.metadata["quirks"])
     assert not any(q.startswith("rest pose is no standing") or q.startswith("up axis")
                    for q in original.metadata["quirks"])
+
+
+def _without_toe_joints(text: str) -> str:
+    """A 3dsMax-named BVH with its ``LeftToe`` / ``RightToe`` joints turned into the ankles'
+    End Sites (at the toe joints' offsets) and their channels dropped from every frame: the
+    layout of a rig without toe joints (OptiTrack Arena's export)."""
+    head, motion = text.split("MOTION", 1)
+    out, drop, column, skip = [], [], 0, 0
+    lines = head.splitlines()
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        words = line.split()
+        if words[:2] in (["JOINT", "LeftToe"], ["JOINT", "RightToe"]):
+            indent = line[:len(line) - len(line.lstrip())]
+            offset = lines[i + 2].split()[1:]
+            drop += list(range(column, column + int(lines[i + 3].split()[1])))
+            column += int(lines[i + 3].split()[1])
+            out += [f"{indent}End Site", f"{indent}{{", f"{indent}\tOFFSET {' '.join(offset)}",
+                    f"{indent}}}"]
+            skip, i = 0, i + 1
+            while True:  # past the joint's block, braces balanced
+                skip += lines[i].count("{") - lines[i].count("}")
+                i += 1
+                if skip == 0:
+                    break
+            continue
+        if words and words[0] == "CHANNELS":
+            column += int(words[1])
+        out.append(line)
+        i += 1
+    frames = motion.strip().splitlines()
+    kept = [" ".join(v for k, v in enumerate(f.split()) if k not in set(drop))
+            for f in frames[2:]]
+    return "\n".join(out) + "\nMOTION\n" + "\n".join(frames[:2] + kept) + "\n"
+
+
+def test_rig_without_toe_joints_has_its_toe_at_the_ankles_end_site(shared_data: Path,
+                                                                    tmp_path: Path) -> None:
+    """A real 3dsMax-named CMU clip rewritten without toe joints: the toe keypoint is the
+    ankle's End Site, where the toe joint was (the same positions)."""
+    source = shared_data / "cmu/bvh/131_01.bvh"
+    path = tmp_path / "no_toes.bvh"
+    path.write_text(_without_toe_joints(source.read_text()))
+    whole, toeless = bvh.read(source), bvh.read(path)
+    assert "LeftToe" not in toeless.skeleton.joint_names
+    for side in ("Left", "Right"):
+        key = f"{side.lower()}_toe"
+        assert toeless.skeleton.canonical[key] == f"{side}Ankle_end"
+        np.testing.assert_allclose(toeless.joint(f"{side}Ankle_end"),
+                                   whole.joint(f"{side}Toe"), atol=1e-5)
