@@ -183,19 +183,17 @@ def canonical_skeleton() -> Skeleton:
 #: (LeftHip, LeftKnee, ...) and ASF/AMC (hip, lfemur, ...) namings. In all of
 #: them a joint's position is the *start* of the bone of that name, so e.g.
 #: ``LeftUpLeg`` (thigh bone start) is the hip joint centre and ``LeftHand``
-#: (hand bone start) the wrist. A 3dsMax-named rig without toe joints (OptiTrack
-#: Arena's export: ``LeftAnkle`` ends in an End Site ahead of and below it) has its toe
-#: at that End Site (``LeftAnkle_end``, kept by the BVH reader), as the Poser template.
+#: (hand bone start) the wrist.
 CMU_ALIASES: dict[str, tuple[str, ...]] = {
     "pelvis": ("Hips", "hip", "root"),
     "left_hip": ("LeftUpLeg", "LeftHip", "lfemur"),
     "left_knee": ("LeftLeg", "LeftKnee", "ltibia"),
     "left_ankle": ("LeftFoot", "LeftAnkle", "lfoot"),
-    "left_toe": ("LeftToeBase", "LeftToe", "ltoes", "LeftAnkle_end"),
+    "left_toe": ("LeftToeBase", "LeftToe", "ltoes"),
     "right_hip": ("RightUpLeg", "RightHip", "rfemur"),
     "right_knee": ("RightLeg", "RightKnee", "rtibia"),
     "right_ankle": ("RightFoot", "RightAnkle", "rfoot"),
-    "right_toe": ("RightToeBase", "RightToe", "rtoes", "RightAnkle_end"),
+    "right_toe": ("RightToeBase", "RightToe", "rtoes"),
     "spine": ("Spine", "Chest", "upperback"),
     "chest": ("Spine1", "Chest2", "thorax"),
     "neck": ("lowerneck", "Neck"),
