@@ -19,10 +19,17 @@ Usage (about 1-2 min of CPU per 4-s clip; niced, one process)::
 
     nice -n 10 .venv/bin/python benchmarks/depth_bvh_physics.py
 
+    nice -n 10 .venv/bin/python benchmarks/depth_bvh_physics.py --upright \\
+        ba_hammer_01.bvh ba_scroll_down_01.bvh
+
 One JSON line per file goes to ``out/depth_bvh_physics/dev.jsonl`` as it finishes (a rerun
 skips the files there): the physics-on verdict, score, failing metrics (value / threshold /
 unit), every metric's details, and the physics-off verdict and failing metrics. The result
 is summarised by hand in docs/plausibility.md (NiTE section, "With physics on").
+
+``--upright NAME ...`` is the diagnosis of the tracking failures: the named files, each
+pitched about its ankles so that its neck stands over them (:func:`upright`), scored the same
+way (rows in ``upright.jsonl``, with the pitch).
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from depth_bvh_survey import FOLDER, materialise
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
@@ -69,11 +77,44 @@ def _failing(rec: dict[str, Any]) -> dict[str, dict[str, Any]]:
             for n, m in rec["metrics"].items() if m["passed"] is False}
 
 
-def score_file(path: Path, max_seconds: float) -> dict[str, Any]:
+def upright(motion: Motion) -> tuple[Motion, float]:
+    """``motion`` pitched about its ankles' median midpoint so that the median neck lies over
+    it (a rotation about the horizontal hip axis; the lowest ankle height is kept).
+
+    Returns:
+        The pitched motion (positions (T, J, 3) metres, Z up) and the pitch, degrees
+        (positive: the clip leaned back and was tipped forward).
+    """
+    sk, c = motion.skeleton, motion.skeleton.canonical
+    pos = motion.positions.astype(np.float64)
+
+    def joint(k: str) -> np.ndarray:
+        return pos[:, sk.index(c[k])]
+
+    ankles = [sk.index(c["left_ankle"]), sk.index(c["right_ankle"])]
+    pivot = np.median(pos[:, ankles].mean(axis=1), axis=0)
+    left = np.median(joint("left_hip") - joint("right_hip"), axis=0)
+    left[2] = 0.0
+    left /= np.linalg.norm(left)
+    neck = np.median(joint("neck"), axis=0) - pivot
+    # A positive rotation about the person's left axis tips the top forward.
+    angle = float(np.arctan2(neck @ np.cross([0.0, 0.0, 1.0], left), neck[2]))
+    k = np.array([[0.0, -left[2], left[1]], [left[2], 0.0, -left[0]],
+                  [-left[1], left[0], 0.0]])
+    rot = np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * k @ k
+    out = (pos - pivot) @ rot.T + pivot
+    out[:, :, 2] += pos[:, ankles, 2].min() - out[:, ankles, 2].min()
+    pitched = Motion(out.astype(motion.positions.dtype), motion.fps, sk, motion.name,
+                     dict(motion.metadata))
+    return pitched, float(np.degrees(angle))
+
+
+def score_file(path: Path, max_seconds: float, pitch: bool = False) -> dict[str, Any]:
     """Load ``path``, cut it to its first ``max_seconds`` s and score it physics on and off.
 
     Returns:
-        A JSON-ready row: ``file``, ``frames`` and ``seconds`` scored, ``verdict``, ``score``,
+        A JSON-ready row (``pitch``: the cut first made :func:`upright`, its angle in
+        ``pitch_deg``): ``file``, ``frames`` and ``seconds`` scored, ``verdict``, ``score``,
         ``profile``, ``failing`` {metric: {value, threshold, unit}} and ``metrics`` (each
         metric's record, details included) with physics on, ``off_verdict`` / ``off_failing``
         with physics off, ``repairs``, ``cpu_s`` (physics on); or ``error`` (a typed
@@ -85,6 +126,8 @@ def score_file(path: Path, max_seconds: float) -> dict[str, Any]:
         if not isinstance(clip, Motion):
             raise SimenvError(f"{path}: expected one person's clip", field="people")
         motion = clip.slice(0, min(clip.num_frames, int(round(max_seconds * clip.fps))))
+        if pitch:
+            motion, row["pitch_deg"] = upright(motion)
         off = simenv.score(motion, physics=False).to_records()[0]
         t0 = time.process_time()
         rec = simenv.score(motion, physics=True).to_records()[0]
@@ -104,15 +147,18 @@ def main() -> None:
     ap.add_argument("--max-seconds", type=float, default=4.0, help="seconds scored per file")
     ap.add_argument("--extract-to", type=Path, default=Path("/tmp/mae_bvh"),
                     help="where the snapshot's files are written (outside the repository)")
+    ap.add_argument("--upright", nargs="+", metavar="NAME",
+                    help="score these files of FILES pitched upright (upright.jsonl)")
     args = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    rows_path = OUT / "dev.jsonl"
+    rows_path = OUT / ("upright.jsonl" if args.upright else "dev.jsonl")
     done = {json.loads(line)["file"] for line in rows_path.read_text().splitlines()} \
         if rows_path.exists() else set()
     for i, rel in enumerate(FILES):
-        if Path(rel).name in done:
+        if Path(rel).name in done or (args.upright and Path(rel).name not in args.upright):
             continue
-        row = score_file(materialise(FOLDER + rel, args.extract_to), args.max_seconds)
+        row = score_file(materialise(FOLDER + rel, args.extract_to), args.max_seconds,
+                         pitch=bool(args.upright))
         with rows_path.open("a") as fh:
             fh.write(json.dumps(row, default=str) + "\n")
         print(f"[{i + 1}/{len(FILES)}] {row['file']}: {row.get('verdict', row.get('error'))} "
