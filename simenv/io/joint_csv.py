@@ -76,9 +76,8 @@ and the converted positions (the user's map instead, when given), recorded in
 ``metadata["joint_map"]``.
 
 Left out: OptiTrack Motive's multi-row CSV header (Type / Name / ID / Position rows above
-``Frame, Time (Seconds), X, Y, Z``; :mod:`simenv.io.motive_csv` reads it), several people in one
-table, and telling a
-"Segment Velocity" sheet (same column names) from positions.
+``Frame, Time (Seconds), X, Y, Z``; :mod:`simenv.io.motive_csv` reads it), several people in
+one table, and telling a "Segment Velocity" sheet (same column names) from positions.
 """
 
 from __future__ import annotations
