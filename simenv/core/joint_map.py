@@ -651,13 +651,8 @@ def _split_straight_knee(tree: _Tree, segs: list[tuple[int, int, float]], pos: n
     length = segs[i][2]
     if any(_KNEE_SPLIT * s[2] > length for k, s in enumerate(segs) if k != i):
         return segs
-    frac = _inside(tree, segs[i], pos)
-    if not frac:
-        return segs
-    knee = min(frac, key=lambda j: abs(frac[j] - 0.5))
-    if abs(frac[knee] - 0.5) > 0.2:
-        return segs
-    return _cut(segs, i, [knee], pos)
+    knee = _middle_joint(_inside(tree, segs[i], pos))
+    return segs if knee is None else _cut(segs, i, [knee], pos)
 
 
 def _inside(tree: _Tree, seg: tuple[int, int, float], pos: np.ndarray) -> dict[int, float]:
@@ -672,6 +667,15 @@ def _inside(tree: _Tree, seg: tuple[int, int, float], pos: np.ndarray) -> dict[i
     return {j: float(np.median(np.linalg.norm(pos[:, j] - pos[:, a], axis=-1))) / length
             for j in tree.path(a, b)[1:-1]
             if np.median(np.linalg.norm(pos[:, j] - pos[:, tree.parents[j]], axis=-1)) >= 1e-4}
+
+
+def _middle_joint(frac: dict[int, float]) -> int | None:
+    """Of a segment's inside joints (:func:`_inside`), the one nearest its middle, if it lies
+    within the segment's middle 40 % (a knee or an elbow of a straight limb); else None."""
+    if not frac:
+        return None
+    joint = min(frac, key=lambda j: abs(frac[j] - 0.5))
+    return joint if abs(frac[joint] - 0.5) <= 0.2 else None
 
 
 def _cut(segs: list[tuple[int, int, float]], i: int, joints: list[int], pos: np.ndarray
@@ -717,10 +721,9 @@ def _split_straight_arm(tree: _Tree, segs: list[tuple[int, int, float]], pos: np
     if segs[i][2] < _ELBOW_SPLIT * sum(s[2] for s in segs):
         return segs
     frac = _inside(tree, segs[i], pos)
-    middle = [j for j in frac if abs(frac[j] - 0.5) <= 0.2]
-    if not middle:
+    elbow = _middle_joint(frac)
+    if elbow is None:
         return segs
-    elbow = min(middle, key=lambda j: abs(frac[j] - 0.5))
     cuts = [elbow]
     above = [j for j in frac if frac[j] < 0.5 * frac[elbow]]
     if i == 0 and above:
