@@ -118,6 +118,35 @@ def test_cmu_clip_keeps_the_mocap_thresholds(shared_data: Path) -> None:
     assert rec["metrics"] == declared["metrics"]
 
 
+def test_a_rigid_file_keeps_the_mocap_bone_tolerance_under_a_depth_profile(
+        shared_data: Path) -> None:
+    """A file that stores rotations on fixed bones (here a real CMU BVH judged as a Kinect v1
+    clip, as a NiTE recording exported to rotation-channel BVH is) cannot carry the sensor's
+    bone-length noise: its bones keep the motion-capture tolerance under the family's profile,
+    so a 10 % stretched bone fails, while the profile's other fields judge it. The same
+    stretch on a real Kinect v1 clip of per-joint positions hides in the profile's tolerance."""
+    clip = load(shared_data / "cmu/bvh/02_01.bvh").slice(0, 240)
+    assert clip.metadata["rigid_bones"] is True
+    kinect = load(shared_data / MSR)
+    assert "rigid_bones" not in kinect.metadata
+    stretch = CORRUPTIONS["bone_stretch"]
+    clean = score(clip, physics=False, source="kinect_v1").to_records()[0]
+    bad = score(stretch.fn(clip, stretch.moderate, seed=0), physics=False,
+                source="kinect_v1").to_records()[0]
+    assert clean["source_kind"]["rigid_bones"] is True and clean["profile"] == "kinect_v1@30"
+    assert clean["metrics"]["bone_length"]["passed"] is True
+    assert bad["metrics"]["bone_length"]["passed"] is False
+    assert bad["metrics"]["bone_length"]["value"] > 1.5
+    profile = load_profiles()["kinect_v1@30"]
+    assert clean["metrics"]["velocity"]["details"] == score(
+        replace(clip, metadata={**clip.metadata, "rigid_bones": False}), physics=False,
+        source="kinect_v1").to_records()[0]["metrics"]["velocity"]["details"]
+    assert profile.thresholds["bone_length_rel_max"] > 10 * DEFAULT_THRESHOLDS.bone_length_rel_max
+    loose = score(stretch.fn(kinect, stretch.moderate, seed=0), physics=False).to_records()[0]
+    assert "rigid_bones" not in loose["source_kind"]
+    assert loose["metrics"]["bone_length"]["passed"] is True
+
+
 @pytest.mark.parametrize(("path", "kind"), [
     ("conventions/xsens_mvn/emokine_mvn_segment_positions.csv", "mocap"),
     ("humanml3d/new_joints/012314.npy", "body_model"),

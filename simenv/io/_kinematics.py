@@ -127,6 +127,15 @@ def forward_kinematics(
     return pos, rot
 
 
+def rigid_bones(parents: Sequence[int], translations: dict[int, np.ndarray]) -> bool:
+    """Whether every bone of a rotation-channel file is its fixed offset: no joint below a
+    root carries a translation channel (BVH position channels, ASF ``tx``/``ty``/``tz``).
+    Such a file cannot change a bone's length, whatever captured it; a file with
+    translations below the root (a suit's solver, NiTE-to-BVH tools that write every
+    joint's position) can."""
+    return all(parents[k] < 0 for k in translations)
+
+
 def to_z_up_metres(positions: np.ndarray, local_rotations: np.ndarray, offsets: np.ndarray,
                    up: str, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Forward-kinematics results in file axes and file units -> simenv's Z-up metres.

@@ -42,6 +42,7 @@ from simenv.io._kinematics import (
     forward_kinematics,
     matrices_to_quaternions,
     rest_extent,
+    rigid_bones,
     to_z_up_metres,
     units_metadata,
 )
@@ -639,6 +640,7 @@ def _to_motion(
         if fps is None
         else "given by the caller",
         "offsets_m": offsets_m.round(6).tolist(),
+        "rigid_bones": rigid_bones(asf.parents, translations),
         "quirks": quirks,
     }
     names = tuple(asf.order)

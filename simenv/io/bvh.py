@@ -65,6 +65,7 @@ from simenv.io._kinematics import (
     posed_extents,
     rest_extent,
     rest_extents,
+    rigid_bones,
     to_z_up_metres,
     units_metadata,
 )
@@ -817,6 +818,7 @@ def _to_motion(
         "frames_in_file": int(bvh.data.shape[0]),
         "tpose_frame0": bool(tpose),
         "offsets_m": offsets_m.round(6).tolist(),
+        "rigid_bones": rigid_bones(bvh.parents, translations),
         "quirks": quirks,
     }
     if repairs is not None:

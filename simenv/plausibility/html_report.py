@@ -252,6 +252,9 @@ def _profile_row(report: PlausibilityReport) -> list[tuple[str, str]]:
     what = ("the motion-capture thresholds (defaults)" if kind.profile == "mocap" else
             f"the {kind.profile} depth-camera profile (thresholds from that sensor family's "
             "real clips)")
+    if kind.rigid_bones:
+        what += ("; bone lengths at the motion-capture tolerance, since the file's bones are "
+                 "fixed offsets")
     return [("judged by", f"{_e(what)}; source kind {_e(kind.kind)} ({_e(kind.how)})")]
 
 

@@ -34,6 +34,14 @@ Profiles (:func:`profile_for`, :func:`apply_profile`)
     one of its nearest rate (:func:`profile_for`, :func:`at_profile_rate`).
     :func:`apply_profile` sets a profile field only where the given configuration still
     holds that field's default, so thresholds a user set explicitly stay theirs.
+
+Rigid files (:func:`for_clip`)
+    A depth camera's bone-length noise is in its joint positions; a file that stores
+    rotations on fixed bones (a NiTE recording exported as rotation-channel BVH, a model's
+    BVH output) cannot carry it: every bone is its OFFSET (the reader's
+    ``metadata["rigid_bones"]``). Such a clip keeps the motion-capture bone tolerances
+    (:data:`BONE_FIELDS`) under its family's profile, so a stretched bone is still caught;
+    the rest of the profile (speeds, jerk, floor) judges it as the sensor's.
 """
 
 from __future__ import annotations
@@ -92,6 +100,10 @@ FORMAT_KINDS: dict[str, str] = {
     "humanml3d_features": "body_model",
 }
 
+#: Profile fields that allow a depth camera's bone-length noise; a clip whose file keeps its
+#: bones rigid is judged without them (:func:`for_clip`).
+BONE_FIELDS: tuple[str, ...] = ("bone_length_rel_max", "bone_length_head_rel_max")
+
 #: The bundled profiles, relative to the assets folder.
 PROFILE_FILE = ("profiles", "depth_camera.json")
 
@@ -109,19 +121,25 @@ class SourceKind:
             ``"format <name>"`` or ``"nothing matched"``.
         judged_fps: the frame rate the clip was judged at when it was thinned towards its
             profile's (:func:`at_profile_rate`), else None.
+        rigid_bones: True when a family profile judges a file whose bones are rigid, so the
+            motion-capture bone tolerances stayed (:func:`for_clip`).
     """
 
     kind: str
     profile: str
     how: str
     judged_fps: float | None = None
+    rigid_bones: bool = False
 
-    def record(self) -> dict[str, str | float]:
-        """JSON-ready ``{kind, profile, how}`` (and ``judged_fps`` when set)."""
-        out: dict[str, str | float] = {"kind": self.kind, "profile": self.profile,
-                                       "how": self.how}
+    def record(self) -> dict[str, str | float | bool]:
+        """JSON-ready ``{kind, profile, how}`` (and ``judged_fps``, ``rigid_bones`` when
+        set)."""
+        out: dict[str, str | float | bool] = {"kind": self.kind, "profile": self.profile,
+                                              "how": self.how}
         if self.judged_fps is not None:
             out["judged_fps"] = self.judged_fps
+        if self.rigid_bones:
+            out["rigid_bones"] = True
         return out
 
 
@@ -276,6 +294,23 @@ def profile_for(kind: SourceKind, fps: float | None = None) -> Profile | None:
     return min(rated, key=lambda r: (abs(math.log(fps / r[0])), r[0]))[1]
 
 
+def has_rigid_bones(clip: Motion | Interaction) -> bool:
+    """Whether every person's file keeps its bones rigid (the reader's
+    ``metadata["rigid_bones"]``: BVH / ASF with no translation channel below a root)."""
+    return all(m.metadata.get("rigid_bones") is True for m in _people(clip))
+
+
+def for_clip(profile: Profile | None, clip: Motion | Interaction) -> Profile | None:
+    """``profile`` without its :data:`BONE_FIELDS` when ``clip``'s file keeps its bones rigid
+    (:func:`has_rigid_bones`): the sensor's bone-length noise cannot be in such a file, so
+    only a defect (a stretched bone, a generator's drifting limb) changes a bone there. None
+    and every other clip: ``profile`` unchanged."""
+    if profile is None or not has_rigid_bones(clip):
+        return profile
+    return replace(profile, thresholds={k: v for k, v in profile.thresholds.items()
+                                        if k not in BONE_FIELDS})
+
+
 def at_profile_rate(clip: Motion | Interaction, profile: Profile | None
                     ) -> Motion | Interaction:
     """``clip`` thinned to ``profile``'s rate when it is at least twice as fast: every
@@ -314,6 +349,7 @@ def apply_profile(config: ScoreConfig, profile: Profile | None) -> ScoreConfig:
 
 
 __all__ = [
+    "BONE_FIELDS",
     "DECLARABLE_SOURCES",
     "DEPTH_FAMILIES",
     "FORMAT_KINDS",
@@ -326,6 +362,8 @@ __all__ = [
     "apply_profile",
     "at_profile_rate",
     "detect_source",
+    "for_clip",
+    "has_rigid_bones",
     "load_profiles",
     "profile_for",
     "profile_path",

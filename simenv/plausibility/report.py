@@ -96,6 +96,7 @@ from simenv.plausibility.profiles import (
     apply_profile,
     at_profile_rate,
     detect_source,
+    for_clip,
     profile_for,
 )
 from simenv.plausibility.published import published_record
@@ -392,9 +393,12 @@ def score(motion_or_path: Motion | Interaction | str | Path, physics: bool = Tru
                           f"{type(motion_or_path).__name__}")
     kind = detect_source(clip, declared)
     profile = profile_for(kind, clip.fps)
-    config = apply_profile(config, profile)
     if profile is not None and profile.name != kind.profile:
         kind = replace(kind, profile=profile.name)  # the family's profile for this rate
+    rigid = for_clip(profile, clip)
+    if rigid is not profile:
+        profile, kind = rigid, replace(kind, rigid_bones=True)
+    config = apply_profile(config, profile)
     judged = at_profile_rate(clip, profile)
     if judged is not clip:
         clip, kind = judged, replace(kind, judged_fps=judged.fps)
