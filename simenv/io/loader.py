@@ -43,6 +43,8 @@ from simenv.io.floor import put_on_floor
 
 #: Reader modules of :mod:`simenv.io`, in detection priority order.
 READERS: tuple[str, ...] = (
+    # Before bvh: takes a BVH only by a Berkeley MHAD skeleton's file name, adding its labels.
+    "berkeley_mhad",
     "bvh",
     "asf_amc",
     "npz",
