@@ -55,6 +55,7 @@ READERS: tuple[str, ...] = (
     "utd_mhad",
     "nuisi",
     "ntu",
+    "pku_mmd",
     # Before h36m: all four claim .npy, and an unrecognised .npy gets humanml3d's
     # error, which names every .npy layout simenv reads (the sniffs of humanml3d
     # and humanml3d_features leave person1/ and person2/ files to intergen).
