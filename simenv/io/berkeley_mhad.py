@@ -33,10 +33,12 @@ from simenv.core.joint_map import JointMapSource
 from simenv.core.motion import Motion
 from simenv.io import bvh
 
-#: Extensions this reader claims, so that it is asked before the BVH reader (listed after it
-#: in :data:`simenv.io.loader.READERS`); a ``.bvh`` no sniffer accepts reaches
-#: :func:`simenv.io.bvh.read` through :func:`read` and fails with its located error.
+#: Extensions this reader claims; with :data:`REFINES` it is asked before the BVH reader. A
+#: ``.bvh`` no sniffer accepts reaches :func:`simenv.io.bvh.read` and its located error.
 EXTENSIONS = (".bvh",)
+#: The reader whose files this one reads with the dataset's knowledge added
+#: (:func:`simenv.io.loader.detect` asks this one first).
+REFINES = "bvh"
 #: The 11 actions, id 1..11 in order (the dataset's description).
 MHAD_ACTIONS: tuple[str, ...] = (
     "jumping in place", "jumping jacks", "bending (hands up all the way down)",
@@ -106,7 +108,8 @@ def read(
             and field).
     """
     path = Path(path)
-    release_units = units is None and scale is None
+    # Only a file named like the release's (a damaged .bvh reaches this reader too).
+    release_units = units is None and scale is None and bool(labels_from_name(path))
     if release_units:
         # The release is in centimetres. Its rest pose points every bone along its parent's
         # +Y (legs up), so the BVH reader's size-based detection takes the two shortest

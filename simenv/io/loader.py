@@ -4,8 +4,10 @@ Readers live in :mod:`simenv.io` modules listed in :data:`READERS`. Each
 exposes ``sniff(path, head) -> bool`` (``head`` = the first
 :data:`HEAD_BYTES` bytes) and ``read(path, **kwargs)`` returning a
 :class:`Motion`, an :class:`Interaction` or a list of them; it may declare
-``EXTENSIONS``, and, for a format that lays a recording out in subfolders (InterGen's
-``person1/`` + ``person2/``), ``sniff_folder(folder) -> bool`` and
+``EXTENSIONS`` (and ``REFINES``, the name of a reader whose files it reads with more
+knowledge of one dataset: it is asked before that reader), and, for a format that lays a
+recording out in subfolders (InterGen's ``person1/`` + ``person2/``),
+``sniff_folder(folder) -> bool`` and
 ``read_folder(folder, **kwargs)``, which read a folder they accept. Modules are
 imported lazily; one that does not exist (yet) is skipped.
 
@@ -43,11 +45,11 @@ from simenv.io.floor import put_on_floor
 
 #: Reader modules of :mod:`simenv.io`, in detection priority order.
 READERS: tuple[str, ...] = (
-    # Before bvh: takes a BVH only by a Berkeley MHAD skeleton's file name, adding its labels.
-    "berkeley_mhad",
     "bvh",
     "asf_amc",
     "npz",
+    # Refines bvh (REFINES): a BVH named like a Berkeley MHAD skeleton, with its labels.
+    "berkeley_mhad",
     "sbu",
     "msr_action3d",
     "utkinect",
@@ -138,6 +140,7 @@ def detect(path: Path) -> tuple[str, ModuleType]:
     suffix = path.suffix.lower()
     mods = [(n, m) for n in READERS if (m := _module(n)) is not None]
     claims = [(n, m) for n, m in mods if suffix in getattr(m, "EXTENSIONS", ())]
+    claims.sort(key=lambda nm: not getattr(nm[1], "REFINES", None))  # refiners first
     ordered = claims + [(n, m) for n, m in mods if (n, m) not in claims]
     for name, mod in ordered:
         try:
