@@ -75,6 +75,39 @@ MAX_TILT_DEG = 60.0
 #: measurement (Kinect range is ~0.5-8 m): an error, metres.
 MAX_RANGE_M = 50.0
 
+#: Keypoint body model for the centre of mass: (first keypoint, second keypoint, mass
+#: fraction, centre-of-mass position as a fraction of the way from the first to the second),
+#: de Leva (1996, J Biomech 29:1223, Table 4, adult males). ``hips`` is the hips' midpoint
+#: (or the pelvis): the trunk runs from the neck (suprasternale) to it; the head's mass sits
+#: at the head keypoint, the hand's at the wrist and the foot's at the ankle (keypoint
+#: skeletons have no finger tips or heels). Segments a skeleton lacks are left out and the
+#: fractions renormalised.
+COM_SEGMENTS: tuple[tuple[str, str, float, float], ...] = (
+    ("head", "head", 0.0694, 0.0),
+    ("neck", "hips", 0.4346, 0.4486),
+    *((f"{s}_{a}", f"{s}_{b}", m, c) for s in ("left", "right") for a, b, m, c in (
+        ("shoulder", "elbow", 0.0271, 0.5772), ("elbow", "wrist", 0.0162, 0.4574),
+        ("wrist", "wrist", 0.0061, 0.0), ("hip", "knee", 0.1416, 0.4095),
+        ("knee", "ankle", 0.0433, 0.4459), ("ankle", "ankle", 0.0137, 0.0))),
+)
+#: Forward offset, metres, from the ankles' midpoint to the point under a standing person's
+#: centre of mass (the mean centre of pressure lies in front of the ankles, mid-foot):
+#: the median over 51 standing 4-s windows of 9 CMU motion-capture clips turned into
+#: OpenNI-like keypoints (``benchmarks/levelling_check.py``; window sd 34 mm, clip medians
+#: 53-174 mm), never measured on depth-camera clips. Toe keypoints are not used: on the same
+#: windows they made the estimate worse.
+SUPPORT_FORWARD_M = 0.085
+#: A frame counts as standing when both knees bend less than this, degrees: motion-captured
+#: standing, boxing and dancing bend them 20-60 deg (CMU, 10-90 %), sitting about 90.
+STANDING_KNEE_DEG = 60.0
+#: A person whose ankles' midpoint stays within this extent (5-95 %, both horizontal
+#: axes), metres, is in place: their floor points give no slope and the prior centre comes
+#: from the centre of mass over the feet.
+IN_PLACE_SPREAD_M = 0.5
+#: At least this fraction of an in-place person's frames must be standing for the centre
+#: of mass to give the vertical; otherwise the body axis does.
+MIN_STANDING_FRACTION = 0.25
+
 
 @dataclass(frozen=True)
 class FloorEstimate:
@@ -94,7 +127,9 @@ class FloorEstimate:
         floor_points: number of frames whose lowest foot point was kept.
         feet_spread_m: (2,) extent (5-95 percentile) of the kept floor points
             along their two horizontal principal axes: small values mean the
-            tilt came mostly from the body-axis prior.
+            tilt came mostly from the prior.
+        prior: what centred the slope prior: ``"body axis"`` or ``"centre of mass over
+            feet"`` (someone stood in place, :func:`standing_up`).
     """
 
     rotation: np.ndarray
@@ -107,6 +142,7 @@ class FloorEstimate:
     floor_rms_m: float
     floor_points: int
     feet_spread_m: tuple[float, float]
+    prior: str = "body axis"
 
     def apply(self, positions_cam: np.ndarray) -> np.ndarray:
         """(..., 3) camera-frame metres -> (..., 3) float32 world metres."""
@@ -117,7 +153,8 @@ class FloorEstimate:
         """JSON-friendly summary for ``Motion.metadata["camera_frame"]``."""
         return {
             "convention": "camera x=sensor left, y=up, z=forward -> world X=forward, Y=left, "
-            "Z=up; floor from feet (plane + body-axis prior), z=0 on the floor",
+            "Z=up; floor from feet (plane + prior: body axis, or centre of mass over the feet "
+            "for a person in place), z=0 on the floor",
             "tilt_deg": round(self.tilt_deg, 3),
             "pitch_down_deg": round(self.pitch_down_deg, 3),
             "roll_deg": round(self.roll_deg, 3),
@@ -125,6 +162,7 @@ class FloorEstimate:
             "floor_rms_m": round(self.floor_rms_m, 4),
             "floor_points": self.floor_points,
             "feet_spread_m": [round(v, 3) for v in self.feet_spread_m],
+            "prior": self.prior,
             "rotation": np.round(self.rotation, 6).tolist(),
         }
 
@@ -178,27 +216,129 @@ def _rotation_to_z(n: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * kx + (1 - c) * (kx @ kx)
 
 
+def _keypoint(p: np.ndarray, skeleton: Skeleton, key: str) -> np.ndarray | None:
+    """(T, 3) positions of canonical ``key`` (``hips``: the hips' midpoint, else the
+    pelvis), or None when the skeleton lacks it."""
+    if key == "hips":
+        hips = _indices(skeleton, ["left_hip", "right_hip"])
+        if len(hips) == 2:
+            return p[:, hips].mean(axis=1)
+        key = "pelvis"
+    if key not in skeleton.canonical:
+        return None
+    return p[:, skeleton.index(skeleton.canonical[key])]
+
+
+#: Keypoints the centre of mass and the standing test cannot do without.
+_STANDING_KEYS = ("neck", "hips", *(f"{s}_{k}" for s in ("left", "right")
+                                    for k in ("hip", "knee", "ankle")))
+
+
+def centre_of_mass(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray | None:
+    """Whole-body centre of mass from keypoints (:data:`COM_SEGMENTS`, de Leva 1996).
+
+    Args:
+        positions: (T, J, 3) metres, any frame.
+        skeleton: maps at least the neck, the hips and both legs (hip, knee, ankle).
+
+    Returns:
+        (T, 3) metres in the frame of ``positions``, or None when a required keypoint is
+        missing.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    if any(_keypoint(p[:1], skeleton, k) is None for k in _STANDING_KEYS):
+        return None
+    acc, total = np.zeros((len(p), 3)), 0.0
+    for a, b, mass, along in COM_SEGMENTS:
+        pa, pb = _keypoint(p, skeleton, a), _keypoint(p, skeleton, b)
+        if pa is None or pb is None:
+            continue  # e.g. no head keypoint: renormalise over the rest
+        acc += mass * (pa + along * (pb - pa))
+        total += mass
+    return acc / total
+
+
+def standing_up(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray | None:
+    """The vertical of a person standing in place: their centre of mass is over their feet.
+
+    A standing person's centre of mass stays over the base of support; over a clip its
+    horizontal offset from the centre of pressure averages to the mean horizontal
+    acceleration times its height over g, which is nil when the person starts and ends at
+    rest in one place. So the mean, over standing frames (both knees bent less than
+    :data:`STANDING_KNEE_DEG`), of the unit vector from the support point (the ankles'
+    midpoint moved :data:`SUPPORT_FORWARD_M` forward, perpendicular to the hip line) to the
+    centre of mass (:func:`centre_of_mass`) is up. (Only standing frames, not only quiet
+    ones: keeping the half with the lowest centre-of-mass acceleration did not narrow the
+    offset's scatter on motion capture.)
+
+    Args:
+        positions: (T, J, 3) metres, roughly Z up (within ~30 deg: the forward direction
+            is taken in this frame's horizontal plane).
+        skeleton: its canonical map locates neck, hips, knees and ankles.
+
+    Returns:
+        (3,) unit up vector in the frame of ``positions``, or None when the person is not
+        in place (ankles' midpoint spread over more than :data:`IN_PLACE_SPREAD_M`), stands
+        on fewer than :data:`MIN_STANDING_FRACTION` of the frames, or lacks a keypoint.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    com = centre_of_mass(p, skeleton)
+    if com is None:
+        return None
+    ankles = _indices(skeleton, ["left_ankle", "right_ankle"])
+    if max(_spread(p[:, ankles, :2].mean(axis=1))) > IN_PLACE_SPREAD_M:
+        return None
+    standing = np.ones(len(p), dtype=bool)
+    for side in ("left", "right"):
+        hip, knee, ankle = (_keypoint(p, skeleton, f"{side}_{k}") for k in ("hip", "knee", "ankle"))
+        thigh, shank = knee - hip, ankle - knee
+        cos = np.einsum("ij,ij->i", thigh, shank) / np.maximum(
+            np.linalg.norm(thigh, axis=1) * np.linalg.norm(shank, axis=1), 1e-9)
+        standing &= np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))) < STANDING_KNEE_DEG
+    if standing.mean() < MIN_STANDING_FRACTION:
+        return None
+    support = p[:, ankles].mean(axis=1)
+    # The person's forward: their left (hip line) crossed with up, in the horizontal plane.
+    left = _keypoint(p, skeleton, "left_hip") - _keypoint(p, skeleton, "right_hip")
+    forward = np.cross(left, [0.0, 0.0, 1.0])
+    forward[:, 2] = 0.0
+    forward /= np.maximum(np.linalg.norm(forward, axis=1, keepdims=True), 1e-9)
+    v = (com - support - SUPPORT_FORWARD_M * forward)[standing]
+    v = (v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-9)).mean(axis=0)
+    return v / np.linalg.norm(v)
+
+
 def _samples(
     people: list[tuple[np.ndarray, Skeleton, list[int], np.ndarray]]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per-frame lowest floor points (N, 3) and body-axis votes (M, 3) in the
-    frame the positions are given in (Z roughly up)."""
-    floor_pts, votes = [], []
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Per-frame lowest floor points (N, 3), the centre of the slope prior (3,) (not
+    normalised) and what gave it, in the frame the positions are given in (Z roughly up).
+
+    A person in place (:func:`standing_up`) votes with the vertical their centre of mass
+    over their feet gives; everyone else with their body axis (median of the shank and
+    trunk directions). With nobody in place the prior is the body axis of all, as before."""
+    floor_pts, votes, standing = [], [], []
     for p, skeleton, feet, clearance in people:
         votes.append(_body_axis_votes(p, skeleton))
+        standing.append(standing_up(p, skeleton))
         h = p[:, feet, 2] - clearance
         lowest = np.argmin(h, axis=1)
         pts = p[np.arange(len(p)), np.asarray(feet)[lowest]].copy()
         pts[:, 2] -= clearance[lowest]
         floor_pts.append(pts)
-    return np.concatenate(floor_pts), np.concatenate(votes)
+    if all(s is None for s in standing):
+        return np.concatenate(floor_pts), np.median(np.concatenate(votes), axis=0), "body axis"
+    centres = [s if s is not None else np.median(v, axis=0) / max(
+        float(np.linalg.norm(np.median(v, axis=0))), 1e-9) for s, v in zip(standing, votes,
+                                                                        strict=True)]
+    return np.concatenate(floor_pts), np.mean(centres, axis=0), "centre of mass over feet"
 
 
-def _fit_plane(pts: np.ndarray, votes: np.ndarray, source: str | None
+def _fit_plane(pts: np.ndarray, axis: np.ndarray, source: str | None
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Regularised robust fit ``h = a X + b Y + c``; returns (coef, keep mask
-    over ``pts``)."""
-    axis = np.median(votes, axis=0)
+    """Regularised robust fit ``h = a X + b Y + c`` with the slope prior perpendicular to
+    ``axis`` (3,); returns (coef, keep mask over ``pts``)."""
+    axis = np.array(axis, dtype=np.float64)
     if np.linalg.norm(axis) < 1e-6 or axis[2] <= 0:
         raise MotionError(
             "the body axis points down or is undefined in the camera frame; expected y-up "
@@ -267,8 +407,8 @@ def estimate_floor(
 
     level = np.eye(3)  # rotation from the permuted frame to the current frame
     for _ in range(2):
-        pts, votes = _samples([(p @ level.T, s, f, c) for p, s, f, c in prepared])
-        coef, keep = _fit_plane(pts, votes, source)
+        pts, axis, prior = _samples([(p @ level.T, s, f, c) for p, s, f, c in prepared])
+        coef, keep = _fit_plane(pts, axis, source)
         n_cur = np.array([-coef[0], -coef[1], 1.0])
         n_cur /= np.linalg.norm(n_cur)
         level = _rotation_to_z(n_cur) @ level
@@ -297,6 +437,7 @@ def estimate_floor(
         floor_rms_m=rms,
         floor_points=int(keep.sum()),
         feet_spread_m=(spread[0], spread[1]),
+        prior=prior,
     )
 
 
