@@ -1,4 +1,4 @@
-"""A file whose floor is at the feet's joint centres, not under their soles: put it on the floor.
+"""A file whose floor is at the feet's joint centres, or tilted: put it on the floor.
 
 simenv takes a motion-capture file's own ground plane as the floor (z = 0 after reading):
 a calibrated capture volume has its floor there, and the body fit
@@ -24,6 +24,35 @@ the floor (a defect the ground metrics must see, e.g. in a generated clip), not 
 convention, and is not touched. One stance sinking (a capture glitch, a corrupted segment)
 leaves the other stances' balls above the bound and is not touched; a clip without toe
 keypoints or planted frames is not touched. The raise is noted in ``metadata["repairs"]``.
+
+**A rig without toe keypoints** (:func:`ankle_floor_offset`; Aalto's and Adelaide's
+OptiTrack Arena exports end the leg at the ankle) is judged on its still ankles instead,
+against the ankle height the body fit gives such a clip (:func:`fit_ankle_height`: the
+anthropometric 70 mm scaled by the subject's size; the fit hangs the sole that far below the
+ankle keypoint): when on the foot whose planted ankles stand lowest their 90th percentile is
+below :data:`MAX_ANKLE_RATIO` (0.8) of it, the floor is at the joint centres and the clip is
+raised so that the planted ankles' median stands at that height. Calibrated with the toes
+removed from motion capture whose answer is known: on the shared CMU corpus (27 people, floors
+under the soles) the ratio is at least 0.87 (median 1.27: no clip raised); on Holden's Xia
+clips (9, floor at the joint centres) at most 0.73 (all raised; the raise minus the toe
+rule's: median +2 mm, at most 26 mm, the anthropometric height against the rig's own); the
+CMU clips lowered onto their ankle centres are raised back in 23 of 27 (error median -9 mm,
+-38 to +26 mm). A median more than a ball's height below zero is a sunk body, left alone.
+
+**A tilted floor** (:func:`floor_plane`): the still contacts (toes, else ankles) are fitted by
+a plane with one height per foot and a slope along each horizontal axis over which one foot's
+contacts spread at least :data:`MIN_SPREAD_M` (1 m). A plane tilted more than
+:data:`MIN_TILT_DEG` (2 deg) with a residual SD within :data:`MAX_PLANE_RESIDUAL_M` (8 mm) is a
+capture volume calibrated off level (Aalto performer ``t``'s development clip: 2.7 deg): the
+clip is rotated about the contacts' centroid to level it and moved, up or down, so that they
+stand at the heights above (:func:`contact_offset`). The shared CMU floors tilt 0.01-0.97 deg
+through the toes (one plane at 3.9 deg, in CMU 05_02's dance with a pirouette, has a 12-mm
+residual and is not trusted) and 0.01-0.92 deg through the ankles; Xia's at most 0.4 deg. A
+real slope cannot be told from a tilted floor in a file that holds no floor: a clip walking up
+or down a ramp of 2-6 deg is levelled as if the floor were tilted (a ramp then reads as level
+ground); a steeper ramp (over :data:`MAX_TILT_DEG`) is left as it is, and so are stairs (their
+risers would leave centimetres of residual about any plane; no stairs clip was at hand to
+measure).
 
 Applied by :func:`simenv.load` to the formats in :data:`FILE_FLOOR_FORMATS` (the file's
 coordinate frame is the world frame); depth-camera readers, and the joint-table reader on a
