@@ -98,6 +98,22 @@ def test_second_body_millimetres_and_gaps(tmp_path: Path) -> None:
         _write(tmp_path / "0003-L.txt", gappy)).positions[30:], atol=1e-4)
 
 
+def test_a_folded_second_body_does_not_tilt_the_floor(tmp_path: Path) -> None:
+    body = _ntu_body()
+    hips = body[:, :1, 1:2]
+    folded = body + np.array([0.9, 0.0, 0.4])
+    folded[..., 1:2] = 2 * hips - body[..., 1:2]  # upside down about its hips
+    pair = pku_mmd.read(_write(tmp_path / "0005-L.txt", body, folded))
+    alone = pku_mmd.read(_write(tmp_path / "0006-L.txt", body))
+    assert isinstance(pair, Interaction)
+    assert pair.actor.metadata["camera_frame"]["from_bodies"] == [1]
+    assert any("body 2: hips above the ankles on only 0%" in q
+               for q in pair.actor.metadata["quirks"])
+    np.testing.assert_allclose(pair.actor.positions, alone.positions, atol=1e-5)
+    upright = pku_mmd.read(_write(tmp_path / "0007-L.txt", body, body + [0.9, 0.0, 0.4]))
+    assert upright.actor.metadata["camera_frame"]["from_bodies"] == [1, 2]
+
+
 def test_bad_lines_name_file_line_frame_and_field(tmp_path: Path) -> None:
     path = _write(tmp_path / "0004-L.txt", _ntu_body()[:12])
     lines = path.read_text().splitlines()
