@@ -30,6 +30,13 @@ is summarised by hand in docs/plausibility.md (NiTE section, "With physics on").
 ``--upright NAME ...`` is the diagnosis of the tracking failures: the named files, each
 pitched about its ankles so that its neck stands over them (:func:`upright`), scored the same
 way (rows in ``upright.jsonl``, with the pitch).
+
+``--levelling`` (cheap, physics off) loads every file twice, levelled with the body-axis prior
+(as before issue 33's change) and as :func:`simenv.load` levels it now (the centre of mass
+over the feet for a person in place), and writes per file the tilt, the neck's and the
+keypoint centre of mass's forward offset from the ankles' midpoint and the physics-off
+verdict of each (``levelling.jsonl``). ``--only NAME ... --rows FILE`` scores only the named
+files of :data:`FILES` physics on, into ``FILE`` (e.g. ``levelled.jsonl``).
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from depth_bvh_survey import FOLDER, materialise
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.core.errors import SimenvError
 from simenv.core.motion import Motion
+from simenv.io import camera_frame
 from simenv.io.loader import load
 
 REPO = Path(__file__).resolve().parents[1]
@@ -109,6 +117,47 @@ def upright(motion: Motion) -> tuple[Motion, float]:
     return pitched, float(np.degrees(angle))
 
 
+def _forward_offsets(motion: Motion) -> dict[str, float]:
+    """Median forward offset, metres, of the neck and of the keypoint centre of mass
+    (:func:`simenv.io.camera_frame.centre_of_mass`) from the ankles' midpoint (negative:
+    behind the ankles), forward being the hip line crossed with up."""
+    sk, c = motion.skeleton, motion.skeleton.canonical
+    pos = motion.positions.astype(np.float64)
+    ankles = pos[:, [sk.index(c["left_ankle"]), sk.index(c["right_ankle"])]].mean(axis=1)
+    fwd = np.cross(pos[:, sk.index(c["left_hip"])] - pos[:, sk.index(c["right_hip"])],
+                   [0.0, 0.0, 1.0])
+    fwd[:, 2] = 0.0
+    fwd /= np.linalg.norm(fwd, axis=1, keepdims=True)
+    com = camera_frame.centre_of_mass(pos, sk)
+    neck = pos[:, sk.index(c["neck"])]
+    return {"neck_fwd_m": round(float(np.median(np.einsum("ij,ij->i", neck - ankles, fwd))), 4),
+            "com_fwd_m": round(float(np.median(np.einsum("ij,ij->i", com - ankles, fwd))), 4)}
+
+
+def levelling_row(path: Path, max_seconds: float) -> dict[str, Any]:
+    """``path`` levelled the old way (body-axis prior) and the new way, physics off: tilt,
+    prior used, forward offsets (:func:`_forward_offsets`), verdict and failing metrics of
+    the cut to its first ``max_seconds``."""
+    row: dict[str, Any] = {"file": path.name}
+    saved = camera_frame.IN_PLACE_SPREAD_M
+    for label in ("old", "new"):
+        # Old: nobody counts as in place, so the body axis centres the prior as before.
+        camera_frame.IN_PLACE_SPREAD_M = -1.0 if label == "old" else saved
+        try:
+            clip = load(path)
+        finally:
+            camera_frame.IN_PLACE_SPREAD_M = saved
+        assert isinstance(clip, Motion)
+        motion = clip.slice(0, min(clip.num_frames, int(round(max_seconds * clip.fps))))
+        cf = clip.metadata["camera_frame"]
+        off = simenv.score(motion, physics=False).to_records()[0]
+        row[label] = {"tilt_deg": cf["tilt_deg"], "pitch_down_deg": cf["pitch_down_deg"],
+                      "prior": cf.get("prior", "body axis"), **_forward_offsets(motion),
+                      "verdict": off["verdict"], "score": off["score"],
+                      "failing": _failing(off)}
+    return row
+
+
 def score_file(path: Path, max_seconds: float, pitch: bool = False) -> dict[str, Any]:
     """Load ``path``, cut it to its first ``max_seconds`` s and score it physics on and off.
 
@@ -149,16 +198,32 @@ def main() -> None:
                     help="where the snapshot's files are written (outside the repository)")
     ap.add_argument("--upright", nargs="+", metavar="NAME",
                     help="score these files of FILES pitched upright (upright.jsonl)")
+    ap.add_argument("--levelling", action="store_true",
+                    help="old vs new levelling, physics off, every file (levelling.jsonl)")
+    ap.add_argument("--only", nargs="+", metavar="NAME", help="score only these files of FILES")
+    ap.add_argument("--rows", help="result file name under out/depth_bvh_physics/")
     args = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    rows_path = OUT / ("upright.jsonl" if args.upright else "dev.jsonl")
+    default = "upright.jsonl" if args.upright else "levelling.jsonl" if args.levelling \
+        else "dev.jsonl"
+    rows_path = OUT / (args.rows or default)
+    only = args.upright or args.only
     done = {json.loads(line)["file"] for line in rows_path.read_text().splitlines()} \
         if rows_path.exists() else set()
     for i, rel in enumerate(FILES):
-        if Path(rel).name in done or (args.upright and Path(rel).name not in args.upright):
+        if Path(rel).name in done or (only and Path(rel).name not in only):
             continue
-        row = score_file(materialise(FOLDER + rel, args.extract_to), args.max_seconds,
-                         pitch=bool(args.upright))
+        path = materialise(FOLDER + rel, args.extract_to)
+        if args.levelling:
+            row = levelling_row(path, args.max_seconds)
+            with rows_path.open("a") as fh:
+                fh.write(json.dumps(row, default=str) + "\n")
+            print(f"{row['file']}: " + "; ".join(
+                f"{k} tilt {row[k]['tilt_deg']:.1f} neck {row[k]['neck_fwd_m']:+.3f} com "
+                f"{row[k]['com_fwd_m']:+.3f} {row[k]['verdict']} {list(row[k]['failing'])}"
+                for k in ("old", "new")), flush=True)
+            continue
+        row = score_file(path, args.max_seconds, pitch=bool(args.upright))
         with rows_path.open("a") as fh:
             fh.write(json.dumps(row, default=str) + "\n")
         print(f"[{i + 1}/{len(FILES)}] {row['file']}: {row.get('verdict', row.get('error'))} "

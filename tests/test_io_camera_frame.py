@@ -10,9 +10,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from simenv.core.errors import MotionError
-from simenv.core.skeletons import gesture9_skeleton, get_skeleton
-from simenv.io import msr_action3d, utkinect
-from simenv.io.camera_frame import KINECT_TO_ZUP, camera_to_world, estimate_floor
+from simenv.core.skeletons import florence_skeleton, gesture9_skeleton, get_skeleton
+from simenv.io import camera_frame, msr_action3d, utkinect
+from simenv.io.camera_frame import (
+    KINECT_TO_ZUP,
+    camera_to_world,
+    centre_of_mass,
+    estimate_floor,
+    standing_up,
+)
 
 UTK = "gestures/utkinect/joints"
 
@@ -184,3 +190,84 @@ def test_depth_camera_skeleton_written_as_bvh_is_levelled_and_judged_as_one(
     kind = detect_source(loaded)
     assert (kind.kind, kind.profile, kind.how) == ("kinect_v1", "kinect_v1",
                                                     "joint names openni")
+
+
+def _openni_keypoints(path: Path, seconds: tuple[float, float]) -> np.ndarray:
+    """Real CMU motion capture (Z up, metres) from ``seconds[0]`` to ``seconds[1]`` at 30 fps
+    as an OpenNI / NiTE-like 15-joint skeleton (no toes: each joint at its canonical
+    keypoint), the way a depth camera's tracker would give it."""
+    import simenv
+
+    m = simenv.load(path)
+    c = m.to_canonical()
+    step = int(round(m.fps / 30.0))
+    a, b = (int(round(s * m.fps)) for s in seconds)
+    sk = florence_skeleton()
+    inverse = {v: k for k, v in sk.canonical.items()}
+    return np.stack([c.joint(inverse[n])[a:b:step] for n in sk.joint_names], axis=1).astype(
+        np.float64)
+
+
+def _seen_by(world: np.ndarray, pitch_down: float, roll_deg: float, height: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """World positions in the camera frame of a sensor with that pose, and the true world
+    up in camera coordinates."""
+    tilt = Rotation.from_euler("xz", [-pitch_down, roll_deg], degrees=True).as_matrix()
+    return ((world - [0, 0, height]) @ KINECT_TO_ZUP) @ tilt.T, tilt @ [0.0, 1.0, 0.0]
+
+
+def _error_deg(est, up: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip(est.up_camera @ up, -1.0, 1.0))))
+
+
+def test_in_place_gesture_levelled_by_its_centre_of_mass(
+        shared_data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A real boxer punching in place (CMU 02_05, knees bent, shanks leaning 17-25 deg) seen
+    by a sensor pitched 15 deg down and rolled 4: the feet stay in one floor cell, so the
+    prior decides the tilt. The centre of mass over the feet recovers the vertical within
+    3 deg; the body axis (shanks and trunk) misses it by more than 10."""
+    world = _openni_keypoints(shared_data / "cmu/asf_amc/02_05.amc", (0.0, 4.0))
+    cam, up = _seen_by(world, 15.0, 4.0, 1.0)
+    sk = florence_skeleton()
+    est = estimate_floor([(cam, sk)])
+    assert est.prior == "centre of mass over feet"
+    assert _error_deg(est, up) < 3.0
+    assert est.sensor_height_m == pytest.approx(1.0, abs=0.1)
+    monkeypatch.setattr(camera_frame, "IN_PLACE_SPREAD_M", -1.0)  # nobody in place: old prior
+    old = estimate_floor([(cam, sk)])
+    assert old.prior == "body axis"
+    assert _error_deg(old, up) > 10.0
+
+
+def test_walk_keeps_the_body_axis_prior(shared_data: Path,
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A real walk (CMU 16_15) as OpenNI keypoints in a tilted sensor: the feet spread over
+    the floor, nobody is in place, and the estimate is the one the body-axis prior gave."""
+    world = _openni_keypoints(shared_data / "cmu/bvh/16_15.bvh", (0.0, 8.0))
+    cam, up = _seen_by(world, 20.0, -5.0, 1.2)
+    sk = florence_skeleton()
+    assert standing_up(world, sk) is None
+    est = estimate_floor([(cam, sk)])
+    monkeypatch.setattr(camera_frame, "IN_PLACE_SPREAD_M", -1.0)
+    old = estimate_floor([(cam, sk)])
+    assert est.prior == old.prior == "body axis"
+    assert float(np.degrees(np.arccos(np.clip(est.up_camera @ old.up_camera, -1, 1)))) < 0.01
+    assert _error_deg(est, up) < 2.0
+
+
+def test_centre_of_mass_of_a_standing_person(shared_data: Path) -> None:
+    """de Leva's keypoint model on real motion capture of a person standing in place (CMU
+    18_01, waiting to shake hands): the centre of mass sits 0.85-1.05 m up, at 60-70 % of
+    the head keypoint's height (about 56 % of stature over a skull base at about 87 %), and
+    over the feet (within 15 cm of the ankles' midpoint)."""
+    world = _openni_keypoints(shared_data / "cmu/two_person/18_19_walk_shake_hands/18_01.bvh",
+                              (1.5, 5.5))
+    sk = florence_skeleton()
+    com = centre_of_mass(world, sk)
+    assert com is not None and com.shape == (len(world), 3)
+    head = world[:, sk.index("Head"), 2]
+    assert 0.85 < np.median(com[:, 2]) < 1.05
+    assert 0.60 < np.median(com[:, 2] / head) < 0.70
+    ankles = world[:, [sk.index("LeftAnkle"), sk.index("RightAnkle")]].mean(axis=1)
+    assert np.percentile(np.linalg.norm((com - ankles)[:, :2], axis=1), 90) < 0.15
+    assert centre_of_mass(world[:, :9], gesture9_skeleton()) is None  # no legs: no estimate
