@@ -31,6 +31,9 @@ is summarised by hand in docs/plausibility.md (NiTE section, "With physics on").
 pitched about its ankles so that its neck stands over them (:func:`upright`), scored the same
 way (rows in ``upright.jsonl``, with the pitch).
 
+``--heldout-levelling`` runs the same on :func:`heldout_files` (``heldout_levelling.jsonl``),
+once, after the levelling code was committed.
+
 ``--levelling`` (cheap, physics off) loads every file twice, levelled with the body-axis prior
 (as before issue 33's change) and as :func:`simenv.load` levels it now (the centre of mass
 over the feet for a person in place), and writes per file the tilt, the neck's and the
@@ -48,7 +51,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from depth_bvh_survey import FOLDER, materialise
+from depth_bvh_survey import FOLDER, files, materialise
 
 import simenv  # noqa: F401  (MUJOCO_GL before mujoco)
 from simenv.core.errors import SimenvError
@@ -78,6 +81,25 @@ FILES: tuple[str, ...] = (
     "testeval_throw/ba_throw_01.bvh",
     "testeval_wave/ba_wave_01.bvh",
 )
+
+
+#: Folders holding a second or third take of another folder's gesture (left out of the
+#: held-out levelling check as they were of :data:`FILES`).
+TAKES = ("testeval_dontcare2", "testeval_dontcare3", "testeval_pinch2", "testeval_pinch3",
+         "testeval_scrollup2", "testeval_throw2")
+
+
+def heldout_files() -> list[str]:
+    """The held-out files of the levelling check, relative to the snapshot's BVH folder: per
+    held-out performer (``ank``, ``ark``, ``bk``, ``jk``, ``sk``) and gesture folder (not
+    :data:`TAKES`), the first file in sort order. Chosen by this rule from the file names
+    only, fixed before any was read."""
+    first: dict[tuple[str, str], str] = {}
+    for blob in files("heldout"):
+        folder, name = Path(blob).parent.name, Path(blob).name
+        if folder not in TAKES:
+            first.setdefault((folder, name.split("_")[0]), blob.removeprefix(FOLDER))
+    return [first[k] for k in sorted(first)]
 
 
 def _failing(rec: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -200,17 +222,22 @@ def main() -> None:
                     help="score these files of FILES pitched upright (upright.jsonl)")
     ap.add_argument("--levelling", action="store_true",
                     help="old vs new levelling, physics off, every file (levelling.jsonl)")
+    ap.add_argument("--heldout-levelling", action="store_true",
+                    help="--levelling on heldout_files() (heldout_levelling.jsonl); once, at "
+                    "the end")
     ap.add_argument("--only", nargs="+", metavar="NAME", help="score only these files of FILES")
     ap.add_argument("--rows", help="result file name under out/depth_bvh_physics/")
     args = ap.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    default = "upright.jsonl" if args.upright else "levelling.jsonl" if args.levelling \
-        else "dev.jsonl"
+    if args.heldout_levelling:
+        args.levelling = True
+    default = "upright.jsonl" if args.upright else "heldout_levelling.jsonl" \
+        if args.heldout_levelling else "levelling.jsonl" if args.levelling else "dev.jsonl"
     rows_path = OUT / (args.rows or default)
     only = args.upright or args.only
     done = {json.loads(line)["file"] for line in rows_path.read_text().splitlines()} \
         if rows_path.exists() else set()
-    for i, rel in enumerate(FILES):
+    for i, rel in enumerate(heldout_files() if args.heldout_levelling else FILES):
         if Path(rel).name in done or (only and Path(rel).name not in only):
             continue
         path = materialise(FOLDER + rel, args.extract_to)
