@@ -401,11 +401,13 @@ def test_z_up_file_detected_from_its_rest_pose() -> None:
     assert lying.height() < 0.6 * motion.height()
 
 
-def _own_axes(src: Path, dst: Path) -> Path:
+def _own_axes(src: Path, dst: Path, axis: tuple[float, float, float] = (1.0, 0.0, 0.0),
+              scale: float = 1.0) -> Path:
     """``src`` rewritten on a rig whose joints carry their own axes, as the SNU Motion
-    Database's exporter writes: each joint's frame turned so its first child's OFFSET lies
-    along its X axis, every rotation channel changed to match, so the motion is the same
-    and only the all-zero rest pose is no standing body."""
+    Database's exporter writes (``axis`` X) and Berkeley MHAD's (``axis`` Y): each joint's
+    frame turned so its first child's OFFSET lies along ``axis``, every rotation channel
+    changed to match, so the motion is the same and only the all-zero rest pose is no
+    standing body. ``scale`` multiplies every length (OFFSETs, position channels)."""
     f = bvh.parse(src)
     n = len(f.joints)
     kids = [[k for k in range(n) if f.parents[k] == j] for j in range(n)]
@@ -413,18 +415,20 @@ def _own_axes(src: Path, dst: Path) -> Path:
     for j in range(n):
         d = next((f.offsets[k] for k in kids[j] if np.linalg.norm(f.offsets[k]) > 1e-6), None)
         if d is not None and any(c.lower().endswith("rotation") for c in f.channels[j]):
-            turn[j] = Rotation.align_vectors([d], [[1.0, 0.0, 0.0]])[0].as_matrix()
+            turn[j] = Rotation.align_vectors([d], [axis])[0].as_matrix()
     data, col = f.data.copy(), 0
     for j, chans in enumerate(f.channels):
         above = turn[f.parents[j]] if f.parents[j] >= 0 else np.eye(3)
         rot = [col + i for i, c in enumerate(chans) if c.lower().endswith("rotation")]
         order = "".join(c[0].upper() for c in chans if c.lower().endswith("rotation"))
+        pos = [col + i for i, c in enumerate(chans) if c.lower().endswith("position")]
+        data[:, pos] *= scale
         if rot:
             local = Rotation.from_euler(order, data[:, rot], degrees=True).as_matrix()
             data[:, rot] = Rotation.from_matrix(above.T @ local @ turn[j]).as_euler(
                 order, degrees=True)
         col += len(chans)
-    offsets = [f.offsets[j] @ turn[f.parents[j]] if f.parents[j] >= 0 else f.offsets[j]
+    offsets = [scale * (f.offsets[j] @ turn[f.parents[j]] if f.parents[j] >= 0 else f.offsets[j])
                for j in range(n)]
     lines = ["HIERARCHY"]
 
@@ -461,3 +465,18 @@ def test_rig_with_its_own_axes_reads_as_the_same_motion(tmp_path: Path) -> None:
     assert any(q.startswith("rest pose is no standing body") for q in rigged.metadata["quirks"])
     assert not any(q.startswith("rest pose is no standing") or q.startswith("up axis")
                    for q in original.metadata["quirks"])
+
+
+def test_rig_folded_along_y_reads_in_its_own_unit(shared_data: Path, tmp_path: Path) -> None:
+    """A real CMU walk written in centimetres on a rig whose every first-child OFFSET lies
+    along +Y (Berkeley MHAD's skeletons: arms and legs point up beside the head in the
+    all-zero rest, about 1 m tall for a 1.7-m person): its head stands a little over its feet
+    there, so the rest once passed for a standing body and the unit guess read the folded
+    size. The unit now comes from the motion: centimetres, and the original's motion."""
+    src = shared_data / "cmu/bvh/02_01.bvh"
+    original = bvh.read(src)
+    folded = bvh.read(_own_axes(src, tmp_path / "folded.bvh", axis=(0.0, 1.0, 0.0),
+                                scale=CMU_UNIT_M / 0.01))
+    assert folded.metadata["units"] == "cm"
+    assert any(q.startswith("rest pose is no standing body") for q in folded.metadata["quirks"])
+    assert np.abs(folded.positions - original.positions).max() < 1e-4

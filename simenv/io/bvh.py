@@ -421,6 +421,12 @@ def canonical_map(names: list[str]) -> dict[str, str]:
     return cmu_canonical_map(names)
 
 
+#: Least height of the head over the feet in a standing rest pose, as a fraction of the rest
+#: pose's size (:func:`~simenv.io._kinematics.rest_extent`): a standing body's head is about
+#: 0.85 of its height over its ankles; a folded rest (limbs up beside the head) puts them level.
+REST_HEAD_OVER_FEET = 0.4
+
+
 def _head_over_feet(bvh: BvhFile, pos: np.ndarray) -> np.ndarray | None:
     """(T, 3) head minus the ankles' (else toes') midpoint, file units and axes, when the
     names give a head and both ankles or toes (names alone: positions are not needed)."""
@@ -437,15 +443,20 @@ def _posed_if_rest_lies(bvh: BvhFile, quirks: list[str]) -> np.ndarray | None:
     """The (T, J, 3) positions of the motion, file units and axes, when the all-zero rest
     pose is no standing body: its head not above its feet along Y or Z by half their
     distance (a rig whose joints carry their own axes writes every OFFSET along the joint's
-    X: SNU Motion Database). None for a standing rest pose (then the rest pose says the up
-    axis and the size, as before) or when the names give no head and feet."""
+    X: SNU Motion Database), or by less than :data:`REST_HEAD_OVER_FEET` of the rest pose's
+    size (every OFFSET along +Y, arms and legs pointing up beside the head: Berkeley MHAD's
+    skeletons, whose folded rest is about 1 m tall for a 1.7-m person). None for a standing
+    rest pose (then the rest pose says the up axis and the size, as before) or when the
+    names give no head and feet."""
     rest = np.broadcast_to(np.eye(3), (1, len(bvh.joints), 3, 3))
     rest_pos, _ = forward_kinematics(bvh.parents, bvh.offsets, rest)
     v = _head_over_feet(bvh, rest_pos)
     if v is None:
         return None
     v = v[0]
-    if max(v[1], v[2]) > 0.5 * np.linalg.norm(v):
+    rise = max(v[1], v[2])
+    if (rise > 0.5 * np.linalg.norm(v)
+            and rise > REST_HEAD_OVER_FEET * rest_extent(bvh.parents, bvh.offsets)):
         return None
     local, offsets, translations = _local_rotations(bvh, bvh.offsets)
     pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
