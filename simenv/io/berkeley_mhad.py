@@ -93,7 +93,7 @@ def read(
     Args:
         path: a ``skl_s<SS>_a<AA>_r<RR>.bvh`` or ``skl_s<SS>_t-pose.bvh`` file.
         units: the file's length unit; default :data:`MHAD_UNITS` unless ``scale`` is
-            given (not detected: see the comment in the body).
+            given (the release's declared unit).
         scale, up, drop_tpose, fps, end_sites, name, restore_collapsed_bones, joint_map:
             as for :func:`simenv.io.bvh.read`.
 
@@ -111,9 +111,9 @@ def read(
     # Only a file named like the release's (a damaged .bvh reaches this reader too).
     release_units = units is None and scale is None and bool(labels_from_name(path))
     if release_units:
-        # The release is in centimetres. Its rest pose points every bone along its parent's
-        # +Y (legs up), so the BVH reader's size-based detection takes the two shortest
-        # people (s07, s09: 97 and 99 cm rest extent) for inches, 2.5 m tall.
+        # The release is in centimetres: said, not guessed. (Its rest pose folds every limb
+        # up along +Y; the BVH reader measures such a file's unit on the motion, which gives
+        # centimetres too.)
         units = MHAD_UNITS
     motion = bvh.read(path, units=units, scale=scale, up=up, drop_tpose=drop_tpose, fps=fps,
                       end_sites=end_sites, name=name,
