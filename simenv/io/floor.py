@@ -340,13 +340,13 @@ def _raised(m: Motion, dz: float, note: str) -> Motion:
 
 
 def _level_note(plane: FloorPlane, dz: float) -> str:
-    target = "balls' median at the ball height" if plane.keypoint == "toe" else (
-        "ankles' median at the body fit's ankle height")
+    target = "balls' median stands at the ball height" if plane.keypoint == "toe" else (
+        "ankles' median stands at the body fit's ankle height")
     return (f"floor tilted: the still {plane.keypoint} keypoints lie on a plane "
             f"{plane.tilt_deg:.1f} deg from the file's horizontal (residual SD "
             f"{1000 * plane.residual_m:.1f} mm, one foot's contacts over {plane.spread_m:.1f} "
-            f"m); levelled about their centroid and moved {1000 * dz:+.0f} mm to put the planted "
-            f"{target} (simenv.io.floor)")
+            f"m); levelled about their centroid, then raised by {1000 * dz:+.0f} mm so the "
+            f"planted {target} (simenv.io.floor)")
 
 
 def _raise_note(people: list[Motion], dz: float) -> str:
