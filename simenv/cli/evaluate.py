@@ -52,7 +52,8 @@ BENCHMARK_ONLY = {"--members": "members", "--epochs": "epochs",
                   "--covariance": "covariance", "--lie-group": "lie_group",
                   "--mirror-test": "mirror_test"}
 #: ``eval classifier``'s options that only --protocol uses: option -> its dest.
-PROTOCOL_ONLY = {"--msrc12": "msrc12", "--kindergator": "kindergator", "--config": "config",
+PROTOCOL_ONLY = {"--msrc12": "msrc12", "--kindergator": "kindergator", "--mhad": "mhad",
+                 "--config": "config",
                  "--folds": "folds", "--jobs": "jobs", "--cross-only": "cross_only"}
 #: Protocols of ``eval classifier --protocol``.
 PROTOCOLS: tuple[str, ...] = ("cross-dataset",)
@@ -100,6 +101,9 @@ def classifier_parser(prog: str) -> argparse.ArgumentParser:
     proto.add_argument("--kindergator", metavar="DIR", help=(
         "also the Kinder-Gator recordings in DIR (Kinect v1 .csv), as training data of every "
         "network only: never a left-out dataset"))
+    proto.add_argument("--mhad", metavar="DIR", help=(
+        "also the Berkeley MHAD skeletons in DIR (skl_s<SS>_a<AA>_r<RR>.bvh, or a folder "
+        "holding SkeletalData/): a left-out dataset and training data of the others"))
     proto.add_argument("--config", metavar="FILE", help=(
         "TOML or JSON file of RecognitionConfig options for the protocol's networks"))
     proto.add_argument("--folds", type=positive_int, help=(
@@ -212,7 +216,8 @@ def _cross_dataset(args: argparse.Namespace, options: list[str]) -> int:
     config = (RecognitionConfig.from_file(args.config) if args.config
               else RecognitionConfig())
     data = Path(args.data[0]) if args.data else shared_data_root(None) / "gestures"
-    clips = load_corpus(data, msrc12_folder=args.msrc12, kinder_gator_folder=args.kindergator)
+    clips = load_corpus(data, msrc12_folder=args.msrc12, kinder_gator_folder=args.kindergator,
+                        mhad_folder=args.mhad)
     result = run_cross_dataset(clips, config, **({"folds": args.folds} if args.folds else {}),
                                jobs=args.jobs or 1, cross_only=bool(args.cross_only),
                                train_only=(KINDER_GATOR,) if args.kindergator else ())

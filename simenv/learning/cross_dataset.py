@@ -45,6 +45,21 @@ motions each person contributes :data:`KINDER_GATOR_OTHER_SHARE` (every fifth of
 sorted list, shifted by person), so 1000 recordings of ``other`` do not outweigh the rest.
 It is never a left-out test set (``train_only`` of :func:`run_cross_dataset`): 20 people
 of one lab are too few to stand for a dataset's figure beside the four.
+
+Berkeley MHAD (:func:`mhad_clips`, :mod:`simenv.io.berkeley_mhad`) joins the corpus when its
+``SkeletalData`` folder is given: 12 people of one lab, skeletons fitted to optical motion
+capture (480 fps BVH), one recording per action and repetition (up to five). It is both a
+left-out test set (a dataset of its own lab, sensor and labelling) and a training source of
+the networks that leave the other datasets out. Each recording is resampled to the corpus's
+:data:`~simenv.data.gestures.GESTURE_FPS` as it is read (the clip's source motion too: the
+room's agent reads 25 fps). Its actions map to the room vocabulary as
+:data:`MHAD_ROOM_LABELS`: the two waves (both hands; the right hand) are ``wave``, clapping
+``clap``, sit down ``sit_down``, stand up ``stand_up``, bending with the hands down to the
+floor ``bend_down``; jumping in place, jumping jacks, punching, throwing a ball (the room
+vocabulary has no throw: UTKinect's throw is ``other`` too) and the compound "sit down then
+stand up" are ``other``. As for Kinder-Gator, the clip is the recording's moving part and
+its still lead-in and lead-out of at least :data:`~simenv.data.gestures.IDLE_EDGE_MIN_S`
+become ``idle`` clips (after a sit down the person sits still, which is idle too).
 """
 
 from __future__ import annotations
@@ -75,7 +90,7 @@ from simenv.data.gestures import (
     still_mask,
     to_gesture_joints,
 )
-from simenv.io import kinder_gator, msrc12
+from simenv.io import berkeley_mhad, kinder_gator, msrc12
 from simenv.learning.recognition import RecognitionConfig, logits_of, train_recogniser
 from simenv.learning.recognition_protocols import classification_scores, real_windows
 
@@ -103,6 +118,13 @@ KINDER_GATOR_ROOM_LABELS: dict[str, str] = {
 KINDER_GATOR_OTHER_SHARE = 5
 #: Dataset key of Kinder-Gator clips.
 KINDER_GATOR = "kindergator"
+
+#: Dataset key of Berkeley MHAD clips.
+MHAD = "mhad"
+#: Berkeley MHAD action id (1-11, :data:`simenv.io.berkeley_mhad.MHAD_ACTIONS`) -> room
+#: label (module docstring); an id not listed is ``other``.
+MHAD_ROOM_LABELS: dict[int, str] = {3: "bend_down", 5: "wave", 6: "wave", 7: "clap",
+                                    10: "sit_down", 11: "stand_up"}
 
 _PERSON = re.compile(r"_p(\d+)$", re.IGNORECASE)
 
@@ -173,11 +195,32 @@ def msrc12_clips(folder: str | Path, *, per_file: int = MSRC12_PER_FILE,
 
 
 def _gesture_clip(part: Motion, label: str, source_label: str, subject: int,
-                  name: str) -> GestureClip:
-    """A clip of ``part`` (any Kinect v1 motion) on the gesture15 joints at 25 fps."""
+                  name: str, dataset: str = KINDER_GATOR) -> GestureClip:
+    """A clip of ``part`` (any motion with the gesture keypoints) on the gesture15 joints
+    at 25 fps."""
     sub = part.with_positions(to_gesture_joints(part),
                               skeleton=gesture_skeleton()).resample(GESTURE_FPS)
-    return GestureClip(sub.positions, label, source_label, KINDER_GATOR, subject, name, part)
+    return GestureClip(sub.positions, label, source_label, dataset, subject, name, part)
+
+
+def _moving_and_still_edges(m: Motion, label: str, source_label: str, subject: int,
+                            dataset: str) -> list[GestureClip]:
+    """A one-action recording as clips: its moving part (first to last frame not still,
+    :func:`~simenv.data.gestures.still_mask`) labelled ``label``, and its still lead-in and
+    lead-out of at least :data:`~simenv.data.gestures.IDLE_EDGE_MIN_S` as ``idle``; empty
+    when the person never moves."""
+    still = still_mask(to_gesture_joints(m), m.fps) if m.num_frames >= 2 else None
+    moving = np.flatnonzero(~still) if still is not None else np.array([], int)
+    if moving.size < 2:
+        return []
+    lo, hi = int(moving[0]), int(moving[-1]) + 1
+    clips = [_gesture_clip(m.slice(lo, hi), label, source_label, subject, m.name, dataset)]
+    edge = int(np.ceil(IDLE_EDGE_MIN_S * m.fps))
+    for k, (a, b) in enumerate(((0, lo), (hi, m.num_frames))):
+        if b - a >= edge:
+            clips.append(_gesture_clip(m.slice(a, b), IDLE_LABEL, "still lead-in/out",
+                                       subject, f"{m.name}_idle{k}", dataset))
+    return clips
 
 
 def kinder_gator_label(motion: str) -> str:
@@ -222,34 +265,74 @@ def kinder_gator_clips(folder: str | Path, *, report: LoadReport | None = None
         except SimenvError as exc:
             report.skipped.append(f"{path.name}: {exc.detail}")
             continue
-        still = still_mask(to_gesture_joints(m), m.fps) if m.num_frames >= 2 else None
-        moving = np.flatnonzero(~still) if still is not None else np.array([], int)
-        if moving.size < 2:
+        cut = _moving_and_still_edges(m, label, motion, subject, KINDER_GATOR)
+        if not cut:
             report.skipped.append(f"{path.name}: the person never moves")
+        clips += cut
+    return clips
+
+
+def mhad_label(action_id: int) -> str:
+    """Room label of a Berkeley MHAD action id (:data:`MHAD_ROOM_LABELS`)."""
+    return MHAD_ROOM_LABELS.get(int(action_id), "other")
+
+
+def mhad_clips(folder: str | Path, *, report: LoadReport | None = None) -> list[GestureClip]:
+    """Gesture and idle clips of the Berkeley MHAD skeleton files in ``folder`` (module
+    docstring), ``dataset="mhad"``, ``subject`` the person (1-12), ``source_label`` the
+    action's name (:data:`simenv.io.berkeley_mhad.MHAD_ACTIONS`). T-pose files are not
+    read.
+
+    Args:
+        folder: the folder of the ``skl_s<SS>_a<AA>_r<RR>.bvh`` files, or one holding
+            ``SkeletalData/`` (as the dataset unpacks).
+        report: filled with the recordings skipped and why (unreadable, never moving).
+
+    Raises:
+        SimenvError: a folder with no Berkeley MHAD action recording.
+    """
+    folder = Path(folder)
+    if (folder / "SkeletalData").is_dir():
+        folder = folder / "SkeletalData"
+    report = report if report is not None else LoadReport()
+    named = [(p, berkeley_mhad.labels_from_name(p)) for p in sorted(folder.glob("skl_s*.bvh"))]
+    named = [(p, n) for p, n in named if "action_id" in n]
+    if not named:
+        raise SimenvError("no Berkeley MHAD recording here (expected skl_s<SS>_a<AA>_r<RR>.bvh "
+                          "in it or in SkeletalData/ below it)", source=folder, field="mhad")
+    clips: list[GestureClip] = []
+    for path, n in named:
+        try:
+            # 480 fps -> the corpus rate once, so cutting and the room's avatar read 25 fps.
+            m = berkeley_mhad.read(path).resample(GESTURE_FPS)
+        except SimenvError as exc:
+            report.skipped.append(f"{path.name}: {exc.detail}")
             continue
-        lo, hi = int(moving[0]), int(moving[-1]) + 1
-        clips.append(_gesture_clip(m.slice(lo, hi), label, motion, subject, m.name))
-        edge = int(np.ceil(IDLE_EDGE_MIN_S * m.fps))
-        for k, (a, b) in enumerate(((0, lo), (hi, m.num_frames))):
-            if b - a >= edge:
-                clips.append(_gesture_clip(m.slice(a, b), IDLE_LABEL, "still lead-in/out",
-                                           subject, f"{m.name}_idle{k}"))
+        cut = _moving_and_still_edges(m, mhad_label(int(n["action_id"])), str(n["label"]),
+                                      int(n["subject"]), MHAD)
+        if not cut:
+            report.skipped.append(f"{path.name}: the person never moves")
+        clips += cut
     return clips
 
 
 def load_corpus(data: str | Path, *, msrc12_folder: str | Path | None = None,
                 kinder_gator_folder: str | Path | None = None,
+                mhad_folder: str | Path | None = None,
                 report: LoadReport | None = None) -> list[GestureClip]:
     """The protocol's corpus: every clip of the gesture corpus under ``data`` (idle clips
     included) and, with ``msrc12_folder``, the MSRC-12 clips (:func:`msrc12_clips`), with
     ``kinder_gator_folder`` the Kinder-Gator clips (:func:`kinder_gator_clips`; train
-    them only: ``train_only=("kindergator",)`` of :func:`run_cross_dataset`)."""
+    them only: ``train_only=("kindergator",)`` of :func:`run_cross_dataset`), with
+    ``mhad_folder`` the Berkeley MHAD clips (:func:`mhad_clips`)."""
     report = report if report is not None else LoadReport()
     clips = load_gesture_clips(data, idle=True, report=report)
     if msrc12_folder is not None:
         clips += msrc12_clips(msrc12_folder, report=report)
     if kinder_gator_folder is not None:
         clips += kinder_gator_clips(kinder_gator_folder, report=report)
+    if mhad_folder is not None:
+        clips += mhad_clips(mhad_folder, report=report)
     return clips
 
 
@@ -317,8 +400,8 @@ def _task(job: tuple[str, str | int, RecognitionConfig, int]
 
 def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *,
                       folds: int = SUBJECT_FOLDS, jobs: int = 1, progress: bool = True,
-                      train_only: Sequence[str] = (), cross_only: bool = False
-                      ) -> dict[str, Any]:
+                      train_only: Sequence[str] = (), cross_only: bool = False,
+                      left_out: Sequence[str] | None = None) -> dict[str, Any]:
     """The cross-dataset protocol (module docstring) on ``clips``.
 
     Args:
@@ -334,6 +417,9 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
             ``("kindergator",)``).
         cross_only: train the cross-dataset networks only; the ``within_dataset``
             scores are then absent (for exploring options: half the CPU).
+        left_out: the datasets left out in turn (default: every dataset not in
+            ``train_only``); the others still train every network. A dataset's figures do
+            not depend on which others are left out in the same run.
 
     Returns:
         ``labels``, ``datasets`` (per left-out dataset: its training datasets, clip
@@ -346,21 +432,24 @@ def run_cross_dataset(clips: Sequence[GestureClip], config: RecognitionConfig, *
         ``goals``, ``config`` and the CPU s of every network.
 
     Raises:
-        SimenvError: fewer than two datasets to leave out, a ``train_only`` dataset not
-            in the corpus, or a fold without test clips.
+        SimenvError: fewer than two datasets to leave out, a ``train_only`` or
+            ``left_out`` dataset not in the corpus, or a fold without test clips.
     """
     global _CORPUS
     labels = list(GESTURE_LABELS)
     config = replace(config, forecast_prob=0.0)
     present = {c.dataset for c in clips}
-    absent = sorted(set(train_only) - present)
-    if absent:
-        raise SimenvError(f"train_only names {', '.join(absent)}, which the corpus lacks "
-                          f"(its datasets: {', '.join(sorted(present))})", field="train_only")
+    for key, given in (("train_only", train_only), ("left_out", left_out or ())):
+        absent = sorted(set(given) - present)
+        if absent:
+            raise SimenvError(f"{key} names {', '.join(absent)}, which the corpus lacks "
+                              f"(its datasets: {', '.join(sorted(present))})", field=key)
     names = sorted(present - set(train_only))
     if len(names) < 2:
         raise SimenvError(f"the cross-dataset protocol needs at least two datasets to leave "
                           f"out; got {', '.join(names) or 'none'}", field="data")
+    if left_out is not None:
+        names = [n for n in names if n in set(left_out)]
     split = split_subject_folds(clips, folds)
     work = ([("cross", n, config, folds) for n in names]
             + ([] if cross_only else [("within", k, config, folds) for k in range(folds)]))
@@ -451,6 +540,7 @@ def summary_table(result: dict[str, Any]) -> str:
 
 
 __all__ = ["CONDITIONS", "GOALS", "KINDER_GATOR", "KINDER_GATOR_OTHER_SHARE",
-           "KINDER_GATOR_ROOM_LABELS", "MSRC12_PER_FILE", "MSRC12_RESERVED",
-           "MSRC12_ROOM_LABELS", "kinder_gator_clips", "kinder_gator_label", "load_corpus",
-           "msrc12_clips", "run_cross_dataset", "summary_table"]
+           "KINDER_GATOR_ROOM_LABELS", "MHAD", "MHAD_ROOM_LABELS", "MSRC12_PER_FILE",
+           "MSRC12_RESERVED", "MSRC12_ROOM_LABELS", "kinder_gator_clips", "kinder_gator_label",
+           "load_corpus", "mhad_clips", "mhad_label", "msrc12_clips", "run_cross_dataset",
+           "summary_table"]
