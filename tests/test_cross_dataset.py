@@ -1,27 +1,33 @@
 """The cross-dataset protocol on a small real subset of the shared corpus (one-epoch networks:
 the test checks what the protocol computes and writes, not how well it recognises), and the
 MSRC-12 clips, cut from a real UTKinect session written in the MSRC-12 layout (MSRC-12's own
-files are not redistributable here: tests/data/msrc12/SOURCES.md)."""
+files are not redistributable here: tests/data/msrc12/SOURCES.md), and the Berkeley MHAD clips,
+cut from a real CMU BVH written as an MHAD file (nor are MHAD's: tests/data/berkeley_mhad/
+SOURCES.md; the released files are read when ``SIMENV_BERKELEY_MHAD`` names a folder of them)."""
 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+from test_io_berkeley_mhad import CMU_WALK, _in_cm
 from test_io_kinder_gator import utk_session, write_kinder_gator
 
 from simenv.cli import main as cli
 from simenv.core.errors import SimenvError
 from simenv.data.gestures import GESTURE_FPS, LoadReport, still_mask
-from simenv.io import msrc12, utkinect
+from simenv.io import berkeley_mhad, msrc12, utkinect
 from simenv.learning.cross_dataset import (
     KINDER_GATOR_ROOM_LABELS,
     MSRC12_AFTER_S,
     MSRC12_BEFORE_S,
     kinder_gator_clips,
     kinder_gator_label,
+    mhad_clips,
+    mhad_label,
     msrc12_clips,
     run_cross_dataset,
 )
@@ -92,6 +98,9 @@ def test_cross_dataset_command(gesture_root: Path, tmp_path: Path,
     with pytest.raises(SystemExit):
         cli.main(["eval", "classifier", "--kindergator", str(tmp_path), "--cross-only"])
     assert "--kindergator, --cross-only: only with --protocol" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["eval", "classifier", "--mhad", str(tmp_path)])
+    assert "--mhad: only with --protocol" in capsys.readouterr().err
     out = tmp_path / "out"
     assert cli.main(["eval", "classifier", "--protocol", "cross-dataset", "--data", str(data),
                      "--config", str(config), "--folds", "2", "--out", str(out)]) == 0
@@ -169,3 +178,92 @@ def test_train_only_datasets_must_be_in_the_corpus(gesture_root: Path, tmp_path:
         run_cross_dataset(clips, RecognitionConfig(epochs=1), train_only=("kindergator",))
     with pytest.raises(SimenvError, match="at least two datasets to leave out"):
         run_cross_dataset(clips, RecognitionConfig(epochs=1))
+    with pytest.raises(SimenvError, match="left_out names mhad"):
+        run_cross_dataset(clips, RecognitionConfig(epochs=1), left_out=("mhad",))
+
+
+def test_mhad_room_labels() -> None:
+    by_name = {name: mhad_label(k) for k, name in enumerate(berkeley_mhad.MHAD_ACTIONS, 1)}
+    assert by_name == {
+        "jumping in place": "other", "jumping jacks": "other",
+        "bending (hands up all the way down)": "bend_down", "punching (boxing)": "other",
+        "waving (two hands)": "wave", "waving (one hand, right)": "wave",
+        "clapping hands": "clap", "throwing a ball": "other",  # no throw in the vocabulary
+        "sit down then stand up": "other", "sit down": "sit_down", "stand up": "stand_up"}
+
+
+def _still_padded(bvh_cm: Path, seconds: float) -> int:
+    """Hold the first and the last pose of a BVH ``seconds`` before and after its motion
+    (a still lead-in and lead-out, as MHAD's recordings have); returns the frames added at
+    each end."""
+    lines = bvh_cm.read_text().splitlines()
+    top = next(i for i, line in enumerate(lines) if line.strip().upper().startswith("FRAME TIME"))
+    fps = 1.0 / float(lines[top].split(":")[1])
+    frames = [line for line in lines[top + 1:] if line.strip()]
+    n = int(round(seconds * fps))
+    lines[top - 1] = f"Frames: {len(frames) + 2 * n}"
+    bvh_cm.write_text("\n".join(lines[:top + 1] + [frames[0]] * n + frames
+                                + [frames[-1]] * n) + "\n")
+    return n
+
+
+def test_mhad_clips_cut_the_moving_part(shared_data: Path, tmp_path: Path) -> None:
+    folder = tmp_path / "BerkeleyMHAD" / "SkeletalData"
+    folder.mkdir(parents=True)
+    src = shared_data / CMU_WALK  # a real walk; the file names give MHAD's labels
+    for name in ("skl_s03_a06_r01", "skl_s07_a08_r02", "skl_s07_t-pose", "skl_s03_a12_r01"):
+        _in_cm(src, folder / f"{name}.bvh")
+    _still_padded(folder / "skl_s03_a06_r01.bvh", 1.0)
+    walk = berkeley_mhad.read(folder / "skl_s07_a08_r02.bvh")
+    report = LoadReport()
+    clips = mhad_clips(tmp_path / "BerkeleyMHAD", report=report)  # finds SkeletalData/
+    assert report.skipped == []  # the T-pose and the unknown action 12 are not read
+    assert {c.dataset for c in clips} == {"mhad"}
+    moving = sorted((c for c in clips if c.label != "idle"), key=lambda c: c.subject)
+    assert [(c.subject, c.source_label, c.label) for c in moving] == [
+        (3, "waving (one hand, right)", "wave"), (7, "throwing a ball", "other")]
+    for c in moving:
+        assert c.source is not None and c.source.fps == GESTURE_FPS  # read at the room's rate
+        still = still_mask(c.positions, GESTURE_FPS)
+        assert not still[0] and not still[-1] and c.positions.shape[1:] == (15, 3)
+        # The walk moves throughout: the moving part holds it, and at most the still test's
+        # 0.4-s moving average (10 frames) of the still edges.
+        walk_frames = walk.num_frames / walk.fps * GESTURE_FPS
+        assert walk_frames - 1 <= c.num_frames <= walk_frames + 0.4 * GESTURE_FPS + 1
+    idle = [c for c in clips if c.label == "idle"]
+    # Only the padded recording has still edges: 1 s each, less what the speed's 0.4-s
+    # moving average smears into them.
+    assert sorted(c.name for c in idle) == ["skl_s03_a06_r01_idle0", "skl_s03_a06_r01_idle1"]
+    for c in idle:
+        assert c.subject == 3 and 0.7 * GESTURE_FPS <= c.num_frames <= 1.0 * GESTURE_FPS + 1
+    with pytest.raises(SimenvError, match="no Berkeley MHAD recording"):
+        mhad_clips(tmp_path)
+
+
+def _released_mhad() -> list[Path]:
+    """One released file per action present in ``SIMENV_BERKELEY_MHAD`` (the first)."""
+    folder = Path(os.environ.get("SIMENV_BERKELEY_MHAD", "/nonexistent"))
+    first: dict[int, Path] = {}
+    for path in sorted(folder.glob("skl_s*_a*_r*.bvh")):
+        labels = berkeley_mhad.labels_from_name(path)
+        if "action_id" in labels:
+            first.setdefault(int(labels["action_id"]), path)
+    return list(first.values())
+
+
+@pytest.mark.skipif(not _released_mhad(),
+                    reason="set SIMENV_BERKELEY_MHAD to a folder of released skl_*.bvh files")
+def test_mhad_released_files(tmp_path: Path) -> None:
+    for path in _released_mhad():
+        (tmp_path / path.name).symlink_to(path)
+    clips = mhad_clips(tmp_path)
+    for path in _released_mhad():
+        recording = berkeley_mhad.read(path)
+        label = mhad_label(int(berkeley_mhad.labels_from_name(path)["action_id"]))
+        mine = [c for c in clips if c.name.startswith(path.stem)]
+        moving = [c for c in mine if c.label != "idle"]
+        assert [c.label for c in moving] == [label], path.name
+        # The action is at least half a second and no longer than its recording.
+        seconds = moving[0].num_frames / GESTURE_FPS
+        assert 0.5 <= seconds <= recording.num_frames / recording.fps + 0.04, path.name
+        assert all(c.num_frames >= 0.5 * GESTURE_FPS - 1 for c in mine if c.label == "idle")
