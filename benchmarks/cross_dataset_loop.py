@@ -3,7 +3,8 @@
 ``train [--datasets D ...]``: for each left-out dataset D of the cross-dataset corpus
 (:func:`simenv.learning.cross_dataset.load_corpus`: the gesture corpus and, with
 ``--msrc12``, MSRC-12 without person p06; with ``--kindergator``, Kinder-Gator, which
-trains every network and is never left out), one network trained on every clip of the other
+trains every network and is never left out; with ``--mhad``, Berkeley MHAD, left out in
+turn as the others), one network trained on every clip of the other
 datasets with the shipped ensemble members' options (``--config``, default the
 ``stream_s0`` options of ``benchmarks/loop_variants.py``; ``forecast_prob`` 0: no
 forecaster here was trained without D), saved as ``OUT/<D>.npz`` with its readings
@@ -86,7 +87,7 @@ def _corpus(args: argparse.Namespace) -> list[GestureClip]:
     if cache.is_file():
         return pickle.load(cache.open("rb"))
     clips = load_corpus(shared_data_root(None) / "gestures", msrc12_folder=args.msrc12,
-                        kinder_gator_folder=args.kindergator)
+                        kinder_gator_folder=args.kindergator, mhad_folder=args.mhad)
     cache.parent.mkdir(parents=True, exist_ok=True)
     pickle.dump(clips, cache.open("wb"))
     return clips
@@ -367,6 +368,7 @@ def main() -> None:
     parser.add_argument("--out", default="out/cross-dataset-loop")
     parser.add_argument("--msrc12", help="MSRC-12 folder (p06 never read)")
     parser.add_argument("--kindergator", help="Kinder-Gator folder (trains, never left out)")
+    parser.add_argument("--mhad", help="Berkeley MHAD SkeletalData folder (a left-out dataset)")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("train")
     p.add_argument("--datasets", nargs="*")
