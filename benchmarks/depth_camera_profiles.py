@@ -91,7 +91,13 @@ from simenv.plausibility import kinematic_metrics
 from simenv.plausibility.body_thresholds import DEFAULT_BODY_THRESHOLDS, SOURCE_BODY_THRESHOLDS
 from simenv.plausibility.corrupt import CORRUPTIONS, MIN_FRAMES, STRETCH_BONES
 from simenv.plausibility.metrics.bone_length import bone_deviations, measured_bones
-from simenv.plausibility.profiles import PROFILE_FILE, Profile, at_profile_rate, detect_source
+from simenv.plausibility.profiles import (
+    PROFILE_FILE,
+    Profile,
+    at_profile_rate,
+    detect_source,
+    for_clip,
+)
 from simenv.plausibility.thresholds import DEFAULT_THRESHOLDS, Thresholds
 
 REPO = Path(__file__).resolve().parents[1]
@@ -356,7 +362,8 @@ def failed(m: Motion, profile: Profile | None, sensor: dict[str, float] | None =
     """Joint-level metrics ``m`` fails under ``profile`` (None: the mocap defaults): by
     their thresholds or by the sensor check (limits ``sensor``; None: none) that joins
     them."""
-    m = at_profile_rate(m, profile)  # as simenv.score judges it
+    profile = for_clip(profile, m)  # as simenv.score judges it: a rigid file's bones stay
+    m = at_profile_rate(m, profile)
     out = [n for n, r in kinematic_metrics(m, _thresholds(profile)).items()
            if r.passed is False]
     return out + [n for n in sensor_failures(m, sensor) if n not in out]
