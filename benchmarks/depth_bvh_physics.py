@@ -167,6 +167,8 @@ def levelling_row(path: Path, max_seconds: float) -> dict[str, Any]:
         camera_frame.IN_PLACE_SPREAD_M = -1.0 if label == "old" else saved
         try:
             clip = load(path)
+        except SimenvError as exc:
+            return row | {"error": str(exc), "error_type": type(exc).__name__}
         finally:
             camera_frame.IN_PLACE_SPREAD_M = saved
         assert isinstance(clip, Motion)
@@ -245,6 +247,9 @@ def main() -> None:
             row = levelling_row(path, args.max_seconds)
             with rows_path.open("a") as fh:
                 fh.write(json.dumps(row, default=str) + "\n")
+            if "error" in row:
+                print(f"{row['file']}: {row['error_type']} {row['error'][:120]}", flush=True)
+                continue
             print(f"{row['file']}: " + "; ".join(
                 f"{k} tilt {row[k]['tilt_deg']:.1f} neck {row[k]['neck_fwd_m']:+.3f} com "
                 f"{row[k]['com_fwd_m']:+.3f} {row[k]['verdict']} {list(row[k]['failing'])}"
