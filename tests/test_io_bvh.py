@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from simenv.core.errors import FormatError, SimenvError, UnitsError
 from simenv.io import bvh
-from simenv.io._kinematics import CMU_UNIT_M, forward_kinematics
+from simenv.io._kinematics import CMU_UNIT_M, forward_kinematics, is_tpose_frame0
 
 BVH_FILES = sorted(str(p.relative_to(SHARED_DATA)) for p in SHARED_DATA.glob("cmu/**/*.bvh"))
 
@@ -401,20 +401,24 @@ def test_z_up_file_detected_from_its_rest_pose() -> None:
     assert lying.height() < 0.6 * motion.height()
 
 
-def _own_axes(src: Path, dst: Path, axis: tuple[float, float, float] = (1.0, 0.0, 0.0),
-              scale: float = 1.0) -> Path:
+def _own_axes(src: Path, dst: Path, axis: tuple[float, float, float] | None = (1.0, 0.0, 0.0),
+              scale: float = 1.0, turn_all: np.ndarray | None = None) -> Path:
     """``src`` rewritten on a rig whose joints carry their own axes, as the SNU Motion
     Database's exporter writes (``axis`` X) and Berkeley MHAD's (``axis`` Y): each joint's
     frame turned so its first child's OFFSET lies along ``axis``, every rotation channel
     changed to match, so the motion is the same and only the all-zero rest pose is no
-    standing body. ``scale`` multiplies every length (OFFSETs, position channels)."""
+    standing body. ``turn_all`` instead turns every joint's frame by one rotation (the rest
+    pose turned as a whole, the root's rotation turning every frame back). ``scale``
+    multiplies every length (OFFSETs, position channels)."""
     f = bvh.parse(src)
     n = len(f.joints)
     kids = [[k for k in range(n) if f.parents[k] == j] for j in range(n)]
     turn = [np.eye(3) for _ in range(n)]
     for j in range(n):
         d = next((f.offsets[k] for k in kids[j] if np.linalg.norm(f.offsets[k]) > 1e-6), None)
-        if d is not None and any(c.lower().endswith("rotation") for c in f.channels[j]):
+        if turn_all is not None:
+            turn[j] = turn_all
+        elif d is not None and any(c.lower().endswith("rotation") for c in f.channels[j]):
             turn[j] = Rotation.align_vectors([d], [axis])[0].as_matrix()
     data, col = f.data.copy(), 0
     for j, chans in enumerate(f.channels):
@@ -480,3 +484,44 @@ def test_rig_folded_along_y_reads_in_its_own_unit(shared_data: Path, tmp_path: P
     assert folded.metadata["units"] == "cm"
     assert any(q.startswith("rest pose is no standing body") for q in folded.metadata["quirks"])
     assert np.abs(folded.positions - original.positions).max() < 1e-4
+
+
+def test_rest_along_z_stood_up_along_y_by_the_root_reads_y_up(shared_data: Path,
+                                                                tmp_path: Path) -> None:
+    """A real CMU walk whose rest pose is turned to stand along Z while the root's rotation
+    stands every frame back up along Y (a Shadow-suit export's layout): the rest pose says Z,
+    the motion Y, and the motion wins, noted; the original motion to float precision. A Z-up
+    file whose motion stands along Z (test_z_up_file_detected_from_its_rest_pose) keeps Z."""
+    src = shared_data / "cmu/bvh/02_01.bvh"
+    original = bvh.read(src)
+    y_to_z = Rotation.from_euler("x", 90.0, degrees=True).as_matrix()  # +Y -> +Z
+    turned = bvh.read(_own_axes(src, tmp_path / "turned.bvh", axis=None, turn_all=y_to_z.T))
+    assert turned.metadata["up_axis_in_file"] == "Y"
+    assert any(q.startswith("up axis Y from the motion") for q in turned.metadata["quirks"])
+    assert not any(q.startswith("up axis Z: the rest") for q in turned.metadata["quirks"])
+    assert np.abs(turned.positions - original.positions).max() < 1e-4
+    assert bvh.read(tmp_path / "turned.bvh", up="z").metadata["up_axis_in_file"] == "Z"
+
+
+def test_tpose_before_a_nearly_still_clip(shared_data: Path) -> None:
+    """A T-pose frame before a person standing nearly still (a real CMU walk's first steps
+    slowed 50 times after its first real step: a median step of a fraction of a millimetre,
+    the first real step many times that) is found; a fast start whose next step is as large
+    as its first is not."""
+    walk = bvh.read(shared_data / "cmu/bvh/02_01.bvh")
+    p = walk.positions.astype(np.float64)
+    f = bvh.parse(shared_data / "cmu/bvh/02_01.bvh")
+    rest_pos, _ = forward_kinematics(f.parents, f.offsets,
+                                     np.broadcast_to(np.eye(3), (1, len(f.joints), 3, 3)))
+    keep = [f.joints.index(n) for n in walk.skeleton.joint_names]
+    rest = CMU_UNIT_M * rest_pos[:, keep][..., [0, 2, 1]] * [1.0, -1.0, 1.0]  # Y up -> Z up
+    rest += p[:1, :1] - rest[:, :1]  # the T-pose where the walk starts
+    t = np.linspace(1.0, 12.0, 551)
+    slow = np.stack([np.interp(t, np.arange(len(p)), p[:, j, k])
+                     for j in range(p.shape[1]) for k in range(3)], axis=-1)
+    slow = slow.reshape(len(t), p.shape[1], 3)
+    clip = np.concatenate([rest, p[:1], slow])
+    found, note = is_tpose_frame0(clip)
+    assert found, note
+    fast = np.concatenate([rest, 0.5 * (rest + p[:1]), p[:1], slow])
+    assert not is_tpose_frame0(fast)[0]

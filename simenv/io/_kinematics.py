@@ -306,8 +306,11 @@ def is_tpose_frame0(positions: np.ndarray) -> tuple[bool, str]:
     Frame 0 counts as a prepended pose when its jump to frame 1 exceeds
     :data:`TPOSE_MIN_JUMP_M` and :data:`TPOSE_JUMP_RATIO` times the clip's
     median step, while the next step (frame 1 to 2) is ordinary (below
-    :data:`TPOSE_NEXT_RATIO` times the median): an isolated discontinuity,
-    not a fast start (the salsa clips blend in over 4 frames).
+    :data:`TPOSE_NEXT_RATIO` times the median, or below the jump over
+    :data:`TPOSE_JUMP_RATIO`: a clip that stands nearly still has a median step
+    of a tenth of a millimetre, against which a few millimetres of ordinary
+    motion look large): an isolated discontinuity, not a fast start (the salsa
+    clips blend in over 4 frames, each step as large as the first).
 
     Returns:
         (decision, note with the measured numbers).
@@ -320,7 +323,7 @@ def is_tpose_frame0(positions: np.ndarray) -> tuple[bool, str]:
     found = (
         jump > TPOSE_MIN_JUMP_M
         and ratio > TPOSE_JUMP_RATIO
-        and nxt < TPOSE_NEXT_RATIO * max(typical, 1e-6)
+        and nxt < max(TPOSE_NEXT_RATIO * max(typical, 1e-6), jump / TPOSE_JUMP_RATIO)
     )
     note = (
         f"frame 0->1 mean joint jump {jump * 100:.1f} cm, frame 1->2 {nxt * 100:.2f} cm, "

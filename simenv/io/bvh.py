@@ -506,6 +506,30 @@ def _detect_up(bvh: BvhFile, quirks: list[str]) -> str:
     return "y"
 
 
+def _up_checked_on_motion(bvh: BvhFile, pos: np.ndarray, up: str, quirks: list[str]) -> str:
+    """``up`` (from the rest pose, :func:`_detect_up`) unless the motion stands along the
+    other axis: the median over frames of the head over the feet (``pos``, file units and
+    axes) rises along it by more than half its length and along ``up`` by less. A root
+    rotation can stand a rest pose up along another axis on every frame (a Shadow-suit
+    export: rest along Z, every frame along Y); the motion is what is judged. A clip that
+    stands along neither (lying, crawling) keeps the rest pose's axis."""
+    v = _head_over_feet(bvh, pos)
+    if v is None:
+        return up
+    m = np.median(v, axis=0)
+    half = 0.5 * float(np.linalg.norm(m))
+    axis = {"y": 1, "z": 2}
+    other = "y" if up == "z" else "z"
+    if m[axis[other]] <= half or m[axis[up]] > half:
+        return up
+    quirks[:] = [q for q in quirks if not q.startswith("up axis Z: the rest pose")]
+    quirks.append(f"up axis {other.upper()} from the motion: the rest pose stands along "
+                  f"{up.upper()}, but the root's rotation stands every frame up along "
+                  f"{other.upper()} (median head over feet {m[axis[other]]:.3g} file units; "
+                  f"read with up='{up}' to override)")
+    return other
+
+
 def _joint_map(bvh: BvhFile, pos: np.ndarray, joint_map: JointMapSource | None, path: Path
                ) -> tuple[dict[str, str], JointMapping | None]:
     """The canonical map of every joint of the file (End Sites included, as
@@ -771,6 +795,7 @@ def _to_motion(
     quirks: list[str] = []
     height = rest_extent(bvh.parents, bvh.offsets)
     posed = _posed_if_rest_lies(bvh, quirks)
+    rest_up = up is None and posed is None
     if up is None:
         up = _detect_up(bvh, quirks) if posed is None else _up_from_motion(bvh, posed)
     unit_name, s, reason, unit_quirks = (
@@ -785,6 +810,8 @@ def _to_motion(
         quirks += skipped
     local, offsets, translations = _local_rotations(bvh, file_offsets)
     pos, _ = forward_kinematics(bvh.parents, offsets, local, translations)
+    if rest_up:
+        up = _up_checked_on_motion(bvh, pos, up, quirks)
     pos, local, offsets_m = to_z_up_metres(pos, local, file_offsets, up, s)
 
     all_canon, mapping = _joint_map(bvh, pos, joint_map, path)
