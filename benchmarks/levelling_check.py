@@ -86,10 +86,10 @@ def as_openni(m: Motion) -> np.ndarray:
 def in_place_windows(p: np.ndarray, fps: float) -> Iterator[tuple[int, np.ndarray]]:
     """(start frame, window) of ``p`` (T, J, 3) whose ankles' midpoint stays in place."""
     n, s = int(WINDOW_S * fps), int(STRIDE_S * fps)
-    ankles = cf._indices(OPENNI, ["left_ankle", "right_ankle"])
+    ankles = cf.keypoint_indices(OPENNI, ["left_ankle", "right_ankle"])
     for start in range(0, len(p) - n + 1, s):
         w = p[start:start + n]
-        if max(cf._spread(w[:, ankles, :2].mean(axis=1))) <= cf.IN_PLACE_SPREAD_M:
+        if max(cf.principal_spread(w[:, ankles, :2].mean(axis=1))) <= cf.IN_PLACE_SPREAD_M:
             yield start, w
 
 
@@ -99,7 +99,7 @@ def forward_offsets(w: np.ndarray, sk: Skeleton, fps: float) -> dict[str, float]
     com = cf.centre_of_mass(w, sk)
     if com is None or cf.standing_up(w, sk) is None:
         return None
-    feet = cf._indices(sk, ["left_ankle", "right_ankle"])
+    feet = cf.keypoint_indices(sk, ["left_ankle", "right_ankle"])
     support = w[:, feet].mean(axis=1)
     left = w[:, sk.index(sk.canonical["left_hip"])] - w[:, sk.index(sk.canonical["right_hip"])]
     fwd = np.cross(left, [0.0, 0.0, 1.0])

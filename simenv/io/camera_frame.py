@@ -194,7 +194,9 @@ class FloorEstimate:
         }
 
 
-def _indices(skeleton: Skeleton, keys: Sequence[str]) -> list[int]:
+def keypoint_indices(skeleton: Skeleton, keys: Sequence[str]) -> list[int]:
+    """Joint indices of the canonical keypoints ``keys`` that ``skeleton`` maps (the others
+    are skipped)."""
     return [skeleton.index(skeleton.canonical[k]) for k in keys if k in skeleton.canonical]
 
 
@@ -214,14 +216,14 @@ def _body_axis_votes(p: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     """(N, 3) unit 'up' votes from shanks and trunk, in the permuted frame."""
     votes = []
     for side in ("left", "right"):
-        pair = _indices(skeleton, [f"{side}_ankle", f"{side}_knee"])
+        pair = keypoint_indices(skeleton, [f"{side}_ankle", f"{side}_knee"])
         if len(pair) == 2:
             votes.append(p[:, pair[1]] - p[:, pair[0]])
-    hips = _indices(skeleton, ["left_hip", "right_hip"])
+    hips = keypoint_indices(skeleton, ["left_hip", "right_hip"])
     low = p[:, hips].mean(axis=1) if len(hips) == 2 else None
     if low is None and "pelvis" in skeleton.canonical:
         low = p[:, skeleton.index(skeleton.canonical["pelvis"])]
-    top = _indices(skeleton, ["neck"]) or _indices(skeleton, ["head"])
+    top = keypoint_indices(skeleton, ["neck"]) or keypoint_indices(skeleton, ["head"])
     if low is not None and top:
         votes.append(p[:, top[0]] - low)
     if not votes:
@@ -247,7 +249,7 @@ def _keypoint(p: np.ndarray, skeleton: Skeleton, key: str) -> np.ndarray | None:
     """(T, 3) positions of canonical ``key`` (``hips``: the hips' midpoint, else the
     pelvis), or None when the skeleton lacks it."""
     if key == "hips":
-        hips = _indices(skeleton, ["left_hip", "right_hip"])
+        hips = keypoint_indices(skeleton, ["left_hip", "right_hip"])
         if len(hips) == 2:
             return p[:, hips].mean(axis=1)
         key = "pelvis"
@@ -312,8 +314,8 @@ def standing_up(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray | None:
     com = centre_of_mass(p, skeleton)
     if com is None:
         return None
-    ankles = _indices(skeleton, ["left_ankle", "right_ankle"])
-    if max(_spread(p[:, ankles, :2].mean(axis=1))) > IN_PLACE_SPREAD_M:
+    ankles = keypoint_indices(skeleton, ["left_ankle", "right_ankle"])
+    if max(principal_spread(p[:, ankles, :2].mean(axis=1))) > IN_PLACE_SPREAD_M:
         return None
     standing = np.ones(len(p), dtype=bool)
     for side in ("left", "right"):
@@ -451,7 +453,7 @@ def estimate_floor(
             source=source,
         )
     q = pts[keep] @ _rotation_to_z(n_cur).T
-    spread = _spread(q[:, :2])
+    spread = principal_spread(q[:, :2])
     rms = float(np.sqrt(np.mean((q[:, 2] - floor_level) ** 2)))
     return FloorEstimate(
         rotation=level @ KINECT_TO_ZUP,
@@ -503,7 +505,7 @@ def _prepared(positions: np.ndarray, skeleton: Skeleton, source: str | None
     return p, skeleton, feet, np.asarray(clearance)
 
 
-def _spread(xy: np.ndarray) -> tuple[float, float]:
+def principal_spread(xy: np.ndarray) -> tuple[float, float]:
     """5-95 % extent (m) of (N, 2) floor points along their two principal axes."""
     centred = xy - xy.mean(axis=0)
     if len(centred) < 2:
