@@ -345,7 +345,7 @@ def _samples(
 
     A person in place (:func:`standing_up`) votes with the vertical their centre of mass
     over their feet gives; everyone else with their body axis (median of the shank and
-    trunk directions). With nobody in place the prior is the body axis of all, as before."""
+    trunk directions). With nobody in place the prior is the body axis of all."""
     floor_pts, votes, standing = [], [], []
     for p, skeleton, feet, clearance in people:
         votes.append(_body_axis_votes(p, skeleton))
